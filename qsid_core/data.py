@@ -1,0 +1,120 @@
+"""Training data: random-input trajectories of the true system (the letter's Section V).
+
+``trajectories`` runs of ``steps`` steps; x0 ~ U[-1, 1]^n and u_t ~ U[-1, 1]^m i.i.d.
+(defaults 200 x 1000, as in the letter).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DataOverflowError, check_int
+from .systems import LTISystem
+
+__all__ = ["Dataset", "simulate", "OVERFLOW_LIMIT"]
+
+#: States whose magnitude exceeds this are treated as overflow (an unstable A).
+OVERFLOW_LIMIT = 1e12
+
+
+@dataclass(frozen=True, eq=False)
+class Dataset:
+    """Unquantized training data.
+
+    Attributes
+    ----------
+    states : ndarray, shape (trajectories, steps + 1, n)
+        ``x_0 .. x_steps`` of every run.
+    inputs : ndarray, shape (trajectories, steps, m)
+        ``u_0 .. u_{steps-1}`` of every run.
+    seed : int or None
+        The seed it was drawn with.
+    """
+
+    states: np.ndarray
+    inputs: np.ndarray
+    seed: int | None = None
+
+    @property
+    def trajectories(self) -> int:
+        return self.states.shape[0]
+
+    @property
+    def steps(self) -> int:
+        return self.inputs.shape[1]
+
+    @property
+    def n(self) -> int:
+        return self.states.shape[2]
+
+    @property
+    def m(self) -> int:
+        return self.inputs.shape[2]
+
+    @property
+    def T(self) -> int:
+        """Number of regression samples (columns of Psi): trajectories * steps."""
+        return self.trajectories * self.steps
+
+    def matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(Psi, X+)`` of the letter's eq. (4), shapes (n+m, T) and (n, T)."""
+        X = self.states[:, :-1, :].reshape(-1, self.n)
+        Xp = self.states[:, 1:, :].reshape(-1, self.n)
+        U = self.inputs.reshape(-1, self.m)
+        return np.hstack([X, U]).T, Xp.T
+
+
+def simulate(system: LTISystem, trajectories: int = 200, steps: int = 1000, seed: int | None = 0) -> Dataset:
+    """Simulate ``trajectories`` runs of ``x+ = A x + B u`` with uniform random x0 and inputs.
+
+    Parameters
+    ----------
+    system : LTISystem
+        The true plant.
+    trajectories : int, >= 1
+        Number of independent runs.
+    steps : int, >= 1
+        Steps per run; each run contributes ``steps`` regression samples.
+    seed : int or None
+        Seed of ``numpy.random.default_rng``.
+
+    Raises
+    ------
+    ConfigError
+        If sizes are not positive integers, or there are fewer samples than
+        unknowns per row (n + m).
+    DataOverflowError
+        If a state exceeds :data:`OVERFLOW_LIMIT` (unstable A with long runs).
+    """
+    trajectories = check_int("trajectories", trajectories, 1, 100_000)
+    steps = check_int("steps", steps, 1, 1_000_000)
+    n, m = system.n, system.m
+    if trajectories * steps < n + m:
+        from .errors import ConfigError
+
+        raise ConfigError(
+            f"trajectories*steps = {trajectories * steps} samples cannot identify {n}+{m} unknowns per row; "
+            f"use at least {n + m} samples"
+        )
+    rng = np.random.default_rng(seed)
+    states = np.empty((trajectories, steps + 1, n))
+    inputs = rng.uniform(-1.0, 1.0, size=(trajectories, steps, m))
+    states[:, 0, :] = rng.uniform(-1.0, 1.0, size=(trajectories, n))
+    AT, BT = system.A.T, system.B.T
+    Bu = inputs @ BT  # (traj, steps, n)
+    x = states[:, 0, :]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps):
+            x = x @ AT + Bu[:, t, :]
+            states[:, t + 1, :] = x
+            if t % 64 == 63 or t == steps - 1:
+                peak = np.abs(x).max()
+                if not np.isfinite(peak) or peak > OVERFLOW_LIMIT:
+                    rho = float(np.abs(np.linalg.eigvals(system.A)).max())
+                    raise DataOverflowError(
+                        f"simulated states exceed {OVERFLOW_LIMIT:.0e} at step {t + 1} of {steps} "
+                        f"(spectral radius of A is {rho:.3g} > 1); use fewer steps or a stable A"
+                    )
+    return Dataset(states, inputs, seed)

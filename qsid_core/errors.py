@@ -1,0 +1,74 @@
+"""Exceptions raised by the engine.
+
+Every error a user can cause is a :class:`ValueError` subclass whose message
+says what was wrong and what is allowed, so front ends can show it as one line.
+"""
+
+from __future__ import annotations
+
+__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "check_choice", "check_int", "check_float"]
+
+
+class QsidError(ValueError):
+    """Base class of every user-facing error of :mod:`qsid_core`."""
+
+
+class ConfigError(QsidError):
+    """A configuration value is out of its allowed range or of the wrong kind."""
+
+
+class SystemDefinitionError(QsidError):
+    """A system definition (A, B, x0, Q, R) is malformed."""
+
+
+class DataOverflowError(QsidError):
+    """Simulated data left the floating-point range (an unstable system)."""
+
+
+def check_choice(name: str, value: str, allowed: tuple[str, ...]) -> str:
+    """Return ``value`` if it is one of ``allowed``, else raise :class:`ConfigError`."""
+    if value not in allowed:
+        raise ConfigError(f"{name} must be one of {', '.join(repr(a) for a in allowed)}; got {value!r}")
+    return value
+
+
+def check_int(name: str, value: object, lo: int, hi: int | None = None) -> int:
+    """Return ``value`` as int if it is an integer in ``[lo, hi]``, else raise :class:`ConfigError`."""
+    if isinstance(value, bool) or not isinstance(value, (int,)) and not (
+        hasattr(value, "__index__") and not isinstance(value, float)
+    ):
+        raise ConfigError(f"{name} must be an integer; got {value!r}")
+    v = int(value)  # type: ignore[arg-type]
+    if v < lo or (hi is not None and v > hi):
+        rng = f">= {lo}" if hi is None else f"between {lo} and {hi}"
+        raise ConfigError(f"{name} must be {rng}; got {v}")
+    return v
+
+
+def check_float(
+    name: str,
+    value: object,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> float:
+    """Return ``value`` as a finite float inside the given bounds, else raise :class:`ConfigError`."""
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a number; got {value!r}") from None
+    if v != v or v in (float("inf"), float("-inf")):
+        raise ConfigError(f"{name} must be finite; got {value!r}")
+    bad = (
+        (lo is not None and (v < lo or (lo_open and v == lo)))
+        or (hi is not None and (v > hi or (hi_open and v == hi)))
+    )
+    if bad:
+        left = "(" if lo_open else "["
+        right = ")" if hi_open else "]"
+        lo_s = "-inf" if lo is None else f"{lo:g}"
+        hi_s = "inf" if hi is None else f"{hi:g}"
+        raise ConfigError(f"{name} must be in {left}{lo_s}, {hi_s}{right}; got {v:g}")
+    return v

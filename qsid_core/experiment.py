@@ -1,0 +1,574 @@
+"""Sweeps over the word length b: identification, theory and MPC, with dither realizations.
+
+For each b, ``realizations`` independent dither realizations quantize the *same*
+unquantized data. Realization ``r`` draws its dither from stream ``r`` of
+``SeedSequence(dither_seed).spawn(realizations)``, and the same unit draws are
+reused for every b (common random numbers: smooth curves, fair comparison
+between word lengths).
+
+Independent work is mapped through a :class:`concurrent.futures.Executor`
+(default: in-process), so a ``ProcessPoolExecutor`` or a dask.distributed
+client's executor can run big sweeps.
+
+Stages are separate so front ends can cache them: :class:`Experiment` keeps the
+data, the normalised data and the identified models, and recomputes only what
+a change of settings touches.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import Executor, Future
+from dataclasses import dataclass, field
+from typing import Callable, MutableMapping
+
+import numpy as np
+
+from .data import Dataset, simulate
+from .errors import ConfigError, check_choice, check_float, check_int
+from .identify import ESTIMATORS, identify, relative_errors
+from .moments import Moments, PreparedData, prepare, quantized_moments
+from .mpc import ClosedLoops, MPCConfig, MPCFailure, dare_stabilizing, run_closed_loops
+from .quantize import MAX_BITS, QuantizerSpec
+from .systems import LTISystem, get_system
+from .theory import riccati_finite, theorem1_prediction, ultimate_bound
+
+__all__ = [
+    "SweepConfig",
+    "InlineExecutor",
+    "BitsIdentification",
+    "TheoryAtBits",
+    "Experiment",
+    "SweepResult",
+    "run_sweep",
+    "parse_bits",
+    "fit_slope",
+    "summary_row",
+]
+
+Progress = Callable[[int, int, str], None]
+
+
+def parse_bits(spec: str | int | list | tuple) -> tuple[int, ...]:
+    """Word lengths from ``"2:12"`` (inclusive), ``"2,4,6"``, ``"8"``, an int, or a list.
+
+    Raises
+    ------
+    ConfigError
+        If the text is not of one of those forms or a b is outside 1..32.
+    """
+    if isinstance(spec, (list, tuple)):
+        vals = [check_int("bits", v, 1, MAX_BITS) for v in spec]
+    elif isinstance(spec, int) and not isinstance(spec, bool):
+        vals = [check_int("bits", spec, 1, MAX_BITS)]
+    else:
+        s = str(spec).strip()
+        try:
+            if ":" in s:
+                a, b = s.split(":")
+                lo, hi = int(a), int(b)
+                if hi < lo:
+                    raise ConfigError(f"bits range {s!r} is empty (end {hi} < start {lo})")
+                vals = list(range(lo, hi + 1))
+            else:
+                vals = [int(v) for v in s.split(",") if v.strip()]
+        except ValueError:
+            raise ConfigError(f"bits must look like '2:12', '2,4,6' or '8'; got {s!r}") from None
+        if not vals:
+            raise ConfigError(f"bits must look like '2:12', '2,4,6' or '8'; got {s!r}")
+        vals = [check_int("bits", v, 1, MAX_BITS) for v in vals]
+    out = tuple(sorted(set(vals)))
+    if not out:
+        raise ConfigError("bits: give at least one word length")
+    return out
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """Everything a sweep depends on.
+
+    Parameters
+    ----------
+    system : str or LTISystem
+        Preset name (``"dc-motor"``, ``"boeing747"``), path to a .toml/.json file, or a system.
+    bits : tuple of int
+        Word lengths to sweep (1..32); strings like ``"2:12"`` are parsed.
+    realizations : int, 1..10000
+        Dither realizations per b (default 50).
+    trajectories, steps : int
+        Data size (defaults 200 x 1000, the letter's).
+    data_seed, dither_seed : int
+        Seeds of the data and of the dither streams.
+    quantizer : QuantizerSpec
+        Dither, range mode and guard band.
+    estimator : {"ls", "bcls"}
+    mpc : MPCConfig or None
+        None skips the closed loops (identification and theory only).
+    theta, rho : float
+        Parameters of the ultimate bound (see :func:`qsid_core.theory.ultimate_bound`);
+        ``rho=None`` picks the documented default.
+    """
+
+    system: str | LTISystem = "dc-motor"
+    bits: tuple = tuple(range(1, 17))
+    realizations: int = 50
+    trajectories: int = 200
+    steps: int = 1000
+    data_seed: int = 0
+    dither_seed: int = 1
+    quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
+    estimator: str = "ls"
+    mpc: MPCConfig | None = field(default_factory=MPCConfig)
+    theta: float = 0.5
+    rho: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "bits", parse_bits(self.bits))
+        check_int("realizations", self.realizations, 1, 10000)
+        check_int("trajectories", self.trajectories, 1, 100_000)
+        check_int("steps", self.steps, 1, 1_000_000)
+        check_int("data seed", self.data_seed, 0)
+        check_int("dither seed", self.dither_seed, 0)
+        check_choice("estimator", self.estimator, ESTIMATORS)
+        check_float("theta", self.theta, 0.0, 1.0, lo_open=True, hi_open=True)
+        if self.rho is not None:
+            check_float("rho", self.rho, 0.0, lo_open=True)
+        if not isinstance(self.quantizer, QuantizerSpec):
+            raise ConfigError("quantizer must be a QuantizerSpec")
+
+
+class InlineExecutor(Executor):
+    """A ``concurrent.futures.Executor`` that runs each task at once in the calling thread."""
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:  # type: ignore[override]
+        fut: Future = Future()
+        try:
+            fut.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # delivered through the future, as a pool would
+            fut.set_exception(exc)
+        return fut
+
+
+def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list) -> list[list[Moments]]:
+    """Quantized moments for a chunk of realizations (module level: picklable for process pools)."""
+    out = []
+    for ss in seeds:
+        rng = np.random.default_rng(ss) if spec.dither == "subtractive" else None
+        out.append(quantized_moments(prep, list(bits), spec, rng))
+    return out
+
+
+def _loops_task(models, A, B, cfg: MPCConfig, system: LTISystem) -> ClosedLoops:
+    return run_closed_loops(models, A, B, cfg, system)
+
+
+@dataclass
+class BitsIdentification:
+    """Identification at one word length over all realizations.
+
+    Attributes
+    ----------
+    bits : int
+    eps : ndarray, shape (n+m,)
+        Cell width per channel (states, then inputs).
+    A_hat : ndarray, shape (R, n, n)
+    B_hat : ndarray, shape (R, n, m)
+    err_A, err_B : ndarray, shape (R,)
+        Relative Frobenius errors.
+    overload : ndarray, shape (R,)
+        Overload fraction per realization.
+    fallback : ndarray of bool, shape (R,)
+        BCLS fell back to LS.
+    notes : list of str
+        Distinct fallback explanations.
+    """
+
+    bits: int
+    eps: np.ndarray
+    A_hat: np.ndarray
+    B_hat: np.ndarray
+    err_A: np.ndarray
+    err_B: np.ndarray
+    overload: np.ndarray
+    fallback: np.ndarray
+    notes: list
+
+    @property
+    def models(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        return list(zip(self.A_hat, self.B_hat))
+
+    @property
+    def eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of each A^, shape (R, n) complex."""
+        return np.linalg.eigvals(self.A_hat)
+
+
+@dataclass
+class TheoryAtBits:
+    """Theorem 1 prediction and ultimate bound at one word length."""
+
+    bits: int
+    G_pred: np.ndarray
+    err_A: float
+    err_B: float
+    delta: float
+    bound_note: str = ""
+
+
+class Experiment:
+    """Staged, cached computation for one system and data set.
+
+    Parameters
+    ----------
+    config : SweepConfig
+    executor : concurrent.futures.Executor, optional
+        Runs independent tasks (default: :class:`InlineExecutor`).
+    tasks : int
+        Number of chunks the realizations are split into for the executor.
+    cache : MutableMapping, optional
+        Where stage results are kept (default: a private dict). Pass one shared,
+        bounded mapping to let several experiments (browser tabs) share results.
+
+    Notes
+    -----
+    Every expensive product is cached by the settings it depends on:
+    the data by (trajectories, steps, data seed); the normalised data by the
+    quantizer range; moments by (b, dither, dither seed, realizations); models by
+    the estimator. :meth:`with_config` returns an experiment for new settings
+    that shares every cache entry still valid.
+    """
+
+    def __init__(
+        self,
+        config: SweepConfig,
+        executor: Executor | None = None,
+        tasks: int = 4,
+        cache: MutableMapping | None = None,
+    ):
+        self.config = config
+        self.system = get_system(config.system)
+        self.executor = executor or InlineExecutor()
+        self.tasks = check_int("tasks", tasks, 1, 1024)
+        # keys start with the system's matrices, so one mapping can serve many experiments
+        self._cache: MutableMapping = {} if cache is None else cache
+
+    # ----- caching ----------------------------------------------------------------------
+    def with_config(self, config: SweepConfig) -> "Experiment":
+        """An experiment for ``config`` that reuses this one's still-valid cache entries."""
+        return Experiment(config, self.executor, self.tasks, self._cache)
+
+    def _key_data(self):
+        c, s = self.config, self.system
+        sysk = (s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(), s.x0.tobytes(), s.Q.tobytes(), s.R.tobytes())
+        return sysk + (c.trajectories, c.steps, c.data_seed)
+
+    def _key_prep(self):
+        q = self.config.quantizer
+        return self._key_data() + (q.range_mode, q.guard, q.fixed_range)
+
+    def _key_mom(self, b):
+        c, q = self.config, self.config.quantizer
+        return self._key_prep() + (b, q.dither, c.dither_seed, c.realizations)
+
+    @property
+    def data(self) -> Dataset:
+        """The unquantized data set (simulated once)."""
+        k = ("data",) + self._key_data()
+        if k not in self._cache:
+            c = self.config
+            self._cache[k] = simulate(self.system, c.trajectories, c.steps, c.data_seed)
+        return self._cache[k]
+
+    @property
+    def prepared(self) -> PreparedData:
+        """The data normalised to the quantizer ranges."""
+        k = ("prep",) + self._key_prep()
+        if k not in self._cache:
+            self._cache[k] = prepare(self.data, self.config.quantizer)
+        return self._cache[k]
+
+    @property
+    def Sigma(self) -> np.ndarray:
+        """``Psi_uqz Psi_uqz^T / T`` of the unquantized data."""
+        ex = self.prepared.exact
+        return ex.PP / ex.T
+
+    # ----- identification --------------------------------------------------------------
+    def moments(self, bits, progress: Progress | None = None) -> dict[int, list[Moments]]:
+        """Quantized Gram matrices per b and realization (computes only what is not cached)."""
+        bits = parse_bits(bits)
+        todo = tuple(b for b in bits if ("mom",) + self._key_mom(b) not in self._cache)
+        if todo:
+            c = self.config
+            prep = self.prepared
+            seeds = np.random.SeedSequence(c.dither_seed).spawn(c.realizations)
+            nt = min(self.tasks, c.realizations)
+            size = math.ceil(c.realizations / nt)
+            chunks = [seeds[i : i + size] for i in range(0, c.realizations, size)]
+            futs = [self.executor.submit(_moments_task, prep, todo, c.quantizer, ch) for ch in chunks]
+            per_real: list[list[Moments]] = []
+            for i, f in enumerate(futs):
+                per_real.extend(f.result())
+                if progress:
+                    progress(i + 1, len(futs), "quantize + identify")
+            for j, b in enumerate(todo):
+                self._cache[("mom",) + self._key_mom(b)] = [pr[j] for pr in per_real]
+        return {b: self._cache[("mom",) + self._key_mom(b)] for b in bits}
+
+    def identification(self, b: int, estimator: str | None = None) -> BitsIdentification:
+        """Identified models at word length ``b`` for every realization."""
+        est = estimator or self.config.estimator
+        check_choice("estimator", est, ESTIMATORS)
+        k = ("ident", est) + self._key_mom(b)
+        if k not in self._cache:
+            moms = self.moments([b])[b]
+            sysA, sysB = self.system.A, self.system.B
+            ids = [identify(mo, est) for mo in moms]
+            A_hat = np.stack([i.A for i in ids])
+            B_hat = np.stack([i.B for i in ids])
+            errs = np.array([relative_errors(i.A, i.B, sysA, sysB) for i in ids])
+            self._cache[k] = BitsIdentification(
+                bits=b, eps=moms[0].eps, A_hat=A_hat, B_hat=B_hat, err_A=errs[:, 0], err_B=errs[:, 1],
+                overload=np.array([mo.overload_fraction for mo in moms]),
+                fallback=np.array([i.fallback for i in ids]), notes=sorted({i.note for i in ids if i.note}),
+            )
+        return self._cache[k]
+
+    # ----- theory ----------------------------------------------------------------------
+    def theory(self, b: int) -> TheoryAtBits:
+        """Theorem 1 prediction and the ultimate bound delta(eps) at word length ``b``."""
+        c = self.config
+        mcfg = c.mpc or MPCConfig()
+        k = ("theory", b, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0) + self._key_prep()
+        if k in self._cache:
+            return self._cache[k]
+        from .quantize import effective_ranges
+
+        prep = self.prepared
+        _, eps = effective_ranges(prep.lo, prep.hi, b, c.quantizer.guard)
+        sysm = self.system
+        n = sysm.n
+        Gp = theorem1_prediction(sysm.G, self.Sigma, eps)
+        eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], sysm.A, sysm.B)
+        w = mcfg.resolve(sysm)
+        note = ""
+        try:
+            Qf = w["Qf"] if w["Qf"] is not None else dare_stabilizing(Gp[:, :n], Gp[:, n:], w["Q"], w["R"])
+            P = riccati_finite(Gp[:, :n], Gp[:, n:], w["Q"], w["R"], Qf, mcfg.horizon)
+            ub = ultimate_bound(P, w["Q"], w["R"], sysm.A - Gp[:, :n], sysm.B - Gp[:, n:],
+                                theta=c.theta, rho=c.rho, x0=w["x0"])
+            delta = ub.delta
+        except MPCFailure as exc:
+            delta, note = float("inf"), str(exc)
+        except ConfigError as exc:
+            delta, note = float("nan"), str(exc)
+        res = TheoryAtBits(b, Gp, eA, eB, delta, note)
+        self._cache[k] = res
+        return res
+
+    # ----- MPC -------------------------------------------------------------------------
+    def closed_loops(self, b: int, estimator: str | None = None) -> ClosedLoops:
+        """Closed loops on the true system of the MPC built on each realization's model at ``b``."""
+        cfg = self.config.mpc
+        if cfg is None:
+            raise ConfigError("this experiment has MPC switched off (mpc=None)")
+        est = estimator or self.config.estimator
+        k = ("loops", est, cfg) + self._key_mom(b)
+        if k not in self._cache:
+            ident = self.identification(b, est)
+            self._cache[k] = run_closed_loops(ident.models, self.system.A, self.system.B, cfg, self.system)
+        return self._cache[k]
+
+    def closed_loops_many(self, bits, estimator: str | None = None, progress: Progress | None = None) -> dict:
+        """:meth:`closed_loops` for several b, mapped through the executor."""
+        cfg = self.config.mpc
+        if cfg is None:
+            raise ConfigError("this experiment has MPC switched off (mpc=None)")
+        est = estimator or self.config.estimator
+        bits = parse_bits(bits)
+        keys = {b: ("loops", est, cfg) + self._key_mom(b) for b in bits}
+        todo = [b for b in bits if keys[b] not in self._cache]
+        futs = {
+            b: self.executor.submit(_loops_task, self.identification(b, est).models, self.system.A, self.system.B,
+                                    cfg, self.system)
+            for b in todo
+        }
+        for i, (b, f) in enumerate(futs.items()):
+            self._cache[keys[b]] = f.result()
+            if progress:
+                progress(i + 1, len(futs), "MPC closed loops")
+        return {b: self._cache[keys[b]] for b in bits}
+
+    def true_model_loop(self) -> ClosedLoops:
+        """The MPC built on the true (A, B): the reference every quantized model is compared to."""
+        cfg = self.config.mpc
+        if cfg is None:
+            raise ConfigError("this experiment has MPC switched off (mpc=None)")
+        k = ("true-loop", cfg) + self._key_data()[:7]
+        if k not in self._cache:
+            self._cache[k] = run_closed_loops([(self.system.A, self.system.B)], self.system.A, self.system.B, cfg,
+                                              self.system)
+        return self._cache[k]
+
+
+def fit_slope(bits, values) -> float:
+    """Least-squares slope of ``log10(values)`` against ``bits`` (NaN if fewer than 2 usable points)."""
+    b = np.asarray(bits, dtype=float)
+    v = np.asarray(values, dtype=float)
+    ok = np.isfinite(v) & (v > 0)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(b[ok], np.log10(v[ok]), 1)[0])
+
+
+def _stats(x: np.ndarray) -> dict:
+    x = np.asarray(x, dtype=float)
+    ok = x[np.isfinite(x)]
+    return {"mean": float(ok.mean()) if ok.size else None, "std": float(ok.std()) if ok.size else None}
+
+
+def _num(x: float):
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: ClosedLoops | None) -> dict:
+    """JSON-ready summary of one word length: errors (mean/std), theory, overload, MPC cost, bound.
+
+    Parameters
+    ----------
+    n : int
+        Number of states (splits eps into states and inputs).
+    ident, th, lp
+        Results of :meth:`Experiment.identification`, :meth:`Experiment.theory` and
+        :meth:`Experiment.closed_loops` (``lp`` may be None when MPC is off).
+    """
+    row = {
+        "bits": ident.bits,
+        "eps_x": ident.eps[:n].tolist(),
+        "eps_u": ident.eps[n:].tolist(),
+        "err_A": _stats(ident.err_A),
+        "err_B": _stats(ident.err_B),
+        "err_A_theory": _num(th.err_A),
+        "err_B_theory": _num(th.err_B),
+        "overload_fraction": float(ident.overload.mean()),
+        "bcls_fallbacks": int(ident.fallback.sum()),
+        "ultimate_bound": _num(th.delta),
+    }
+    if lp is not None:
+        failed = lp.failed
+        fsn = lp.final_state_norm[~failed]
+        kinds: dict = {}
+        for f in lp.failure:
+            if f:
+                kinds[f] = kinds.get(f, 0) + 1
+        row["mpc_cost"] = {**_stats(lp.cost), "failed": int(failed.sum()), "failures": kinds}
+        row["final_state_norm"] = {
+            "mean": float(fsn.mean()) if fsn.size else None,
+            "max": float(fsn.max()) if fsn.size else None,
+        }
+        row["osqp_steps"] = lp.osqp_steps
+    else:
+        row["mpc_cost"] = None
+        row["final_state_norm"] = None
+    return row
+
+
+@dataclass
+class SweepResult:
+    """A finished sweep: per-b summaries plus per-realization arrays.
+
+    Attributes
+    ----------
+    config : SweepConfig
+    bits : tuple of int
+    identification : dict b -> BitsIdentification
+    theory : dict b -> TheoryAtBits
+    loops : dict b -> ClosedLoops (empty when MPC is off)
+    true_loop : ClosedLoops or None
+    slope_A, slope_B : float
+        LS slope of log10(mean relative error) against b.
+    timing_s : dict
+        Wall-clock seconds per stage.
+    """
+
+    config: SweepConfig
+    system: LTISystem
+    bits: tuple
+    identification: dict
+    theory: dict
+    loops: dict
+    true_loop: ClosedLoops | None
+    slope_A: float
+    slope_B: float
+    timing_s: dict
+
+    def summary(self, b: int) -> dict:
+        """The JSON-ready summary at word length ``b`` (the CLI's ``results`` entries)."""
+        return summary_row(self.system.n, self.identification[b], self.theory[b], self.loops.get(b))
+
+    def to_dict(self) -> dict:
+        """The whole sweep as plain JSON-ready data."""
+        c = self.config
+        q = c.quantizer
+        return {
+            "system": self.system.name,
+            "config": {
+                "bits": list(self.bits), "realizations": c.realizations, "trajectories": c.trajectories,
+                "steps": c.steps, "data_seed": c.data_seed, "dither_seed": c.dither_seed, "dither": q.dither,
+                "range": q.range_mode, "guard": q.guard, "estimator": c.estimator,
+                "mpc": None if c.mpc is None else {
+                    "horizon": c.mpc.horizon, "steps": c.mpc.steps, "u_max": list(c.mpc.u_max),
+                },
+                "theta": c.theta, "rho": c.rho,
+            },
+            "results": [self.summary(b) for b in self.bits],
+            "mpc_cost_true_model": None if self.true_loop is None else _num(self.true_loop.cost[0]),
+            "slope_A": _num(self.slope_A),
+            "slope_B": _num(self.slope_B),
+            "timing_s": self.timing_s,
+        }
+
+
+def run_sweep(
+    config: SweepConfig,
+    executor: Executor | None = None,
+    progress: Progress | None = None,
+    experiment: Experiment | None = None,
+) -> SweepResult:
+    """Run a whole sweep over ``config.bits``.
+
+    Parameters
+    ----------
+    config : SweepConfig
+    executor : Executor, optional
+        Where independent tasks run (default in-process).
+    progress : callable(done, total, stage), optional
+        Called as work completes (the engine never prints).
+    experiment : Experiment, optional
+        Reuse its caches (e.g. a dashboard session).
+    """
+    t0 = time.perf_counter()
+    ex = experiment.with_config(config) if experiment is not None else Experiment(config, executor)
+    if executor is not None:
+        ex.executor = executor
+    _ = ex.prepared
+    t1 = time.perf_counter()
+    ex.moments(config.bits, progress)
+    idents = {b: ex.identification(b) for b in config.bits}
+    t2 = time.perf_counter()
+    theory = {b: ex.theory(b) for b in config.bits}
+    t3 = time.perf_counter()
+    loops: dict = {}
+    true_loop = None
+    if config.mpc is not None:
+        loops = ex.closed_loops_many(config.bits, progress=progress)
+        true_loop = ex.true_model_loop()
+    t4 = time.perf_counter()
+    sA = fit_slope(config.bits, [np.mean(idents[b].err_A) for b in config.bits])
+    sB = fit_slope(config.bits, [np.mean(idents[b].err_B) for b in config.bits])
+    timing = {
+        "data": round(t1 - t0, 4), "identify": round(t2 - t1, 4), "theory": round(t3 - t2, 4),
+        "mpc": round(t4 - t3, 4), "total": round(time.perf_counter() - t0, 4),
+    }
+    return SweepResult(config, ex.system, config.bits, idents, theory, loops, true_loop, sA, sB, timing)

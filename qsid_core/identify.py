@@ -1,0 +1,120 @@
+"""Least-squares identification of [A, B] and its bias-compensated variant.
+
+Least squares (letter, eq. (3) and its closed form (5))::
+
+    G = [A^, B^] = X+ Psi^T (Psi Psi^T)^-1
+
+Bias-compensated least squares (BCLS): Theorem 1 shows the LS bias comes from
+``E[Psi~ Psi~^T] = Psi Psi^T + T D`` with ``D = diag(eps_i**2 / 12)``, which the
+subtractive dither makes *known*. BCLS uses ``Psi~ Psi~^T - T D`` in place of
+``Psi~ Psi~^T``. The noise of ``X~+`` is independent of that of ``Psi~`` (other
+samples, other dither draws), so ``X~+ Psi~^T`` needs no correction. When the
+corrected matrix is not positive definite (quantization noise comparable to the
+signal) BCLS is meaningless; :func:`identify` then falls back to plain LS and
+says so in :attr:`Identified.note`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .errors import check_choice
+from .moments import Moments
+
+__all__ = ["ESTIMATORS", "Identified", "identify", "least_squares", "relative_errors"]
+
+ESTIMATORS = ("ls", "bcls")
+
+
+@dataclass
+class Identified:
+    """An identified model.
+
+    Attributes
+    ----------
+    A : ndarray, shape (n, n)
+    B : ndarray, shape (n, m)
+    estimator : str
+        The estimator actually used (``"ls"`` after a BCLS fallback).
+    fallback : bool
+        True if BCLS was asked for but its corrected Gram matrix was not
+        positive definite, so LS was used.
+    note : str
+        Plain-words explanation of a fallback (empty otherwise).
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    estimator: str
+    fallback: bool = False
+    note: str = ""
+
+    @property
+    def G(self) -> np.ndarray:
+        return np.hstack([self.A, self.B])
+
+
+def _solve_spd(PP: np.ndarray, XP: np.ndarray) -> np.ndarray | None:
+    """``XP PP^-1`` via Cholesky with diagonal scaling; None if PP is not positive definite."""
+    d = np.sqrt(np.clip(np.diag(PP), 1e-300, None))
+    S = PP / np.outer(d, d)
+    try:
+        c = sla.cho_factor(S, lower=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        return None
+    if np.min(np.abs(np.diag(c[0]))) < 1e-7:
+        return None
+    G = sla.cho_solve(c, (XP / d[None, :]).T, check_finite=False).T
+    return G / d[None, :]
+
+
+def least_squares(PP: np.ndarray, XP: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``[A^, B^] = XP PP^-1`` split into ``(A^, B^)``.
+
+    Raises
+    ------
+    ValueError
+        If ``PP`` is singular (data not rich enough: Psi must have full row rank).
+    """
+    G = _solve_spd(PP, XP)
+    if G is None:
+        raise ValueError("Psi Psi^T is singular: the data are not rich enough to identify A and B")
+    return G[:, :n], G[:, n:]
+
+
+def identify(mom: Moments, estimator: str = "ls") -> Identified:
+    """Identify ``(A^, B^)`` from Gram matrices of (quantized) data.
+
+    Parameters
+    ----------
+    mom : Moments
+        ``PP = Psi Psi^T`` (p x p), ``XP = X+ Psi^T`` (n x p), ``T`` and ``eps``.
+    estimator : {"ls", "bcls"}
+        Plain least squares or bias-compensated least squares.
+    """
+    check_choice("estimator", estimator, ESTIMATORS)
+    n = mom.XP.shape[0]
+    if estimator == "bcls":
+        D = mom.T * np.asarray(mom.eps, dtype=float) ** 2 / 12.0
+        G = _solve_spd(mom.PP - np.diag(D), mom.XP)
+        if G is not None:
+            return Identified(G[:, :n], G[:, n:], "bcls")
+        A, B = least_squares(mom.PP, mom.XP, n)
+        return Identified(
+            A, B, "ls", fallback=True,
+            note="bias compensation impossible: Psi Psi^T - T*diag(eps^2/12) is not positive definite "
+            "(quantization noise comparable to the signal); plain LS used",
+        )
+    A, B = least_squares(mom.PP, mom.XP, n)
+    return Identified(A, B, "ls")
+
+
+def relative_errors(A_hat: np.ndarray, B_hat: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
+    """``(||A - A^||_F / ||A||_F, ||B - B^||_F / ||B||_F)``."""
+    return (
+        float(np.linalg.norm(A - A_hat) / np.linalg.norm(A)),
+        float(np.linalg.norm(B - B_hat) / np.linalg.norm(B)),
+    )

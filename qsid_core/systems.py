@@ -1,0 +1,375 @@
+"""Reference systems and custom system files.
+
+A :class:`LTISystem` is the *true* discrete-time plant ``x+ = A x + B u`` together
+with the letter's default regulation task (initial state ``x0`` and the MPC
+weights ``Q`` and ``R``).
+
+Presets
+-------
+``dc-motor``
+    DC motor with load, the letter's printed discrete matrices (eq. "DC Motor
+    with Load", Section V-A). They are the zero-order-hold discretisation of the
+    physical model with J=0.01, c=0.1, K=0.01, Ke=0.01, r=1, L=0.5 at a sample
+    time of **1 s**, rounded to three decimals -- although the letter also says
+    "1000 sampling periods (i.e., 10 seconds per trajectory)", the printed
+    matrices are those of 1 s sampling (see :func:`dc_motor_physical`, which
+    reproduces them to the printed digits).
+``boeing747``
+    Boeing 747 longitudinal dynamics at 40 000 ft and 774 ft/s, sampled at 1 s
+    (Section V-B, after Goel and Hassibi).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .errors import SystemDefinitionError
+
+__all__ = [
+    "LTISystem",
+    "UncontrollableWarning",
+    "PRESETS",
+    "dc_motor",
+    "dc_motor_physical",
+    "boeing747",
+    "get_system",
+    "load_system",
+    "system_from_dict",
+    "parse_matrix",
+]
+
+
+class UncontrollableWarning(UserWarning):
+    """(A, B) is not controllable: identification works, MPC may not regulate."""
+
+
+def _as_matrix(name: str, value: Any, shape: tuple[int | None, int | None]) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise SystemDefinitionError(f"{name} must be a matrix of numbers; got {value!r}") from None
+    if arr.ndim == 1 and shape[1] == 1:
+        arr = arr.reshape(-1, 1)
+    if arr.ndim != 2:
+        raise SystemDefinitionError(f"{name} must be a 2-D matrix (list of rows); got {arr.ndim}-D")
+    for axis, want in enumerate(shape):
+        if want is not None and arr.shape[axis] != want:
+            raise SystemDefinitionError(
+                f"{name} must have shape {tuple(s if s is not None else '*' for s in shape)}; got {arr.shape}"
+            )
+    if arr.size == 0:
+        raise SystemDefinitionError(f"{name} must not be empty")
+    if not np.all(np.isfinite(arr)):
+        raise SystemDefinitionError(f"{name} must contain only finite numbers")
+    return arr
+
+
+def _weight(name: str, value: Any, k: int) -> np.ndarray:
+    """A weight matrix: a k x k matrix, or a length-k vector meaning its diagonal."""
+    arr = np.array(value, dtype=float) if value is not None else None
+    if arr is None:
+        raise SystemDefinitionError(f"{name} is missing")
+    if arr.ndim == 1:
+        if arr.shape[0] != k:
+            raise SystemDefinitionError(f"{name} as a diagonal must have {k} entries; got {arr.shape[0]}")
+        arr = np.diag(arr)
+    arr = _as_matrix(name, arr, (k, k))
+    if not np.allclose(arr, arr.T, atol=1e-12):
+        raise SystemDefinitionError(f"{name} must be symmetric")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class LTISystem:
+    """A true discrete-time LTI plant and its default regulation task.
+
+    Parameters
+    ----------
+    name : str
+        Short identifier (``"dc-motor"``, ``"boeing747"`` or a file stem).
+    A : ndarray, shape (n, n)
+        State matrix of ``x+ = A x + B u``.
+    B : ndarray, shape (n, m)
+        Input matrix.
+    x0 : ndarray, shape (n,)
+        Initial state of the MPC regulation task (default: first unit vector).
+    Q : ndarray, shape (n, n)
+        State weight, symmetric positive semidefinite (default: identity).
+    R : ndarray, shape (m, m)
+        Input weight, symmetric positive definite (default: identity).
+    dt : float
+        Sample time in seconds (informative).
+    description : str
+        One line for listings.
+
+    Raises
+    ------
+    SystemDefinitionError
+        If shapes disagree or entries are not finite, or Q/R are not PSD/PD.
+
+    Warns
+    -----
+    UncontrollableWarning
+        If ``rank ctrb(A, B) < n``.
+    """
+
+    name: str
+    A: np.ndarray
+    B: np.ndarray
+    x0: np.ndarray | None = None
+    Q: np.ndarray | None = None
+    R: np.ndarray | None = None
+    dt: float = 1.0
+    description: str = ""
+    state_names: tuple[str, ...] = field(default=())
+    input_names: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        A = _as_matrix("A", self.A, (None, None))
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise SystemDefinitionError(f"A must be square; got shape {A.shape}")
+        B = _as_matrix("B", self.B, (n, None))
+        m = B.shape[1]
+        x0 = np.eye(n)[0] if self.x0 is None else np.array(self.x0, dtype=float).reshape(-1)
+        if x0.shape != (n,) or not np.all(np.isfinite(x0)):
+            raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {self.x0!r}")
+        Q = np.eye(n) if self.Q is None else _weight("Q", self.Q, n)
+        R = np.eye(m) if self.R is None else _weight("R", self.R, m)
+        if np.linalg.eigvalsh(Q).min() < -1e-12:
+            raise SystemDefinitionError("Q must be positive semidefinite")
+        if np.linalg.eigvalsh(R).min() <= 0:
+            raise SystemDefinitionError("R must be positive definite")
+        for arr in (A, B, x0, Q, R):
+            arr.setflags(write=False)
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "B", B)
+        object.__setattr__(self, "x0", x0)
+        object.__setattr__(self, "Q", Q)
+        object.__setattr__(self, "R", R)
+        names = tuple(self.state_names) or tuple(f"x{i + 1}" for i in range(n))
+        inames = tuple(self.input_names) or tuple(f"u{i + 1}" for i in range(m))
+        if len(names) != n or len(inames) != m:
+            raise SystemDefinitionError(f"state_names must have {n} and input_names {m} entries")
+        object.__setattr__(self, "state_names", names)
+        object.__setattr__(self, "input_names", inames)
+        if not self.controllable:
+            warnings.warn(
+                f"system {self.name!r}: (A, B) is not controllable (rank of the controllability "
+                f"matrix {self.controllability_rank} < n = {n}); MPC may fail to regulate",
+                UncontrollableWarning,
+                stacklevel=3,
+            )
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return self.A.shape[0]
+
+    @property
+    def m(self) -> int:
+        """Number of inputs."""
+        return self.B.shape[1]
+
+    @property
+    def G(self) -> np.ndarray:
+        """``[A, B]``, shape (n, n+m)."""
+        return np.hstack([self.A, self.B])
+
+    @property
+    def controllability_rank(self) -> int:
+        """Rank of python-control's ``ctrb(A, B)``."""
+        import control
+
+        C = control.ctrb(self.A, self.B)
+        return int(np.linalg.matrix_rank(C, tol=1e-9 * max(1.0, np.abs(C).max())))
+
+    @property
+    def controllable(self) -> bool:
+        """True if ``rank ctrb(A, B) == n`` (Assumption 1 of the letter)."""
+        return self.controllability_rank == self.n
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready description (what :func:`system_from_dict` reads back)."""
+        return {
+            "name": self.name,
+            "A": self.A.tolist(),
+            "B": self.B.tolist(),
+            "x0": self.x0.tolist(),
+            "Q": self.Q.tolist(),
+            "R": self.R.tolist(),
+            "dt": self.dt,
+        }
+
+
+def dc_motor() -> LTISystem:
+    """The letter's DC motor with load (3 states, 2 inputs), printed matrices, 1 s sampling.
+
+    States: shaft angle, shaft speed, armature current; inputs: voltage, load torque.
+    Defaults from the letter: x0 = [1, 0, 0], Q = diag(1, 0.1, 0.1), R = diag(1, 1).
+    """
+    A = [[1.000, 0.099, 0.041], [0.0, 0.0, 0.016], [0.0, 0.0, 0.135]]
+    B = [[0.048, 8.996], [0.083, 9.991], [0.864, -0.083]]
+    return LTISystem(
+        "dc-motor", A, B, x0=[1.0, 0.0, 0.0], Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=1.0,
+        description="DC motor with load, 3 states, 2 inputs (letter's printed A, B at 1 s)",
+        state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),
+    )
+
+
+def dc_motor_physical(
+    dt: float = 1.0,
+    *,
+    J: float = 0.01,
+    c: float = 0.1,
+    K: float = 0.01,
+    Ke: float = 0.01,
+    r: float = 1.0,
+    L: float = 0.5,
+) -> LTISystem:
+    """DC motor with load from its physical parameters, zero-order hold at ``dt`` seconds.
+
+    Continuous model (letter, eq. "Motor"): x1' = x2, x2' = (K x3 - c x2 + u2)/J,
+    x3' = (u1 - r x3 - Ke x2)/L. Discretised with python-control's ``c2d``.
+    With the defaults it reproduces the printed matrices of :func:`dc_motor`
+    to their three decimals.
+    """
+    import control
+
+    for nm, v in dict(dt=dt, J=J, L=L).items():
+        if not (np.isfinite(v) and v > 0):
+            raise SystemDefinitionError(f"{nm} must be a positive number; got {v!r}")
+    Ac = np.array([[0.0, 1.0, 0.0], [0.0, -c / J, K / J], [0.0, -Ke / L, -r / L]])
+    Bc = np.array([[0.0, 0.0], [0.0, 1.0 / J], [1.0 / L, 0.0]])
+    sysd = control.c2d(control.ss(Ac, Bc, np.eye(3), np.zeros((3, 2))), dt)
+    return LTISystem(
+        "dc-motor-physical", np.asarray(sysd.A), np.asarray(sysd.B), x0=[1.0, 0.0, 0.0],
+        Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=dt,
+        description=f"DC motor with load from physical parameters, ZOH at {dt:g} s",
+        state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),
+    )
+
+
+def boeing747() -> LTISystem:
+    """The letter's Boeing 747 longitudinal dynamics (4 states, 2 inputs), 1 s sampling.
+
+    Defaults from the letter: x0 = [1, 1, 0, 0], Q = diag(1, 0.1, 0.1, 0.1), R = diag(1, 1).
+    """
+    A = [
+        [0.99, 0.03, -0.02, -0.32],
+        [0.01, 0.47, 4.70, 0.00],
+        [0.02, -0.06, 0.40, 0.00],
+        [0.01, -0.04, 0.72, 0.99],
+    ]
+    B = [[0.01, 0.99], [-3.44, 1.66], [-0.83, 0.44], [-0.47, 0.25]]
+    return LTISystem(
+        "boeing747", A, B, x0=[1.0, 1.0, 0.0, 0.0], Q=[1.0, 0.1, 0.1, 0.1], R=[1.0, 1.0], dt=1.0,
+        description="Boeing 747 longitudinal flight, 4 states, 2 inputs (letter, 1 s)",
+        state_names=("u", "w", "q", "theta"), input_names=("elevator", "thrust"),
+    )
+
+
+PRESETS = {"dc-motor": dc_motor, "boeing747": boeing747, "dc-motor-physical": dc_motor_physical}
+
+
+def system_from_dict(d: Mapping[str, Any], name: str = "custom") -> LTISystem:
+    """Build an :class:`LTISystem` from a mapping with keys A, B and optional x0, Q, R, dt, name.
+
+    Q and R may be given as full matrices or as lists of diagonal entries.
+    """
+    if not isinstance(d, Mapping):
+        raise SystemDefinitionError("a system file must hold a table/object with keys A and B")
+    unknown = set(d) - {"A", "B", "x0", "Q", "R", "dt", "name", "description"}
+    if unknown:
+        raise SystemDefinitionError(
+            f"unknown key(s) {sorted(unknown)} in system definition; allowed: A, B, x0, Q, R, dt, name, description"
+        )
+    for key in ("A", "B"):
+        if key not in d:
+            raise SystemDefinitionError(f"system definition is missing {key!r} (needs A and B)")
+    dt = d.get("dt", 1.0)
+    try:
+        dt = float(dt)
+    except (TypeError, ValueError):
+        raise SystemDefinitionError(f"dt must be a number; got {dt!r}") from None
+    return LTISystem(
+        str(d.get("name", name)), d["A"], d["B"], x0=d.get("x0"), Q=d.get("Q"), R=d.get("R"), dt=dt,
+        description=str(d.get("description", "custom system")),
+    )
+
+
+def load_system(path: str | Path) -> LTISystem:
+    """Read a custom system from a ``.toml`` or ``.json`` file.
+
+    The file holds ``A`` (n x n), ``B`` (n x m) and optionally ``x0`` (n), ``Q``
+    (n x n or n diagonal entries), ``R`` (m x m or m entries) and ``dt``.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise SystemDefinitionError(f"system file {str(p)!r} does not exist")
+    text = p.read_text(encoding="utf-8")
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".json":
+            d = json.loads(text)
+        elif suffix == ".toml":
+            try:
+                import tomllib
+            except ModuleNotFoundError:  # Python 3.10
+                import tomli as tomllib  # type: ignore[no-redef]
+            d = tomllib.loads(text)
+        else:
+            raise SystemDefinitionError(f"system file must end in .toml or .json; got {p.name!r}")
+    except SystemDefinitionError:
+        raise
+    except Exception as exc:  # parse errors of either format
+        raise SystemDefinitionError(f"cannot parse {p.name}: {exc}") from None
+    return system_from_dict(d, name=p.stem)
+
+
+def get_system(name_or_path: str | Path | LTISystem) -> LTISystem:
+    """A preset by name (see :data:`PRESETS`), or a system file path, or pass an LTISystem through."""
+    if isinstance(name_or_path, LTISystem):
+        return name_or_path
+    key = str(name_or_path)
+    if key in PRESETS:
+        return PRESETS[key]()
+    if key.lower().endswith((".toml", ".json")) or Path(key).exists():
+        return load_system(key)
+    raise SystemDefinitionError(
+        f"unknown system {key!r}; use one of {', '.join(PRESETS)} or a path to a .toml/.json file"
+    )
+
+
+def parse_matrix(text: str, name: str = "matrix") -> np.ndarray:
+    """Parse a matrix typed by a person: rows separated by ``;`` or newlines, entries by spaces or commas.
+
+    Also accepts a JSON list of lists. Raises :class:`SystemDefinitionError` with the
+    offending row when the rows have different lengths or an entry is not a number.
+    """
+    s = text.strip()
+    if not s:
+        raise SystemDefinitionError(f"{name} is empty")
+    if s.startswith("["):
+        try:
+            return _as_matrix(name, json.loads(s), (None, None))
+        except json.JSONDecodeError as exc:
+            raise SystemDefinitionError(f"{name}: not valid JSON ({exc.msg})") from None
+    rows = [r for r in s.replace(";", "\n").splitlines() if r.strip()]
+    out = []
+    for i, row in enumerate(rows, 1):
+        parts = row.replace(",", " ").split()
+        try:
+            out.append([float(v) for v in parts])
+        except ValueError:
+            raise SystemDefinitionError(f"{name} row {i}: {row.strip()!r} has an entry that is not a number") from None
+    widths = {len(r) for r in out}
+    if len(widths) != 1:
+        raise SystemDefinitionError(f"{name}: rows have different lengths {[len(r) for r in out]}")
+    return _as_matrix(name, out, (None, None))

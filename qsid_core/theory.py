@@ -1,0 +1,138 @@
+"""What the letter predicts: Theorem 1's large-data model and the MPC ultimate bound.
+
+Theorem 1 (large-data regime), per-channel form::
+
+    G_pred = [A, B] Sigma (Sigma + D)^-1,   Sigma = Psi_uqz Psi_uqz^T / T,
+    D = diag(eps_i**2 / 12)
+
+With one shared eps, ``D = eps**2/12 I`` and this is exactly the letter's
+``[A, B] - eps**2 [A, B] (12 Sigma + eps**2 I)^-1`` (eq. (6)).
+
+Ultimate bound (proof of Theorem 3, eqs. (13)-(16)): with ``V(x) = x^T P x``,
+``P`` from the finite-horizon Riccati recursion of ``(A^, B^, Q, R)`` with
+``P_Th = Qf``; ``alpha1 = lambda_min(Q)``, ``alpha2 = lambda_min(R)``;
+``omega_v = 2 lambda_max(P) rho`` (Lipschitz constant of ``x^T P x`` on the
+ball of radius ``rho``); ``C = omega_v**2 (||dA||**2/(2 alpha1) + ||dB||**2/(2 alpha2))``
+with ``dA = eps^2 Delta_A``, ``dB = eps^2 Delta_B`` the model errors predicted
+by Theorem 1; ``delta = sqrt(lambda_max(P)/lambda_min(P) * 2C/(theta alpha1))``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError, check_float
+
+__all__ = ["theorem1_prediction", "riccati_finite", "UltimateBound", "ultimate_bound", "noise_covariance"]
+
+
+def noise_covariance(eps: np.ndarray) -> np.ndarray:
+    """``D = diag(eps_i**2 / 12)``: covariance of the subtractive-dither error per channel."""
+    return np.diag(np.asarray(eps, dtype=float) ** 2 / 12.0)
+
+
+def theorem1_prediction(G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray) -> np.ndarray:
+    """Large-data LS limit ``G Sigma (Sigma + D)^-1`` (letter, Theorem 1, per-channel form).
+
+    Parameters
+    ----------
+    G : ndarray, shape (n, n+m)
+        True ``[A, B]``.
+    Sigma : ndarray, shape (n+m, n+m)
+        ``Psi_uqz Psi_uqz^T / T`` of the unquantized data.
+    eps : ndarray, shape (n+m,) or scalar
+        Cell width per channel (states first, then inputs).
+
+    Returns
+    -------
+    ndarray, shape (n, n+m): the predicted ``[A^, B^]``.
+    """
+    p = Sigma.shape[0]
+    eps = np.broadcast_to(np.asarray(eps, dtype=float), (p,))
+    M = Sigma + noise_covariance(eps)
+    # G Sigma M^-1 = (M^-1 Sigma G^T)^T (M, Sigma symmetric)
+    return np.linalg.solve(M, Sigma @ G.T).T
+
+
+def riccati_finite(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray, horizon: int) -> np.ndarray:
+    """``P_0`` of ``P_{k-1} = A'P_kA - A'P_kB(R + B'P_kB)^-1 B'P_kA + Q``, ``P_Th = Qf`` (letter, proof of Thm. 3)."""
+    P = np.array(Qf, dtype=float)
+    for _ in range(horizon):
+        BtP = B.T @ P
+        P = A.T @ P @ A - (BtP @ A).T @ np.linalg.solve(R + BtP @ B, BtP @ A) + Q
+        P = (P + P.T) / 2
+    return P
+
+
+@dataclass
+class UltimateBound:
+    """The ultimate bound and its ingredients (letter, eqs. (13)-(16))."""
+
+    delta: float
+    P_eig_min: float
+    P_eig_max: float
+    alpha1: float
+    alpha2: float
+    omega_v: float
+    rho: float
+    theta: float
+    dA_norm: float
+    dB_norm: float
+    C: float
+
+
+def ultimate_bound(
+    P: np.ndarray,
+    Q: np.ndarray,
+    R: np.ndarray,
+    dA: np.ndarray,
+    dB: np.ndarray,
+    *,
+    theta: float = 0.5,
+    rho: float | None = None,
+    x0: np.ndarray | None = None,
+) -> UltimateBound:
+    """Ultimate bound ``delta(eps)`` of the closed loop (letter, Theorem 3 and its proof).
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Riccati matrix of the MPC value function ``V(x) = x' P x`` (see :func:`riccati_finite`).
+    Q, R : ndarray
+        MPC weights; ``alpha1 = lambda_min(Q)`` must be > 0 (Assumption 4).
+    dA, dB : ndarray
+        Model errors ``A - A^``, ``B - B^`` (the Theorem 1 prediction in the sweep).
+    theta : float in (0, 1)
+        Share of the decrease used to dominate the disturbance (default 0.5).
+    rho : float > 0, optional
+        Radius of the ball the state stays in, for ``omega_v = 2 lambda_max(P) rho``.
+        Default: ``sqrt(lambda_max(P)/lambda_min(P)) * ||x0||``, the radius of the
+        smallest ball holding the sublevel set ``{V <= V(x0)}`` (1 if x0 is not given).
+
+    Raises
+    ------
+    ConfigError
+        If theta is not in (0, 1), rho <= 0, or Q / R are not positive definite.
+    """
+    theta = check_float("theta", theta, 0.0, 1.0, lo_open=True, hi_open=True)
+    eq = np.linalg.eigvalsh(Q)
+    er = np.linalg.eigvalsh(R)
+    alpha1, alpha2 = float(eq.min()), float(er.min())
+    if alpha1 <= 0 or alpha2 <= 0:
+        raise ConfigError("the ultimate bound needs Q and R positive definite (letter, Assumption 4)")
+    ep = np.linalg.eigvalsh((P + P.T) / 2)
+    pmin, pmax = float(ep.min()), float(ep.max())
+    if pmin <= 0:
+        return UltimateBound(float("inf"), pmin, pmax, alpha1, alpha2, float("inf"), float("nan"), theta,
+                             float(np.linalg.norm(dA)), float(np.linalg.norm(dB)), float("inf"))
+    if rho is None:
+        r0 = float(np.linalg.norm(x0)) if x0 is not None else 1.0
+        rho = np.sqrt(pmax / pmin) * (r0 if r0 > 0 else 1.0)
+    rho = check_float("rho", rho, 0.0, lo_open=True)
+    omega_v = 2.0 * pmax * rho
+    na, nb = float(np.linalg.norm(dA)), float(np.linalg.norm(dB))
+    C = omega_v**2 * (na**2 / (2 * alpha1) + nb**2 / (2 * alpha2))
+    delta = float(np.sqrt(pmax / pmin * 2 * C / (theta * alpha1)))
+    return UltimateBound(delta, pmin, pmax, alpha1, alpha2, omega_v, float(rho), theta, na, nb, C)
