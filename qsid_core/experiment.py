@@ -50,16 +50,16 @@ __all__ = [
 Progress = Callable[[int, int, str], None]
 
 
-def parse_bits(spec: str | int | list | tuple) -> tuple[int, ...]:
-    """Word lengths from ``"2:12"`` (inclusive), ``"2,4,6"``, ``"8"``, an int, or a list.
+def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
+    """Word lengths from ``"2:12"`` (inclusive), ``"2,4,6"``, ``"8"``, an int, or a sequence of ints.
 
     Raises
     ------
     ConfigError
         If the text is not of one of those forms or a b is outside 1..32.
     """
-    if isinstance(spec, (list, tuple)):
-        vals = [check_int("bits", v, 1, MAX_BITS) for v in spec]
+    if isinstance(spec, (list, tuple, range, np.ndarray)):
+        vals = [check_int("bits", int(v) if isinstance(v, np.integer) else v, 1, MAX_BITS) for v in spec]
     elif isinstance(spec, int) and not isinstance(spec, bool):
         vals = [check_int("bits", spec, 1, MAX_BITS)]
     else:

@@ -319,7 +319,8 @@ class MPCController:
             raise MPCFailure("solver", f"OSQP failed: {res.info.status}")
         N1 = (self.N + 1) * n
         u0 = np.clip(res.x[N1 : N1 + self.m], -self.u_max, self.u_max)
-        return u0, float(res.info.obj_val) + self._const
+        # OSQP minimises 1/2 z'Pz + q'z: our P, q are the cost's halves, so J = 2 obj + r-terms
+        return u0, 2.0 * float(res.info.obj_val) + self._const
 
     def solve(self, x: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """``(u_0, J*, used_fast_path)`` for state ``x``."""

@@ -10,7 +10,8 @@ Presets
     DC motor with load, the letter's printed discrete matrices (eq. "DC Motor
     with Load", Section V-A). They are the zero-order-hold discretisation of the
     physical model with J=0.01, c=0.1, K=0.01, Ke=0.01, r=1, L=0.5 at a sample
-    time of **1 s**, rounded to three decimals -- although the letter also says
+    time of **1 s**, cut to three decimals (truncated, e.g. 0.0999 is printed
+    0.099, 0.0169 as 0.016) -- although the letter also says
     "1000 sampling periods (i.e., 10 seconds per trajectory)", the printed
     matrices are those of 1 s sampling (see :func:`dc_motor_physical`, which
     reproduces them to the printed digits).
@@ -238,7 +239,7 @@ def dc_motor_physical(
     Continuous model (letter, eq. "Motor"): x1' = x2, x2' = (K x3 - c x2 + u2)/J,
     x3' = (u1 - r x3 - Ke x2)/L. Discretised with python-control's ``c2d``.
     With the defaults it reproduces the printed matrices of :func:`dc_motor`
-    to their three decimals.
+    to their three printed decimals (the letter truncates: max difference < 1e-3).
     """
     import control
 

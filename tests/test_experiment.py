@@ -1,0 +1,129 @@
+import json
+import math
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+from qsid_core import ConfigError, Experiment, MPCConfig, QuantizerSpec, SweepConfig, fit_slope, parse_bits, run_sweep
+
+SMALL = dict(trajectories=10, steps=200, realizations=4)
+
+
+def test_parse_bits_forms_and_errors():
+    assert parse_bits("2:5") == (2, 3, 4, 5)
+    assert parse_bits("6,2,4") == (2, 4, 6)
+    assert parse_bits("8") == (8,)
+    assert parse_bits(range(1, 4)) == (1, 2, 3)
+    for bad in ("5:2", "abc", "0", "40", "", "2:x"):
+        with pytest.raises(ConfigError):
+            parse_bits(bad)
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(realizations=0), "realizations"),
+        (dict(trajectories=0), "trajectories"),
+        (dict(estimator="ridge"), "estimator"),
+        (dict(theta=1.5), "theta"),
+        (dict(rho=0.0), "rho"),
+        (dict(data_seed=-1), "data seed"),
+    ],
+)
+def test_bad_sweep_config(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        SweepConfig(**kw)
+
+
+def test_sweep_result_is_json_ready_and_complete():
+    res = run_sweep(SweepConfig(bits="2:6", **SMALL))
+    d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    assert [r["bits"] for r in d["results"]] == [2, 3, 4, 5, 6]
+    for r in d["results"]:
+        for k in ("eps_x", "eps_u", "err_A", "err_B", "err_A_theory", "err_B_theory", "overload_fraction",
+                  "mpc_cost", "ultimate_bound", "final_state_norm"):
+            assert k in r
+        assert set(r["err_A"]) == {"mean", "std"} and len(r["eps_x"]) == 3 and len(r["eps_u"]) == 2
+        assert {"mean", "std", "failed"} <= set(r["mpc_cost"]) and {"mean", "max"} <= set(r["final_state_norm"])
+    for k in ("mpc_cost_true_model", "slope_A", "slope_B", "timing_s"):
+        assert k in d
+    # eps halves per bit
+    e = [r["eps_x"][0] for r in d["results"]]
+    assert e[0] / e[1] == pytest.approx(2.0)
+
+
+def test_realizations_are_independent_and_reproducible():
+    cfg = SweepConfig(bits=(4,), mpc=None, **SMALL)
+    a = Experiment(cfg).identification(4)
+    b = Experiment(cfg).identification(4)
+    np.testing.assert_array_equal(a.err_A, b.err_A)
+    assert len(set(np.round(a.err_A, 12))) == SMALL["realizations"]
+    c = Experiment(SweepConfig(bits=(4,), mpc=None, dither_seed=7, **SMALL)).identification(4)
+    assert not np.array_equal(a.err_A, c.err_A)
+
+
+def test_executor_gives_same_result_as_inline():
+    cfg = SweepConfig(bits="3:5", **SMALL)
+    a = run_sweep(cfg)
+    with ThreadPoolExecutor(2) as pool:
+        b = run_sweep(cfg, executor=pool)
+    for bb in cfg.bits:
+        np.testing.assert_allclose(a.identification[bb].A_hat, b.identification[bb].A_hat, rtol=1e-12)
+        np.testing.assert_allclose(a.loops[bb].cost, b.loops[bb].cost, rtol=1e-12)
+
+
+def test_process_pool_executor_works():
+    from concurrent.futures import ProcessPoolExecutor
+
+    cfg = SweepConfig(bits="4", mpc=None, **SMALL)
+    with ProcessPoolExecutor(2) as pool:
+        b = run_sweep(cfg, executor=pool)
+    a = run_sweep(cfg)
+    np.testing.assert_allclose(a.identification[4].err_A, b.identification[4].err_A, rtol=1e-12)
+
+
+def test_cache_reuse_between_stages():
+    shared: dict = {}
+    cfg = SweepConfig(bits=(4,), **SMALL)
+    ex = Experiment(cfg, cache=shared)
+    ex.closed_loops(4)
+    n_before = len(shared)
+    # a Q change reuses data and identification, adds only new loops
+    ex2 = Experiment(SweepConfig(bits=(4,), mpc=MPCConfig(Q=(1.0, 1.0, 1.0)), **SMALL), cache=shared)
+    assert ex2.identification(4) is ex.identification(4)
+    ex2.closed_loops(4)
+    assert len(shared) == n_before + 1
+    # a b change reuses the data
+    assert ex.with_config(SweepConfig(bits=(6,), **SMALL)).data is ex.data
+
+
+def test_progress_is_reported():
+    calls = []
+    run_sweep(SweepConfig(bits="2:3", **SMALL), progress=lambda d, t, s: calls.append((d, t, s)))
+    stages = {s for _, _, s in calls}
+    assert "MPC closed loops" in stages and any("quantize" in s for s in stages)
+    assert all(1 <= d <= t for d, t, _ in calls)
+
+
+def test_no_mpc_sweep():
+    res = run_sweep(SweepConfig(bits="4", mpc=None, **SMALL))
+    d = res.to_dict()
+    assert d["results"][0]["mpc_cost"] is None and d["mpc_cost_true_model"] is None
+    with pytest.raises(ConfigError, match="switched off"):
+        Experiment(SweepConfig(bits="4", mpc=None, **SMALL)).closed_loops(4)
+
+
+def test_failures_counted_in_sweep_never_crash():
+    # b = 1 shared range on the Boeing with a tiny input bound and a state box: some realizations fail
+    res = run_sweep(SweepConfig(system="boeing747", bits="1:2", quantizer=QuantizerSpec(range_mode="shared"),
+                                mpc=MPCConfig(x_max=0.5, steps=10), **SMALL))
+    for r in res.to_dict()["results"]:
+        assert r["mpc_cost"]["failed"] == sum(r["mpc_cost"]["failures"].values())
+    assert any(r["mpc_cost"]["failed"] > 0 for r in res.to_dict()["results"])
+
+
+def test_fit_slope():
+    b = np.arange(1, 9)
+    assert fit_slope(b, 10.0 ** (-0.3 * b)) == pytest.approx(-0.3)
+    assert math.isnan(fit_slope([1], [1.0]))

@@ -1,0 +1,124 @@
+import numpy as np
+import pytest
+
+from qsid_core import ConfigError, MPCConfig, MPCController, MPCFailure, run_closed_loops
+from qsid_core.mpc import dare_stabilizing
+from qsid_core.systems import boeing747, dc_motor
+
+
+def _ctrl(s, **kw):
+    w = MPCConfig(**kw).resolve(s)
+    return MPCController(s.A, s.B, w["Q"], w["R"], kw.get("horizon", 10), w["u_max"], w["x_max"], w["xf_max"],
+                         w["x_ref"], w["Qf"])
+
+
+@pytest.mark.parametrize("system", [dc_motor, boeing747])
+@pytest.mark.parametrize("scale", [0.3, 1.0, 5.0, 30.0])
+def test_fast_path_equals_osqp(system, scale):
+    s = system()
+    c = _ctrl(s)
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        x = scale * rng.uniform(-1, 1, s.n)
+        u_q, J_q = c.solve_osqp(x)
+        f = c.fast(x)
+        if f is not None:  # unconstrained optimum feasible: it is the QP optimum
+            np.testing.assert_allclose(f[0], u_q, atol=1e-6)
+            assert f[1] == pytest.approx(J_q, rel=1e-6, abs=1e-9)
+        else:  # a bound is active: OSQP respects it
+            assert np.all(np.abs(u_q) <= 1.0 + 1e-12)
+
+
+def test_fast_path_equals_osqp_with_reference_and_state_box():
+    s = dc_motor()
+    c = _ctrl(s, x_ref=(0.2, 0.0, 0.0), x_max=50.0, xf_max=40.0)
+    x = np.array([0.5, 0.1, -0.1])
+    f = c.fast(x)
+    assert f is not None
+    u_q, J_q = c.solve_osqp(x)
+    np.testing.assert_allclose(f[0], u_q, atol=1e-6)
+    assert f[1] == pytest.approx(J_q, rel=1e-6)
+
+
+@pytest.mark.parametrize("system", [dc_motor, boeing747])
+def test_exact_model_regulates_to_origin_and_constraints_hold(system):
+    s = system()
+    loops = run_closed_loops([(s.A, s.B)], s.A, s.B, MPCConfig(steps=300), s)
+    assert loops.failure == [""]
+    assert np.linalg.norm(loops.states[0, -1]) < 1e-6
+    assert np.all(np.abs(loops.inputs) <= 1.0 + 1e-12)
+    assert np.isfinite(loops.cost[0]) and loops.cost[0] > 0
+    # the realised cost of the exact model is the predicted optimum J*(x0) up to the tail
+    assert loops.cost[0] == pytest.approx(loops.J0[0], rel=1e-3)
+
+
+def test_active_input_bound_uses_osqp_and_holds():
+    s = boeing747()
+    cfg = MPCConfig(x0=(20.0, 20.0, 0.0, 0.0), u_max=0.5, steps=60)
+    loops = run_closed_loops([(s.A, s.B)], s.A, s.B, cfg, s)
+    assert loops.osqp_steps > 0
+    assert np.all(np.abs(loops.inputs) <= 0.5 + 1e-12)
+    assert np.max(np.abs(loops.inputs)) == pytest.approx(0.5, abs=1e-6)
+    # the engine's loop applies exactly what a per-step controller gives
+    c = _ctrl(s, u_max=0.5)
+    x = np.array([20.0, 20.0, 0.0, 0.0])
+    for t in range(10):
+        u, _, _ = c.solve(x)
+        np.testing.assert_allclose(loops.inputs[0, t], u, atol=1e-7)
+        x = s.A @ x + s.B @ u
+
+
+def test_state_box_is_respected_in_prediction():
+    s = dc_motor()
+    c = _ctrl(s, x_max=(10.0, 0.05, 10.0))
+    u, J = c.solve_osqp(np.array([1.0, 0.0, 0.0]))
+    assert np.all(np.isfinite(u))
+    f = c.fast(np.array([1.0, 0.0, 0.0]))
+    assert f is None  # the speed box is active for this start
+
+
+def test_failures_are_recorded_not_raised():
+    s = dc_motor()
+    bad_model = (np.eye(3) * 1.5, np.zeros((3, 2)))  # unstable, no input: no stabilizing DARE solution
+    infeasible = dict(x_max=(1e-3, 1e-3, 1e-3))
+    loops = run_closed_loops([bad_model, (s.A, s.B)], s.A, s.B, MPCConfig(steps=5), s)
+    assert loops.failure[0] == "dare" and loops.failure[1] == ""
+    assert np.isnan(loops.cost[0]) and np.isfinite(loops.cost[1])
+    assert "DARE" in loops.messages[0]
+    loops2 = run_closed_loops([(s.A, s.B)], s.A, s.B, MPCConfig(steps=5, **infeasible), s)
+    assert loops2.failure[0] == "infeasible" and loops2.failed.all()
+
+
+def test_diverging_closed_loop_is_a_failure():
+    s = dc_motor()
+    # a wildly wrong model: inputs push the true system the wrong way
+    loops = run_closed_loops([(s.A, -s.B * 0.01)], s.A * 3, s.B, MPCConfig(steps=200), s)
+    assert loops.failure[0] in ("diverged", "dare")
+
+
+def test_dare_failure_kind():
+    with pytest.raises(MPCFailure) as ei:
+        dare_stabilizing(np.eye(2) * 2, np.zeros((2, 1)), np.eye(2), np.eye(1))
+    assert ei.value.kind == "dare"
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(horizon=0), "horizon"),
+        (dict(steps=0), "mpc steps"),
+        (dict(u_max=0.0), "u_max must be positive"),
+        (dict(u_max=(1.0, -1.0)), "u_max must be positive"),
+        (dict(R=(0.0, 1.0)), "R diagonal"),
+        (dict(Q=(-1.0, 1.0, 1.0)), "Q diagonal"),
+        (dict(x0=(1.0, float("nan"))), "finite"),
+    ],
+)
+def test_bad_mpc_config(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        MPCConfig(**kw)
+
+
+def test_weights_must_fit_the_system():
+    with pytest.raises(ConfigError, match="Q must have 1 or 3 entries"):
+        MPCConfig(Q=(1.0, 2.0)).resolve(dc_motor())

@@ -1,0 +1,76 @@
+import numpy as np
+import pytest
+
+from qsid_core import ConfigError, Experiment, QuantizerSpec, SweepConfig, run_sweep, theorem1_prediction
+from qsid_core.theory import riccati_finite, ultimate_bound
+from qsid_core.mpc import dare_stabilizing
+from qsid_core.systems import boeing747, dc_motor
+
+
+def test_per_channel_form_reduces_to_letters_shared_formula():
+    rng = np.random.default_rng(0)
+    G = rng.normal(size=(3, 5))
+    M = rng.normal(size=(5, 5))
+    Sigma = M @ M.T + np.eye(5)
+    eps = 0.37
+    letter = G - eps**2 * G @ np.linalg.inv(12 * Sigma + eps**2 * np.eye(5))
+    np.testing.assert_allclose(theorem1_prediction(G, Sigma, eps), letter, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(theorem1_prediction(G, Sigma, 0.0), G, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_theorem1_matches_mean_ls_error_boeing_shared_b4():
+    """Boeing, shared range, b = 4, 200 x 1000 data: mean LS error within 3% of the prediction."""
+    ex = Experiment(SweepConfig(system="boeing747", bits=(4,), realizations=10,
+                                quantizer=QuantizerSpec(range_mode="shared"), mpc=None))
+    ident, th = ex.identification(4), ex.theory(4)
+    assert ident.err_A.mean() == pytest.approx(th.err_A, rel=0.03)
+    assert ident.err_B.mean() == pytest.approx(th.err_B, rel=0.03)
+
+
+@pytest.mark.slow
+def test_motor_slopes_per_channel_b4_to_12():
+    """The letter: log10 error falls ~0.30 per bit (reports -0.301 for A and -0.322 for B)."""
+    res = run_sweep(SweepConfig(system="dc-motor", bits="4:12", realizations=20, mpc=None))
+    assert -0.36 <= res.slope_A <= -0.26, res.slope_A
+    assert -0.36 <= res.slope_B <= -0.26, res.slope_B
+
+
+def test_riccati_with_dare_terminal_is_stationary():
+    s = dc_motor()
+    X = dare_stabilizing(s.A, s.B, s.Q, s.R)
+    np.testing.assert_allclose(riccati_finite(s.A, s.B, s.Q, s.R, X, 10), X, rtol=1e-9, atol=1e-9)
+
+
+def test_ultimate_bound_scales_with_eps_squared():
+    s = boeing747()
+    X = dare_stabilizing(s.A, s.B, s.Q, s.R)
+    dA, dB = 1e-3 * np.ones((4, 4)), 1e-3 * np.ones((4, 2))
+    u1 = ultimate_bound(X, s.Q, s.R, dA, dB, x0=s.x0)
+    u2 = ultimate_bound(X, s.Q, s.R, dA / 4, dB / 4, x0=s.x0)  # model error ~ eps^2: eps halved
+    assert u1.delta / u2.delta == pytest.approx(4.0)
+    # by hand, from the letter's formulas
+    ev = np.linalg.eigvalsh(X)
+    rho = np.sqrt(ev.max() / ev.min()) * np.linalg.norm(s.x0)
+    wv = 2 * ev.max() * rho
+    C = wv**2 * (np.linalg.norm(dA) ** 2 / (2 * 0.1) + np.linalg.norm(dB) ** 2 / 2)
+    assert u1.delta == pytest.approx(np.sqrt(ev.max() / ev.min() * 2 * C / (0.5 * 0.1)))
+
+
+@pytest.mark.parametrize("kw, match", [(dict(theta=0.0), "theta"), (dict(theta=1.0), "theta"), (dict(rho=-1.0), "rho")])
+def test_bound_parameters_checked(kw, match):
+    s = dc_motor()
+    with pytest.raises(ConfigError, match=match):
+        ultimate_bound(np.eye(3), s.Q, s.R, np.zeros((3, 3)), np.zeros((3, 2)), **kw)
+
+
+def test_bound_needs_positive_definite_weights():
+    with pytest.raises(ConfigError, match="positive definite"):
+        ultimate_bound(np.eye(2), np.diag([1.0, 0.0]), np.eye(1), np.zeros((2, 2)), np.zeros((2, 1)))
+
+
+def test_bound_shrinks_with_bits_in_sweep():
+    res = run_sweep(SweepConfig(bits=(4, 6, 8), realizations=2, trajectories=20, steps=200, mpc=None))
+    d = [res.theory[b].delta for b in (4, 6, 8)]
+    assert d[0] > d[1] > d[2] > 0
+    assert d[0] / d[1] == pytest.approx(16, rel=0.15)  # O(eps^2): 4 bits -> 2^4 ... 2 bits -> 16x
