@@ -1,6 +1,6 @@
 """Least-squares identification of [A, B] and its bias-compensated variant.
 
-Least squares (letter, eq. (3) and its closed form (5))::
+Least squares (letter, eq. (3); closed form eq. (7) in the proof of Theorem 2)::
 
     G = [A^, B^] = X+ Psi^T (Psi Psi^T)^-1
 

@@ -1,6 +1,6 @@
 """Sufficient statistics of quantized data, computed fast.
 
-Least squares (letter, eq. (5)) needs the data only through two Gram matrices::
+Least squares (letter, eq. (3), closed form eq. (7)) needs the data only through two Gram matrices::
 
     PP = Psi~ Psi~^T  (p x p, p = n + m)      XP = X~+ Psi~^T  (n x p)
 

@@ -6,9 +6,14 @@ Theorem 1 (large-data regime), per-channel form::
     D = diag(eps_i**2 / 12)
 
 With one shared eps, ``D = eps**2/12 I`` and this is exactly the letter's
-``[A, B] - eps**2 [A, B] (12 Sigma + eps**2 I)^-1`` (eq. (6)).
+``[A, B] - eps**2 [A, B] (12 Sigma + eps**2 I)^-1`` (Theorem 1, eq. (5)).
 
-Ultimate bound (proof of Theorem 3, eqs. (13)-(16)): with ``V(x) = x^T P x``,
+Equation numbers follow the letter (../shared/paper/qsid-mpc-letter.tex): (1) dynamics,
+(2) MPC problem, (3)-(4) least squares and data matrices, (5) Theorem 1, (6)-(7)
+Theorem 2 and the LS closed form, (8)-(11) the Lyapunov steps of the proof of
+Theorem 3 (uniform ultimate boundedness).
+
+Ultimate bound (proof of Theorem 3, eqs. (8)-(11)): with ``V(x) = x^T P x``,
 ``P`` from the finite-horizon Riccati recursion of ``(A^, B^, Q, R)`` with
 ``P_Th = Qf``; ``alpha1 = lambda_min(Q)``, ``alpha2 = lambda_min(R)``;
 ``omega_v = 2 lambda_max(P) rho`` (Lipschitz constant of ``x^T P x`` on the
@@ -68,7 +73,7 @@ def riccati_finite(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Q
 
 @dataclass
 class UltimateBound:
-    """The ultimate bound and its ingredients (letter, eqs. (13)-(16))."""
+    """The ultimate bound and its ingredients (letter, proof of Theorem 3, eqs. (8)-(11))."""
 
     delta: float
     P_eig_min: float
