@@ -216,3 +216,15 @@ def phase_portrait_figure(states: np.ndarray, true_states: np.ndarray | None = N
         legend=dict(orientation="h", y=0.02),
     )
     return fig
+
+
+def move_current_bits(fig: go.Figure, current_bits: int) -> go.Figure:
+    """Move the dotted current-b marker(s) drawn by the builders above to ``current_bits``, in place.
+
+    A cheap redraw for the dashboard when only b changed (the curves stay). Figures
+    built without ``current_bits`` have no marker and are returned unchanged.
+    """
+    for shape in fig.layout.shapes:
+        if shape.x0 == shape.x1 and str(shape.yref or "").endswith("domain"):
+            shape.x0 = shape.x1 = current_bits
+    return fig
