@@ -51,7 +51,7 @@ Progress = Callable[[int, int, str], None]
 
 
 def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
-    """Word lengths from ``"2:12"`` (inclusive), ``"2,4,6"``, ``"8"``, an int, or a sequence of ints.
+    """Word lengths from ``"2:12"`` (inclusive), ``"2:12:2"``, ``"2,4,6"``, ``"8"``, an int, or a sequence of ints.
 
     Raises
     ------
@@ -64,19 +64,26 @@ def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
         vals = [check_int("bits", spec, 1, MAX_BITS)]
     else:
         s = str(spec).strip()
+        form = "bits must look like '2:12' (inclusive), '2:12:2' (with a step), '2,4,6' or '8'"
         try:
             if ":" in s:
-                a, b = s.split(":")
-                lo, hi = int(a), int(b)
-                if hi < lo:
-                    raise ConfigError(f"bits range {s!r} is empty (end {hi} < start {lo})")
-                vals = list(range(lo, hi + 1))
+                parts = [int(v) for v in s.split(":")]
+                if len(parts) not in (2, 3):
+                    raise ValueError
+                lo, hi = parts[0], parts[1]
+                step = parts[2] if len(parts) == 3 else 1
             else:
                 vals = [int(v) for v in s.split(",") if v.strip()]
         except ValueError:
-            raise ConfigError(f"bits must look like '2:12', '2,4,6' or '8'; got {s!r}") from None
+            raise ConfigError(f"{form}; got {s!r}") from None
+        if ":" in s:
+            if step < 1:
+                raise ConfigError(f"bits step must be >= 1; got {step} in {s!r}")
+            if hi < lo:
+                raise ConfigError(f"bits range {s!r} is empty (end {hi} < start {lo})")
+            vals = list(range(lo, hi + 1, step))
         if not vals:
-            raise ConfigError(f"bits must look like '2:12', '2,4,6' or '8'; got {s!r}")
+            raise ConfigError(f"{form}; got {s!r}")
         vals = [check_int("bits", v, 1, MAX_BITS) for v in vals]
     out = tuple(sorted(set(vals)))
     if not out:
@@ -138,16 +145,40 @@ class SweepConfig:
             raise ConfigError("quantizer must be a QuantizerSpec")
 
 
+class _DeferredFuture(Future):
+    """A future whose work runs in the calling thread when its result is first asked for."""
+
+    def __init__(self, fn, args, kwargs):
+        super().__init__()
+        self._call = (fn, args, kwargs)
+
+    def _run(self) -> None:
+        if self._call is not None:
+            fn, args, kwargs = self._call
+            self._call = None
+            try:
+                self.set_result(fn(*args, **kwargs))
+            except BaseException as exc:  # delivered through the future, as a pool would
+                self.set_exception(exc)
+
+    def result(self, timeout=None):
+        self._run()
+        return super().result(timeout)
+
+    def exception(self, timeout=None):
+        self._run()
+        return super().exception(timeout)
+
+
 class InlineExecutor(Executor):
-    """A ``concurrent.futures.Executor`` that runs each task at once in the calling thread."""
+    """A ``concurrent.futures.Executor`` that runs tasks in the calling thread.
+
+    Each task runs when its result is first asked for, so a caller that submits
+    a whole stage and then reads results in order reports progress as it goes.
+    """
 
     def submit(self, fn, /, *args, **kwargs) -> Future:  # type: ignore[override]
-        fut: Future = Future()
-        try:
-            fut.set_result(fn(*args, **kwargs))
-        except BaseException as exc:  # delivered through the future, as a pool would
-            fut.set_exception(exc)
-        return fut
+        return _DeferredFuture(fn, args, kwargs)
 
 
 def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list) -> list[list[Moments]]:
@@ -181,7 +212,10 @@ class BitsIdentification:
     fallback : ndarray of bool, shape (R,)
         BCLS fell back to LS.
     notes : list of str
-        Distinct fallback explanations.
+        Distinct explanations of fallbacks and failures.
+    failed : ndarray of bool, shape (R,)
+        Identification impossible (singular Psi Psi^T); the model is NaN and
+        errors are NaN for that realization.
     """
 
     bits: int
@@ -193,6 +227,11 @@ class BitsIdentification:
     overload: np.ndarray
     fallback: np.ndarray
     notes: list
+    failed: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.failed is None:
+            self.failed = np.zeros(len(self.err_A), dtype=bool)
 
     @property
     def models(self) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -324,14 +363,25 @@ class Experiment:
         if k not in self._cache:
             moms = self.moments([b])[b]
             sysA, sysB = self.system.A, self.system.B
-            ids = [identify(mo, est) for mo in moms]
-            A_hat = np.stack([i.A for i in ids])
-            B_hat = np.stack([i.B for i in ids])
-            errs = np.array([relative_errors(i.A, i.B, sysA, sysB) for i in ids])
+            n, m = sysB.shape
+            ids: list = []
+            notes: set = set()
+            for mo in moms:
+                try:
+                    ids.append(identify(mo, est))
+                except ValueError as exc:  # singular data of one realization: record, don't abort
+                    ids.append(None)
+                    notes.add(f"identification failed: {exc}")
+            nan_A, nan_B = np.full((n, n), np.nan), np.full((n, m), np.nan)
+            A_hat = np.stack([i.A if i is not None else nan_A for i in ids])
+            B_hat = np.stack([i.B if i is not None else nan_B for i in ids])
+            errs = np.array([relative_errors(a, bm, sysA, sysB) for a, bm in zip(A_hat, B_hat)])
+            notes |= {i.note for i in ids if i is not None and i.note}
             self._cache[k] = BitsIdentification(
                 bits=b, eps=moms[0].eps, A_hat=A_hat, B_hat=B_hat, err_A=errs[:, 0], err_B=errs[:, 1],
                 overload=np.array([mo.overload_fraction for mo in moms]),
-                fallback=np.array([i.fallback for i in ids]), notes=sorted({i.note for i in ids if i.note}),
+                fallback=np.array([i is not None and i.fallback for i in ids]), notes=sorted(notes),
+                failed=np.array([i is None for i in ids]),
             )
         return self._cache[k]
 
@@ -454,6 +504,8 @@ def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: Clo
         "overload_fraction": float(ident.overload.mean()),
         "bcls_fallbacks": int(ident.fallback.sum()),
         "ultimate_bound": _num(th.delta),
+        "ultimate_bound_note": th.bound_note,
+        "ident_failures": int(ident.failed.sum()),
     }
     if lp is not None:
         failed = lp.failed
@@ -535,6 +587,7 @@ def run_sweep(
     executor: Executor | None = None,
     progress: Progress | None = None,
     experiment: Experiment | None = None,
+    tasks: int = 4,
 ) -> SweepResult:
     """Run a whole sweep over ``config.bits``.
 
@@ -547,9 +600,11 @@ def run_sweep(
         Called as work completes (the engine never prints).
     experiment : Experiment, optional
         Reuse its caches (e.g. a dashboard session).
+    tasks : int
+        Chunks the realizations are split into (use >= the executor's workers).
     """
     t0 = time.perf_counter()
-    ex = experiment.with_config(config) if experiment is not None else Experiment(config, executor)
+    ex = experiment.with_config(config) if experiment is not None else Experiment(config, executor, tasks)
     if executor is not None:
         ex.executor = executor
     _ = ex.prepared

@@ -33,7 +33,7 @@ from .errors import ConfigError, QsidError, check_float, check_int
 
 __all__ = ["MPCConfig", "MPCFailure", "MPCController", "ClosedLoops", "run_closed_loops", "FAILURE_KINDS"]
 
-FAILURE_KINDS = ("dare", "infeasible", "max_iter", "solver", "diverged")
+FAILURE_KINDS = ("ident", "dare", "infeasible", "max_iter", "solver", "diverged")
 
 
 class MPCFailure(QsidError):
@@ -205,7 +205,7 @@ class MPCController:
         self.eps = eps
         self.max_iter = max_iter
         if not (np.all(np.isfinite(self.A)) and np.all(np.isfinite(self.B))):
-            raise MPCFailure("dare", "identified model has non-finite entries")
+            raise MPCFailure("ident", "no model: identification failed for this realization")
         self.Qf = dare_stabilizing(self.A, self.B, self.Q, self.R) if Qf is None else np.asarray(Qf, dtype=float)
         self._riccati()
         self._osqp = None

@@ -314,7 +314,10 @@ def load_system(path: str | Path) -> LTISystem:
     p = Path(path)
     if not p.is_file():
         raise SystemDefinitionError(f"system file {str(p)!r} does not exist")
-    text = p.read_text(encoding="utf-8")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SystemDefinitionError(f"cannot read system file {p.name!r}: {exc}") from None
     suffix = p.suffix.lower()
     try:
         if suffix == ".json":

@@ -109,12 +109,23 @@ def test_options_reach_the_config(capsys):
     assert max(eps) == pytest.approx(min(eps))  # one cell width for every channel
 
 
-def test_engine_error_is_one_line(capsys):
+def test_engine_error_is_one_line(capsys, tmp_path):
+    # an unstable custom system overflows while simulating: a DataOverflowError from the engine
+    f = tmp_path / "unstable.toml"
+    f.write_text("A = [[3.0, 0.0], [0.0, 0.5]]\nB = [[1.0], [1.0]]\n")
+    code, out, err = _run(capsys, "sweep", "--system", str(f), "--trajectories", "2", "--steps", "200",
+                          "--realizations", "2", "--bits", "4", "--no-mpc", "-q")
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert err.startswith("qsid: error: ") and "spectral radius" in err
+
+
+def test_singular_identification_is_counted_not_fatal(capsys):
     # no dither + one shared range + 2 bits: every input sample lands in the same cell -> singular Gram matrix
     code, out, err = _run(capsys, "sweep", *TINY[:-2], "--bits", "2", "--range", "shared", "--dither", "none",
-                          "--no-mpc", "-q")
-    assert code == 2 and out == "" and err.count("\n") == 1
-    assert err.startswith("qsid: error: ") and "singular" in err
+                          "--json", "-q")
+    assert code == 0
+    row = _strict_json(out)["results"][0]
+    assert row["ident_failures"] > 0 and row["mpc_cost"]["failures"]["ident"] == row["ident_failures"]
 
 
 def test_seed_and_workers_reproducible(capsys):

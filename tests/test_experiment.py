@@ -127,3 +127,37 @@ def test_fit_slope():
     b = np.arange(1, 9)
     assert fit_slope(b, 10.0 ** (-0.3 * b)) == pytest.approx(-0.3)
     assert math.isnan(fit_slope([1], [1.0]))
+
+
+def test_parse_bits_step_and_specific_messages():
+    assert parse_bits("2:10:4") == (2, 6, 10)
+    with pytest.raises(ConfigError, match="empty"):
+        parse_bits("5:2")
+    with pytest.raises(ConfigError, match="step"):
+        parse_bits("2:8:0")
+
+
+def test_inline_executor_runs_lazily_so_progress_is_live():
+    from qsid_core import InlineExecutor
+
+    ran = []
+    ex = InlineExecutor()
+    f1 = ex.submit(lambda: ran.append(1) or 1)
+    f2 = ex.submit(lambda: ran.append(2) or 2)
+    assert ran == []
+    assert f1.result() == 1 and ran == [1]
+    assert f2.result() == 2 and ran == [1, 2]
+    boom = ex.submit(lambda: 1 / 0)
+    assert isinstance(boom.exception(), ZeroDivisionError)
+
+
+def test_singular_realization_is_recorded_not_fatal():
+    # no dither, 1 bit, shared range: quantized data collapse and Psi Psi^T is singular
+    res = run_sweep(SweepConfig(bits="1", quantizer=QuantizerSpec(dither="none", range_mode="shared"),
+                                mpc=MPCConfig(steps=5), **SMALL))
+    ident = res.identification[1]
+    row = res.to_dict()["results"][0]
+    assert row["ident_failures"] == int(ident.failed.sum())
+    if ident.failed.any():
+        assert any("identification failed" in n for n in ident.notes)
+        assert row["mpc_cost"]["failures"].get("ident", 0) == int(ident.failed.sum())
