@@ -1,0 +1,369 @@
+"""GUI values -> engine configuration, for the live dashboard (pure functions, no server).
+
+Everything the dashboard shows is computed by :mod:`qsid_core`; this module only
+turns what a person set in the panel (:class:`Values`) into the engine's
+:class:`~qsid_core.experiment.SweepConfig` / :class:`~qsid_core.mpc.MPCConfig`,
+and explains bad input in plain words (:class:`InputError`). It also holds the
+bounded, thread-safe cache (:class:`SharedCache`) that all browser tabs pass to
+:class:`~qsid_core.experiment.Experiment`, so identical settings share results.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import threading
+import warnings
+from collections import OrderedDict
+from collections.abc import MutableMapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from qsid_core.errors import QsidError
+from qsid_core.experiment import SweepConfig
+from qsid_core.mpc import MPCConfig
+from qsid_core.quantize import QuantizerSpec
+from qsid_core.systems import PRESETS, LTISystem, UncontrollableWarning, get_system, parse_matrix
+
+__all__ = [
+    "ALL_BITS", "INTERACTIVE", "PAPER_SCALE", "SYSTEM_CHOICES", "IDENT_CHOICES", "LOG_MIN", "LOG_MAX",
+    "InputError", "Values", "SystemChoice", "resolve_system", "matrix_text", "quantizer_spec", "mpc_config",
+    "sweep_config", "estimators", "weights_from_log", "log_from_weights", "format_weights", "axes_options",
+    "axes_indices", "parse_vector", "SharedCache",
+]
+
+#: Word lengths every curve is drawn over.
+ALL_BITS = tuple(range(1, 17))
+#: Interactive default: every update stays fast (see benchmarks/bench_dashboard.py).
+INTERACTIVE = {"trajectories": 50, "steps": 200, "realizations": 20}
+#: The letter's data size (200 x 1000 samples, 50 dither realizations).
+PAPER_SCALE = {"trajectories": 200, "steps": 1000, "realizations": 50}
+#: Systems offered in the panel (the engine's presets plus a typed one).
+SYSTEM_CHOICES = ("dc-motor", "boeing747", "custom")
+#: Identification choices -> engine estimators.
+IDENT_CHOICES = {"LS": ("ls",), "BCLS": ("bcls",), "LS + BCLS": ("ls", "bcls")}
+#: Range of the log10 weight sliders.
+LOG_MIN, LOG_MAX = -3.0, 3.0
+#: Largest custom system the dashboard accepts (3-D view choices grow as n^3).
+MAX_CUSTOM_STATES = 12
+
+
+class InputError(QsidError):
+    """A value typed or chosen in the panel cannot be used; the message says why, in plain words."""
+
+
+@dataclass(frozen=True)
+class Values:
+    """Everything set in one browser tab's panel (defaults = the interactive default).
+
+    Empty ``log_q``/``log_r``/``x0`` mean "the system's default".
+    """
+
+    system: str = "dc-motor"
+    a_text: str = ""
+    b_text: str = ""
+    bits: int = 4
+    dither: str = "subtractive"
+    range_mode: str = "per-channel"
+    fixed_range: str = "-1, 1"
+    guard: bool = False
+    realizations: int = INTERACTIVE["realizations"]
+    dither_seed: int = 1
+    trajectories: int = INTERACTIVE["trajectories"]
+    steps: int = INTERACTIVE["steps"]
+    data_seed: int = 0
+    identification: str = "LS + BCLS"
+    horizon: int = 10
+    log_q: tuple = ()
+    log_r: tuple = ()
+    u_max: float = 1.0
+    x0: str = ""
+    mpc_steps: int = 50
+    theta: float = 0.5
+    rho_auto: bool = True
+    rho: float = 1.0
+    axes: str = ""
+
+    def replace(self, **kw) -> "Values":
+        return dataclasses.replace(self, **kw)
+
+
+@dataclass(frozen=True)
+class SystemChoice:
+    """The true system chosen in the panel and plain-words notes about it (e.g. not controllable)."""
+
+    system: LTISystem
+    notes: tuple = ()
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6g}"
+
+
+def matrix_text(M: np.ndarray) -> str:
+    """A matrix as the panel shows it: one row per line, entries separated by spaces."""
+    return "\n".join(" ".join(_fmt(float(v)) for v in row) for row in np.atleast_2d(M))
+
+
+def _build_quietly(fn):
+    """Call ``fn()``; return (result, notes) with an UncontrollableWarning turned into a note."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UncontrollableWarning)
+        out = fn()
+    notes = []
+    for w in caught:
+        if issubclass(w.category, UncontrollableWarning):
+            notes.append(f"(A, B) is not controllable: {w.message}. Identification still works; "
+                         "the MPC may fail to regulate.")
+    return out, tuple(notes)
+
+
+def resolve_system(v: Values) -> SystemChoice:
+    """The true system for ``v``: a preset, or A and B typed in the panel.
+
+    Raises
+    ------
+    InputError
+        With the offending matrix and row in plain words.
+    """
+    if v.system in PRESETS:
+        return SystemChoice(get_system(v.system))
+    if v.system != "custom":
+        raise InputError(f"unknown system {v.system!r}; choose one of {', '.join(SYSTEM_CHOICES)}")
+    try:
+        A = parse_matrix(v.a_text, "A")
+        B = parse_matrix(v.b_text, "B")
+    except QsidError as exc:
+        raise InputError(f"Custom system: {exc}") from None
+    n = A.shape[0]
+    if A.shape != (n, n):
+        raise InputError(f"Custom system: A must be square (n x n); it has {A.shape[0]} rows and "
+                         f"{A.shape[1]} columns")
+    if B.shape[0] != n:
+        if B.shape[1] == n and B.shape[0] != n:
+            hint = " (did you type B transposed? write one row per state)"
+        else:
+            hint = ""
+        raise InputError(f"Custom system: B must have one row per state ({n} rows, like A); it has "
+                         f"{B.shape[0]}{hint}")
+    if n > MAX_CUSTOM_STATES:
+        raise InputError(f"Custom system: at most {MAX_CUSTOM_STATES} states in the dashboard; A is {n} x {n}")
+    try:
+        sysm, notes = _build_quietly(lambda: LTISystem("custom", A, B, description="typed in the dashboard"))
+    except QsidError as exc:
+        raise InputError(f"Custom system: {exc}") from None
+    return SystemChoice(sysm, notes)
+
+
+def parse_vector(text: str, name: str, k: int, what: str = "") -> tuple | None:
+    """``k`` numbers typed as ``"1, 0, 0"`` (spaces or commas); empty text -> None (use the default)."""
+    s = (text or "").strip()
+    if not s:
+        return None
+    try:
+        arr = parse_matrix(s.replace(";", " ").replace("\n", " "), name).reshape(-1)
+    except QsidError as exc:
+        raise InputError(str(exc)) from None
+    if arr.size != k:
+        raise InputError(f"{name} needs {k} numbers{what}; got {arr.size}")
+    return tuple(float(x) for x in arr)
+
+
+def _fixed_range(text: str, n: int, m: int) -> tuple:
+    s = (text or "").strip()
+    if not s:
+        raise InputError("fixed range: type 'lo, hi' (one range for every channel) or one 'lo hi' row per channel")
+    try:
+        M = parse_matrix(s, "fixed range")
+    except QsidError as exc:
+        raise InputError(str(exc)) from None
+    if M.size == 2:
+        pairs = M.reshape(1, 2)
+    elif M.shape == (n + m, 2):
+        pairs = M
+    else:
+        raise InputError(f"fixed range: give one 'lo, hi' pair, or {n + m} rows 'lo hi' (states then inputs); "
+                         f"got shape {M.shape}")
+    if np.any(pairs[:, 1] <= pairs[:, 0]):
+        raise InputError("fixed range: every range needs lo < hi")
+    return tuple(map(tuple, pairs.tolist()))
+
+
+def quantizer_spec(v: Values, n: int, m: int) -> QuantizerSpec:
+    """The quantizer of the panel (dither, range mode, guard band, fixed range)."""
+    fixed = _fixed_range(v.fixed_range, n, m) if v.range_mode == "fixed" else None
+    try:
+        return QuantizerSpec(dither=v.dither, range_mode=v.range_mode, guard=bool(v.guard), fixed_range=fixed)
+    except QsidError as exc:
+        raise InputError(str(exc)) from None
+
+
+def weights_from_log(logs) -> tuple:
+    """Slider positions (log10 of the weight) -> weights, rounded to 4 significant digits."""
+    return tuple(float(f"{10.0 ** float(x):.4g}") for x in logs)
+
+
+def log_from_weights(diag) -> tuple:
+    """Weights -> slider positions (log10, clipped to the slider range, 0 weights at the bottom)."""
+    out = []
+    for w in np.asarray(diag, dtype=float).reshape(-1):
+        x = np.log10(w) if w > 0 else LOG_MIN
+        out.append(round(float(np.clip(x, LOG_MIN, LOG_MAX)), 2))
+    return tuple(out)
+
+
+def format_weights(name: str, diag) -> str:
+    return f"{name} = diag({', '.join(f'{w:.3g}' for w in diag)})"
+
+
+def estimators(choice: str) -> tuple:
+    """Panel choice ("LS", "BCLS", "LS + BCLS") -> engine estimators."""
+    if choice not in IDENT_CHOICES:
+        raise InputError(f"identification must be one of {', '.join(IDENT_CHOICES)}; got {choice!r}")
+    return IDENT_CHOICES[choice]
+
+
+def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
+    """The MPC of the panel; log sliders are turned into weights, empty x0 = the system's."""
+    n, m = system.n, system.m
+    Q = weights_from_log(v.log_q) if len(v.log_q) == n else None
+    R = weights_from_log(v.log_r) if len(v.log_r) == m else None
+    names = ", ".join(system.state_names)
+    x0 = parse_vector(v.x0, "x0", n, f" (one per state: {names})")
+    try:
+        return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0)
+    except QsidError as exc:
+        raise InputError(str(exc)) from None
+
+
+def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
+    """The whole engine configuration for ``v`` (all word lengths 1..16; b is the one drawn in 3-D)."""
+    if not 1 <= int(v.bits) <= 16:
+        raise InputError(f"word length b must be between 1 and 16; got {v.bits}")
+    if not v.rho_auto and not (np.isfinite(v.rho) and v.rho > 0):
+        raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
+    try:
+        return SweepConfig(
+            system=system, bits=ALL_BITS, realizations=int(v.realizations), trajectories=int(v.trajectories),
+            steps=int(v.steps), data_seed=int(v.data_seed), dither_seed=int(v.dither_seed),
+            quantizer=quantizer_spec(v, system.n, system.m), estimator=estimators(v.identification)[0],
+            mpc=mpc_config(v, system), theta=float(v.theta), rho=None if v.rho_auto else float(v.rho),
+        )
+    except InputError:
+        raise
+    except QsidError as exc:
+        raise InputError(str(exc)) from None
+
+
+def axes_options(names) -> list:
+    """3-D view choices: every set of three states (the first is the default); fewer than 3 states -> one."""
+    names = list(names)
+    if len(names) <= 3:
+        return [", ".join(names)]
+    return [", ".join(c) for c in itertools.combinations(names, 3)]
+
+
+def axes_indices(choice: str, names) -> tuple:
+    """Indices of the states drawn on the x, y, z axes (None pads systems with fewer than 3 states)."""
+    names = list(names)
+    opts = axes_options(names)
+    if choice not in opts:
+        choice = opts[0]
+    if len(names) <= 3:
+        idx = list(range(len(names)))
+    else:
+        idx = list(next(c for c in itertools.combinations(range(len(names)), 3)
+                        if ", ".join(names[i] for i in c) == choice))
+    return tuple(idx + [None] * (3 - len(idx)))
+
+
+# ----- shared cache ------------------------------------------------------------------------
+
+def _nbytes(obj, depth: int = 0) -> int:
+    """Rough memory size of a cached stage result (arrays dominate)."""
+    if isinstance(obj, np.ndarray):
+        return int(obj.nbytes)
+    if depth > 4:
+        return 64
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return 64 + sum(_nbytes(getattr(obj, f.name), depth + 1) for f in dataclasses.fields(obj))
+    if isinstance(obj, (list, tuple)):
+        return 64 + sum(_nbytes(x, depth + 1) for x in obj)
+    if isinstance(obj, dict):
+        return 64 + sum(_nbytes(x, depth + 1) for x in obj.values())
+    return 64
+
+
+class SharedCache(MutableMapping):
+    """A thread-safe LRU mapping bounded by an estimate of its memory (default 512 MB).
+
+    Passed as ``Experiment(..., cache=shared)`` by every browser tab, so equal
+    settings share the data, moments, models and closed loops. The least
+    recently used entries are dropped first; the newest ``keep`` entries are never
+    dropped (the engine reads an entry right after storing it).
+    """
+
+    def __init__(self, max_bytes: int = 512 * 2**20, keep: int = 64):
+        self.max_bytes = int(max_bytes)
+        self.keep = int(keep)
+        self._d: OrderedDict = OrderedDict()
+        self._size: dict = {}
+        self._total = 0
+        self._lock = threading.Lock()
+        self.hits = 0
+        self.misses = 0
+
+    def __getitem__(self, key):
+        with self._lock:
+            try:
+                val = self._d[key]
+            except KeyError:
+                self.misses += 1
+                raise
+            self._d.move_to_end(key)
+            self.hits += 1
+            return val
+
+    def __contains__(self, key) -> bool:
+        with self._lock:
+            return key in self._d
+
+    def __setitem__(self, key, value) -> None:
+        size = _nbytes(value)
+        with self._lock:
+            if key in self._d:
+                self._total -= self._size.pop(key)
+                del self._d[key]
+            self._d[key] = value
+            self._size[key] = size
+            self._total += size
+            while self._total > self.max_bytes and len(self._d) > self.keep:
+                old, _ = self._d.popitem(last=False)
+                self._total -= self._size.pop(old)
+
+    def __delitem__(self, key) -> None:
+        with self._lock:
+            del self._d[key]
+            self._total -= self._size.pop(key)
+
+    def __iter__(self):
+        with self._lock:
+            return iter(list(self._d))
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._d)
+
+    @property
+    def nbytes(self) -> int:
+        """Estimated memory held."""
+        return self._total
+
+    def kinds(self) -> dict:
+        """How many entries of each stage (``"data"``, ``"mom"``, ``"loops"``, ...) are held."""
+        with self._lock:
+            out: dict = {}
+            for k in self._d:
+                out[k[0]] = out.get(k[0], 0) + 1
+            return out

@@ -1,0 +1,129 @@
+"""How fast does the dashboard redraw? Measured with its pure update function, no browser.
+
+Times what a browser tab's worker does for one change of settings:
+:func:`app.dashboard_compute.iter_frames` (engine work, shared cache) plus
+:class:`app.dashboard_compute.Renderer` (3-D arrays, summary, plotly figures)
+plus serialising every changed figure to JSON (what viser sends). Network and
+browser rendering are not included.
+
+Targets (from the dashboard's issue):
+
+* interactive default (50 x 200 samples, 20 realizations): a b change <= 100 ms,
+  a Q/R change <= 500 ms;
+* paper scale (200 x 1000, 50 realizations): a data change shows the current b
+  within 1 s and all curves within 3 s.
+
+Usage::
+
+    python benchmarks/bench_dashboard.py                # process pool of 2 (the dashboard's default)
+    python benchmarks/bench_dashboard.py --workers 0    # everything in-process
+    python benchmarks/bench_dashboard.py --no-paper     # interactive only
+
+Numbers are printed, never hard-coded; they depend on the machine and its load.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # as qsid-dashboard does
+    os.environ.setdefault(_var, "1")
+
+import argparse
+import multiprocessing
+import statistics
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from app.dashboard_compute import Renderer, iter_frames  # noqa: E402
+import numpy as np  # noqa: E402
+
+from app.dashboard_state import (  # noqa: E402
+    INTERACTIVE, PAPER_SCALE, SharedCache, Values, log_from_weights, resolve_system,
+)
+
+
+def update(values: Values, cache, renderer: Renderer, executor, tasks: int) -> dict:
+    """One change of settings, as a tab's worker handles it; returns seconds to the current b and to all curves."""
+    t0 = time.perf_counter()
+    out = {}
+    for frame in iter_frames(values, cache, executor, tasks):
+        r = renderer.render(frame, values.axes)
+        for fig in r.figures.values():
+            fig.to_json()
+        if frame.stage == "current":
+            out["current"] = time.perf_counter() - t0
+    out["all"] = time.perf_counter() - t0
+    return out
+
+
+def _median(runs: list, key: str) -> float:
+    return statistics.median(r[key] for r in runs)
+
+
+def _row(name: str, runs: list, target: str) -> None:
+    cur = [r["current"] * 1000 for r in runs]
+    tot = [r["all"] * 1000 for r in runs]
+    print(f"{name:<38} {statistics.median(cur):8.0f} {min(cur):8.0f} {max(cur):8.0f}   "
+          f"{statistics.median(tot):8.0f} {min(tot):8.0f} {max(tot):8.0f}   {target}")
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--workers", type=int, default=2, help="process pool size (0 = in-process)")
+    p.add_argument("--repeat", type=int, default=5, help="changes timed per case (median, min, max shown)")
+    p.add_argument("--no-paper", action="store_true", help="skip the paper-scale case")
+    p.add_argument("--system", default="dc-motor")
+    p.add_argument("--identification", default="LS + BCLS", choices=("LS", "BCLS", "LS + BCLS"))
+    a = p.parse_args(argv)
+    ex = None
+    if a.workers:
+        ex = ProcessPoolExecutor(a.workers, mp_context=multiprocessing.get_context("spawn"))
+        for f in [ex.submit(abs, 0) for _ in range(a.workers)]:
+            f.result()
+    tasks = max(1, a.workers)
+    print(f"qsid dashboard update latency · system {a.system} · {a.identification} · "
+          f"{'process pool of ' + str(a.workers) if a.workers else 'in-process'} · "
+          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}")
+    print(f"{'change':<38} {'current b [ms]: median':>24} {'min':>4} {'max':>8}   "
+          f"{'all curves [ms]: median':>8} {'min':>4} {'max':>8}   target")
+    cache = SharedCache()
+    ren = Renderer()
+    base = Values(system=a.system, identification=a.identification, **INTERACTIVE)
+    cold = [update(base, cache, ren, ex, tasks)]
+    _row(f"interactive: first view (cold cache)", cold, "-")
+    bits = [5, 6, 3, 7, 4, 8, 2, 9, 10, 11]
+    runs = [update(base.replace(bits=b), cache, ren, ex, tasks) for b in bits[: a.repeat]]
+    _row("interactive: b change", runs, "<= 100 ms (all)")
+    v = base.replace(bits=bits[a.repeat - 1] if a.repeat <= len(bits) else 4)
+    sysm = resolve_system(v).system
+    lq, lr = log_from_weights(np.diag(sysm.Q)), log_from_weights(np.diag(sysm.R))
+    runs = []
+    for i in range(a.repeat):  # move the first Q and the last R slider, as a person would
+        d = 0.1 * (i + 1)
+        runs.append(update(v.replace(log_q=(lq[0] + d,) + lq[1:], log_r=lr[:-1] + (lr[-1] - d,)),
+                           cache, ren, ex, tasks))
+    _row("interactive: Q/R change", runs, "<= 500 ms (all)")
+    runs = [update(v.replace(data_seed=100 + i), cache, ren, ex, tasks) for i in range(a.repeat)]
+    _row("interactive: data change (seed)", runs, "-")
+    if not a.no_paper:
+        paper = base.replace(**PAPER_SCALE)
+        update(paper, cache, ren, ex, tasks)  # the dashboard's paper-scale button, once
+        runs = [update(paper.replace(data_seed=200 + i), cache, ren, ex, tasks) for i in range(max(2, a.repeat // 2))]
+        _row("paper scale: data change (seed)", runs, "<= 1000 ms current, <= 3000 ms all")
+        runs = [update(paper.replace(data_seed=200, bits=b), cache, ren, ex, tasks) for b in bits[: a.repeat]]
+        _row("paper scale: b change", runs, "-")
+    print(f"cache: {len(cache)} entries, ~{cache.nbytes / 2**20:.0f} MB, {cache.kinds()}")
+    if ex is not None:
+        ex.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
