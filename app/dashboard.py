@@ -77,9 +77,6 @@ class Session:
             self.plots = {name: gui.add_plotly(_blank(), aspect=PLOT_ASPECT[name]) for name in PLOT_ASPECT}
         self.renderer = Renderer()
         self.portrait = PhasePortrait(client.scene)
-        client.camera.up_direction = (0.0, 0.0, 1.0)
-        client.camera.position = (1.7, -2.2, 1.4)
-        client.camera.look_at = (0.0, 0.0, 0.0)
         self.thread = threading.Thread(target=self._loop, name=f"qsid-tab-{client.client_id}", daemon=True)
         self.thread.start()
         self.touch()
@@ -245,6 +242,10 @@ class DashboardApp:
         self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
+        cam = self.server.initial_camera  # every new tab starts looking at the unit box from here
+        cam.position = (1.7, -2.2, 1.4)
+        cam.look_at = (0.0, 0.0, 0.0)
+        cam.up = (0.0, 0.0, 1.0)
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
 
@@ -337,6 +338,7 @@ def main(argv: list[str] | None = None) -> int:
 
     app = None
     try:
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # also when started with SIGINT ignored
         signal.signal(signal.SIGTERM, _term)
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)

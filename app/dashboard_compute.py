@@ -21,7 +21,7 @@ import numpy as np
 from qsid_core.experiment import Experiment, summary_row
 from qsid_core.systems import LTISystem
 
-from .dashboard_state import ALL_BITS, Values, axes_indices, estimators, resolve_system, sweep_config
+from .dashboard_state import ALL_BITS, Values, axes_indices, estimators, mpc_config, resolve_system, sweep_config
 from .figures import bound_figure, cost_figure, eigen_figure, error_figure, move_current_bits
 
 __all__ = ["LABELS", "RGB", "Frame", "iter_frames", "SceneView", "scene_view", "build_figures",
@@ -287,15 +287,15 @@ def scene_view(frame: Frame, axes: str | None = None) -> SceneView:
     names = sysm.state_names
     dims = axes_indices(axes if axes is not None else frame.values.axes, names)
     ts = frame.true_loop.states[0]
+    x0 = mpc_config(frame.values, sysm).resolve(sysm)["x0"]  # the engine's start state (also if loops failed)
     sel = [d for d in dims if d is not None]
     ref = ts[:, sel]
     ref = ref[np.all(np.isfinite(ref), axis=1)]
     scale = float(np.abs(ref).max()) if ref.size else 0.0
     if not np.isfinite(scale) or scale <= 0:
-        x0 = ts[0, sel]
-        scale = float(np.abs(x0[np.isfinite(x0)]).max()) if np.any(np.isfinite(x0)) else 1.0
-        scale = scale if scale > 0 else 1.0
-    start = np.array([ts[0, d] / scale if d is not None else 0.0 for d in dims])
+        scale = float(np.abs(x0[sel]).max())
+        scale = scale if np.isfinite(scale) and scale > 0 else 1.0
+    start = np.array([x0[d] / scale if d is not None else 0.0 for d in dims])
     segs, cols, failed, clipped, poly = [], [], 0, 0, 0
     for lab in frame.labels:
         st = frame.loops[lab].states
@@ -377,7 +377,9 @@ def summary_markdown(frame: Frame) -> str:
                      f"{_failures(r, frame.loops[lab])} |")
     lines.append(f"| Thm 1 | {_g(first['err_A_theory'])} | {_g(first['err_B_theory'])} | | |")
     lines.append("")
-    lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}")
+    tl = frame.true_loop
+    why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
+    lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}{why}")
     notes = list(frame.notes)
     if "BCLS" in frame.labels:
         r = frame.rows["BCLS"][b]

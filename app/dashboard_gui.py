@@ -121,8 +121,8 @@ class Controls:
             self.theta = self._watch(gui.add_slider("θ", 0.05, 0.95, 0.05, float(v.theta),
                                                     hint="Share of the Lyapunov decrease used against the "
                                                          "model error (ultimate bound δ(ε))"))
-            self.rho_auto = self._watch(gui.add_checkbox("ρ auto", bool(v.rho_auto),
-                                                         hint="ρ = sqrt(λmax(P)/λmin(P))·‖x0‖ (engine default)"))
+            self.rho_auto = self._watch(gui.add_checkbox(
+                "ρ auto", bool(v.rho_auto), hint="ρ = sqrt(λmax(P)/λmin(P))·‖x0‖ (engine default)"))
             self.rho = self._watch(gui.add_number("ρ", float(v.rho), min=1e-6, step=0.1, disabled=bool(v.rho_auto)))
         with gui.add_folder("Summary"):
             self.summary = gui.add_markdown("")

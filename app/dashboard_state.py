@@ -114,8 +114,7 @@ def _build_quietly(fn):
     notes = []
     for w in caught:
         if issubclass(w.category, UncontrollableWarning):
-            notes.append(f"(A, B) is not controllable: {w.message}. Identification still works; "
-                         "the MPC may fail to regulate.")
+            notes.append(f"{w.message}. Identification still works.")
     return out, tuple(notes)
 
 

@@ -1,0 +1,157 @@
+"""The dashboard in a real headless Chromium: canvas, plots, the word-length slider, two tabs, screenshot.
+
+Needs Debian's ``/usr/bin/chromium`` and the ``playwright`` Python package (no
+browser download). The server runs in this process (127.0.0.1, free port), so
+the test can also look at the server-side scene handles. The screenshot goes to
+a temporary directory; set ``QSID_SCREENSHOT=assets/dashboard.png`` to also
+write it there (that is how the committed copy was made).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+        "--no-first-run", "--disable-quic", "--disable-sync"]
+TIMEOUT_MS = 120_000
+
+# Console messages that are not errors of the dashboard: headless Chromium renders WebGL in software
+# (SwiftShader) and says so; GPU driver chatter; three.js deprecation notes. Only these are ignored.
+IGNORED = [
+    re.compile(r"GL Driver Message", re.I),
+    re.compile(r"GPU stall due to ReadPixels", re.I),
+    re.compile(r"WebGL", re.I),
+    re.compile(r"swiftshader|software rendering|software WebGL", re.I),
+    re.compile(r"THREE\.\w+: .*deprecated", re.I),
+]
+
+pytestmark = pytest.mark.browser
+
+ERROR_PLOT_MARKS = """() => {
+  const gd = [...document.querySelectorAll('.js-plotly-plot')].find(e => e.textContent.includes('‖A−Â‖/‖A‖'));
+  if (!gd || !gd.layout || !gd.layout.shapes) return null;
+  return gd.layout.shapes.map(s => s.x0);
+}"""
+
+
+def _require_browser():
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium); CI installs it")
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        pytest.skip("the playwright Python package is missing (pip install playwright)")
+
+
+@pytest.fixture(scope="module")
+def dash():
+    _require_browser()
+    from app.dashboard import DashboardApp
+
+    app = DashboardApp(host="127.0.0.1", port=0, system="boeing747", workers=0)
+    yield app
+    app.stop()
+
+
+def _watch_console(page, errors: list, ignored: list) -> None:
+    def on_console(msg):
+        if msg.type != "error":
+            return
+        (ignored if any(p.search(msg.text) for p in IGNORED) else errors).append(msg.text)
+
+    page.on("console", on_console)
+    page.on("pageerror", lambda exc: errors.append(f"page error: {exc}"))
+
+
+def _open(browser_context, app, errors, ignored, count):
+    page = browser_context.new_page()
+    _watch_console(page, errors, ignored)
+    page.goto(app.url, timeout=TIMEOUT_MS)
+    sessions = app.wait_for_sessions(count, timeout=60)
+    session = max(sessions, key=lambda s: s.client.client_id)
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
+    page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 4", timeout=TIMEOUT_MS)
+    page.wait_for_function(f"({ERROR_PLOT_MARKS})() !== null", timeout=TIMEOUT_MS)
+    return page, session
+
+
+def _bits_input(page):
+    """The number box next to the word-length slider (viser renders a Mantine slider + NumberInput)."""
+    uid = page.locator("label", has_text="word length b").first.get_attribute("for")
+    return page.locator(f"[id='{uid}']").locator("xpath=..").locator("input:not([type=hidden])").first
+
+
+def _thumb_value(page) -> str:
+    uid = page.locator("label", has_text="word length b").first.get_attribute("for")
+    return page.locator(f"[id='{uid}'] [role=slider]").first.get_attribute("aria-valuenow")
+
+
+def _set_bits(page, b: int) -> None:
+    box = _bits_input(page)
+    box.fill(str(b))
+    box.press("Tab")
+    page.wait_for_function(f"JSON.stringify(({ERROR_PLOT_MARKS})()) === JSON.stringify([{b}, {b}])",
+                           timeout=TIMEOUT_MS)
+
+
+def test_dashboard_in_a_real_browser(dash, tmp_path):
+    from playwright.sync_api import sync_playwright
+
+    errors: list = []
+    ignored: list = []
+    t0 = time.time()
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+        try:
+            ctx = browser.new_context(viewport={"width": 1400, "height": 900})
+            page1, s1 = _open(ctx, dash, errors, ignored, 1)
+            assert page1.evaluate(ERROR_PLOT_MARKS) == [4, 4]
+            assert _thumb_value(page1) == "4"
+            assert page1.locator("text=Share").count() == 0  # viser's share button is hidden
+            sphere0 = float(s1.portrait.sphere.scale)
+            pts0 = s1.portrait.traj.points.copy()
+
+            # move the word-length slider in the browser: plot marker, sphere and lines follow
+            _set_bits(page1, 12)
+            assert s1.wait_idle(60)
+            assert s1.last_frame.bits == 12 and s1.controls.bits.value == 12
+            assert float(s1.portrait.sphere.scale) < sphere0
+            assert not (s1.portrait.traj.points == pts0).all()
+            assert "b = **12** bits" in s1.controls.summary.content
+
+            # a second tab has its own settings
+            page2, s2 = _open(ctx, dash, errors, ignored, 2)
+            assert s2 is not s1
+            assert page2.evaluate(ERROR_PLOT_MARKS) == [4, 4] and _thumb_value(page2) == "4"
+            _set_bits(page1, 9)
+            assert s1.wait_idle(60) and s2.wait_idle(60)
+            time.sleep(1.0)
+            assert page2.evaluate(ERROR_PLOT_MARKS) == [4, 4] and _thumb_value(page2) == "4"
+            assert s2.last_frame.bits == 4 and s1.last_frame.bits == 9
+            assert page1.evaluate(ERROR_PLOT_MARKS) == [9, 9] and _thumb_value(page1) == "9"
+            page2.close()
+
+            # dismiss viser's "software WebGL rendering" notice, then take the screenshot
+            page1.bring_to_front()
+            close = page1.locator(".mantine-Notification-closeButton")
+            for i in range(close.count()):
+                close.nth(i).click()
+            page1.wait_for_timeout(1500)
+            assert page1.locator(".mantine-Notification-root").count() == 0
+            shot = tmp_path / "dashboard.png"
+            page1.screenshot(path=str(shot))
+            assert shot.stat().st_size > 50_000
+            if os.environ.get("QSID_SCREENSHOT"):
+                shutil.copyfile(shot, os.environ["QSID_SCREENSHOT"])
+        finally:
+            browser.close()
+    assert errors == [], f"console errors: {errors}"
+    print(f"browser test: {time.time() - t0:.1f} s; ignored console errors: {ignored}")
