@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Iterator, MutableMapping
 
@@ -156,8 +157,7 @@ def iter_frames(
             if executor is not None and ahead.finished:
                 # quantization done (or cached): spread the remaining closed loops over the executor at once
                 part, k = [x for p in parts[k:] for x in p], len(parts)
-                for e in ests:
-                    lps = ex.closed_loops_many(part, e)
+                for e, lps in _loops_all(ex, part, ests).items():
                     for x in part:
                         rows[LABELS[e]][x] = summary_row(n, ex.identification(x, e), ex.theory(x), lps[x])
             else:
@@ -175,6 +175,14 @@ def iter_frames(
                             elapsed=now - t0, timings={"current": t1 - t0, "curves": now - t0}, **common)
     finally:
         ahead.cancel()
+
+
+def _loops_all(ex: Experiment, bits: list, ests: tuple) -> dict:
+    """``ex.closed_loops_many(bits, e)`` for every estimator, submitted together (no idle workers in between)."""
+    if len(ests) == 1:
+        return {ests[0]: ex.closed_loops_many(bits, ests[0])}
+    with ThreadPoolExecutor(len(ests)) as tp:
+        return dict(zip(ests, tp.map(lambda e: ex.closed_loops_many(bits, e), ests)))
 
 
 class _Prefetch:
@@ -332,10 +340,18 @@ def build_figures(frame: Frame, which=("error", "cost", "bound", "eigen")) -> di
     if "bound" in which:
         out["bound"] = bound_figure(series, current_bits=frame.bits, height=260)
     if "eigen" in which:
-        eigs = {lab: frame.idents[lab].eigenvalues for lab in frame.labels}
+        eigs = {lab: _eigenvalues(frame.idents[lab]) for lab in frame.labels}
         out["eigen"] = eigen_figure(eigs, np.linalg.eigvals(frame.system.A), height=300,
                                     title=f"eigenvalues of Â at b = {frame.bits}")
     return out
+
+
+def _eigenvalues(ident) -> np.ndarray:
+    """Eigenvalues of the identified A^ of every realization whose identification succeeded."""
+    failed = getattr(ident, "failed", None)
+    A = ident.A_hat if failed is None else ident.A_hat[~np.asarray(failed, dtype=bool)]
+    A = A[np.all(np.isfinite(A.reshape(len(A), -1)), axis=1)]
+    return np.linalg.eigvals(A) if len(A) else np.zeros((0, ident.A_hat.shape[1]), dtype=complex)
 
 
 def _g(x, fmt=".3g") -> str:
@@ -381,6 +397,12 @@ def summary_markdown(frame: Frame) -> str:
     why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
     lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}{why}")
     notes = list(frame.notes)
+    for lab in frame.labels:
+        k = frame.rows[lab][b].get("ident_failures") or 0
+        if k:
+            why = "; ".join(x for x in frame.idents[lab].notes if x.startswith("identification failed"))[:200]
+            notes.append(f"{lab} identification failed in {k} of {frame.values.realizations} realizations "
+                         f"(their loops are not drawn): {why}")
     if "BCLS" in frame.labels:
         r = frame.rows["BCLS"][b]
         if r["bcls_fallbacks"]:

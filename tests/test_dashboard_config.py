@@ -309,3 +309,15 @@ def test_summary_lists_eps_errors_overload_and_failures():
     f.rows["LS"][2]["mpc_cost"]["failures"] = {"dare": 1}
     text = summary_markdown(f)
     assert "1/4 (1 dare)" in text and "LS MPC: DARE has no stabilizing solution" in text
+
+
+def test_a_failed_identification_is_reported_and_not_drawn():
+    f = frames(Values(bits=3, **SMALL))[-1]
+    ident = f.idents["LS"]
+    ident.A_hat[1] = np.nan
+    ident.failed = np.array([False, True, False, False])
+    ident.notes = ["identification failed: singular data"]
+    f.rows["LS"][3]["ident_failures"] = 1
+    eig = build_figures(f, ("eigen",))["eigen"]
+    assert len(eig.data[1].x) == 3 * 3  # 3 good realizations x 3 eigenvalues
+    assert "LS identification failed in 1 of 4 realizations" in summary_markdown(f)
