@@ -160,7 +160,8 @@ class Session:
                     frame = next(frames, None)
                 if frame is None or self._stale(gen):
                     return
-                self._draw(frame)
+                if not self._draw(frame, gen):
+                    return
                 key = "current" if frame.stage == "current" else "all"
                 self.timings[key] = time.perf_counter() - t0
                 if frame.complete:
@@ -181,9 +182,13 @@ class Session:
         c.status.content = "error – see below"
         c.progress.value = 0.0
 
-    def _draw(self, frame: Frame) -> None:
+    def _draw(self, frame: Frame, gen: int) -> bool:
+        """Push ``frame`` to the tab unless newer settings arrived meanwhile; True if drawn."""
         c = self.controls
         r = self.renderer.render(frame, c.axes.value)
+        if self._stale(gen):  # never draw an older result over a newer one
+            self.renderer = Renderer()  # it remembered figures that were not pushed
+            return False
         with self.client.atomic():
             if c.error.visible:
                 c.error.visible = False
@@ -196,6 +201,7 @@ class Session:
                 self.plots[name].figure = fig
         self.last_frame = frame
         self.frames_drawn += 1
+        return True
 
 
 def _blank():

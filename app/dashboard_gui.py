@@ -177,11 +177,13 @@ class Controls:
             for h in self.q_sliders + self.r_sliders:
                 h.remove()
             with self.q_folder:
-                self.q_sliders = [self._watch(self.gui.add_slider(f"Q {nm}", LOG_MIN, LOG_MAX, 0.1, float(x)))
-                                  for nm, x in zip(system.state_names, lq)]
+                self.q_sliders = [self._watch(self.gui.add_slider(
+                    f"Q {nm}", LOG_MIN, LOG_MAX, 0.1, float(x), hint=f"log10 of the weight of state {nm}"))
+                    for nm, x in zip(system.state_names, lq)]
             with self.r_folder:
-                self.r_sliders = [self._watch(self.gui.add_slider(f"R {nm}", LOG_MIN, LOG_MAX, 0.1, float(x)))
-                                  for nm, x in zip(system.input_names, lr)]
+                self.r_sliders = [self._watch(self.gui.add_slider(
+                    f"R {nm}", LOG_MIN, LOG_MAX, 0.1, float(x), hint=f"log10 of the weight of input {nm}"))
+                    for nm, x in zip(system.input_names, lr)]
             if reset and not first:
                 self.x0.value = ", ".join(f"{x:g}" for x in system.x0)
             opts = axes_options(system.state_names)
