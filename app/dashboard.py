@@ -37,10 +37,12 @@ from qsid_core.systems import PRESETS, get_system
 from .dashboard_compute import Frame, Renderer, iter_frames
 from .dashboard_gui import Controls
 from .dashboard_scene import PhasePortrait
-from .dashboard_state import INTERACTIVE, PAPER_SCALE, SharedCache, Values, resolve_system
+from .dashboard_state import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, SharedCache, Values, resolve_system
 
 __all__ = ["DashboardApp", "Session", "main"]
 
+#: Systems a tab can start with (the panel's presets; 'custom' is typed in the panel).
+STARTING_SYSTEMS = tuple(x for x in SYSTEM_CHOICES if x != "custom")
 PLOT_ASPECT = {"error": 0.62, "cost": 0.6, "bound": 0.6, "eigen": 0.75}
 
 
@@ -233,8 +235,8 @@ class DashboardApp:
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
                  cache_bytes: int = 512 * 2**20):
-        if system not in PRESETS:
-            raise QsidError(f"unknown system {system!r}; use one of {', '.join(PRESETS)}")
+        if system not in STARTING_SYSTEMS:
+            raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
         self.defaults = Values(system=system, **size)
         self.cache = SharedCache(cache_bytes)
@@ -328,11 +330,12 @@ def _parser() -> argparse.ArgumentParser:
                                 "identification -> MPC. Open the printed URL in a browser.")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; the next free one if taken)")
-    p.add_argument("--system", default="dc-motor", choices=sorted(PRESETS), help="initial system of new tabs")
+    p.add_argument("--system", default="dc-motor", choices=STARTING_SYSTEMS, help="initial system of new tabs")
     p.add_argument("--scale", default="interactive", choices=("interactive", "paper"),
                    help="initial data size: interactive (50 x 200, 20 realizations) or paper (200 x 1000, 50)")
     p.add_argument("--workers", type=int, default=2,
-                   help="processes for the quantization work, shared by all tabs (0 = in-process; default 2)")
+                   help="processes for the quantization and closed-loop work, shared by all tabs "
+                        "(0 = in-process; default 2)")
     return p
 
 

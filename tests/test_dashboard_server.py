@@ -314,3 +314,28 @@ def test_command_line_rejects_unknown_system():
     r = subprocess.run([sys.executable, "-m", "app.dashboard", "--system", "nope"], cwd=ROOT, capture_output=True,
                        text=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=60)
     assert r.returncode == 2 and "invalid choice: 'nope'" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_default_process_pool_gives_the_same_results():
+    from concurrent.futures import ProcessPoolExecutor
+
+    pooled = DashboardApp(host="127.0.0.1", port=0, workers=2)
+    try:
+        assert isinstance(pooled.executor, ProcessPoolExecutor) and pooled.tasks == 2
+        tab, s = open_tab(pooled)
+        try:
+            s.controls.bits.value = 7
+            assert s.wait_idle(120) and s.last_error is None
+            rows = s.last_frame.rows
+        finally:
+            tab.close()
+    finally:
+        pooled.stop()
+    from app.dashboard_compute import iter_frames
+    from app.dashboard_state import SharedCache
+
+    inline = list(iter_frames(s.last_frame.values, SharedCache()))[-1].rows
+    for lab in ("LS", "BCLS"):
+        for b in range(1, 17):
+            assert rows[lab][b]["err_A"] == inline[lab][b]["err_A"]
+            assert rows[lab][b]["mpc_cost"]["mean"] == pytest.approx(inline[lab][b]["mpc_cost"]["mean"], rel=1e-12)
