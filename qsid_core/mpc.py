@@ -31,7 +31,10 @@ import scipy.sparse as sp
 
 from .errors import ConfigError, QsidError, check_float, check_int
 
-__all__ = ["MPCConfig", "MPCFailure", "MPCController", "ClosedLoops", "run_closed_loops", "FAILURE_KINDS"]
+__all__ = [
+    "MPCConfig", "MPCFailure", "MPCController", "ClosedLoops", "run_closed_loops", "FAILURE_KINDS", "dare_batch",
+    "dare_stabilizing", "lq_parts",
+]
 
 FAILURE_KINDS = ("ident", "dare", "infeasible", "max_iter", "solver", "diverged")
 
@@ -168,6 +171,134 @@ def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray)
     return X
 
 
+def dare_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, tol: float = 1e-13,
+               max_iter: int = 80) -> tuple[np.ndarray, np.ndarray]:
+    """Stabilizing DARE solutions for a batch of models, by structure-preserving doubling.
+
+    Parameters
+    ----------
+    A : ndarray, shape (L, n, n)
+    B : ndarray, shape (L, n, m)
+    Q : ndarray, shape (n, n)
+    R : ndarray, shape (m, m), positive definite
+
+    Returns
+    -------
+    X : ndarray, shape (L, n, n)
+        The solutions (NaN where ``ok`` is False).
+    ok : ndarray of bool, shape (L,)
+        Converged, finite and stabilizing (spectral radius of ``A - B K`` below 1).
+        Callers fall back to :func:`dare_stabilizing` where it is False.
+
+    Notes
+    -----
+    SDA (Chu, Fan, Lin 2005): ``A_0 = A``, ``G_0 = B R^-1 B'``, ``H_0 = Q``;
+    ``W = I + G_k H_k``; ``A_{k+1} = A_k W^-1 A_k``, ``G_{k+1} = G_k + A_k W^-1 G_k A_k'``,
+    ``H_{k+1} = H_k + A_k' H_k W^-1 A_k``; ``H_k`` converges quadratically to the
+    stabilizing solution. All models are iterated together with batched numpy.
+    """
+    L, n, _ = A.shape
+    Ak = np.array(A, dtype=float)
+    G = B @ np.linalg.solve(R, np.swapaxes(B, 1, 2))
+    H = np.broadcast_to(np.asarray(Q, dtype=float), (L, n, n)).copy()
+    I = np.eye(n)
+    done = np.zeros(L, dtype=bool)
+    with np.errstate(all="ignore"):
+        for _ in range(max_iter):
+            W = I + G @ H
+            try:
+                WiA = np.linalg.solve(W, Ak)
+                WiG = np.linalg.solve(W, G)
+            except np.linalg.LinAlgError:
+                break
+            Hn = H + np.swapaxes(Ak, 1, 2) @ H @ WiA
+            G = G + Ak @ WiG @ np.swapaxes(Ak, 1, 2)
+            Ak = Ak @ WiA
+            delta = np.abs(Hn - H).max(axis=(1, 2))
+            scale = np.abs(Hn).max(axis=(1, 2))
+            H = Hn
+            done = np.isfinite(delta) & (delta <= tol * np.maximum(scale, 1.0))
+            if done.all():
+                break
+        X = (H + np.swapaxes(H, 1, 2)) / 2
+        ok = done & np.all(np.isfinite(X), axis=(1, 2))
+        if ok.any():
+            Bt = np.swapaxes(B, 1, 2)
+            K = np.linalg.solve(R + Bt @ X @ B, Bt @ X @ A)
+            Acl = np.where(ok[:, None, None], A - B @ K, 0.0)
+            rho = np.abs(np.linalg.eigvals(Acl)).max(axis=1)
+            ok &= rho < 1.0
+    X[~ok] = np.nan
+    return X, ok
+
+
+def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> dict:
+    """Unconstrained finite-horizon LQ solution for a batch of models (the MPC's fast path).
+
+    Backward Riccati recursion with an affine term for the reference ``r``:
+    ``u_k = -K_k x_k - kf_k``; ``V_0(x) = x'P0x + 2 p0'x + c0``. Then the affine map
+    ``z = F x0 + f`` from the initial state to the predicted inputs ``u_0..u_{N-1}``
+    (and, with a state or terminal box, states ``x_1..x_N``) with the box
+    half-widths ``bound``: the unconstrained optimum solves the constrained QP
+    exactly iff ``|F x0 + f| <= bound``.
+
+    Parameters
+    ----------
+    A : (L, n, n), B : (L, n, m), Qf : (L, n, n)
+        Models and terminal weights.
+    Q : (n, n), R : (m, m), r : (n,)
+    N : int
+        Horizon.
+    u_max : (m,); x_max, xf_max : (n,) or None
+
+    Returns
+    -------
+    dict with K (L,N,m,n), kf (L,N,m), P0 (L,n,n), p0 (L,n), c0 (L,), F (L,rows,n), f (L,rows), bound (rows,)
+    """
+    L, n, m = B.shape
+    At, Bt = np.swapaxes(A, 1, 2), np.swapaxes(B, 1, 2)
+    P = np.array(Qf, dtype=float)
+    p = -(P @ r)
+    c = np.einsum("i,lij,j->l", r, P, r)
+    rQr = float(r @ Q @ r)
+    K = np.empty((L, N, m, n))
+    kf = np.empty((L, N, m))
+    for k in range(N - 1, -1, -1):
+        BtP = Bt @ P
+        S = R + BtP @ B
+        Kk = np.linalg.solve(S, BtP @ A)
+        Btp = np.einsum("lij,lj->li", Bt, p)
+        kk = np.linalg.solve(S, Btp[..., None])[..., 0]
+        c = c + rQr - np.einsum("li,li->l", Btp, kk)
+        p = -(Q @ r) + np.einsum("lji,lj->li", A - B @ Kk, p)
+        P = Q + At @ P @ A - np.swapaxes(BtP @ A, 1, 2) @ Kk
+        P = (P + np.swapaxes(P, 1, 2)) / 2
+        K[:, k], kf[:, k] = Kk, kk
+    Mx = np.broadcast_to(np.eye(n), (L, n, n))
+    mx = np.zeros((L, n))
+    Fu, fu, Fx, fx = [], [], [], []
+    for k in range(N):
+        Fk = -K[:, k] @ Mx
+        fk = -np.einsum("lij,lj->li", K[:, k], mx) - kf[:, k]
+        Mx = A @ Mx + B @ Fk
+        mx = np.einsum("lij,lj->li", A, mx) + np.einsum("lij,lj->li", B, fk)
+        Fu.append(Fk)
+        fu.append(fk)
+        Fx.append(Mx)
+        fx.append(mx)
+    F, f, bound = list(Fu), list(fu), [np.asarray(u_max, dtype=float)] * N
+    if x_max is not None or xf_max is not None:
+        big = np.full(n, np.inf)
+        boxes = [np.asarray(x_max, dtype=float) if x_max is not None else big for _ in range(N)]
+        if xf_max is not None:
+            boxes[-1] = np.minimum(boxes[-1], xf_max)
+        F += Fx
+        f += fx
+        bound += boxes
+    return dict(K=K, kf=kf, P0=P, p0=p, c0=c, F=np.concatenate(F, axis=1), f=np.concatenate(f, axis=1),
+                bound=np.concatenate(bound))
+
+
 class MPCController:
     """The letter's MPC for one identified model ``(A^, B^)``: fast path plus OSQP.
 
@@ -191,7 +322,7 @@ class MPCController:
     """
 
     def __init__(self, A_hat, B_hat, Q, R, horizon, u_max, x_max=None, xf_max=None, x_ref=None, Qf=None,
-                 eps: float = 1e-9, max_iter: int = 20000):
+                 eps: float = 1e-9, max_iter: int = 20000, parts: dict | None = None):
         self.A = np.asarray(A_hat, dtype=float)
         self.B = np.asarray(B_hat, dtype=float)
         self.n, self.m = self.B.shape
@@ -207,49 +338,35 @@ class MPCController:
         if not (np.all(np.isfinite(self.A)) and np.all(np.isfinite(self.B))):
             raise MPCFailure("ident", "no model: identification failed for this realization")
         self.Qf = dare_stabilizing(self.A, self.B, self.Q, self.R) if Qf is None else np.asarray(Qf, dtype=float)
-        self._riccati()
+        if parts is None:
+            self._riccati()
+        else:  # computed for a batch of models by run_closed_loops
+            self._set_parts(parts)
         self._osqp = None
 
     # ----- fast path -----------------------------------------------------------------
     def _riccati(self) -> None:
-        """Backward recursion: u_k = -K_k x_k - k_k; V_0(x) = x'P0x + 2p0'x + c0."""
-        A, B, Q, R, r = self.A, self.B, self.Q, self.R, self.x_ref
-        P = self.Qf.copy()
-        p = -self.Qf @ r
-        c = float(r @ self.Qf @ r)
-        K = np.empty((self.N, self.m, self.n))
-        kf = np.empty((self.N, self.m))
-        for k in range(self.N - 1, -1, -1):
-            BtP = B.T @ P
-            S = R + BtP @ B
-            Kk = np.linalg.solve(S, BtP @ A)
-            kk = np.linalg.solve(S, B.T @ p)
-            c = c + float(r @ Q @ r) - float((B.T @ p) @ kk)
-            p = -Q @ r + (A - B @ Kk).T @ p
-            P = Q + A.T @ P @ A - (BtP @ A).T @ Kk
-            P = (P + P.T) / 2
-            K[k], kf[k] = Kk, kk
-        self.K, self.kf, self.P0, self.p0, self.c0 = K, kf, P, p, c
+        """Gains and value function of the unconstrained problem, and its prediction map."""
+        parts = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
+                         self.u_max, self.x_max, self.xf_max)
+        self._set_parts({k: v[0] if k != "bound" else v for k, v in parts.items()})
+
+    def _set_parts(self, parts: dict) -> None:
+        self.K, self.kf = parts["K"], parts["kf"]
+        self.P0, self.p0, self.c0 = parts["P0"], parts["p0"], float(parts["c0"])
+        self.F, self.f, self.bound = parts["F"], parts["f"], parts["bound"]
+
+    def cost_to_go(self, x: np.ndarray) -> float:
+        """Unconstrained optimal cost ``x'P0x + 2p0'x + c0`` (equals J*(x) when the fast path holds)."""
+        return float(x @ self.P0 @ x + 2 * self.p0 @ x + self.c0)
 
     def fast(self, x: np.ndarray) -> tuple[np.ndarray, float] | None:
         """Unconstrained LQ optimum ``(u_0, J*)`` if it satisfies every constraint, else None."""
         xs = np.asarray(x, dtype=float)
-        xk = xs
-        u0 = None
-        for k in range(self.N):
-            u = -self.K[k] @ xk - self.kf[k]
-            if np.any(np.abs(u) > self.u_max):
-                return None
-            if u0 is None:
-                u0 = u
-            xk = self.A @ xk + self.B @ u
-            box = self.x_max
-            if k == self.N - 1 and self.xf_max is not None:
-                box = self.xf_max if box is None else np.minimum(box, self.xf_max)
-            if box is not None and np.any(np.abs(xk) > box):
-                return None
-        J = float(xs @ self.P0 @ xs + 2 * self.p0 @ xs + self.c0)
-        return u0, J
+        z = self.F @ xs + self.f
+        if not np.all(np.abs(z) <= self.bound):
+            return None
+        return z[: self.m], self.cost_to_go(xs)
 
     # ----- OSQP ----------------------------------------------------------------------
     def _setup_osqp(self) -> None:
@@ -286,11 +403,29 @@ class MPCController:
         prob = osqp.OSQP()
         prob.setup(
             sp.triu(P, format="csc"), q, Aall, self._l, self._u, verbose=False, polishing=True, warm_starting=True,
-            eps_abs=self.eps, eps_rel=self.eps, max_iter=self.max_iter,
+            eps_abs=self._coarse or self.eps, eps_rel=self._coarse or self.eps, max_iter=self.max_iter,
         )
         self._osqp = prob
         self._nz = nz
         self._const = float(N * self.x_ref @ self.Q @ self.x_ref + self.x_ref @ self.Qf @ self.x_ref)
+
+    #: ADMM tolerance of the first solve; polishing then solves the KKT system of the
+    #: guessed active set exactly, and the result is kept only if its residuals are
+    #: below ``eps`` (else OSQP continues to ``eps``). Same answer, fewer iterations.
+    COARSE_EPS = 1e-3
+
+    @property
+    def _coarse(self) -> float:
+        return self.COARSE_EPS if self.eps < self.COARSE_EPS else 0.0
+
+    def _polished(self, res) -> bool:
+        import osqp
+
+        return (
+            res.info.status_val == osqp.SolverStatus.OSQP_SOLVED
+            and res.info.status_polish == 1
+            and max(res.info.prim_res, res.info.dual_res) <= self.eps
+        )
 
     def solve_osqp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
         """Solve the QP with OSQP from state ``x``; returns ``(u_0, J*)``.
@@ -309,6 +444,11 @@ class MPCController:
         self._u[:n] = -x
         self._osqp.update(l=self._l, u=self._u)
         res = self._osqp.solve(raise_error=False)
+        if self._coarse and not self._polished(res):
+            # the coarse solve's polished active set was not exact: solve again to eps (warm-started)
+            self._osqp.update_settings(eps_abs=self.eps, eps_rel=self.eps)
+            res = self._osqp.solve(raise_error=False)
+            self._osqp.update_settings(eps_abs=self._coarse, eps_rel=self._coarse)
         st = res.info.status_val
         S = osqp.SolverStatus
         if st in (S.OSQP_PRIMAL_INFEASIBLE, S.OSQP_PRIMAL_INFEASIBLE_INACCURATE):
@@ -372,10 +512,15 @@ class ClosedLoops:
 def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system) -> ClosedLoops:
     """Run the MPC built on each model ``(A^, B^)`` in closed loop on the true system.
 
-    The exact fast path is evaluated for all models at once (batched); models
-    whose unconstrained optimum violates a constraint at a step use OSQP for
-    that step. A failure (no DARE solution, infeasible QP, iteration limit,
-    diverging state) is recorded for that model and never raised.
+    Exact and fast: while the unconstrained LQ optimum is feasible, the MPC law
+    is the affine feedback ``u = F_u x + f_u``, so the closed loop is simulated
+    ahead for all models at once and every predicted constraint is checked in
+    one batch. Models stay on that path until their first step where a
+    constraint would be violated; from there on they are stepped one step at a
+    time, with OSQP solving the steps where a bound is active, until a step
+    where every remaining model is back on the fast path. A failure (no model,
+    no DARE solution, infeasible QP, iteration limit, diverging state) is
+    recorded for that model and never raised.
 
     Parameters
     ----------
@@ -389,97 +534,141 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     w = cfg.resolve(system)
     n, m = B_true.shape
     Rn = len(models)
-    steps, N = cfg.steps, cfg.horizon
+    steps = cfg.steps
     states = np.full((Rn, steps + 1, n), np.nan)
     inputs = np.full((Rn, steps, m), np.nan)
     cost = np.full(Rn, np.nan)
     J0 = np.full(Rn, np.nan)
     failure = [""] * Rn
     messages = [""] * Rn
+    Qfs: list = [w["Qf"]] * Rn
+    if w["Qf"] is None and Rn:
+        # terminal weights of all models at once; the few that SDA cannot settle go to scipy
+        finite = [bool(np.all(np.isfinite(a)) and np.all(np.isfinite(b))) for a, b in models]
+        fi = [i for i in range(Rn) if finite[i]]
+        if fi:
+            X, okd = dare_batch(np.stack([models[i][0] for i in fi]), np.stack([models[i][1] for i in fi]),
+                                w["Q"], w["R"])
+            for k, i in enumerate(fi):
+                if okd[k]:
+                    Qfs[i] = X[k]
+    # fast-path gains and prediction maps of every model with a terminal weight, in one batch
+    ready = [i for i in range(Rn) if Qfs[i] is not None and np.all(np.isfinite(models[i][0]))
+             and np.all(np.isfinite(models[i][1]))]
+    batch: dict = {}
+    if ready:
+        with np.errstate(all="ignore"):
+            bp = lq_parts(np.stack([np.asarray(models[i][0], float) for i in ready]),
+                          np.stack([np.asarray(models[i][1], float) for i in ready]), w["Q"], w["R"],
+                          np.stack([np.asarray(Qfs[i], float) for i in ready]), w["x_ref"], cfg.horizon,
+                          w["u_max"], w["x_max"], w["xf_max"])
+        for k, i in enumerate(ready):
+            pk = {key: (v[k] if key != "bound" else v) for key, v in bp.items()}
+            if all(np.all(np.isfinite(v)) for key, v in pk.items() if key != "bound"):
+                batch[i] = pk
     ctrls: list[MPCController | None] = []
     for i, (Ah, Bh) in enumerate(models):
         try:
-            ctrls.append(MPCController(Ah, Bh, w["Q"], w["R"], N, w["u_max"], w["x_max"], w["xf_max"],
-                                       w["x_ref"], w["Qf"], cfg.eps, cfg.max_iter))
+            ctrls.append(MPCController(Ah, Bh, w["Q"], w["R"], cfg.horizon, w["u_max"], w["x_max"], w["xf_max"],
+                                       w["x_ref"], Qfs[i], cfg.eps, cfg.max_iter, parts=batch.get(i)))
         except MPCFailure as exc:
             ctrls.append(None)
             failure[i], messages[i] = exc.kind, str(exc)
-    alive = np.array([c is not None for c in ctrls])
-    idx = np.flatnonzero(alive)
-    x = np.tile(w["x0"], (Rn, 1))
-    states[idx, 0] = x[idx]
+    live = np.array([c is not None for c in ctrls], dtype=bool)
+    if not live.any():
+        return ClosedLoops(states, inputs, cost, J0, failure, messages, 0)
+    Q, R, r = w["Q"], w["R"], w["x_ref"]
+    lid = np.flatnonzero(live)
+    F = np.stack([ctrls[i].F for i in lid])  # (L, rows, n)
+    f = np.stack([ctrls[i].f for i in lid])  # (L, rows)
+    bound = ctrls[lid[0]].bound
+    pos = {int(i): j for j, i in enumerate(lid)}
     acc = np.zeros(Rn)
-    r = w["x_ref"]
-    Q, R = w["Q"], w["R"]
-    # stacked model and gains of the live controllers
-    if idx.size:
-        Ab = np.stack([ctrls[i].A for i in idx])
-        Bb = np.stack([ctrls[i].B for i in idx])
-        Kb = np.stack([ctrls[i].K for i in idx])  # (L, N, m, n)
-        kb = np.stack([ctrls[i].kf for i in idx])  # (L, N, m)
-        P0 = np.stack([ctrls[i].P0 for i in idx])
-        p0 = np.stack([ctrls[i].p0 for i in idx])
-        c0 = np.array([ctrls[i].c0 for i in idx])
-    box_x = w["x_max"]
-    box_f = w["xf_max"]
-    if box_f is not None:
-        box_f = box_f if box_x is None else np.minimum(box_x, box_f)
-    else:
-        box_f = box_x
+    x = np.tile(w["x0"], (Rn, 1))
+    states[lid, 0] = x[lid]
     osqp_steps = 0
-    for t in range(steps):
-        if idx.size == 0:
-            break
-        xi = x[idx]
-        # batched fast path over the live controllers
-        ok = np.ones(idx.size, dtype=bool)
-        xk = xi
-        u_first = None
-        for k in range(N):
-            u = -np.einsum("lij,lj->li", Kb[:, k], xk) - kb[:, k]
-            ok &= np.all(np.abs(u) <= w["u_max"], axis=1)
-            if u_first is None:
-                u_first = u
-            xk = np.einsum("lij,lj->li", Ab, xk) + np.einsum("lij,lj->li", Bb, u)
-            box = box_f if k == N - 1 else box_x
-            if box is not None:
-                ok &= np.all(np.abs(xk) <= box, axis=1)
-        u_apply = u_first.copy()
-        Jt = np.einsum("li,lij,lj->l", xi, P0, xi) + 2 * np.einsum("li,li->l", p0, xi) + c0
-        keep = np.ones(idx.size, dtype=bool)
-        for j in np.flatnonzero(~ok):
-            i = idx[j]
-            osqp_steps += 1
-            try:
-                u_apply[j], Jt[j] = ctrls[i].solve_osqp(xi[j])
-            except MPCFailure as exc:
-                failure[i], messages[i] = exc.kind, f"step {t}: {exc}"
-                keep[j] = False
-        if t == 0:
-            J0[idx[keep]] = Jt[keep]
-        if not keep.all():
-            states[idx[~keep]] = np.nan
-            inputs[idx[~keep]] = np.nan
-            sel = keep
-            idx, xi, u_apply = idx[sel], xi[sel], u_apply[sel]
-            Ab, Bb, Kb, kb, P0, p0, c0 = Ab[sel], Bb[sel], Kb[sel], kb[sel], P0[sel], p0[sel], c0[sel]
-            if idx.size == 0:
-                break
-        e = xi - r
-        acc[idx] += np.einsum("li,ij,lj->l", e, Q, e) + np.einsum("li,ij,lj->l", u_apply, R, u_apply)
-        xn = xi @ A_true.T + u_apply @ B_true.T
-        inputs[idx, t] = u_apply
-        states[idx, t + 1] = xn
-        x[idx] = xn
-        bad = ~np.all(np.isfinite(xn), axis=1) | (np.abs(xn).max(axis=1) > 1e12)
-        if bad.any():
-            for j in np.flatnonzero(bad):
-                failure[idx[j]], messages[idx[j]] = "diverged", f"closed loop diverged at step {t + 1}"
-                states[idx[j]] = np.nan
-                inputs[idx[j]] = np.nan
-            sel = ~bad
-            idx = idx[sel]
-            Ab, Bb, Kb, kb, P0, p0, c0 = Ab[sel], Bb[sel], Kb[sel], kb[sel], P0[sel], p0[sel], c0[sel]
-    ok_all = np.array([not f for f in failure])
+
+    def fail(i: int, kind: str, msg: str) -> None:
+        failure[i], messages[i] = kind, msg
+        states[i] = np.nan
+        inputs[i] = np.nan
+
+    def stage_cost(xs: np.ndarray, us: np.ndarray) -> np.ndarray:
+        e = xs - r
+        return np.einsum("...i,ij,...j->...", e, Q, e) + np.einsum("...i,ij,...j->...", us, R, us)
+
+    active = lid.copy()
+    t = 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        while t < steps and active.size:
+            # --- speculate: fast-path feedback for the remaining steps, checked in one batch
+            j = np.array([pos[int(i)] for i in active])
+            Fu, fu = F[j, :m], f[j, :m]
+            Mcl = A_true[None] + np.einsum("ij,ljk->lik", B_true, Fu)
+            ccl = fu @ B_true.T
+            H = steps - t
+            xs = np.empty((active.size, H + 1, n))
+            xs[:, 0] = x[active]
+            for h in range(H):
+                xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
+            z = np.einsum("lrn,lhn->lhr", F[j], xs[:, :H]) + f[j][:, None, :]
+            ok = np.all(np.abs(z) <= bound, axis=2)
+            ok &= np.all(np.isfinite(xs[:, 1:]), axis=2) & (np.abs(xs[:, 1:]).max(axis=2) <= 1e12)
+            first_bad = np.where(ok.all(axis=1), H, np.argmin(ok, axis=1))
+            if t == 0:
+                for a, i in enumerate(active):
+                    if first_bad[a] > 0:
+                        J0[i] = ctrls[i].cost_to_go(xs[a, 0])
+            tau = int(first_bad.min())
+            done = first_bad == H
+            # commit the valid prefix: everything for models that never leave the fast path
+            us = z[:, :, :m]
+            for a, i in enumerate(active):
+                k = H if done[a] else tau
+                if k:
+                    states[i, t + 1 : t + k + 1] = xs[a, 1 : k + 1]
+                    inputs[i, t : t + k] = us[a, :k]
+                    acc[i] += stage_cost(xs[a, :k], us[a, :k]).sum()
+                    x[i] = xs[a, k]
+            active = active[~done]
+            t += tau
+            # --- step one at a time until every remaining model is back on the fast path
+            while t < steps and active.size:
+                j = np.array([pos[int(i)] for i in active])
+                xi = x[active]
+                z1 = np.einsum("lrn,ln->lr", F[j], xi) + f[j]
+                fast_ok = np.all(np.abs(z1) <= bound, axis=1)
+                u = z1[:, :m].copy()
+                keep = np.ones(active.size, dtype=bool)
+                for a in np.flatnonzero(~fast_ok):
+                    i = int(active[a])
+                    osqp_steps += 1
+                    try:
+                        u[a], Jt = ctrls[i].solve_osqp(xi[a])
+                        if t == 0:
+                            J0[i] = Jt
+                    except MPCFailure as exc:
+                        fail(i, exc.kind, f"step {t}: {exc}")
+                        keep[a] = False
+                if t == 0:
+                    for a in np.flatnonzero(fast_ok):
+                        J0[active[a]] = ctrls[active[a]].cost_to_go(xi[a])
+                xn = xi @ A_true.T + u @ B_true.T
+                bad = ~np.all(np.isfinite(xn), axis=1) | (np.abs(xn).max(axis=1) > 1e12)
+                for a in np.flatnonzero(bad & keep):
+                    fail(int(active[a]), "diverged", f"closed loop diverged at step {t + 1}")
+                    keep[a] = False
+                sel = active[keep]
+                states[sel, t + 1] = xn[keep]
+                inputs[sel, t] = u[keep]
+                acc[sel] += stage_cost(xi[keep], u[keep])
+                x[sel] = xn[keep]
+                all_fast = bool(fast_ok[keep].all())
+                active = sel
+                t += 1
+                if all_fast:
+                    break
+    ok_all = np.array([not fl for fl in failure])
     cost[ok_all] = acc[ok_all]
+    J0[~ok_all] = np.nan
     return ClosedLoops(states, inputs, cost, J0, failure, messages, osqp_steps)

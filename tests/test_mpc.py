@@ -122,3 +122,54 @@ def test_bad_mpc_config(kw, match):
 def test_weights_must_fit_the_system():
     with pytest.raises(ConfigError, match="Q must have 1 or 3 entries"):
         MPCConfig(Q=(1.0, 2.0)).resolve(dc_motor())
+
+
+def _reference_loop(model, s, cfg):
+    """Plain per-step MPC: the definition the batched, speculative engine loop must reproduce."""
+    w = cfg.resolve(s)
+    c = MPCController(model[0], model[1], w["Q"], w["R"], cfg.horizon, w["u_max"], w["x_max"], w["xf_max"],
+                      w["x_ref"], w["Qf"])
+    x = w["x0"].copy()
+    X, U, J0, cost = [x], [], None, 0.0
+    for t in range(cfg.steps):
+        u, J, _ = c.solve(x)
+        J0 = J if t == 0 else J0
+        cost += (x - w["x_ref"]) @ w["Q"] @ (x - w["x_ref"]) + u @ w["R"] @ u
+        x = s.A @ x + s.B @ u
+        X.append(x)
+        U.append(u)
+    return np.array(X), np.array(U), cost, J0
+
+
+@pytest.mark.parametrize("u_max", [1.0, 0.4])
+def test_batched_speculative_loop_equals_per_step_mpc(u_max):
+    s = boeing747()
+    rng = np.random.default_rng(0)
+    models = [(s.A, s.B)] + [(s.A + 0.01 * rng.normal(size=s.A.shape), s.B + 0.05 * rng.normal(size=s.B.shape))
+                             for _ in range(5)]
+    cfg = MPCConfig(x0=(8.0, 8.0, 0.0, 0.0), u_max=u_max, steps=40)
+    loops = run_closed_loops(models, s.A, s.B, cfg, s)
+    if u_max < 1:
+        assert loops.osqp_steps > 0
+    for i, mdl in enumerate(models):
+        if loops.failure[i]:
+            continue
+        X, U, cost, J0 = _reference_loop(mdl, s, cfg)
+        np.testing.assert_allclose(loops.states[i], X, atol=1e-6)
+        np.testing.assert_allclose(loops.inputs[i], U, atol=1e-6)
+        assert loops.cost[i] == pytest.approx(cost, rel=1e-6)
+        assert loops.J0[i] == pytest.approx(J0, rel=1e-6)
+
+
+def test_batched_doubling_dare_matches_scipy():
+    from qsid_core.mpc import dare_batch
+
+    rng = np.random.default_rng(3)
+    systems = [dc_motor(), boeing747()]
+    for s in systems:
+        As = np.stack([s.A + 0.02 * rng.normal(size=s.A.shape) for _ in range(6)] + [np.eye(s.n) * 1.5])
+        Bs = np.stack([s.B + 0.02 * rng.normal(size=s.B.shape) for _ in range(6)] + [np.zeros_like(s.B)])
+        X, ok = dare_batch(As, Bs, s.Q, s.R)
+        assert ok[:6].all() and not ok[6]  # the last model cannot be stabilized
+        for k in range(6):
+            np.testing.assert_allclose(X[k], dare_stabilizing(As[k], Bs[k], s.Q, s.R), rtol=1e-8, atol=1e-10)
