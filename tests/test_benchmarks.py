@@ -1,0 +1,102 @@
+"""Smoke tests of benchmarks/: the scripts import, run on tiny problems and their correctness checks pass.
+
+No timing assertions: timings on shared machines are noise; only the numbers the
+benchmarks compare (identified models, costs, applied inputs) are checked.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+if str(BENCH) not in sys.path:
+    sys.path.insert(0, str(BENCH))
+
+import bench_mpc  # noqa: E402
+import bench_sweep  # noqa: E402
+
+TINY = dict(system="dc-motor", bits=(1, 4, 9), realizations=3, trajectories=4, steps=60, horizon=4, mpc_steps=6,
+            u_max=1.0)
+
+
+@pytest.mark.parametrize("osqp_setup", ["model", "step"])
+def test_naive_sweep_matches_engine(osqp_setup):
+    d = bench_sweep.correctness_check(TINY, osqp_setup=osqp_setup)
+    assert d["max_abs_diff_AB"] < 1e-9
+    assert d["max_rel_diff_cost"] < 1e-7
+    assert d["failure_mismatches"] == 0
+    assert d["loops_compared"] > 0
+
+
+def test_naive_subset_of_realizations_uses_the_engines_streams():
+    d = bench_sweep.correctness_check(TINY, realizations=[2])
+    assert d["max_abs_diff_AB"] < 1e-9
+
+
+def test_executors_give_identical_sweeps():
+    cfg = bench_sweep.make_config(TINY)
+    res = {}
+    for kind in ("inline", "thread", "process-1blas"):
+        res[kind] = bench_sweep.time_fast(cfg, kind, 1)["result"]
+    assert bench_sweep.executor_agreement(res) == 0.0
+
+
+def test_bench_sweep_quick_main_prints_result(capsys):
+    out = bench_sweep.main(["--quick", "--executors", "inline,thread", "--naive-osqp", "model"])
+    text = capsys.readouterr().out
+    line = [ln for ln in text.splitlines() if ln.startswith("RESULT ")][-1]
+    data = json.loads(line[len("RESULT "):])
+    assert data["benchmark"] == "bench_sweep" and data["quick"]
+    assert data["correctness"]["max_abs_diff_AB"] < 1e-9
+    assert set(data["fast"]) == {"inline", "thread"}
+    assert out["naive"]["model"]["measured_realizations"] == bench_sweep.QUICK["realizations"]
+
+
+def test_extrapolation_is_linear_in_realizations():
+    nv = dict(realizations=[0, 1], t_fixed=1.0, t_loop=4.0)
+    assert bench_sweep.extrapolate(nv, 10) == pytest.approx(1.0 + 20.0)
+
+
+def test_mpc_engine_variants_agree_and_use_both_paths():
+    for c in bench_mpc.cases(quick=True):
+        pb = bench_mpc.Problem(**c)
+        r = bench_mpc.benchmark_problem(pb, list(bench_mpc.ENGINE), 1, 1)
+        a, b = r[bench_mpc.ENGINE[0]], r[bench_mpc.ENGINE[1]]
+        assert np.abs(a["inputs"] - b["inputs"]).max() < 1e-9
+        assert a["osqp_steps"] == b["osqp_steps"]
+        if c["case"] == "constrained":
+            assert a["osqp_steps"] > 0  # the input bound is active: the OSQP path is exercised
+            assert np.abs(a["inputs"]).max() == pytest.approx(c["u_max"])
+        else:
+            assert a["osqp_steps"] == 0
+
+
+@pytest.mark.parametrize("peer", ["cvxpy+OSQP tight (eps 1e-9)", "do-mpc+IPOPT tight (tol 1e-12)"])
+def test_mpc_peers_agree_with_engine(peer):
+    pytest.importorskip("cvxpy" if "cvxpy" in peer else "do_mpc")
+    res = bench_mpc.check_agreement(quick=True, solvers=[bench_mpc.ENGINE[0], peer])
+    assert res, "no cases ran"
+    for problem, r in res.items():
+        assert r[peer]["max_abs_du"] < bench_mpc.TOL, (problem, r[peer])
+
+
+def test_bench_mpc_quick_main_prints_result(capsys):
+    bench_mpc.main(["--quick", "--skip", "do-mpc", "--engine-repeats", "1"])
+    text = capsys.readouterr().out
+    line = [ln for ln in text.splitlines() if ln.startswith("RESULT ")][-1]
+    data = json.loads(line[len("RESULT "):])
+    assert data["benchmark"] == "bench_mpc"
+    assert {p["case"] for p in data["problems"]} == {"letter", "constrained"}
+    for p in data["problems"]:
+        assert p["solvers"]["engine run_closed_loops"]["max_abs_du"] == 0.0
+
+
+def test_blas_helper_reports_threads():
+    from _blas import blas_threads
+
+    th = blas_threads()
+    assert isinstance(th, dict)
+    assert all(isinstance(v, int) and v >= 1 for v in th.values())
