@@ -8,6 +8,7 @@ reads the values and recomputes.
 
 from __future__ import annotations
 
+import threading
 from typing import Callable
 
 import numpy as np
@@ -43,7 +44,7 @@ class Controls:
     def __init__(self, gui, values: Values, system: LTISystem, on_change: Callable[[], None]):
         self.gui = gui
         self._on_change = on_change
-        self.muted = False
+        self._muted_thread: int | None = None  # the thread whose value changes are not user changes
         self._inputs: list = []
         v = values
 
@@ -138,7 +139,8 @@ class Controls:
         return handle
 
     def _changed(self, _event) -> None:
-        if not self.muted:
+        # only the worker's own adjustments (set_system) are muted; changes from any other thread count
+        if self._muted_thread != threading.get_ident():
             self._on_change()
 
     @staticmethod
@@ -160,8 +162,8 @@ class Controls:
             return False
         first = self._sys_key is None
         self._sys_key = key
-        was = self.muted
-        self.muted = True
+        was = self._muted_thread
+        self._muted_thread = threading.get_ident()
         try:
             custom = self.system.value == "custom"
             self.a_text.disabled = not custom
@@ -191,7 +193,7 @@ class Controls:
             self.axes.visible = len(opts) > 1
             self.show_weights()
         finally:
-            self.muted = was
+            self._muted_thread = was
         return True
 
     def show_weights(self) -> None:

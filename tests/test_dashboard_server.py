@@ -339,3 +339,22 @@ def test_default_process_pool_gives_the_same_results():
         for b in range(1, 17):
             assert rows[lab][b]["err_A"] == inline[lab][b]["err_A"]
             assert rows[lab][b]["mpc_cost"]["mean"] == pytest.approx(inline[lab][b]["mpc_cost"]["mean"], rel=1e-12)
+
+
+def test_changes_from_other_threads_are_never_muted(app):
+    """While the worker adapts the inputs to a new system, a person's change on another thread still counts."""
+    tab, s = open_tab(app)
+    try:
+        c = s.controls
+        g = s.generation
+        c._muted_thread = -1  # as if the worker were inside set_system right now
+        c.data_seed.value = 3
+        assert s.generation == g + 1
+        c._muted_thread = threading.get_ident()  # the muting thread's own adjustment is not a user change
+        c.data_seed.value = 4
+        assert s.generation == g + 1
+        c._muted_thread = None
+        c.data_seed.value = 5
+        assert s.generation == g + 2 and s.wait_idle(60) and s.last_frame.values.data_seed == 5
+    finally:
+        tab.close()
