@@ -340,18 +340,10 @@ def build_figures(frame: Frame, which=("error", "cost", "bound", "eigen")) -> di
     if "bound" in which:
         out["bound"] = bound_figure(series, current_bits=frame.bits, height=260)
     if "eigen" in which:
-        eigs = {lab: _eigenvalues(frame.idents[lab]) for lab in frame.labels}
-        out["eigen"] = eigen_figure(eigs, np.linalg.eigvals(frame.system.A), height=300,
+        eigs = {lab: frame.idents[lab].eigenvalues for lab in frame.labels}
+        out["eigen"] = eigen_figure(eigs, frame.system.eigenvalues, height=300,
                                     title=f"eigenvalues of Â at b = {frame.bits}")
     return out
-
-
-def _eigenvalues(ident) -> np.ndarray:
-    """Eigenvalues of the identified A^ of every realization whose identification succeeded."""
-    failed = getattr(ident, "failed", None)
-    A = ident.A_hat if failed is None else ident.A_hat[~np.asarray(failed, dtype=bool)]
-    A = A[np.all(np.isfinite(A.reshape(len(A), -1)), axis=1)]
-    return np.linalg.eigvals(A) if len(A) else np.zeros((0, ident.A_hat.shape[1]), dtype=complex)
 
 
 def _g(x, fmt=".3g") -> str:

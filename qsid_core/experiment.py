@@ -256,8 +256,11 @@ class BitsIdentification:
 
     @property
     def eigenvalues(self) -> np.ndarray:
-        """Eigenvalues of each A^, shape (R, n) complex."""
-        return np.linalg.eigvals(self.A_hat)
+        """Eigenvalues of A^ of every realization whose identification succeeded, shape (R_ok, n) complex."""
+        A = self.A_hat[~self.failed]
+        A = A[np.all(np.isfinite(A.reshape(len(A), -1)), axis=1)]
+        n = self.A_hat.shape[1]
+        return np.linalg.eigvals(A) if len(A) else np.zeros((0, n), dtype=complex)
 
 
 @dataclass

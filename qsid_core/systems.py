@@ -179,6 +179,11 @@ class LTISystem:
         return self.B.shape[1]
 
     @property
+    def eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of the true A, shape (n,) complex."""
+        return np.linalg.eigvals(self.A)
+
+    @property
     def G(self) -> np.ndarray:
         """``[A, B]``, shape (n, n+m)."""
         return np.hstack([self.A, self.B])

@@ -161,3 +161,13 @@ def test_singular_realization_is_recorded_not_fatal():
     if ident.failed.any():
         assert any("identification failed" in n for n in ident.notes)
         assert row["mpc_cost"]["failures"].get("ident", 0) == int(ident.failed.sum())
+
+
+def test_eigenvalues_skip_failed_realizations():
+    ex = Experiment(SweepConfig(bits="4", mpc=None, **SMALL))
+    ident = ex.identification(4)
+    assert ident.eigenvalues.shape == (SMALL["realizations"], 3)
+    ident.failed[0] = True
+    ident.A_hat[0] = np.nan
+    assert ident.eigenvalues.shape == (SMALL["realizations"] - 1, 3)
+    assert np.allclose(np.sort(np.abs(ex.system.eigenvalues)), np.sort(np.abs(np.linalg.eigvals(ex.system.A))))
