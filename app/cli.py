@@ -22,7 +22,7 @@ import os
 import sys
 import time
 import warnings
-from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any, Sequence, TextIO
@@ -92,26 +92,6 @@ def _floats_type(text: str) -> tuple[float, ...]:
 
 _pos_int = _int_type("positive integer", 1)
 _nonneg_int = _int_type("non-negative integer", 0)
-
-
-def expand_bits(spec: str) -> str:
-    """Pass ``spec`` to the engine's parser, expanding the CLI's extra form ``start:stop:step``.
-
-    The engine (:func:`qsid_core.experiment.parse_bits`) reads ``2:12`` (inclusive),
-    ``2,4,6`` and ``8``; ``2:10:2`` is rewritten to ``2,4,6,8,10`` here.
-    """
-    parts = spec.strip().split(":")
-    if len(parts) != 3:
-        return spec
-    try:
-        lo, hi, step = (int(p) for p in parts)
-    except ValueError:
-        return spec  # the engine reports the bad spec
-    if step < 1:
-        raise UsageError(f"bits step in {spec!r} must be a positive integer; got {step}")
-    if hi < lo:
-        return f"{lo}:{hi}"  # the engine reports the empty range
-    return ",".join(str(b) for b in range(lo, hi + 1, step))
 
 
 def _add_run_options(p: argparse.ArgumentParser, bits_default: str) -> None:
@@ -262,44 +242,6 @@ def _worker_init() -> None:
 # ----------------------------------------------------------------------------------------
 # executors
 # ----------------------------------------------------------------------------------------
-class _LazyFuture(Future):
-    """A future that runs its call the first time its result is asked for."""
-
-    def __init__(self, fn, args, kwargs):
-        super().__init__()
-        self._call = (fn, args, kwargs)
-
-    def _run(self) -> None:
-        if self._call is None:
-            return
-        fn, args, kwargs = self._call
-        self._call = None
-        try:
-            self.set_result(fn(*args, **kwargs))
-        except BaseException as exc:  # delivered through the future, as a pool would
-            self.set_exception(exc)
-
-    def result(self, timeout=None):
-        self._run()
-        return super().result(timeout)
-
-    def exception(self, timeout=None):
-        self._run()
-        return super().exception(timeout)
-
-
-class LazyExecutor(Executor):
-    """In-process executor that defers each task until its result is read.
-
-    The engine submits all tasks of a stage and then reads the results in order,
-    reporting progress after each; with this executor the progress follows the
-    actual work (the engine's ``InlineExecutor`` runs everything at submit time).
-    """
-
-    def submit(self, fn, /, *args, **kwargs) -> Future:  # type: ignore[override]
-        return _LazyFuture(fn, args, kwargs)
-
-
 # ----------------------------------------------------------------------------------------
 # configuration
 # ----------------------------------------------------------------------------------------
@@ -315,7 +257,7 @@ def _resolve_system(spec: str):
 def _config(args, system, mpc: bool):
     from qsid_core import MPCConfig, QuantizerSpec, SweepConfig, parse_bits
 
-    bits = parse_bits(expand_bits(args.bits))
+    bits = parse_bits(args.bits)
     if args.u_max is not None and len(args.u_max) not in (1, system.m):
         raise UsageError(f"argument --u-max: give 1 or {system.m} values for system {system.name!r}; "
                          f"got {len(args.u_max)}")
@@ -336,9 +278,11 @@ def _config(args, system, mpc: bool):
 
 
 def _executor(workers: int) -> Executor:
+    from qsid_core import InlineExecutor
+
     if workers > 1:
         return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
-    return LazyExecutor()
+    return InlineExecutor()
 
 
 def _plural(k: int, word: str) -> str:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import expand_bits, main
+from app.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["--trajectories", "5", "--steps", "100", "--realizations", "3", "--bits", "2:4"]
@@ -139,9 +139,11 @@ def test_seed_and_workers_reproducible(capsys):
     assert results("--seed", "5") != one
 
 
-def test_expand_bits_step_form():
-    assert expand_bits("2:10:2") == "2,4,6,8,10"
-    assert expand_bits("2:12") == "2:12" and expand_bits("2,4") == "2,4"
+def test_bits_step_form(capsys):
+    code, out, _ = _run(capsys, "sweep", *TINY[:-2], "--bits", "2:6:2", "--no-mpc", "--json", "-q")
+    assert code == 0 and [r["bits"] for r in _strict_json(out)["results"]] == [2, 4, 6]
+    code, _, err = _run(capsys, "sweep", "--bits", "2:6:0")
+    assert code == 2 and "step" in err
 
 
 def test_reproduce_writes_offline_panels(capsys, tmp_path):
