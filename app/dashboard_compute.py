@@ -19,7 +19,8 @@ from typing import Callable, Iterator, MutableMapping
 
 import numpy as np
 
-from qsid_core.experiment import Experiment, summary_row
+from qsid_core.experiment import Experiment
+from qsid_core.sweep import summary_row
 from qsid_core.systems import LTISystem
 
 from .dashboard_state import ALL_BITS, Values, axes_indices, estimators, mpc_config, resolve_system, sweep_config
@@ -46,7 +47,7 @@ class Frame:
     stage : {"current", "curves"}
         ``"current"``: the current b just finished; ``"curves"``: more word lengths filled.
     rows : dict label -> {b: summary row}
-        Rows of :func:`qsid_core.experiment.summary_row` per estimator label.
+        Rows of :func:`qsid_core.sweep.summary_row` per estimator label.
     loops : dict label -> ClosedLoops at the current b
     """
 

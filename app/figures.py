@@ -4,7 +4,7 @@ They draw what the engine computed; the only arithmetic here is reshaping for
 display (mean +- std bands, a reference line through a chosen point).
 
 Inputs are plain data: *rows* are the JSON-ready per-b summaries of
-:func:`qsid_core.experiment.summary_row` (the ``results`` entries of
+:func:`qsid_core.sweep.summary_row` (the ``results`` entries of
 ``qsid sweep --json``); a *series* maps a label (``"LS"``, ``"BCLS"``) to a list
 of rows. Missing values (``None``) are skipped, so partially filled sweeps draw.
 """

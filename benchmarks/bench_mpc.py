@@ -12,7 +12,7 @@ letter's x0, Q and R, horizon 10, 50 closed-loop steps, ``|u| <= u_max``,
 
 Solvers, each timed per closed loop (best and median of ``--repeats``):
 
-* ``engine run_closed_loops``: :func:`qsid_core.mpc.run_closed_loops` on the single
+* ``engine run_closed_loops``: :func:`qsid_core.closed_loop.run_closed_loops` on the single
   model, *including* building the controller (DARE, Riccati gains, lazy OSQP setup);
 * ``engine MPCController.solve``: build :class:`qsid_core.mpc.MPCController`, then
   ``solve(x)`` per step (also included);
@@ -47,7 +47,9 @@ if str(ROOT) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-from qsid_core.mpc import MPCConfig, MPCController, dare_stabilizing, run_closed_loops  # noqa: E402
+from qsid_core.closed_loop import run_closed_loops  # noqa: E402
+from qsid_core.mpc import MPCConfig, MPCController  # noqa: E402
+from qsid_core.riccati import dare_stabilizing  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402
 
 try:  # run as a script (benchmarks/ on sys.path) or imported as benchmarks.bench_mpc

@@ -51,7 +51,8 @@ import scipy.linalg as sla  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 
 from qsid_core.data import simulate  # noqa: E402
-from qsid_core.experiment import SweepConfig, run_sweep  # noqa: E402
+from qsid_core.experiment import SweepConfig  # noqa: E402
+from qsid_core.sweep import run_sweep  # noqa: E402
 from qsid_core.mpc import MPCConfig  # noqa: E402
 from qsid_core.quantize import quantize  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402

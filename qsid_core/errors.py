@@ -6,7 +6,7 @@ says what was wrong and what is allowed, so front ends can show it as one line.
 
 from __future__ import annotations
 
-__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "check_choice", "check_int", "check_float"]
+__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "MPCFailure", "check_choice", "check_int", "check_float"]
 
 
 class QsidError(ValueError):
@@ -23,6 +23,14 @@ class SystemDefinitionError(QsidError):
 
 class DataOverflowError(QsidError):
     """Simulated data left the floating-point range (an unstable system)."""
+
+
+class MPCFailure(QsidError):
+    """The MPC could not be built or solved; ``kind`` is one of :data:`FAILURE_KINDS`."""
+
+    def __init__(self, kind: str, message: str):
+        super().__init__(message)
+        self.kind = kind
 
 
 def check_choice(name: str, value: str, allowed: tuple[str, ...]) -> str:

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from qsid_core import ConfigError, MPCConfig, MPCController, MPCFailure, run_closed_loops
-from qsid_core.mpc import dare_stabilizing
+from qsid_core.riccati import dare_stabilizing
 from qsid_core.systems import boeing747, dc_motor
 
 
@@ -162,7 +162,7 @@ def test_batched_speculative_loop_equals_per_step_mpc(u_max):
 
 
 def test_batched_doubling_dare_matches_scipy():
-    from qsid_core.mpc import dare_batch
+    from qsid_core.riccati import dare_batch
 
     rng = np.random.default_rng(3)
     systems = [dc_motor(), boeing747()]

@@ -3,7 +3,7 @@ import pytest
 
 from qsid_core import ConfigError, Experiment, QuantizerSpec, SweepConfig, run_sweep, theorem1_prediction
 from qsid_core.theory import riccati_finite, ultimate_bound
-from qsid_core.mpc import dare_stabilizing
+from qsid_core.riccati import dare_stabilizing
 from qsid_core.systems import boeing747, dc_motor
 
 
