@@ -90,20 +90,18 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     J0 = np.full(Rn, np.nan)
     failure = [""] * Rn
     messages = [""] * Rn
+    # models without finite entries (failed identifications) are left to MPCController to reject
+    fi = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
     Qfs: list = [w["Qf"]] * Rn
-    if w["Qf"] is None and Rn:
+    if w["Qf"] is None and fi:
         # terminal weights of all models at once; the few that SDA cannot settle go to scipy
-        finite = [bool(np.all(np.isfinite(a)) and np.all(np.isfinite(b))) for a, b in models]
-        fi = [i for i in range(Rn) if finite[i]]
-        if fi:
-            X, okd = dare_batch(np.stack([models[i][0] for i in fi]), np.stack([models[i][1] for i in fi]),
-                                w["Q"], w["R"])
-            for k, i in enumerate(fi):
-                if okd[k]:
-                    Qfs[i] = X[k]
+        X, okd = dare_batch(np.stack([models[i][0] for i in fi]), np.stack([models[i][1] for i in fi]),
+                            w["Q"], w["R"])
+        for k, i in enumerate(fi):
+            if okd[k]:
+                Qfs[i] = X[k]
     # fast-path gains and prediction maps of every model with a terminal weight, in one batch
-    ready = [i for i in range(Rn) if Qfs[i] is not None and np.all(np.isfinite(models[i][0]))
-             and np.all(np.isfinite(models[i][1]))]
+    ready = [i for i in fi if Qfs[i] is not None]
     batch: dict = {}
     if ready:
         with np.errstate(all="ignore"):
