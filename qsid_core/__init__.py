@@ -7,20 +7,22 @@ modules ``systems``, ``data``, ``quantize``, ``moments``, ``identify``,
 
 from .data import Dataset, simulate
 from .errors import ConfigError, DataOverflowError, QsidError, SystemDefinitionError
-from .experiment import Experiment, InlineExecutor, SweepConfig, parse_bits, single_threaded_blas
+from .config import SweepConfig, parse_bits
+from .executors import InlineExecutor, single_threaded_blas
+from .experiment import Experiment
 from .sweep import SweepResult, fit_slope, run_sweep, summary_row
 from .identify import Identified, identify, relative_errors
 from .moments import Moments, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
 from .mpc import MPCConfig, MPCController, MPCFailure
-from .quantize import QuantizerSpec, quantize
+from .quantize import LETTER_QUANTIZER, QuantizerSpec, quantize
 from .systems import PRESETS, LTISystem, UncontrollableWarning, boeing747, dc_motor, dc_motor_physical, get_system, load_system
 from .theory import riccati_finite, theorem1_prediction, ultimate_bound
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "ClosedLoops", "ConfigError", "DataOverflowError", "Dataset", "Experiment", "Identified", "InlineExecutor",
+    "ClosedLoops", "ConfigError", "LETTER_QUANTIZER", "DataOverflowError", "Dataset", "Experiment", "Identified", "InlineExecutor",
     "LTISystem", "MPCConfig", "MPCController", "MPCFailure", "Moments", "PRESETS", "QsidError", "QuantizerSpec",
     "SweepConfig", "SweepResult", "SystemDefinitionError", "UncontrollableWarning", "boeing747", "dc_motor",
     "dc_motor_physical", "fit_slope", "get_system", "identify", "load_system", "parse_bits", "prepare", "quantize",

@@ -1,7 +1,9 @@
 """Training data: random-input trajectories of the true system (the letter's Section V).
 
-``trajectories`` runs of ``steps`` steps; x0 ~ U[-1, 1]^n and u_t ~ U[-1, 1]^m i.i.d.
-(defaults 200 x 1000, as in the letter).
+``trajectories`` runs of ``steps`` steps; x0 ~ U[-1, 1]^n and u_t ~ U[-A, A]^m i.i.d.
+with input amplitude ``A`` (default 1: the letter's U[-1, 1]; defaults 200 x 1000,
+as in the letter). A smaller ``A`` makes the signal small against a fixed
+quantizer range.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DataOverflowError, check_int
+from .errors import DataOverflowError, check_float, check_int
 from .systems import LTISystem
 
 __all__ = ["Dataset", "simulate", "OVERFLOW_LIMIT"]
@@ -31,11 +33,14 @@ class Dataset:
         ``u_0 .. u_{steps-1}`` of every run.
     seed : int or None
         The seed it was drawn with.
+    input_amplitude : float
+        ``A`` of u ~ U[-A, A] (input units).
     """
 
     states: np.ndarray
     inputs: np.ndarray
     seed: int | None = None
+    input_amplitude: float = 1.0
 
     @property
     def trajectories(self) -> int:
@@ -66,7 +71,13 @@ class Dataset:
         return np.hstack([X, U]).T, Xp.T
 
 
-def simulate(system: LTISystem, trajectories: int = 200, steps: int = 1000, seed: int | None = 0) -> Dataset:
+def simulate(
+    system: LTISystem,
+    trajectories: int = 200,
+    steps: int = 1000,
+    seed: int | None = 0,
+    input_amplitude: float = 1.0,
+) -> Dataset:
     """Simulate ``trajectories`` runs of ``x+ = A x + B u`` with uniform random x0 and inputs.
 
     Parameters
@@ -79,17 +90,21 @@ def simulate(system: LTISystem, trajectories: int = 200, steps: int = 1000, seed
         Steps per run; each run contributes ``steps`` regression samples.
     seed : int or None
         Seed of ``numpy.random.default_rng``.
+    input_amplitude : float, > 0
+        ``A`` of u_t ~ U[-A, A]^m (input units; default 1, the letter's). The same
+        seed gives the same unit draws scaled by ``A``.
 
     Raises
     ------
     ConfigError
-        If sizes are not positive integers, or there are fewer samples than
-        unknowns per row (n + m).
+        If sizes are not positive integers, the amplitude is not a positive
+        number, or there are fewer samples than unknowns per row (n + m).
     DataOverflowError
         If a state exceeds :data:`OVERFLOW_LIMIT` (unstable A with long runs).
     """
     trajectories = check_int("trajectories", trajectories, 1, 100_000)
     steps = check_int("steps", steps, 1, 1_000_000)
+    input_amplitude = check_float("input amplitude", input_amplitude, 0.0, 1e12, lo_open=True)
     n, m = system.n, system.m
     if trajectories * steps < n + m:
         from .errors import ConfigError
@@ -101,6 +116,8 @@ def simulate(system: LTISystem, trajectories: int = 200, steps: int = 1000, seed
     rng = np.random.default_rng(seed)
     states = np.empty((trajectories, steps + 1, n))
     inputs = rng.uniform(-1.0, 1.0, size=(trajectories, steps, m))
+    if input_amplitude != 1.0:
+        inputs *= input_amplitude
     states[:, 0, :] = rng.uniform(-1.0, 1.0, size=(trajectories, n))
     AT, BT = system.A.T, system.B.T
     Bu = inputs @ BT  # (traj, steps, n)
@@ -117,4 +134,4 @@ def simulate(system: LTISystem, trajectories: int = 200, steps: int = 1000, seed
                         f"simulated states exceed {OVERFLOW_LIMIT:.0e} at step {t + 1} of {steps} "
                         f"(spectral radius of A is {rho:.3g} > 1); use fewer steps or a stable A"
                     )
-    return Dataset(states, inputs, seed)
+    return Dataset(states, inputs, seed, input_amplitude)

@@ -18,21 +18,23 @@ a change of settings touches.
 from __future__ import annotations
 
 import math
-from concurrent.futures import Executor, Future
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Callable, MutableMapping
 
 import numpy as np
 
+from .config import SweepConfig, parse_bits
 from .data import Dataset, simulate
-from .errors import ConfigError, check_choice, check_float, check_int
+from .errors import ConfigError, check_choice, check_int
+from .executors import InlineExecutor, single_threaded_blas
 from .identify import ESTIMATORS, identify, relative_errors
 from .moments import Moments, PreparedData, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
 from .errors import MPCFailure
 from .mpc import MPCConfig
 from .riccati import dare_stabilizing
-from .quantize import MAX_BITS, QuantizerSpec
+from .quantize import QuantizerSpec
 from .systems import LTISystem, get_system
 from .theory import riccati_finite, theorem1_prediction, ultimate_bound
 
@@ -47,151 +49,6 @@ __all__ = [
 ]
 
 Progress = Callable[[int, int, str], None]
-
-
-def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
-    """Word lengths from ``"2:12"`` (inclusive), ``"2:12:2"``, ``"2,4,6"``, ``"8"``, an int, or a sequence of ints.
-
-    Raises
-    ------
-    ConfigError
-        If the text is not of one of those forms or a b is outside 1..32.
-    """
-    if isinstance(spec, (list, tuple, range, np.ndarray)):
-        vals = [check_int("bits", int(v) if isinstance(v, np.integer) else v, 1, MAX_BITS) for v in spec]
-    elif isinstance(spec, int) and not isinstance(spec, bool):
-        vals = [check_int("bits", spec, 1, MAX_BITS)]
-    else:
-        s = str(spec).strip()
-        form = "bits must look like '2:12' (inclusive), '2:12:2' (with a step), '2,4,6' or '8'"
-        try:
-            if ":" in s:
-                parts = [int(v) for v in s.split(":")]
-                if len(parts) not in (2, 3):
-                    raise ValueError
-                lo, hi = parts[0], parts[1]
-                step = parts[2] if len(parts) == 3 else 1
-            else:
-                vals = [int(v) for v in s.split(",") if v.strip()]
-        except ValueError:
-            raise ConfigError(f"{form}; got {s!r}") from None
-        if ":" in s:
-            if step < 1:
-                raise ConfigError(f"bits step must be >= 1; got {step} in {s!r}")
-            if hi < lo:
-                raise ConfigError(f"bits range {s!r} is empty (end {hi} < start {lo})")
-            vals = list(range(lo, hi + 1, step))
-        if not vals:
-            raise ConfigError(f"{form}; got {s!r}")
-        vals = [check_int("bits", v, 1, MAX_BITS) for v in vals]
-    out = tuple(sorted(set(vals)))
-    if not out:
-        raise ConfigError("bits: give at least one word length")
-    return out
-
-
-@dataclass(frozen=True)
-class SweepConfig:
-    """Everything a sweep depends on.
-
-    Parameters
-    ----------
-    system : str or LTISystem
-        Preset name (``"dc-motor"``, ``"boeing747"``), path to a .toml/.json file, or a system.
-    bits : tuple of int
-        Word lengths to sweep (1..32); strings like ``"2:12"`` are parsed.
-    realizations : int, 1..10000
-        Dither realizations per b (default 50).
-    trajectories, steps : int
-        Data size (defaults 200 x 1000, the letter's).
-    data_seed, dither_seed : int
-        Seeds of the data and of the dither streams.
-    quantizer : QuantizerSpec
-        Dither, range mode and guard band.
-    estimator : {"ls", "bcls"}
-    mpc : MPCConfig or None
-        None skips the closed loops (identification and theory only).
-    theta, rho : float
-        Parameters of the ultimate bound (see :func:`qsid_core.theory.ultimate_bound`);
-        ``rho=None`` picks the documented default.
-    """
-
-    system: str | LTISystem = "dc-motor"
-    bits: tuple = tuple(range(1, 17))
-    realizations: int = 50
-    trajectories: int = 200
-    steps: int = 1000
-    data_seed: int = 0
-    dither_seed: int = 1
-    quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
-    estimator: str = "ls"
-    mpc: MPCConfig | None = field(default_factory=MPCConfig)
-    theta: float = 0.5
-    rho: float | None = None
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "bits", parse_bits(self.bits))
-        check_int("realizations", self.realizations, 1, 10000)
-        check_int("trajectories", self.trajectories, 1, 100_000)
-        check_int("steps", self.steps, 1, 1_000_000)
-        check_int("data seed", self.data_seed, 0)
-        check_int("dither seed", self.dither_seed, 0)
-        check_choice("estimator", self.estimator, ESTIMATORS)
-        check_float("theta", self.theta, 0.0, 1.0, lo_open=True, hi_open=True)
-        if self.rho is not None:
-            check_float("rho", self.rho, 0.0, lo_open=True)
-        if not isinstance(self.quantizer, QuantizerSpec):
-            raise ConfigError("quantizer must be a QuantizerSpec")
-
-
-class _DeferredFuture(Future):
-    """A future whose work runs in the calling thread when its result is first asked for."""
-
-    def __init__(self, fn, args, kwargs):
-        super().__init__()
-        self._call = (fn, args, kwargs)
-
-    def _run(self) -> None:
-        if self._call is not None:
-            fn, args, kwargs = self._call
-            self._call = None
-            try:
-                self.set_result(fn(*args, **kwargs))
-            except BaseException as exc:  # delivered through the future, as a pool would
-                self.set_exception(exc)
-
-    def result(self, timeout=None):
-        self._run()
-        return super().result(timeout)
-
-    def exception(self, timeout=None):
-        self._run()
-        return super().exception(timeout)
-
-
-class InlineExecutor(Executor):
-    """A ``concurrent.futures.Executor`` that runs tasks in the calling thread.
-
-    Each task runs when its result is first asked for, so a caller that submits
-    a whole stage and then reads results in order reports progress as it goes.
-    """
-
-    def submit(self, fn, /, *args, **kwargs) -> Future:  # type: ignore[override]
-        return _DeferredFuture(fn, args, kwargs)
-
-
-def single_threaded_blas():
-    """Context manager limiting BLAS to one thread while the engine computes.
-
-    The engine makes many tiny BLAS/LAPACK calls (5 x 5 Gram matrices, 4 x 4
-    Riccati steps) and gets its parallelism from the executor; OpenBLAS threads
-    are pure overhead for such sizes and oversubscribe the cores when tasks run
-    side by side (measured: a 4 x 4 DARE took 24 ms with two busy BLAS threads,
-    0.5 ms with one). The previous limits are restored on exit.
-    """
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list) -> list[list[Moments]]:
@@ -290,7 +147,7 @@ class Experiment:
     Notes
     -----
     Every expensive product is cached by the settings it depends on:
-    the data by (trajectories, steps, data seed); the normalised data by the
+    the data by (trajectories, steps, data seed, input amplitude); the normalised data by the
     quantizer range; moments by (b, dither, dither seed, realizations); models by
     the estimator. :meth:`with_config` returns an experiment for new settings
     that shares every cache entry still valid.
@@ -318,7 +175,7 @@ class Experiment:
     def _key_data(self):
         c, s = self.config, self.system
         sysk = (s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(), s.x0.tobytes(), s.Q.tobytes(), s.R.tobytes())
-        return sysk + (c.trajectories, c.steps, c.data_seed)
+        return sysk + (c.trajectories, c.steps, c.data_seed, c.input_amplitude)
 
     def _key_prep(self):
         q = self.config.quantizer
@@ -334,7 +191,7 @@ class Experiment:
         k = ("data",) + self._key_data()
         if k not in self._cache:
             c = self.config
-            self._cache[k] = simulate(self.system, c.trajectories, c.steps, c.data_seed)
+            self._cache[k] = simulate(self.system, c.trajectories, c.steps, c.data_seed, c.input_amplitude)
         return self._cache[k]
 
     @property

@@ -48,9 +48,9 @@ def test_sweep_result_is_json_ready_and_complete():
         assert {"mean", "std", "failed"} <= set(r["mpc_cost"]) and {"mean", "max"} <= set(r["final_state_norm"])
     for k in ("mpc_cost_true_model", "slope_A", "slope_B", "timing_s"):
         assert k in d
-    # eps halves per bit
+    # guard band (default): eps = range / (2^b - 1)
     e = [r["eps_x"][0] for r in d["results"]]
-    assert e[0] / e[1] == pytest.approx(2.0)
+    assert e[0] / e[1] == pytest.approx((2**3 - 1) / (2**2 - 1))
 
 
 def test_realizations_are_independent_and_reproducible():
