@@ -10,7 +10,8 @@ from .errors import ConfigError, DataOverflowError, QsidError, SystemDefinitionE
 from .config import SweepConfig, parse_bits
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
-from .sweep import SweepResult, fit_slope, run_sweep, summary_row
+from .sweep import SummaryRow, SweepResult, fit_slope, run_sweep, summary_row
+from .assumptions import Assumptions
 from .identify import Identified, identify, relative_errors
 from .moments import Moments, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
@@ -24,7 +25,7 @@ __version__ = "0.1.0"
 __all__ = [
     "ClosedLoops", "ConfigError", "LETTER_QUANTIZER", "DataOverflowError", "Dataset", "Experiment", "Identified", "InlineExecutor",
     "LTISystem", "MPCConfig", "MPCController", "MPCFailure", "Moments", "PRESETS", "QsidError", "QuantizerSpec",
-    "SweepConfig", "SweepResult", "SystemDefinitionError", "UncontrollableWarning", "boeing747", "dc_motor",
+    "Assumptions", "SummaryRow", "SweepConfig", "SweepResult", "SystemDefinitionError", "UncontrollableWarning", "boeing747", "dc_motor",
     "dc_motor_physical", "fit_slope", "get_system", "identify", "load_system", "parse_bits", "prepare", "quantize",
     "quantized_moments", "relative_errors", "single_threaded_blas", "summary_row", "riccati_finite", "run_closed_loops", "run_sweep", "simulate",
     "theorem1_prediction", "ultimate_bound",

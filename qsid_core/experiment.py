@@ -36,7 +36,7 @@ from .mpc import MPCConfig
 from .riccati import dare_stabilizing
 from .quantize import QuantizerSpec
 from .systems import LTISystem, get_system
-from .theory import riccati_finite, theorem1_prediction, ultimate_bound
+from .theory import RealizedBounds, UltimateBound, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
 
 __all__ = [
     "SweepConfig",
@@ -88,6 +88,8 @@ class BitsIdentification:
     failed : ndarray of bool, shape (R,)
         Identification impossible (singular Psi Psi^T); the model is NaN and
         errors are NaN for that realization.
+    dither : str
+        The dither used; with ``"none"`` every realization is the same model.
     """
 
     bits: int
@@ -100,10 +102,21 @@ class BitsIdentification:
     fallback: np.ndarray
     notes: list
     failed: np.ndarray | None = None
+    dither: str = "subtractive"
 
     def __post_init__(self) -> None:
         if self.failed is None:
             self.failed = np.zeros(len(self.err_A), dtype=bool)
+
+    @property
+    def realizations(self) -> int:
+        """Number of realizations computed (R)."""
+        return len(self.err_A)
+
+    @property
+    def effective_realizations(self) -> int:
+        """Distinct realizations: 1 without dither (all R quantize the same data identically), else R."""
+        return 1 if self.dither == "none" else self.realizations
 
     @property
     def models(self) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -120,7 +133,22 @@ class BitsIdentification:
 
 @dataclass
 class TheoryAtBits:
-    """Theorem 1 prediction and ultimate bound at one word length."""
+    """Theorem 1 prediction and the letter's ultimate bound at one word length.
+
+    Attributes
+    ----------
+    bits : int
+    G_pred : ndarray, shape (n, n+m)
+        Theorem 1's large-data ``[A^, B^]``.
+    err_A, err_B : float
+        Its relative Frobenius errors.
+    delta : float
+        The letter's ultimate bound (state units; inf if no bound, NaN if Q or R is singular).
+    bound_note : str
+        Why there is no bound, in plain words.
+    bound : UltimateBound or None
+        All ingredients (``rho``, ``omega_v``, ``P`` eigenvalues, ``c_A``, ``c_B``, ``C``).
+    """
 
     bits: int
     G_pred: np.ndarray
@@ -128,6 +156,12 @@ class TheoryAtBits:
     err_B: float
     delta: float
     bound_note: str = ""
+    bound: UltimateBound | None = None
+
+    @property
+    def rho(self) -> float:
+        """The ``rho`` the bound used (the automatic value unless configured; NaN without a bound)."""
+        return float(self.bound.rho) if self.bound is not None else float("nan")
 
 
 class Experiment:
@@ -256,7 +290,7 @@ class Experiment:
                 bits=b, eps=moms[0].eps, A_hat=A_hat, B_hat=B_hat, err_A=errs[:, 0], err_B=errs[:, 1],
                 overload=np.array([mo.overload_fraction for mo in moms]),
                 fallback=np.array([i is not None and i.fallback for i in ids]), notes=sorted(notes),
-                failed=np.array([i is None for i in ids]),
+                failed=np.array([i is None for i in ids]), dither=self.config.quantizer.dither,
             )
         return self._cache[k]
 
@@ -277,7 +311,7 @@ class Experiment:
         Gp = theorem1_prediction(sysm.G, self.Sigma, eps)
         eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], sysm.A, sysm.B)
         w = mcfg.resolve(sysm)
-        note = ""
+        note, ub = "", None
         try:
             Qf = w["Qf"] if w["Qf"] is not None else dare_stabilizing(Gp[:, :n], Gp[:, n:], w["Q"], w["R"])
             P = riccati_finite(Gp[:, :n], Gp[:, n:], w["Q"], w["R"], Qf, mcfg.horizon)
@@ -288,9 +322,36 @@ class Experiment:
             delta, note = float("inf"), str(exc)
         except ConfigError as exc:
             delta, note = float("nan"), str(exc)
-        res = TheoryAtBits(b, Gp, eA, eB, delta, note)
+        res = TheoryAtBits(b, Gp, eA, eB, delta, note, ub)
         self._cache[k] = res
         return res
+
+    def realized_bound(self, b: int, estimator: str | None = None) -> RealizedBounds:
+        """A-posteriori ultimate bound per realization at ``b``: its own model error and its own ``P``.
+
+        See :func:`qsid_core.theory.realized_bounds`; the MPC settings are the
+        config's (or the defaults when MPC is off).
+        """
+        c = self.config
+        mcfg = c.mpc or MPCConfig()
+        est = estimator or c.estimator
+        k = ("realized-bound", est, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0) + self._key_mom(b)
+        if k not in self._cache:
+            w = mcfg.resolve(self.system)
+            with single_threaded_blas():
+                self._cache[k] = realized_bounds(self.identification(b, est).models, self.system.A, self.system.B,
+                                                 w["Q"], w["R"], w["Qf"], mcfg.horizon, theta=c.theta, rho=c.rho,
+                                                 x0=w["x0"])
+        return self._cache[k]
+
+    def assumptions(self, b: int) -> "Assumptions":
+        """Which hypotheses of Theorem 1 and of BCLS hold at ``b`` (see :mod:`qsid_core.assumptions`)."""
+        from .assumptions import assess
+
+        k = ("assumptions",) + self._key_mom(b)
+        if k not in self._cache:
+            self._cache[k] = assess(self, b)
+        return self._cache[k]
 
     # ----- MPC -------------------------------------------------------------------------
     def closed_loops(self, b: int, estimator: str | None = None) -> ClosedLoops:

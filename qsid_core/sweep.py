@@ -10,15 +10,18 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from .assumptions import Assumptions
 from .closed_loop import ClosedLoops
 from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, TheoryAtBits, single_threaded_blas
+from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
 from .systems import LTISystem
+from .theory import RealizedBounds
 
-__all__ = ["SweepResult", "run_sweep", "summary_row", "fit_slope"]
+__all__ = ["SweepResult", "SummaryRow", "run_sweep", "summary_row", "fit_slope"]
 
 
 def fit_slope(bits, values) -> float:
@@ -31,18 +34,10 @@ def fit_slope(bits, values) -> float:
     return float(np.polyfit(b[ok], np.log10(v[ok]), 1)[0])
 
 
-def _stats(x: np.ndarray) -> dict:
-    x = np.asarray(x, dtype=float)
-    ok = x[np.isfinite(x)]
-    return {"mean": float(ok.mean()) if ok.size else None, "std": float(ok.std()) if ok.size else None}
-
-
-def _num(x: float):
-    return None if x is None or not np.isfinite(x) else float(x)
-
-
-def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: ClosedLoops | None) -> dict:
-    """JSON-ready summary of one word length: errors (mean/std), theory, overload, MPC cost, bound.
+def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: ClosedLoops | None, *,
+                u_max=_UNKNOWN, realized: RealizedBounds | None = None,
+                assumptions: Assumptions | None = None) -> SummaryRow:
+    """Typed summary of one word length (:class:`~qsid_core.summary.SummaryRow`; ``.to_dict()`` is its JSON).
 
     Parameters
     ----------
@@ -51,38 +46,14 @@ def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: Clo
     ident, th, lp
         Results of :meth:`Experiment.identification`, :meth:`Experiment.theory` and
         :meth:`Experiment.closed_loops` (``lp`` may be None when MPC is off).
+    u_max : array_like or None, optional
+        Input bounds, for the count of saturated closed-loop steps.
+    realized : RealizedBounds, optional
+        The a-posteriori bound (:meth:`Experiment.realized_bound`).
+    assumptions : Assumptions, optional
+        (:meth:`Experiment.assumptions`).
     """
-    row = {
-        "bits": ident.bits,
-        "eps_x": ident.eps[:n].tolist(),
-        "eps_u": ident.eps[n:].tolist(),
-        "err_A": _stats(ident.err_A),
-        "err_B": _stats(ident.err_B),
-        "err_A_theory": _num(th.err_A),
-        "err_B_theory": _num(th.err_B),
-        "overload_fraction": float(ident.overload.mean()),
-        "bcls_fallbacks": int(ident.fallback.sum()),
-        "ultimate_bound": _num(th.delta),
-        "ultimate_bound_note": th.bound_note,
-        "ident_failures": int(ident.failed.sum()),
-    }
-    if lp is not None:
-        failed = lp.failed
-        fsn = lp.final_state_norm[~failed]
-        kinds: dict = {}
-        for f in lp.failure:
-            if f:
-                kinds[f] = kinds.get(f, 0) + 1
-        row["mpc_cost"] = {**_stats(lp.cost), "failed": int(failed.sum()), "failures": kinds}
-        row["final_state_norm"] = {
-            "mean": float(fsn.mean()) if fsn.size else None,
-            "max": float(fsn.max()) if fsn.size else None,
-        }
-        row["osqp_steps"] = lp.osqp_steps
-    else:
-        row["mpc_cost"] = None
-        row["final_state_norm"] = None
-    return row
+    return build_row(n, ident, th, lp, u_max=u_max, realized=realized, assumptions=assumptions)
 
 
 @dataclass
@@ -101,6 +72,10 @@ class SweepResult:
         LS slope of log10(mean relative error) against b.
     timing_s : dict
         Wall-clock seconds per stage.
+    realized : dict b -> RealizedBounds
+        A-posteriori ultimate bounds (each realization's own model error and P).
+    assumptions : dict b -> Assumptions
+        Hypotheses of Theorem 1 and BCLS per b.
     """
 
     config: SweepConfig
@@ -113,16 +88,21 @@ class SweepResult:
     slope_A: float
     slope_B: float
     timing_s: dict
+    realized: dict = field(default_factory=dict)
+    assumptions: dict = field(default_factory=dict)
 
-    def summary(self, b: int) -> dict:
-        """The JSON-ready summary at word length ``b`` (the CLI's ``results`` entries)."""
-        return summary_row(self.system.n, self.identification[b], self.theory[b], self.loops.get(b))
+    def summary(self, b: int) -> SummaryRow:
+        """The typed summary at word length ``b``; ``.to_dict()`` is the CLI's ``results`` entry."""
+        lp = self.loops.get(b)
+        u_max = self.config.mpc.resolve(self.system)["u_max"] if (lp is not None and self.config.mpc) else _UNKNOWN
+        return summary_row(self.system.n, self.identification[b], self.theory[b], lp, u_max=u_max,
+                           realized=self.realized.get(b), assumptions=self.assumptions.get(b))
 
     def to_dict(self) -> dict:
-        """The whole sweep as plain JSON-ready data."""
+        """The whole sweep as strict JSON data (NaN and inf become None)."""
         c = self.config
         q = c.quantizer
-        return {
+        return json_clean({
             "system": self.system.name,
             "config": {
                 "bits": list(self.bits), "realizations": c.realizations, "trajectories": c.trajectories,
@@ -131,14 +111,15 @@ class SweepResult:
                 "mpc": None if c.mpc is None else {
                     "horizon": c.mpc.horizon, "steps": c.mpc.steps, "u_max": list(c.mpc.u_max),
                 },
-                "theta": c.theta, "rho": c.rho,
+                "theta": c.theta, "rho": c.rho, "input_amplitude": c.input_amplitude,
+                "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
             },
-            "results": [self.summary(b) for b in self.bits],
-            "mpc_cost_true_model": None if self.true_loop is None else _num(self.true_loop.cost[0]),
-            "slope_A": _num(self.slope_A),
-            "slope_B": _num(self.slope_B),
+            "results": [self.summary(b).to_dict() for b in self.bits],
+            "mpc_cost_true_model": None if self.true_loop is None else float(self.true_loop.cost[0]),
+            "slope_A": float(self.slope_A),
+            "slope_B": float(self.slope_B),
             "timing_s": self.timing_s,
-        }
+        })
 
 
 def run_sweep(
@@ -173,6 +154,8 @@ def run_sweep(
         idents = {b: ex.identification(b) for b in config.bits}
         t2 = time.perf_counter()
         theory = {b: ex.theory(b) for b in config.bits}
+        realized = {b: ex.realized_bound(b) for b in config.bits}
+        assumptions = {b: ex.assumptions(b) for b in config.bits}
         t3 = time.perf_counter()
         loops: dict = {}
         true_loop = None
@@ -186,4 +169,5 @@ def run_sweep(
         "data": round(t1 - t0, 4), "identify": round(t2 - t1, 4), "theory": round(t3 - t2, 4),
         "mpc": round(t4 - t3, 4), "total": round(time.perf_counter() - t0, 4),
     }
-    return SweepResult(config, ex.system, config.bits, idents, theory, loops, true_loop, sA, sB, timing)
+    return SweepResult(config, ex.system, config.bits, idents, theory, loops, true_loop, sA, sB, timing,
+                       realized, assumptions)

@@ -20,6 +20,18 @@ Ultimate bound (proof of Theorem 3, eqs. (8)-(11)): with ``V(x) = x^T P x``,
 ball of radius ``rho``); ``C = omega_v**2 (||dA||**2/(2 alpha1) + ||dB||**2/(2 alpha2))``
 with ``dA = eps^2 Delta_A``, ``dB = eps^2 Delta_B`` the model errors predicted
 by Theorem 1; ``delta = sqrt(lambda_max(P)/lambda_min(P) * 2C/(theta alpha1))``.
+
+Two bounds are computed, with the same formula and different ingredients:
+
+* the **letter's** ``delta(eps)`` (:meth:`Experiment.theory`): model errors
+  ``c_A = ||A - A_pred||_F``, ``c_B = ||B - B_pred||_F`` of Theorem 1's
+  large-data (T -> inf) prediction, ``P`` from the predicted model;
+* the **a-posteriori** bound (:func:`realized_bounds`): for each realization its
+  own actual model error ``||A - A^_r||_F``, ``||B - B^_r||_F`` and its own ``P_r``
+  (the model the MPC actually runs on). Finite-data models have O(eps) errors, so
+  this bound is O(eps), not O(eps^2); it is the honest companion of the letter's.
+
+Both bound ``||x_t||`` only as t -> inf, and assume ``x_ref = 0``.
 """
 
 from __future__ import annotations
@@ -30,7 +42,8 @@ import numpy as np
 
 from .errors import ConfigError, check_float
 
-__all__ = ["theorem1_prediction", "riccati_finite", "UltimateBound", "ultimate_bound", "noise_covariance"]
+__all__ = ["theorem1_prediction", "riccati_finite", "UltimateBound", "ultimate_bound", "noise_covariance",
+           "RealizedBounds", "realized_bounds"]
 
 
 def noise_covariance(eps: np.ndarray) -> np.ndarray:
@@ -101,6 +114,24 @@ def ultimate_bound(
 ) -> UltimateBound:
     """Ultimate bound ``delta(eps)`` of the closed loop (letter, Theorem 3 and its proof).
 
+    Modelling choices (the letter leaves these open; each is made here explicitly):
+
+    * ``V(x) = x' P x`` with ``P = P_0`` of the finite-horizon Riccati recursion of
+      the *identified* model ``(A^, B^, Q, R)`` over the MPC horizon, ``P_Th = Qf``;
+      ``Qf`` is the configured terminal weight or, by default, the stabilizing DARE
+      solution of ``(A^, B^, Q, R)`` (then ``P = Qf``). Which model: Theorem 1's
+      prediction for the letter's bound, each realization's own model for the
+      a-posteriori bound (:func:`realized_bounds`).
+    * ``alpha1 = lambda_min(Q)``, ``alpha2 = lambda_min(R)`` (Assumption 4).
+    * ``omega_v = 2 lambda_max(P) rho``: Lipschitz constant of ``V`` on the ball of
+      radius ``rho``; ``rho`` automatic (below) unless given; the value used is
+      returned in :attr:`UltimateBound.rho`.
+    * ``c_A = ||dA||_F``, ``c_B = ||dB||_F`` (Frobenius, the letter's norm), the model
+      errors passed in (``eps^2`` is absorbed: ``dA = eps^2 Delta_A``).
+    * ``theta`` in (0, 1), default 0.5.
+    * The bound holds only as t -> inf and for ``x_ref = 0``; input and state
+      constraints are not part of the proof's quadratic ``V``.
+
     Parameters
     ----------
     P : ndarray, shape (n, n)
@@ -141,3 +172,92 @@ def ultimate_bound(
     C = omega_v**2 * (na**2 / (2 * alpha1) + nb**2 / (2 * alpha2))
     delta = float(np.sqrt(pmax / pmin * 2 * C / (theta * alpha1)))
     return UltimateBound(delta, pmin, pmax, alpha1, alpha2, omega_v, float(rho), theta, na, nb, C)
+
+
+@dataclass
+class RealizedBounds:
+    """A-posteriori ultimate bounds, one per realization (see :func:`realized_bounds`).
+
+    Attributes
+    ----------
+    delta : ndarray, shape (R,)
+        Bound of each realization (state units); ``inf`` where its ``P`` is not
+        positive definite or no terminal weight exists, ``nan`` for a failed
+        identification.
+    rho : ndarray, shape (R,)
+        The ``rho`` each bound used (automatic unless configured).
+    """
+
+    delta: np.ndarray
+    rho: np.ndarray
+
+    def _finite(self) -> np.ndarray:
+        d = np.asarray(self.delta, dtype=float)
+        return d[np.isfinite(d)]
+
+    @property
+    def median(self) -> float:
+        """Median over realizations with a finite bound (NaN if none)."""
+        f = self._finite()
+        return float(np.median(f)) if f.size else float("nan")
+
+    @property
+    def max(self) -> float:
+        """Largest bound; ``inf`` if any realization has none (NaN if all identifications failed)."""
+        d = np.asarray(self.delta, dtype=float)
+        d = d[~np.isnan(d)]
+        return float(d.max()) if d.size else float("nan")
+
+    @property
+    def unbounded(self) -> int:
+        """Realizations whose bound is infinite (no positive definite P)."""
+        return int(np.isinf(np.asarray(self.delta, dtype=float)).sum())
+
+
+def realized_bounds(models, A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray | None,
+                    horizon: int, *, theta: float = 0.5, rho: float | None = None,
+                    x0: np.ndarray | None = None) -> RealizedBounds:
+    """A-posteriori ultimate bound of each realization: its own model error and its own ``P``.
+
+    Parameters
+    ----------
+    models : sequence of (A^, B^), shapes (n, n) and (n, m)
+        Identified models (NaN entries mark failed identifications).
+    A, B : ndarray
+        The true system.
+    Q, R : ndarray, shapes (n, n), (m, m)
+        MPC weights.
+    Qf : ndarray or None
+        Terminal weight; None uses each model's stabilizing DARE solution.
+    horizon : int
+        MPC horizon (steps of the Riccati recursion).
+    theta, rho, x0
+        As in :func:`ultimate_bound` (``rho=None``: automatic per realization).
+    """
+    from .errors import MPCFailure
+    from .riccati import dare_batch, dare_stabilizing
+
+    Rn = len(models)
+    delta = np.full(Rn, np.nan)
+    rhos = np.full(Rn, np.nan)
+    ok = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
+    Qfs: dict = {i: Qf for i in ok}
+    if Qf is None and ok:
+        X, good = dare_batch(np.stack([models[i][0] for i in ok]), np.stack([models[i][1] for i in ok]), Q, R)
+        for k, i in enumerate(ok):
+            if good[k]:
+                Qfs[i] = X[k]
+            else:
+                try:
+                    Qfs[i] = dare_stabilizing(models[i][0], models[i][1], Q, R)
+                except MPCFailure:
+                    Qfs[i] = None
+    for i in ok:
+        Ah, Bh = models[i]
+        if Qfs[i] is None:
+            delta[i] = np.inf
+            continue
+        P = riccati_finite(Ah, Bh, Q, R, Qfs[i], horizon)
+        ub = ultimate_bound(P, Q, R, A - Ah, B - Bh, theta=theta, rho=rho, x0=x0)
+        delta[i], rhos[i] = ub.delta, ub.rho
+    return RealizedBounds(delta, rhos)

@@ -1,0 +1,216 @@
+"""The typed per-word-length summary of a sweep (:class:`SummaryRow`) and strict-JSON helpers.
+
+:meth:`SummaryRow.to_dict` gives the JSON of ``qsid sweep --json``'s ``results``
+entries: the keys and values of earlier versions plus ``realizations``,
+``effective_realizations``, ``rho``, ``ultimate_bound_realized``, ``assumptions``
+and ``saturated_steps``. Every number is finite or ``None`` (never NaN or inf).
+A row is also a read-only mapping of that dict (``row["err_A"]["mean"]``), so
+code written for the former plain-dict rows keeps working.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Stats", "SummaryRow", "build_row", "json_clean", "saturated_steps"]
+
+
+def _num(x):
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def json_clean(obj):
+    """``obj`` with every NaN/inf float replaced by None and numpy scalars/arrays made plain (recursively)."""
+    if isinstance(obj, dict):
+        return {k: json_clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_clean(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_clean(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _num(float(obj))
+    return obj
+
+
+@dataclass(frozen=True)
+class Stats:
+    """Mean and standard deviation over the realizations with a finite value (None if there are none)."""
+
+    mean: float | None
+    std: float | None
+
+    @classmethod
+    def of(cls, x) -> "Stats":
+        x = np.asarray(x, dtype=float)
+        ok = x[np.isfinite(x)]
+        return cls(float(ok.mean()) if ok.size else None, float(ok.std()) if ok.size else None)
+
+    def to_dict(self) -> dict:
+        return {"mean": self.mean, "std": self.std}
+
+
+def saturated_steps(inputs: np.ndarray, u_max, rtol: float = 1e-9) -> tuple[int, int]:
+    """Closed-loop steps where some input sits on its bound: ``(steps, loops with any)``.
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (R, steps, m)
+        Applied inputs (NaN after a failure: not counted).
+    u_max : array_like, shape (m,) or None
+        Input bounds ``|u_j| <= u_max_j``; None means unbounded (0 saturated steps).
+    """
+    if u_max is None or inputs.size == 0:
+        return 0, 0
+    um = np.broadcast_to(np.asarray(u_max, dtype=float), inputs.shape[-1:])
+    with np.errstate(invalid="ignore"):
+        sat = np.any(np.abs(inputs) >= um * (1 - rtol), axis=-1)  # (R, steps); NaN compares False
+    return int(sat.sum()), int(np.any(sat, axis=1).sum())
+
+
+@dataclass(frozen=True)
+class SummaryRow(Mapping):
+    """Summary of one word length (units: errors relative; bounds and norms in state units).
+
+    Attributes
+    ----------
+    bits : int
+    eps_x, eps_u : tuple of float
+        Cell widths of the states (n) and inputs (m).
+    err_A, err_B : Stats
+        Relative Frobenius model errors over realizations.
+    err_A_theory, err_B_theory : float or None
+        Theorem 1's large-data prediction.
+    overload_fraction : float
+    bcls_fallbacks, ident_failures : int
+    ultimate_bound : float or None
+        The letter's delta(eps), from Theorem 1's predicted model errors.
+    ultimate_bound_note : str
+    rho : float or None
+        The rho that bound used (the automatic value unless configured).
+    ultimate_bound_realized : dict or None
+        ``{"median", "max"}`` of the a-posteriori bound over realizations
+        (each realization's own model error and own P); None if not computed.
+    realizations, effective_realizations : int
+        R, and the number of distinct realizations (1 without dither).
+    assumptions : Assumptions or None
+        Hypotheses of Theorem 1 and BCLS (:mod:`qsid_core.assumptions`).
+    mpc_cost, final_state_norm : dict or None
+        Closed-loop summaries (None when MPC is off).
+    osqp_steps : int or None
+    saturated_steps : dict or None
+        ``{"steps": k, "loops": l, "of_steps": R*steps}``: closed-loop steps with an
+        input on its bound, and loops with at least one.
+    """
+
+    bits: int
+    eps_x: tuple
+    eps_u: tuple
+    err_A: Stats
+    err_B: Stats
+    err_A_theory: float | None
+    err_B_theory: float | None
+    overload_fraction: float
+    bcls_fallbacks: int
+    ultimate_bound: float | None
+    ultimate_bound_note: str
+    ident_failures: int
+    realizations: int = 0
+    effective_realizations: int = 0
+    rho: float | None = None
+    ultimate_bound_realized: dict | None = None
+    assumptions: object = None
+    mpc_cost: dict | None = None
+    final_state_norm: dict | None = None
+    osqp_steps: int | None = None
+    saturated_steps: dict | None = None
+    _dict: dict | None = field(default=None, repr=False, compare=False)
+
+    def to_dict(self) -> dict:
+        """Plain strict-JSON data (earlier keys unchanged, new keys added)."""
+        if self._dict is None:
+            d = {
+                "bits": self.bits, "eps_x": list(self.eps_x), "eps_u": list(self.eps_u),
+                "err_A": self.err_A.to_dict(), "err_B": self.err_B.to_dict(),
+                "err_A_theory": self.err_A_theory, "err_B_theory": self.err_B_theory,
+                "overload_fraction": self.overload_fraction, "bcls_fallbacks": self.bcls_fallbacks,
+                "ultimate_bound": self.ultimate_bound, "ultimate_bound_note": self.ultimate_bound_note,
+                "ident_failures": self.ident_failures, "mpc_cost": self.mpc_cost,
+                "final_state_norm": self.final_state_norm,
+            }
+            if self.osqp_steps is not None:
+                d["osqp_steps"] = self.osqp_steps
+            d.update({
+                "realizations": self.realizations, "effective_realizations": self.effective_realizations,
+                "rho": self.rho, "ultimate_bound_realized": self.ultimate_bound_realized,
+                "assumptions": None if self.assumptions is None else self.assumptions.to_dict(),
+                "saturated_steps": self.saturated_steps,
+            })
+            object.__setattr__(self, "_dict", json_clean(d))
+        return self._dict
+
+    # read-only mapping of to_dict(), for code written for plain-dict rows
+    def __getitem__(self, key):
+        return self.to_dict()[key]
+
+    def __iter__(self):
+        return iter(self.to_dict())
+
+    def __len__(self) -> int:
+        return len(self.to_dict())
+
+
+_UNKNOWN = object()
+
+
+def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assumptions=None) -> SummaryRow:
+    """The :class:`SummaryRow` of one word length.
+
+    Parameters
+    ----------
+    n : int
+        Number of states (splits eps into states and inputs).
+    ident, th, lp
+        :meth:`Experiment.identification`, :meth:`Experiment.theory` and
+        :meth:`Experiment.closed_loops` results (``lp`` None when MPC is off).
+    u_max : array_like or None
+        Input bounds for the saturated-steps count (None: unbounded, 0 steps);
+        when not given, ``saturated_steps`` is None (unknown).
+    realized : RealizedBounds, optional
+        From :meth:`Experiment.realized_bound`.
+    assumptions : Assumptions, optional
+        From :meth:`Experiment.assumptions`.
+    """
+    kw: dict = {}
+    if lp is not None:
+        failed = lp.failed
+        fsn = lp.final_state_norm[~failed]
+        kinds: dict = {}
+        for f in lp.failure:
+            if f:
+                kinds[f] = kinds.get(f, 0) + 1
+        kw["mpc_cost"] = {**Stats.of(lp.cost).to_dict(), "failed": int(failed.sum()), "failures": kinds}
+        kw["final_state_norm"] = {"mean": float(fsn.mean()) if fsn.size else None,
+                                  "max": float(fsn.max()) if fsn.size else None}
+        kw["osqp_steps"] = lp.osqp_steps
+        if u_max is not _UNKNOWN:
+            k, loops = saturated_steps(lp.inputs, u_max)
+            kw["saturated_steps"] = {"steps": k, "loops": loops, "of_steps": int(lp.inputs.shape[0] * lp.inputs.shape[1])}
+    return SummaryRow(
+        bits=ident.bits, eps_x=tuple(ident.eps[:n].tolist()), eps_u=tuple(ident.eps[n:].tolist()),
+        err_A=Stats.of(ident.err_A), err_B=Stats.of(ident.err_B),
+        err_A_theory=_num(th.err_A), err_B_theory=_num(th.err_B),
+        overload_fraction=float(ident.overload.mean()), bcls_fallbacks=int(ident.fallback.sum()),
+        ultimate_bound=_num(th.delta), ultimate_bound_note=th.bound_note, ident_failures=int(ident.failed.sum()),
+        realizations=ident.realizations, effective_realizations=ident.effective_realizations,
+        rho=_num(getattr(th, "rho", float("nan"))),
+        ultimate_bound_realized=None if realized is None else {"median": _num(realized.median),
+                                                               "max": _num(realized.max)},
+        assumptions=assumptions, **kw,
+    )
