@@ -91,12 +91,14 @@ class QuantizerSpec:
         object.__setattr__(self, "guard", bool(self.guard))
 
 
+_GUARD_DEFAULT: bool = QuantizerSpec.guard  # one source of truth for the default
+
 #: The letter's quantizer (Section V): subtractive dither, per-channel range from the
 #: data's min/max, **no** guard band (so some entries overload at low b).
 LETTER_QUANTIZER = QuantizerSpec(dither="subtractive", range_mode="per-channel", guard=False)
 
 
-def cell_width(lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = False) -> np.ndarray:
+def cell_width(lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = _GUARD_DEFAULT) -> np.ndarray:
     """Cell width eps for ``bits`` bits over ``[lo, hi]``: ``(hi-lo)/2**b``, or ``(hi-lo)/(2**b-1)`` with guard."""
     bits = check_int("bits", bits, 1, MAX_BITS)
     cells = 2.0**bits - (1.0 if guard else 0.0)
@@ -144,7 +146,7 @@ def quantize(
     bits: int,
     *,
     dither: str = "subtractive",
-    guard: bool = False,
+    guard: bool = _GUARD_DEFAULT,
     rng: np.random.Generator | None = None,
     unit_dither: np.ndarray | None = None,
 ) -> Quantized:
@@ -159,7 +161,7 @@ def quantize(
     bits : int, 1..32
         Word length b; the quantizer has exactly ``2**b`` levels.
     dither : {"subtractive", "none"}
-    guard : bool
+    guard : bool, default True (as :class:`QuantizerSpec`)
         Widen the range by eps/2 on each side (see module docstring).
     rng : numpy Generator, optional
         Source of the dither when ``unit_dither`` is not given.

@@ -317,7 +317,7 @@ def test_a_failed_identification_is_reported_and_not_drawn():
     ident.A_hat[1] = np.nan
     ident.failed = np.array([False, True, False, False])
     ident.notes = ["identification failed: singular data"]
-    f.rows["LS"][3]["ident_failures"] = 1
+    f.rows["LS"][3] = {**f.rows["LS"][3], "ident_failures": 1}
     eig = build_figures(f, ("eigen",))["eigen"]
     assert len(eig.data[1].x) == 3 * 3  # 3 good realizations x 3 eigenvalues
     assert "LS identification failed in 1 of 4 realizations" in summary_markdown(f)

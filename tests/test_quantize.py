@@ -12,7 +12,7 @@ def test_exactly_2_to_the_b_levels(bits):
     lo, hi = -1.5, 2.5
     x = np.linspace(lo - 1, hi + 1, 200_001)  # includes x = hi exactly and overload on both sides
     x = np.concatenate([x, [lo, hi]])
-    q = quantize(x, lo, hi, bits, dither="none")
+    q = quantize(x, lo, hi, bits, dither="none", guard=False)  # the letter's quantizer
     levels = np.unique(q.values)
     eps = (hi - lo) / 2**bits
     expected_all = lo + eps / 2 + eps * np.arange(2**bits)
@@ -24,7 +24,7 @@ def test_exactly_2_to_the_b_levels(bits):
         np.testing.assert_allclose(k, np.round(k), atol=1e-6)
         assert k.min() >= 0 and k.max() <= 2**bits - 1
     # x = hi maps to the top level, not to a 2^b+1-th one
-    assert quantize(np.array([hi]), lo, hi, bits, dither="none").values[0] == pytest.approx(expected_all[-1])
+    assert quantize(np.array([hi]), lo, hi, bits, dither="none", guard=False).values[0] == pytest.approx(expected_all[-1])
 
 
 @pytest.mark.parametrize("dither", ["none", "subtractive"])
@@ -44,7 +44,33 @@ def test_in_range_error_within_half_cell(dither, guard):
 def test_guard_band_geometry():
     lo_q, eps = effective_ranges(np.array([0.0]), np.array([1.0]), 3, True)
     assert eps[0] == pytest.approx(1 / 7) and lo_q[0] == pytest.approx(-1 / 14)
-    assert cell_width(0.0, 1.0, 3) == pytest.approx(1 / 8)
+    assert cell_width(0.0, 1.0, 3, guard=False) == pytest.approx(1 / 8)
+    assert cell_width(0.0, 1.0, 3) == pytest.approx(1 / 7)  # guard band is the default
+
+
+def test_guard_is_default_and_letter_preset_has_none():
+    from qsid_core import LETTER_QUANTIZER, SweepConfig
+
+    assert QuantizerSpec().guard is True and LETTER_QUANTIZER.guard is False
+    assert LETTER_QUANTIZER.range_mode == "per-channel" and LETTER_QUANTIZER.dither == "subtractive"
+    letter = SweepConfig.letter("boeing747")
+    assert letter.quantizer == LETTER_QUANTIZER and letter.input_amplitude == 1.0
+    assert (letter.trajectories, letter.steps, letter.realizations, letter.bits) == (200, 1000, 50, tuple(range(1, 17)))
+    assert SweepConfig.letter(bits="2:4").bits == (2, 3, 4)
+    with pytest.raises(ConfigError, match="guard"):
+        QuantizerSpec(guard="yes")
+
+
+def test_fixed_range_one_pair_or_one_per_channel():
+    states = np.zeros((1, 3, 2))
+    inputs = np.zeros((1, 2, 1))
+    lo, hi = data_ranges(states, inputs, QuantizerSpec(range_mode="fixed", fixed_range=(-20, 20)))
+    np.testing.assert_array_equal(lo, [-20, -20, -20]) and np.testing.assert_array_equal(hi, [20, 20, 20])
+    spec = QuantizerSpec(range_mode="fixed", fixed_range=[(-1, 1), (-2, 2), (0, 5)])
+    lo, hi = data_ranges(states, inputs, spec)
+    np.testing.assert_array_equal(lo, [-1, -2, 0]) and np.testing.assert_array_equal(hi, [1, 2, 5])
+    with pytest.raises(ConfigError, match="one per channel"):
+        data_ranges(states, inputs, QuantizerSpec(range_mode="fixed", fixed_range=[(0, 1), (0, 1)]))
 
 
 @settings(max_examples=25, deadline=None)
@@ -74,7 +100,7 @@ def test_subtractive_dither_error_is_uniform_and_signal_independent(bits, lo, wi
 
 def test_without_dither_error_depends_on_signal():
     x = np.linspace(0.0, 0.1, 10_000)  # a slow ramp inside one coarse cell
-    q = quantize(x, 0, 1, 3, dither="none")
+    q = quantize(x, 0, 1, 3, dither="none", guard=False)
     e = x - q.values
     assert abs(np.corrcoef(e, x)[0, 1]) > 0.9
 

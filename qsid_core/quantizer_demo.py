@@ -1,0 +1,196 @@
+"""The quantizer seen on one signal: with subtractive dither and without (issue 8, "the quantizer").
+
+:func:`quantizer_demo` quantizes one channel twice at word length b, once with
+subtractive dither (``Q(x + w) - w``) and once plainly (``Q(x)``), and returns a
+short window of the signal and both reconstructions, the two error histograms
+against the uniform density ``1/eps`` on ``[-eps/2, eps/2]``, the measured error
+variances next to ``eps**2/12``, the overload fractions and the correlation of the
+error with the signal. :func:`channel_demo` does this for one state or input
+channel of an :class:`~qsid_core.experiment.Experiment`'s training data, with its
+quantizer range.
+
+What it shows: with dither and no overload the error is uniform, of variance
+``eps**2/12`` (within sampling error ``eps**2 / sqrt(180 N)``: the variance of
+``e**2`` for e uniform on ``[-eps/2, eps/2]`` is ``eps**4/180``) and uncorrelated
+with the signal. Without dither the error is a deterministic function of the
+signal; for a coarse quantizer or a slowly varying signal it is correlated with it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError, check_int
+from .quantize import MAX_BITS, effective_ranges, quantize
+
+__all__ = ["QuantizerDemo", "quantizer_demo", "channel_demo"]
+
+
+@dataclass
+class QuantizerDemo:
+    """One signal quantized with and without subtractive dither.
+
+    Attributes
+    ----------
+    bits : int
+    eps : float
+        Cell width (signal units).
+    lo_q, hi_q : float
+        The quantizer's actual range (guard band included).
+    samples : int
+        N, samples the statistics use.
+    t : ndarray, shape (W,)
+        Sample indices of the window.
+    signal, dithered, plain : ndarray, shape (W,)
+        ``x``, ``Q(x + w) - w`` and ``Q(x)`` over the window.
+    error_dithered, error_plain : ndarray, shape (W,)
+        ``x - x~`` over the window.
+    hist_edges : ndarray, shape (bins + 1,)
+        Bin edges on ``[-eps/2, eps/2]``.
+    hist_dithered, hist_plain : ndarray, shape (bins,)
+        Error densities (1 / signal units) over all N samples; mass outside
+        ``[-eps/2, eps/2]`` (overload) is in ``outside_*``, not in the bins.
+    uniform_density : float
+        ``1 / eps``, the density of the ideal error.
+    var_dithered, var_plain, var_theory : float
+        Measured error variances and ``eps**2 / 12`` (signal units squared).
+    var_sampling_std : float
+        ``eps**2 / sqrt(180 N)``: standard error of the measured variance of an ideal error.
+    mean_dithered, mean_plain : float
+    corr_dithered, corr_plain : float
+        Correlation coefficient of error and signal (NaN for a constant signal).
+    overload_dithered, overload_plain : float
+        Fraction of samples whose quantizer input left the range.
+    outside_dithered, outside_plain : float
+        Fraction of errors outside ``[-eps/2, eps/2]``.
+    label : str
+        The channel's name (``"x1"``, ``"u2"``, ...) or ``""``.
+    """
+
+    bits: int
+    eps: float
+    lo_q: float
+    hi_q: float
+    samples: int
+    t: np.ndarray
+    signal: np.ndarray
+    dithered: np.ndarray
+    plain: np.ndarray
+    error_dithered: np.ndarray
+    error_plain: np.ndarray
+    hist_edges: np.ndarray
+    hist_dithered: np.ndarray
+    hist_plain: np.ndarray
+    uniform_density: float
+    var_dithered: float
+    var_plain: float
+    var_theory: float
+    var_sampling_std: float
+    mean_dithered: float
+    mean_plain: float
+    corr_dithered: float
+    corr_plain: float
+    overload_dithered: float
+    overload_plain: float
+    outside_dithered: float
+    outside_plain: float
+    label: str = ""
+
+    @property
+    def var_z_dithered(self) -> float:
+        """``(var_dithered - eps**2/12) / var_sampling_std``: deviation in standard errors."""
+        return float((self.var_dithered - self.var_theory) / self.var_sampling_std)
+
+
+def _corr(e: np.ndarray, x: np.ndarray) -> float:
+    se, sx = e.std(), x.std()
+    if se == 0 or sx == 0:
+        return float("nan")
+    return float(np.mean((e - e.mean()) * (x - x.mean())) / (se * sx))
+
+
+def quantizer_demo(signal, lo: float, hi: float, bits: int, *, guard: bool = True, window: int = 200,
+                   start: int = 0, bins: int = 30, seed: int | None = 0, label: str = "") -> QuantizerDemo:
+    """Quantize a 1-D signal with and without subtractive dither and compare the errors.
+
+    Parameters
+    ----------
+    signal : array_like, shape (N,)
+        The signal (any units); all N samples feed the statistics.
+    lo, hi : float
+        Quantizer range, ``hi > lo`` (before the guard band).
+    bits : int, 1..32
+    guard : bool
+        Guard band (see :mod:`qsid_core.quantize`).
+    window : int, >= 1
+        Samples returned for the time plot (from ``start``; clipped to N).
+    start : int, >= 0
+    bins : int, 2..1000
+        Histogram bins on ``[-eps/2, eps/2]``.
+    seed : int or None
+        Seed of the dither.
+
+    Raises
+    ------
+    ConfigError
+        Empty or non-finite signal, bad range, bits, window, start or bins.
+    """
+    x = np.asarray(signal, dtype=float).ravel()
+    if x.size < 2 or not np.all(np.isfinite(x)):
+        raise ConfigError("the quantizer demo needs a finite signal of at least 2 samples")
+    bits = check_int("bits", bits, 1, MAX_BITS)
+    window = check_int("window", window, 1)
+    start = check_int("start", start, 0, x.size - 1)
+    bins = check_int("bins", bins, 2, 1000)
+    rng = np.random.default_rng(seed)
+    qd = quantize(x, lo, hi, bits, dither="subtractive", guard=guard, rng=rng)
+    qp = quantize(x, lo, hi, bits, dither="none", guard=guard)
+    lo_q, eps = effective_ranges(np.float64(lo), np.float64(hi), bits, guard)
+    eps = float(eps)
+    ed, ep = x - qd.values, x - qp.values
+    edges = np.linspace(-eps / 2, eps / 2, bins + 1)
+    N = x.size
+    hd = np.histogram(ed, bins=edges)[0] / (N * np.diff(edges))
+    hp = np.histogram(ep, bins=edges)[0] / (N * np.diff(edges))
+    tol = 1e-12 * max(eps, 1.0)
+    sl = slice(start, min(start + window, N))
+    return QuantizerDemo(
+        bits=bits, eps=eps, lo_q=float(lo_q), hi_q=float(lo_q + 2.0**bits * eps), samples=N,
+        t=np.arange(N)[sl], signal=x[sl].copy(), dithered=qd.values[sl], plain=qp.values[sl],
+        error_dithered=ed[sl], error_plain=ep[sl], hist_edges=edges, hist_dithered=hd, hist_plain=hp,
+        uniform_density=1.0 / eps, var_dithered=float(ed.var()), var_plain=float(ep.var()),
+        var_theory=eps**2 / 12.0, var_sampling_std=eps**2 / np.sqrt(180.0 * N),
+        mean_dithered=float(ed.mean()), mean_plain=float(ep.mean()), corr_dithered=_corr(ed, x),
+        corr_plain=_corr(ep, x), overload_dithered=qd.overload_fraction, overload_plain=qp.overload_fraction,
+        outside_dithered=float(np.mean(np.abs(ed) > eps / 2 + tol)),
+        outside_plain=float(np.mean(np.abs(ep) > eps / 2 + tol)), label=label,
+    )
+
+
+def channel_demo(ex, channel: int, bits: int, *, window: int = 200, max_samples: int = 100_000, bins: int = 30,
+                 seed: int | None = 0) -> QuantizerDemo:
+    """:func:`quantizer_demo` for one channel of an experiment's training data, with its quantizer range.
+
+    Parameters
+    ----------
+    ex : Experiment
+    channel : int, 0..n+m-1
+        States first (``x1..xn``), then inputs (``u1..um``).
+    bits : int
+    window, bins, seed
+        As in :func:`quantizer_demo`.
+    max_samples : int
+        The statistics use the first ``max_samples`` samples of the channel (run after run).
+    """
+    n, m = ex.system.n, ex.system.m
+    channel = check_int("channel", channel, 0, n + m - 1)
+    max_samples = check_int("max samples", max_samples, 2)
+    data, prep = ex.data, ex.prepared
+    if channel < n:
+        sig, label = data.states[:, :-1, channel].ravel(), f"x{channel + 1}"
+    else:
+        sig, label = data.inputs[:, :, channel - n].ravel(), f"u{channel - n + 1}"
+    return quantizer_demo(sig[:max_samples], float(prep.lo[channel]), float(prep.hi[channel]), bits,
+                          guard=ex.config.quantizer.guard, window=window, bins=bins, seed=seed, label=label)
