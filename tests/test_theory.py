@@ -74,3 +74,29 @@ def test_bound_shrinks_with_bits_in_sweep():
     d = [res.theory[b].delta for b in (4, 6, 8)]
     assert d[0] > d[1] > d[2] > 0
     assert d[0] / d[1] == pytest.approx(16, rel=0.15)  # O(eps^2): 4 bits -> 2^4 ... 2 bits -> 16x
+
+
+def test_realized_bound_uses_each_models_own_error_and_P():
+    from qsid_core.theory import realized_bounds
+
+    s = boeing747()
+    rng = np.random.default_rng(1)
+    models = [(s.A + 1e-3 * rng.normal(size=s.A.shape), s.B + 1e-3 * rng.normal(size=s.B.shape)) for _ in range(3)]
+    models.append((np.full_like(s.A, np.nan), s.B))  # a failed identification
+    rb = realized_bounds(models, s.A, s.B, s.Q, s.R, None, 10, x0=s.x0)
+    for (Ah, Bh), d, r in zip(models[:3], rb.delta[:3], rb.rho[:3]):
+        P = riccati_finite(Ah, Bh, s.Q, s.R, dare_stabilizing(Ah, Bh, s.Q, s.R), 10)
+        ub = ultimate_bound(P, s.Q, s.R, s.A - Ah, s.B - Bh, x0=s.x0)
+        assert d == pytest.approx(ub.delta, rel=1e-6) and r == pytest.approx(ub.rho, rel=1e-6)
+    assert np.isnan(rb.delta[3])
+    assert rb.median == pytest.approx(np.median(rb.delta[:3])) and rb.max == pytest.approx(rb.delta[:3].max())
+
+
+def test_letter_bound_vs_realized_bound_motor_b16():
+    """Issue 7: at b = 16 the letter's delta (Theorem 1's T -> inf errors) is ~10^4 smaller than the bound
+    from the realizations' own finite-data errors (measured 5.75e-7 vs median 5.8e-3)."""
+    ex = Experiment(SweepConfig(system="dc-motor", bits=(16,), realizations=10, mpc=None))
+    th, rb = ex.theory(16), ex.realized_bound(16)
+    assert th.rho > 0 and th.bound is not None and th.bound.rho == th.rho
+    assert rb.median > 1000 * th.delta
+    assert np.all(np.isfinite(rb.delta)) and rb.max >= rb.median

@@ -1,0 +1,51 @@
+import numpy as np
+import pytest
+
+from qsid_core import LETTER_QUANTIZER, Experiment, QuantizerSpec, SweepConfig
+from qsid_core.assumptions import OVERLOAD_TOLERANCE, finite_data_fluctuation
+
+SMALL = dict(trajectories=20, steps=300, realizations=3, mpc=None)
+
+
+def test_letter_quantizer_overloads_and_guard_band_does_not():
+    letter = Experiment(SweepConfig(system="dc-motor", bits=(2,), quantizer=LETTER_QUANTIZER, **SMALL)).assumptions(2)
+    guard = Experiment(SweepConfig(system="dc-motor", bits=(2,), **SMALL)).assumptions(2)
+    assert letter.overload_fraction > OVERLOAD_TOLERANCE and not letter.no_overload and not letter.bcls_holds
+    assert any("overload" in n for n in letter.notes)
+    assert guard.overload_fraction == 0.0 and guard.no_overload and guard.bcls_holds
+
+
+def test_fixed_range_too_small_overloads():
+    q = QuantizerSpec(range_mode="fixed", fixed_range=(-0.5, 0.5))
+    a = Experiment(SweepConfig(system="boeing747", bits=(6,), quantizer=q, **SMALL)).assumptions(6)
+    assert not a.no_overload and a.overload_fraction > 0.1
+
+
+def test_large_data_flag_follows_data_length():
+    """Boeing, shared range: b = 4 bias (0.75) dwarfs the fluctuation even for little data; b = 12 needs more."""
+    few = Experiment(SweepConfig(system="boeing747", bits=(4, 12), quantizer=QuantizerSpec(range_mode="shared"),
+                                 **SMALL))
+    assert few.assumptions(4).large_data and few.assumptions(4).theorem1_holds
+    a12 = few.assumptions(12)
+    assert not a12.large_data and a12.fluctuation_A > a12.bias_A / 3
+    assert a12.to_dict()["large_data"] is False and isinstance(a12.to_dict()["notes"], list)
+
+
+def test_predicted_fluctuation_matches_realization_spread():
+    """The predicted O(eps/sqrt(T)) spread is within a factor 2 of the measured spread of A^ over dither."""
+    ex = Experiment(SweepConfig(system="boeing747", bits=(8,), realizations=12, trajectories=50, steps=400, mpc=None))
+    i = ex.identification(8)
+    measured = np.sqrt((i.A_hat.std(0) ** 2).sum())
+    fA, _ = finite_data_fluctuation(ex.system.G, ex.prepared.exact.PP, i.eps)
+    assert 0.5 < measured / fA < 2.0, (measured, fA)
+
+
+def test_fluctuation_scales_like_eps_over_sqrt_T():
+    rng = np.random.default_rng(0)
+    G = rng.normal(size=(2, 3))
+    M = rng.normal(size=(3, 3))
+    PP = M @ M.T + np.eye(3)
+    eps = np.array([0.1, 0.2, 0.3])
+    f1 = finite_data_fluctuation(G, PP, eps)
+    f2 = finite_data_fluctuation(G, 4 * PP, 2 * eps)  # 4x the samples, twice the cell: same
+    assert f1 == pytest.approx(f2)
