@@ -21,7 +21,7 @@ from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
 from .systems import LTISystem
 from .theory import RealizedBounds
 
-__all__ = ["SweepResult", "SummaryRow", "run_sweep", "summary_row", "fit_slope"]
+__all__ = ["SweepResult", "SummaryRow", "run_sweep", "summary_row", "summarize", "fit_slope"]
 
 
 def fit_slope(bits, values) -> float:
@@ -54,6 +54,17 @@ def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: Clo
         (:meth:`Experiment.assumptions`).
     """
     return build_row(n, ident, th, lp, u_max=u_max, realized=realized, assumptions=assumptions)
+
+
+def summarize(ex: Experiment, b: int, estimator: str | None = None) -> SummaryRow:
+    """The complete row of word length ``b`` from an experiment (closed loops when MPC is on, the
+    a-posteriori bound, the assumptions and the saturated-steps count); every part is cached by ``ex``."""
+    est = estimator or ex.config.estimator
+    cfg = ex.config.mpc
+    lp = ex.closed_loops(b, est) if cfg is not None else None
+    u_max = cfg.resolve(ex.system)["u_max"] if cfg is not None else _UNKNOWN
+    return summary_row(ex.system.n, ex.identification(b, est), ex.theory(b), lp, u_max=u_max,
+                       realized=ex.realized_bound(b, est), assumptions=ex.assumptions(b))
 
 
 @dataclass

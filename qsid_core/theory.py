@@ -174,6 +174,20 @@ def ultimate_bound(
     return UltimateBound(delta, pmin, pmax, alpha1, alpha2, omega_v, float(rho), theta, na, nb, C)
 
 
+def _riccati_finite_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray,
+                          horizon: int) -> np.ndarray:
+    """:func:`riccati_finite` for a batch: A (L, n, n), B (L, n, m), Qf (L, n, n) -> P_0 (L, n, n)."""
+    P = np.array(Qf, dtype=float)
+    At = np.swapaxes(A, 1, 2)
+    Bt = np.swapaxes(B, 1, 2)
+    for _ in range(horizon):
+        BtP = Bt @ P
+        BtPA = BtP @ A
+        P = At @ P @ A - np.swapaxes(BtPA, 1, 2) @ np.linalg.solve(R + BtP @ B, BtPA) + Q
+        P = (P + np.swapaxes(P, 1, 2)) / 2
+    return P
+
+
 @dataclass
 class RealizedBounds:
     """A-posteriori ultimate bounds, one per realization (see :func:`realized_bounds`).
@@ -252,12 +266,13 @@ def realized_bounds(models, A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.n
                     Qfs[i] = dare_stabilizing(models[i][0], models[i][1], Q, R)
                 except MPCFailure:
                     Qfs[i] = None
-    for i in ok:
-        Ah, Bh = models[i]
-        if Qfs[i] is None:
-            delta[i] = np.inf
-            continue
-        P = riccati_finite(Ah, Bh, Q, R, Qfs[i], horizon)
-        ub = ultimate_bound(P, Q, R, A - Ah, B - Bh, theta=theta, rho=rho, x0=x0)
-        delta[i], rhos[i] = ub.delta, ub.rho
+    todo = [i for i in ok if Qfs[i] is not None]
+    delta[[i for i in ok if Qfs[i] is None]] = np.inf
+    if todo:
+        P = _riccati_finite_batch(np.stack([models[i][0] for i in todo]), np.stack([models[i][1] for i in todo]),
+                                  Q, R, np.stack([Qfs[i] for i in todo]), horizon)
+        for k, i in enumerate(todo):
+            Ah, Bh = models[i]
+            ub = ultimate_bound(P[k], Q, R, A - Ah, B - Bh, theta=theta, rho=rho, x0=x0)
+            delta[i], rhos[i] = ub.delta, ub.rho
     return RealizedBounds(delta, rhos)

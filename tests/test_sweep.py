@@ -86,3 +86,13 @@ def test_input_amplitude_scales_inputs_and_is_cached_separately():
     assert b.identification(4) is not a.identification(4)
     with pytest.raises(ValueError, match="input amplitude"):
         SweepConfig(input_amplitude=0.0)
+
+
+def test_summarize_matches_sweep_row():
+    from qsid_core import Experiment
+    from qsid_core.sweep import summarize
+
+    cfg = SweepConfig(bits="4", **SMALL)
+    res = run_sweep(cfg)
+    row = summarize(Experiment(cfg), 4)
+    assert row.to_dict() == res.summary(4).to_dict()
