@@ -87,3 +87,13 @@ def test_no_dither_runs_one_realization():
 def test_bad_config(kw):
     with pytest.raises(ConfigError):
         DataLengthConfig(**kw)
+
+
+def test_process_pool_executor():
+    from concurrent.futures import ProcessPoolExecutor
+
+    cfg = DataLengthConfig(system="boeing747", bits=6, samples=(1000,), realizations=2, quantizer=SHARED)
+    with ProcessPoolExecutor(2) as pool:
+        b = run_datalength(cfg, executor=pool, tasks=2)
+    a = run_datalength(cfg, tasks=2)
+    assert a.rows[0].bcls_A.mean == pytest.approx(b.rows[0].bcls_A.mean, rel=1e-12)
