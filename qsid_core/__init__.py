@@ -1,8 +1,12 @@
 """qsid_core: quantized system identification and the MPC built on it (the QSID-MPC letter).
 
-Pure numerics: no GUI, no plotting, no printing, no global state. See the
-modules ``systems``, ``data``, ``quantize``, ``moments``, ``identify``,
-``theory``, ``riccati``, ``mpc``, ``closed_loop``, ``experiment`` and ``sweep``.
+Pure numerics: no GUI, no plotting, no printing, no global state. Modules:
+``systems``, ``data``, ``quantize``, ``moments``, ``identify``, ``theory``,
+``riccati``, ``mpc``, ``closed_loop``, ``config``, ``executors``, ``experiment``,
+``sweep``, ``summary`` (typed per-b rows), ``assumptions`` (which hypotheses of
+Theorem 1 and BCLS hold), ``datalength`` (error against data length),
+``quantizer_demo`` (one signal quantized with and without dither) and
+``timeseries`` (closed loops as x(t), u(t), ||x_t||).
 """
 
 from .data import Dataset, simulate
@@ -10,23 +14,29 @@ from .errors import ConfigError, DataOverflowError, QsidError, SystemDefinitionE
 from .config import SweepConfig, parse_bits
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
-from .sweep import SummaryRow, SweepResult, fit_slope, run_sweep, summary_row
+from .sweep import SummaryRow, SweepResult, fit_slope, run_sweep, summarize, summary_row
 from .assumptions import Assumptions
+from .datalength import DataLengthConfig, DataLengthResult, run_datalength
+from .quantizer_demo import QuantizerDemo, channel_demo, quantizer_demo
+from .timeseries import TimeSeries, time_series
 from .identify import Identified, identify, relative_errors
 from .moments import Moments, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
 from .mpc import MPCConfig, MPCController, MPCFailure
 from .quantize import LETTER_QUANTIZER, QuantizerSpec, quantize
 from .systems import PRESETS, LTISystem, UncontrollableWarning, boeing747, dc_motor, dc_motor_physical, get_system, load_system
-from .theory import riccati_finite, theorem1_prediction, ultimate_bound
+from .theory import RealizedBounds, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "ClosedLoops", "ConfigError", "LETTER_QUANTIZER", "DataOverflowError", "Dataset", "Experiment", "Identified", "InlineExecutor",
-    "LTISystem", "MPCConfig", "MPCController", "MPCFailure", "Moments", "PRESETS", "QsidError", "QuantizerSpec",
-    "Assumptions", "SummaryRow", "SweepConfig", "SweepResult", "SystemDefinitionError", "UncontrollableWarning", "boeing747", "dc_motor",
-    "dc_motor_physical", "fit_slope", "get_system", "identify", "load_system", "parse_bits", "prepare", "quantize",
-    "quantized_moments", "relative_errors", "single_threaded_blas", "summary_row", "riccati_finite", "run_closed_loops", "run_sweep", "simulate",
-    "theorem1_prediction", "ultimate_bound",
+    "Assumptions", "ClosedLoops", "ConfigError", "DataLengthConfig", "DataLengthResult", "DataOverflowError",
+    "Dataset", "Experiment", "Identified", "InlineExecutor", "LETTER_QUANTIZER", "LTISystem", "MPCConfig",
+    "MPCController", "MPCFailure", "Moments", "PRESETS", "QsidError", "QuantizerDemo", "QuantizerSpec",
+    "RealizedBounds", "SummaryRow", "SweepConfig", "SweepResult", "SystemDefinitionError", "TimeSeries",
+    "UncontrollableWarning", "boeing747", "channel_demo", "dc_motor", "dc_motor_physical", "fit_slope", "get_system",
+    "identify", "load_system", "parse_bits", "prepare", "quantize", "quantized_moments", "quantizer_demo",
+    "realized_bounds", "relative_errors", "riccati_finite", "run_closed_loops", "run_datalength", "run_sweep",
+    "simulate", "single_threaded_blas", "summarize", "summary_row", "theorem1_prediction", "time_series",
+    "ultimate_bound",
 ]
