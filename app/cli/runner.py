@@ -7,6 +7,7 @@ Commands import this module (and :mod:`app.cli.output`), never each other.
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 import time
 import warnings
@@ -61,7 +62,8 @@ class Reporter:
         desc = f"{PROG}:   {stage}"
         if self._bar is None or self._bar.desc != desc:
             self._close()
-            self._bar = tqdm(total=total, desc=desc, file=self.stream, leave=True, dynamic_ncols=True)
+            width = min(100, shutil.get_terminal_size((80, 24)).columns)  # a pty may report 0 columns
+            self._bar = tqdm(total=total, desc=desc, file=self.stream, leave=True, ncols=width)
         self._bar.total = total
         self._bar.update(done - self._bar.n)
         if done >= total:
