@@ -275,3 +275,18 @@ def test_defaults_and_choices_are_the_engines():
         assert build_parser().parse_args(["sweep", "--dither", d]).dither == d
     for e in ESTIMATORS:
         assert build_parser().parse_args(["sweep", "--estimator", e]).estimator == e
+
+
+def test_json_is_strict_for_numpy_nonfinite_and_enums():
+    import enum
+
+    import numpy as np
+
+    from app.cli.output import dumps
+
+    class Kind(enum.Enum):
+        DIVERGED = "diverged"
+
+    text = dumps({"a": np.array([1.0, np.nan]), "b": np.float64(np.inf), "k": [Kind.DIVERGED], Kind.DIVERGED: 2},
+                 indent=None)
+    assert text == '{"a": [1.0, null], "b": null, "k": ["diverged"], "diverged": 2}'

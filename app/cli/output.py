@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import enum
 import json
 import math
 from typing import Any
@@ -10,9 +11,11 @@ __all__ = ["clean", "dumps", "g", "format_table"]
 
 
 def clean(obj: Any) -> Any:
-    """JSON-ready copy: non-finite floats become None, numpy scalars/arrays plain Python."""
+    """JSON-ready copy: non-finite floats become None, numpy scalars/arrays plain Python, enums their value."""
+    if isinstance(obj, enum.Enum):
+        return clean(obj.value)
     if isinstance(obj, dict):
-        return {str(k): clean(v) for k, v in obj.items()}
+        return {str(k.value if isinstance(k, enum.Enum) else k): clean(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [clean(v) for v in obj]
     if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
