@@ -14,7 +14,7 @@ from app.dashboard.session import iter_frames
 from app.dashboard.settings import ALL_BITS, InputError, Values, sweep_config
 from app.dashboard.summary import summary_markdown
 from app.figures import move_current_bits
-from app.figures.palette import COLORS, rgb
+from app.figures.palette import COLORS, rgb, vertex_rgb
 from app.figures.phase_scene import CLIP, SPHERE_CAP, scene_view
 from app.figures.registry import VIEWS
 from qsid_core import Experiment
@@ -179,8 +179,10 @@ def test_one_palette_for_plots_and_the_3d_scene():
     f = frames(Values(bits=6, **SMALL))[-1]
     sv = scene_view(f)
     R, T = 4, 15
-    assert tuple(sv.colors[0, 0]) == rgb("LS") == (0x1F, 0x77, 0xB4)  # LS blue in 3-D ...
-    assert tuple(sv.colors[R * T, 0]) == rgb("BCLS") == (0xD6, 0x27, 0x28)  # ... BCLS red
+    # per-vertex colours go to the screen as linear light: the scene sends the palette colour linearised
+    assert tuple(sv.colors[0, 0]) == vertex_rgb("LS") == (3, 47, 116)  # LS blue #1f77b4 on screen ...
+    assert tuple(sv.colors[R * T, 0]) == vertex_rgb("BCLS") == (171, 5, 5)  # ... BCLS red #d62728
+    assert rgb("LS") == (0x1F, 0x77, 0xB4) and rgb("BCLS") == (0xD6, 0x27, 0x28)
     figs = build_figures(f)
     lines = {tr.name: tr.line.color for tr in figs["error"].data if tr.mode == "lines+markers"}
     assert lines == {"LS": COLORS["LS"], "BCLS": COLORS["BCLS"]}  # the same hues in the plots

@@ -6,7 +6,7 @@ and 3-D phase portrait, and in the figures ``qsid reproduce`` writes.
 
 from __future__ import annotations
 
-__all__ = ["COLORS", "EXTRA", "color", "rgb"]
+__all__ = ["COLORS", "EXTRA", "color", "rgb", "vertex_rgb"]
 
 #: Named colours (hex): estimators, the true model, theory curves, reference lines.
 COLORS = {
@@ -34,3 +34,22 @@ def rgb(label: str, i: int = 0) -> tuple[int, int, int]:
     """The same colour as :func:`color`, as an (r, g, b) tuple of 0..255 (for viser scene nodes)."""
     h = color(label, i).lstrip("#")
     return (int(h[0:2], 16), int(h[2:4], 16), int(h[4:6], 16))
+
+
+def _to_linear(c: int) -> int:
+    """One sRGB channel (0..255) -> linear light (0..255), the standard sRGB transfer function."""
+    x = c / 255.0
+    lin = x / 12.92 if x <= 0.04045 else ((x + 0.055) / 1.055) ** 2.4
+    return int(round(255.0 * lin))
+
+
+def vertex_rgb(label: str, i: int = 0) -> tuple[int, int, int]:
+    """:func:`rgb` for per-vertex colours of viser scene nodes (e.g. line segments).
+
+    viser hands per-vertex colours to three.js as linear light, which the screen
+    shows gamma-encoded (lighter: the palette's LS blue came out teal). Converting
+    the palette's sRGB colour to linear first makes the screen show the palette
+    colour. Uniform node colours (one RGB for the whole node) are taken as sRGB
+    by viser and use :func:`rgb` as is.
+    """
+    return tuple(_to_linear(c) for c in rgb(label, i))  # type: ignore[return-value]

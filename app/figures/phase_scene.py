@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .palette import rgb
+from .palette import vertex_rgb
 
 __all__ = ["CLIP", "SPHERE_CAP", "SceneView", "scene_view", "axes_options", "axes_indices"]
 
@@ -31,7 +31,8 @@ class SceneView:
         One polyline per realization (and per estimator) as line segments; failed
         realizations are collapsed onto the start point; clipped to +-:data:`CLIP`.
     colors : uint8 array (N, 2, 3)
-        RGB of every segment end (the estimator's palette colour).
+        RGB of every segment end: the estimator's palette colour as linear light
+        (:func:`app.figures.palette.vertex_rgb`), so the screen shows the palette colour.
     true_segments : float32 array (T, 2, 3)
         The true-model closed loop.
     start : array (3,)
@@ -126,7 +127,7 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         st = frame.loops[lab].states
         s, f, c = _to_segments(st, dims, scale, start)
         segs.append(s)
-        cols.append(np.broadcast_to(np.array(rgb(lab, i), dtype=np.uint8), s.shape))
+        cols.append(np.broadcast_to(np.array(vertex_rgb(lab, i), dtype=np.uint8), s.shape))
         failed += f
         clipped += c
         poly += st.shape[0]
