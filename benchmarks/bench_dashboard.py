@@ -1,8 +1,8 @@
 """How fast does the dashboard redraw? Measured with its pure update function, no browser.
 
 Times what a browser tab's worker does for one change of settings:
-:func:`app.dashboard_compute.iter_frames` (engine work, shared cache) plus
-:class:`app.dashboard_compute.Renderer` (3-D arrays, summary, plotly figures)
+:func:`app.dashboard.session.iter_frames` (engine work, shared cache) plus
+:class:`app.dashboard.render.Renderer` (3-D arrays, summary, plotly figures)
 plus serialising every changed figure to JSON (what viser sends). Network and
 browser rendering are not included.
 
@@ -41,11 +41,13 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from app.dashboard_compute import Renderer, iter_frames  # noqa: E402
+from app.dashboard.render import Renderer  # noqa: E402
+from app.dashboard.session import iter_frames  # noqa: E402
 import numpy as np  # noqa: E402
 
-from app.dashboard_state import (  # noqa: E402
-    INTERACTIVE, PAPER_SCALE, SharedCache, Values, log_from_weights, resolve_system,
+from app.dashboard.cache import SharedCache  # noqa: E402
+from app.dashboard.settings import (  # noqa: E402
+    INTERACTIVE, PAPER_SCALE, Values, log_from_weights, resolve_system,
 )
 
 

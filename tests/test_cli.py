@@ -125,7 +125,9 @@ def test_singular_identification_is_counted_not_fatal(capsys):
                           "--json", "-q")
     assert code == 0
     row = _strict_json(out)["results"][0]
-    assert row["ident_failures"] > 0 and row["mpc_cost"]["failures"]["ident"] == row["ident_failures"]
+    # every one of the 3 realizations fails to identify; each is a failed closed loop of kind "ident", no cost
+    assert row["ident_failures"] == 3
+    assert row["mpc_cost"] == {"mean": None, "std": None, "failed": 3, "failures": {"ident": 3}}
 
 
 def test_seed_and_workers_reproducible(capsys):
@@ -253,3 +255,38 @@ def test_subprocess_exit_codes(tmp_path):
     assert good.returncode == 0, good.stderr
     assert _strict_json(good.stdout)["config"]["realizations"] == 3
     assert "Traceback" not in good.stderr and "quantize + identify" in good.stderr
+
+
+def test_defaults_and_choices_are_the_engines():
+    """One source of truth: the parser's defaults and choices are read from the engine."""
+    from app.cli import build_parser
+    from qsid_core import MPCConfig, SweepConfig, parse_bits
+    from qsid_core.identify import ESTIMATORS
+    from qsid_core.quantize import DITHERS, QuantizerSpec
+
+    a = build_parser().parse_args(["sweep"])
+    eng, mpc, quant = SweepConfig(), MPCConfig(), QuantizerSpec()
+    assert parse_bits(a.bits) == eng.bits
+    assert (a.realizations, a.trajectories, a.steps, a.theta) == (eng.realizations, eng.trajectories, eng.steps,
+                                                                  eng.theta)
+    assert (a.horizon, a.mpc_steps, a.u_max) == (mpc.horizon, mpc.steps, mpc.u_max)
+    assert (a.dither, a.range_mode, a.estimator) == (quant.dither, quant.range_mode, eng.estimator)
+    for d in DITHERS:
+        assert build_parser().parse_args(["sweep", "--dither", d]).dither == d
+    for e in ESTIMATORS:
+        assert build_parser().parse_args(["sweep", "--estimator", e]).estimator == e
+
+
+def test_json_is_strict_for_numpy_nonfinite_and_enums():
+    import enum
+
+    import numpy as np
+
+    from app.cli.output import dumps
+
+    class Kind(enum.Enum):
+        DIVERGED = "diverged"
+
+    text = dumps({"a": np.array([1.0, np.nan]), "b": np.float64(np.inf), "k": [Kind.DIVERGED], Kind.DIVERGED: 2},
+                 indent=None)
+    assert text == '{"a": [1.0, null], "b": null, "k": ["diverged"], "diverged": 2}'

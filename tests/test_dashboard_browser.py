@@ -102,6 +102,17 @@ def _set_bits(page, b: int) -> None:
                            timeout=TIMEOUT_MS)
 
 
+def _scene_pixels_near(png: Path, rgb: tuple, tol: int = 24) -> int:
+    """Pixels within ``tol`` of ``rgb`` (each channel) in the 3-D scene, between the two panels."""
+    from PIL import Image
+
+    img = Image.open(png).convert("RGB")
+    w, h = img.size
+    px = img.load()
+    return sum(1 for x in range(int(0.3 * w), int(0.66 * w)) for y in range(h)
+               if all(abs(a - b) <= tol for a, b in zip(px[x, y], rgb)))
+
+
 def test_dashboard_in_a_real_browser(dash, tmp_path):
     from playwright.sync_api import sync_playwright
 
@@ -122,7 +133,7 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             # move the word-length slider in the browser: plot marker, sphere and lines follow
             _set_bits(page1, 12)
             assert s1.wait_idle(60)
-            assert s1.last_frame.bits == 12 and s1.controls.bits.value == 12
+            assert s1.last_frame.bits == 12 and s1.controls["bits"].value == 12
             assert float(s1.portrait.sphere.scale) < sphere0
             assert not (s1.portrait.traj.points == pts0).all()
             assert "b = **12** bits" in s1.controls.summary.content
@@ -149,6 +160,8 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             shot = tmp_path / "dashboard.png"
             page1.screenshot(path=str(shot))
             assert shot.stat().st_size > 50_000
+            # the 3-D LS lines show on screen in the palette's LS blue (#1f77b4), as in the plots
+            assert _scene_pixels_near(shot, (0x1F, 0x77, 0xB4)) >= 30
             if os.environ.get("QSID_SCREENSHOT"):
                 shutil.copyfile(shot, os.environ["QSID_SCREENSHOT"])
         finally:

@@ -3,21 +3,23 @@
 Nodes are created once per tab and then updated in place (``handle.points``,
 ``handle.colors``, ``handle.scale``, ``label.text``); a node is re-added only
 when the number of line segments changes (more realizations or MPC steps).
-The arrays come from :func:`app.dashboard_compute.scene_view`.
+The arrays come from :func:`app.figures.phase_scene.scene_view`; colours from
+:mod:`app.figures.palette` (the same as the plots').
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .dashboard_compute import RGB, SceneView
+from app.figures.palette import rgb
+from app.figures.phase_scene import SceneView
 
 __all__ = ["PhasePortrait"]
 
 AXIS = 1.25  # half length of the drawn axes, in box units
-_GREY = (150, 150, 150)
-_SPHERE = (44, 160, 44)
-_CAPPED = (255, 127, 14)
+_GREY = rgb("axes")
+_SPHERE = rgb("bound")
+_CAPPED = rgb("bound_capped")
 
 
 class PhasePortrait:
@@ -67,7 +69,7 @@ class PhasePortrait:
                                             thickness_units="screen")
 
     def _add_true(self, pts):
-        return self.scene.add_line_segments(f"{self.p}/true_model", pts, np.array(RGB["true"], dtype=np.uint8),
+        return self.scene.add_line_segments(f"{self.p}/true_model", pts, np.array(rgb("true"), dtype=np.uint8),
                                             thickness=3.0, thickness_units="screen")
 
     # ----- drawing ----------------------------------------------------------------------

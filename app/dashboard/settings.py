@@ -1,48 +1,51 @@
-"""GUI values -> engine configuration, for the live dashboard (pure functions, no server).
+"""Panel values -> engine configuration (pure functions, no server).
 
 Everything the dashboard shows is computed by :mod:`qsid_core`; this module only
 turns what a person set in the panel (:class:`Values`) into the engine's
 :class:`~qsid_core.experiment.SweepConfig` / :class:`~qsid_core.mpc.MPCConfig`,
-and explains bad input in plain words (:class:`InputError`). It also holds the
-bounded, thread-safe cache (:class:`SharedCache`) that all browser tabs pass to
-:class:`~qsid_core.experiment.Experiment`, so identical settings share results.
+and explains bad input in plain words (:class:`InputError`). Defaults and
+choices are the engine's (``SweepConfig()``, ``MPCConfig()``, ``QuantizerSpec()``,
+``ESTIMATORS``); only the dashboard's own choices (interactive data size, the
+b drawn first, both estimators side by side) are set here.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import itertools
-import threading
 import warnings
-from collections import OrderedDict
-from collections.abc import MutableMapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from qsid_core.errors import QsidError
 from qsid_core.experiment import SweepConfig
+from qsid_core.identify import ESTIMATORS
 from qsid_core.mpc import MPCConfig
 from qsid_core.quantize import QuantizerSpec
 from qsid_core.systems import PRESETS, LTISystem, UncontrollableWarning, get_system, parse_matrix
 
 __all__ = [
-    "ALL_BITS", "INTERACTIVE", "PAPER_SCALE", "SYSTEM_CHOICES", "IDENT_CHOICES", "LOG_MIN", "LOG_MAX",
+    "ALL_BITS", "INTERACTIVE", "PAPER_SCALE", "SYSTEM_CHOICES", "IDENT_CHOICES", "LABELS", "LOG_MIN", "LOG_MAX",
     "InputError", "Values", "SystemChoice", "resolve_system", "matrix_text", "quantizer_spec", "mpc_config",
-    "sweep_config", "estimators", "weights_from_log", "log_from_weights", "format_weights", "axes_options",
-    "axes_indices", "parse_vector", "SharedCache",
+    "sweep_config", "estimators", "weights_from_log", "log_from_weights", "format_weights", "parse_vector",
 ]
 
-#: Word lengths every curve is drawn over.
-ALL_BITS = tuple(range(1, 17))
+_SWEEP = SweepConfig(mpc=None)  # the engine's defaults (no system is built: "dc-motor" stays a name)
+_MPC = MPCConfig()
+_QUANT = QuantizerSpec()
+
+#: Word lengths every curve is drawn over (the engine's default sweep).
+ALL_BITS = _SWEEP.bits
+#: The letter's data size (the engine's defaults: 200 x 1000 samples, 50 dither realizations).
+PAPER_SCALE = {"trajectories": _SWEEP.trajectories, "steps": _SWEEP.steps, "realizations": _SWEEP.realizations}
 #: Interactive default: every update stays fast (see benchmarks/bench_dashboard.py).
 INTERACTIVE = {"trajectories": 50, "steps": 200, "realizations": 20}
-#: The letter's data size (200 x 1000 samples, 50 dither realizations).
-PAPER_SCALE = {"trajectories": 200, "steps": 1000, "realizations": 50}
-#: Systems offered in the panel (the engine's presets plus a typed one).
+#: Systems offered in the panel (the engine's presets the panel shows, plus a typed one).
 SYSTEM_CHOICES = ("dc-motor", "boeing747", "custom")
-#: Identification choices -> engine estimators.
-IDENT_CHOICES = {"LS": ("ls",), "BCLS": ("bcls",), "LS + BCLS": ("ls", "bcls")}
+#: Display label of each engine estimator (also the palette's colour keys).
+LABELS = {e: e.upper() for e in ESTIMATORS}
+#: Identification choices -> engine estimators: each estimator alone, then all side by side.
+IDENT_CHOICES = {**{LABELS[e]: (e,) for e in ESTIMATORS}, " + ".join(LABELS[e] for e in ESTIMATORS): ESTIMATORS}
 #: Range of the log10 weight sliders.
 LOG_MIN, LOG_MAX = -3.0, 3.0
 #: Largest custom system the dashboard accepts (3-D view choices grow as n^3).
@@ -55,7 +58,7 @@ class InputError(QsidError):
 
 @dataclass(frozen=True)
 class Values:
-    """Everything set in one browser tab's panel (defaults = the interactive default).
+    """Everything set in one browser tab's panel (defaults = the engine's, at the interactive data size).
 
     Empty ``log_q``/``log_r``/``x0`` mean "the system's default".
     """
@@ -64,24 +67,24 @@ class Values:
     a_text: str = ""
     b_text: str = ""
     bits: int = 4
-    dither: str = "subtractive"
-    range_mode: str = "per-channel"
+    dither: str = _QUANT.dither
+    range_mode: str = _QUANT.range_mode
     fixed_range: str = "-1, 1"
-    guard: bool = False
+    guard: bool = _QUANT.guard
     realizations: int = INTERACTIVE["realizations"]
-    dither_seed: int = 1
+    dither_seed: int = _SWEEP.dither_seed
     trajectories: int = INTERACTIVE["trajectories"]
     steps: int = INTERACTIVE["steps"]
-    data_seed: int = 0
-    identification: str = "LS + BCLS"
-    horizon: int = 10
+    data_seed: int = _SWEEP.data_seed
+    identification: str = tuple(IDENT_CHOICES)[-1]
+    horizon: int = _MPC.horizon
     log_q: tuple = ()
     log_r: tuple = ()
-    u_max: float = 1.0
+    u_max: float = _MPC.u_max[0]
     x0: str = ""
-    mpc_steps: int = 50
-    theta: float = 0.5
-    rho_auto: bool = True
+    mpc_steps: int = _MPC.steps
+    theta: float = _SWEEP.theta
+    rho_auto: bool = _SWEEP.rho is None
     rho: float = 1.0
     axes: str = ""
 
@@ -237,9 +240,9 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
 
 
 def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
-    """The whole engine configuration for ``v`` (all word lengths 1..16; b is the one drawn in 3-D)."""
-    if not 1 <= int(v.bits) <= 16:
-        raise InputError(f"word length b must be between 1 and 16; got {v.bits}")
+    """The whole engine configuration for ``v`` (all word lengths :data:`ALL_BITS`; b is the one drawn in 3-D)."""
+    if not ALL_BITS[0] <= int(v.bits) <= ALL_BITS[-1]:
+        raise InputError(f"word length b must be between {ALL_BITS[0]} and {ALL_BITS[-1]}; got {v.bits}")
     if not v.rho_auto and not (np.isfinite(v.rho) and v.rho > 0):
         raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
     try:
@@ -253,116 +256,3 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise
     except QsidError as exc:
         raise InputError(str(exc)) from None
-
-
-def axes_options(names) -> list:
-    """3-D view choices: every set of three states (the first is the default); fewer than 3 states -> one."""
-    names = list(names)
-    if len(names) <= 3:
-        return [", ".join(names)]
-    return [", ".join(c) for c in itertools.combinations(names, 3)]
-
-
-def axes_indices(choice: str, names) -> tuple:
-    """Indices of the states drawn on the x, y, z axes (None pads systems with fewer than 3 states)."""
-    names = list(names)
-    opts = axes_options(names)
-    if choice not in opts:
-        choice = opts[0]
-    if len(names) <= 3:
-        idx = list(range(len(names)))
-    else:
-        idx = list(next(c for c in itertools.combinations(range(len(names)), 3)
-                        if ", ".join(names[i] for i in c) == choice))
-    return tuple(idx + [None] * (3 - len(idx)))
-
-
-# ----- shared cache ------------------------------------------------------------------------
-
-def _nbytes(obj, depth: int = 0) -> int:
-    """Rough memory size of a cached stage result (arrays dominate)."""
-    if isinstance(obj, np.ndarray):
-        return int(obj.nbytes)
-    if depth > 4:
-        return 64
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return 64 + sum(_nbytes(getattr(obj, f.name), depth + 1) for f in dataclasses.fields(obj))
-    if isinstance(obj, (list, tuple)):
-        return 64 + sum(_nbytes(x, depth + 1) for x in obj)
-    if isinstance(obj, dict):
-        return 64 + sum(_nbytes(x, depth + 1) for x in obj.values())
-    return 64
-
-
-class SharedCache(MutableMapping):
-    """A thread-safe LRU mapping bounded by an estimate of its memory (default 512 MB).
-
-    Passed as ``Experiment(..., cache=shared)`` by every browser tab, so equal
-    settings share the data, moments, models and closed loops. The least
-    recently used entries are dropped first; the newest ``keep`` entries are never
-    dropped (the engine reads an entry right after storing it).
-    """
-
-    def __init__(self, max_bytes: int = 512 * 2**20, keep: int = 64):
-        self.max_bytes = int(max_bytes)
-        self.keep = int(keep)
-        self._d: OrderedDict = OrderedDict()
-        self._size: dict = {}
-        self._total = 0
-        self._lock = threading.Lock()
-        self.hits = 0
-        self.misses = 0
-
-    def __getitem__(self, key):
-        with self._lock:
-            try:
-                val = self._d[key]
-            except KeyError:
-                self.misses += 1
-                raise
-            self._d.move_to_end(key)
-            self.hits += 1
-            return val
-
-    def __contains__(self, key) -> bool:
-        with self._lock:
-            return key in self._d
-
-    def __setitem__(self, key, value) -> None:
-        size = _nbytes(value)
-        with self._lock:
-            if key in self._d:
-                self._total -= self._size.pop(key)
-                del self._d[key]
-            self._d[key] = value
-            self._size[key] = size
-            self._total += size
-            while self._total > self.max_bytes and len(self._d) > self.keep:
-                old, _ = self._d.popitem(last=False)
-                self._total -= self._size.pop(old)
-
-    def __delitem__(self, key) -> None:
-        with self._lock:
-            del self._d[key]
-            self._total -= self._size.pop(key)
-
-    def __iter__(self):
-        with self._lock:
-            return iter(list(self._d))
-
-    def __len__(self) -> int:
-        with self._lock:
-            return len(self._d)
-
-    @property
-    def nbytes(self) -> int:
-        """Estimated memory held."""
-        return self._total
-
-    def kinds(self) -> dict:
-        """How many entries of each stage (``"data"``, ``"mom"``, ``"loops"``, ...) are held."""
-        with self._lock:
-            out: dict = {}
-            for k in self._d:
-                out[k[0]] = out.get(k[0], 0) + 1
-            return out

@@ -1,0 +1,68 @@
+"""``qsid``'s entry point: parse, dispatch to a command module, turn every user error into one line.
+
+Every user error (bad option, bad bits spec, unreadable system file, engine
+``ValueError``) is one line ``qsid: error: ...`` on stderr with exit code 2, never
+a traceback. Warnings (e.g. an uncontrollable custom system) are one line
+``qsid: warning: ...``. Adding a command = one module (``HELP``, ``DESCRIPTION``,
+``add_arguments``, ``run``) + one entry in :data:`COMMANDS`.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from concurrent.futures.process import BrokenProcessPool
+from typing import Sequence
+
+from . import parser, reproduce, sweep, systems
+from .runner import Reporter, UsageError, one_line
+
+__all__ = ["COMMANDS", "build_parser", "main"]
+
+#: name -> command module, in the order ``qsid --help`` lists them.
+COMMANDS = {"systems": systems, "sweep": sweep, "reproduce": reproduce}
+
+
+def build_parser():
+    """The ``qsid`` argument parser (errors raise :class:`~app.cli.parser.UsageError`)."""
+    return parser.build_parser(COMMANDS)
+
+
+def _dispatch(argv: list, rep: Reporter) -> int:
+    args = build_parser().parse_args(argv)
+    if args.command is None:
+        raise UsageError(f"give a command: {', '.join(COMMANDS)} (see '{parser.PROG} --help')")
+    rep.enabled = not getattr(args, "quiet", False)
+    return COMMANDS[args.command].run(args, rep)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``qsid`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
+
+    0 success, 2 bad input or engine error (one line on stderr), 1 a worker died, 130 interrupted.
+    """
+    rep = Reporter(True)
+
+    def fail(message: object, code: int = 2) -> int:
+        rep.line(f"error: {one_line(message)}")
+        return code
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        warnings.showwarning = rep.warning
+        try:
+            return _dispatch(list(sys.argv[1:] if argv is None else argv), rep)
+        except UsageError as exc:
+            return fail(exc)
+        except ValueError as exc:  # every qsid_core user error is a ValueError subclass
+            return fail(exc)
+        except MemoryError:
+            return fail("not enough memory for this run; reduce --trajectories, --steps, --realizations or --bits")
+        except BrokenProcessPool:
+            return fail("a worker process died (out of memory?); try fewer --workers", 1)
+        except OSError as exc:
+            where = f" {exc.filename!r}" if getattr(exc, "filename", None) else ""
+            return fail(f"cannot read or write{where}: {exc.strerror or exc}")
+        except KeyboardInterrupt:
+            rep.line("interrupted")
+            return 130

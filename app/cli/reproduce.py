@@ -1,0 +1,188 @@
+"""``qsid reproduce``: the letter's figure panels (a)-(f) as offline HTML, plus the data as JSON.
+
+(a)/(b) relative errors of A and B against b, (c) the closed-loop MPC cost
+against b, (d)-(f) phase portraits of the closed loops for b = 2, 4, 6. Every page
+loads ``plotly.min.js`` from its own folder, so the folder works offline. The
+numbers come from the engine (through :func:`app.cli.runner.run`); this module
+only lays out and writes figures (the builders are :mod:`app.figures`).
+"""
+
+from __future__ import annotations
+
+import html
+import time
+from pathlib import Path
+
+from .output import dumps, format_table, g
+from .parser import add_run_options
+from .runner import UsageError, check_writable, resolve_system, run as run_sweep, write_text
+
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "PORTRAIT_BITS"]
+
+HELP = "write the letter's figure panels (a)-(f) as offline HTML"
+DESCRIPTION = ("Write the letter's figure panels as standalone offline HTML: (a)/(b) relative errors of A and B "
+               "vs b, (c) MPC cost vs b, (d)-(f) closed-loop phase portraits for b = 2, 4, 6; plus index.html "
+               "and data.json.")
+PORTRAIT_BITS = (2, 4, 6)
+
+_INDEX = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>{title}</title>
+<script src="plotly.min.js"></script>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 1em 2em; color: #222; }}
+.grid {{ display: grid; grid-template-columns: repeat(3, minmax(0, 1fr)); gap: 1em; }}
+.panel {{ border: 1px solid #ddd; border-radius: 4px; padding: 0.3em; min-width: 0; }}
+.panel h2 {{ font-size: 1em; margin: 0.2em 0.4em; }}
+@media (max-width: 1100px) {{ .grid {{ grid-template-columns: 1fr; }} }}
+</style></head>
+<body>
+<h1>{title}</h1>
+<p>{caption}</p>
+<p>Data: <a href="data.json">data.json</a>. Panels as separate pages: {links}.</p>
+<div class="grid">
+{panels}
+</div>
+</body></html>
+"""
+
+
+def add_arguments(p) -> None:
+    add_run_options(p)
+    p.add_argument("--out", metavar="DIR", required=True, help="output directory (created if missing)")
+
+
+def _split_error_panel(fig, col: int):
+    """One panel (col 1: A, col 2: B) of :func:`app.figures.error_figure` as its own figure."""
+    import plotly.graph_objects as go
+
+    ax = "x" if col == 1 else "x2"
+    panel = go.Figure()
+    for tr in fig.data:
+        if (tr.xaxis or "x") != ax:
+            continue
+        t = tr.__class__(tr)  # a copy
+        t.update(xaxis="x", yaxis="y", showlegend=(t.fill != "toself"))
+        panel.add_trace(t)
+    panel.update_layout(template="plotly_white", height=420, margin=dict(l=60, r=20, t=60, b=50),
+                        legend=dict(orientation="h", y=-0.2))
+    panel.update_yaxes(type="log", exponentformat="power")
+    panel.update_xaxes(title_text="word length b [bits]", dtick=2)
+    return panel
+
+
+def _portrait_title(tag: str, system, b: int, R: int) -> str:
+    which = ""
+    if system.n > 3:
+        names = system.state_names
+        which = (f"; states 1-3 ({', '.join(names[:3])}) of {system.n} shown, "
+                 f"{', '.join(names[3:])} not drawn")
+    return f"({tag}) closed loops on the true system, b = {b}, {R} realizations{which}"
+
+
+def _curve_panels(d: dict, label: str, R: int) -> list:
+    """Panels (a)-(c): (file stem, heading, figure)."""
+    from app.figures import cost_figure, error_figure
+
+    rows = d["results"]
+    err = error_figure({label: rows})
+    fa = _split_error_panel(err, 1)
+    fa.update_layout(title=f"(a) relative error of A vs b ({label}, mean ± std over {R} realizations)")
+    fa.update_yaxes(title_text="‖A − Â‖ / ‖A‖")
+    fb = _split_error_panel(err, 2)
+    fb.update_layout(title=f"(b) relative error of B vs b ({label}, mean ± std over {R} realizations)")
+    fb.update_yaxes(title_text="‖B − B̂‖ / ‖B‖")
+    fc = cost_figure({label: rows}, true_cost=d["mpc_cost_true_model"], height=420)
+    fc.update_layout(title=f"(c) closed-loop MPC cost on the true system vs b (mean ± std, {R} realizations)",
+                     margin=dict(l=60, r=20, t=60, b=50))
+    return [("a_error_A", "(a) relative error in A", fa), ("b_error_B", "(b) relative error in B", fb),
+            ("c_mpc_cost", "(c) MPC cost", fc)]
+
+
+def _portrait_panels(ex, system, label: str, R: int) -> tuple[list, dict, object]:
+    """Panels (d)-(f), the portraits' data for data.json, and the true-model states."""
+    from app.figures import phase_portrait_figure
+
+    true_states = ex.true_model_loop().states[0]
+    panels, portraits = [], {}
+    for tag, b in zip("def", PORTRAIT_BITS):
+        loops = ex.closed_loops(b)
+        fig = phase_portrait_figure(loops.states, true_states, dims=(0, 1, 2), names=system.state_names,
+                                    title=_portrait_title(tag, system, b, R), label=label)
+        panels.append((f"{tag}_phase_b{b}", f"({tag}) phase portrait, b = {b}", fig))
+        portraits[str(b)] = {"bits": b, "states": loops.states, "failed": loops.failed,
+                             "failures": loops.failure, "cost": loops.cost}
+    return panels, portraits, true_states
+
+
+def _index_html(d: dict, system, panels: list) -> str:
+    import plotly.graph_objects as go
+    import plotly.io as pio
+
+    divs = []
+    for stem, _, fig in panels:
+        heading = fig.layout.title.text or stem
+        fig = go.Figure(fig)  # a copy without the title: the page heading carries it
+        fig.update_layout(title=None, margin=dict(t=30))
+        div = pio.to_html(fig, include_plotlyjs=False, full_html=False, div_id=f"panel-{stem}",
+                          config={"responsive": True})
+        divs.append(f'<div class="panel"><h2><a href="{stem}.html">{html.escape(heading)}</a></h2>\n{div}\n</div>')
+    c = d["config"]
+    title_sys = f"{system.name}: {system.description}" if system.description else system.name
+    caption = (f"{html.escape(title_sys)}. {c['trajectories']} trajectories x {c['steps']} samples, "
+               f"{c['realizations']} dither realizations per word length, range {html.escape(c['range'])}, "
+               f"dither {html.escape(c['dither'])}, estimator {html.escape(c['estimator'])}, MPC horizon "
+               f"{c['mpc']['horizon']}, {c['mpc']['steps']} closed-loop steps. Slopes of log10 error per bit: "
+               f"A {g(d['slope_A'], '+.3f')}, B {g(d['slope_B'], '+.3f')}; true-model MPC cost "
+               f"{g(d['mpc_cost_true_model'], '.4g')}.")
+    links = ", ".join(f'<a href="{s}.html">{s}</a>' for s, _, _ in panels)
+    return _INDEX.format(title=html.escape(f"QSID-MPC letter figure: {system.name}"), caption=caption,
+                         links=links, panels="\n".join(divs))
+
+
+def _out_dir(text: str) -> Path:
+    outdir = Path(text)
+    if outdir.exists() and not outdir.is_dir():
+        raise UsageError(f"argument --out: {text!r} exists and is not a directory")
+    outdir.mkdir(parents=True, exist_ok=True)  # fail before the run, not after it
+    check_writable(outdir)
+    return outdir
+
+
+def run(args, rep) -> int:
+    from plotly.offline import get_plotlyjs
+
+    system = resolve_system(args.system)
+    if system.n < 3:
+        raise UsageError(f"reproduce draws 3-D phase portraits and needs a system with at least 3 states; "
+                         f"{system.name!r} has {system.n}")
+    outdir = _out_dir(args.out)
+    t0 = time.perf_counter()
+    res, ex = run_sweep(args, system, True, rep, extra_bits=PORTRAIT_BITS)
+    d = res.to_dict()
+    label = "BCLS" if res.config.estimator == "bcls" else "LS"
+    R = res.config.realizations
+    rep.stage(f"writing figures to {outdir}")
+    write_text(outdir / "plotly.min.js", get_plotlyjs())  # matches the plotly that draws the figures
+    portrait_panels, portraits, true_states = _portrait_panels(ex, system, label, R)
+    panels = _curve_panels(d, label, R) + portrait_panels
+    written = []
+    for stem, _, fig in panels:
+        path = outdir / f"{stem}.html"
+        fig.write_html(path, include_plotlyjs="directory", full_html=True)
+        written.append(path)
+    data = {
+        "sweep": d,
+        "phase_portraits": {"bits": list(PORTRAIT_BITS), "drawn_states": [0, 1, 2],
+                            "state_names": list(system.state_names), "true_model_states": true_states,
+                            "by_bits": portraits},
+        "system": system.to_dict(),
+    }
+    write_text(outdir / "data.json", dumps(data, indent=None) + "\n")
+    write_text(outdir / "index.html", _index_html(d, system, panels))
+    print(format_table(d))
+    print(f"wrote {len(written) + 3} files to {outdir}:")
+    for p in [*written, outdir / "index.html", outdir / "data.json", outdir / "plotly.min.js"]:
+        print(f"  {p.name}  ({p.stat().st_size / 1024:.0f} KiB)")
+    rep.stage(f"done in {time.perf_counter() - t0:.2f} s; open {outdir / 'index.html'}")
+    return 0

@@ -1,0 +1,33 @@
+"""``qsid systems``: list the preset systems (name, states n, inputs m, description)."""
+
+from __future__ import annotations
+
+from .output import dumps
+
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+
+HELP = "list the preset systems"
+DESCRIPTION = "List the preset systems (name, states n, inputs m, description)."
+
+
+def add_arguments(p) -> None:
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+
+def run(args, rep) -> int:
+    from qsid_core.systems import PRESETS
+
+    items = []
+    for name, make in PRESETS.items():
+        s = make()
+        items.append({"name": name, "n": s.n, "m": s.m, "dt": s.dt, "description": s.description,
+                      "states": list(s.state_names), "inputs": list(s.input_names)})
+    if args.json:
+        print(dumps(items))
+        return 0
+    w = max(len("name"), *(len(i["name"]) for i in items))
+    print(f"{'name'.ljust(w)}  n  m  description")
+    for i in items:
+        print(f"{i['name'].ljust(w)}  {i['n']}  {i['m']}  {i['description']}")
+    print("custom systems: --system FILE.toml|FILE.json with A, B and optional x0, Q, R, dt")
+    return 0

@@ -1,0 +1,25 @@
+"""qsid-dashboard: the live viser dashboard (``qsid-dashboard`` or ``python -m app.dashboard``).
+
+Modules, in the order a request flows through them:
+
+- :mod:`~app.dashboard.server`: the viser server, shared cache and process pool, ``main``;
+- :mod:`~app.dashboard.session`: one tab's worker and ALL of the dashboard's threading;
+- :mod:`~app.dashboard.controls`: the panel, built from one table of control specs;
+- :mod:`~app.dashboard.settings`: panel values -> engine configuration;
+- :mod:`~app.dashboard.frames`: engine results gathered for the views;
+- :mod:`~app.dashboard.render`, :mod:`~app.dashboard.summary`, :mod:`~app.dashboard.scene`:
+  what a tab redraws (plots from :data:`app.figures.registry.VIEWS`), its summary, its 3-D nodes;
+- :mod:`~app.dashboard.cache`: the bounded cache all tabs share.
+"""
+
+import os
+import sys
+
+if "numpy" not in sys.modules:  # started as the program: many tiny matrices, BLAS threads only cost
+    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_var, "1")
+
+from .server import DashboardApp, main  # noqa: E402
+from .session import Session  # noqa: E402
+
+__all__ = ["DashboardApp", "Session", "main"]

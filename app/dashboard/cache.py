@@ -1,0 +1,106 @@
+"""The bounded, thread-safe cache that every browser tab passes to the engine.
+
+Each tab's :class:`~qsid_core.experiment.Experiment` gets ``cache=`` the app's one
+:class:`SharedCache`, so tabs with equal settings share data, moments, models and
+closed loops, and memory stays bounded.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+from collections import OrderedDict
+from collections.abc import MutableMapping
+
+import numpy as np
+
+__all__ = ["SharedCache"]
+
+
+def _nbytes(obj, depth: int = 0) -> int:
+    """Rough memory size of a cached stage result (arrays dominate)."""
+    if isinstance(obj, np.ndarray):
+        return int(obj.nbytes)
+    if depth > 4:
+        return 64
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return 64 + sum(_nbytes(getattr(obj, f.name), depth + 1) for f in dataclasses.fields(obj))
+    if isinstance(obj, (list, tuple)):
+        return 64 + sum(_nbytes(x, depth + 1) for x in obj)
+    if isinstance(obj, dict):
+        return 64 + sum(_nbytes(x, depth + 1) for x in obj.values())
+    return 64
+
+
+class SharedCache(MutableMapping):
+    """A thread-safe LRU mapping bounded by an estimate of its memory (default 512 MB).
+
+    Passed as ``Experiment(..., cache=shared)`` by every browser tab, so equal
+    settings share the data, moments, models and closed loops. The least
+    recently used entries are dropped first; the newest ``keep`` entries are never
+    dropped (the engine reads an entry right after storing it).
+    """
+
+    def __init__(self, max_bytes: int = 512 * 2**20, keep: int = 64):
+        self.max_bytes = int(max_bytes)
+        self.keep = int(keep)
+        self._d: OrderedDict = OrderedDict()
+        self._size: dict = {}
+        self._total = 0
+        self._lock = threading.Lock()  # viser callbacks, tab workers and helper threads read and write at once
+        self.hits = 0
+        self.misses = 0
+
+    def __getitem__(self, key):
+        with self._lock:
+            try:
+                val = self._d[key]
+            except KeyError:
+                self.misses += 1
+                raise
+            self._d.move_to_end(key)
+            self.hits += 1
+            return val
+
+    def __contains__(self, key) -> bool:
+        with self._lock:
+            return key in self._d
+
+    def __setitem__(self, key, value) -> None:
+        size = _nbytes(value)
+        with self._lock:
+            if key in self._d:
+                self._total -= self._size.pop(key)
+                del self._d[key]
+            self._d[key] = value
+            self._size[key] = size
+            self._total += size
+            while self._total > self.max_bytes and len(self._d) > self.keep:
+                old, _ = self._d.popitem(last=False)
+                self._total -= self._size.pop(old)
+
+    def __delitem__(self, key) -> None:
+        with self._lock:
+            del self._d[key]
+            self._total -= self._size.pop(key)
+
+    def __iter__(self):
+        with self._lock:
+            return iter(list(self._d))
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._d)
+
+    @property
+    def nbytes(self) -> int:
+        """Estimated memory held."""
+        return self._total
+
+    def kinds(self) -> dict:
+        """How many entries of each stage (``"data"``, ``"mom"``, ``"loops"``, ...) are held."""
+        with self._lock:
+            out: dict = {}
+            for k in self._d:
+                out[k[0]] = out.get(k[0], 0) + 1
+            return out

@@ -1,0 +1,282 @@
+"""The control panel of one browser tab, built from ONE table of control specs (:data:`CONTROLS`).
+
+Like viser's SMPL example (``examples/04_demos/03_smpl_visualizer.py``),
+:func:`make_gui_elements` builds every handle into one :class:`GuiElements`
+dataclass; every input's callback only marks the tab dirty (``on_change``); the
+tab's one worker loop (:mod:`app.dashboard.session`) reads :func:`read_values`
+and redraws. Choices and ranges come from the engine (via
+:mod:`app.dashboard.settings`); the slider ranges here are the panel's own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from app.figures.phase_scene import axes_options
+from qsid_core.quantize import DITHERS, RANGE_MODES
+from qsid_core.systems import LTISystem
+
+from .settings import (
+    ALL_BITS, IDENT_CHOICES, INTERACTIVE, LOG_MAX, LOG_MIN, PAPER_SCALE, SYSTEM_CHOICES, Values, format_weights,
+    log_from_weights, matrix_text, weights_from_log,
+)
+
+__all__ = ["Control", "CONTROLS", "GuiElements", "make_gui_elements", "read_values", "set_scale", "set_system"]
+
+MATRIX_HINT = "One row per line (or separate rows with ';'); numbers separated by spaces or commas."
+
+
+@dataclass(frozen=True)
+class Control:
+    """One input of the panel; ``name`` is the :class:`~app.dashboard.settings.Values` field it sets.
+
+    ``kind``: slider (lo, hi, step), dropdown (choices), text, checkbox, number (lo, step);
+    ``tab``: panel tab ("" = above the tabs); ``folder``: optional folder inside the tab.
+    """
+
+    name: str
+    kind: str
+    label: str
+    tab: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    step: float | None = None
+    choices: tuple = ()
+    hint: str | None = None
+    folder: str | None = None
+    convert: Callable = str
+
+
+_R = "Dither realizations"
+#: Every input of the panel, in display order (tabs appear in order of first use).
+CONTROLS: tuple[Control, ...] = (
+    Control("bits", "slider", "word length b", lo=ALL_BITS[0], hi=ALL_BITS[-1], step=1, convert=int,
+            hint=f"Bits per sample of the quantizer ({ALL_BITS[0]}..{ALL_BITS[-1]}). "
+                 "Curves show every b; the 3-D view shows this one."),
+    Control("system", "dropdown", "system", "System", choices=SYSTEM_CHOICES,
+            hint="The true plant. 'custom': type A and B below."),
+    Control("a_text", "text", "A", "System", hint=MATRIX_HINT),
+    Control("b_text", "text", "B", "System", hint=MATRIX_HINT),
+    Control("axes", "dropdown", "3-D axes", "System", hint="Which three states the phase portrait draws."),
+    Control("dither", "dropdown", "dither", "Quantizer", choices=DITHERS,
+            hint="subtractive: x~ = Q(x + w) - w, w ~ U[-ε/2, ε/2]"),
+    Control("range_mode", "dropdown", "range", "Quantizer", choices=RANGE_MODES,
+            hint="per-channel min/max, one shared range, or a fixed range typed below"),
+    Control("fixed_range", "text", "fixed range", "Quantizer",
+            hint="'lo, hi' for every channel, or one 'lo hi' row per channel (states, then inputs)"),
+    Control("guard", "checkbox", "guard band", "Quantizer", convert=bool,
+            hint="Widen the range by ε/2 each side: no overload"),
+    Control("realizations", "slider", "realizations", "Quantizer", 1, 100, 1, folder=_R, convert=int,
+            hint=f"Independent dither draws per b (paper: {PAPER_SCALE['realizations']}, "
+                 f"interactive default: {INTERACTIVE['realizations']})"),
+    Control("dither_seed", "number", "dither seed", "Quantizer", 0, step=1, folder=_R, convert=int),
+    Control("trajectories", "slider", "trajectories", "Data", 1, 400, 1, convert=int,
+            hint=f"Training runs (paper: {PAPER_SCALE['trajectories']})"),
+    Control("steps", "slider", "steps", "Data", 10, 2000, 10, convert=int,
+            hint=f"Steps per training run (paper: {PAPER_SCALE['steps']})"),
+    Control("data_seed", "number", "data seed", "Data", 0, step=1, convert=int),
+    Control("identification", "dropdown", "estimator", "Identify", choices=tuple(IDENT_CHOICES),
+            hint="LS: least squares on quantized data. BCLS: bias-compensated LS "
+                 "(subtracts the known dither noise T·diag(ε²/12))."),
+    Control("horizon", "slider", "horizon", "MPC", 1, 50, 1, convert=int),
+    Control("u_max", "slider", "input bound", "MPC", 0.05, 10.0, 0.05, convert=float, hint="|u_i| <= this bound"),
+    Control("x0", "text", "x0", "MPC", hint="Initial state of the closed loop, one number per state"),
+    Control("mpc_steps", "slider", "closed-loop steps", "MPC", 5, 300, 5, convert=int),
+    Control("theta", "slider", "θ", "Theory", 0.05, 0.95, 0.05, convert=float,
+            hint="Share of the Lyapunov decrease used against the model error (ultimate bound δ(ε))"),
+    Control("rho_auto", "checkbox", "ρ auto", "Theory", convert=bool,
+            hint="ρ = sqrt(λmax(P)/λmin(P))·‖x0‖ (engine default)"),
+    Control("rho", "number", "ρ", "Theory", 1e-6, step=0.1, convert=float),
+)
+
+
+@dataclass
+class GuiElements:
+    """Every handle of one tab's panel.
+
+    ``inputs`` maps each :data:`CONTROLS` name to its handle; ``q_sliders`` /
+    ``r_sliders`` are the log10 weight sliders (rebuilt when the system changes).
+    """
+
+    gui: object
+    inputs: dict
+    progress: object
+    status: object
+    error: object
+    summary: object
+    system_note: object
+    weights_note: object
+    q_folder: object
+    r_folder: object
+    on_change: Callable[[], None]
+    q_sliders: list = field(default_factory=list)
+    r_sliders: list = field(default_factory=list)
+    system_key: tuple | None = None
+
+    def __getitem__(self, name: str):
+        return self.inputs[name]
+
+
+def _initial(c: Control, v: Values, system: LTISystem):
+    """The first value of control ``c`` (empty texts show the system's matrices and x0)."""
+    if c.name == "a_text":
+        return v.a_text or matrix_text(system.A)
+    if c.name == "b_text":
+        return v.b_text or matrix_text(system.B)
+    if c.name == "x0":
+        return v.x0 or ", ".join(f"{x:g}" for x in system.x0)
+    if c.name == "axes":
+        opts = axes_options(system.state_names)
+        return v.axes if v.axes in opts else opts[0]
+    return c.convert(getattr(v, c.name))
+
+
+def _add(gui, c: Control, value, system: LTISystem, custom: bool):
+    """The viser handle of control ``c`` (kind-specific arguments; visibility and locks set here)."""
+    kw = {} if c.hint is None else {"hint": c.hint}
+    if c.kind == "slider":
+        return gui.add_slider(c.label, c.lo, c.hi, c.step, value, **kw)
+    if c.kind == "number":
+        return gui.add_number(c.label, value, min=c.lo, step=c.step, **kw)
+    if c.kind == "checkbox":
+        return gui.add_checkbox(c.label, value, **kw)
+    if c.kind == "dropdown":
+        choices = c.choices or tuple(axes_options(system.state_names))
+        return gui.add_dropdown(c.label, choices, initial_value=value, **kw)
+    if c.name in ("a_text", "b_text"):
+        return gui.add_text(c.label, value, multiline=True, disabled=not custom, **kw)
+    return gui.add_text(c.label, value, **kw)
+
+
+def _extras_after(gui, name: str, values: Values, handles: dict, extra: dict) -> None:
+    """The panel's non-input parts (notes, weight folders, scale buttons), placed after control ``name``."""
+    if name == "b_text":
+        extra["system_note"] = gui.add_markdown(_system_note(values.system))
+    elif name == "data_seed":
+        paper = gui.add_button(f"Paper scale ({PAPER_SCALE['trajectories']} × {PAPER_SCALE['steps']}, "
+                               f"{PAPER_SCALE['realizations']} realizations)",
+                               hint="The letter's data size; the first full update takes a few seconds")
+        inter = gui.add_button(f"Interactive ({INTERACTIVE['trajectories']} × {INTERACTIVE['steps']}, "
+                               f"{INTERACTIVE['realizations']} realizations)")
+        paper.on_click(lambda _: set_scale(handles, PAPER_SCALE))
+        inter.on_click(lambda _: set_scale(handles, INTERACTIVE))
+    elif name == "identification":
+        gui.add_markdown("LS is biased by the quantization noise (Theorem 1); BCLS removes that bias. "
+                         "'LS + BCLS' draws both side by side (blue, red).")
+    elif name == "horizon":
+        extra["q_folder"] = gui.add_folder("Q diagonal (slider = log10 weight)")
+        extra["r_folder"] = gui.add_folder("R diagonal (slider = log10 weight)")
+        extra["weights_note"] = gui.add_markdown("")
+
+
+def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callable[[], None]) -> GuiElements:
+    """Build the whole panel of a tab in ``gui`` (``client.gui``); every input calls ``on_change()``."""
+    gui.add_markdown("**qsid** · quantized data → identified model → MPC")
+    handles: dict = {}
+    extra: dict = {}
+    custom = values.system == "custom"
+
+    def add(c: Control) -> None:
+        h = _add(gui, c, _initial(c, values, system), system, custom)
+        h.on_update(lambda _event: on_change())  # only mark dirty; the tab's worker redraws
+        handles[c.name] = h
+
+    add(CONTROLS[0])  # the word length, always visible above the tabs
+    extra["progress"] = gui.add_progress_bar(0.0, animated=False)
+    extra["status"] = gui.add_markdown("starting …")
+    extra["error"] = gui.add_markdown("", visible=False)
+    tabs = gui.add_tab_group()
+    for tab in dict.fromkeys(c.tab for c in CONTROLS[1:]):
+        with tabs.add_tab(tab):
+            folders: dict = {}
+            for c in (c for c in CONTROLS[1:] if c.tab == tab):
+                if c.folder is None:
+                    add(c)
+                else:
+                    folders.setdefault(c.folder, gui.add_folder(c.folder))
+                    with folders[c.folder]:
+                        add(c)
+                _extras_after(gui, c.name, values, handles, extra)
+    with gui.add_folder("Summary"):
+        extra["summary"] = gui.add_markdown("")
+    handles["fixed_range"].visible = values.range_mode == "fixed"
+    handles["rho"].disabled = bool(values.rho_auto)
+    handles["axes"].visible = len(axes_options(system.state_names)) > 1
+    el = GuiElements(gui=gui, inputs=handles, on_change=on_change, **extra)
+    set_system(el, system, values.log_q, values.log_r, reset=False)
+    return el
+
+
+def _system_note(name: str) -> str:
+    if name == "custom":
+        return "Type A (n × n) and B (n × m). " + MATRIX_HINT + " x0 = e1, Q = I, R = I by default."
+    return f"Preset **{name}** (matrices shown read-only; pick 'custom' to edit a copy)."
+
+
+def set_scale(handles: dict, scale: dict) -> None:
+    """The paper-scale / interactive buttons: set trajectories, steps and realizations."""
+    for name in ("trajectories", "steps", "realizations"):
+        handles[name].value = scale[name]
+
+
+def _weight_sliders(el: GuiElements, folder, kind: str, names, logs) -> list:
+    with folder:
+        sliders = [el.gui.add_slider(f"{kind} {nm}", LOG_MIN, LOG_MAX, 0.1, float(x),
+                                     hint=f"log10 of the weight of {'state' if kind == 'Q' else 'input'} {nm}")
+                   for nm, x in zip(names, logs)]
+    for h in sliders:
+        h.on_update(lambda _event: el.on_change())
+    return sliders
+
+
+def set_system(el: GuiElements, system: LTISystem, log_q=(), log_r=(), reset: bool = True) -> bool:
+    """Adapt the inputs to ``system``: A/B boxes, Q/R sliders, x0, 3-D axes. True if anything changed.
+
+    Called by the tab's worker; the value changes it makes mark the tab dirty like
+    any other, and the worker then sees that the panel values did not change.
+    """
+    key = (system.name, system.A.tobytes(), system.B.tobytes(), system.A.shape, system.B.shape)
+    if key == el.system_key:
+        return False
+    first = el.system_key is None
+    el.system_key = key
+    h = el.inputs
+    custom = h["system"].value == "custom"
+    h["a_text"].disabled = not custom
+    h["b_text"].disabled = not custom
+    el.system_note.content = _system_note(h["system"].value)
+    if not custom:
+        h["a_text"].value = matrix_text(system.A)
+        h["b_text"].value = matrix_text(system.B)
+    lq = tuple(log_q) if len(log_q) == system.n else log_from_weights(np.diag(system.Q))
+    lr = tuple(log_r) if len(log_r) == system.m else log_from_weights(np.diag(system.R))
+    for s in el.q_sliders + el.r_sliders:
+        s.remove()
+    el.q_sliders = _weight_sliders(el, el.q_folder, "Q", system.state_names, lq)
+    el.r_sliders = _weight_sliders(el, el.r_folder, "R", system.input_names, lr)
+    if reset and not first:
+        h["x0"].value = ", ".join(f"{x:g}" for x in system.x0)
+    opts = axes_options(system.state_names)
+    h["axes"].options = opts
+    h["axes"].visible = len(opts) > 1
+    show_weights(el)
+    return True
+
+
+def show_weights(el: GuiElements) -> None:
+    q = weights_from_log([s.value for s in el.q_sliders])
+    r = weights_from_log([s.value for s in el.r_sliders])
+    el.weights_note.content = f"{format_weights('Q', q)}, {format_weights('R', r)}"
+
+
+def read_values(el: GuiElements) -> Values:
+    """The current inputs as one immutable :class:`Values` (and inputs shown/locked to match)."""
+    h = el.inputs
+    h["fixed_range"].visible = h["range_mode"].value == "fixed"
+    h["rho"].disabled = bool(h["rho_auto"].value)
+    return Values(**{c.name: c.convert(h[c.name].value) for c in CONTROLS},
+                  log_q=tuple(float(s.value) for s in el.q_sliders),
+                  log_r=tuple(float(s.value) for s in el.r_sliders))

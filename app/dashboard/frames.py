@@ -1,0 +1,146 @@
+"""What a tab shows at one moment (:class:`Frame`), and the engine calls that fill it (no threads here).
+
+:func:`app.dashboard.session.iter_frames` calls :func:`start` once (the current b
+in full), then :func:`fill_rows` chunk by chunk for the other word lengths. All
+numbers come from :class:`qsid_core.experiment.Experiment`; this module only
+arranges them for the views (:mod:`app.figures`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, MutableMapping
+
+import numpy as np
+
+from qsid_core.experiment import Experiment
+from qsid_core.sweep import summary_row
+from qsid_core.systems import LTISystem
+
+from .settings import LABELS, Values, estimators, mpc_config, resolve_system, sweep_config
+
+__all__ = ["Frame", "Job", "start", "fill_rows", "row"]
+
+
+def row(r) -> dict:
+    """One engine summary row as the JSON-ready dict the views read (``to_dict()`` of a typed row)."""
+    return r if isinstance(r, Mapping) else r.to_dict()
+
+
+@dataclass
+class Frame:
+    """One drawable state of a tab: the current b in full, and the rows of every b computed so far.
+
+    Attributes
+    ----------
+    stage : {"current", "curves"}
+        ``"current"``: the current b just finished; ``"curves"``: more word lengths filled.
+    values : Values
+        The panel values this frame was computed for.
+    system : LTISystem
+    bits : int
+        The current word length (drawn in 3-D).
+    labels : tuple of str
+        Estimator labels shown (``"LS"``, ``"BCLS"``).
+    rows : dict label -> {b: summary row dict}
+        :func:`qsid_core.sweep.summary_row` per estimator label and word length.
+    done, total : int
+        Word lengths computed so far, of all.
+    loops : dict label -> ClosedLoops at the current b
+    true_loop : ClosedLoops
+        The MPC built on the true model.
+    theory : TheoryAtBits at the current b
+    idents : dict label -> BitsIdentification at the current b
+    x0 : ndarray (n,)
+        Start state of every closed loop (state units).
+    notes : tuple of str
+        Plain-words notes about the system (e.g. not controllable).
+    elapsed : float
+        Seconds since the change that started this computation.
+    """
+
+    stage: str
+    values: Values
+    system: LTISystem
+    bits: int
+    labels: tuple
+    rows: dict
+    done: int
+    total: int
+    loops: dict
+    true_loop: object
+    theory: object
+    idents: dict
+    x0: np.ndarray
+    notes: tuple = ()
+    elapsed: float = 0.0
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def complete(self) -> bool:
+        return self.done >= self.total
+
+    def series(self) -> dict:
+        """``{label: [rows sorted by b]}`` for :mod:`app.figures`."""
+        return {lab: [r[b] for b in sorted(r)] for lab, r in self.rows.items()}
+
+    @property
+    def true_cost(self) -> float | None:
+        if self.true_loop is None:
+            return None
+        c = float(self.true_loop.cost[0])
+        return c if np.isfinite(c) else None
+
+
+@dataclass
+class Job:
+    """One computation for a tab: the engine experiment and what the frames share."""
+
+    ex: Experiment
+    estimators: tuple
+    bits: int
+    all_bits: tuple
+    common: dict  # Frame fields that stay fixed while the curves fill
+
+    @property
+    def n(self) -> int:
+        return self.common["system"].n
+
+
+def start(values: Values, cache: MutableMapping | None, executor, tasks: int) -> tuple[Job, dict]:
+    """Resolve ``values`` and compute the current b in full; returns the job and its rows {label: {b: row}}.
+
+    Raises
+    ------
+    qsid_core.errors.QsidError
+        Bad settings (:class:`~app.dashboard.settings.InputError`), data overflow, ... in plain words.
+    """
+    choice = resolve_system(values)
+    system = choice.system
+    cfg = sweep_config(values, system)
+    ests = estimators(values.identification)
+    ex = Experiment(cfg, executor=executor, tasks=tasks, cache=cache)
+    b = int(values.bits)
+    idents = {LABELS[e]: ex.identification(b, e) for e in ests}
+    th = ex.theory(b)
+    loops = {LABELS[e]: ex.closed_loops(b, e) for e in ests}
+    rows = {LABELS[e]: {b: row(summary_row(system.n, idents[LABELS[e]], th, loops[LABELS[e]]))} for e in ests}
+    mc = mpc_config(values, system)
+    x0 = np.asarray(mc.x0 if mc.x0 is not None else system.x0, dtype=float)
+    common = dict(values=values, system=system, bits=b, labels=tuple(LABELS[e] for e in ests), loops=loops,
+                  true_loop=ex.true_model_loop(), theory=th, idents=idents, x0=x0, notes=tuple(choice.notes))
+    return Job(ex, ests, b, cfg.bits, common), rows
+
+
+def fill_rows(job: Job, rows: dict, est: str, bits, loops: Mapping | None = None) -> None:
+    """Add the summary rows of ``est`` at ``bits`` to ``rows`` (closed loops from ``loops`` or computed here)."""
+    ex = job.ex
+    for x in bits:
+        lp = loops[x] if loops is not None else ex.closed_loops(x, est)
+        rows[LABELS[est]][x] = row(summary_row(job.n, ex.identification(x, est), ex.theory(x), lp))
+
+
+def make_frame(job: Job, stage: str, rows: dict, done: int, elapsed: float, timings: dict) -> Frame:
+    """A frame with a copy of ``rows`` (the caller keeps filling its own)."""
+    return Frame(stage, rows={lab: dict(r) for lab, r in rows.items()}, done=done, total=len(job.all_bits),
+                 elapsed=elapsed, timings=dict(timings), **job.common)

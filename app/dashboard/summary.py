@@ -1,0 +1,74 @@
+"""The numeric summary of a tab at the current b (markdown): eps per channel, errors, overload, failures."""
+
+from __future__ import annotations
+
+from .frames import Frame
+
+__all__ = ["summary_markdown"]
+
+
+def _g(x, fmt=".3g") -> str:
+    return "–" if x is None else format(x, fmt)
+
+
+def _failures(row: dict, lp) -> str:
+    mc = row.get("mpc_cost") or {}
+    k = mc.get("failed", 0)
+    if not k:
+        return "none"
+    kinds = ", ".join(f"{n} {kind}" for kind, n in sorted(mc.get("failures", {}).items()))
+    return f"{k}/{len(lp.failure)} ({kinds})"
+
+
+def summary_markdown(frame: Frame) -> str:
+    """The numeric summary at the current b: eps per channel, errors, overload, failures."""
+    sysm = frame.system
+    b = frame.bits
+    first = frame.rows[frame.labels[0]][b]
+    eps_x = ", ".join(f"{nm} {e:.3g}" for nm, e in zip(sysm.state_names, first["eps_x"]))
+    eps_u = ", ".join(f"{nm} {e:.3g}" for nm, e in zip(sysm.input_names, first["eps_u"]))
+    lines = [
+        f"**{sysm.name}**, b = **{b}** bits, {frame.values.realizations} dither realizations, "
+        f"{frame.values.trajectories} × {frame.values.steps} samples",
+        "",
+        f"ε states: {eps_x}  ",
+        f"ε inputs: {eps_u}  ",
+        f"overload: {100 * first['overload_fraction']:.2f} % of samples · "
+        f"δ(ε) = {_g(first['ultimate_bound'])}",
+        "",
+        "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost | MPC failures |",
+        "|---|---|---|---|---|",
+    ]
+    for lab in frame.labels:
+        r = frame.rows[lab][b]
+        cost = (r.get("mpc_cost") or {}).get("mean")
+        lines.append(f"| {lab} | {_g(r['err_A']['mean'])} | {_g(r['err_B']['mean'])} | {_g(cost, '.4g')} | "
+                     f"{_failures(r, frame.loops[lab])} |")
+    lines.append(f"| Thm 1 | {_g(first['err_A_theory'])} | {_g(first['err_B_theory'])} | | |")
+    lines.append("")
+    tl = frame.true_loop
+    why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
+    lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}{why}")
+    notes = list(frame.notes)
+    for lab in frame.labels:
+        k = frame.rows[lab][b].get("ident_failures") or 0
+        if k:
+            why = "; ".join(x for x in frame.idents[lab].notes if x.startswith("identification failed"))[:200]
+            notes.append(f"{lab} identification failed in {k} of {frame.values.realizations} realizations "
+                         f"(their loops are not drawn): {why}")
+    if "BCLS" in frame.labels:
+        r = frame.rows["BCLS"][b]
+        if r["bcls_fallbacks"]:
+            why = "; ".join(frame.idents["BCLS"].notes[:2])
+            notes.append(f"BCLS fell back to LS in {r['bcls_fallbacks']} of {frame.values.realizations} "
+                         f"realizations: {why}")
+    for lab in frame.labels:
+        msgs = sorted({m for m in frame.loops[lab].messages if m})
+        if msgs:
+            notes.append(f"{lab} MPC: " + "; ".join(msgs[:2]) + (" …" if len(msgs) > 2 else ""))
+    if frame.theory.bound_note:
+        notes.append(f"bound: {frame.theory.bound_note}")
+    if notes:
+        lines.append("")
+        lines += [f"- {x}" for x in notes]
+    return "\n".join(lines)

@@ -1,0 +1,44 @@
+"""What a dashboard view is: a name, a plot shape, when it changes, and a builder.
+
+A *frame* (:class:`app.dashboard.frames.Frame`) is what a browser tab knows at
+one moment; a view reads only these attributes of it: ``series()`` (label ->
+rows of every b computed so far), ``bits`` (the current word length),
+``true_cost``, ``labels``, ``idents`` (label -> identified models at the current
+b) and ``system``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import plotly.graph_objects as go
+
+__all__ = ["View", "CURVES", "CURRENT"]
+
+#: The view draws every b (rebuilt when rows change; a b change only moves its marker).
+CURVES = "curves"
+#: The view draws the current b only (rebuilt when b or the models at b change).
+CURRENT = "current"
+
+
+@dataclass(frozen=True)
+class View:
+    """One plot of the dashboard.
+
+    Attributes
+    ----------
+    name : str
+        Key of the plot (unique).
+    aspect : float
+        Height / width of the plot in the panel.
+    depends : {"curves", "current"}
+        What makes it redraw (:data:`CURVES` or :data:`CURRENT`).
+    build : callable(frame) -> plotly.graph_objects.Figure
+        Pure: the figure for a frame.
+    """
+
+    name: str
+    aspect: float
+    depends: str
+    build: Callable[[Any], go.Figure]

@@ -1,0 +1,71 @@
+"""The dashboard's shared cache (app.dashboard.cache): a bounded LRU that many threads use, and what it shares."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from app.dashboard.cache import SharedCache
+from app.dashboard.session import iter_frames
+from app.dashboard.settings import Values, resolve_system, sweep_config
+from qsid_core import Experiment
+
+SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
+
+
+def frames(v: Values, cache):
+    return list(iter_frames(v, cache))
+
+
+def test_shared_cache_is_a_bounded_lru():
+    c = SharedCache(max_bytes=3 * 8000 + 500, keep=1)
+    for i in range(5):
+        c[("x", i)] = np.zeros(1000)
+    assert len(c) == 3 and ("x", 0) not in c and ("x", 4) in c
+    _ = c[("x", 2)]  # touch: now the most recent
+    c[("x", 5)] = np.zeros(1000)
+    assert ("x", 2) in c and ("x", 3) not in c
+    assert sorted(c) == [("x", 2), ("x", 4), ("x", 5)]
+    with pytest.raises(KeyError):
+        c[("missing",)]
+
+
+def test_shared_cache_survives_threads():
+    c = SharedCache(max_bytes=50 * 800, keep=4)
+
+    def work(t):
+        for i in range(300):
+            c[(t, i)] = np.zeros(100)
+            _ = (t, i) in c
+            list(c)
+
+    ths = [threading.Thread(target=work, args=(t,)) for t in range(4)]
+    for t in ths:
+        t.start()
+    for t in ths:
+        t.join()
+    assert len(c) <= 50 and c.nbytes <= 50 * 800 + 4 * 1000
+
+
+def test_a_weight_change_reuses_the_identified_models():
+    """Q/R change: the same identified models come back (no new identification); new closed loops."""
+    cache = SharedCache()
+    v = Values(**SMALL)
+    first = frames(v, cache)[-1]
+    other = frames(v.replace(log_q=(0.5, -1.0, -1.0), log_r=(0.0, 0.2)), cache)[-1]
+    assert all(other.idents[lab] is first.idents[lab] for lab in first.labels)
+    assert other.loops["LS"] is not first.loops["LS"]
+    assert other.rows["LS"][4]["mpc_cost"]["mean"] != first.rows["LS"][4]["mpc_cost"]["mean"]
+
+
+def test_tabs_with_equal_settings_share_results():
+    """A second computation with the same settings (another tab) gets the first one's objects."""
+    cache = SharedCache()
+    v = Values(**SMALL)
+    a = frames(v.replace(bits=9), cache)[0]
+    ex = Experiment(sweep_config(v, resolve_system(v).system), cache=cache)
+    assert ex.identification(9, "ls") is a.idents["LS"] and ex.closed_loops(9, "bcls") is a.loops["BCLS"]
+    b = frames(v.replace(data_seed=3), cache)[0]  # other data: other models
+    assert b.idents["LS"] is not a.idents["LS"]
