@@ -24,7 +24,7 @@ __all__ = ["Frame", "Job", "start", "fill_rows", "row"]
 
 def row(r) -> dict:
     """One engine summary row as the JSON-ready dict the views read (``to_dict()`` of a typed row)."""
-    return r if isinstance(r, Mapping) else r.to_dict()
+    return r.to_dict() if hasattr(r, "to_dict") else dict(r)
 
 
 @dataclass
