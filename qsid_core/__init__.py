@@ -13,6 +13,8 @@ from .identify import Identified, identify, relative_errors
 from .moments import Moments, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
 from .mpc import MPCConfig, MPCController, MPCFailure
+from .mpc import FailureKind, MPCWeights
+from .riccati import LQParts
 from .quantize import QuantizerSpec, quantize
 from .systems import PRESETS, LTISystem, UncontrollableWarning, boeing747, dc_motor, dc_motor_physical, get_system, load_system
 from .theory import riccati_finite, theorem1_prediction, ultimate_bound
@@ -27,3 +29,4 @@ __all__ = [
     "quantized_moments", "relative_errors", "single_threaded_blas", "summary_row", "riccati_finite", "run_closed_loops", "run_sweep", "simulate",
     "theorem1_prediction", "ultimate_bound",
 ]
+__all__ += ["FailureKind", "LQParts", "MPCWeights"]
