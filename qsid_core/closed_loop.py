@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .condensed_qp import condense
+from .condensed_qp import box_qp_batch, condense
 from .errors import FailureKind, MPCFailure
 from .mpc import MPCConfig, MPCController, MPCWeights
 from .riccati import dare_batch, lq_parts
@@ -107,18 +107,6 @@ def _controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, messages:
     return ctrls
 
 
-def _attach_condensed(ctrls: list, idx) -> None:
-    """Condense the QPs of the controllers ``idx`` in one batch before their first DAQP solve."""
-    need = [int(i) for i in idx if ctrls[i].solver == "daqp" and ctrls[i]._qp is None]
-    if not need:
-        return
-    c0 = ctrls[need[0]]
-    cq = condense(np.stack([ctrls[i].A for i in need]), np.stack([ctrls[i].B for i in need]), c0.Q, c0.R,
-                  np.stack([ctrls[i].Qf for i in need]), c0.x_ref, c0.N)
-    for k, i in enumerate(need):
-        ctrls[i].use_condensed(cq, k)
-
-
 class _Loops:
     """State of the batched closed loops (arrays indexed by realisation ``i``)."""
 
@@ -135,6 +123,12 @@ class _Loops:
         self.acc = np.zeros(len(ctrls))  # realised cost so far
         self.x = np.tile(w.x0, (len(ctrls), 1))  # current true state per realisation
         out.states[live, 0] = self.x[live]
+        self.cq = None  # condensed QPs of the live models (built at the first constrained step)
+        # box-only problems solved by DAQP: guess the active set in one batch, DAQP only where the guess fails
+        self.solver_is_daqp = ctrls[live[0]].solver == "daqp"
+        self.guess = self.solver_is_daqp and self.bound.size == ctrls[live[0]].N * self.m  # no state rows
+        self.nU = ctrls[live[0]].N * self.m  # condensed variables u_0..u_{N-1}
+        self.prevU = np.full((len(ctrls), self.nU), np.nan)  # last optimal input sequence per model
 
     def rows(self, active: np.ndarray) -> np.ndarray:
         return np.array([self.pos[int(i)] for i in active])
@@ -191,6 +185,65 @@ class _Loops:
                 self.x[i] = xs[a, k]
         return active[~done], t + tau
 
+    def condensed(self) -> None:
+        """Condense the QPs of all live models in one batch (once) and hand them to the controllers."""
+        if self.cq is not None:
+            return
+        cs = [self.ctrls[i] for i in self.live]
+        c0 = cs[0]
+        self.cq = condense(np.stack([c.A for c in cs]), np.stack([c.B for c in cs]), c0.Q, c0.R,
+                           np.stack([c.Qf for c in cs]), c0.x_ref, c0.N)
+        for k, c in enumerate(cs):
+            c.use_condensed(self.cq, k)
+
+    def solve_slow(self, idx: np.ndarray, xs: np.ndarray, zs: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
+        """``u_0`` of the models ``idx`` (states ``xs``) whose unconstrained optimum ``zs`` violates a bound.
+
+        Box-only DAQP problems are first solved all at once by a few primal-dual
+        active-set iterations (:func:`box_qp_batch`) from a guess: the previous
+        step's active set shifted by one step (receding horizon), or at the first
+        constrained step the bounds the unconstrained optimum violates. Where that
+        does not settle -- and for state boxes or OSQP -- the model's own solver is
+        called (DAQP warm-starts from its last active set). Failures are recorded. Returns ``(u (S, m), solved (S,))``.
+        """
+        m, ub = self.m, np.tile(self.w.u_max, self.nU // self.m)
+        self.out.qp_steps += idx.size
+        if self.solver_is_daqp:
+            self.condensed()
+        u = np.empty((idx.size, m))
+        todo = np.ones(idx.size, dtype=bool)
+        if self.guess:
+            j = self.rows(idx)
+            g = np.einsum("lij,lj->li", self.cq.Gx[j], xs) + self.cq.g0[j]
+            prev = self.prevU[idx]
+            shifted = np.concatenate([prev[:, m:], prev[:, -m:]], axis=1)
+            fresh = np.isnan(prev[:, 0])[:, None]
+            base = np.where(fresh, zs[:, : ub.size], shifted)
+            hi, lo = base >= ub * (1 - 1e-9), base <= -ub * (1 - 1e-9)
+            U, ok = box_qp_batch(self.cq.H[j], g, ub, hi, lo)
+            self.prevU[idx[ok]] = U[ok]
+            u[ok] = U[ok, :m]
+            todo = ~ok
+        solved = np.ones(idx.size, dtype=bool)
+        for a in np.flatnonzero(todo):
+            i, c = int(idx[a]), self.ctrls[int(idx[a])]
+            try:
+                if c.solver == "daqp":
+                    U = c.solve_daqp(xs[a])
+                    self.prevU[i], u[a] = U, U[:m]
+                else:
+                    u[a], J = c.solve_qp(xs[a])
+                    if t == 0:
+                        self.out.J0[i] = J
+            except MPCFailure as exc:
+                self.fail(i, exc.kind, f"step {t}: {exc}")
+                solved[a] = False
+        if t == 0 and self.solver_is_daqp:  # the predicted optimal cost J*(x0) of the first problem
+            for a in np.flatnonzero(solved):
+                self.out.J0[idx[a]] = self.ctrls[int(idx[a])]._qp.cost(xs[a], self.prevU[idx[a]])
+        # the active set meets the bounds up to rounding: clip that rounding
+        return np.clip(u, -self.w.u_max, self.w.u_max), solved
+
     def step(self, active: np.ndarray, t: int) -> tuple[np.ndarray, bool]:
         """One closed-loop step of every active model; the QP solver only where a bound is active.
 
@@ -204,17 +257,9 @@ class _Loops:
         u = z1[:, : self.m].copy()
         keep = np.ones(active.size, dtype=bool)
         slow = np.flatnonzero(~fast_ok)
-        _attach_condensed(self.ctrls, active[slow])
-        for a in slow:
-            i = int(active[a])
-            self.out.qp_steps += 1
-            try:
-                u[a], Jt = self.ctrls[i].solve_qp(xi[a])
-                if t == 0:
-                    self.out.J0[i] = Jt
-            except MPCFailure as exc:
-                self.fail(i, exc.kind, f"step {t}: {exc}")
-                keep[a] = False
+        if slow.size:
+            u[slow], ok = self.solve_slow(active[slow], xi[slow], z1[slow], t)
+            keep[slow] = ok
         if t == 0:
             for a in np.flatnonzero(fast_ok):
                 self.out.J0[active[a]] = self.ctrls[active[a]].cost_to_go(xi[a])

@@ -162,36 +162,137 @@ class DaqpMPC:
             self._bu[nU:] = self._xbox - free
             self._bl[nU:] = -self._xbox - free
 
-    def solve(self, x0) -> tuple[np.ndarray, float]:
-        """``(u_0, J*)``: first optimal input and the optimal cost from state ``x0``.
+    def solve(self, x0: np.ndarray) -> np.ndarray:
+        """Optimal input sequence ``U`` (shape (N*m,)) from state ``x0`` (shape (n,), float).
+
+        Warm start: the ``daqp.Model`` keeps the previous solve's active set, and only
+        ``g(x0)`` (and, with a state box, the bounds of its rows) is updated.
 
         Raises
         ------
         MPCFailure
             kind ``infeasible`` (state box cannot be met), ``max_iter`` or ``solver``.
         """
+        g = self.Gx @ x0 + self.g0
+        if self._model is None:
+            self._setup(x0, g)
+        elif self._xrows.size:
+            self._bounds(x0)
+            self._model.update(f=g, bupper=self._bu, blower=self._bl)
+        else:
+            self._model.update(f=g)
+        U, _, flag, _ = self._model.solve()
+        if flag != _OPTIMAL:
+            self._raise(flag)
+        return U
+
+    def _setup(self, x0: np.ndarray, g: np.ndarray) -> None:
         import daqp
 
-        x0 = np.asarray(x0, float)
-        g = self.Gx @ x0 + self.g0
         self._bounds(x0)
-        if self._model is None:
-            self._model = daqp.Model()
-            # exact active-set solves: tight primal tolerance, no proximal regularisation (H is definite)
-            self._model.settings = dict(primal_tol=1e-12, iter_limit=self.max_iter, eps_prox=0.0)
-            flag, _ = self._model.setup(self.H, g, self.Arows, self._bu, self._bl, self._sense)
-            if flag < 0:
-                raise MPCFailure(FailureKind.SOLVER, f"DAQP setup failed (exit flag {flag})")
-        else:
-            self._model.update(f=g, bupper=self._bu, blower=self._bl)
-        U, _, flag, _ = self._model.solve()
+        self._model = daqp.Model()
+        # exact active-set solves: tight primal tolerance, no proximal regularisation (H is definite)
+        self._model.settings = dict(primal_tol=1e-12, iter_limit=self.max_iter, eps_prox=0.0)
+        flag, _ = self._model.setup(self.H, g, self.Arows, self._bu, self._bl, self._sense)
+        if flag < 0:
+            raise MPCFailure(FailureKind.SOLVER, f"DAQP setup failed (exit flag {flag})")
+
+    def _raise(self, flag: int) -> None:
         if flag == _INFEASIBLE:
             raise MPCFailure(FailureKind.INFEASIBLE, "MPC problem is infeasible from the current state")
         if flag == _ITERLIMIT:
             raise MPCFailure(FailureKind.MAX_ITER, f"DAQP reached its iteration limit ({self.max_iter})")
-        if flag != _OPTIMAL:
-            raise MPCFailure(FailureKind.SOLVER, f"DAQP failed (exit flag {flag})")
+        raise MPCFailure(FailureKind.SOLVER, f"DAQP failed (exit flag {flag})")
+
+    def cost(self, x0: np.ndarray, U: np.ndarray) -> float:
+        """``J(U; x0) = U'HU + 2 g'U + c(x0)``: the MPC cost of input sequence ``U`` from ``x0``."""
+        g = self.Gx @ x0 + self.g0
         e = self.Sx @ x0 - self.rbar
         d0 = x0 - self.r
-        J = float(U @ self.H @ U + 2 * g @ U + e @ self.Qbar @ e + d0 @ self.Q @ d0)
-        return np.clip(U[: self.m], -self.u_max, self.u_max), J
+        return float(U @ self.H @ U + 2 * g @ U + e @ self.Qbar @ e + d0 @ self.Q @ d0)
+
+
+def active_set_solution(H, g, upper, lower, ub, tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact minimiser of a batch of box QPs for a *guessed* active set, and whether it is optimal.
+
+    For each problem ``min 1/2 U'HU + g'U  s.t. |U| <= ub`` the variables in
+    ``upper`` (``lower``) are fixed at ``+ub`` (``-ub``) and the rest solve the
+    equality-constrained problem ``H_FF U_F = -(g_F + H_FA U_A)``. The guess is
+    the optimum iff the KKT conditions hold: the free variables are inside the
+    box and every multiplier is non-negative -- ``lambda_i = -(HU + g)_i`` at an
+    upper bound, ``+(HU + g)_i`` at a lower bound. Then ``U`` equals what an
+    active-set solver returns (same linear system, rounding only).
+
+    Parameters
+    ----------
+    H : ndarray, shape (S, nU, nU)
+        Positive definite Hessians.
+    g : ndarray, shape (S, nU)
+    upper, lower : ndarray of bool, shape (S, nU)
+        Guessed active bounds (disjoint).
+    ub : ndarray, shape (nU,)
+        Box half-widths.
+    tol : float
+        Relative slack of the checks (rounding; a failed check only means "ask the solver").
+
+    Returns
+    -------
+    U : ndarray, shape (S, nU)
+    ok : ndarray of bool, shape (S,)
+        True where ``U`` is the exact optimum.
+    grad : ndarray, shape (S, nU)
+        ``HU + g``.
+    """
+    S, nU = g.shape
+    fixed = upper | lower
+    val = np.where(upper, ub, np.where(lower, -ub, 0.0))
+    # rows of fixed variables become "U_i = bound_i"; the free rows keep H (the fixed U_j enter through H_FA)
+    M = np.where(fixed[:, :, None], np.eye(nU), H)
+    rhs = np.where(fixed, val, -g)
+    U = np.linalg.solve(M, rhs[..., None])[..., 0]
+    grad = np.einsum("sij,sj->si", H, U) + g
+    lam = np.where(upper, -grad, np.where(lower, grad, 0.0))
+    scale = 1.0 + np.abs(g).max(axis=1, keepdims=True)
+    inside = np.abs(U) <= ub * (1 + tol)
+    ok = np.all(np.isfinite(U), axis=1) & np.all(inside | fixed, axis=1) & np.all(lam >= -tol * scale, axis=1)
+    return U, ok, grad
+
+
+def box_qp_batch(H, g, ub, upper, lower, iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """Solve a batch of box QPs by primal-dual active-set iterations from a guessed active set.
+
+    Each iteration solves every unsettled problem on its current active set
+    (:func:`active_set_solution`); those passing the KKT check are done, the
+    others update their set by the primal-dual active-set rule (Hintermüller,
+    Ito, Kunisch 2002) with the coordinate-wise Newton step ``y = U - grad/diag(H)``:
+    upper-active where ``y > ub``, lower-active where ``y < -ub``, else free.
+    Problems not settled after ``iters`` iterations are left to the caller's
+    solver (``ok`` False). A settled ``U`` is exact (its KKT conditions hold).
+
+    Parameters
+    ----------
+    H : ndarray, shape (S, nU, nU); g : ndarray, shape (S, nU); ub : ndarray, shape (nU,)
+    upper, lower : ndarray of bool, shape (S, nU)
+        Initial guess of the active bounds.
+    iters : int
+
+    Returns
+    -------
+    U : ndarray, shape (S, nU) (NaN where not settled); ok : ndarray of bool, shape (S,)
+    """
+    S, nU = g.shape
+    U = np.full((S, nU), np.nan)
+    ok = np.zeros(S, dtype=bool)
+    todo = np.arange(S)
+    upper, lower = upper.copy(), lower & ~upper
+    for _ in range(iters):
+        Hk = H[todo]
+        Uk, okk, grad = active_set_solution(Hk, g[todo], upper[todo], lower[todo], ub)
+        U[todo[okk]] = Uk[okk]
+        ok[todo[okk]] = True
+        todo, Uk, grad, Hk = todo[~okk], Uk[~okk], grad[~okk], Hk[~okk]
+        if not todo.size:
+            break
+        y = Uk - grad / np.diagonal(Hk, axis1=1, axis2=2)
+        upper[todo], lower[todo] = y > ub, y < -ub
+    return U, ok

@@ -290,6 +290,12 @@ class MPCController:
         """
         if self.solver == "osqp":
             return self.solve_osqp(x)
+        x = np.asarray(x, dtype=float)
+        U = self.solve_daqp(x)
+        return np.clip(U[: self.m], -self.u_max, self.u_max), self._qp.cost(x, U)
+
+    def solve_daqp(self, x: np.ndarray) -> np.ndarray:
+        """The optimal input sequence ``U = [u_0; ...; u_{N-1}]``, shape (N*m,), by DAQP (no clipping)."""
         if self._qp is None:
             self.use_condensed(condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref,
                                         self.N), 0)
