@@ -1,0 +1,160 @@
+"""Compiled kernels (numba) for the engine's two hot loops, with numpy fallbacks.
+
+* :func:`accumulate_chunk` -- quantize a chunk of normalised samples at every
+  word length with the given unit dither draws and accumulate the sums the
+  Gram matrices need, in one pass (used by :mod:`qsid_core.moments`).
+
+numba compiles on first use (about 1-3 s per kernel) and caches the machine code
+on disk (``cache=True``), so later processes (CLI runs, dashboard, pool workers)
+load it in a fraction of a second. The cache goes next to this file when that is
+writable, else to ``$XDG_CACHE_HOME/qsid/numba`` (default ``~/.cache/qsid/numba``);
+an explicit ``NUMBA_CACHE_DIR`` is respected. Without numba (or with
+``QSID_NO_NUMBA=1``) :data:`AVAILABLE` is False, callers use their numpy
+versions, and :data:`REASON` says why.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["AVAILABLE", "REASON", "accumulate_chunk", "cache_dir"]
+
+
+def cache_dir() -> str:
+    """Where numba's cache goes: next to the package if writable, else a per-user cache directory."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return os.environ["NUMBA_CACHE_DIR"]
+    here = Path(__file__).resolve().parent
+    pyc = here / "__pycache__"
+    if os.access(pyc if pyc.exists() else here, os.W_OK):
+        return str(pyc)
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return str(base / "qsid" / "numba")
+
+
+def _load():
+    if os.environ.get("QSID_NO_NUMBA"):
+        return None, "numba disabled by QSID_NO_NUMBA"
+    d = cache_dir()
+    if not d.endswith("__pycache__"):  # numba reads NUMBA_CACHE_DIR when it is first imported
+        os.environ.setdefault("NUMBA_CACHE_DIR", d)
+        try:
+            os.makedirs(d, exist_ok=True)
+        except OSError as exc:
+            return None, f"no writable numba cache directory ({d}: {exc})"
+    try:
+        import numba
+    except ImportError as exc:
+        return None, f"numba is not installed ({exc}); using the numpy implementation"
+    return numba, ""
+
+
+_numba, REASON = _load()
+#: True when the compiled kernels are used
+AVAILABLE = _numba is not None
+
+
+#: rows per block inside the kernel: the block's quantized samples stay in L1 cache
+BLOCK = 256
+
+
+def _dot_py(x, y, k):
+    """``sum_{r<k} x[r] y[r]`` (a loop numba vectorises)."""
+    acc = 0.0
+    for r in range(k):
+        acc += x[r] * y[r]
+    return acc
+
+
+def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first):
+    """Quantize rows ``y`` at every word length and accumulate (see :func:`accumulate_chunk`)."""
+    rows, p = y.shape
+    n = C.shape[2]
+    V = np.empty((p, BLOCK + 1))  # V[:, 0] = v of the row before the block, V[:, 1 + r] = v of row r
+    ones = np.ones(BLOCK)
+    for s0 in range(0, rows, BLOCK):  # block outer, word length inner: the block's y and u stay in L1 cache
+        nr = min(BLOCK, rows - s0)
+        g0 = row0 + s0  # global index of the block's first row
+        for j in range(scale.shape[0]):
+            s_j, h = scale[j], half[j]
+            # quantize: v = clip(floor(y * scale + u), -half, half - 1) - u (two roundings, as numpy);
+            # overload where y * scale + u leaves [-half, half]
+            cnt = 0
+            for a in range(p):
+                V[a, 0] = prev[j, a]
+                for r in range(nr):
+                    t = y[s0 + r, a] * s_j
+                    t = t + u[s0 + r, a]
+                    cnt += (t < -h) | (t > h)
+                    V[a, r + 1] = min(max(np.floor(t), -h), h - 1) - u[s0 + r, a]
+            over[j] += cnt
+            # sums += sum_r v_r;  M += sum_r v_r v_r' (upper triangle)
+            for a in range(p):
+                Va = V[a, 1 : nr + 1]
+                sums[j, a] += _dot(Va, ones, nr)
+                for b in range(a, p):
+                    M[j, a, b] += _dot(Va, V[b, 1 : nr + 1], nr)
+            # C += sum_g v_{g-1} v_g[:n]' over consecutive global rows (none before global row 0)
+            r1 = 0 if g0 > 0 else 1
+            for a in range(p):
+                for b in range(n):
+                    C[j, a, b] += _dot(V[a, r1:nr], V[b, r1 + 1 : nr + 1], nr - r1)
+            for a in range(p):
+                prev[j, a] = V[a, nr]
+            # v at the last / first row of every run in the block (g % S1 == S1 - 1 / == 0)
+            for r in range((S1 - 1 - g0 % S1) % S1, nr, S1):
+                for a in range(p):
+                    v_last[j, (g0 + r) // S1, a] = V[a, r + 1]
+            for r in range((S1 - g0 % S1) % S1, nr, S1):
+                for a in range(p):
+                    v_first[j, (g0 + r) // S1, a] = V[a, r + 1]
+
+
+if AVAILABLE:
+    _dot = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_dot_py)
+    _accumulate_chunk_nb = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_accumulate_chunk_py)
+    # "reassoc" lets LLVM vectorise the sums (their order changes: rounding only, ~1e-16 relative);
+    # no "contract": y * scale + u stays two roundings, so every quantized sample equals numpy's
+else:  # pragma: no cover
+    _dot = _dot_py
+    _accumulate_chunk_nb = None
+
+
+def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first) -> None:
+    """Quantize a chunk of normalised samples at every word length and accumulate, in place.
+
+    For word length ``j`` with ``2^b`` cells (``scale[j] = 2^b``, or ``2^b - 1``
+    with guard band; ``half[j] = 2^(b-1)``) the quantized sample in cell units is
+    ``v = clip(floor(y * scale + u), -half, half - 1) - u`` (``u`` the unit dither); the real value is ``a + eps * v`` (see
+    :func:`qsid_core.moments.quantized_moments`).
+
+    Parameters
+    ----------
+    y : ndarray, shape (rows, p)
+        Normalised samples ``[x_t, u_t]`` in ``[-1/2, 1/2]``; global rows ``row0 ..``.
+    u : ndarray, shape (rows, p)
+        Unit dither draws U[-1/2, 1/2]; zeros without dither (adding and
+        subtracting 0 changes no value).
+    scale, half : ndarray, shape (nb,)
+    row0 : int
+        Global index of the chunk's first row (row ``g`` is step ``g % S1`` of run ``g // S1``).
+    S1 : int
+        Rows per run (steps + 1).
+    M : ndarray, shape (nb, p, p)
+        ``sum v v'`` (upper triangle only; mirror it after the last chunk).
+    C : ndarray, shape (nb, p, n)
+        ``sum_g v_{g-1} v_g[:n]'`` over consecutive global rows.
+    sums : ndarray, shape (nb, p)
+    over : ndarray of int64, shape (nb,)
+        Entries whose ``y * scale + u`` left ``[-half, half]`` (overload).
+    prev : ndarray, shape (nb, p)
+        ``v`` of the previous global row (carried between chunks).
+    v_last, v_first : ndarray, shape (nb, runs, p)
+        ``v`` at the last and the first row of every run (for the boundary corrections).
+    """
+    if not AVAILABLE:
+        raise RuntimeError(f"compiled kernels unavailable: {REASON}")
+    _accumulate_chunk_nb(y, u, scale, half, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first)
