@@ -9,7 +9,7 @@ b, least squares, and for every identified model an MPC closed loop of 50 steps
 * **fast**: :func:`qsid_core.run_sweep`, timed in-process, with a
   ``ThreadPoolExecutor(2)``, with a ``ProcessPoolExecutor(2)``, and with a
   ``ProcessPoolExecutor(2)`` whose workers limit OpenBLAS to one thread
-  (``benchmarks/_blas.py``; the engine's thousands of tiny BLAS/LAPACK calls gain
+  (threadpoolctl; the engine's thousands of tiny BLAS/LAPACK calls gain
   nothing from BLAS threads and two workers x two BLAS threads oversubscribe two
   cores). Always the full sweep; best and median of ``--repeats`` runs; each
   pool's first, cold run -- which pays for starting the workers -- is reported too.
@@ -57,10 +57,17 @@ from qsid_core.mpc import MPCConfig  # noqa: E402
 from qsid_core.quantize import quantize  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402
 
-try:  # run as a script (benchmarks/ on sys.path) or imported as benchmarks.bench_sweep
-    from _blas import blas_threads, set_blas_threads  # noqa: E402
-except ImportError:  # pragma: no cover
-    from benchmarks._blas import blas_threads, set_blas_threads  # noqa: E402
+from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
+
+
+def blas_threads() -> dict:
+    """Threads of each BLAS library loaded in this process (file name -> threads), by threadpoolctl."""
+    return {i["filepath"].rsplit("/", 1)[-1]: int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"}
+
+
+def set_blas_threads(n: int = 1) -> None:
+    """Limit every loaded BLAS to ``n`` threads for the rest of this process (also a pool initializer)."""
+    threadpool_limits(limits=int(n), user_api="blas")
 
 PAPER = dict(system="dc-motor", bits=tuple(range(1, 17)), realizations=50, trajectories=200, steps=1000,
              horizon=10, mpc_steps=50, u_max=1.0)

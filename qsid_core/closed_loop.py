@@ -119,7 +119,8 @@ class _Loops:
         self.F = np.stack([ctrls[i].F for i in live])  # (L, rows, n)
         self.f = np.stack([ctrls[i].f for i in live])  # (L, rows)
         self.bound = ctrls[live[0]].bound  # (rows,)
-        self.pos = {int(i): j for j, i in enumerate(live)}
+        self.pos = np.full(len(ctrls), -1)  # realisation -> row of the live arrays
+        self.pos[live] = np.arange(live.size)
         self.acc = np.zeros(len(ctrls))  # realised cost so far
         self.x = np.tile(w.x0, (len(ctrls), 1))  # current true state per realisation
         out.states[live, 0] = self.x[live]
@@ -129,9 +130,11 @@ class _Loops:
         self.guess = self.solver_is_daqp and self.bound.size == ctrls[live[0]].N * self.m  # no state rows
         self.nU = ctrls[live[0]].N * self.m  # condensed variables u_0..u_{N-1}
         self.prevU = np.full((len(ctrls), self.nU), np.nan)  # last optimal input sequence per model
+        self.ub = np.tile(w.u_max, self.nU // self.m)  # box of U = [u_0; ...; u_{N-1}]
 
     def rows(self, active: np.ndarray) -> np.ndarray:
-        return np.array([self.pos[int(i)] for i in active])
+        """Rows of the live-model arrays (``F``, ``f``, the condensed QPs) of realisations ``active``."""
+        return self.pos[active]
 
     def stage_cost(self, xs: np.ndarray, us: np.ndarray) -> np.ndarray:
         """``(x - r)'Q(x - r) + u'R u`` over the last axis."""
@@ -206,7 +209,7 @@ class _Loops:
         does not settle -- and for state boxes or OSQP -- the model's own solver is
         called (DAQP warm-starts from its last active set). Failures are recorded. Returns ``(u (S, m), solved (S,))``.
         """
-        m, ub = self.m, np.tile(self.w.u_max, self.nU // self.m)
+        m, ub = self.m, self.ub
         self.out.qp_steps += idx.size
         if self.solver_is_daqp:
             self.condensed()

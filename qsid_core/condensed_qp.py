@@ -258,7 +258,7 @@ def active_set_solution(H, g, upper, lower, ub, tol: float = 1e-12) -> tuple[np.
     return U, ok, grad
 
 
-def box_qp_batch(H, g, ub, upper, lower, iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
+def box_qp_batch(H, g, ub, upper, lower, iters: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Solve a batch of box QPs by primal-dual active-set iterations from a guessed active set.
 
     Each iteration solves every unsettled problem on its current active set
@@ -279,7 +279,16 @@ def box_qp_batch(H, g, ub, upper, lower, iters: int = 6) -> tuple[np.ndarray, np
     Returns
     -------
     U : ndarray, shape (S, nU) (NaN where not settled); ok : ndarray of bool, shape (S,)
+
+    Notes
+    -----
+    With numba the compiled :func:`qsid_core.kernels.box_qp_pdas` runs (same rule
+    and check, a Cholesky solve per problem); else the batched numpy version below.
     """
+    from . import kernels
+
+    if kernels.AVAILABLE:
+        return kernels.box_qp_pdas(H, g, ub, upper, lower, iters)
     S, nU = g.shape
     U = np.full((S, nU), np.nan)
     ok = np.zeros(S, dtype=bool)

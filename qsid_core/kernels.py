@@ -3,6 +3,8 @@
 * :func:`accumulate_chunk` -- quantize a chunk of normalised samples at every
   word length with the given unit dither draws and accumulate the sums the
   Gram matrices need, in one pass (used by :mod:`qsid_core.moments`).
+* :func:`box_qp_pdas` -- primal-dual active-set iterations for a batch of the
+  MPC's condensed box QPs (used by :mod:`qsid_core.closed_loop`).
 
 numba compiles on first use (about 1-3 s per kernel) and caches the machine code
 on disk (``cache=True``), so later processes (CLI runs, dashboard, pool workers)
@@ -20,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["AVAILABLE", "REASON", "accumulate_chunk", "cache_dir"]
+__all__ = ["AVAILABLE", "REASON", "accumulate_chunk", "box_qp_pdas", "cache_dir"]
 
 
 def cache_dir() -> str:
@@ -113,12 +115,101 @@ def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_
                     v_first[j, (g0 + r) // S1, a] = V[a, r + 1]
 
 
+def _box_qp_pdas_py(H, g, ub, upper, lower, iters, tol, U, ok):
+    """Primal-dual active-set iterations for each box QP of a batch (see :func:`box_qp_pdas`)."""
+    S, nU = g.shape
+    L = np.empty((nU, nU))
+    rhs = np.empty(nU)
+    free = np.empty(nU, dtype=np.int64)
+    x = np.empty(nU)
+    for s in range(S):
+        Hs, gs = H[s], g[s]
+        up, lo = upper[s].copy(), lower[s].copy()
+        scale = 1.0
+        for i in range(nU):
+            scale = max(scale, 1.0 + abs(gs[i]))
+        for _ in range(iters):
+            # fix the active variables at their bound, solve H_FF x_F = -(g_F + H_FA x_A) by Cholesky
+            nf = 0
+            for i in range(nU):
+                if up[i]:
+                    x[i] = ub[i]
+                elif lo[i]:
+                    x[i] = -ub[i]
+                else:
+                    free[nf] = i
+                    nf += 1
+            for a in range(nf):
+                i = free[a]
+                acc = -gs[i]
+                for j in range(nU):
+                    if up[j] or lo[j]:
+                        acc -= Hs[i, j] * x[j]
+                rhs[a] = acc
+            good = True
+            for a in range(nf):  # L L' = H_FF (lower triangle)
+                for b in range(a + 1):
+                    acc = Hs[free[a], free[b]]
+                    for c in range(b):
+                        acc -= L[a, c] * L[b, c]
+                    if a == b:
+                        if acc <= 0.0:
+                            good = False
+                            break
+                        L[a, a] = np.sqrt(acc)
+                    else:
+                        L[a, b] = acc / L[b, b]
+                if not good:
+                    break
+            if not good:
+                break
+            for a in range(nf):  # forward, then backward substitution
+                acc = rhs[a]
+                for c in range(a):
+                    acc -= L[a, c] * rhs[c]
+                rhs[a] = acc / L[a, a]
+            for a in range(nf - 1, -1, -1):
+                acc = rhs[a]
+                for c in range(a + 1, nf):
+                    acc -= L[c, a] * rhs[c]
+                rhs[a] = acc / L[a, a]
+            for a in range(nf):
+                x[free[a]] = rhs[a]
+            # KKT: free variables inside the box, multipliers of the fixed ones >= 0
+            kkt = True
+            for i in range(nU):
+                gr = gs[i]
+                for j in range(nU):
+                    gr += Hs[i, j] * x[j]
+                if up[i]:
+                    lam = -gr
+                elif lo[i]:
+                    lam = gr
+                else:
+                    lam = 0.0
+                    if abs(x[i]) > ub[i] * (1.0 + tol):
+                        kkt = False
+                if lam < -tol * scale:
+                    kkt = False
+                # next active set: coordinate-wise Newton step y = x - grad / H_ii
+                y = x[i] - gr / Hs[i, i]
+                up[i] = y > ub[i]
+                lo[i] = y < -ub[i]
+            if kkt:
+                for i in range(nU):
+                    U[s, i] = x[i]
+                ok[s] = True
+                break
+
+
 if AVAILABLE:
+    _box_qp_pdas_nb = _numba.njit(cache=True, nogil=True)(_box_qp_pdas_py)
     _dot = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_dot_py)
     _accumulate_chunk_nb = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_accumulate_chunk_py)
     # "reassoc" lets LLVM vectorise the sums (their order changes: rounding only, ~1e-16 relative);
     # no "contract": y * scale + u stays two roundings, so every quantized sample equals numpy's
 else:  # pragma: no cover
+    _box_qp_pdas_nb = None
     _dot = _dot_py
     _accumulate_chunk_nb = None
 
@@ -158,3 +249,23 @@ def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last
     if not AVAILABLE:
         raise RuntimeError(f"compiled kernels unavailable: {REASON}")
     _accumulate_chunk_nb(y, u, scale, half, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first)
+
+
+def box_qp_pdas(H, g, ub, upper, lower, iters: int = 8, tol: float = 1e-12):
+    """Compiled :func:`qsid_core.condensed_qp.box_qp_batch`: same rule, same KKT check, one problem at a time.
+
+    Each iteration fixes the active variables at their bound and solves the free
+    ones, ``H_FF U_F = -(g_F + H_FA U_A)``, by a Cholesky factorisation of
+    ``H_FF``; the result is accepted when the free variables are inside the box
+    and every multiplier (``-(HU + g)_i`` at an upper, ``+(HU + g)_i`` at a lower
+    bound) is non-negative. Returns ``(U (S, nU), ok (S,))``; ``U`` is NaN where
+    the problem did not settle within ``iters`` iterations.
+    """
+    if not AVAILABLE:
+        raise RuntimeError(f"compiled kernels unavailable: {REASON}")
+    S, nU = g.shape
+    U = np.full((S, nU), np.nan)
+    ok = np.zeros(S, dtype=np.bool_)
+    _box_qp_pdas_nb(np.ascontiguousarray(H), np.ascontiguousarray(g), np.ascontiguousarray(ub, dtype=float),
+                    upper, lower & ~upper, int(iters), float(tol), U, ok)
+    return U, ok

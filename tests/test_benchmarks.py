@@ -94,9 +94,11 @@ def test_bench_mpc_quick_main_prints_result(capsys):
         assert p["solvers"]["engine run_closed_loops"]["max_abs_du"] == 0.0
 
 
-def test_blas_helper_reports_threads():
-    from _blas import blas_threads
+def test_blas_helper_reports_and_limits_threads():
+    from threadpoolctl import threadpool_limits
 
-    th = blas_threads()
+    with threadpool_limits(limits=1, user_api="blas"):
+        assert set(bench_mpc.blas_threads().values()) <= {1}
+    th = bench_sweep.blas_threads()
     assert isinstance(th, dict)
     assert all(isinstance(v, int) and v >= 1 for v in th.values())
