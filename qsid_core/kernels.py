@@ -115,6 +115,32 @@ def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_
                     v_first[j, (g0 + r) // S1, a] = V[a, r + 1]
 
 
+def _chol_solve_py(Hs, free, nf, L, rhs):
+    """Solve ``H_FF z = rhs`` in place (``F = free[:nf]``) by Cholesky; False if ``H_FF`` is not definite."""
+    for a in range(nf):  # L L' = H_FF (lower triangle)
+        for b in range(a + 1):
+            acc = Hs[free[a], free[b]]
+            for c in range(b):
+                acc -= L[a, c] * L[b, c]
+            if a == b:
+                if acc <= 0.0:
+                    return False
+                L[a, a] = np.sqrt(acc)
+            else:
+                L[a, b] = acc / L[b, b]
+    for a in range(nf):  # forward, then backward substitution
+        acc = rhs[a]
+        for c in range(a):
+            acc -= L[a, c] * rhs[c]
+        rhs[a] = acc / L[a, a]
+    for a in range(nf - 1, -1, -1):
+        acc = rhs[a]
+        for c in range(a + 1, nf):
+            acc -= L[c, a] * rhs[c]
+        rhs[a] = acc / L[a, a]
+    return True
+
+
 def _box_qp_pdas_py(H, g, ub, upper, lower, iters, tol, U, ok):
     """Primal-dual active-set iterations for each box QP of a batch (see :func:`box_qp_pdas`)."""
     S, nU = g.shape
@@ -146,33 +172,8 @@ def _box_qp_pdas_py(H, g, ub, upper, lower, iters, tol, U, ok):
                     if up[j] or lo[j]:
                         acc -= Hs[i, j] * x[j]
                 rhs[a] = acc
-            good = True
-            for a in range(nf):  # L L' = H_FF (lower triangle)
-                for b in range(a + 1):
-                    acc = Hs[free[a], free[b]]
-                    for c in range(b):
-                        acc -= L[a, c] * L[b, c]
-                    if a == b:
-                        if acc <= 0.0:
-                            good = False
-                            break
-                        L[a, a] = np.sqrt(acc)
-                    else:
-                        L[a, b] = acc / L[b, b]
-                if not good:
-                    break
-            if not good:
+            if not _chol_solve(Hs, free, nf, L, rhs):
                 break
-            for a in range(nf):  # forward, then backward substitution
-                acc = rhs[a]
-                for c in range(a):
-                    acc -= L[a, c] * rhs[c]
-                rhs[a] = acc / L[a, a]
-            for a in range(nf - 1, -1, -1):
-                acc = rhs[a]
-                for c in range(a + 1, nf):
-                    acc -= L[c, a] * rhs[c]
-                rhs[a] = acc / L[a, a]
             for a in range(nf):
                 x[free[a]] = rhs[a]
             # KKT: free variables inside the box, multipliers of the fixed ones >= 0
@@ -203,12 +204,14 @@ def _box_qp_pdas_py(H, g, ub, upper, lower, iters, tol, U, ok):
 
 
 if AVAILABLE:
+    _chol_solve = _numba.njit(cache=True, nogil=True)(_chol_solve_py)
     _box_qp_pdas_nb = _numba.njit(cache=True, nogil=True)(_box_qp_pdas_py)
     _dot = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_dot_py)
     _accumulate_chunk_nb = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_accumulate_chunk_py)
     # "reassoc" lets LLVM vectorise the sums (their order changes: rounding only, ~1e-16 relative);
     # no "contract": y * scale + u stays two roundings, so every quantized sample equals numpy's
 else:  # pragma: no cover
+    _chol_solve = _chol_solve_py
     _box_qp_pdas_nb = None
     _dot = _dot_py
     _accumulate_chunk_nb = None

@@ -45,7 +45,13 @@ def _reference(model, s, cfg):
     return np.array(us)
 
 
-def test_saturated_loops_equal_an_exact_reference():
+@pytest.mark.parametrize("compiled", [True, False])
+def test_saturated_loops_equal_an_exact_reference(compiled, monkeypatch):
+    from qsid_core import kernels
+
+    if compiled and not kernels.AVAILABLE:
+        pytest.skip(kernels.REASON)
+    monkeypatch.setattr(kernels, "AVAILABLE", compiled)  # False: the batched numpy active-set iterations
     s, models = _boeing_models(5)
     cfg = MPCConfig(**SATURATED)
     loops = run_closed_loops(models, s.A, s.B, cfg, s)
@@ -128,3 +134,28 @@ def test_missing_model_is_an_ident_failure_and_others_still_run():
     loops = run_closed_loops([nan_model, (s.A, s.B)], s.A, s.B, MPCConfig(steps=10), s)
     assert loops.failure == [FailureKind.IDENT, ""]
     assert np.isfinite(loops.cost[1])
+
+
+def test_compiled_active_set_kernel_equals_the_numpy_iterations(monkeypatch):
+    from qsid_core import kernels
+    from qsid_core.condensed_qp import box_qp_batch
+
+    if not kernels.AVAILABLE:
+        pytest.skip(kernels.REASON)
+    rng = np.random.default_rng(5)
+    S, nU = 40, 12
+    Z = rng.normal(size=(S, nU, nU))
+    H = Z @ np.swapaxes(Z, 1, 2) + 0.5 * np.eye(nU)
+    g = 3 * rng.normal(size=(S, nU))
+    ub = np.full(nU, 0.4)
+    none = np.zeros((S, nU), dtype=bool)
+    Uc, okc = kernels.box_qp_pdas(H, g, ub, none, none, 30)
+    monkeypatch.setattr(kernels, "AVAILABLE", False)
+    Un, okn = box_qp_batch(H, g, ub, none, none, 30)
+    both = okc & okn
+    assert both.sum() >= S // 2
+    np.testing.assert_allclose(Uc[both], Un[both], atol=1e-12)
+    for k in np.flatnonzero(both):  # and both are the exact optimum (BVLS)
+        L = np.linalg.cholesky(H[k])
+        ref = lsq_linear(L.T, -np.linalg.solve(L, g[k]), bounds=(-ub, ub), method="bvls", tol=1e-15).x
+        np.testing.assert_allclose(Uc[k], ref, atol=1e-9)
