@@ -76,10 +76,16 @@ def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_
     rows, p = y.shape
     n = C.shape[2]
     V = np.empty((p, BLOCK + 1))  # V[:, 0] = v of the row before the block, V[:, 1 + r] = v of row r
+    yT = np.empty((p, BLOCK))  # the block's samples and draws channel by channel (contiguous loops)
+    uT = np.empty((p, BLOCK))
     ones = np.ones(BLOCK)
     for s0 in range(0, rows, BLOCK):  # block outer, word length inner: the block's y and u stay in L1 cache
         nr = min(BLOCK, rows - s0)
         g0 = row0 + s0  # global index of the block's first row
+        for r in range(nr):
+            for a in range(p):
+                yT[a, r] = y[s0 + r, a]
+                uT[a, r] = u[s0 + r, a]
         for j in range(scale.shape[0]):
             s_j, h = scale[j], half[j]
             # quantize: v = clip(floor(y * scale + u), -half, half - 1) - u (two roundings, as numpy);
@@ -87,11 +93,12 @@ def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_
             cnt = 0
             for a in range(p):
                 V[a, 0] = prev[j, a]
+                ya, ua, va = yT[a], uT[a], V[a, 1:]
                 for r in range(nr):
-                    t = y[s0 + r, a] * s_j
-                    t = t + u[s0 + r, a]
+                    t = ya[r] * s_j
+                    t = t + ua[r]
                     cnt += (t < -h) | (t > h)
-                    V[a, r + 1] = min(max(np.floor(t), -h), h - 1) - u[s0 + r, a]
+                    va[r] = min(max(np.floor(t), -h), h - 1) - ua[r]
             over[j] += cnt
             # sums += sum_r v_r;  M += sum_r v_r v_r' (upper triangle)
             for a in range(p):
