@@ -53,7 +53,7 @@ import scipy.sparse as sp  # noqa: E402
 from qsid_core.data import simulate  # noqa: E402
 from qsid_core.experiment import SweepConfig  # noqa: E402
 from qsid_core.sweep import run_sweep  # noqa: E402
-from qsid_core.mpc import MPCConfig  # noqa: E402
+from qsid_core.mpc import MPCConfig, MPCWeights  # noqa: E402
 from qsid_core.quantize import quantize  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402
 
@@ -157,13 +157,13 @@ def naive_qp(A_hat, B_hat, Q, R, Qf, N, u_max):
     return sp.triu(P, format="csc"), q, Acon, lo, hi
 
 
-def naive_closed_loop(A_hat, B_hat, A, B, w: dict, mcfg: MPCConfig, osqp_setup: str = "model"):
+def naive_closed_loop(A_hat, B_hat, A, B, w: MPCWeights, mcfg: MPCConfig, osqp_setup: str = "model"):
     """MPC on (A_hat, B_hat) in closed loop on (A, B); OSQP at every step. Returns (cost, inputs, failure)."""
     import osqp
 
-    if np.any(w["x_ref"] != 0) or w["x_max"] is not None or w["xf_max"] is not None:
+    if np.any(w.x_ref != 0) or w.x_max is not None or w.xf_max is not None:
         raise ValueError("the naive loop implements x_ref = 0 and input bounds only")
-    Q, R, N, u_max = w["Q"], w["R"], mcfg.horizon, w["u_max"]
+    Q, R, N, u_max = w.Q, w.R, mcfg.horizon, w.u_max
     n, m = B_hat.shape
     nan_inputs = np.full((mcfg.steps, m), np.nan)
     if not (np.all(np.isfinite(A_hat)) and np.all(np.isfinite(B_hat))):
@@ -181,7 +181,7 @@ def naive_closed_loop(A_hat, B_hat, A, B, w: dict, mcfg: MPCConfig, osqp_setup: 
     settings = dict(verbose=False, polishing=True, warm_starting=True, eps_abs=mcfg.eps, eps_rel=mcfg.eps,
                     max_iter=mcfg.max_iter)
     solver = None
-    x = np.array(w["x0"], dtype=float)
+    x = np.array(w.x0, dtype=float)
     cost = 0.0
     us = np.empty((mcfg.steps, m))
     i0 = (N + 1) * n
