@@ -22,6 +22,8 @@ __all__ = ["ClosedLoops", "run_closed_loops"]
 
 #: a state beyond this norm (max-abs) counts as diverged
 DIVERGED = 1e12
+#: at most this many models are stepped model by model (numpy's per-call overhead dominates tiny batches)
+SMALL = 4
 
 
 @dataclass
@@ -247,6 +249,36 @@ class _Loops:
         # the active set meets the bounds up to rounding: clip that rounding
         return np.clip(u, -self.w.u_max, self.w.u_max), solved
 
+    def step_small(self, active: np.ndarray, t: int) -> tuple[np.ndarray, bool]:
+        """:meth:`step` for a few models, one at a time: the same law, the QP by the model's own solver."""
+        m, out = self.m, self.out
+        keep, all_fast = [], True
+        for i in active:
+            c, x = self.ctrls[i], self.x[i]
+            z = c.F @ x + c.f
+            fast = bool(np.all(np.abs(z) <= c.bound))
+            try:
+                if fast:
+                    u, J = z[:m], (c.cost_to_go(x) if t == 0 else np.nan)
+                else:
+                    out.qp_steps += 1
+                    u, J = c.solve_qp(x)
+            except MPCFailure as exc:
+                self.fail(i, exc.kind, f"step {t}: {exc}")
+                continue
+            if t == 0:
+                out.J0[i] = J
+            xn = self.A @ x + self.B @ u  # the true plant moves
+            if not np.all(np.isfinite(xn)) or np.abs(xn).max() > DIVERGED:
+                self.fail(i, FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
+                continue
+            out.states[i, t + 1], out.inputs[i, t] = xn, u
+            self.acc[i] += self.stage_cost(x, u)
+            self.x[i] = xn
+            keep.append(i)
+            all_fast &= fast
+        return np.array(keep, dtype=int), all_fast
+
     def step(self, active: np.ndarray, t: int) -> tuple[np.ndarray, bool]:
         """One closed-loop step of every active model; the QP solver only where a bound is active.
 
@@ -321,7 +353,7 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
         while t < steps and active.size:
             active, t = loops.speculate(active, t)
             while t < steps and active.size:
-                active, all_fast = loops.step(active, t)
+                active, all_fast = (loops.step_small if active.size <= SMALL else loops.step)(active, t)
                 t += 1
                 if all_fast:
                     break
