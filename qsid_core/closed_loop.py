@@ -3,8 +3,11 @@
 :func:`run_closed_loops` runs many models at once. While the unconstrained LQ
 optimum is feasible the MPC law is an affine feedback, so the loop is simulated
 ahead and every predicted constraint checked in one batch; only the steps where
-a bound is active call the QP solver (DAQP on the condensed problem by default,
-:mod:`qsid_core.condensed_qp`). Failures are recorded per model, never raised.
+a bound is active solve a QP: the condensed box QPs of all such models at once by
+primal-dual active-set iterations (compiled, :func:`qsid_core.kernels.box_qp_pdas`),
+and DAQP (:mod:`qsid_core.condensed_qp`) where those do not settle or a state box
+is set. ``solver="osqp"`` runs the previous engine's OSQP path instead. Failures
+are recorded per model, never raised.
 """
 
 from __future__ import annotations
@@ -132,6 +135,7 @@ class _Loops:
         self.guess = self.solver_is_daqp and self.bound.size == ctrls[live[0]].N * self.m  # no state rows
         self.nU = ctrls[live[0]].N * self.m  # condensed variables u_0..u_{N-1}
         self.prevU = np.full((len(ctrls), self.nU), np.nan)  # last optimal input sequence per model
+        self.prev_t = np.full(len(ctrls), -2)  # the step it was computed at
         self.ub = np.tile(w.u_max, self.nU // self.m)  # box of U = [u_0; ...; u_{N-1}]
 
     def rows(self, active: np.ndarray) -> np.ndarray:
@@ -209,7 +213,8 @@ class _Loops:
         step's active set shifted by one step (receding horizon), or at the first
         constrained step the bounds the unconstrained optimum violates. Where that
         does not settle -- and for state boxes or OSQP -- the model's own solver is
-        called (DAQP warm-starts from its last active set). Failures are recorded. Returns ``(u (S, m), solved (S,))``.
+        called (DAQP warm-starts from its last active set). Failures are recorded.
+        Returns ``(u (S, m), solved (S,))``.
         """
         m, ub = self.m, self.ub
         self.out.qp_steps += idx.size
@@ -222,11 +227,12 @@ class _Loops:
             g = np.einsum("lij,lj->li", self.cq.Gx[j], xs) + self.cq.g0[j]
             prev = self.prevU[idx]
             shifted = np.concatenate([prev[:, m:], prev[:, -m:]], axis=1)
-            fresh = np.isnan(prev[:, 0])[:, None]
+            fresh = (self.prev_t[idx] != t - 1)[:, None]  # no solution at the previous step: guess afresh
             base = np.where(fresh, zs[:, : ub.size], shifted)
             hi, lo = base >= ub * (1 - 1e-9), base <= -ub * (1 - 1e-9)
             U, ok = box_qp_batch(self.cq.H[j], g, ub, hi, lo)
             self.prevU[idx[ok]] = U[ok]
+            self.prev_t[idx[ok]] = t
             u[ok] = U[ok, :m]
             todo = ~ok
         solved = np.ones(idx.size, dtype=bool)
@@ -235,7 +241,7 @@ class _Loops:
             try:
                 if c.solver == "daqp":
                     U = c.solve_daqp(xs[a])
-                    self.prevU[i], u[a] = U, U[:m]
+                    self.prevU[i], self.prev_t[i], u[a] = U, t, U[:m]
                 else:
                     u[a], J = c.solve_qp(xs[a])
                     if t == 0:
@@ -245,7 +251,7 @@ class _Loops:
                 solved[a] = False
         if t == 0 and self.solver_is_daqp:  # the predicted optimal cost J*(x0) of the first problem
             for a in np.flatnonzero(solved):
-                self.out.J0[idx[a]] = self.ctrls[int(idx[a])]._qp.cost(xs[a], self.prevU[idx[a]])
+                self.out.J0[idx[a]] = self.ctrls[int(idx[a])].qp_cost(xs[a], self.prevU[idx[a]])
         # the active set meets the bounds up to rounding: clip that rounding
         return np.clip(u, -self.w.u_max, self.w.u_max), solved
 

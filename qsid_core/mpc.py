@@ -292,7 +292,7 @@ class MPCController:
             return self.solve_osqp(x)
         x = np.asarray(x, dtype=float)
         U = self.solve_daqp(x)
-        return np.clip(U[: self.m], -self.u_max, self.u_max), self._qp.cost(x, U)
+        return np.clip(U[: self.m], -self.u_max, self.u_max), self.qp_cost(x, U)
 
     def solve_daqp(self, x: np.ndarray) -> np.ndarray:
         """The optimal input sequence ``U = [u_0; ...; u_{N-1}]``, shape (N*m,), by DAQP (no clipping)."""
@@ -300,6 +300,13 @@ class MPCController:
             self.use_condensed(condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref,
                                         self.N), 0)
         return self._qp.solve(x)
+
+    def qp_cost(self, x: np.ndarray, U: np.ndarray) -> float:
+        """MPC cost ``J(U; x)`` of the input sequence ``U`` (shape (N*m,)) from state ``x`` (condensed form)."""
+        if self._qp is None:
+            self.use_condensed(condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref,
+                                        self.N), 0)
+        return self._qp.cost(np.asarray(x, dtype=float), U)
 
     def solve_osqp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
         """Solve the QP with OSQP on the sparse formulation (the previous engine); ``(u_0, J*)``."""
