@@ -340,8 +340,8 @@ class Experiment:
             w = mcfg.resolve(self.system)
             with single_threaded_blas():
                 self._cache[k] = realized_bounds(self.identification(b, est).models, self.system.A, self.system.B,
-                                                 w["Q"], w["R"], w["Qf"], mcfg.horizon, theta=c.theta, rho=c.rho,
-                                                 x0=w["x0"])
+                                                 w.Q, w.R, w.Qf, mcfg.horizon, theta=c.theta, rho=c.rho,
+                                                 x0=w.x0)
         return self._cache[k]
 
     def assumptions(self, b: int) -> "Assumptions":
