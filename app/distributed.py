@@ -1,0 +1,319 @@
+"""Run sweeps on a dask.distributed cluster (``qsid sweep --dask SPEC``).
+
+:func:`make_executor` turns a ``--dask`` value into a context manager yielding a
+:class:`DaskExecutor`, a ``concurrent.futures.Executor`` the engine uses like any
+other. Accepted values:
+
+``local`` / ``local:N``
+    Start a ``LocalCluster`` of N single-threaded worker processes on 127.0.0.1
+    (``local`` = one per CPU core).
+``tcp://HOST:PORT``
+    Connect to a running ``dask scheduler`` (its workers must have the same qsid
+    installed, e.g. ``pip install 'qsid[distributed]'``).
+
+What the wrapper adds to a plain ``client.get_executor()``:
+
+* ``share(obj)``: the engine calls it (when present) for inputs every task needs
+  -- the ~8 MB normalised data of a paper-scale sweep -- so they travel once per
+  worker (``client.scatter(obj, broadcast=True, hash=False)``) instead of once per
+  task. The engine itself never imports dask.
+* No hang: a future waits in short slices and gives up with :class:`ClusterError`
+  when the cluster has had no workers, or no scheduler connection, for
+  ``stall_timeout`` seconds. A worker that dies mid-task is replaced by the
+  scheduler, which reruns its tasks elsewhere (up to dask's
+  ``distributed.scheduler.allowed-failures``, default 3); tasks that raise are
+  retried ``retries`` times.
+* Errors are one line: a wrong address is a :class:`qsid_core.errors.ConfigError`
+  after ``connect_timeout`` seconds; a missing ``distributed`` package says which
+  extra to install.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import logging
+import os
+import re
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Callable, Iterator
+
+from qsid_core.errors import ConfigError, QsidError
+
+__all__ = ["ClusterError", "DaskSpec", "DaskExecutor", "parse_dask_spec", "make_executor", "MAX_LOCAL_WORKERS"]
+
+MAX_LOCAL_WORKERS = 256
+_FORMS = "use 'local', 'local:N' (N worker processes here) or 'tcp://HOST:PORT' (a running dask scheduler)"
+
+
+class ClusterError(QsidError):
+    """The dask cluster failed during a run (no workers, scheduler gone, workers dying)."""
+
+
+@dataclass(frozen=True)
+class DaskSpec:
+    """A parsed ``--dask`` value: ``workers`` for a local cluster, else the scheduler ``address``."""
+
+    address: str | None = None
+    workers: int | None = None
+
+    @property
+    def local(self) -> bool:
+        return self.address is None
+
+
+def parse_dask_spec(spec: str) -> DaskSpec:
+    """Parse ``'local'``, ``'local:N'`` or ``'tcp://HOST:PORT'``.
+
+    Raises
+    ------
+    ConfigError
+        For anything else (one line naming the accepted forms).
+    """
+    s = str(spec).strip()
+    if s == "local":
+        return DaskSpec(workers=max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                    else (os.cpu_count() or 1)))
+    m = re.fullmatch(r"local:(\S+)", s)
+    if m:
+        try:
+            n = int(m.group(1))
+        except ValueError:
+            raise ConfigError(f"dask: worker count in {s!r} must be an integer; {_FORMS}") from None
+        if not 1 <= n <= MAX_LOCAL_WORKERS:
+            raise ConfigError(f"dask: local worker count must be between 1 and {MAX_LOCAL_WORKERS}; got {n}")
+        return DaskSpec(workers=n)
+    m = re.fullmatch(r"tcp://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):(\d+)", s)
+    if m:
+        port = int(m.group(2))
+        if not 1 <= port <= 65535:
+            raise ConfigError(f"dask: port must be between 1 and 65535; got {port} in {s!r}")
+        return DaskSpec(address=s)
+    raise ConfigError(f"dask: cannot read {s!r}; {_FORMS}")
+
+
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise ConfigError("dask: the 'distributed' package is not installed; "
+                          "install the extra: pip install 'qsid[distributed]'") from None
+    return distributed
+
+
+class DaskExecutor(cf.Executor):
+    """A ``concurrent.futures.Executor`` on a dask ``Client`` that shares big inputs and never hangs.
+
+    Parameters
+    ----------
+    client : distributed.Client
+        Not closed by :meth:`shutdown` (whoever made it closes it).
+    retries : int
+        Reruns of a task that raised (worker loss is handled by the scheduler).
+    stall_timeout : float
+        Seconds without any worker or without the scheduler before a waiting
+        ``result()`` raises :class:`ClusterError`.
+    scatter : bool
+        ``False`` disables :meth:`share` (for measuring what it saves).
+    """
+
+    def __init__(self, client, retries: int = 1, stall_timeout: float = 60.0, scatter: bool = True):
+        self.client = client
+        self.retries = int(retries)
+        self.stall_timeout = float(stall_timeout)
+        self._futures: list = []
+        self._shared: dict = {}
+        self._closed = False
+        if not scatter:
+            self.share = None  # type: ignore[assignment]  # the engine then ships inputs with every task
+
+    @property
+    def address(self) -> str:
+        return str(self.client.scheduler.address)
+
+    def share(self, obj):
+        """Send ``obj`` once to every worker; returns a future the tasks receive as ``obj`` itself."""
+        key = id(obj)
+        hit = self._shared.get(key)
+        if hit is not None and hit[0] is obj:
+            return hit[1]
+        fut = self.client.scatter(obj, broadcast=True, hash=False)
+        self._shared[key] = (obj, fut)
+        return fut
+
+    def submit(self, fn, /, *args, **kwargs) -> cf.Future:  # type: ignore[override]
+        if self._closed:
+            raise RuntimeError("cannot submit to a DaskExecutor after shutdown")
+        dfut = self.client.submit(fn, *args, pure=False, retries=self.retries, **kwargs)
+        out = _WatchedFuture(self)
+        self._futures.append(dfut)
+
+        def copy(d, out=out):  # runs in a client thread when the dask future is done
+            try:
+                if d.status == "cancelled":
+                    raise ClusterError(f"dask task {d.key} was cancelled (lost the scheduler at {self.address}?)")
+                res = d.result()
+            except BaseException as exc:  # delivered through the future, as a pool would
+                with contextlib.suppress(cf.InvalidStateError):
+                    out.set_exception(_translate(exc))
+                return
+            with contextlib.suppress(cf.InvalidStateError):  # the watchdog may have given up first
+                out.set_result(res)
+
+        dfut.add_done_callback(copy)
+        return out
+
+    def _problem(self) -> str | None:
+        """Why the cluster cannot make progress right now, or None."""
+        if self.client.status != "running":
+            return f"lost the connection to the dask scheduler at {self.address}"
+        if not self.client.scheduler_info().get("workers"):
+            return f"the dask scheduler at {self.address} has no workers"
+        return None
+
+    def wait(self, fut: cf.Future, timeout: float | None = None) -> None:
+        """Wait for ``fut``; raise :class:`ClusterError` after ``stall_timeout`` s of a broken cluster."""
+        end = None if timeout is None else time.monotonic() + timeout
+        since = None
+        while not fut.done():
+            cf.wait([fut], timeout=0.25)
+            if fut.done():
+                return
+            now = time.monotonic()
+            if end is not None and now >= end:
+                raise cf.TimeoutError()
+            problem = self._problem()
+            if problem is None:
+                since = None
+            elif since is None:
+                since = now
+            elif now - since > self.stall_timeout:
+                with contextlib.suppress(cf.InvalidStateError):
+                    fut.set_exception(ClusterError(f"{problem} for {self.stall_timeout:g} s; giving up"))
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        pending = [f for f in self._futures if not f.done()]
+        if pending and (cancel_futures or not wait):
+            with contextlib.suppress(Exception):
+                self.client.cancel(pending)
+        self._futures.clear()
+        self._shared.clear()
+
+
+class _WatchedFuture(cf.Future):
+    """A future whose waits go through :meth:`DaskExecutor.wait` (no endless hang)."""
+
+    def __init__(self, owner: DaskExecutor):
+        super().__init__()
+        self._owner = owner
+
+    def result(self, timeout=None):
+        self._owner.wait(self, timeout)
+        return super().result(0)
+
+    def exception(self, timeout=None):
+        self._owner.wait(self, timeout)
+        return super().exception(0)
+
+
+def _translate(exc: BaseException) -> BaseException:
+    """Dask's own failures as one-line :class:`ClusterError`; task errors pass through unchanged."""
+    name = type(exc).__name__
+    if name == "KilledWorker":
+        return ClusterError(f"dask workers kept dying while running a task (out of memory?): {exc}")
+    if name in ("FutureCancelledError", "CancelledError", "CommClosedError"):
+        return ClusterError(f"dask lost a task: {exc}")
+    return exc
+
+
+def _check_workers(client) -> None:
+    """Every worker must import the same qsid_core (same numbers); numpy differences are warned about."""
+
+    def probe():  # nested: cloudpickle ships it by value
+        import numpy
+        try:
+            import qsid_core
+        except Exception as exc:  # noqa: BLE001 -- reported to the user
+            return ("error", f"{type(exc).__name__}: {exc}", numpy.__version__)
+        return ("ok", qsid_core.__version__, numpy.__version__)
+
+    import numpy
+    import qsid_core
+
+    for worker, (status, ver, npver) in sorted(client.run(probe).items()):
+        if status != "ok":
+            raise ClusterError(f"dask worker {worker} cannot import qsid_core ({ver}); install qsid on every "
+                               "worker (pip install 'qsid[distributed]') or put it on the workers' PYTHONPATH")
+        if ver != qsid_core.__version__:
+            raise ClusterError(f"dask worker {worker} has qsid {ver}, this client {qsid_core.__version__}; "
+                               "install the same version everywhere")
+        if npver != numpy.__version__:
+            warnings.warn(f"dask worker {worker} has numpy {npver}, this client {numpy.__version__}: "
+                          "results may differ from an in-process run in the last bits", stacklevel=2)
+
+
+@contextlib.contextmanager
+def make_executor(
+    spec: str,
+    progress: Callable[[str], None] | None = None,
+    *,
+    connect_timeout: float = 5.0,
+    worker_timeout: float = 60.0,
+    stall_timeout: float = 60.0,
+    retries: int = 1,
+    scatter: bool = True,
+) -> Iterator[DaskExecutor]:
+    """Context manager: a :class:`DaskExecutor` on the cluster ``spec`` names, closed on exit.
+
+    Parameters
+    ----------
+    spec : str
+        ``'local'``, ``'local:N'`` or ``'tcp://HOST:PORT'`` (see :func:`parse_dask_spec`).
+    progress : callable(str), optional
+        Receives one line of text per step (starting, connected, workers).
+    connect_timeout : float
+        Seconds to reach the scheduler before a :class:`ConfigError`.
+    worker_timeout : float
+        Seconds to wait for the first worker of a remote scheduler.
+    stall_timeout, retries, scatter
+        Passed to :class:`DaskExecutor`.
+    """
+    parsed = parse_dask_spec(spec)
+    _import_distributed()
+    from distributed import Client, LocalCluster
+
+    say = progress or (lambda _msg: None)
+    cluster = None
+    with contextlib.ExitStack() as stack:
+        if parsed.local:
+            say(f"dask: starting a local cluster of {parsed.workers} worker process(es) on 127.0.0.1")
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=parsed.workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                dashboard_address=None, silence_logs=logging.ERROR))
+            address = cluster.scheduler_address
+        else:
+            address = parsed.address
+        try:
+            client = Client(cluster if cluster is not None else address, timeout=connect_timeout,
+                            set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            raise ConfigError(f"dask: cannot reach a scheduler at {address} within {connect_timeout:g} s "
+                              f"({type(exc).__name__}); check the address and that 'dask scheduler' runs "
+                              "there") from None
+        stack.callback(client.close)
+        try:
+            client.wait_for_workers(1, timeout=worker_timeout)
+        except (TimeoutError, OSError):
+            raise ClusterError(f"dask: the scheduler at {address} has no workers after {worker_timeout:g} s; "
+                               f"start some with 'dask worker {address}'") from None
+        _check_workers(client)
+        nw = len(client.scheduler_info().get("workers", {}))
+        say(f"dask: connected to {address} ({nw} worker(s))")
+        executor = DaskExecutor(client, retries=retries, stall_timeout=stall_timeout, scatter=scatter)
+        stack.callback(executor.shutdown, wait=False, cancel_futures=True)
+        yield executor
