@@ -139,7 +139,11 @@ class DaskExecutor(cf.Executor):
         hit = self._shared.get(key)
         if hit is not None and hit[0] is obj:
             return hit[1]
-        fut = self.client.scatter(obj, broadcast=True, hash=False)
+        try:
+            fut = self.client.scatter(obj, broadcast=True, hash=False)
+        except (TimeoutError, OSError) as exc:  # no worker to receive it, or the scheduler is gone
+            raise ClusterError(f"dask: cannot send the data to the workers of {self.address} "
+                               f"({self._problem() or type(exc).__name__}: {exc})") from None
         self._shared[key] = (obj, fut)
         return fut
 
@@ -292,9 +296,11 @@ def make_executor(
     with contextlib.ExitStack() as stack:
         if parsed.local:
             say(f"dask: starting a local cluster of {parsed.workers} worker process(es) on 127.0.0.1")
-            cluster = stack.enter_context(LocalCluster(
-                n_workers=parsed.workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                dashboard_address=None, silence_logs=logging.ERROR))
+            with warnings.catch_warnings():  # its small HTTP server moves off a busy port 8787: not news
+                warnings.filterwarnings("ignore", message=r"Port \d+ is already in use")
+                cluster = stack.enter_context(LocalCluster(
+                    n_workers=parsed.workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                    dashboard_address=None, silence_logs=logging.ERROR))
             address = cluster.scheduler_address
         else:
             address = parsed.address
