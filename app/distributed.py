@@ -157,7 +157,8 @@ class DaskExecutor(cf.Executor):
         def copy(d, out=out):  # runs in a client thread when the dask future is done
             try:
                 if d.status == "cancelled":
-                    raise ClusterError(f"dask task {d.key} was cancelled (lost the scheduler at {self.address}?)")
+                    raise ClusterError(f"dask cancelled a task: lost the connection to the scheduler at "
+                                       f"{self.address}?")
                 res = d.result()
             except BaseException as exc:  # delivered through the future, as a pool would
                 with contextlib.suppress(cf.InvalidStateError):
@@ -271,6 +272,7 @@ def make_executor(
     stall_timeout: float = 60.0,
     retries: int = 1,
     scatter: bool = True,
+    quiet: bool = True,
 ) -> Iterator[DaskExecutor]:
     """Context manager: a :class:`DaskExecutor` on the cluster ``spec`` names, closed on exit.
 
@@ -286,6 +288,9 @@ def make_executor(
         Seconds to wait for the first worker of a remote scheduler.
     stall_timeout, retries, scatter
         Passed to :class:`DaskExecutor`.
+    quiet : bool
+        Silence dask's own log output (tracebacks of lost connections) while the
+        context is open; failures still arrive as :class:`ClusterError`.
     """
     parsed = parse_dask_spec(spec)
     _import_distributed()
@@ -294,6 +299,10 @@ def make_executor(
     say = progress or (lambda _msg: None)
     cluster = None
     with contextlib.ExitStack() as stack:
+        if quiet:  # dask logs lost connections with tracebacks; the run reports them as one ClusterError line
+            log = logging.getLogger("distributed")
+            stack.callback(log.setLevel, log.level)
+            log.setLevel(logging.CRITICAL)
         if parsed.local:
             say(f"dask: starting a local cluster of {parsed.workers} worker process(es) on 127.0.0.1")
             with warnings.catch_warnings():  # its small HTTP server moves off a busy port 8787: not news

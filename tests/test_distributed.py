@@ -60,7 +60,7 @@ def _kill(proc: subprocess.Popen) -> None:
 
 @contextlib.contextmanager
 def dask_cluster(tmp: Path, workers: int = 2):
-    """A scheduler and ``workers`` worker processes on 127.0.0.1; yields (address, worker processes)."""
+    """A scheduler and ``workers`` worker processes on 127.0.0.1; yields (address, workers, scheduler)."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     procs: list[subprocess.Popen] = []
 
@@ -91,7 +91,7 @@ def dask_cluster(tmp: Path, workers: int = 2):
 
         with Client(address, timeout=10, set_as_default=False) as c:
             c.wait_for_workers(workers, timeout=STARTUP_S)
-        yield address, wprocs
+        yield address, wprocs, sched
     finally:
         for p in reversed(procs):
             _kill(p)
@@ -100,7 +100,7 @@ def dask_cluster(tmp: Path, workers: int = 2):
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory):
     _need_distributed()
-    with dask_cluster(tmp_path_factory.mktemp("dask")) as (address, _):
+    with dask_cluster(tmp_path_factory.mktemp("dask")) as (address, _, _):
         yield address
 
 
@@ -184,7 +184,7 @@ def test_lost_worker_is_rerun_and_losing_all_is_reported(tmp_path, reference):
     _need_distributed()
     big = dict(TINY, trajectories=60, steps=1000)
     expect = _json(run_sweep(SweepConfig(**big)))
-    with dask_cluster(tmp_path) as (address, wprocs):
+    with dask_cluster(tmp_path) as (address, wprocs, _):
         with make_executor(address, stall_timeout=3, connect_timeout=5) as ex:
             def kill_one(i, n, stage):
                 if wprocs[1].poll() is None:
@@ -201,3 +201,26 @@ def test_lost_worker_is_rerun_and_losing_all_is_reported(tmp_path, reference):
                 run_sweep(SweepConfig(**dict(TINY, data_seed=5)), ex, tasks=4)
             assert "\n" not in str(ei.value)
             assert time.monotonic() - t0 < 30
+
+
+@pytest.mark.cluster
+def test_lost_scheduler_is_one_clear_line(tmp_path):
+    _need_distributed()
+    with dask_cluster(tmp_path, workers=1) as (address, _, sched):
+        with make_executor(address, stall_timeout=3) as ex:
+            def kill_scheduler(i, n, stage):
+                if sched.poll() is None:
+                    os.killpg(sched.pid, signal.SIGKILL)
+
+            t0 = time.monotonic()
+            with pytest.raises(ClusterError, match="scheduler") as ei:
+                run_sweep(SweepConfig(**dict(TINY, trajectories=60, steps=1000)), ex, progress=kill_scheduler, tasks=6)
+            assert "\n" not in str(ei.value)
+            assert time.monotonic() - t0 < 30
+
+
+def test_missing_distributed_says_which_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(ConfigError, match=r"pip install 'qsid\[distributed\]'"):
+        with make_executor("local:1"):
+            pass
