@@ -71,6 +71,34 @@ def run_mode(name, open_executor, cfg, repeats, tasks, reference):
             "json": out_json}
 
 
+def _touch(prep) -> int:
+    """A task that does nothing with the prepared data: its time is the cost of getting the data there."""
+    return 0
+
+
+def transport_probe(prep, workers: int, k: int) -> dict:
+    """Seconds per trivial task that takes the prepared data, shipped with the task vs shared once."""
+    from app.distributed import make_executor
+
+    out = {}
+    with make_executor(f"local:{workers}") as ex:
+        [f.result() for f in [ex.submit(_touch, 0) for _ in range(2 * workers)]]  # warm the workers
+        t0 = time.perf_counter()
+        [f.result() for f in [ex.submit(_touch, prep) for _ in range(k)]]
+        out["per_task_shipped_s"] = (time.perf_counter() - t0) / k
+        t0 = time.perf_counter()
+        ref = ex.share(prep)
+        out["share_once_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        [f.result() for f in [ex.submit(_touch, ref) for _ in range(k)]]
+        out["per_task_shared_s"] = (time.perf_counter() - t0) / k
+    t0 = time.perf_counter()
+    for _ in range(k):
+        pickle.loads(pickle.dumps(prep, protocol=5))
+    out["pickle_roundtrip_s"] = (time.perf_counter() - t0) / k
+    return {key: round(v, 5) for key, v in out.items()}
+
+
 class _Closing:
     """``with`` for executors that only have shutdown()."""
 
@@ -90,6 +118,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--tasks", type=int, default=4, help="chunks the realizations are split into")
+    ap.add_argument("--probe-tasks", type=int, default=20, help="tasks of the transport probe")
     a = ap.parse_args(argv)
     from app.distributed import make_executor
 
@@ -128,7 +157,12 @@ def main(argv=None) -> dict:
     shipped = {"share": w * prep_bytes, "no_share": n_tasks * prep_bytes}
     print(f"prepared data sent for the moments stage: {shipped['share'] / 1e6:.1f} MB with share "
           f"(once per worker) vs {shipped['no_share'] / 1e6:.1f} MB without (once per task)")
-    result = {"config": {"trajectories": cfg.trajectories, "steps": cfg.steps, "bits": list(cfg.bits),
+    probe = transport_probe(prep, w, a.probe_tasks)
+    print(f"transport probe ({a.probe_tasks} do-nothing tasks taking the prepared data, dask LocalCluster({w})): "
+          f"{probe['per_task_shipped_s'] * 1e3:.1f} ms per task shipped with it, "
+          f"{probe['per_task_shared_s'] * 1e3:.1f} ms per task after one share() of "
+          f"{probe['share_once_s'] * 1e3:.1f} ms; pickle round trip {probe['pickle_roundtrip_s'] * 1e3:.1f} ms")
+    result = {"probe": probe, "config": {"trajectories": cfg.trajectories, "steps": cfg.steps, "bits": list(cfg.bits),
                          "realizations": cfg.realizations}, "workers": w, "tasks": n_tasks,
               "prep_bytes": prep_bytes, "bytes_shipped": shipped, "runs": results}
     print("RESULT " + json.dumps(result))

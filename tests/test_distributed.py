@@ -224,3 +224,18 @@ def test_missing_distributed_says_which_extra(monkeypatch):
     with pytest.raises(ConfigError, match=r"pip install 'qsid\[distributed\]'"):
         with make_executor("local:1"):
             pass
+
+
+@pytest.mark.cluster
+def test_benchmark_script_runs_and_all_executors_agree(capsys):
+    _need_distributed()
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import bench_distributed
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    out = bench_distributed.main(["--quick", "--repeats", "1", "--probe-tasks", "3"])
+    assert [r["identical"] for r in out["runs"]] == [True] * 4
+    assert out["bytes_shipped"]["no_share"] == out["tasks"] * out["prep_bytes"]
+    assert out["probe"]["per_task_shipped_s"] > 0
+    assert "RESULT" in capsys.readouterr().out
