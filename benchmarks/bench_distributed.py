@@ -71,26 +71,25 @@ def run_mode(name, open_executor, cfg, repeats, tasks, reference):
             "json": out_json}
 
 
-def _touch(prep) -> int:
-    """A task that does nothing with the prepared data: its time is the cost of getting the data there."""
-    return 0
-
-
 def transport_probe(prep, workers: int, k: int) -> dict:
-    """Seconds per trivial task that takes the prepared data, shipped with the task vs shared once."""
+    """Seconds per trivial task that takes the prepared data, shipped with the task vs shared once.
+
+    The task is the builtin ``id`` (importable on every worker): its time is the
+    cost of getting the data to the worker and the result back.
+    """
     from app.distributed import make_executor
 
     out = {}
     with make_executor(f"local:{workers}") as ex:
-        [f.result() for f in [ex.submit(_touch, 0) for _ in range(2 * workers)]]  # warm the workers
+        [f.result() for f in [ex.submit(id, 0) for _ in range(2 * workers)]]  # warm the workers
         t0 = time.perf_counter()
-        [f.result() for f in [ex.submit(_touch, prep) for _ in range(k)]]
+        [f.result() for f in [ex.submit(id, prep) for _ in range(k)]]
         out["per_task_shipped_s"] = (time.perf_counter() - t0) / k
         t0 = time.perf_counter()
         ref = ex.share(prep)
         out["share_once_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        [f.result() for f in [ex.submit(_touch, ref) for _ in range(k)]]
+        [f.result() for f in [ex.submit(id, ref) for _ in range(k)]]
         out["per_task_shared_s"] = (time.perf_counter() - t0) / k
     t0 = time.perf_counter()
     for _ in range(k):
