@@ -133,6 +133,11 @@ class DaskExecutor(cf.Executor):
     def address(self) -> str:
         return str(self.client.scheduler.address)
 
+    @property
+    def workers(self) -> int:
+        """Workers the scheduler knows now (use ``tasks >= 2 * workers`` for an even load)."""
+        return len(self.client.scheduler_info().get("workers", {}))
+
     def share(self, obj):
         """Send ``obj`` once to every worker; returns a future the tasks receive as ``obj`` itself."""
         key = id(obj)

@@ -141,7 +141,7 @@ def test_sweep_on_scheduler_and_two_worker_processes(cluster, reference):
         assert isinstance(ex, DaskExecutor)
         res = run_sweep(SweepConfig(**TINY), ex, progress=lambda i, n, s: calls.append((i, n, s)), tasks=4)
         assert len(ex._shared) == 1  # the prepared data went through share(): once per worker
-        assert len(ex.client.scheduler_info()["workers"]) == 2
+        assert ex.workers == 2
     assert _json(res) == reference
     assert [c for c in calls if c[2] == "quantize + identify"][-1][:2] == (4, 4)
     assert [c for c in calls if c[2] == "MPC closed loops"][-1][:2] == (3, 3)
