@@ -15,8 +15,14 @@ What the wrapper adds to a plain ``client.get_executor()``:
 
 * ``share(obj)``: the engine calls it (when present) for inputs every task needs
   -- the ~8 MB normalised data of a paper-scale sweep -- so they travel once per
-  worker (``client.scatter(obj, broadcast=True, hash=False)``) instead of once per
-  task. The engine itself never imports dask.
+  worker instead of once per task. The object becomes the result of one small
+  task (``_identity(obj)``); the tasks that need it depend on that future, so each
+  worker fetches it once, from a peer. Unlike ``client.scatter(broadcast=True)``
+  this survives a lost worker: dask's active memory manager drops "superfluous"
+  broadcast replicas, and a scattered object whose last copy dies cannot be
+  recovered (seen in this repo's lost-worker test: every dependent task was
+  cancelled), whereas a task result is simply recomputed. The engine itself never
+  imports dask.
 * No hang: a future waits in short slices and gives up with :class:`ClusterError`
   when the cluster has had no workers, or no scheduler connection, for
   ``stall_timeout`` seconds. A worker that dies mid-task is replaced by the
@@ -36,6 +42,7 @@ import logging
 import os
 import re
 import time
+import uuid
 import warnings
 from dataclasses import dataclass
 from typing import Callable, Iterator
@@ -115,18 +122,18 @@ class DaskExecutor(cf.Executor):
     stall_timeout : float
         Seconds without any worker or without the scheduler before a waiting
         ``result()`` raises :class:`ClusterError`.
-    scatter : bool
+    share_data : bool
         ``False`` disables :meth:`share` (for measuring what it saves).
     """
 
-    def __init__(self, client, retries: int = 1, stall_timeout: float = 60.0, scatter: bool = True):
+    def __init__(self, client, retries: int = 1, stall_timeout: float = 60.0, share_data: bool = True):
         self.client = client
         self.retries = int(retries)
         self.stall_timeout = float(stall_timeout)
         self._futures: list = []
         self._shared: dict = {}
         self._closed = False
-        if not scatter:
+        if not share_data:
             self.share = None  # type: ignore[assignment]  # the engine then ships inputs with every task
 
     @property
@@ -139,16 +146,18 @@ class DaskExecutor(cf.Executor):
         return len(self.client.scheduler_info().get("workers", {}))
 
     def share(self, obj):
-        """Send ``obj`` once to every worker; returns a future the tasks receive as ``obj`` itself."""
+        """Make ``obj`` a dask future that tasks receive as ``obj`` itself; it travels once per worker.
+
+        The same object shared twice gives the same future (kept while this executor lives).
+        """
         key = id(obj)
         hit = self._shared.get(key)
         if hit is not None and hit[0] is obj:
             return hit[1]
-        try:
-            fut = self.client.scatter(obj, broadcast=True, hash=False)
-        except (TimeoutError, OSError) as exc:  # no worker to receive it, or the scheduler is gone
-            raise ClusterError(f"dask: cannot send the data to the workers of {self.address} "
-                               f"({self._problem() or type(exc).__name__}: {exc})") from None
+        with warnings.catch_warnings():  # the object rides in the graph once, on purpose
+            warnings.filterwarnings("ignore", message="Sending large graph")
+            fut = self.client.submit(_identity, obj, pure=False,
+                                     key=f"qsid-shared-{type(obj).__name__}-{uuid.uuid4().hex}")
         self._shared[key] = (obj, fut)
         return fut
 
@@ -162,8 +171,8 @@ class DaskExecutor(cf.Executor):
         def copy(d, out=out):  # runs in a client thread when the dask future is done
             try:
                 if d.status == "cancelled":
-                    raise ClusterError(f"dask cancelled a task: lost the connection to the scheduler at "
-                                       f"{self.address}?")
+                    raise ClusterError(f"dask cancelled a task: {self._problem() or 'its inputs were lost'} "
+                                       f"(scheduler {self.address})")
                 res = d.result()
             except BaseException as exc:  # delivered through the future, as a pool would
                 with contextlib.suppress(cf.InvalidStateError):
@@ -215,6 +224,11 @@ class DaskExecutor(cf.Executor):
         self._shared.clear()
 
 
+def _identity(obj):
+    """The task behind :meth:`DaskExecutor.share` (recomputable if the worker holding it dies)."""
+    return obj
+
+
 class _WatchedFuture(cf.Future):
     """A future whose waits go through :meth:`DaskExecutor.wait` (no endless hang)."""
 
@@ -247,6 +261,7 @@ def _check_workers(client) -> None:
     def probe():  # nested: cloudpickle ships it by value
         import numpy
         try:
+            import app.distributed  # noqa: F401 -- holds the share() task
             import qsid_core
         except Exception as exc:  # noqa: BLE001 -- reported to the user
             return ("error", f"{type(exc).__name__}: {exc}", numpy.__version__)
@@ -257,7 +272,7 @@ def _check_workers(client) -> None:
 
     for worker, (status, ver, npver) in sorted(client.run(probe).items()):
         if status != "ok":
-            raise ClusterError(f"dask worker {worker} cannot import qsid_core ({ver}); install qsid on every "
+            raise ClusterError(f"dask worker {worker} cannot import qsid ({ver}); install qsid on every "
                                "worker (pip install 'qsid[distributed]') or put it on the workers' PYTHONPATH")
         if ver != qsid_core.__version__:
             raise ClusterError(f"dask worker {worker} has qsid {ver}, this client {qsid_core.__version__}; "
@@ -276,7 +291,7 @@ def make_executor(
     worker_timeout: float = 60.0,
     stall_timeout: float = 60.0,
     retries: int = 1,
-    scatter: bool = True,
+    share_data: bool = True,
     quiet: bool = True,
 ) -> Iterator[DaskExecutor]:
     """Context manager: a :class:`DaskExecutor` on the cluster ``spec`` names, closed on exit.
@@ -291,7 +306,7 @@ def make_executor(
         Seconds to reach the scheduler before a :class:`ConfigError`.
     worker_timeout : float
         Seconds to wait for the first worker of a remote scheduler.
-    stall_timeout, retries, scatter
+    stall_timeout, retries, share_data
         Passed to :class:`DaskExecutor`.
     quiet : bool
         Silence dask's own log output (tracebacks of lost connections) while the
@@ -334,6 +349,7 @@ def make_executor(
         _check_workers(client)
         nw = len(client.scheduler_info().get("workers", {}))
         say(f"dask: connected to {address} ({nw} worker(s))")
-        executor = DaskExecutor(client, retries=retries, stall_timeout=stall_timeout, scatter=scatter)
+        executor = DaskExecutor(client, retries=retries, stall_timeout=stall_timeout,
+                                share_data=share_data)
         stack.callback(executor.shutdown, wait=False, cancel_futures=True)
         yield executor

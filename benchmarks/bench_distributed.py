@@ -7,8 +7,8 @@ samples, b = 1..16, 50 realizations, LS, MPC closed loops) is run
 * in-process (``InlineExecutor``);
 * with a ``ProcessPoolExecutor(2)`` (what ``qsid sweep --workers 2`` uses);
 * on a dask ``LocalCluster`` of 2 single-threaded worker processes through
-  :class:`app.distributed.DaskExecutor`, with ``share`` (the prepared data is
-  scattered once per worker) and without it (shipped with every task).
+  :class:`app.distributed.DaskExecutor`, with ``share`` (the prepared data
+  travels once per worker) and without it (shipped with every task).
 
 Each executor is started once (its start-up is timed separately), then the sweep
 runs ``--repeats`` times; the first (cold) run and the best run are printed per
@@ -135,7 +135,7 @@ def main(argv=None) -> dict:
         (f"ProcessPoolExecutor({w})",
          lambda: _Closing(ProcessPoolExecutor(w, initializer=set_blas_threads, initargs=(1,)))),
         (f"dask LocalCluster({w}) + share", lambda: make_executor(f"local:{w}")),
-        (f"dask LocalCluster({w}), no share", lambda: make_executor(f"local:{w}", scatter=False)),
+        (f"dask LocalCluster({w}), no share", lambda: make_executor(f"local:{w}", share_data=False)),
     ]
     results, reference = [], None
     for name, opener in modes:

@@ -157,8 +157,8 @@ def test_local_cluster_matches_in_process(reference):
 
 
 @pytest.mark.cluster
-def test_without_scatter_same_numbers(cluster, reference):
-    with make_executor(cluster, scatter=False) as ex:
+def test_without_share_same_numbers(cluster, reference):
+    with make_executor(cluster, share_data=False) as ex:
         assert getattr(ex, "share", None) is None
         assert _json(run_sweep(SweepConfig(**TINY), ex, tasks=4)) == reference
 
@@ -196,6 +196,9 @@ def test_lost_worker_is_rerun_and_losing_all_is_reported(tmp_path, reference):
 
             os.killpg(wprocs[0].pid, signal.SIGKILL)
             wprocs[0].wait(10)
+            end = time.monotonic() + 20
+            while ex.workers and time.monotonic() < end:  # the scheduler notices the closed connection
+                time.sleep(0.05)
             t0 = time.monotonic()
             with pytest.raises(ClusterError, match="no workers") as ei:
                 run_sweep(SweepConfig(**dict(TINY, data_seed=5)), ex, tasks=4)
