@@ -153,9 +153,12 @@ def main(argv=None) -> dict:
         print(f"{r['mode']:34s} {r['startup_s']:8.2f}s " + " ".join(f"{b[s]:8.2f}s" for s in STAGES)
               + f"  cold {r['cold']['total']:.2f}s, x{b['total'] / base:.2f} of in-process, "
               + ("identical" if r["identical"] else "DIFFERENT"))
-    shipped = {"share": w * prep_bytes, "no_share": n_tasks * prep_bytes}
-    print(f"prepared data sent for the moments stage: {shipped['share'] / 1e6:.1f} MB with share "
-          f"(once per worker) vs {shipped['no_share'] / 1e6:.1f} MB without (once per task)")
+    # share: client -> scheduler once, scheduler -> one worker, then one copy per other worker;
+    # no share: every task's graph carries it client -> scheduler -> worker
+    shipped = {"share": (1 + w) * prep_bytes, "no_share": 2 * n_tasks * prep_bytes}
+    print(f"prepared data moved for the moments stage: {shipped['share'] / 1e6:.1f} MB with share "
+          f"(to the scheduler once, then once per worker) vs {shipped['no_share'] / 1e6:.1f} MB without "
+          f"(client -> scheduler -> worker for each of {n_tasks} tasks)")
     probe = transport_probe(prep, w, a.probe_tasks)
     print(f"transport probe ({a.probe_tasks} do-nothing tasks taking the prepared data, dask LocalCluster({w})): "
           f"{probe['per_task_shipped_s'] * 1e3:.1f} ms per task shipped with it, "

@@ -239,6 +239,6 @@ def test_benchmark_script_runs_and_all_executors_agree(capsys):
         sys.path.remove(str(ROOT / "benchmarks"))
     out = bench_distributed.main(["--quick", "--repeats", "1", "--probe-tasks", "3"])
     assert [r["identical"] for r in out["runs"]] == [True] * 4
-    assert out["bytes_shipped"]["no_share"] == out["tasks"] * out["prep_bytes"]
+    assert out["bytes_shipped"]["no_share"] == 2 * out["tasks"] * out["prep_bytes"]
     assert out["probe"]["per_task_shipped_s"] > 0
     assert "RESULT" in capsys.readouterr().out
