@@ -142,6 +142,8 @@ def test_sweep_on_scheduler_and_two_worker_processes(cluster, reference):
         res = run_sweep(SweepConfig(**TINY), ex, progress=lambda i, n, s: calls.append((i, n, s)), tasks=4)
         assert len(ex._shared) == 1  # the prepared data went through share(): once per worker
         assert ex.workers == 2
+        with pytest.raises(ValueError, match="invalid literal"):  # a task's own error passes through as is
+            ex.submit(int, "x").result()
     assert _json(res) == reference
     assert [c for c in calls if c[2] == "quantize + identify"][-1][:2] == (4, 4)
     assert [c for c in calls if c[2] == "MPC closed loops"][-1][:2] == (3, 3)
