@@ -25,8 +25,8 @@ What the wrapper adds to a plain ``client.get_executor()``:
   imports dask.
 * No hang: a future waits in short slices and gives up with :class:`ClusterError`
   when the cluster has had no workers, or no scheduler connection, for
-  ``stall_timeout`` seconds. A worker that dies mid-task is replaced by the
-  scheduler, which reruns its tasks elsewhere (up to dask's
+  ``stall_timeout`` seconds. When a worker dies mid-task the scheduler reruns
+  its tasks on the other workers (up to dask's
   ``distributed.scheduler.allowed-failures``, default 3); tasks that raise are
   retried ``retries`` times.
 * Errors are one line: a wrong address is a :class:`qsid_core.errors.ConfigError`
