@@ -171,7 +171,9 @@ class Experiment:
     ----------
     config : SweepConfig
     executor : concurrent.futures.Executor, optional
-        Runs independent tasks (default: :class:`InlineExecutor`).
+        Runs independent tasks (default: :class:`InlineExecutor`). If it has a
+        ``share(obj)`` method, the data every task needs is passed through it
+        once (a cluster sends it once per worker, not with every task).
     tasks : int
         Number of chunks the realizations are split into for the executor.
     cache : MutableMapping, optional
@@ -254,7 +256,10 @@ class Experiment:
             nt = min(self.tasks, c.realizations)
             size = math.ceil(c.realizations / nt)
             chunks = [seeds[i : i + size] for i in range(0, c.realizations, size)]
-            futs = [self.executor.submit(_moments_task, prep, todo, c.quantizer, ch) for ch in chunks]
+            # an executor with a ``share`` hook (e.g. app.distributed.DaskExecutor) sends the data once per worker
+            share = getattr(self.executor, "share", None)
+            prep_arg = share(prep) if callable(share) else prep
+            futs = [self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch) for ch in chunks]
             per_real: list[list[Moments]] = []
             for i, f in enumerate(futs):
                 per_real.extend(f.result())
