@@ -37,10 +37,12 @@ if str(ROOT) not in sys.path:
 
 from qsid_core import Experiment, InlineExecutor, SweepConfig, run_sweep  # noqa: E402
 
-try:  # run as a script (benchmarks/ on sys.path) or imported as benchmarks.bench_distributed
-    from _blas import set_blas_threads  # noqa: E402
-except ImportError:  # pragma: no cover
-    from benchmarks._blas import set_blas_threads  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+
+def set_blas_threads(n: int = 1) -> None:
+    """Limit BLAS to ``n`` threads in this process (pool initializer; threadpoolctl does the work)."""
+    threadpool_limits(limits=int(n), user_api="blas")
 
 QUICK = dict(bits=(1, 4, 8, 12), realizations=8, trajectories=20, steps=300)
 STAGES = ("data", "identify", "theory", "mpc", "total")
