@@ -1,0 +1,163 @@
+"""Input checks shared by every engine entry point.
+
+Each helper either returns a clean value or raises a :class:`~qsid_core.errors.QsidError`
+subclass whose message names the field, what is wrong and what is allowed. They
+never recurse (deeply nested lists are rejected by depth, not by a RecursionError),
+never convert huge integers blindly (``OverflowError``) and keep quoted values short.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import numbers
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from .errors import ConfigError, short_repr
+
+__all__ = ["MAX_MAGNITUDE", "MAX_ENTRIES", "short_repr", "as_float_array", "check_bool", "check_text",
+           "check_quantizer_range"]
+
+#: Largest magnitude accepted for a model entry, weight, bound or state (squared costs must not overflow).
+MAX_MAGNITUDE = 1e12
+#: Largest number of entries accepted in one array-valued setting.
+MAX_ENTRIES = 1_000_000
+
+def _kind(value: Any) -> str:
+    """Plain words for what a bad entry is."""
+    if isinstance(value, (bool, np.bool_)):
+        return f"true/false ({value})"
+    if value is None:
+        return "empty (null/None)"
+    if isinstance(value, str):
+        return f"text {short_repr(value)}"
+    if isinstance(value, Mapping):
+        return "a table/object (key: value pairs)"
+    if isinstance(value, (_dt.date, _dt.time)):
+        return f"a date/time ({value})"
+    if isinstance(value, complex):
+        return f"a complex number {value}"
+    return f"{short_repr(value)} ({type(value).__name__})"
+
+
+def _where(path: tuple) -> str:
+    return "".join(f"[{i}]" for i in path) or "itself"
+
+
+def _walk(name: str, value: Any, ndim_max: int, error: type) -> None:
+    """Check the nesting and the leaf types of a list-of-lists without recursion."""
+    what = {0: "a number", 1: "a list of numbers", 2: "a matrix of numbers (a list of rows)"}.get(
+        ndim_max, f"an array of numbers with at most {ndim_max} dimensions")
+    stack = [(value, ())]
+    count = 0
+    while stack:
+        v, path = stack.pop()
+        if isinstance(v, (list, tuple)):
+            if len(path) >= ndim_max:
+                raise error(f"{name} must be {what}; it is nested deeper than {ndim_max} level(s) of brackets")
+            stack.extend((x, path + (i,)) for i, x in enumerate(v))
+            continue
+        if isinstance(v, np.ndarray) and v.dtype.kind in "iuf" and v.ndim + len(path) <= ndim_max:
+            count += v.size
+        elif isinstance(v, (bool, np.bool_)) or not isinstance(v, (numbers.Real, np.integer, np.floating)):
+            where = f"entry {_where(path)} is" if path else "got"
+            raise error(f"{name} must be {what}; {where} {_kind(v)}")
+        else:
+            try:
+                float(v)
+            except OverflowError:
+                digits = int(int(v).bit_length() * 0.30103) + 1
+                raise error(f"{name}: entry {_where(path)} is an integer with about {digits} digits, too large "
+                            "for a floating-point number") from None
+            count += 1
+        if count > MAX_ENTRIES:
+            raise error(f"{name} has more than {MAX_ENTRIES} entries")
+
+
+def as_float_array(
+    name: str,
+    value: Any,
+    *,
+    ndim_max: int = 2,
+    error: type = ConfigError,
+    max_abs: float | None = MAX_MAGNITUDE,
+    allow_empty: bool = False,
+) -> np.ndarray:
+    """``value`` as a finite float array with at most ``ndim_max`` dimensions.
+
+    Accepts numbers, (nested) lists/tuples of numbers and numeric numpy arrays.
+    Rejects, with the offending entry named: text, true/false, null, tables/dicts,
+    dates, complex numbers, nesting deeper than ``ndim_max``, ragged rows,
+    integers too large for a float, nan/inf, entries above ``max_abs`` in
+    magnitude (None: no limit) and, unless ``allow_empty``, empty input.
+    """
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "iuf":
+            if value.dtype.kind != "O":
+                raise error(f"{name} must hold numbers; got an array of {value.dtype} values")
+            value = value.tolist()
+        elif value.ndim > ndim_max:
+            raise error(f"{name} must have at most {ndim_max} dimension(s); got {value.ndim}")
+    if not isinstance(value, np.ndarray):
+        _walk(name, value, ndim_max, error)
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise error(f"{name}: every row must have the same number of entries; got {short_repr(value)}") from None
+    if arr.size == 0 and not allow_empty:
+        raise error(f"{name} must not be empty")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise error(f"{name} must contain only finite numbers (no nan or inf); entry {_where(idx)} is "
+                    f"{arr[idx] if idx else arr.item()}")
+    if max_abs is not None and arr.size and np.abs(arr).max() > max_abs:
+        idx = tuple(int(i) for i in np.argwhere(np.abs(arr) > max_abs)[0])
+        raise error(f"{name}: entries must be at most {max_abs:g} in magnitude; entry {_where(idx)} is "
+                    f"{(arr[idx] if idx else arr.item()):g}")
+    return arr
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` if it is True or False (also numpy's), else :class:`ConfigError`."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ConfigError(f"{name} must be True or False; got {short_repr(value)}")
+    return bool(value)
+
+
+def check_text(name: str, value: Any, error: type = ConfigError, max_len: int = 1000) -> str:
+    """``value`` if it is a text string of at most ``max_len`` characters."""
+    if not isinstance(value, str):
+        raise error(f"{name} must be text; got {short_repr(value)} ({type(value).__name__})")
+    if len(value) > max_len:
+        raise error(f"{name} must be at most {max_len} characters; got {len(value)}")
+    return value
+
+
+#: Largest word length the range check must support (kept equal to quantize.MAX_BITS).
+_MAX_BITS = 32
+
+
+def check_quantizer_range(name: str, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Raise :class:`ConfigError` unless every ``[lo, hi]`` gives a finite, positive cell width at every b.
+
+    Needs ``lo < hi``, both finite, ``hi - lo`` finite (``-1e308, 1e308`` overflows)
+    and ``(hi - lo) / 2**32`` a normal float (``0, 5e-324`` gives eps = 0).
+    """
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise ConfigError(f"{name}: lo and hi must be finite numbers")
+    if np.any(hi <= lo):
+        raise ConfigError(f"{name}: every range needs lo < hi")
+    with np.errstate(over="ignore"):
+        width = hi - lo
+    if not np.all(np.isfinite(width)):
+        raise ConfigError(f"{name}: hi - lo overflows the floating-point range; use |lo|, |hi| below 8e307 "
+                          f"(a range of {np.max(width):g} would make the cell width eps infinite)")
+    tiny = np.finfo(float).tiny * 2.0**_MAX_BITS
+    if np.any(width < tiny):
+        raise ConfigError(f"{name}: hi - lo = {np.min(width):g} is too small; it must be at least {tiny:.3g} "
+                          f"so that the cell width eps = (hi - lo) / 2**b stays a positive number")
