@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import ConfigError, MPCFailure, check_float, check_int
+from .validate import as_float_array
 from .riccati import dare_batch, dare_stabilizing, lq_parts
 
 __all__ = ["MPCConfig", "MPCFailure", "MPCController", "FAILURE_KINDS", "dare_batch", "dare_stabilizing", "lq_parts"]
@@ -39,9 +40,7 @@ FAILURE_KINDS = ("ident", "dare", "infeasible", "max_iter", "solver", "diverged"
 def _vec(name: str, v, k: int | None, positive: bool = False) -> tuple[float, ...] | None:
     if v is None:
         return None
-    arr = np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
-    if not np.all(np.isfinite(arr)):
-        raise ConfigError(f"{name} must contain finite numbers; got {v!r}")
+    arr = np.atleast_1d(as_float_array(name, v, ndim_max=1)).reshape(-1)  # finite, <= MAX_MAGNITUDE, not empty
     if positive and np.any(arr <= 0):
         raise ConfigError(f"{name} must be positive; got {v!r}")
     if k is not None and arr.size not in (1, k):

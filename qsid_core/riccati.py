@@ -34,8 +34,13 @@ def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray)
     if not np.all(np.isfinite(X)):
         raise MPCFailure("dare", "DARE has no stabilizing solution for the identified model")
     X = (X + X.T) / 2
-    K = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
-    if np.abs(np.linalg.eigvals(A - B @ K)).max() >= 1.0 or np.linalg.eigvalsh(X).min() < -1e-9:
+    try:
+        with np.errstate(all="ignore"):
+            K = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
+            stabilizing = np.abs(np.linalg.eigvals(A - B @ K)).max() < 1.0 and np.linalg.eigvalsh(X).min() >= -1e-9
+    except (np.linalg.LinAlgError, ValueError):  # singular R + B'XB, or non-finite gains
+        stabilizing = False
+    if not stabilizing:
         raise MPCFailure("dare", "DARE solution is not stabilizing for the identified model")
     return X
 

@@ -54,8 +54,8 @@ def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: Clo
     """
     row = {
         "bits": ident.bits,
-        "eps_x": ident.eps[:n].tolist(),
-        "eps_u": ident.eps[n:].tolist(),
+        "eps_x": [_num(e) for e in ident.eps[:n]],  # strict JSON: a non-finite eps is null
+        "eps_u": [_num(e) for e in ident.eps[n:]],
         "err_A": _stats(ident.err_A),
         "err_B": _stats(ident.err_B),
         "err_A_theory": _num(th.err_A),

@@ -18,7 +18,7 @@ import numpy as np
 from .errors import ConfigError, short_repr
 
 __all__ = ["MAX_MAGNITUDE", "MAX_ENTRIES", "short_repr", "as_float_array", "check_bool", "check_text",
-           "check_quantizer_range"]
+           "check_quantizer_range", "check_sweep_parts", "checked_signal"]
 
 #: Largest magnitude accepted for a model entry, weight, bound or state (squared costs must not overflow).
 MAX_MAGNITUDE = 1e12
@@ -43,7 +43,8 @@ def _kind(value: Any) -> str:
 
 
 def _where(path: tuple) -> str:
-    return "".join(f"[{i}]" for i in path) or "itself"
+    """``"entry [i][j] is"``, or ``"it is"`` for a single value."""
+    return ("entry " + "".join(f"[{i}]" for i in path) + " is") if path else "it is"
 
 
 def _walk(name: str, value: Any, ndim_max: int, error: type) -> None:
@@ -62,14 +63,13 @@ def _walk(name: str, value: Any, ndim_max: int, error: type) -> None:
         if isinstance(v, np.ndarray) and v.dtype.kind in "iuf" and v.ndim + len(path) <= ndim_max:
             count += v.size
         elif isinstance(v, (bool, np.bool_)) or not isinstance(v, (numbers.Real, np.integer, np.floating)):
-            where = f"entry {_where(path)} is" if path else "got"
-            raise error(f"{name} must be {what}; {where} {_kind(v)}")
+            raise error(f"{name} must be {what}; {_where(path)} {_kind(v)}")
         else:
             try:
                 float(v)
             except OverflowError:
                 digits = int(int(v).bit_length() * 0.30103) + 1
-                raise error(f"{name}: entry {_where(path)} is an integer with about {digits} digits, too large "
+                raise error(f"{name}: {_where(path)} an integer with about {digits} digits, too large "
                             "for a floating-point number") from None
             count += 1
         if count > MAX_ENTRIES:
@@ -111,11 +111,11 @@ def as_float_array(
     bad = ~np.isfinite(arr)
     if bad.any():
         idx = tuple(int(i) for i in np.argwhere(bad)[0])
-        raise error(f"{name} must contain only finite numbers (no nan or inf); entry {_where(idx)} is "
+        raise error(f"{name} must contain only finite numbers (no nan or inf); {_where(idx)} "
                     f"{arr[idx] if idx else arr.item()}")
     if max_abs is not None and arr.size and np.abs(arr).max() > max_abs:
         idx = tuple(int(i) for i in np.argwhere(np.abs(arr) > max_abs)[0])
-        raise error(f"{name}: entries must be at most {max_abs:g} in magnitude; entry {_where(idx)} is "
+        raise error(f"{name}: entries must be at most {max_abs:g} in magnitude; {_where(idx)} "
                     f"{(arr[idx] if idx else arr.item()):g}")
     return arr
 
@@ -151,7 +151,8 @@ def check_quantizer_range(name: str, lo: np.ndarray, hi: np.ndarray) -> None:
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
         raise ConfigError(f"{name}: lo and hi must be finite numbers")
     if np.any(hi <= lo):
-        raise ConfigError(f"{name}: every range needs lo < hi")
+        raise ConfigError(f"{name}: every range needs hi > lo; got lo = {short_repr(lo.tolist())}, "
+                          f"hi = {short_repr(hi.tolist())}")
     with np.errstate(over="ignore"):
         width = hi - lo
     if not np.all(np.isfinite(width)):
@@ -161,3 +162,47 @@ def check_quantizer_range(name: str, lo: np.ndarray, hi: np.ndarray) -> None:
     if np.any(width < tiny):
         raise ConfigError(f"{name}: hi - lo = {np.min(width):g} is too small; it must be at least {tiny:.3g} "
                           f"so that the cell width eps = (hi - lo) / 2**b stays a positive number")
+
+
+def check_sweep_parts(system: Any, mpc: Any, rho: Any) -> None:
+    """Types of :class:`~qsid_core.experiment.SweepConfig`'s ``system`` and ``mpc``, and the range of ``rho``."""
+    from pathlib import Path
+
+    from .errors import check_float
+    from .mpc import MPCConfig
+    from .systems import LTISystem
+
+    if not isinstance(system, (str, Path, LTISystem)):
+        raise ConfigError(f"system must be a preset name, a path to a .toml/.json file or an LTISystem; "
+                          f"got {short_repr(system)} ({type(system).__name__})")
+    if mpc is not None and not isinstance(mpc, MPCConfig):
+        raise ConfigError(f"mpc must be an MPCConfig, or None to skip the closed loops; got {short_repr(mpc)} "
+                          f"({type(mpc).__name__})")
+    if rho is not None:
+        check_float("rho", rho, 0.0, MAX_MAGNITUDE, lo_open=True)
+
+
+def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The arguments of :func:`qsid_core.quantize.quantize` checked: ``(x, lo, hi)`` as float arrays.
+
+    ``x`` finite numbers of any shape; ``lo``/``hi`` broadcasting against it with a
+    usable range (see :func:`check_quantizer_range`); ``unit_dither`` finite with
+    the shape of ``x``; ``rng`` a numpy Generator or None.
+    """
+    xa = as_float_array("x (signal)", x, ndim_max=32, max_abs=None, allow_empty=True)
+    lo_a = as_float_array("lo", lo, ndim_max=1, max_abs=None)
+    hi_a = as_float_array("hi", hi, ndim_max=1, max_abs=None)
+    try:
+        np.broadcast_shapes(xa.shape, lo_a.shape, hi_a.shape)
+    except ValueError:
+        raise ConfigError(f"lo and hi must be one number or one per channel (last axis of x, {xa.shape[-1:]}); "
+                          f"got shapes {lo_a.shape} and {hi_a.shape}") from None
+    check_quantizer_range("quantizer range", lo_a, hi_a)
+    if unit_dither is not None:
+        ud = as_float_array("unit_dither", unit_dither, ndim_max=32, max_abs=None, allow_empty=True)
+        if ud.shape != xa.shape:
+            raise ConfigError(f"unit_dither must have the shape of x {xa.shape}; got {ud.shape}")
+    if rng is not None and not isinstance(rng, np.random.Generator):
+        raise ConfigError(f"rng must be a numpy Generator (numpy.random.default_rng(seed)) or None; "
+                          f"got {type(rng).__name__}")
+    return xa, lo_a, hi_a
