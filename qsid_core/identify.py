@@ -27,6 +27,8 @@ from .moments import Moments
 __all__ = ["ESTIMATORS", "Identified", "identify", "least_squares", "relative_errors"]
 
 ESTIMATORS = ("ls", "bcls")
+#: An identified entry beyond this is a numerical failure (true systems have entries <= 1e12).
+MAX_MODEL_MAGNITUDE = 1e150
 
 
 @dataclass
@@ -83,9 +85,9 @@ def least_squares(PP: np.ndarray, XP: np.ndarray, n: int) -> tuple[np.ndarray, n
     G = _solve_spd(PP, XP)
     if G is None:
         raise IdentificationError("Psi Psi^T is singular: the data are not rich enough to identify A and B")
-    if not np.all(np.isfinite(G)):
-        raise IdentificationError("least squares gave non-finite numbers (Psi Psi^T is too badly conditioned): "
-                                  "no model")
+    if not np.all(np.abs(G) <= MAX_MODEL_MAGNITUDE):  # also catches nan/inf
+        raise IdentificationError("least squares gave entries beyond 1e150 or non-finite numbers (Psi Psi^T is "
+                                  "too badly conditioned): no model")
     return G[:, :n], G[:, n:]
 
 
@@ -107,7 +109,7 @@ def identify(mom: Moments, estimator: str = "ls") -> Identified:
     if estimator == "bcls":
         D = mom.T * np.asarray(mom.eps, dtype=float) ** 2 / 12.0
         G = _solve_spd(mom.PP - np.diag(D), mom.XP)
-        if G is not None and np.all(np.isfinite(G)):
+        if G is not None and np.all(np.abs(G) <= MAX_MODEL_MAGNITUDE):
             return Identified(G[:, :n], G[:, n:], "bcls")
         A, B = least_squares(mom.PP, mom.XP, n)
         return Identified(

@@ -185,8 +185,12 @@ class MPCController:
     # ----- fast path -----------------------------------------------------------------
     def _riccati(self) -> None:
         """Gains and value function of the unconstrained problem, and its prediction map."""
-        parts = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
-                         self.u_max, self.x_max, self.xf_max)
+        with np.errstate(all="ignore"):
+            parts = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
+                             self.u_max, self.x_max, self.xf_max)
+        if not all(np.all(np.isfinite(v)) for k, v in parts.items() if k != "bound"):
+            raise MPCFailure("dare", "the finite-horizon Riccati recursion of the identified model is singular or "
+                                     "overflows: no MPC for this model")
         self._set_parts({k: v[0] if k != "bound" else v for k, v in parts.items()})
 
     def _set_parts(self, parts: dict) -> None:

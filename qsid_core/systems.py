@@ -152,8 +152,11 @@ class LTISystem:
         m = B.shape[1]
         if m > MAX_INPUTS:
             raise SystemDefinitionError(f"B: at most {MAX_INPUTS} inputs; got {m}")
-        if not (A.any() or B.any()):
-            raise SystemDefinitionError("A and B are both all zeros: there is nothing to identify")
+        if max(np.abs(A).max(), np.abs(B).max()) < 1.0 / MAX_MAGNITUDE:
+            raise SystemDefinitionError(
+                f"A and B are both (nearly) all zeros (every entry below {1.0 / MAX_MAGNITUDE:g} in magnitude): "
+                "there is nothing to identify and relative model errors are undefined"
+            )
         if self.x0 is None:
             x0 = np.eye(n)[0]
         else:
