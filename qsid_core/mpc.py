@@ -35,6 +35,9 @@ from .riccati import dare_batch, dare_stabilizing, lq_parts
 __all__ = ["MPCConfig", "MPCFailure", "MPCController", "FAILURE_KINDS", "dare_batch", "dare_stabilizing", "lq_parts"]
 
 FAILURE_KINDS = ("ident", "dare", "infeasible", "max_iter", "solver", "diverged")
+#: OSQP's setup error codes in words.
+OSQP_SETUP_ERRORS = {1: "invalid problem data", 2: "invalid settings", 3: "linear system solver failed",
+                     4: "the cost is not convex: a weight is not positive semidefinite", 5: "out of memory"}
 
 
 def _vec(name: str, v, k: int | None, positive: bool = False) -> tuple[float, ...] | None:
@@ -280,7 +283,11 @@ class MPCController:
         import osqp
 
         if self._osqp is None:
-            self._setup_osqp()
+            try:
+                self._setup_osqp()
+            except (ValueError, osqp.OSQPException) as exc:  # OSQP rejects the data (e.g. Qf numerically not PSD)
+                raise MPCFailure("solver", f"OSQP cannot set up the MPC problem for this model "
+                                           f"({OSQP_SETUP_ERRORS.get(exc.args[0] if exc.args else 0, exc)})") from None
         n = self.n
         self._l[:n] = -x
         self._u[:n] = -x

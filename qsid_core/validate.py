@@ -193,7 +193,8 @@ def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tupl
     lo_a = as_float_array("lo", lo, ndim_max=1, max_abs=None)
     hi_a = as_float_array("hi", hi, ndim_max=1, max_abs=None)
     try:
-        np.broadcast_shapes(xa.shape, lo_a.shape, hi_a.shape)
+        if np.broadcast_shapes(xa.shape, lo_a.shape, hi_a.shape) != xa.shape:
+            raise ValueError
     except ValueError:
         raise ConfigError(f"lo and hi must be one number or one per channel (last axis of x, {xa.shape[-1:]}); "
                           f"got shapes {lo_a.shape} and {hi_a.shape}") from None
