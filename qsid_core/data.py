@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DataOverflowError, check_int
+from .errors import ConfigError, DataOverflowError, check_int
 from .systems import LTISystem
 
 __all__ = ["Dataset", "simulate", "OVERFLOW_LIMIT"]
@@ -88,12 +88,14 @@ def simulate(system: LTISystem, trajectories: int = 200, steps: int = 1000, seed
     DataOverflowError
         If a state exceeds :data:`OVERFLOW_LIMIT` (unstable A with long runs).
     """
+    if not isinstance(system, LTISystem):
+        raise ConfigError(f"system must be an LTISystem; got {type(system).__name__}")
+    if seed is not None:
+        check_int("seed", seed, 0)
     trajectories = check_int("trajectories", trajectories, 1, 100_000)
     steps = check_int("steps", steps, 1, 1_000_000)
     n, m = system.n, system.m
     if trajectories * steps < n + m:
-        from .errors import ConfigError
-
         raise ConfigError(
             f"trajectories*steps = {trajectories * steps} samples cannot identify {n}+{m} unknowns per row; "
             f"use at least {n + m} samples"

@@ -280,9 +280,11 @@ def dc_motor_physical(
     """
     import control
 
-    for nm, v in dict(dt=dt, J=J, L=L).items():
-        if not (np.isfinite(v) and v > 0):
-            raise SystemDefinitionError(f"{nm} must be a positive number; got {v!r}")
+    for nm, v in dict(dt=dt, J=J, L=L, c=c, K=K, Ke=Ke, r=r).items():
+        try:
+            check_float(nm, v, 0.0, MAX_MAGNITUDE, lo_open=nm in ("dt", "J", "L"))
+        except ConfigError as exc:
+            raise SystemDefinitionError(str(exc)) from None
     Ac = np.array([[0.0, 1.0, 0.0], [0.0, -c / J, K / J], [0.0, -Ke / L, -r / L]])
     Bc = np.array([[0.0, 0.0], [0.0, 1.0 / J], [1.0 / L, 0.0]])
     sysd = control.c2d(control.ss(Ac, Bc, np.eye(3), np.zeros((3, 2))), dt)
@@ -425,14 +427,16 @@ def parse_matrix(text: str, name: str = "matrix") -> np.ndarray:
     Also accepts a JSON list of lists. Raises :class:`SystemDefinitionError` with the
     offending row when the rows have different lengths or an entry is not a number.
     """
-    s = text.strip()
+    s = check_text(name, text, SystemDefinitionError, max_len=1_000_000).strip()
     if not s:
         raise SystemDefinitionError(f"{name} is empty")
     if s.startswith("["):
         try:
-            return _as_matrix(name, json.loads(s), (None, None))
+            return _as_matrix(name, json.loads(s), (None, None), max_abs=None)
         except json.JSONDecodeError as exc:
             raise SystemDefinitionError(f"{name}: not valid JSON ({exc.msg})") from None
+        except RecursionError:
+            raise SystemDefinitionError(f"{name}: brackets nested too deeply (give a list of rows)") from None
     rows = [r for r in s.replace(";", "\n").splitlines() if r.strip()]
     out = []
     for i, row in enumerate(rows, 1):
@@ -443,5 +447,5 @@ def parse_matrix(text: str, name: str = "matrix") -> np.ndarray:
             raise SystemDefinitionError(f"{name} row {i}: {row.strip()!r} has an entry that is not a number") from None
     widths = {len(r) for r in out}
     if len(widths) != 1:
-        raise SystemDefinitionError(f"{name}: rows have different lengths {[len(r) for r in out]}")
-    return _as_matrix(name, out, (None, None))
+        raise SystemDefinitionError(f"{name}: rows have different lengths {short_repr([len(r) for r in out])}")
+    return _as_matrix(name, out, (None, None), max_abs=None)
