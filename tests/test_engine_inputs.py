@@ -503,3 +503,21 @@ def test_fuzz_run_sweep_tiny(sysAB, bits, trajectories, steps, realizations, dit
     res = _call(run_sweep, cfg)
     if res is not None:
         _check_sweep(res)
+
+
+wide = st.one_of(st.floats(-1e3, 1e3), st.sampled_from([0.0, 1e-300, -1e-300, 1e12, -1e12, 1e150, 1e300]))
+
+
+@FUZZ
+@given(P=rows(2, 2, wide), q=st.lists(st.one_of(st.floats(1e-300, 1e12), st.just(0.0)), min_size=2, max_size=2),
+       r=st.floats(1e-300, 1e12), dA=rows(2, 2, wide), dB=rows(2, 1, wide),
+       theta=st.one_of(st.floats(5e-324, 0.999999), st.sampled_from([0.0, 1.0, 5e-324])),
+       rho=st.one_of(st.none(), st.floats(5e-324, 1e12), st.just(1e300)),
+       x0=st.one_of(st.none(), st.lists(wide, min_size=2, max_size=2)))
+def test_fuzz_ultimate_bound(P, q, r, dA, dB, theta, rho, x0):
+    P = np.asarray(P)
+    ub = _call(ultimate_bound, (P + P.T) / 2, np.diag(q), np.array([[r]]), np.asarray(dA), np.asarray(dB),
+               theta=theta, rho=rho, x0=None if x0 is None else np.asarray(x0))
+    if ub is not None:
+        assert math.isfinite(ub.delta) or ub.note, f"delta = {ub.delta} without a note"
+        assert not math.isnan(ub.delta) and ub.delta >= 0
