@@ -18,7 +18,7 @@ import numpy as np
 from .errors import ConfigError, short_repr
 
 __all__ = ["MAX_MAGNITUDE", "MAX_ENTRIES", "short_repr", "as_float_array", "check_bool", "check_text",
-           "check_quantizer_range", "check_sweep_parts", "checked_signal"]
+           "check_quantizer_range", "check_sweep_parts", "checked_signal", "check_run_args"]
 
 #: Largest magnitude accepted for a model entry, weight, bound or state (squared costs must not overflow).
 MAX_MAGNITUDE = 1e12
@@ -207,3 +207,18 @@ def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tupl
         raise ConfigError(f"rng must be a numpy Generator (numpy.random.default_rng(seed)) or None; "
                           f"got {type(rng).__name__}")
     return xa, lo_a, hi_a
+
+
+def check_run_args(config: Any, executor: Any, progress: Any) -> None:
+    """Arguments of :func:`~qsid_core.sweep.run_sweep` / :class:`~qsid_core.experiment.Experiment`."""
+    from concurrent.futures import Executor
+
+    from .experiment import SweepConfig
+
+    if not isinstance(config, SweepConfig):
+        raise ConfigError(f"config must be a SweepConfig; got {type(config).__name__}")
+    if executor is not None and not isinstance(executor, Executor) and not callable(getattr(executor, "submit", None)):
+        raise ConfigError(f"executor must be a concurrent.futures.Executor (or None); got {type(executor).__name__}")
+    if progress is not None and not callable(progress):
+        raise ConfigError(f"progress must be a function progress(done, total, stage) or None; got "
+                          f"{type(progress).__name__}")

@@ -170,6 +170,10 @@ CONFIG_CASES = [
     ("check_float-text", lambda: check_float("x", "1.5"), "x must be a number"),
     ("simulate-seed-text", lambda: simulate(dc_motor(), 2, 5, seed="a"), "seed must be an integer"),
     ("simulate-not-a-system", lambda: simulate("dc-motor", 2, 5), "system must be an LTISystem"),
+    ("run_sweep-not-a-config", lambda: run_sweep({"bits": 3}), "config must be a SweepConfig"),
+    ("run_sweep-progress-not-callable", lambda: run_sweep(SweepConfig(**TINY), progress=3), "progress must be"),
+    ("run_sweep-executor-junk", lambda: run_sweep(SweepConfig(**TINY), executor="pool"), "executor must be"),
+    ("Experiment-not-a-config", lambda: Experiment("dc-motor"), "config must be a SweepConfig"),
 ]
 
 
