@@ -26,7 +26,7 @@ import numpy as np
 
 from .data import Dataset, simulate
 from .errors import ConfigError, check_choice, check_float, check_int, short_repr
-from .validate import check_run_args, check_sweep_parts
+from .config_checks import check_run_args, check_sweep_parts
 from .identify import ESTIMATORS, identify, relative_errors
 from .moments import Moments, PreparedData, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
@@ -311,7 +311,7 @@ class Experiment:
         tasks: int = 4,
         cache: MutableMapping | None = None,
     ):
-        check_run_args(config, executor, None)
+        check_run_args(config, SweepConfig, executor, None)
         self.config = config
         self.system = get_system(config.system)
         self.executor = executor or InlineExecutor()

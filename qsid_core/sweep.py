@@ -17,7 +17,7 @@ import numpy as np
 from .closed_loop import ClosedLoops
 from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, TheoryAtBits, single_threaded_blas
 from .systems import LTISystem
-from .validate import check_run_args
+from .config_checks import check_run_args
 
 __all__ = ["SweepResult", "run_sweep", "summary_row", "fit_slope"]
 
@@ -163,7 +163,7 @@ def run_sweep(
     tasks : int
         Chunks the realizations are split into (use >= the executor's workers).
     """
-    check_run_args(config, executor, progress)
+    check_run_args(config, SweepConfig, executor, progress)
     with single_threaded_blas():
         t0 = time.perf_counter()
         ex = experiment.with_config(config) if experiment is not None else Experiment(config, executor, tasks)

@@ -31,7 +31,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .errors import ConfigError, SystemDefinitionError, check_float, short_repr
-from .validate import MAX_MAGNITUDE, as_float_array, check_text
+from .validate import MAX_MAGNITUDE, as_float_array, as_matrix, check_text, parse_matrix, weight_matrix
 
 __all__ = [
     "LTISystem",
@@ -56,36 +56,6 @@ MAX_STATES = 100
 MAX_INPUTS = 100
 #: Largest system file read (bytes).
 MAX_FILE_BYTES = 10_000_000
-
-
-def _as_matrix(name: str, value: Any, shape: tuple[int | None, int | None],
-               max_abs: float | None = MAX_MAGNITUDE) -> np.ndarray:
-    arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError, max_abs=max_abs)
-    if arr.ndim == 1 and shape[1] == 1:
-        arr = arr.reshape(-1, 1)
-    if arr.ndim != 2:
-        raise SystemDefinitionError(f"{name} must be a 2-D matrix (list of rows); got {arr.ndim}-D")
-    for axis, want in enumerate(shape):
-        if want is not None and arr.shape[axis] != want:
-            raise SystemDefinitionError(
-                f"{name} must have shape {tuple(s if s is not None else '*' for s in shape)}; got {arr.shape}"
-            )
-    return arr
-
-
-def _weight(name: str, value: Any, k: int) -> np.ndarray:
-    """A weight matrix: a k x k matrix, or a length-k vector meaning its diagonal."""
-    arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError)
-    if arr.ndim == 0:
-        arr = arr.reshape(1)
-    if arr.ndim == 1:
-        if arr.shape[0] != k:
-            raise SystemDefinitionError(f"{name} as a diagonal must have {k} entries; got {arr.shape[0]}")
-        arr = np.diag(arr)
-    arr = _as_matrix(name, arr, (k, k))
-    if not np.allclose(arr, arr.T, atol=1e-12):
-        raise SystemDefinitionError(f"{name} must be symmetric")
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,13 +112,13 @@ class LTISystem:
             raise SystemDefinitionError(
                 f"dt (the sample time) must be a positive, finite number of seconds; got {short_repr(self.dt)}"
             ) from None
-        A = _as_matrix("A", self.A, (None, None))
+        A = as_matrix("A", self.A, (None, None))
         n = A.shape[0]
         if A.shape != (n, n):
             raise SystemDefinitionError(f"A must be square; got shape {A.shape}")
         if n > MAX_STATES:
             raise SystemDefinitionError(f"A: at most {MAX_STATES} states; got {n}")
-        B = _as_matrix("B", self.B, (n, None))
+        B = as_matrix("B", self.B, (n, None))
         m = B.shape[1]
         if m > MAX_INPUTS:
             raise SystemDefinitionError(f"B: at most {MAX_INPUTS} inputs; got {m}")
@@ -163,8 +133,8 @@ class LTISystem:
             x0 = as_float_array("x0", self.x0, ndim_max=2, error=SystemDefinitionError).reshape(-1)
         if x0.shape != (n,):
             raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {short_repr(self.x0)}")
-        Q = np.eye(n) if self.Q is None else _weight("Q", self.Q, n)
-        R = np.eye(m) if self.R is None else _weight("R", self.R, m)
+        Q = np.eye(n) if self.Q is None else weight_matrix("Q", self.Q, n)
+        R = np.eye(m) if self.R is None else weight_matrix("R", self.R, m)
         if np.linalg.eigvalsh(Q).min() < -1e-12:
             raise SystemDefinitionError("Q must be positive semidefinite")
         if np.linalg.eigvalsh(R).min() <= 0:
@@ -419,33 +389,3 @@ def _reason(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         return exc.strerror
     return short_repr(str(exc))
-
-
-def parse_matrix(text: str, name: str = "matrix") -> np.ndarray:
-    """Parse a matrix typed by a person: rows separated by ``;`` or newlines, entries by spaces or commas.
-
-    Also accepts a JSON list of lists. Raises :class:`SystemDefinitionError` with the
-    offending row when the rows have different lengths or an entry is not a number.
-    """
-    s = check_text(name, text, SystemDefinitionError, max_len=1_000_000).strip()
-    if not s:
-        raise SystemDefinitionError(f"{name} is empty")
-    if s.startswith("["):
-        try:
-            return _as_matrix(name, json.loads(s), (None, None), max_abs=None)
-        except json.JSONDecodeError as exc:
-            raise SystemDefinitionError(f"{name}: not valid JSON ({exc.msg})") from None
-        except RecursionError:
-            raise SystemDefinitionError(f"{name}: brackets nested too deeply (give a list of rows)") from None
-    rows = [r for r in s.replace(";", "\n").splitlines() if r.strip()]
-    out = []
-    for i, row in enumerate(rows, 1):
-        parts = row.replace(",", " ").split()
-        try:
-            out.append([float(v) for v in parts])
-        except ValueError:
-            raise SystemDefinitionError(f"{name} row {i}: {row.strip()!r} has an entry that is not a number") from None
-    widths = {len(r) for r in out}
-    if len(widths) != 1:
-        raise SystemDefinitionError(f"{name}: rows have different lengths {short_repr([len(r) for r in out])}")
-    return _as_matrix(name, out, (None, None), max_abs=None)

@@ -15,10 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, short_repr
+import json
+
+from .errors import ConfigError, SystemDefinitionError, short_repr
 
 __all__ = ["MAX_MAGNITUDE", "MAX_ENTRIES", "short_repr", "as_float_array", "check_bool", "check_text",
-           "check_quantizer_range", "check_sweep_parts", "checked_signal", "check_run_args"]
+           "check_quantizer_range", "checked_signal", "as_matrix", "weight_matrix", "parse_matrix"]
 
 #: Largest magnitude accepted for a model entry, weight, bound or state (squared costs must not overflow).
 MAX_MAGNITUDE = 1e12
@@ -164,24 +166,6 @@ def check_quantizer_range(name: str, lo: np.ndarray, hi: np.ndarray) -> None:
                           f"so that the cell width eps = (hi - lo) / 2**b stays a positive number")
 
 
-def check_sweep_parts(system: Any, mpc: Any, rho: Any) -> None:
-    """Types of :class:`~qsid_core.experiment.SweepConfig`'s ``system`` and ``mpc``, and the range of ``rho``."""
-    from pathlib import Path
-
-    from .errors import check_float
-    from .mpc import MPCConfig
-    from .systems import LTISystem
-
-    if not isinstance(system, (str, Path, LTISystem)):
-        raise ConfigError(f"system must be a preset name, a path to a .toml/.json file or an LTISystem; "
-                          f"got {short_repr(system)} ({type(system).__name__})")
-    if mpc is not None and not isinstance(mpc, MPCConfig):
-        raise ConfigError(f"mpc must be an MPCConfig, or None to skip the closed loops; got {short_repr(mpc)} "
-                          f"({type(mpc).__name__})")
-    if rho is not None:
-        check_float("rho", rho, 0.0, MAX_MAGNITUDE, lo_open=True)
-
-
 def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The arguments of :func:`qsid_core.quantize.quantize` checked: ``(x, lo, hi)`` as float arrays.
 
@@ -209,16 +193,62 @@ def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tupl
     return xa, lo_a, hi_a
 
 
-def check_run_args(config: Any, executor: Any, progress: Any) -> None:
-    """Arguments of :func:`~qsid_core.sweep.run_sweep` / :class:`~qsid_core.experiment.Experiment`."""
-    from concurrent.futures import Executor
+def as_matrix(name: str, value: Any, shape: tuple[int | None, int | None],
+              max_abs: float | None = MAX_MAGNITUDE) -> np.ndarray:
+    """``value`` as a 2-D finite float matrix of ``shape`` (None: any size), else :class:`SystemDefinitionError`."""
+    arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError, max_abs=max_abs)
+    if arr.ndim == 1 and shape[1] == 1:
+        arr = arr.reshape(-1, 1)
+    if arr.ndim != 2:
+        raise SystemDefinitionError(f"{name} must be a 2-D matrix (list of rows); got {arr.ndim}-D")
+    for axis, want in enumerate(shape):
+        if want is not None and arr.shape[axis] != want:
+            raise SystemDefinitionError(
+                f"{name} must have shape {tuple(s if s is not None else '*' for s in shape)}; got {arr.shape}"
+            )
+    return arr
 
-    from .experiment import SweepConfig
 
-    if not isinstance(config, SweepConfig):
-        raise ConfigError(f"config must be a SweepConfig; got {type(config).__name__}")
-    if executor is not None and not isinstance(executor, Executor) and not callable(getattr(executor, "submit", None)):
-        raise ConfigError(f"executor must be a concurrent.futures.Executor (or None); got {type(executor).__name__}")
-    if progress is not None and not callable(progress):
-        raise ConfigError(f"progress must be a function progress(done, total, stage) or None; got "
-                          f"{type(progress).__name__}")
+def weight_matrix(name: str, value: Any, k: int) -> np.ndarray:
+    """A weight matrix: a k x k matrix, or a length-k vector meaning its diagonal."""
+    arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError)
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim == 1:
+        if arr.shape[0] != k:
+            raise SystemDefinitionError(f"{name} as a diagonal must have {k} entries; got {arr.shape[0]}")
+        arr = np.diag(arr)
+    arr = as_matrix(name, arr, (k, k))
+    if not np.allclose(arr, arr.T, atol=1e-12):
+        raise SystemDefinitionError(f"{name} must be symmetric")
+    return arr
+
+
+def parse_matrix(text: str, name: str = "matrix") -> np.ndarray:
+    """Parse a matrix typed by a person: rows separated by ``;`` or newlines, entries by spaces or commas.
+
+    Also accepts a JSON list of lists. Raises :class:`SystemDefinitionError` with the
+    offending row when the rows have different lengths or an entry is not a number.
+    """
+    s = check_text(name, text, SystemDefinitionError, max_len=1_000_000).strip()
+    if not s:
+        raise SystemDefinitionError(f"{name} is empty")
+    if s.startswith("["):
+        try:
+            return as_matrix(name, json.loads(s), (None, None), max_abs=None)
+        except json.JSONDecodeError as exc:
+            raise SystemDefinitionError(f"{name}: not valid JSON ({exc.msg})") from None
+        except RecursionError:
+            raise SystemDefinitionError(f"{name}: brackets nested too deeply (give a list of rows)") from None
+    rows = [r for r in s.replace(";", "\n").splitlines() if r.strip()]
+    out = []
+    for i, row in enumerate(rows, 1):
+        parts = row.replace(",", " ").split()
+        try:
+            out.append([float(v) for v in parts])
+        except ValueError:
+            raise SystemDefinitionError(f"{name} row {i}: {short_repr(row.strip())} has an entry that is not a number") from None
+    widths = {len(r) for r in out}
+    if len(widths) != 1:
+        raise SystemDefinitionError(f"{name}: rows have different lengths {short_repr([len(r) for r in out])}")
+    return as_matrix(name, out, (None, None), max_abs=None)
