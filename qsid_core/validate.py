@@ -49,9 +49,9 @@ def _where(path: tuple) -> str:
     return ("entry " + "".join(f"[{i}]" for i in path) + " is") if path else "it is"
 
 
-def _walk(name: str, value: Any, ndim_max: int, error: type) -> None:
+def _walk(name: str, value: Any, ndim_max: int, error: type, what: str | None = None) -> None:
     """Check the nesting and the leaf types of a list-of-lists without recursion."""
-    what = {0: "a number", 1: "a list of numbers", 2: "a matrix of numbers (a list of rows)"}.get(
+    what = what or {0: "a number", 1: "a list of numbers", 2: "a matrix of numbers (a list of rows)"}.get(
         ndim_max, f"an array of numbers with at most {ndim_max} dimensions")
     stack = [(value, ())]
     count = 0
@@ -86,6 +86,7 @@ def as_float_array(
     error: type = ConfigError,
     max_abs: float | None = MAX_MAGNITUDE,
     allow_empty: bool = False,
+    what: str | None = None,
 ) -> np.ndarray:
     """``value`` as a finite float array with at most ``ndim_max`` dimensions.
 
@@ -94,6 +95,7 @@ def as_float_array(
     dates, complex numbers, nesting deeper than ``ndim_max``, ragged rows,
     integers too large for a float, nan/inf, entries above ``max_abs`` in
     magnitude (None: no limit) and, unless ``allow_empty``, empty input.
+    ``what`` says in words what is expected (default from ``ndim_max``).
     """
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "iuf":
@@ -103,7 +105,7 @@ def as_float_array(
         elif value.ndim > ndim_max:
             raise error(f"{name} must have at most {ndim_max} dimension(s); got {value.ndim}")
     if not isinstance(value, np.ndarray):
-        _walk(name, value, ndim_max, error)
+        _walk(name, value, ndim_max, error, what)
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
@@ -211,7 +213,8 @@ def as_matrix(name: str, value: Any, shape: tuple[int | None, int | None],
 
 def weight_matrix(name: str, value: Any, k: int) -> np.ndarray:
     """A weight matrix: a k x k matrix, or a length-k vector meaning its diagonal."""
-    arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError)
+    arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError,
+                         what=f"a {k} x {k} matrix of numbers (a list of rows) or a list of {k} diagonal entries")
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim == 1:
