@@ -6,7 +6,7 @@ modules ``systems``, ``data``, ``quantize``, ``moments``, ``identify``,
 """
 
 from .data import Dataset, simulate
-from .errors import ConfigError, DataOverflowError, QsidError, SystemDefinitionError
+from .errors import ConfigError, DataOverflowError, IdentificationError, QsidError, SystemDefinitionError
 from .experiment import Experiment, InlineExecutor, SweepConfig, parse_bits, single_threaded_blas
 from .sweep import SweepResult, fit_slope, run_sweep, summary_row
 from .identify import Identified, identify, relative_errors
@@ -20,7 +20,7 @@ from .theory import riccati_finite, theorem1_prediction, ultimate_bound
 __version__ = "0.1.0"
 
 __all__ = [
-    "ClosedLoops", "ConfigError", "DataOverflowError", "Dataset", "Experiment", "Identified", "InlineExecutor",
+    "ClosedLoops", "ConfigError", "DataOverflowError", "Dataset", "Experiment", "Identified", "IdentificationError", "InlineExecutor",
     "LTISystem", "MPCConfig", "MPCController", "MPCFailure", "Moments", "PRESETS", "QsidError", "QuantizerSpec",
     "SweepConfig", "SweepResult", "SystemDefinitionError", "UncontrollableWarning", "boeing747", "dc_motor",
     "dc_motor_physical", "fit_slope", "get_system", "identify", "load_system", "parse_bits", "prepare", "quantize",

@@ -162,6 +162,15 @@ def run_sweep(
         Reuse its caches (e.g. a dashboard session).
     tasks : int
         Chunks the realizations are split into (use >= the executor's workers).
+
+    Raises
+    ------
+    QsidError
+        Only for bad settings (ConfigError, SystemDefinitionError) or data that
+        overflow (DataOverflowError). Per-realization failures are *recorded*, not
+        raised: identification (``BitsIdentification.failed`` and ``notes``), the
+        ultimate bound (``delta = inf`` with ``bound_note``) and the closed loops
+        (``ClosedLoops.failure`` / ``messages``); reported numbers are otherwise finite.
     """
     check_run_args(config, SweepConfig, executor, progress)
     with single_threaded_blas():
