@@ -28,6 +28,7 @@ from .config import SweepConfig, parse_bits
 from .data import Dataset, simulate
 from .errors import ConfigError, check_choice, check_int
 from .executors import InlineExecutor, single_threaded_blas
+from .config_checks import check_run_args
 from .identify import ESTIMATORS, identify, relative_errors
 from .moments import Moments, PreparedData, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
@@ -196,6 +197,7 @@ class Experiment:
         tasks: int = 4,
         cache: MutableMapping | None = None,
     ):
+        check_run_args(config, SweepConfig, executor, None)
         self.config = config
         self.system = get_system(config.system)
         self.executor = executor or InlineExecutor()
@@ -323,8 +325,11 @@ class Experiment:
             ub = ultimate_bound(P, w.Q, w.R, sysm.A - Gp[:, :n], sysm.B - Gp[:, n:],
                                 theta=c.theta, rho=c.rho, x0=w.x0)
             delta = ub.delta
+            note = ub.note
         except MPCFailure as exc:
             delta, note = float("inf"), str(exc)
+        except np.linalg.LinAlgError:
+            delta, note = float("inf"), "no bound: the Riccati recursion of the predicted model is singular"
         except ConfigError as exc:
             delta, note = float("nan"), str(exc)
         res = TheoryAtBits(b, Gp, eA, eB, delta, note, ub)
