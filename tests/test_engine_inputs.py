@@ -242,7 +242,9 @@ def test_singular_lq_recursion_is_a_recorded_mpc_failure():
     res = run_sweep(SweepConfig(system=s, bits=(9,), trajectories=3, steps=2, realizations=1, theta=1e-300,
                                 quantizer=QuantizerSpec(dither="none"), mpc=MPCConfig(horizon=2, steps=1, u_max=1e-6)))
     _check_sweep(res)
-    assert res.loops[9].failure == ["dare"] and "Riccati recursion" in res.loops[9].messages[0]
+    # the batched recursion solves per model (riccati._solve_each), so this nearly singular model now gets a
+    # finite MPC instead of an exception; a truly singular one is recorded as kind 'dare' (test_riccati)
+    assert res.loops[9].failure == [""] and np.isfinite(res.loops[9].cost).all()
 
 
 def test_osqp_setup_rejection_is_a_recorded_mpc_failure():
