@@ -7,13 +7,15 @@ import sys
 import numpy as np
 import pytest
 
-from qsid_core import Experiment, MPCConfig, SweepConfig, run_sweep
+from qsid_core import Experiment, MPCConfig, QuantizerSpec, SweepConfig, run_sweep
 from qsid_core.errors import ConfigError
 from qsid_core.records import (
     COLUMNS, RealizationRecord, experiment_records, realization_records, to_columns, to_pandas, write_csv,
 )
 
-CFG = dict(bits=(1, 4, 10), realizations=5, trajectories=10, steps=150, mpc=MPCConfig(horizon=5, steps=15))
+# no guard band, so that the overload column has something to show (the engine's default guards against it)
+CFG = dict(bits=(1, 4, 10), realizations=5, trajectories=10, steps=150, mpc=MPCConfig(horizon=5, steps=15),
+           quantizer=QuantizerSpec(guard=False))
 
 
 @pytest.fixture(scope="module")
