@@ -27,7 +27,7 @@ def _saturation(frame: Frame) -> str:
     mpc = frame.ex.config.mpc if frame.ex is not None else None
     if mpc is None:
         return ""
-    u_max = mpc.resolve(frame.system)["u_max"]
+    u_max = mpc.resolve(frame.system).u_max
     loops = {lab: frame.loops[lab] for lab in frame.labels}
     if frame.true_loop is not None:
         loops["true model"] = frame.true_loop

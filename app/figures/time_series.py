@@ -100,9 +100,12 @@ def time_series_figure(series: dict, true: TimeSeries | None, state_names, input
 
 
 def mpc_arrays(frame) -> dict:
-    """The frame's MPC settings as arrays (``u_max``, ``x_ref``, ``x_max``, ...; empty without an MPC)."""
+    """The frame's MPC settings as arrays (``u_max``, ``x_ref``, ``x_max``; empty without an MPC)."""
     mpc = frame.ex.config.mpc if frame.ex is not None else None
-    return {} if mpc is None else mpc.resolve(frame.system)
+    if mpc is None:
+        return {}
+    w = mpc.resolve(frame.system)  # MPCWeights
+    return {"u_max": w.u_max, "x_ref": w.x_ref, "x_max": w.x_max}
 
 
 def loop_series(frame) -> tuple[dict, TimeSeries | None]:
