@@ -56,6 +56,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return fail(exc)
         except ValueError as exc:  # every qsid_core user error is a ValueError subclass
             return fail(exc)
+        except OverflowError as exc:  # a value too large for the numerics (engines without a range check)
+            return fail(f"a value is too large for the computation ({one_line(exc)}); use smaller numbers")
         except MemoryError:
             return fail("not enough memory for this run; reduce --trajectories, --steps, --realizations or --bits")
         except BrokenProcessPool:
