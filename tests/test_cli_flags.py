@@ -57,7 +57,7 @@ def test_input_amplitude_x0_xref_xmax_q_r_seeds():
     assert m.x0 == (-1.0, 0.5, 2.0) and m.x_ref == (0.1,) and m.x_max == (3.0, 4.0, 5.0)
     assert m.Q == (1.0, 0.0, 2.0) and m.R == (0.5,)
     r = m.resolve(c.system)
-    assert np.allclose(r["x_ref"], [0.1] * 3) and np.allclose(np.diag(r["R"]), [0.5, 0.5])
+    assert np.allclose(r.x_ref, [0.1] * 3) and np.allclose(np.diag(r.R), [0.5, 0.5])
     # --seed sets both, the separate seeds win over it
     c = _cfg("--seed", "3", "--dither-seed", "5")
     assert (c.data_seed, c.dither_seed) == (3, 5)

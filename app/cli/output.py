@@ -36,9 +36,8 @@ def sweep_dict(res) -> dict:
     if mcfg is not None and d["config"].get("mpc") is not None:
         r = mcfg.resolve(res.system)
         d["config"]["mpc"].update(clean({
-            "x0": r["x0"], "x_ref": r["x_ref"], "x_max": r["x_max"],
-            "Q": [float(r["Q"][i, i]) for i in range(len(r["Q"]))],
-            "R": [float(r["R"][i, i]) for i in range(len(r["R"]))],
+            "x0": r.x0, "x_ref": r.x_ref, "x_max": r.x_max,
+            "Q": [float(v) for v in r.Q.diagonal()], "R": [float(v) for v in r.R.diagonal()],
         }))
     return d
 
