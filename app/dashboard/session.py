@@ -34,6 +34,7 @@ from .frames import Frame, fill_rows, make_frame, start
 from .render import Renderer
 from .scene import PhasePortrait
 from .settings import ALL_BITS, Values, resolve_system
+from .share import add_share_panel, apply_pending, show_frame
 
 __all__ = ["Session", "iter_frames"]
 
@@ -188,6 +189,7 @@ class Session:
         self.plots_panel.set_width(440)
         system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
         self.controls = make_gui_elements(gui, values, system, self.touch)
+        self.share = add_share_panel(self)  # keep & share: settings file, command line, exports
         with self.plots_panel.add_tab("Plots"):
             self.plots = {v.name: gui.add_plotly(_blank(), aspect=v.aspect) for v in registry.VIEWS}
         self.renderer = Renderer()
@@ -261,6 +263,7 @@ class Session:
     def _run(self, gen: int) -> int:
         """Compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
+        apply_pending(self)  # settings uploaded since the last run
         show_weights(c)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:
@@ -323,5 +326,6 @@ class Session:
             for name, fig in r.figures.items():
                 self.plots[name].figure = fig
         self.last_frame = frame
+        show_frame(self, frame)
         self.frames_drawn += 1
         return True
