@@ -12,7 +12,7 @@ import argparse
 import math
 
 from .output import dumps, g
-from .parser import CLI_RANGE_MODES, _float_type, _limits, _nonneg_int, _onoff, pos_int
+from .parser import _float_type, _limits, _nonneg_int, _onoff, engine, pos_int
 from .runner import _quantizer, input_files, out_file, resolve_system, workers, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
@@ -59,13 +59,13 @@ def add_arguments(p) -> None:
     g_.add_argument("--dither-seed", type=_nonneg_int, default=d.dither_seed, metavar="N",
                     help=f"seed of the dither streams (default: {d.dither_seed})")
     q = p.add_argument_group("quantizer")
-    q.add_argument("--range", dest="range_mode", choices=CLI_RANGE_MODES, default=q0.range_mode,
+    q.add_argument("--range", dest="range_mode", choices=engine().range_modes, default=q0.range_mode,
                    help=f"range of the largest data set, used at every length (default: {q0.range_mode})")
     q.add_argument("--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]",
                    help="the fixed range (with --range fixed)")
     q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
                    help=f"half-cell guard band, no overload (default: {_onoff(q0.guard)})")
-    q.add_argument("--dither", choices=("subtractive", "none"), default=q0.dither,
+    q.add_argument("--dither", choices=engine().dithers, default=q0.dither,
                    help=f"subtractive uniform dither or none (default: {q0.dither})")
     r = p.add_argument_group("output and running")
     r.add_argument("--json", action="store_true", help="print one JSON object (one row per length) to stdout")

@@ -23,13 +23,15 @@ __all__ = ["COMMANDS", "build_parser", "main"]
 COMMANDS = {"systems": systems, "sweep": sweep, "reproduce": reproduce, "datalength": datalength}
 
 
-def build_parser():
-    """The ``qsid`` argument parser (errors raise :class:`~app.cli.parser.UsageError`)."""
-    return parser.build_parser(COMMANDS)
+def build_parser(only: str | None = "*"):
+    """The ``qsid`` argument parser (errors raise :class:`~app.cli.parser.UsageError`); ``only``: see
+    :func:`app.cli.parser.build_parser`."""
+    return parser.build_parser(COMMANDS, only)
 
 
 def _dispatch(argv: list, rep: Reporter) -> int:
-    args = build_parser().parse_args(argv)
+    name = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(name if name in COMMANDS else None).parse_args(argv)
     if args.command is None:
         raise UsageError(f"give a command: {', '.join(COMMANDS)} (see '{parser.PROG} --help')")
     rep.enabled = not getattr(args, "quiet", False)

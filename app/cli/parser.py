@@ -12,20 +12,36 @@ import math
 from types import ModuleType
 from typing import Mapping
 
-from qsid_core.experiment import SweepConfig
-from qsid_core.identify import ESTIMATORS
-from qsid_core.mpc import MPCConfig
-from qsid_core.quantize import DITHERS, RANGE_MODES, QuantizerSpec
 
-__all__ = ["PROG", "UsageError", "build_parser", "add_run_options", "add_data_options", "bits_spec", "pos_int",
+__all__ = ["PROG", "UsageError", "engine", "build_parser", "add_run_options", "add_data_options", "bits_spec", "pos_int",
            "limits_spec", "floats_spec"]
 
 PROG = "qsid"
-_SWEEP = SweepConfig(mpc=None)  # the engine's defaults
-_MPC = MPCConfig()
-_QUANT = QuantizerSpec()
-#: Range modes the command line offers (all of the engine's; "fixed" needs --limits).
-CLI_RANGE_MODES = RANGE_MODES
+
+
+def engine():
+    """The engine's defaults and choices, imported on first use (``qsid --help`` never loads numpy).
+
+    Returns a namespace with ``sweep`` (``SweepConfig(mpc=None)``), ``mpc`` (``MPCConfig()``), ``quant``
+    (``QuantizerSpec()``), ``letter`` (``SweepConfig.letter()``), ``dithers``, ``range_modes`` (all of the
+    engine's; "fixed" needs --limits) and ``estimators``.
+    """
+    global _ENGINE
+    if _ENGINE is None:
+        from types import SimpleNamespace
+
+        from qsid_core.experiment import SweepConfig
+        from qsid_core.identify import ESTIMATORS
+        from qsid_core.mpc import MPCConfig
+        from qsid_core.quantize import DITHERS, RANGE_MODES, QuantizerSpec
+
+        _ENGINE = SimpleNamespace(sweep=SweepConfig(mpc=None), mpc=MPCConfig(), quant=QuantizerSpec(),
+                                  letter=SweepConfig.letter(mpc=None), dithers=DITHERS, range_modes=RANGE_MODES,
+                                  estimators=ESTIMATORS)
+    return _ENGINE
+
+
+_ENGINE = None
 
 
 class UsageError(Exception):
@@ -153,8 +169,10 @@ def _onoff(v: bool) -> str:
     return "on" if v else "off"
 
 
-def add_data_options(p: argparse.ArgumentParser, base: SweepConfig = _SWEEP, seed: bool = True) -> None:
-    """System, data and quantizer options; defaults from ``base`` (the engine's, or the letter's)."""
+def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -> None:
+    """System, data and quantizer options; defaults from ``base`` (a SweepConfig; default the engine's)."""
+    e = engine()
+    base = e.sweep if base is None else base
     q0 = base.quantizer
     bits_default = bits_spec(base.bits)
     g = p.add_argument_group("system and data")
@@ -185,7 +203,7 @@ def add_data_options(p: argparse.ArgumentParser, base: SweepConfig = _SWEEP, see
     g.add_argument("--dither-seed", type=_nonneg_int, default=None, metavar="N",
                    help=f"seed of the dither streams (default: {base.dither_seed})")
     q = p.add_argument_group("quantizer and identification")
-    q.add_argument("--range", dest="range_mode", choices=CLI_RANGE_MODES, default=q0.range_mode,
+    q.add_argument("--range", dest="range_mode", choices=e.range_modes, default=q0.range_mode,
                    help="quantizer range: min/max per channel, one range for all, or fixed (--limits) "
                         f"(default: {q0.range_mode})")
     q.add_argument("--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]",
@@ -194,23 +212,26 @@ def add_data_options(p: argparse.ArgumentParser, base: SweepConfig = _SWEEP, see
     q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
                    help="widen the range by half a cell on each side, so x + w never overloads "
                         f"(default: {_onoff(q0.guard)})")
-    q.add_argument("--dither", choices=DITHERS, default=q0.dither,
+    q.add_argument("--dither", choices=e.dithers, default=q0.dither,
                    help=f"subtractive uniform dither or none (default: {q0.dither})")
-    q.add_argument("--estimator", choices=ESTIMATORS, default=base.estimator,
+    q.add_argument("--estimator", choices=e.estimators, default=base.estimator,
                    help=f"least squares or bias-compensated LS (default: {base.estimator})")
 
 
-def add_run_options(p: argparse.ArgumentParser, base: SweepConfig = _SWEEP) -> None:
+def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
     """Options shared by ``sweep`` and ``reproduce`` (defaults from ``base``: the engine's or the letter's)."""
+    e = engine()
+    base = e.sweep if base is None else base
+    mpc = e.mpc
     add_data_options(p, base)
     m = p.add_argument_group("MPC and ultimate bound")
-    m.add_argument("--horizon", type=pos_int, default=_MPC.horizon, metavar="N",
-                   help=f"MPC horizon (default: {_MPC.horizon})")
-    m.add_argument("--mpc-steps", type=pos_int, default=_MPC.steps, metavar="N",
-                   help=f"closed-loop steps on the true system (default: {_MPC.steps})")
-    m.add_argument("--u-max", type=_floats_type, default=_MPC.u_max, metavar="X",
+    m.add_argument("--horizon", type=pos_int, default=mpc.horizon, metavar="N",
+                   help=f"MPC horizon (default: {mpc.horizon})")
+    m.add_argument("--mpc-steps", type=pos_int, default=mpc.steps, metavar="N",
+                   help=f"closed-loop steps on the true system (default: {mpc.steps})")
+    m.add_argument("--u-max", type=_floats_type, default=mpc.u_max, metavar="X",
                    help="input bound |u_i| <= X; one value or one per input, comma-separated "
-                        f"(default: {','.join(map(_g, _MPC.u_max))})")
+                        f"(default: {','.join(map(_g, mpc.u_max))})")
     m.add_argument("--x0", type=_float_list, default=None, metavar="X1,X2,..",
                    help="initial state of the closed loops, one per state (default: the system's x0)")
     m.add_argument("--x-ref", type=_float_list, default=None, metavar="R1,R2,..",
@@ -236,10 +257,12 @@ def add_running_options(p: argparse.ArgumentParser) -> None:
     r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
 
-def build_parser(commands: Mapping[str, ModuleType]) -> argparse.ArgumentParser:
+def build_parser(commands: Mapping[str, ModuleType], only: str | None = "*") -> argparse.ArgumentParser:
     """The ``qsid`` parser with one subcommand per module in ``commands`` (errors raise :class:`UsageError`).
 
-    Each module has ``HELP``, ``DESCRIPTION`` and ``add_arguments(parser)``.
+    Each module has ``HELP``, ``DESCRIPTION`` and ``add_arguments(parser)``. Only the options of command
+    ``only`` are built ("*": all; None: none, enough for ``qsid --help``), so a cold start loads only
+    what that command needs.
     """
     parser = _Parser(
         prog=PROG,
@@ -247,5 +270,7 @@ def build_parser(commands: Mapping[str, ModuleType]) -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, mod in commands.items():
-        mod.add_arguments(sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION))
+        sp = sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION)
+        if only == "*" or only == name:
+            mod.add_arguments(sp)
     return parser

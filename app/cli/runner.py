@@ -16,8 +16,6 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
 from typing import Sequence, TextIO
 
-from tqdm import tqdm
-
 from .parser import PROG, UsageError
 
 __all__ = ["UsageError", "Reporter", "one_line", "resolve_system", "system_from_args", "config", "workers", "run",
@@ -38,7 +36,7 @@ class Reporter:
             self.tty = bool(self.stream.isatty())
         except (AttributeError, ValueError):
             self.tty = False
-        self._bar: tqdm | None = None  # the running stage's bar (terminal only)
+        self._bar = None  # the running stage's bar (terminal only)
         self._seen: set = set()
         self._last = time.monotonic()
         self.after_stage: dict[str, str] = {}  # stage -> line to announce once it is complete
@@ -61,6 +59,8 @@ class Reporter:
         desc = f"{PROG}:   {stage}"
         if self._bar is None or self._bar.desc != desc:
             self._close()
+            from tqdm import tqdm
+
             width = min(100, shutil.get_terminal_size((80, 24)).columns)  # a pty may report 0 columns
             self._bar = tqdm(total=total, desc=desc, file=self.stream, leave=True, ncols=width)
         self._bar.total = total

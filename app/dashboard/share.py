@@ -242,7 +242,7 @@ def _uploaded(session, name: str, content: bytes) -> None:
 def add_share_panel(session) -> ShareHandles:
     """The "Keep & share" folder at the end of a tab's panel (built once, in the session's constructor)."""
     gui = session.client.gui
-    with gui.add_folder("Keep & share", expand_by_default=False):
+    with gui.add_folder("Save, load & export", expand_by_default=False):
         down = gui.add_button("Download settings (JSON)", hint="Save every setting of this panel to a file")
         up = gui.add_upload_button("Load settings (JSON)", mime_type="application/json",
                                    hint="Set the panel from a file saved with 'Download settings'")
