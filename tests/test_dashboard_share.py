@@ -35,6 +35,7 @@ CASES = {
         system="custom", a_text="0.9 0.1\n0 0.8", b_text="0; 1", log_q=(0.5, -1.0), log_r=(0.3,),
         x0="1, -0.5", rho_auto=False, rho=2.5, theta=0.35, horizon=17, u_max=0.35, mpc_steps=40),
     "shared range, paper scale": Values(range_mode="shared", trajectories=200, steps=1000, realizations=50),
+    "tracking with a state box": Values(system="boeing747", x_ref="0.1, 0, 0, 0", x_max="5", compare_bits="2, 8"),
     "one fixed pair": Values(range_mode="fixed", fixed_range="-2.5, 2.5", log_q=(0.0, 1.0, -2.0),
                              log_r=(0.7, 0.7)),
 }
@@ -138,14 +139,15 @@ def test_download_then_upload_gives_the_same_view(monkeypatch):
     try:
         one = Tab(app)
         one.set(system="boeing747")
-        one.set(guard=False, dither_seed=3, horizon=12, **SMALL)
+        one.set(guard=False, dither_seed=3, horizon=12, x_ref="0.1, 0, 0, 0", **SMALL)
+        one.session.views.compare_bits.value = "3, 5"
         one.session.controls.q_sliders[1].value = 1.5
         one.wait(120)
         sent = {}
         monkeypatch.setattr(one.session.client, "send_file_download",
                             lambda name, content, **kw: sent.update({name: content}))
         share._download(one.session, "qsid-settings.json",
-                        lambda _f: share.settings_json(share.read_values(one.session.controls)), False)
+                        lambda _f: share.settings_json(share.panel_values(one.session)), False)
         assert set(sent) == {"qsid-settings.json"}
         two = Tab(app).wait(120)
         assert two.frame.values != one.frame.values
@@ -153,6 +155,7 @@ def test_download_then_upload_gives_the_same_view(monkeypatch):
         two.wait(120)
         assert "Loaded settings" in two.session.share.status.content
         assert two.frame.values == one.frame.values and two.frame.values.log_q[1] == 1.5
+        assert two.frame.values.compare_bits == "3, 5" and two.frame.values.x_ref == "0.1, 0, 0, 0"
         assert two.frame.rows == one.frame.rows and two.session.share.command.content.count("qsid sweep") == 2
         share._uploaded(two.session, "broken.json", b"{")  # a bad file: a note, the view stays
         assert "Cannot load broken.json" in two.session.share.status.content and two.error is None

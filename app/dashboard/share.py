@@ -24,7 +24,7 @@ from .settings import IDENT_CHOICES, InputError, Values, estimators, resolve_sys
 
 __all__ = ["SETTINGS_KIND", "settings_json", "values_from_json", "load_settings_file", "command_lines",
            "curves_rows", "curves_csv", "curves_json", "figures_html", "apply_values", "add_share_panel",
-           "show_frame", "apply_pending", "frame_html", "ShareHandles"]
+           "show_frame", "apply_pending", "frame_html", "ShareHandles", "panel_values"]
 
 #: The "kind" tag of a settings file (and its format version).
 SETTINGS_KIND, SETTINGS_VERSION = "qsid-dashboard-settings", 1
@@ -254,13 +254,26 @@ def add_share_panel(session) -> ShareHandles:
         status = gui.add_markdown("")
     sh = ShareHandles(command=command, status=status)
     stem = lambda: (session.last_frame.system.name if session.last_frame else "qsid")  # noqa: E731
-    down.on_click(lambda _: _download(session, "qsid-settings.json",
-                                      lambda _f: settings_json(read_values(session.controls)), False))
+    down.on_click(lambda _: _download(session, "qsid-settings.json", lambda _f: settings_json(panel_values(session)),
+                                      False))
     csv_b.on_click(lambda _: _download(session, f"{stem()}-curves.csv", curves_csv))
     json_b.on_click(lambda _: _download(session, f"{stem()}-curves.json", curves_json))
     html_b.on_click(lambda _: _download(session, f"{stem()}-figures.html", frame_html))
     up.on_upload(lambda e: _uploaded(session, e.target.value.name, e.target.value.content))
     return sh
+
+
+def panel_values(session) -> Values:
+    """Everything set in a tab: the controls and the view panel's own fields (channel, compared b)."""
+    v = read_values(session.controls)
+    views = getattr(session, "views", None)
+    return v.replace(**views.values()) if views is not None else v
+
+
+def _apply_views(views, v: Values) -> None:
+    names = list(views.channel.options)
+    views.channel.value = names[min(max(int(v.view_channel), 0), len(names) - 1)]
+    views.compare_bits.value = v.compare_bits
 
 
 def apply_pending(session) -> None:
@@ -269,6 +282,10 @@ def apply_pending(session) -> None:
     if sh is not None and sh.pending is not None:
         v, sh.pending = sh.pending, None
         apply_values(session.controls, v)
+        views = getattr(session, "views", None)
+        if views is not None:
+            views.set_system(resolve_system(v).system)
+            _apply_views(views, v)
 
 
 def show_frame(session, frame) -> None:
