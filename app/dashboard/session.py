@@ -89,7 +89,7 @@ def _loops_all(helper: ThreadPoolExecutor, job, rows: dict, bits: list) -> None:
 
 
 def iter_frames(values: Values, cache: MutableMapping | None = None, executor=None, tasks: int = 1,
-                should_stop: Callable[[], bool] | None = None, chunk: int = 5, min_interval: float = 0.3,
+                should_stop: Callable[[], bool] | None = None, chunk: int = len(ALL_BITS) - 1, min_interval: float = 0.3,
                 on_progress: Callable[[int, int, str], None] | None = None) -> Iterator[Frame]:
     """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames.
 
@@ -103,7 +103,9 @@ def iter_frames(values: Values, cache: MutableMapping | None = None, executor=No
     should_stop : callable, optional
         Polled between chunks; True ends the iteration (newer settings arrived).
     chunk : int
-        Word lengths quantized per pass over the data.
+        Word lengths quantized per pass over the data. Default: all the others in one pass (each pass
+        draws the dither again; one pass instead of three cut a paper-scale data change's CPU time by
+        ~30%, benchmarks/bench_dashboard.py); a newer change then waits for that pass.
     min_interval : float
         A "curves" frame is yielded when this many seconds passed since the last one, and at the end.
     on_progress : callable(done, total, text), optional
