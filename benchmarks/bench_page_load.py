@@ -10,8 +10,10 @@ context per tab (no HTTP cache). For each server start it times
 
 from ``page.goto`` to: the first canvas, the first plotly plot drawn, and the
 status line saying "ready" (every curve drawn). It also counts the websocket bytes
-the tab received until "ready" and the largest single message (plotly.js travels
-as one message). Medians over ``--runs`` server starts; the machine's load is
+the tab received until "ready" (compressed by viser), the largest single message
+(plotly.js travels as one), and when the first, the largest and the last message
+arrived (seconds from page open). "server" is the tab's own "all
+curves in ... s" (its computation, from its first settings to the last curve). Medians over ``--runs`` server starts; the machine's load is
 printed, since on a shared 2-core machine all of this moves with it.
 
 Usage::
@@ -60,11 +62,16 @@ def start_server(workers: int, system: str) -> tuple[subprocess.Popen, str, floa
 
 
 def open_tab(browser, url: str) -> dict:
-    """One fresh tab: seconds to the first canvas, the first plot, "ready"; websocket bytes until "ready"."""
+    """One fresh tab: seconds to the first canvas, the first plot, "ready"; websocket bytes until "ready".
+
+    Websocket arrival times are taken when playwright reports the frame; this script
+    is always inside a playwright call (goto, wait_for_*) meanwhile, so reports come at once.
+    """
     ctx = browser.new_context(viewport={"width": 1400, "height": 900})
     page = ctx.new_page()
-    sizes: list = []
-    page.on("websocket", lambda ws: ws.on("framereceived", lambda p: sizes.append(len(p))))
+    log: list = []
+    page.on("websocket", lambda ws: ws.on("framereceived",
+                                          lambda p: log.append((time.perf_counter() - t0, len(p)))))
     t0 = time.perf_counter()
     page.goto(url, timeout=TIMEOUT_MS)
     out = {"html": time.perf_counter() - t0}
@@ -75,9 +82,14 @@ def open_tab(browser, url: str) -> dict:
     out["first plot"] = time.perf_counter() - t0
     page.wait_for_function("document.body.innerText.includes('ready ·')", timeout=TIMEOUT_MS, polling=50)
     out["ready"] = time.perf_counter() - t0
+    sizes = [n for _, n in log]
     out["MB"] = sum(sizes) / 2**20
     out["largest MB"] = max(sizes, default=0) / 2**20
     out["messages"] = len(sizes)
+    if log:
+        out["first ws msg"] = log[0][0]
+        out["plotly.js msg"] = max(log, key=lambda x: x[1])[0]
+        out["last ws msg"] = log[-1][0]
     out["plots"] = page.evaluate("document.querySelectorAll('.js-plotly-plot').length")
     out["server"] = page.evaluate("""() => { const m = document.body.innerText.match(
         /drawn in ([0-9.]+) s, all curves in ([0-9.]+) s/); return m ? parseFloat(m[2]) : null; }""")
@@ -123,7 +135,8 @@ def main(argv=None) -> int:
         ready = statistics.median(r["ready"] for r in runs)
         verdict = "MET" if ready <= TARGET_S else "NOT MET"
         print(f"{name}: page open -> ready median {ready:.2f} s (target <= {TARGET_S:.0f} s: {verdict}) · "
-              + " · ".join(_fmt(runs, k) for k in ("html", "canvas", "first plot", "ready", "server"))
+              + " · ".join(_fmt(runs, k) for k in ("html", "canvas", "first ws msg", "plotly.js msg", "first plot",
+                                                   "last ws msg", "ready", "server"))
               + f" · websocket {_fmt(runs, 'MB', 'MB')}, {_fmt(runs, 'largest MB', 'MB')}, "
               f"{statistics.median(r['messages'] for r in runs):.0f} messages · "
               f"{statistics.median(r['plots'] for r in runs):.0f} plotly plots")
