@@ -78,6 +78,9 @@ CONTROLS: tuple[Control, ...] = (
     Control("steps", "slider", "steps", "Data", 10, 2000, 10, convert=int,
             hint=f"Steps per training run (paper: {PAPER_SCALE['steps']})"),
     Control("data_seed", "number", "data seed", "Data", 0, step=1, convert=int),
+    Control("input_amplitude", "number", "input amplitude", "Data", 1e-6, step=0.1, convert=float,
+            hint="Training inputs u ~ U[-A, A] (the letter: A = 1). Small A: a small signal against the "
+                 "quantizer range"),
     Control("identification", "dropdown", "estimator", "Identify", choices=tuple(IDENT_CHOICES),
             hint="LS: least squares on quantized data. BCLS: bias-compensated LS "
                  "(subtracts the known dither noise T·diag(ε²/12))."),
@@ -90,6 +93,8 @@ CONTROLS: tuple[Control, ...] = (
     Control("rho_auto", "checkbox", "ρ auto", "Theory", convert=bool,
             hint="ρ = sqrt(λmax(P)/λmin(P))·‖x0‖ (engine default)"),
     Control("rho", "number", "ρ", "Theory", 1e-6, step=0.1, convert=float),
+    Control("show_bound", "checkbox", "bound in 3-D", "Theory", convert=bool,
+            hint="Draw the ultimate bounds as circles in the 3-D view (hide them to see the loops alone)"),
 )
 
 

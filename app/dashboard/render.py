@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from app.figures.phase_scene import SceneView, scene_view
 from app.figures import registry
+from app.figures.axes import finite_axes
 from app.figures.traces import move_current_bits
 from app.figures.view import CURRENT, CURVES
 
@@ -20,7 +21,7 @@ def build_figures(frame: Frame, which=None) -> dict:
 
     Rows may be partial: missing word lengths are simply absent from the curves.
     """
-    return {v.name: v.build(frame) for v in registry.VIEWS if which is None or v.name in which}
+    return {v.name: finite_axes(v.build(frame)) for v in registry.VIEWS if which is None or v.name in which}
 
 
 @dataclass

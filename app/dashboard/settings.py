@@ -76,6 +76,7 @@ class Values:
     trajectories: int = INTERACTIVE["trajectories"]
     steps: int = INTERACTIVE["steps"]
     data_seed: int = _SWEEP.data_seed
+    input_amplitude: float = _SWEEP.input_amplitude
     identification: str = tuple(IDENT_CHOICES)[-1]
     horizon: int = _MPC.horizon
     log_q: tuple = ()
@@ -87,6 +88,7 @@ class Values:
     rho_auto: bool = _SWEEP.rho is None
     rho: float = 1.0
     axes: str = ""
+    show_bound: bool = True
 
     def replace(self, **kw) -> "Values":
         return dataclasses.replace(self, **kw)
@@ -245,10 +247,13 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"word length b must be between {ALL_BITS[0]} and {ALL_BITS[-1]}; got {v.bits}")
     if not v.rho_auto and not (np.isfinite(v.rho) and v.rho > 0):
         raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
+    if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
+        raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
     try:
         return SweepConfig(
             system=system, bits=ALL_BITS, realizations=int(v.realizations), trajectories=int(v.trajectories),
-            steps=int(v.steps), data_seed=int(v.data_seed), dither_seed=int(v.dither_seed),
+            steps=int(v.steps), input_amplitude=float(v.input_amplitude), data_seed=int(v.data_seed),
+            dither_seed=int(v.dither_seed),
             quantizer=quantizer_spec(v, system.n, system.m), estimator=estimators(v.identification)[0],
             mpc=mpc_config(v, system), theta=float(v.theta), rho=None if v.rho_auto else float(v.rho),
         )
