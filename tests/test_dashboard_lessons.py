@@ -11,6 +11,7 @@ from app.dashboard.lessons import LESSONS, get_lesson, lesson_names, lesson_valu
 from app.dashboard.settings import LABELS, estimators, resolve_system, sweep_config
 from qsid_core import Experiment
 from qsid_core.sweep import fit_slope
+from tests.test_dashboard_server import app, tab  # noqa: F401  (the served-tab fixtures)
 
 _EX: dict = {}
 
@@ -111,3 +112,50 @@ def test_ultimate_bound_realized_above_letters_and_loops_end_below_both():
             assert r["ultimate_bound_realized"]["median"] > r["ultimate_bound"], b
     r8 = rs[8]
     assert r8["final_state_norm"]["max"] < min(r8["ultimate_bound"], r8["ultimate_bound_realized"]["median"])
+
+
+# ----- the selector in a served tab ---------------------------------------------------------
+
+def test_selecting_a_lesson_sets_the_controls_and_shows_its_text(tab):
+    c = tab.controls
+    assert not c.lesson_text.visible and c["lesson"].options[0] == "(none)"
+    tab.set(lesson="saturation")
+    les = get_lesson("saturation")
+    assert c.lesson_text.visible and les.title in c.lesson_text.content and les.text in c.lesson_text.content
+    assert c["system"].value == "boeing747" and c["x0"].value == "5, 5, 0, 0" and c["u_max"].value == 0.2
+    assert (c["bits"].value, c["mpc_steps"].value, c["trajectories"].value) == (8, 100, 50)
+    f = tab.frame
+    assert f.system.name == "boeing747" and f.bits == 8 and tuple(f.x0) == (5, 5, 0, 0) and tab.error is None
+    r = f.rows["LS"][8]
+    assert r["saturated_steps"]["steps"] >= 0.1 * r["saturated_steps"]["of_steps"]  # what the text says
+    tab.set(lesson="(none)")
+    assert not c.lesson_text.visible and c["system"].value == "boeing747"  # the panel stays as it is
+
+
+def test_a_bad_input_after_a_lesson_is_explained_and_the_view_stays(tab):
+    tab.set(lesson="bound")
+    view = tab.session.portrait.view
+    tab.set(input_amplitude=-1.0)
+    assert "input amplitude must be a positive number" in tab.error
+    assert tab.session.portrait.view is view
+
+
+def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
+    import subprocess
+    import sys
+
+    from app.dashboard import DashboardApp
+    from tests.test_dashboard_server import ROOT, Tab
+
+    out = subprocess.run([sys.executable, "-m", "app.dashboard", "--lesson", "nope"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and out.stderr.strip().count("\n") == 0
+    assert "unknown lesson 'nope'; choose one of fig1" in out.stderr
+    app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson="bound")
+    try:
+        t = Tab(app).wait(180)
+        assert t.controls["lesson"].value == "bound" and "The ultimate bound" in t.controls.lesson_text.content
+        assert t.frame.system.name == "dc-motor" and t.frame.bits == 8
+        t.close()
+    finally:
+        app.stop()

@@ -126,3 +126,44 @@ def test_guard_band_is_on_by_default():
     from qsid_core.quantize import QuantizerSpec
 
     assert Values().guard is True and QuantizerSpec().guard is True
+
+
+# ----- 3-D view: outlines, off-scale label, toggle, time axis, time markers -------------------
+
+def test_bounds_are_outlines_to_scale_or_an_off_scale_label_and_can_be_hidden():
+    from app.figures.phase_scene import SPHERE_CAP, scene_view
+
+    f = last(Values(system="boeing747", bits=12, **SMALL))
+    sv = scene_view(f)
+    assert 0 < sv.sphere_radius <= SPHERE_CAP and sv.bound_circles.shape[0] == 3 * 48  # 3 planes x 48 segments
+    r = np.linalg.norm(sv.bound_circles.reshape(-1, 3), axis=1)
+    np.testing.assert_allclose(r, sv.delta / sv.scale, rtol=1e-5)  # to scale, around x_ref = 0
+    big = scene_view(last(Values(bits=2, **SMALL)))
+    assert big.sphere_capped and big.bound_circles.shape[0] == 0 and "off scale" in big.bound_text
+    hidden = scene_view(last(Values(system="boeing747", bits=12, show_bound=False, **SMALL)))
+    assert hidden.bound_circles.shape[0] == 0 and hidden.realized_circles.shape[0] == 0
+
+
+def test_small_systems_draw_time_on_the_free_axis_with_time_markers():
+    from app.figures.phase_scene import TIME, scene_view
+
+    v = Values(system="custom", a_text="0.9 0.1\n0 0.8", b_text="0\n1", dither="none", **SMALL)
+    f = last(v)
+    sv = scene_view(f)
+    assert sv.axis_names == ("x1", "x2", "time")
+    z = sv.true_segments[:, :, 2]
+    assert z.min() == 0 and z.max() == pytest.approx(TIME) and np.all(np.diff(z[:, 0]) > 0)
+    assert sv.time_marks.shape[0] >= 5 and sv.mark_every >= 1
+    assert sv.polylines == 2 and sv.realizations == 8  # no dither: 4 identical loops per estimator
+
+
+def test_norm_time_view_shows_both_bounds_and_never_below_the_floor():
+    f = last(Values(system="boeing747", bits=10, mpc_steps=60, trajectories=10, steps=60, realizations=4))
+    fig = build_figures(f, ["norm_time"])["norm_time"]
+    ys = [s.y0 for s in fig.layout.shapes]
+    r = f.rows["LS"][10]
+    assert r["ultimate_bound"] in ys and r["ultimate_bound_realized"]["median"] in ys
+    floor = 1e-12 * np.linalg.norm(f.x0)
+    assert min(min(y for y in t.y if y is not None) for t in fig.data) >= floor * (1 - 1e-12)
+    assert CAPTION in fig.layout.title.text
+    check_axes({"norm_time": fig})

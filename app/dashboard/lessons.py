@@ -11,12 +11,12 @@ from dataclasses import dataclass
 
 from qsid_core.quantize import LETTER_QUANTIZER
 
-from .settings import PAPER_SCALE, Values
+from .settings import NO_LESSON, PAPER_SCALE, Values
 
-__all__ = ["Lesson", "LESSONS", "NONE", "lesson_names", "get_lesson", "lesson_values"]
+__all__ = ["Lesson", "LESSONS", "NONE", "lesson_names", "get_lesson", "lesson_values", "lesson_markdown"]
 
 #: The selector's entry for "no lesson" (the panel as it is).
-NONE = "(none)"
+NONE = NO_LESSON
 
 #: The letter's settings (Section V): per-channel range, no guard band, subtractive dither, 200 x 1000, 50.
 _LETTER = dict(dither=LETTER_QUANTIZER.dither, range_mode=LETTER_QUANTIZER.range_mode, guard=LETTER_QUANTIZER.guard,
@@ -109,4 +109,12 @@ def lesson_values(name: str, base: Values | None = None) -> Values:
     base = base or Values()
     kw = dict(les.settings)
     kw.setdefault("x0", "")
-    return base.replace(log_q=(), log_r=(), a_text="", b_text="", **kw)
+    return base.replace(log_q=(), log_r=(), a_text="", b_text="", lesson=name, **kw)
+
+
+def lesson_markdown(name: str) -> str:
+    """What the panel shows under the selector ('' for no lesson)."""
+    if name == NONE:
+        return ""
+    les = get_lesson(name)
+    return f"**{les.title}.** {les.text}"

@@ -46,7 +46,7 @@ class Renderer:
     def __init__(self):
         self.figures: dict = {}
         self._rows_key = None
-        self._current_key = None
+        self._current_key: dict = {}
 
     def render(self, frame: Frame, axes: str | None = None) -> Render:
         out: dict = {}
@@ -55,10 +55,12 @@ class Renderer:
         if frame.stage == "current":
             scene = scene_view(frame, axes)
             summary = summary_markdown(frame)
-            key = (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels))
-            if key != self._current_key:
-                out.update(build_figures(frame, [v.name for v in registry.VIEWS if v.depends == CURRENT]))
-                self._current_key = key
+            models = (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels))
+            keys = {v.name: (v.key(frame) if v.key is not None else models)
+                    for v in registry.VIEWS if v.depends == CURRENT}
+            redo = [name for name, k in keys.items() if self._current_key.get(name, self) != k]
+            out.update(build_figures(frame, redo))
+            self._current_key.update(keys)
         rows_key = (frame.labels, frame.true_cost,
                     tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())))
         if frame.stage == "curves" and rows_key != self._rows_key:

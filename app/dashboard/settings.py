@@ -26,7 +26,7 @@ from qsid_core.systems import PRESETS, LTISystem, UncontrollableWarning, get_sys
 
 __all__ = [
     "ALL_BITS", "INTERACTIVE", "PAPER_SCALE", "SYSTEM_CHOICES", "IDENT_CHOICES", "LABELS", "LOG_MIN", "LOG_MAX",
-    "InputError", "Values", "SystemChoice", "resolve_system", "matrix_text", "quantizer_spec", "mpc_config",
+    "NO_LESSON", "InputError", "Values", "SystemChoice", "resolve_system", "matrix_text", "quantizer_spec", "mpc_config",
     "sweep_config", "estimators", "weights_from_log", "log_from_weights", "format_weights", "parse_vector",
 ]
 
@@ -48,6 +48,8 @@ LABELS = {e: e.upper() for e in ESTIMATORS}
 IDENT_CHOICES = {**{LABELS[e]: (e,) for e in ESTIMATORS}, " + ".join(LABELS[e] for e in ESTIMATORS): ESTIMATORS}
 #: Range of the log10 weight sliders.
 LOG_MIN, LOG_MAX = -3.0, 3.0
+#: The lesson selector's "no lesson" entry (lessons: :mod:`app.dashboard.lessons`).
+NO_LESSON = "(none)"
 #: Largest custom system the dashboard accepts (3-D view choices grow as n^3).
 MAX_CUSTOM_STATES = 12
 
@@ -89,6 +91,7 @@ class Values:
     rho: float = 1.0
     axes: str = ""
     show_bound: bool = True
+    lesson: str = NO_LESSON
 
     def replace(self, **kw) -> "Values":
         return dataclasses.replace(self, **kw)

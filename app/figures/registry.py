@@ -6,7 +6,7 @@ creates one plot per entry and redraws it through the entry's ``build``.
 
 from __future__ import annotations
 
-from . import bound, cost, eigenvalues, error_vs_bits
+from . import bound, cost, eigenvalues, error_vs_bits, norm_time
 from .view import View
 
 __all__ = ["VIEWS", "view_names"]
@@ -15,6 +15,7 @@ VIEWS: tuple[View, ...] = (
     error_vs_bits.VIEW,
     cost.VIEW,
     bound.VIEW,
+    norm_time.VIEW,
     eigenvalues.VIEW,
 )
 

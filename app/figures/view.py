@@ -36,9 +36,13 @@ class View:
         What makes it redraw (:data:`CURVES` or :data:`CURRENT`).
     build : callable(frame) -> plotly.graph_objects.Figure
         Pure: the figure for a frame.
+    key : callable(frame) -> hashable, optional
+        For ``"current"`` views: what the figure depends on (rebuilt when it changes);
+        default: b and the identified models.
     """
 
     name: str
     aspect: float
     depends: str
     build: Callable[[Any], go.Figure]
+    key: Callable[[Any], Any] | None = None
