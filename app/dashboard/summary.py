@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from app.figures.bound import CAPTION
-from app.figures.hypotheses import bcls_reasons, theorem1_reasons
+from app.figures.hypotheses import CAPTION, bcls_reasons, theorem1_reasons
 
 from .frames import Frame
 

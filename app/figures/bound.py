@@ -15,13 +15,13 @@ import plotly.graph_objects as go
 
 from qsid_core.timeseries import CONVERGED_REL_FLOOR
 
+from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .traces import BITS_AXIS, Series, mark_bits, xy
 from .view import CURVES, View
 
 __all__ = ["bound_figure", "VIEW", "CAPTION"]
 
-CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
 
 
 def _realized(fig, rows, label: str, c: str) -> None:

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
-__all__ = ["flags", "theorem1_reasons", "bcls_reasons", "bits_text"]
+__all__ = ["flags", "theorem1_reasons", "bcls_reasons", "bits_text", "CAPTION"]
+
+#: What every view of the ultimate bound says about it.
+CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
 
 #: Plain words for each failing hypothesis (key: the engine's flag).
 _WHY = {

@@ -12,7 +12,7 @@ import plotly.graph_objects as go
 
 from qsid_core.timeseries import time_series
 
-from .bound import CAPTION
+from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .view import CURRENT, View
 
