@@ -14,10 +14,13 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 5. ``DashboardApp._lock`` (server): the tab registry and the process-pool swap.
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
 7. the process pool (server): the heavy quantization and closed-loop work.
+8. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
+   demand, in-process; cancelled when the tab's generation changes (any new change).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 import traceback
@@ -25,15 +28,16 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterator, MutableMapping
 
-from app.figures import registry
 from qsid_core.errors import QsidError
 from qsid_core.systems import PRESETS, get_system
 
+from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
 from .frames import Frame, fill_rows, make_frame, start
 from .render import Renderer
 from .scene import PhasePortrait
 from .settings import ALL_BITS, Values, resolve_system
+from .viewpanel import PANEL_WIDTH, ViewPanel
 
 __all__ = ["Session", "iter_frames"]
 
@@ -148,17 +152,6 @@ def iter_frames(values: Values, cache: MutableMapping | None = None, executor=No
         helper.shutdown(wait=False, cancel_futures=True)
 
 
-def _blank():
-    import plotly.graph_objects as go
-
-    fig = go.Figure()
-    fig.update_layout(height=200, template="plotly_white", margin=dict(l=10, r=10, t=10, b=10),
-                      annotations=[dict(text="computing …", showarrow=False, x=0.5, y=0.5, xref="paper",
-                                        yref="paper")],
-                      xaxis=dict(visible=False), yaxis=dict(visible=False))
-    return fig
-
-
 class Session:
     """One browser tab: its controls, scene, plots and the worker thread that redraws them.
 
@@ -185,12 +178,15 @@ class Session:
         gui.main_panel.dock_left()
         self.plots_panel = gui.add_panel()
         self.plots_panel.dock_right()
-        self.plots_panel.set_width(440)
+        self.plots_panel.set_width(PANEL_WIDTH)
         system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
         self.controls = make_gui_elements(gui, values, system, self.touch)
         self._lesson = values.lesson  # the lesson whose settings the panel was given
-        with self.plots_panel.add_tab("Plots"):
-            self.plots = {v.name: gui.add_plotly(_blank(), aspect=v.aspect) for v in registry.VIEWS}
+        self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
+        self.views = ViewPanel(gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin,
+                               self.start_datalength)
+        self.plots = self.views.plots
+        self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
         self.renderer = Renderer()
         self.portrait = PhasePortrait(client.scene)
         # (2) the tab's one worker
@@ -216,6 +212,30 @@ class Session:
         """Block until every change so far is fully drawn (for tests and benchmarks)."""
         with self._cond:
             return self._cond.wait_for(lambda: self._done == self._gen, timeout)
+
+    def pin(self) -> None:
+        """Keep the frame drawn last for comparison (dashed on the error, cost and bound plots)."""
+        if self.last_frame is not None:
+            self.pinned = dataclasses.replace(self.last_frame, pinned=None, datalength=None)
+            self.views.show_pinned(self.pinned)
+            self.touch()
+
+    def unpin(self) -> None:
+        self.pinned = None
+        self.views.show_pinned(None)
+        self.touch()
+
+    def start_datalength(self) -> None:
+        """The data-length study for what the tab shows now; any newer change cancels it."""
+        frame = self.last_frame
+        if frame is None:
+            return
+        gen = self._gen
+        self.datalength.start(frame.values, lambda: self._closed or self._gen != gen)
+
+    def _datalength_progress(self, fraction: float, text: str) -> None:
+        self.views.dl_progress.value = 100.0 * fraction
+        self.views.dl_status.content = text
 
     @property
     def generation(self) -> int:
@@ -279,6 +299,8 @@ class Session:
         if adapted is None:
             return gen
         gen, values = adapted
+        self.views.set_system(resolve_system(values).system)
+        values = values.replace(**self.views.values())
         t0 = time.perf_counter()
 
         def progress(done: int, total: int, text: str) -> None:
@@ -321,6 +343,8 @@ class Session:
     def _draw(self, frame: Frame, gen: int) -> bool:
         """Push ``frame`` to the tab unless newer settings arrived meanwhile; True if drawn."""
         c = self.controls
+        frame.pinned = self.pinned
+        frame.datalength = self.datalength.lookup(frame.values)
         r = self.renderer.render(frame, c["axes"].value)
         if self._stale(gen):  # never draw an older result over a newer one
             self.renderer = Renderer()  # it remembered figures that were not pushed
