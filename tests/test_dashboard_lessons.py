@@ -75,6 +75,8 @@ def test_theorem1_ls_on_the_line_where_hypotheses_hold():
     ex = experiment("theorem1")
     holds = [b for b in range(1, 17) if ex.assumptions(b).theorem1_holds]
     assert holds and max(holds) < 16
+    fine = [b for b in range(1, 17) if b not in holds]
+    assert all(not ex.assumptions(b).large_data and ex.assumptions(b).bcls_holds for b in fine)  # finite data only
     for b in holds:
         assert ex.identification(b, "ls").err_A.mean() == pytest.approx(ex.theory(b).err_A, rel=0.10), b
 

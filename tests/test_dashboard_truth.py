@@ -110,7 +110,7 @@ def test_bound_plot_shows_both_bounds_with_the_caption():
     med = [t for t in fig.data if (t.name or "").startswith("a-posteriori δ, LS")][0]
     assert len(med.x) == 16
     assert med.y[3] == pytest.approx(f.rows["LS"][4]["ultimate_bound_realized"]["median"])
-    assert CAPTION in fig.layout.title.text
+    assert fig.layout.annotations[0].text == CAPTION
     s = summary_markdown(f)
     assert f"ρ = {f.rows['LS'][4]['rho']:.3g} (automatic)" in s and "a-posteriori δ LS" in s
 

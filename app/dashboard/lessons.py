@@ -64,13 +64,13 @@ LESSONS: tuple[Lesson, ...] = (
            "Boeing 747 with a small data set (50 runs × 200 steps). The summary flags 'finite data' from a "
            "coarser b on than at the letter's size, and Theorem 1's line is faded there; at b = 16 the "
            "measured error is far above the line. Press 'Paper scale' (200 × 1000): the line holds down to "
-           "finer b.",
+           "finer b. The Data length tab draws the error against the data size.",
            dict(system="boeing747", bits=6, identification="LS", range_mode="per-channel", guard=True,
                 dither="subtractive", input_amplitude=1.0, trajectories=50, steps=200, realizations=20)),
     Lesson("saturation", "Actuator saturation",
            "A large start x0 = (5, 5, 0, 0) and a small input bound 0.2 on the Boeing 747. The summary counts "
-           "the closed-loop steps with an input on its bound: many of them. The loops still converge, far "
-           "more slowly: ‖x_T‖ stays well below ‖x0‖.",
+           "the closed-loop steps with an input on its bound: many of them. The loops still converge: ‖x_T‖ "
+           "ends well below ‖x0‖.",
            dict(system="boeing747", bits=8, identification="LS", x0="5, 5, 0, 0", u_max=0.2, mpc_steps=100,
                 guard=True, dither="subtractive", range_mode="per-channel", input_amplitude=1.0,
                 trajectories=50, steps=200, realizations=20)),

@@ -72,6 +72,8 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
         fig.add_trace(go.Scatter(x=xx, y=xy_, mode="markers", name=f"{label} ‖x_T‖ max",
                                  marker=dict(color=c, symbol="triangle-up")))
     mark_bits(fig, current_bits)
+    fig.add_annotation(text=CAPTION, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
+                       yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))
     if conv:
         fig.add_hline(y=floor, line=dict(color=COLORS["ref"], dash="dot", width=1),
                       annotation_text="converged (‖x_T‖ ≤ 1e-12‖x0‖)", annotation_position="bottom right",
@@ -79,8 +81,7 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
     fig.update_yaxes(type="log", title_text="norm", exponentformat="power")
     fig.update_xaxes(**BITS_AXIS)
     fig.update_layout(height=height, margin=dict(l=50, r=10, t=30, b=40), template="plotly_white",
-                      legend=dict(orientation="h", y=-0.3),
-                      title=dict(text=CAPTION, font=dict(size=11), x=0.01, y=0.98))
+                      legend=dict(orientation="h", y=-0.3))
     return fig
 
 
