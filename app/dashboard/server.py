@@ -26,6 +26,7 @@ from .cache import SharedCache
 from .lessons import get_lesson, lesson_names, lesson_values
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
+from .share import load_settings_file
 
 __all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
 
@@ -54,11 +55,11 @@ class DashboardApp:
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
-                 cache_bytes: int = 512 * 2**20, lesson: str | None = None):
+                 cache_bytes: int = 512 * 2**20, settings: Values | None = None, lesson: str | None = None):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
-        self.defaults = Values(system=system, **size)
+        self.defaults = settings if settings is not None else Values(system=system, **size)
         if lesson is not None:  # every new tab opens on the lesson (its settings, its text)
             self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
         self.cache = SharedCache(cache_bytes)
@@ -167,6 +168,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the quantization and closed-loop work, shared by all tabs "
                         "(0 = in-process; default 2)")
+    p.add_argument("--settings", metavar="FILE", default=None,
+                   help="start every new tab from a settings file (saved with the panel's 'Download settings')")
     p.add_argument("--lesson", default=None, metavar="NAME",
                    help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}")
     return p
@@ -188,8 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         signal.signal(signal.SIGINT, signal.default_int_handler)  # also when started with SIGINT ignored
         signal.signal(signal.SIGTERM, _term)
+        settings = None if args.settings is None else load_settings_file(args.settings)
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
-                           lesson=args.lesson)
+                           settings=settings, lesson=args.lesson)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         while True:
             time.sleep(3600)

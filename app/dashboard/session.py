@@ -37,6 +37,7 @@ from .frames import Frame, fill_rows, make_frame, start
 from .render import Renderer
 from .scene import PhasePortrait
 from .settings import ALL_BITS, Values, resolve_system
+from .share import add_share_panel, apply_pending, show_frame
 from .viewpanel import PANEL_WIDTH, ViewPanel
 
 __all__ = ["Session", "iter_frames"]
@@ -182,6 +183,7 @@ class Session:
         system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
         self.controls = make_gui_elements(gui, values, system, self.touch)
         self._lesson = values.lesson  # the lesson whose settings the panel was given
+        self.share = add_share_panel(self)  # keep & share: settings file, command line, exports
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
         self.views = ViewPanel(gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin,
                                self.start_datalength)
@@ -293,6 +295,7 @@ class Session:
     def _run(self, gen: int) -> int:
         """Compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
+        apply_pending(self)  # settings uploaded since the last run
         show_weights(c)
         gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
@@ -360,5 +363,6 @@ class Session:
             for name, fig in r.figures.items():
                 self.plots[name].figure = fig
         self.last_frame = frame
+        show_frame(self, frame)
         self.frames_drawn += 1
         return True
