@@ -147,8 +147,21 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             # every tab of the plots panel opens and draws its views (no console errors: checked at the end)
             from app.figures.registry import TABS, VIEWS
 
+            shots = os.environ.get("QSID_SCREENSHOT_DIR")
             for label in TABS[1:] + TABS[:1]:
                 assert _open_plot_tab(page1, label) == sum(v.tab == label for v in VIEWS), label
+                if label == "Data length":  # press the button: the study runs in the background, then draws
+                    page1.get_by_role("button", name="Compute error vs data length").click()
+                    page1.wait_for_function(
+                        """() => [...document.querySelectorAll('.js-plotly-plot')].some(e => e.offsetParent !== null
+                               && e.textContent.includes('realizations') && e.textContent.includes('Theorem 1'))""",
+                        timeout=TIMEOUT_MS)
+                    assert s1.datalength.lookup(s1.last_frame.values) is not None
+                if shots:  # the README's per-tab pictures: the plots panel only
+                    page1.wait_for_timeout(800)
+                    box = page1.locator(".js-plotly-plot").locator("visible=true").first.bounding_box()
+                    page1.screenshot(path=os.path.join(shots, f"view-{label.lower().replace(' ', '-')}.png"),
+                                     clip=dict(x=box["x"] - 10, y=0, width=box["width"] + 30, height=900))
             sphere0 = s1.portrait.view.sphere_radius
             pts0 = s1.portrait.traj.points.copy()
 
@@ -172,8 +185,9 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             assert page1.evaluate(ERROR_PLOT_MARKS) == [9, 9] and _thumb_value(page1) == "9"
             page2.close()
 
-            # dismiss viser's "software WebGL rendering" notice, then take the screenshot
+            # dismiss viser's "software WebGL rendering" notice, then take the screenshot (Control tab open)
             page1.bring_to_front()
+            _open_plot_tab(page1, "Control")
             close = page1.locator(".mantine-Notification-closeButton")
             for i in range(close.count()):
                 close.nth(i).click()

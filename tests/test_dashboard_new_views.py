@@ -133,3 +133,17 @@ def test_datalength_on_demand_with_progress_cancel_and_cache(app, monkeypatch):
         assert time.perf_counter() - t0 < 30
     finally:
         tab.close()
+
+
+def test_bench_dashboard_times_every_view():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_dashboard
+    from app.dashboard.cache import SharedCache
+    from app.dashboard.settings import Values
+
+    out = bench_dashboard.per_view(Values(trajectories=10, steps=60, realizations=4, mpc_steps=15), SharedCache(),
+                                   [3, 5], None, 1)
+    assert list(out) == [v.name for v in VIEWS] and all(len(x) == 2 and min(x) >= 0 for x in out.values())

@@ -77,8 +77,9 @@ class Renderer:
             out.update(build_figures(frame, curves))
             self._rows_key = rows_key
         else:
-            for name in curves:
-                if name in self.figures:
-                    out[name] = move_current_bits(self.figures[name], frame.bits)
+            for name in curves:  # only plots with a current-b marker are touched (and re-sent)
+                fig = self.figures.get(name)
+                if fig is not None and any(sh.x0 == sh.x1 for sh in fig.layout.shapes):
+                    out[name] = move_current_bits(fig, frame.bits)
         self.figures.update(out)
         return Render(scene, summary, out)
