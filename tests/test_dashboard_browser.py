@@ -196,10 +196,16 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             shot = tmp_path / "dashboard.png"
             page1.screenshot(path=str(shot))
             assert shot.stat().st_size > 50_000
-            # the 3-D LS lines show on screen in the palette's LS blue (#1f77b4), as in the plots
-            assert _scene_pixels_near(shot, (0x1F, 0x77, 0xB4)) >= 30
             if os.environ.get("QSID_SCREENSHOT"):
                 shutil.copyfile(shot, os.environ["QSID_SCREENSHOT"])
+            # the 3-D LS lines show on screen in the palette's LS blue (#1f77b4), as in the plots
+            # (LS alone: with both estimators the red BCLS lines can cover nearly identical LS lines)
+            s1.controls["identification"].value = "LS"
+            assert s1.wait_idle(60)
+            page1.wait_for_timeout(1500)
+            shot_ls = tmp_path / "dashboard_ls.png"
+            page1.screenshot(path=str(shot_ls))
+            assert _scene_pixels_near(shot_ls, (0x1F, 0x77, 0xB4)) >= 30
         finally:
             browser.close()
     assert errors == [], f"console errors: {errors}"
