@@ -186,12 +186,15 @@ class LTISystem:
 
     @property
     def controllability_rank(self) -> int:
-        """Rank of python-control's ``ctrb(A, B)``."""
-        import control
-
+        """Rank of the controllability matrix ``[B, AB, ..., A^(n-1) B]`` (python-control's ``ctrb``; built
+        here with numpy, so building a system never imports python-control, ~2-5 s)."""
         # scaling A and B by positive numbers leaves the rank unchanged and keeps A^k from overflowing
         a = np.abs(self.A).max()
-        C = control.ctrb(self.A / a if a > 1.0 else self.A, self.B)
+        A = self.A / a if a > 1.0 else self.A
+        blocks = [self.B]
+        for _ in range(self.n - 1):
+            blocks.append(A @ blocks[-1])
+        C = np.hstack(blocks)
         try:
             return int(np.linalg.matrix_rank(C, tol=1e-9 * max(1.0, np.abs(C).max())))
         except np.linalg.LinAlgError:  # the SVD did not converge: badly scaled (A, B)
@@ -249,7 +252,7 @@ def dc_motor_physical(
     With the defaults it reproduces the printed matrices of :func:`dc_motor`
     to their three printed decimals (the letter truncates: max difference < 1e-3).
     """
-    import control
+    from scipy.linalg import expm
 
     for nm, v in dict(dt=dt, J=J, L=L, c=c, K=K, Ke=Ke, r=r).items():
         try:
@@ -258,9 +261,12 @@ def dc_motor_physical(
             raise SystemDefinitionError(str(exc)) from None
     Ac = np.array([[0.0, 1.0, 0.0], [0.0, -c / J, K / J], [0.0, -Ke / L, -r / L]])
     Bc = np.array([[0.0, 0.0], [0.0, 1.0 / J], [1.0 / L, 0.0]])
-    sysd = control.c2d(control.ss(Ac, Bc, np.eye(3), np.zeros((3, 2))), dt)
+    # zero-order hold (python-control's c2d(..., method="zoh")): expm([[Ac, Bc], [0, 0]] dt) = [[Ad, Bd], [0, I]]
+    M = np.zeros((5, 5))
+    M[:3, :3], M[:3, 3:] = Ac, Bc
+    E = expm(M * dt)
     return LTISystem(
-        "dc-motor-physical", np.asarray(sysd.A), np.asarray(sysd.B), x0=[1.0, 0.0, 0.0],
+        "dc-motor-physical", E[:3, :3], E[:3, 3:], x0=[1.0, 0.0, 0.0],
         Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=dt,
         description=f"DC motor with load from physical parameters, ZOH at {dt:g} s",
         state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),

@@ -157,6 +157,12 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
                                && e.textContent.includes('realizations') && e.textContent.includes('Theorem 1'))""",
                         timeout=TIMEOUT_MS)
                     assert s1.datalength.lookup(s1.last_frame.values) is not None
+                if label == "Compare":  # pin the current result: the note says so, the error plot gets dashed lines
+                    page1.get_by_role("button", name="Pin current result").click()
+                    page1.wait_for_function("() => document.body.textContent.includes('Pinned (dashed)')",
+                                            timeout=TIMEOUT_MS)
+                    assert s1.wait_idle(60) and s1.pinned is not None
+                    assert any("(pinned" in (tr.name or "") for tr in s1.plots["error"].figure.data)
                 if shots:  # the README's per-tab pictures: the plots panel only
                     page1.wait_for_timeout(800)
                     box = page1.locator(".js-plotly-plot").locator("visible=true").first.bounding_box()
