@@ -23,6 +23,7 @@ import viser
 from qsid_core.errors import QsidError
 
 from .cache import SharedCache
+from .lessons import get_lesson, lesson_names, lesson_values
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
@@ -54,11 +55,13 @@ class DashboardApp:
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
-                 cache_bytes: int = 512 * 2**20, settings: Values | None = None):
+                 cache_bytes: int = 512 * 2**20, settings: Values | None = None, lesson: str | None = None):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
         self.defaults = settings if settings is not None else Values(system=system, **size)
+        if lesson is not None:  # every new tab opens on the lesson (its settings, its text)
+            self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
         self.cache = SharedCache(cache_bytes)
         self.slots = threading.BoundedSemaphore(max(1, slots))  # (4) at most `slots` tabs compute at once
         self.workers = max(0, int(workers))
@@ -144,6 +147,14 @@ class DashboardApp:
             self.executor.shutdown(wait=True, cancel_futures=True)
 
 
+def _check_lesson(name: str) -> str:
+    try:
+        get_lesson(name)
+    except KeyError as exc:
+        raise QsidError(exc.args[0]) from None
+    return name
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="qsid-dashboard", description="Live dashboard: quantized data -> "
                                 "identification -> MPC. Open the printed URL in a browser.")
@@ -159,11 +170,19 @@ def _parser() -> argparse.ArgumentParser:
                         "(0 = in-process; default 2)")
     p.add_argument("--settings", metavar="FILE", default=None,
                    help="start every new tab from a settings file (saved with the panel's 'Download settings')")
+    p.add_argument("--lesson", default=None, metavar="NAME",
+                   help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.lesson is not None:
+        try:
+            _check_lesson(args.lesson)
+        except QsidError as exc:
+            print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
+            return 2
 
     def _term(_sig, _frm):
         raise KeyboardInterrupt
@@ -174,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, _term)
         settings = None if args.settings is None else load_settings_file(args.settings)
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
-                           settings=settings)
+                           settings=settings, lesson=args.lesson)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         while True:
             time.sleep(3600)
