@@ -11,9 +11,14 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
    next chunk of word lengths while the worker runs closed loops, and runs the
    second estimator's closed loops beside the first.
 4. ``DashboardApp.slots`` (server): a semaphore, at most a few tabs compute at once.
-5. ``DashboardApp._lock`` (server): the tab registry and the process-pool swap.
+5. ``DashboardApp._lock`` (server): the tab registry.
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
-7. the process pool (server): the heavy quantization and closed-loop work.
+7. the process pool (:class:`~app.dashboard.pool.Pool`): the heavy quantization and closed-loop work;
+   ``Pool._lock`` guards its replacement, which only ever replaces the executor that failed.
+8. the pool's watchdog thread (:mod:`app.dashboard.pool`): abandons a tab's pool tasks as soon as
+   newer settings arrive, and times out a hung worker (the pool is replaced, the tab retries once).
+9. signals (server ``main``): SIGINT/SIGTERM are blocked in every thread and taken by ``sigwait``
+   in the main thread, so no solver's handler can swallow Ctrl-C.
 """
 
 from __future__ import annotations
@@ -21,8 +26,9 @@ from __future__ import annotations
 import threading
 import time
 import traceback
+
+import numpy as np
 from concurrent.futures import Future, ThreadPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterator, MutableMapping
 
 from app.figures import registry
@@ -31,9 +37,11 @@ from qsid_core.systems import PRESETS, get_system
 
 from .controls import make_gui_elements, read_values, set_system, show_weights
 from .frames import Frame, fill_rows, make_frame, start
+from .inputs import check_panel
+from .pool import PoolFailure, PoolTimeout, Superseded
 from .render import Renderer
 from .scene import PhasePortrait
-from .settings import ALL_BITS, Values, resolve_system
+from .settings import ALL_BITS, InputError, Values, resolve_system
 
 __all__ = ["Session", "iter_frames"]
 
@@ -159,6 +167,22 @@ def _blank():
     return fig
 
 
+def _unusable(frame: Frame) -> str | None:
+    """Why ``frame`` must not be shown as a result (every identification failed, eps not finite), or None."""
+    if frame.stage != "current":
+        return None
+    for lab, ident in frame.idents.items():
+        if not np.all(np.isfinite(ident.eps)):
+            return (f"the quantizer step ε at b = {frame.bits} is not a finite number (the range is too wide "
+                    "for floating point); choose a narrower range")
+    if frame.idents and all(np.all(ident.failed) for ident in frame.idents.values()):
+        ident = next(iter(frame.idents.values()))
+        why = "; ".join(ident.notes[:2]) or "no reason given"
+        return (f"every identification failed at b = {frame.bits} (all {len(ident.failed)} dither realizations): "
+                f"{why}")
+    return None
+
+
 class Session:
     """One browser tab: its controls, scene, plots and the worker thread that redraws them.
 
@@ -204,11 +228,12 @@ class Session:
             self._gen += 1
             self._cond.notify_all()
 
-    def close(self) -> None:
+    def close(self, wait: bool = True) -> None:
+        """Stop the worker (its computation is dropped at the next check); ``wait``: join it (10 s at most)."""
         with self._cond:
             self._closed = True
             self._cond.notify_all()
-        if threading.current_thread() is not self.thread:
+        if wait and threading.current_thread() is not self.thread:
             self.thread.join(timeout=10)
 
     def wait_idle(self, timeout: float = 60.0) -> bool:
@@ -259,13 +284,35 @@ class Session:
         return gen, values
 
     def _run(self, gen: int) -> int:
-        """Compute and draw generation ``gen``; returns the generation handled."""
+        """Check, compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
+        try:
+            check_panel(c)  # every raw value (anything can come over the websocket) before it is converted
+        except InputError as exc:
+            self._show_error(str(exc))
+            return gen
         show_weights(c)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:
             return gen
         gen, values = adapted
+        for attempt in (1, 2):
+            try:
+                return self._compute(gen, values)
+            except PoolFailure as exc:
+                self.app.pool.replace(exc.executor)  # only if no other tab replaced it already
+                if self._stale(gen):
+                    return gen
+                if attempt == 1:
+                    c.status.content = f"a worker process failed ({exc}); retrying …"
+                    continue
+                hint = (" Try smaller settings, or start the server with a larger --task-timeout."
+                        if isinstance(exc, PoolTimeout) else " Change a setting to try again.")
+                self._show_error(f"{exc} (twice).{hint}")
+        return gen
+
+    def _compute(self, gen: int, values: Values) -> int:
+        c = self.controls
         t0 = time.perf_counter()
 
         def progress(done: int, total: int, text: str) -> None:
@@ -273,7 +320,7 @@ class Session:
                 c.progress.value = 100.0 * done / total
                 c.status.content = text
 
-        frames = iter_frames(values, self.app.cache, self.app.executor, self.app.tasks,
+        frames = iter_frames(values, self.app.cache, self.app.pool.guarded(lambda: self._stale(gen)), self.app.tasks,
                              should_stop=lambda: self._stale(gen), on_progress=progress)
         try:
             while True:
@@ -281,18 +328,28 @@ class Session:
                     if self._stale(gen):
                         return gen
                     frame = next(frames, None)
-                if frame is None or self._stale(gen) or not self._draw(frame, gen):
+                if frame is None or self._stale(gen):
+                    return gen
+                bad = _unusable(frame)
+                if bad:
+                    self._show_error(bad)
+                    return gen
+                if not self._draw(frame, gen):
                     return gen
                 self.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
                 if frame.complete:
                     c.progress.value = 100.0
                     c.status.content = (f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
                                         f"all curves in {self.timings['all']:.2f} s")
+        except PoolFailure:
+            raise
+        except Superseded:
+            return gen
         except QsidError as exc:
             self._show_error(str(exc))
-        except BrokenProcessPool:
-            self.app.reset_executor()
-            self._show_error("the computation pool crashed and was restarted; change a setting to retry")
+        except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
+            self._show_error(f"these settings cannot be computed ({type(exc).__name__}: {exc}); "
+                             "try smaller or less extreme values")
         finally:
             frames.close()
         return gen
