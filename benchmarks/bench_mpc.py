@@ -8,12 +8,14 @@ letter's x0, Q and R, horizon 10, 50 closed-loop steps, ``|u| <= u_max``,
 * ``letter``: x0 and ``|u| <= 1`` as in the letter (the bound is never active:
   the engine's exact Riccati fast path answers every step);
 * ``constrained``: ``20 * x0`` and ``|u| <= 0.3``, so the input bound is active
-  and the engine falls back to its OSQP path on those steps.
+  and the engine solves those steps as a QP (DAQP / batched active set on the
+  condensed problem; the previous engine's sparse OSQP path is timed alongside).
 
 Solvers, each timed per closed loop (best and median of ``--repeats``):
 
 * ``engine run_closed_loops``: :func:`qsid_core.closed_loop.run_closed_loops` on the single
-  model, *including* building the controller (DARE, Riccati gains, lazy OSQP setup);
+  model, *including* building the controller (DARE, Riccati gains, condensing, DAQP setup);
+* ``engine run_closed_loops, solver=osqp``: the same with the previous engine's OSQP path;
 * ``engine MPCController.solve``: build :class:`qsid_core.mpc.MPCController`, then
   ``solve(x)`` per step (also included);
 * ``cvxpy + OSQP``: the QP built once with a Parameter for x0 (build and first
@@ -47,15 +49,24 @@ if str(ROOT) not in sys.path:
 
 import numpy as np  # noqa: E402
 
+from dataclasses import replace  # noqa: E402
+
 from qsid_core.closed_loop import run_closed_loops  # noqa: E402
 from qsid_core.mpc import MPCConfig, MPCController  # noqa: E402
 from qsid_core.riccati import dare_stabilizing  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402
 
-try:  # run as a script (benchmarks/ on sys.path) or imported as benchmarks.bench_mpc
-    from _blas import blas_threads, set_blas_threads  # noqa: E402
-except ImportError:  # pragma: no cover
-    from benchmarks._blas import blas_threads, set_blas_threads  # noqa: E402
+from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
+
+
+def blas_threads() -> dict:
+    """Threads of each BLAS library loaded in this process (file name -> threads), by threadpoolctl."""
+    return {i["filepath"].rsplit("/", 1)[-1]: int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"}
+
+
+def set_blas_threads(n: int = 1) -> None:
+    """Limit every loaded BLAS to ``n`` threads for the rest of this process (also a pool initializer)."""
+    threadpool_limits(limits=int(n), user_api="blas")
 
 TOL = 1e-6  # required agreement of the applied inputs
 TIGHT_EPS = 1e-9  # the engine's OSQP tolerance (MPCConfig.eps)
@@ -96,11 +107,12 @@ class Problem:
 # ----------------------------------------------------------------------------------------------
 # solvers: each returns a runner ``run() -> (inputs (steps, m), info dict)``
 # ----------------------------------------------------------------------------------------------
-def engine_loops(pb: Problem):
+def engine_loops(pb: Problem, solver: str = "daqp"):
     """:func:`run_closed_loops` on the single (true) model; builds its controller each call."""
+    cfg = replace(pb.cfg, solver=solver)
 
     def run():
-        lp = run_closed_loops([(pb.A, pb.B)], pb.A, pb.B, pb.cfg, pb.sys)
+        lp = run_closed_loops([(pb.A, pb.B)], pb.A, pb.B, cfg, pb.sys)
         if lp.failure[0]:
             raise RuntimeError(f"engine failed: {lp.messages[0]}")
         return lp.inputs[0], dict(osqp_steps=lp.osqp_steps, fast_steps=pb.steps - lp.osqp_steps)
@@ -217,13 +229,14 @@ def do_mpc_ipopt(pb: Problem, tight: bool = True):
 
 SOLVERS = {
     "engine run_closed_loops": lambda pb: engine_loops(pb),
+    "engine run_closed_loops, solver=osqp": lambda pb: engine_loops(pb, "osqp"),
     "engine MPCController.solve": lambda pb: engine_controller(pb),
     "cvxpy+OSQP tight (eps 1e-9)": lambda pb: cvxpy_osqp(pb, tight=True),
     "cvxpy+OSQP cvxpy defaults": lambda pb: cvxpy_osqp(pb, tight=False),
     "do-mpc+IPOPT tight (tol 1e-12)": lambda pb: do_mpc_ipopt(pb, tight=True),
     "do-mpc+IPOPT defaults": lambda pb: do_mpc_ipopt(pb, tight=False),
 }
-ENGINE = ("engine run_closed_loops", "engine MPCController.solve")
+ENGINE = ("engine run_closed_loops", "engine MPCController.solve", "engine run_closed_loops, solver=osqp")
 PEER_FAMILY = {"cvxpy+OSQP tight (eps 1e-9)": "cvxpy", "cvxpy+OSQP cvxpy defaults": "cvxpy",
                "do-mpc+IPOPT tight (tol 1e-12)": "do-mpc", "do-mpc+IPOPT defaults": "do-mpc"}
 
@@ -294,7 +307,7 @@ def main(argv=None) -> dict:
 
     print(f"QSID MPC closed-loop benchmark ({'quick' if args.quick else 'full'}); {os.cpu_count()} shared cores, "
           f"best/median of {re_} (engine) / {rp} (peers) closed loops")
-    print("engine times include building the controller (DARE, gains, OSQP setup); peer times exclude their setup "
+    print("engine times include building the controller (DARE, gains, QP setup); peer times exclude their setup "
           "(shown separately)")
     print(f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}")
     if missing:
@@ -307,7 +320,7 @@ def main(argv=None) -> dict:
         eng_best = r[ENGINE[0]]["best"]
         print()
         print(pb.describe())
-        print(f"  {'solver':<32}{'best [ms]':>11}{'median [ms]':>13}{'setup [ms]':>12}{'fast/OSQP':>11}"
+        print(f"  {'solver':<38}{'best [ms]':>11}{'median [ms]':>13}{'setup [ms]':>12}{'fast/QP':>11}"
               f"{'max|du| vs engine':>19}{'time / engine':>15}")
         for name, v in r.items():
             steps = f"{v['fast_steps']}/{v['osqp_steps']}" if "osqp_steps" in v else "-"
@@ -315,7 +328,7 @@ def main(argv=None) -> dict:
             agree = v["max_abs_du"] <= TOL
             if "defaults" not in name:  # the defaults rows are for reference: tight rows must agree
                 ok_all &= agree
-            print(f"  {name:<32}{v['best'] * 1e3:>11.3f}{v['median'] * 1e3:>13.3f}"
+            print(f"  {name:<38}{v['best'] * 1e3:>11.3f}{v['median'] * 1e3:>13.3f}"
                   f"{(v['setup'] * 1e3 if v['setup'] else 0):>12.1f}{steps:>11}{v['max_abs_du']:>19.2e}"
                   f"{ratio:>14.1f}x{'' if agree else '  (> 1e-6: defaults too loose)'}")
         results.append(dict(
@@ -328,7 +341,7 @@ def main(argv=None) -> dict:
         ))
 
     print()
-    print("summary: peer time / engine time, for each engine variant (target: engine >= 30x faster than each peer)")
+    print("summary: peer time / engine time (target: engine >= 30x faster than cvxpy+OSQP on the constrained rows)")
     targets = {}
     for res in results:
         sv = res["solvers"]
@@ -336,11 +349,13 @@ def main(argv=None) -> dict:
             if peer not in sv:
                 continue
             r = {e: sv[peer]["best_s"] / sv[e]["best_s"] for e in ENGINE}
-            best = max(r.values())
+            best = max(r[ENGINE[0]], r[ENGINE[1]])
             targets[f"{res['problem']} / {peer}"] = dict(vs_run_closed_loops=r[ENGINE[0]],
-                                                         vs_controller_solve=r[ENGINE[1]], met=best >= 30)
+                                                         vs_controller_solve=r[ENGINE[1]],
+                                                         vs_old_osqp_engine=r[ENGINE[2]], met=best >= 30)
             print(f"  {res['problem']:<24} {peer:<32}: {r[ENGINE[0]]:6.1f}x (run_closed_loops)  "
-                  f"{r[ENGINE[1]]:6.1f}x (MPCController.solve)  {'MET' if best >= 30 else 'NOT met'}")
+                  f"{r[ENGINE[1]]:6.1f}x (MPCController.solve)  [old OSQP engine {r[ENGINE[2]]:5.1f}x]  "
+                  f"{'MET' if best >= 30 else 'NOT met'}")
     print(f"engine and tight-tolerance peers agree on the applied inputs to {TOL:g}: {'yes' if ok_all else 'NO'}")
     loose = sorted({f"{k} ({res['problem']}: {v['max_abs_du']:.1e})" for res in results
                     for k, v in res["solvers"].items() if "defaults" in k and v["max_abs_du"] > TOL})

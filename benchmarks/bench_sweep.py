@@ -9,7 +9,7 @@ b, least squares, and for every identified model an MPC closed loop of 50 steps
 * **fast**: :func:`qsid_core.run_sweep`, timed in-process, with a
   ``ThreadPoolExecutor(2)``, with a ``ProcessPoolExecutor(2)``, and with a
   ``ProcessPoolExecutor(2)`` whose workers limit OpenBLAS to one thread
-  (``benchmarks/_blas.py``; the engine's thousands of tiny BLAS/LAPACK calls gain
+  (threadpoolctl; the engine's thousands of tiny BLAS/LAPACK calls gain
   nothing from BLAS threads and two workers x two BLAS threads oversubscribe two
   cores). Always the full sweep; best and median of ``--repeats`` runs; each
   pool's first, cold run -- which pays for starting the workers -- is reported too.
@@ -53,14 +53,21 @@ import scipy.sparse as sp  # noqa: E402
 from qsid_core.data import simulate  # noqa: E402
 from qsid_core.experiment import SweepConfig  # noqa: E402
 from qsid_core.sweep import run_sweep  # noqa: E402
-from qsid_core.mpc import MPCConfig  # noqa: E402
+from qsid_core.mpc import MPCConfig, MPCWeights  # noqa: E402
 from qsid_core.quantize import quantize  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402
 
-try:  # run as a script (benchmarks/ on sys.path) or imported as benchmarks.bench_sweep
-    from _blas import blas_threads, set_blas_threads  # noqa: E402
-except ImportError:  # pragma: no cover
-    from benchmarks._blas import blas_threads, set_blas_threads  # noqa: E402
+from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
+
+
+def blas_threads() -> dict:
+    """Threads of each BLAS library loaded in this process (file name -> threads), by threadpoolctl."""
+    return {i["filepath"].rsplit("/", 1)[-1]: int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"}
+
+
+def set_blas_threads(n: int = 1) -> None:
+    """Limit every loaded BLAS to ``n`` threads for the rest of this process (also a pool initializer)."""
+    threadpool_limits(limits=int(n), user_api="blas")
 
 PAPER = dict(system="dc-motor", bits=tuple(range(1, 17)), realizations=50, trajectories=200, steps=1000,
              horizon=10, mpc_steps=50, u_max=1.0)
@@ -150,13 +157,13 @@ def naive_qp(A_hat, B_hat, Q, R, Qf, N, u_max):
     return sp.triu(P, format="csc"), q, Acon, lo, hi
 
 
-def naive_closed_loop(A_hat, B_hat, A, B, w: dict, mcfg: MPCConfig, osqp_setup: str = "model"):
+def naive_closed_loop(A_hat, B_hat, A, B, w: MPCWeights, mcfg: MPCConfig, osqp_setup: str = "model"):
     """MPC on (A_hat, B_hat) in closed loop on (A, B); OSQP at every step. Returns (cost, inputs, failure)."""
     import osqp
 
-    if np.any(w["x_ref"] != 0) or w["x_max"] is not None or w["xf_max"] is not None:
+    if np.any(w.x_ref != 0) or w.x_max is not None or w.xf_max is not None:
         raise ValueError("the naive loop implements x_ref = 0 and input bounds only")
-    Q, R, N, u_max = w["Q"], w["R"], mcfg.horizon, w["u_max"]
+    Q, R, N, u_max = w.Q, w.R, mcfg.horizon, w.u_max
     n, m = B_hat.shape
     nan_inputs = np.full((mcfg.steps, m), np.nan)
     if not (np.all(np.isfinite(A_hat)) and np.all(np.isfinite(B_hat))):
@@ -174,7 +181,7 @@ def naive_closed_loop(A_hat, B_hat, A, B, w: dict, mcfg: MPCConfig, osqp_setup: 
     settings = dict(verbose=False, polishing=True, warm_starting=True, eps_abs=mcfg.eps, eps_rel=mcfg.eps,
                     max_iter=mcfg.max_iter)
     solver = None
-    x = np.array(w["x0"], dtype=float)
+    x = np.array(w.x0, dtype=float)
     cost = 0.0
     us = np.empty((mcfg.steps, m))
     i0 = (N + 1) * n

@@ -23,6 +23,8 @@ from .identify import Identified, identify, relative_errors
 from .moments import Moments, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
 from .mpc import MPCConfig, MPCController, MPCFailure
+from .mpc import FailureKind, MPCWeights
+from .riccati import LQParts
 from .quantize import LETTER_QUANTIZER, QuantizerSpec, quantize
 from .systems import PRESETS, LTISystem, UncontrollableWarning, boeing747, dc_motor, dc_motor_physical, get_system, load_system
 from .theory import RealizedBounds, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
@@ -40,3 +42,4 @@ __all__ = [
     "simulate", "single_threaded_blas", "summarize", "summary_row", "theorem1_prediction", "time_series",
     "ultimate_bound",
 ]
+__all__ += ["FailureKind", "LQParts", "MPCWeights"]

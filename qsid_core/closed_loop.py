@@ -2,8 +2,11 @@
 
 :func:`run_closed_loops` runs many models at once. While the unconstrained LQ
 optimum is feasible the MPC law is an affine feedback, so the loop is simulated
-ahead and every predicted constraint checked in one batch; steps where a bound
-is active are solved by OSQP (:class:`qsid_core.mpc.MPCController`). Failures
+ahead and every predicted constraint checked in one batch; only the steps where
+a bound is active solve a QP: the condensed box QPs of all such models at once by
+primal-dual active-set iterations (compiled, :func:`qsid_core.kernels.box_qp_pdas`),
+and DAQP (:mod:`qsid_core.condensed_qp`) where those do not settle or a state box
+is set. ``solver="osqp"`` runs the previous engine's OSQP path instead. Failures
 are recorded per model, never raised.
 """
 
@@ -13,11 +16,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import MPCFailure
-from .mpc import MPCConfig, MPCController
+from .condensed_qp import box_qp_batch, condense
+from .errors import FailureKind, MPCFailure
+from .mpc import MPCConfig, MPCController, MPCWeights
 from .riccati import dare_batch, lq_parts
 
 __all__ = ["ClosedLoops", "run_closed_loops"]
+
+#: a state beyond this norm (max-abs) counts as diverged
+DIVERGED = 1e12
+#: at most this many models are stepped model by model (numpy's per-call overhead dominates tiny batches)
+SMALL = 4
 
 
 @dataclass
@@ -27,18 +36,19 @@ class ClosedLoops:
     Attributes
     ----------
     states : ndarray, shape (R, steps + 1, n)
-        True-system trajectories (NaN after a failure).
+        True-system trajectories (NaN after a failure), in the system's state units.
     inputs : ndarray, shape (R, steps, m)
+        Applied inputs (NaN after a failure).
     cost : ndarray, shape (R,)
         Realised cost ``sum_{t<steps} (x_t-r)'Q(x_t-r) + u_t'R u_t`` on the true system (NaN if failed).
     J0 : ndarray, shape (R,)
         Predicted optimal cost ``J*(x0)`` of the first MPC problem (NaN if failed).
     failure : list of str
-        ``""`` for success, else a kind from :data:`FAILURE_KINDS`.
+        ``""`` for success, else a :class:`~qsid_core.errors.FailureKind` (a ``str``).
     messages : list of str
         Plain-words reason per failed realisation.
-    osqp_steps : int
-        How many MPC steps needed OSQP (the rest took the exact fast path).
+    qp_steps : int
+        How many MPC steps needed the QP solver (the rest took the exact fast path).
     """
 
     states: np.ndarray
@@ -47,15 +57,265 @@ class ClosedLoops:
     J0: np.ndarray
     failure: list = field(default_factory=list)
     messages: list = field(default_factory=list)
-    osqp_steps: int = 0
+    qp_steps: int = 0
+
+    @property
+    def osqp_steps(self) -> int:
+        """Old name of :attr:`qp_steps` (the sweep's JSON key ``osqp_steps`` keeps it)."""
+        return self.qp_steps
 
     @property
     def failed(self) -> np.ndarray:
+        """shape (R,): True where the loop failed."""
         return np.array([bool(f) for f in self.failure])
 
     @property
     def final_state_norm(self) -> np.ndarray:
+        """shape (R,): ``||x_steps||_2``."""
         return np.linalg.norm(self.states[:, -1, :], axis=1)
+
+
+def _controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, messages: list) -> list:
+    """One :class:`MPCController` per model (None where it cannot be built; the reason is recorded).
+
+    The expensive parts are computed for all models at once: the terminal weights
+    ``Qf`` (stabilizing DARE solutions, by batched doubling; the few it cannot
+    settle go to scipy inside MPCController) and the fast-path parts (backward
+    Riccati recursion and prediction map, :func:`lq_parts`).
+    """
+    # models without finite entries (failed identifications) are left to MPCController to reject
+    fi = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
+    Qfs: list = [w.Qf] * len(models)
+    if w.Qf is None and fi:
+        X, okd = dare_batch(np.stack([models[i][0] for i in fi]), np.stack([models[i][1] for i in fi]), w.Q, w.R)
+        for k, i in enumerate(fi):
+            if okd[k]:
+                Qfs[i] = X[k]
+    ready = [i for i in fi if Qfs[i] is not None]
+    parts: dict = {}
+    if ready:
+        with np.errstate(all="ignore"):
+            bp = lq_parts(np.stack([np.asarray(models[i][0], float) for i in ready]),
+                          np.stack([np.asarray(models[i][1], float) for i in ready]), w.Q, w.R,
+                          np.stack([np.asarray(Qfs[i], float) for i in ready]), w.x_ref, cfg.horizon,
+                          w.u_max, w.x_max, w.xf_max)
+        fin = bp.finite()
+        parts = {i: bp.model(k) for k, i in enumerate(ready) if fin[k]}
+    ctrls: list = []
+    for i, (Ah, Bh) in enumerate(models):
+        try:
+            ctrls.append(MPCController(Ah, Bh, w.Q, w.R, cfg.horizon, w.u_max, w.x_max, w.xf_max, w.x_ref, Qfs[i],
+                                       cfg.eps, cfg.max_iter, parts=parts.get(i), solver=cfg.solver))
+        except MPCFailure as exc:
+            ctrls.append(None)
+            failure[i], messages[i] = exc.kind, str(exc)
+    return ctrls
+
+
+class _Loops:
+    """State of the batched closed loops (arrays indexed by realisation ``i``)."""
+
+    def __init__(self, ctrls: list, w: MPCWeights, A: np.ndarray, B: np.ndarray, steps: int, out: ClosedLoops):
+        self.ctrls, self.w, self.A, self.B, self.steps, self.out = ctrls, w, A, B, steps, out
+        self.n, self.m = B.shape
+        live = np.flatnonzero([c is not None for c in ctrls])
+        self.live = live
+        # fast-path prediction maps of the live models: z = F x + f stacks u_0..u_{N-1} [, x_1..x_N]
+        self.F = np.stack([ctrls[i].F for i in live])  # (L, rows, n)
+        self.f = np.stack([ctrls[i].f for i in live])  # (L, rows)
+        self.bound = ctrls[live[0]].bound  # (rows,)
+        self.pos = np.full(len(ctrls), -1)  # realisation -> row of the live arrays
+        self.pos[live] = np.arange(live.size)
+        self.acc = np.zeros(len(ctrls))  # realised cost so far
+        self.x = np.tile(w.x0, (len(ctrls), 1))  # current true state per realisation
+        out.states[live, 0] = self.x[live]
+        self.cq = None  # condensed QPs of the live models (built at the first constrained step)
+        # box-only problems solved by DAQP: guess the active set in one batch, DAQP only where the guess fails
+        self.solver_is_daqp = ctrls[live[0]].solver == "daqp"
+        self.guess = self.solver_is_daqp and self.bound.size == ctrls[live[0]].N * self.m  # no state rows
+        self.nU = ctrls[live[0]].N * self.m  # condensed variables u_0..u_{N-1}
+        self.prevU = np.full((len(ctrls), self.nU), np.nan)  # last optimal input sequence per model
+        self.prev_t = np.full(len(ctrls), -2)  # the step it was computed at
+        self.ub = np.tile(w.u_max, self.nU // self.m)  # box of U = [u_0; ...; u_{N-1}]
+
+    def rows(self, active: np.ndarray) -> np.ndarray:
+        """Rows of the live-model arrays (``F``, ``f``, the condensed QPs) of realisations ``active``."""
+        return self.pos[active]
+
+    def stage_cost(self, xs: np.ndarray, us: np.ndarray) -> np.ndarray:
+        """``(x - r)'Q(x - r) + u'R u`` over the last axis."""
+        e = xs - self.w.x_ref
+        return np.einsum("...i,ij,...j->...", e, self.w.Q, e) + np.einsum("...i,ij,...j->...", us, self.w.R, us)
+
+    def fail(self, i: int, kind: FailureKind, msg: str) -> None:
+        self.out.failure[i], self.out.messages[i] = kind, msg
+        self.out.states[i] = np.nan
+        self.out.inputs[i] = np.nan
+
+    def speculate(self, active: np.ndarray, t: int) -> tuple[np.ndarray, int]:
+        """Run every active loop ahead on the fast path; commit the steps where it is the optimum.
+
+        On the fast path the MPC law is the affine feedback ``u = F_u x + f_u`` (the
+        first ``m`` rows of the prediction map), so the true closed loop is
+        ``x+ = (A + B F_u) x + B f_u``. It is simulated for all remaining steps, and
+        at each step every predicted constrained quantity ``z = F x + f`` is checked
+        against its box: the unconstrained optimum is the constrained one iff
+        ``|z| <= bound``. Models that never leave the fast path are finished; the
+        others are committed up to the first step ``tau`` where any active model
+        leaves it. Returns the still-active models and ``t + tau``.
+        """
+        n, m, out = self.n, self.m, self.out
+        j = self.rows(active)
+        Fu, fu = self.F[j, :m], self.f[j, :m]
+        Mcl = self.A[None] + np.einsum("ij,ljk->lik", self.B, Fu)
+        ccl = fu @ self.B.T
+        H = self.steps - t
+        xs = np.empty((active.size, H + 1, n))
+        xs[:, 0] = self.x[active]
+        for h in range(H):
+            xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
+        z = np.einsum("lrn,lhn->lhr", self.F[j], xs[:, :H]) + self.f[j][:, None, :]
+        ok = np.all(np.abs(z) <= self.bound, axis=2)
+        ok &= np.all(np.isfinite(xs[:, 1:]), axis=2) & (np.abs(xs[:, 1:]).max(axis=2) <= DIVERGED)
+        first_bad = np.where(ok.all(axis=1), H, np.argmin(ok, axis=1))
+        if t == 0:
+            for a, i in enumerate(active):
+                if first_bad[a] > 0:
+                    out.J0[i] = self.ctrls[i].cost_to_go(xs[a, 0])
+        tau = int(first_bad.min())
+        done = first_bad == H
+        us = z[:, :, :m]
+        for a, i in enumerate(active):
+            k = H if done[a] else tau
+            if k:
+                out.states[i, t + 1 : t + k + 1] = xs[a, 1 : k + 1]
+                out.inputs[i, t : t + k] = us[a, :k]
+                self.acc[i] += self.stage_cost(xs[a, :k], us[a, :k]).sum()
+                self.x[i] = xs[a, k]
+        return active[~done], t + tau
+
+    def condensed(self) -> None:
+        """Condense the QPs of all live models in one batch (once) and hand them to the controllers."""
+        if self.cq is not None:
+            return
+        cs = [self.ctrls[i] for i in self.live]
+        c0 = cs[0]
+        self.cq = condense(np.stack([c.A for c in cs]), np.stack([c.B for c in cs]), c0.Q, c0.R,
+                           np.stack([c.Qf for c in cs]), c0.x_ref, c0.N)
+        for k, c in enumerate(cs):
+            c.use_condensed(self.cq, k)
+
+    def solve_slow(self, idx: np.ndarray, xs: np.ndarray, zs: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
+        """``u_0`` of the models ``idx`` (states ``xs``) whose unconstrained optimum ``zs`` violates a bound.
+
+        Box-only DAQP problems are first solved all at once by a few primal-dual
+        active-set iterations (:func:`box_qp_batch`) from a guess: the previous
+        step's active set shifted by one step (receding horizon), or at the first
+        constrained step the bounds the unconstrained optimum violates. Where that
+        does not settle -- and for state boxes or OSQP -- the model's own solver is
+        called (DAQP warm-starts from its last active set). Failures are recorded.
+        Returns ``(u (S, m), solved (S,))``.
+        """
+        m, ub = self.m, self.ub
+        self.out.qp_steps += idx.size
+        if self.solver_is_daqp:
+            self.condensed()
+        u = np.empty((idx.size, m))
+        todo = np.ones(idx.size, dtype=bool)
+        if self.guess:
+            j = self.rows(idx)
+            g = np.einsum("lij,lj->li", self.cq.Gx[j], xs) + self.cq.g0[j]
+            prev = self.prevU[idx]
+            shifted = np.concatenate([prev[:, m:], prev[:, -m:]], axis=1)
+            fresh = (self.prev_t[idx] != t - 1)[:, None]  # no solution at the previous step: guess afresh
+            base = np.where(fresh, zs[:, : ub.size], shifted)
+            hi, lo = base >= ub * (1 - 1e-9), base <= -ub * (1 - 1e-9)
+            U, ok = box_qp_batch(self.cq.H[j], g, ub, hi, lo)
+            self.prevU[idx[ok]] = U[ok]
+            self.prev_t[idx[ok]] = t
+            u[ok] = U[ok, :m]
+            todo = ~ok
+        solved = np.ones(idx.size, dtype=bool)
+        for a in np.flatnonzero(todo):
+            i, c = int(idx[a]), self.ctrls[int(idx[a])]
+            try:
+                if c.solver == "daqp":
+                    U = c.solve_daqp(xs[a])
+                    self.prevU[i], self.prev_t[i], u[a] = U, t, U[:m]
+                else:
+                    u[a], J = c.solve_qp(xs[a])
+                    if t == 0:
+                        self.out.J0[i] = J
+            except MPCFailure as exc:
+                self.fail(i, exc.kind, f"step {t}: {exc}")
+                solved[a] = False
+        if t == 0 and self.solver_is_daqp:  # the predicted optimal cost J*(x0) of the first problem
+            for a in np.flatnonzero(solved):
+                self.out.J0[idx[a]] = self.ctrls[int(idx[a])].qp_cost(xs[a], self.prevU[idx[a]])
+        # the active set meets the bounds up to rounding: clip that rounding
+        return np.clip(u, -self.w.u_max, self.w.u_max), solved
+
+    def step_small(self, active: np.ndarray, t: int) -> tuple[np.ndarray, bool]:
+        """:meth:`step` for a few models, one at a time: the same law, the QP by the model's own solver."""
+        m, out = self.m, self.out
+        keep, all_fast = [], True
+        for i in active:
+            c, x = self.ctrls[i], self.x[i]
+            z = c.F @ x + c.f
+            fast = bool(np.all(np.abs(z) <= c.bound))
+            try:
+                if fast:
+                    u, J = z[:m], (c.cost_to_go(x) if t == 0 else np.nan)
+                else:
+                    out.qp_steps += 1
+                    u, J = c.solve_qp(x)
+            except MPCFailure as exc:
+                self.fail(i, exc.kind, f"step {t}: {exc}")
+                continue
+            if t == 0:
+                out.J0[i] = J
+            xn = self.A @ x + self.B @ u  # the true plant moves
+            if not np.all(np.isfinite(xn)) or np.abs(xn).max() > DIVERGED:
+                self.fail(i, FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
+                continue
+            out.states[i, t + 1], out.inputs[i, t] = xn, u
+            self.acc[i] += self.stage_cost(x, u)
+            self.x[i] = xn
+            keep.append(i)
+            all_fast &= fast
+        return np.array(keep, dtype=int), all_fast
+
+    def step(self, active: np.ndarray, t: int) -> tuple[np.ndarray, bool]:
+        """One closed-loop step of every active model; the QP solver only where a bound is active.
+
+        Returns the models still running and whether all of them took the fast path
+        (then the caller goes back to :meth:`speculate`).
+        """
+        j = self.rows(active)
+        xi = self.x[active]
+        z1 = np.einsum("lrn,ln->lr", self.F[j], xi) + self.f[j]
+        fast_ok = np.all(np.abs(z1) <= self.bound, axis=1)
+        u = z1[:, : self.m].copy()
+        keep = np.ones(active.size, dtype=bool)
+        slow = np.flatnonzero(~fast_ok)
+        if slow.size:
+            u[slow], ok = self.solve_slow(active[slow], xi[slow], z1[slow], t)
+            keep[slow] = ok
+        if t == 0:
+            for a in np.flatnonzero(fast_ok):
+                self.out.J0[active[a]] = self.ctrls[active[a]].cost_to_go(xi[a])
+        # the true plant moves: x+ = A x + B u
+        xn = xi @ self.A.T + u @ self.B.T
+        bad = ~np.all(np.isfinite(xn), axis=1) | (np.abs(xn).max(axis=1) > DIVERGED)
+        for a in np.flatnonzero(bad & keep):
+            self.fail(int(active[a]), FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
+            keep[a] = False
+        sel = active[keep]
+        self.out.states[sel, t + 1] = xn[keep]
+        self.out.inputs[sel, t] = u[keep]
+        self.acc[sel] += self.stage_cost(xi[keep], u[keep])
+        self.x[sel] = xn[keep]
+        return sel, bool(fast_ok[keep].all())
 
 
 def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system) -> ClosedLoops:
@@ -66,156 +326,44 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     ahead for all models at once and every predicted constraint is checked in
     one batch. Models stay on that path until their first step where a
     constraint would be violated; from there on they are stepped one step at a
-    time, with OSQP solving the steps where a bound is active, until a step
-    where every remaining model is back on the fast path. A failure (no model,
-    no DARE solution, infeasible QP, iteration limit, diverging state) is
-    recorded for that model and never raised.
+    time, with the QP solver (``cfg.solver``) on the steps where a bound is
+    active, until a step where every remaining model is back on the fast path.
+    A failure (no model, no DARE solution, infeasible QP, iteration limit,
+    diverging state) is recorded for that model and never raised.
 
     Parameters
     ----------
     models : sequence of (A_hat, B_hat)
-    A_true, B_true : ndarray
+        Identified models, shapes (n, n) and (n, m); non-finite entries mean "no model".
+    A_true, B_true : ndarray, shapes (n, n), (n, m)
         The true plant the inputs are applied to.
     cfg : MPCConfig
     system : LTISystem
         Supplies default Q, R and x0 (see :meth:`MPCConfig.resolve`).
+
+    Returns
+    -------
+    ClosedLoops
     """
     w = cfg.resolve(system)
     n, m = B_true.shape
-    Rn = len(models)
-    steps = cfg.steps
-    states = np.full((Rn, steps + 1, n), np.nan)
-    inputs = np.full((Rn, steps, m), np.nan)
-    cost = np.full(Rn, np.nan)
-    J0 = np.full(Rn, np.nan)
-    failure = [""] * Rn
-    messages = [""] * Rn
-    # models without finite entries (failed identifications) are left to MPCController to reject
-    fi = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
-    Qfs: list = [w["Qf"]] * Rn
-    if w["Qf"] is None and fi:
-        # terminal weights of all models at once; the few that SDA cannot settle go to scipy
-        X, okd = dare_batch(np.stack([models[i][0] for i in fi]), np.stack([models[i][1] for i in fi]),
-                            w["Q"], w["R"])
-        for k, i in enumerate(fi):
-            if okd[k]:
-                Qfs[i] = X[k]
-    # fast-path gains and prediction maps of every model with a terminal weight, in one batch
-    ready = [i for i in fi if Qfs[i] is not None]
-    batch: dict = {}
-    if ready:
-        with np.errstate(all="ignore"):
-            bp = lq_parts(np.stack([np.asarray(models[i][0], float) for i in ready]),
-                          np.stack([np.asarray(models[i][1], float) for i in ready]), w["Q"], w["R"],
-                          np.stack([np.asarray(Qfs[i], float) for i in ready]), w["x_ref"], cfg.horizon,
-                          w["u_max"], w["x_max"], w["xf_max"])
-        for k, i in enumerate(ready):
-            pk = {key: (v[k] if key != "bound" else v) for key, v in bp.items()}
-            if all(np.all(np.isfinite(v)) for key, v in pk.items() if key != "bound"):
-                batch[i] = pk
-    ctrls: list[MPCController | None] = []
-    for i, (Ah, Bh) in enumerate(models):
-        try:
-            ctrls.append(MPCController(Ah, Bh, w["Q"], w["R"], cfg.horizon, w["u_max"], w["x_max"], w["xf_max"],
-                                       w["x_ref"], Qfs[i], cfg.eps, cfg.max_iter, parts=batch.get(i)))
-        except MPCFailure as exc:
-            ctrls.append(None)
-            failure[i], messages[i] = exc.kind, str(exc)
-    live = np.array([c is not None for c in ctrls], dtype=bool)
-    if not live.any():
-        return ClosedLoops(states, inputs, cost, J0, failure, messages, 0)
-    Q, R, r = w["Q"], w["R"], w["x_ref"]
-    lid = np.flatnonzero(live)
-    F = np.stack([ctrls[i].F for i in lid])  # (L, rows, n)
-    f = np.stack([ctrls[i].f for i in lid])  # (L, rows)
-    bound = ctrls[lid[0]].bound
-    pos = {int(i): j for j, i in enumerate(lid)}
-    acc = np.zeros(Rn)
-    x = np.tile(w["x0"], (Rn, 1))
-    states[lid, 0] = x[lid]
-    osqp_steps = 0
-
-    def fail(i: int, kind: str, msg: str) -> None:
-        failure[i], messages[i] = kind, msg
-        states[i] = np.nan
-        inputs[i] = np.nan
-
-    def stage_cost(xs: np.ndarray, us: np.ndarray) -> np.ndarray:
-        e = xs - r
-        return np.einsum("...i,ij,...j->...", e, Q, e) + np.einsum("...i,ij,...j->...", us, R, us)
-
-    active = lid.copy()
-    t = 0
+    Rn, steps = len(models), cfg.steps
+    out = ClosedLoops(np.full((Rn, steps + 1, n), np.nan), np.full((Rn, steps, m), np.nan), np.full(Rn, np.nan),
+                      np.full(Rn, np.nan), [""] * Rn, [""] * Rn, 0)
+    ctrls = _controllers(models, w, cfg, out.failure, out.messages)
+    if all(c is None for c in ctrls):
+        return out
+    loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out)
+    active, t = loops.live.copy(), 0
     with np.errstate(over="ignore", invalid="ignore"):
         while t < steps and active.size:
-            # --- speculate: fast-path feedback for the remaining steps, checked in one batch
-            j = np.array([pos[int(i)] for i in active])
-            Fu, fu = F[j, :m], f[j, :m]
-            Mcl = A_true[None] + np.einsum("ij,ljk->lik", B_true, Fu)
-            ccl = fu @ B_true.T
-            H = steps - t
-            xs = np.empty((active.size, H + 1, n))
-            xs[:, 0] = x[active]
-            for h in range(H):
-                xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
-            z = np.einsum("lrn,lhn->lhr", F[j], xs[:, :H]) + f[j][:, None, :]
-            ok = np.all(np.abs(z) <= bound, axis=2)
-            ok &= np.all(np.isfinite(xs[:, 1:]), axis=2) & (np.abs(xs[:, 1:]).max(axis=2) <= 1e12)
-            first_bad = np.where(ok.all(axis=1), H, np.argmin(ok, axis=1))
-            if t == 0:
-                for a, i in enumerate(active):
-                    if first_bad[a] > 0:
-                        J0[i] = ctrls[i].cost_to_go(xs[a, 0])
-            tau = int(first_bad.min())
-            done = first_bad == H
-            # commit the valid prefix: everything for models that never leave the fast path
-            us = z[:, :, :m]
-            for a, i in enumerate(active):
-                k = H if done[a] else tau
-                if k:
-                    states[i, t + 1 : t + k + 1] = xs[a, 1 : k + 1]
-                    inputs[i, t : t + k] = us[a, :k]
-                    acc[i] += stage_cost(xs[a, :k], us[a, :k]).sum()
-                    x[i] = xs[a, k]
-            active = active[~done]
-            t += tau
-            # --- step one at a time until every remaining model is back on the fast path
+            active, t = loops.speculate(active, t)
             while t < steps and active.size:
-                j = np.array([pos[int(i)] for i in active])
-                xi = x[active]
-                z1 = np.einsum("lrn,ln->lr", F[j], xi) + f[j]
-                fast_ok = np.all(np.abs(z1) <= bound, axis=1)
-                u = z1[:, :m].copy()
-                keep = np.ones(active.size, dtype=bool)
-                for a in np.flatnonzero(~fast_ok):
-                    i = int(active[a])
-                    osqp_steps += 1
-                    try:
-                        u[a], Jt = ctrls[i].solve_osqp(xi[a])
-                        if t == 0:
-                            J0[i] = Jt
-                    except MPCFailure as exc:
-                        fail(i, exc.kind, f"step {t}: {exc}")
-                        keep[a] = False
-                if t == 0:
-                    for a in np.flatnonzero(fast_ok):
-                        J0[active[a]] = ctrls[active[a]].cost_to_go(xi[a])
-                xn = xi @ A_true.T + u @ B_true.T
-                bad = ~np.all(np.isfinite(xn), axis=1) | (np.abs(xn).max(axis=1) > 1e12)
-                for a in np.flatnonzero(bad & keep):
-                    fail(int(active[a]), "diverged", f"closed loop diverged at step {t + 1}")
-                    keep[a] = False
-                sel = active[keep]
-                states[sel, t + 1] = xn[keep]
-                inputs[sel, t] = u[keep]
-                acc[sel] += stage_cost(xi[keep], u[keep])
-                x[sel] = xn[keep]
-                all_fast = bool(fast_ok[keep].all())
-                active = sel
+                active, all_fast = (loops.step_small if active.size <= SMALL else loops.step)(active, t)
                 t += 1
                 if all_fast:
                     break
-    ok_all = np.array([not fl for fl in failure])
-    cost[ok_all] = acc[ok_all]
-    J0[~ok_all] = np.nan
-    return ClosedLoops(states, inputs, cost, J0, failure, messages, osqp_steps)
+    ok = np.array([not fl for fl in out.failure])
+    out.cost[ok] = loops.acc[ok]
+    out.J0[~ok] = np.nan
+    return out

@@ -6,7 +6,9 @@ says what was wrong and what is allowed, so front ends can show it as one line.
 
 from __future__ import annotations
 
-__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "MPCFailure", "check_choice", "check_int", "check_float"]
+from enum import Enum
+
+__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "MPCFailure", "FailureKind", "check_choice", "check_int", "check_float"]
 
 
 class QsidError(ValueError):
@@ -25,12 +27,44 @@ class DataOverflowError(QsidError):
     """Simulated data left the floating-point range (an unstable system)."""
 
 
-class MPCFailure(QsidError):
-    """The MPC could not be built or solved; ``kind`` is one of :data:`FAILURE_KINDS`."""
+class FailureKind(str, Enum):
+    """Why the MPC of one realisation failed (a ``str``: equal to, and serialised as, its value).
 
-    def __init__(self, kind: str, message: str):
+    Like OSQP's ``SolverStatus``, but for the whole closed loop of one identified model.
+    """
+
+    #: identification gave no model (singular data)
+    IDENT = "ident"
+    #: the DARE for the terminal weight has no stabilizing solution
+    DARE = "dare"
+    #: the QP (with a state or terminal box) has no feasible input sequence
+    INFEASIBLE = "infeasible"
+    #: the QP solver hit its iteration limit
+    MAX_ITER = "max_iter"
+    #: any other QP solver failure
+    SOLVER = "solver"
+    #: the true-system state left the floating-point range (|x| > 1e12)
+    DIVERGED = "diverged"
+
+    def __str__(self) -> str:  # 'dare', not 'FailureKind.DARE' (also in f-strings on Python < 3.12)
+        return self.value
+
+    def __format__(self, spec: str) -> str:
+        return format(self.value, spec)
+
+
+class MPCFailure(QsidError):
+    """The MPC could not be built or solved.
+
+    Attributes
+    ----------
+    kind : FailureKind
+        Why (a ``str`` enum: ``exc.kind == "dare"`` holds).
+    """
+
+    def __init__(self, kind: FailureKind | str, message: str):
         super().__init__(message)
-        self.kind = kind
+        self.kind = FailureKind(kind)
 
 
 def check_choice(name: str, value: str, allowed: tuple[str, ...]) -> str:

@@ -313,10 +313,10 @@ class Experiment:
         w = mcfg.resolve(sysm)
         note, ub = "", None
         try:
-            Qf = w["Qf"] if w["Qf"] is not None else dare_stabilizing(Gp[:, :n], Gp[:, n:], w["Q"], w["R"])
-            P = riccati_finite(Gp[:, :n], Gp[:, n:], w["Q"], w["R"], Qf, mcfg.horizon)
-            ub = ultimate_bound(P, w["Q"], w["R"], sysm.A - Gp[:, :n], sysm.B - Gp[:, n:],
-                                theta=c.theta, rho=c.rho, x0=w["x0"])
+            Qf = w.Qf if w.Qf is not None else dare_stabilizing(Gp[:, :n], Gp[:, n:], w.Q, w.R)
+            P = riccati_finite(Gp[:, :n], Gp[:, n:], w.Q, w.R, Qf, mcfg.horizon)
+            ub = ultimate_bound(P, w.Q, w.R, sysm.A - Gp[:, :n], sysm.B - Gp[:, n:],
+                                theta=c.theta, rho=c.rho, x0=w.x0)
             delta = ub.delta
         except MPCFailure as exc:
             delta, note = float("inf"), str(exc)
@@ -340,8 +340,8 @@ class Experiment:
             w = mcfg.resolve(self.system)
             with single_threaded_blas():
                 self._cache[k] = realized_bounds(self.identification(b, est).models, self.system.A, self.system.B,
-                                                 w["Q"], w["R"], w["Qf"], mcfg.horizon, theta=c.theta, rho=c.rho,
-                                                 x0=w["x0"])
+                                                 w.Q, w.R, w.Qf, mcfg.horizon, theta=c.theta, rho=c.rho,
+                                                 x0=w.x0)
         return self._cache[k]
 
     def assumptions(self, b: int) -> "Assumptions":

@@ -23,9 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data import Dataset
+from .errors import ConfigError, check_choice
 from .quantize import QuantizerSpec, data_ranges, effective_ranges
 
-__all__ = ["Moments", "PreparedData", "prepare", "quantized_moments", "CHUNK_ROWS"]
+__all__ = ["Moments", "PreparedData", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
 
 #: Rows (samples) per chunk; 16384 x 5 doubles = 640 kB: cache-sized, few numpy calls.
 CHUNK_ROWS = 16384
@@ -102,11 +103,106 @@ def prepare(data: Dataset, spec: QuantizerSpec) -> PreparedData:
     return PreparedData(yc=yc, lo=lo, hi=hi, n=n, m=m, trajectories=J, steps=S, exact=_exact_moments(data))
 
 
+#: implementations of :func:`quantized_moments`
+ENGINES = ("auto", "numba", "numpy")
+
+
+@dataclass
+class _Sums:
+    """Running sums over the quantized samples ``v`` (in cell units, see :func:`quantized_moments`).
+
+    Index ``j`` is the word length ``bits[j]``; ``g`` the global row (run ``g // S1``, step ``g % S1``).
+
+    Attributes
+    ----------
+    M : (nb, p, p)   ``sum_g v_g v_g'``
+    C : (nb, p, n)   ``sum_g v_{g-1} v_g[:n]'`` over consecutive rows
+    sums : (nb, p)   ``sum_g v_g``
+    over : (nb,)     overloaded entries
+    prev : (nb, p)   ``v`` of the last row seen (carried between chunks)
+    v_last, v_first : (nb, runs, p)   ``v`` at the last / first row of every run
+    """
+
+    M: np.ndarray
+    C: np.ndarray
+    sums: np.ndarray
+    over: np.ndarray
+    prev: np.ndarray
+    v_last: np.ndarray
+    v_first: np.ndarray
+
+    @classmethod
+    def zeros(cls, nb: int, p: int, n: int, runs: int) -> "_Sums":
+        return cls(np.zeros((nb, p, p)), np.zeros((nb, p, n)), np.zeros((nb, p)), np.zeros(nb, dtype=np.int64),
+                   np.zeros((nb, p)), np.zeros((nb, runs, p)), np.zeros((nb, runs, p)))
+
+
+def _chunk_numpy(y, u, scale, half, start: int, S1: int, acc: _Sums) -> None:
+    """numpy version of :func:`qsid_core.kernels.accumulate_chunk` (the reference; BLAS for the sums)."""
+    rows, p = y.shape
+    n = acc.C.shape[2]
+    bb = np.empty_like(y)
+    ones = np.ones(rows)
+    # rows of this chunk that end / start a run, and the runs they belong to
+    lsel = np.arange((S1 - 1 - start) % S1, rows, S1)
+    fsel = np.arange((-start) % S1, rows, S1)
+    lk, fk = (start + lsel) // S1, (start + fsel) // S1
+    for j in range(scale.size):
+        np.multiply(y, scale[j], out=bb)
+        if u is not None:
+            np.add(bb, u, out=bb)
+        h = half[j]
+        acc.over[j] += int(np.count_nonzero(bb < -h)) + int(np.count_nonzero(bb > h))
+        np.floor(bb, out=bb)
+        np.clip(bb, -h, h - 1, out=bb)
+        if u is not None:
+            np.subtract(bb, u, out=bb)
+        acc.M[j] += bb.T @ bb
+        acc.sums[j] += ones @ bb
+        acc.C[j] += (bb[:-1].T @ bb[1:])[:, :n]
+        if start > 0:
+            acc.C[j] += np.outer(acc.prev[j], bb[0, :n])
+        acc.prev[j] = bb[-1]
+        acc.v_last[j, lk] = bb[lsel]
+        acc.v_first[j, fk] = bb[fsel]
+
+
+def _gram(prep: PreparedData, b: int, guard: bool, acc: _Sums, j: int, upper_only: bool) -> Moments:
+    """Gram matrices of the quantized data at word length ``b`` from the sums over ``v``.
+
+    Every quantized sample is ``x~ = a + eps * v`` per channel, with
+    ``a = lo_q + eps (2^b + 1) / 2`` the quantizer's mid level. The regression
+    pairs exclude the last row of every run (no successor) from ``Psi`` and the
+    first row of every run from ``X+``; the pairs (last row of run k, first row
+    of run k+1) are not transitions. With those corrections (``Mv``, ``sv``,
+    ``Cv``, ``snext``)::
+
+        PP = sum_t (a + E v_t)(a + E v_t)'        = E Mv E + (E sv) a' + a (E sv)' + T a a'
+        XP = sum_t (a + E v_{t+1})[:n] (a + E v_t)' = E_n Cv E + (E_n snext) a' + a_n (E sv)' + T a_n a'
+    """
+    n, T = prep.n, prep.T
+    lo_q, eps = effective_ranges(prep.lo, prep.hi, b, guard)
+    a = lo_q + eps * (2.0**b + 1) / 2
+    VL, VF = acc.v_last[j], acc.v_first[j]
+    M = np.triu(acc.M[j]) + np.triu(acc.M[j], 1).T if upper_only else acc.M[j]  # the kernel fills one triangle
+    Mv = M - VL.T @ VL
+    sv = acc.sums[j] - VL.sum(axis=0)
+    Cv = (acc.C[j] - VL[:-1].T @ VF[1:, :n]).T  # sum_t v_{t+1}[:n] v_t', shape (n, p)
+    snext = acc.sums[j][:n] - VF[:, :n].sum(axis=0)
+    E = eps
+    PP = (E[:, None] * Mv * E[None, :]) + np.outer(E * sv, a) + np.outer(a, E * sv) + T * np.outer(a, a)
+    En, an = E[:n], a[:n]
+    XP = (En[:, None] * Cv * E[None, :]) + np.outer(En * snext, a) + np.outer(an, E * sv) + T * np.outer(an, a)
+    total_entries = prep.yc.shape[0] * n + T * prep.m
+    return Moments(PP=PP, XP=XP, T=T, eps=eps, overload_fraction=acc.over[j] / total_entries)
+
+
 def quantized_moments(
     prep: PreparedData,
     bits: list[int] | tuple[int, ...],
     spec: QuantizerSpec,
     rng: np.random.Generator | None,
+    engine: str = "auto",
 ) -> list[Moments]:
     """Gram matrices of the data quantized at each word length in ``bits``.
 
@@ -121,81 +217,46 @@ def quantized_moments(
         Dither and guard band.
     rng : numpy Generator or None
         Source of the unit dither U[-1/2, 1/2], one draw per data entry, drawn
-        chunk by chunk in a fixed order (so results do not depend on ``bits``).
-        Ignored (may be None) when ``spec.dither == "none"``.
+        chunk by chunk (:data:`CHUNK_ROWS` rows) in a fixed order (so results do
+        not depend on ``bits`` or ``engine``). Ignored (may be None) when
+        ``spec.dither == "none"``.
+    engine : {"auto", "numba", "numpy"}
+        ``numba``: the fused compiled kernel (:mod:`qsid_core.kernels`);
+        ``numpy``: the vectorised reference; ``auto``: numba when available.
 
     Returns
     -------
     list of Moments, one per entry of ``bits``.
+
+    Notes
+    -----
+    In normalised units ``y = (x - mid) / (hi - lo)`` the quantizer with ``2^b``
+    cells and unit dither ``u`` gives the sample in cell units
+    ``v = clip(floor(y * 2^b + u), -2^(b-1), 2^(b-1) - 1) - u`` (``2^b - 1``
+    in place of the first ``2^b`` with guard band); the quantized value is
+    ``a + eps * v`` (see :func:`_gram`). Only sums over ``v`` are accumulated.
     """
-    yc = prep.yc
-    N, p = yc.shape
-    n, S1 = prep.n, prep.steps + 1
+    from . import kernels
+
+    check_choice("engine", engine, ENGINES)
+    if engine == "numba" and not kernels.AVAILABLE:
+        raise ConfigError(f"engine 'numba' unavailable: {kernels.REASON}")
+    compiled = engine == "numba" or (engine == "auto" and kernels.AVAILABLE)
     dithered = spec.dither == "subtractive"
     if dithered and rng is None:
         raise ValueError("subtractive dither needs a random generator")
-    nb = len(bits)
-    half = [2.0 ** (b - 1) for b in bits]
-    scale = [2.0**b - (1.0 if spec.guard else 0.0) for b in bits]
-    M = np.zeros((nb, p, p))
-    C = np.zeros((nb, p, p))
-    sums = np.zeros((nb, p))
-    over = np.zeros(nb, dtype=np.int64)
-    last_rows = np.arange(S1 - 1, N, S1)
-    first_rows = np.arange(0, N, S1)
-    # v at the first/last row of every run, per b (for the boundary corrections)
-    v_last = np.empty((nb, last_rows.size, p))
-    v_first = np.empty((nb, first_rows.size, p))
-    prev = np.empty((nb, p))
-    buf = np.empty((min(CHUNK_ROWS, N), p))
-    ones = np.ones(buf.shape[0])
+    yc = prep.yc
+    N, p = yc.shape
+    S1 = prep.steps + 1
+    half = np.array([2.0 ** (b - 1) for b in bits])
+    scale = np.array([2.0**b - (1.0 if spec.guard else 0.0) for b in bits])
+    acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
     for start in range(0, N, CHUNK_ROWS):
-        stop = min(start + CHUNK_ROWS, N)
-        y = yc[start:stop]
-        bb = buf[: stop - start]
+        y = yc[start : start + CHUNK_ROWS]
         u = rng.uniform(-0.5, 0.5, size=y.shape) if dithered else None
-        li, li2 = np.searchsorted(last_rows, [start, stop])
-        fi, fi2 = np.searchsorted(first_rows, [start, stop])
-        lsel = last_rows[li:li2] - start
-        fsel = first_rows[fi:fi2] - start
-        for j in range(nb):
-            np.multiply(y, scale[j], out=bb)
-            if dithered:
-                np.add(bb, u, out=bb)
-            h = half[j]
-            lo_s, hi_s = bb.min(), bb.max()
-            if lo_s < -h or hi_s > h:
-                # x + w left [lo_q, lo_q + 2^b eps] (padded inputs sit mid-range, never counted)
-                over[j] += int(np.count_nonzero(bb < -h)) + int(np.count_nonzero(bb > h))
-            np.floor(bb, out=bb)
-            if lo_s < -h or hi_s >= h:
-                np.clip(bb, -h, h - 1, out=bb)
-            if dithered:
-                np.subtract(bb, u, out=bb)
-            M[j] += bb.T @ bb
-            sums[j] += ones[: stop - start] @ bb
-            C[j] += bb[:-1].T @ bb[1:]
-            if start > 0:
-                C[j] += np.outer(prev[j], bb[0])
-            prev[j] = bb[-1]
-            v_last[j, li:li2] = bb[lsel]
-            v_first[j, fi:fi2] = bb[fsel]
-    T = prep.T
-    total_entries = N * n + T * prep.m
-    out: list[Moments] = []
-    for j, b in enumerate(bits):
-        lo_q, eps = effective_ranges(prep.lo, prep.hi, b, spec.guard)
-        a = lo_q + eps * (2.0**b + 1) / 2
-        VL, VF = v_last[j], v_first[j]
-        Mv = M[j] - VL.T @ VL
-        sv = sums[j] - VL.sum(axis=0)
-        # pairs (last row of run k, first row of run k+1) are not transitions
-        Cv = C[j] - VL[:-1].T @ VF[1:]
-        Cv = Cv[:, :n].T  # sum_t v_{t+1}[:n] v_t^T, shape (n, p)
-        snext = sums[j][:n] - VF[:, :n].sum(axis=0)
-        E = eps
-        PP = (E[:, None] * Mv * E[None, :]) + np.outer(E * sv, a) + np.outer(a, E * sv) + T * np.outer(a, a)
-        En, an = E[:n], a[:n]
-        XP = (En[:, None] * Cv * E[None, :]) + np.outer(En * snext, a) + np.outer(an, E * sv) + T * np.outer(an, a)
-        out.append(Moments(PP=PP, XP=XP, T=T, eps=eps, overload_fraction=over[j] / total_entries))
-    return out
+        if compiled:
+            kernels.accumulate_chunk(y, np.zeros_like(y) if u is None else u, scale, half, start, S1, acc.M,
+                                     acc.C, acc.sums, acc.over, acc.prev, acc.v_last, acc.v_first)
+        else:
+            _chunk_numpy(y, u, scale, half, start, S1, acc)
+    return [_gram(prep, b, spec.guard, acc, j, compiled) for j, b in enumerate(bits)]

@@ -10,15 +10,21 @@ The letter's problem (eq. (2)) with horizon ``Th``::
 never put on ``x_0`` (the measured state): with model mismatch that could make
 the problem infeasible.
 
-Two exact solution paths:
+Exact solution paths:
 
 * **fast path** -- the unconstrained finite-horizon LQ solution (backward
   Riccati recursion with an affine term for the reference). If its predicted
   inputs and states satisfy every constraint it *is* the optimum of the convex
-  QP, and OSQP is skipped.
-* **OSQP** -- the sparse QP, set up once per identified model; each step only the
-  bounds of the initial-state equality are updated and the solver warm-starts.
-  The status is checked every step.
+  QP, and no solver is called.
+* **DAQP** (default, ``solver="daqp"``) -- the QP condensed onto the ``N m``
+  inputs (:mod:`qsid_core.condensed_qp`): input box as simple bounds, state and
+  terminal boxes as general rows; a dual active-set solver, warm-started from
+  the previous step's active set. Never calls OSQP.
+* **OSQP** (``solver="osqp"``, the previous engine, kept as a reference and for
+  the benchmarks) -- the sparse QP, set up once per identified model; each step
+  only the bounds of the initial-state equality are updated and it warm-starts.
+
+The solver's status is checked every step; failures raise :class:`MPCFailure`.
 """
 
 from __future__ import annotations
@@ -26,14 +32,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
-from .errors import ConfigError, MPCFailure, check_float, check_int
-from .riccati import dare_batch, dare_stabilizing, lq_parts
+from .condensed_qp import CondensedQP, DaqpMPC, condense
+from .errors import ConfigError, FailureKind, MPCFailure, check_choice, check_float, check_int
+from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
 
-__all__ = ["MPCConfig", "MPCFailure", "MPCController", "FAILURE_KINDS", "dare_batch", "dare_stabilizing", "lq_parts"]
+__all__ = ["MPCConfig", "MPCWeights", "MPCFailure", "MPCController", "FailureKind", "FAILURE_KINDS", "SOLVERS",
+           "dare_batch", "dare_stabilizing", "lq_parts"]
 
-FAILURE_KINDS = ("ident", "dare", "infeasible", "max_iter", "solver", "diverged")
+#: every failure kind's value, in :class:`FailureKind` order
+FAILURE_KINDS = tuple(k.value for k in FailureKind)
+#: QP solvers for the steps where a bound is active
+SOLVERS = ("daqp", "osqp")
 
 
 def _vec(name: str, v, k: int | None, positive: bool = False) -> tuple[float, ...] | None:
@@ -74,10 +84,14 @@ class MPCConfig:
     x_ref : tuple of floats, optional
         Constant reference (default 0).
     eps : float
-        OSQP absolute and relative tolerance (default 1e-9, tight so that
-        inputs do not overshoot their bound; the result is clipped as well).
+        OSQP absolute and relative tolerance (default 1e-9; only for
+        ``solver="osqp"``; the result is clipped to the input box as well).
     max_iter : int
-        OSQP iteration limit.
+        Iteration limit of the QP solver.
+    solver : {"daqp", "osqp"}
+        QP solver for the steps where a bound is active: DAQP on the condensed
+        problem (default, exact active set) or OSQP on the sparse one (the
+        previous engine, kept as a reference).
     """
 
     horizon: int = 10
@@ -92,8 +106,10 @@ class MPCConfig:
     x_ref: tuple | None = None
     eps: float = 1e-9
     max_iter: int = 20000
+    solver: str = "daqp"
 
     def __post_init__(self) -> None:
+        check_choice("solver", self.solver, SOLVERS)
         check_int("horizon", self.horizon, 1, 200)
         check_int("mpc steps", self.steps, 1, 10000)
         check_float("OSQP eps", self.eps, 0.0, 1e-2, lo_open=True)
@@ -110,8 +126,14 @@ class MPCConfig:
         if self.R is not None and min(self.R) <= 0:
             raise ConfigError(f"R diagonal must be > 0; got {self.R}")
 
-    def resolve(self, system) -> dict:
-        """Weights, bounds and x0 as arrays for ``system`` (shapes checked)."""
+    def resolve(self, system) -> "MPCWeights":
+        """Weights, bounds and x0 as arrays for ``system`` (shapes checked).
+
+        Raises
+        ------
+        ConfigError
+            If a vector has neither 1 nor the system's number of entries.
+        """
         n, m = system.n, system.m
 
         def full(name, v, k, default):
@@ -124,13 +146,13 @@ class MPCConfig:
                 raise ConfigError(f"{name} must have 1 or {k} entries for system {system.name!r}; got {arr.size}")
             return arr
 
-        Q = np.diag(full("Q", self.Q, n, None)) if self.Q is not None else np.array(system.Q)
-        R = np.diag(full("R", self.R, m, None)) if self.R is not None else np.array(system.R)
-        return dict(
+        Q = np.diag(full("Q", self.Q, n, None)) if self.Q is not None else np.array(system.Q, dtype=float)
+        R = np.diag(full("R", self.R, m, None)) if self.R is not None else np.array(system.R, dtype=float)
+        return MPCWeights(
             Q=Q,
             R=R,
             Qf=None if self.Qf is None else np.diag(full("Qf", self.Qf, n, None)),
-            x0=full("x0", self.x0, n, np.array(system.x0)),
+            x0=full("x0", self.x0, n, np.array(system.x0, dtype=float)),
             x_ref=full("x_ref", self.x_ref, n, np.zeros(n)),
             u_max=full("u_max", self.u_max, m, None),
             x_max=None if self.x_max is None else full("x_max", self.x_max, n, None),
@@ -138,30 +160,81 @@ class MPCConfig:
         )
 
 
+@dataclass(frozen=True, eq=False)
+class MPCWeights:
+    """An :class:`MPCConfig` resolved for one system (``n`` states, ``m`` inputs).
+
+    Units are the system's: states and inputs as in ``A``, ``B``; the cost is the
+    sum of ``x'Qx + u'Ru`` terms.
+
+    Attributes
+    ----------
+    Q : ndarray, shape (n, n)
+        Stage state weight (positive semidefinite).
+    R : ndarray, shape (m, m)
+        Stage input weight (positive definite).
+    Qf : ndarray, shape (n, n), or None
+        Terminal weight; None means "the DARE solution of each identified model".
+    x0 : ndarray, shape (n,)
+        Initial state of every closed loop.
+    x_ref : ndarray, shape (n,)
+        Constant reference the state is steered to.
+    u_max : ndarray, shape (m,)
+        Input box half-widths, ``|u_i| <= u_max_i`` (> 0).
+    x_max : ndarray, shape (n,), or None
+        State box on the predicted ``x_1..x_N``.
+    xf_max : ndarray, shape (n,), or None
+        Terminal box on ``x_N``.
+    """
+
+    Q: np.ndarray
+    R: np.ndarray
+    Qf: np.ndarray | None
+    x0: np.ndarray
+    x_ref: np.ndarray
+    u_max: np.ndarray
+    x_max: np.ndarray | None
+    xf_max: np.ndarray | None
+
+    def __getitem__(self, name: str):
+        """Read-only dict-style access (``w["Q"]``), kept so older front-end code keeps working."""
+        if name not in self.__dataclass_fields__:
+            raise KeyError(name)
+        return getattr(self, name)
+
+
 class MPCController:
-    """The letter's MPC for one identified model ``(A^, B^)``: fast path plus OSQP.
+    """The letter's MPC for one identified model ``(A^, B^)``: fast path plus a QP solver.
 
     Parameters
     ----------
     A_hat : ndarray, shape (n, n)
     B_hat : ndarray, shape (n, m)
-    Q, R : ndarray
+    Q : ndarray, shape (n, n); R : ndarray, shape (m, m)
         Stage weights, ``R`` positive definite.
     horizon : int
     u_max : ndarray, shape (m,)
     x_max, xf_max : ndarray, shape (n,), or None
     x_ref : ndarray, shape (n,)
-    Qf : ndarray, optional
+    Qf : ndarray, shape (n, n), optional
         Terminal weight; default: DARE solution for ``(A^, B^, Q, R)``.
+    eps : float
+        OSQP tolerance (``solver="osqp"`` only).
+    max_iter : int
+        QP solver iteration limit.
+    parts : LQParts, optional
+        This model's fast-path parts, if already computed for a batch (:func:`lq_parts`).
+    solver : {"daqp", "osqp"}
 
     Raises
     ------
     MPCFailure
-        kind ``"dare"`` if Qf is not given and the DARE has no stabilizing solution.
+        kind ``ident`` if the model is not finite; ``dare`` if Qf is not given and
+        the DARE has no stabilizing solution.
     """
 
     def __init__(self, A_hat, B_hat, Q, R, horizon, u_max, x_max=None, xf_max=None, x_ref=None, Qf=None,
-                 eps: float = 1e-9, max_iter: int = 20000, parts: dict | None = None):
+                 eps: float = 1e-9, max_iter: int = 20000, parts: LQParts | None = None, solver: str = "daqp"):
         self.A = np.asarray(A_hat, dtype=float)
         self.B = np.asarray(B_hat, dtype=float)
         self.n, self.m = self.B.shape
@@ -174,30 +247,23 @@ class MPCController:
         self.x_ref = np.zeros(self.n) if x_ref is None else np.asarray(x_ref, dtype=float)
         self.eps = eps
         self.max_iter = max_iter
+        self.solver = check_choice("solver", solver, SOLVERS)
         if not (np.all(np.isfinite(self.A)) and np.all(np.isfinite(self.B))):
-            raise MPCFailure("ident", "no model: identification failed for this realization")
+            raise MPCFailure(FailureKind.IDENT, "no model: identification failed for this realization")
         self.Qf = dare_stabilizing(self.A, self.B, self.Q, self.R) if Qf is None else np.asarray(Qf, dtype=float)
         if parts is None:
-            self._riccati()
-        else:  # computed for a batch of models by run_closed_loops
-            self._set_parts(parts)
+            parts = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
+                             self.u_max, self.x_max, self.xf_max).model(0)
+        self.parts = parts
+        self.F, self.f, self.bound = parts.F, parts.f, parts.bound
+        self._qp = None
         self._osqp = None
 
     # ----- fast path -----------------------------------------------------------------
-    def _riccati(self) -> None:
-        """Gains and value function of the unconstrained problem, and its prediction map."""
-        parts = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
-                         self.u_max, self.x_max, self.xf_max)
-        self._set_parts({k: v[0] if k != "bound" else v for k, v in parts.items()})
-
-    def _set_parts(self, parts: dict) -> None:
-        self.K, self.kf = parts["K"], parts["kf"]
-        self.P0, self.p0, self.c0 = parts["P0"], parts["p0"], float(parts["c0"])
-        self.F, self.f, self.bound = parts["F"], parts["f"], parts["bound"]
-
     def cost_to_go(self, x: np.ndarray) -> float:
         """Unconstrained optimal cost ``x'P0x + 2p0'x + c0`` (equals J*(x) when the fast path holds)."""
-        return float(x @ self.P0 @ x + 2 * self.p0 @ x + self.c0)
+        p = self.parts
+        return float(x @ p.P0 @ x + 2 * p.p0 @ x + p.c0)
 
     def fast(self, x: np.ndarray) -> tuple[np.ndarray, float] | None:
         """Unconstrained LQ optimum ``(u_0, J*)`` if it satisfies every constraint, else None."""
@@ -207,106 +273,54 @@ class MPCController:
             return None
         return z[: self.m], self.cost_to_go(xs)
 
-    # ----- OSQP ----------------------------------------------------------------------
-    def _setup_osqp(self) -> None:
-        import osqp
+    # ----- QP solvers ----------------------------------------------------------------
+    def use_condensed(self, cq: CondensedQP, k: int) -> None:
+        """Use model ``k`` of a batch-condensed problem for the DAQP solves (saves condensing it alone)."""
+        if self.solver == "daqp" and self._qp is None:
+            self._qp = DaqpMPC(cq, k, self.Q, self.x_ref, self.u_max,
+                               state_box(self.n, self.N, self.x_max, self.xf_max), self.max_iter)
 
-        n, m, N = self.n, self.m, self.N
-        A, B = self.A, self.B
-        P = sp.block_diag([sp.kron(sp.eye(N), self.Q), self.Qf, sp.kron(sp.eye(N), self.R)], format="csc")
-        q = np.concatenate([np.kron(np.ones(N), -self.Q @ self.x_ref), -self.Qf @ self.x_ref, np.zeros(N * m)])
-        Ax = sp.kron(sp.eye(N + 1), -sp.eye(n)) + sp.kron(sp.eye(N + 1, k=-1), A)
-        Bu = sp.kron(sp.vstack([sp.csc_matrix((1, N)), sp.eye(N)]), B)
-        Aeq = sp.hstack([Ax, Bu])
-        nz = (N + 1) * n + N * m
-        rows = [Aeq]
-        lo = [np.zeros((N + 1) * n)]
-        hi = [np.zeros((N + 1) * n)]
-        # input box
-        rows.append(sp.hstack([sp.csc_matrix((N * m, (N + 1) * n)), sp.eye(N * m)]))
-        lo.append(np.tile(-self.u_max, N))
-        hi.append(np.tile(self.u_max, N))
-        # state box on x_1..x_N (not on x_0), terminal box on x_N
-        if self.x_max is not None or self.xf_max is not None:
-            big = np.full(n, np.inf)
-            boxes = [self.x_max if self.x_max is not None else big for _ in range(N)]
-            if self.xf_max is not None:
-                boxes[-1] = np.minimum(boxes[-1], self.xf_max)
-            bx = np.concatenate(boxes)
-            rows.append(sp.hstack([sp.csc_matrix((N * n, n)), sp.eye(N * n), sp.csc_matrix((N * n, N * m))]))
-            lo.append(-bx)
-            hi.append(bx)
-        self._l = np.concatenate(lo)
-        self._u = np.concatenate(hi)
-        Aall = sp.vstack(rows, format="csc")
-        prob = osqp.OSQP()
-        prob.setup(
-            sp.triu(P, format="csc"), q, Aall, self._l, self._u, verbose=False, polishing=True, warm_starting=True,
-            eps_abs=self._coarse or self.eps, eps_rel=self._coarse or self.eps, max_iter=self.max_iter,
-        )
-        self._osqp = prob
-        self._nz = nz
-        self._const = float(N * self.x_ref @ self.Q @ self.x_ref + self.x_ref @ self.Qf @ self.x_ref)
-
-    #: ADMM tolerance of the first solve; polishing then solves the KKT system of the
-    #: guessed active set exactly, and the result is kept only if its residuals are
-    #: below ``eps`` (else OSQP continues to ``eps``). Same answer, fewer iterations.
-    COARSE_EPS = 1e-3
-
-    @property
-    def _coarse(self) -> float:
-        return self.COARSE_EPS if self.eps < self.COARSE_EPS else 0.0
-
-    def _polished(self, res) -> bool:
-        import osqp
-
-        return (
-            res.info.status_val == osqp.SolverStatus.OSQP_SOLVED
-            and res.info.status_polish == 1
-            and max(res.info.prim_res, res.info.dual_res) <= self.eps
-        )
-
-    def solve_osqp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
-        """Solve the QP with OSQP from state ``x``; returns ``(u_0, J*)``.
+    def solve_qp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
+        """Solve the constrained QP from state ``x`` with the configured solver; returns ``(u_0, J*)``.
 
         Raises
         ------
         MPCFailure
-            kind ``"infeasible"``, ``"max_iter"`` or ``"solver"`` when OSQP does not solve it.
+            kind ``infeasible``, ``max_iter`` or ``solver``.
         """
-        import osqp
+        if self.solver == "osqp":
+            return self.solve_osqp(x)
+        x = np.asarray(x, dtype=float)
+        U = self.solve_daqp(x)
+        return np.clip(U[: self.m], -self.u_max, self.u_max), self.qp_cost(x, U)
 
+    def solve_daqp(self, x: np.ndarray) -> np.ndarray:
+        """The optimal input sequence ``U = [u_0; ...; u_{N-1}]``, shape (N*m,), by DAQP (no clipping)."""
+        if self._qp is None:
+            self.use_condensed(condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref,
+                                        self.N), 0)
+        return self._qp.solve(x)
+
+    def qp_cost(self, x: np.ndarray, U: np.ndarray) -> float:
+        """MPC cost ``J(U; x)`` of the input sequence ``U`` (shape (N*m,)) from state ``x`` (condensed form)."""
+        if self._qp is None:
+            self.use_condensed(condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref,
+                                        self.N), 0)
+        return self._qp.cost(np.asarray(x, dtype=float), U)
+
+    def solve_osqp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
+        """Solve the QP with OSQP on the sparse formulation (the previous engine); ``(u_0, J*)``."""
         if self._osqp is None:
-            self._setup_osqp()
-        n = self.n
-        self._l[:n] = -x
-        self._u[:n] = -x
-        self._osqp.update(l=self._l, u=self._u)
-        res = self._osqp.solve(raise_error=False)
-        if self._coarse and not self._polished(res):
-            # the coarse solve's polished active set was not exact: solve again to eps (warm-started)
-            self._osqp.update_settings(eps_abs=self.eps, eps_rel=self.eps)
-            res = self._osqp.solve(raise_error=False)
-            self._osqp.update_settings(eps_abs=self._coarse, eps_rel=self._coarse)
-        st = res.info.status_val
-        S = osqp.SolverStatus
-        if st in (S.OSQP_PRIMAL_INFEASIBLE, S.OSQP_PRIMAL_INFEASIBLE_INACCURATE):
-            raise MPCFailure("infeasible", "MPC problem is infeasible from the current state")
-        if st == S.OSQP_MAX_ITER_REACHED:
-            raise MPCFailure("max_iter", f"OSQP reached its iteration limit ({self.max_iter})")
-        if st not in (S.OSQP_SOLVED, S.OSQP_SOLVED_INACCURATE):
-            raise MPCFailure("solver", f"OSQP failed: {res.info.status}")
-        N1 = (self.N + 1) * n
-        u0 = np.clip(res.x[N1 : N1 + self.m], -self.u_max, self.u_max)
-        # OSQP minimises 1/2 z'Pz + q'z: our P, q are the cost's halves, so J = 2 obj + r-terms
-        return u0, 2.0 * float(res.info.obj_val) + self._const
+            from .sparse_qp import OsqpMPC
+
+            self._osqp = OsqpMPC(self.A, self.B, self.Q, self.R, self.Qf, self.x_ref, self.N, self.u_max,
+                                 self.x_max, self.xf_max, self.eps, self.max_iter)
+        return self._osqp.solve(x)
 
     def solve(self, x: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """``(u_0, J*, used_fast_path)`` for state ``x``."""
         f = self.fast(x)
         if f is not None:
             return f[0], f[1], True
-        u, J = self.solve_osqp(x)
+        u, J = self.solve_qp(x)
         return u, J, False
-
-

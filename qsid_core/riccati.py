@@ -10,12 +10,14 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.linalg as sla
 
-from .errors import MPCFailure
+from .errors import FailureKind, MPCFailure
 
-__all__ = ["dare_stabilizing", "dare_batch", "lq_parts"]
+__all__ = ["dare_stabilizing", "dare_batch", "lq_parts", "LQParts", "state_box"]
 
 
 def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -30,13 +32,13 @@ def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray)
         with np.errstate(all="ignore"):
             X = sla.solve_discrete_are(A, B, Q, R)
     except (np.linalg.LinAlgError, ValueError) as exc:
-        raise MPCFailure("dare", f"DARE has no stabilizing solution for the identified model ({exc})") from None
+        raise MPCFailure(FailureKind.DARE, f"DARE has no stabilizing solution for the identified model ({exc})") from None
     if not np.all(np.isfinite(X)):
-        raise MPCFailure("dare", "DARE has no stabilizing solution for the identified model")
+        raise MPCFailure(FailureKind.DARE, "DARE has no stabilizing solution for the identified model")
     X = (X + X.T) / 2
     K = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
     if np.abs(np.linalg.eigvals(A - B @ K)).max() >= 1.0 or np.linalg.eigvalsh(X).min() < -1e-9:
-        raise MPCFailure("dare", "DARE solution is not stabilizing for the identified model")
+        raise MPCFailure(FailureKind.DARE, "DARE solution is not stabilizing for the identified model")
     return X
 
 
@@ -101,7 +103,66 @@ def dare_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, tol: 
     return X, ok
 
 
-def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> dict:
+def state_box(n: int, N: int, x_max=None, xf_max=None) -> np.ndarray | None:
+    """Half-widths of the box on the predicted states ``x_1..x_N``, shape (N*n,), or None.
+
+    ``x_max`` (shape (n,)) bounds every ``x_k``, ``xf_max`` (shape (n,)) the terminal
+    ``x_N`` as well; ``inf`` where a state is unbounded. Never on the measured ``x_0``.
+    """
+    if x_max is None and xf_max is None:
+        return None
+    boxes = np.tile(np.full(n, np.inf) if x_max is None else np.asarray(x_max, dtype=float), (N, 1))
+    if xf_max is not None:
+        boxes[-1] = np.minimum(boxes[-1], np.asarray(xf_max, dtype=float))
+    return boxes.reshape(-1)
+
+
+@dataclass(frozen=True)
+class LQParts:
+    """Unconstrained finite-horizon LQ solution of ``L`` models (the MPC's exact fast path).
+
+    Index ``[k]`` of the leading axis is model ``k`` (see :meth:`model`); ``rows`` is
+    ``N*m`` (predicted inputs) plus ``N*n`` (predicted states) when a state or
+    terminal box is set. Units: inputs, states and cost as in the system.
+
+    Attributes
+    ----------
+    K : ndarray, shape (L, N, m, n)
+        Feedback gains, ``u_k = -K_k x_k - kf_k``.
+    kf : ndarray, shape (L, N, m)
+        Affine terms from the reference.
+    P0 : ndarray, shape (L, n, n)
+        Quadratic term of the optimal cost ``V_0(x) = x'P0 x + 2 p0'x + c0``.
+    p0 : ndarray, shape (L, n)
+    c0 : ndarray, shape (L,)
+    F : ndarray, shape (L, rows, n)
+        Prediction map ``z = F x0 + f`` of the constrained quantities ``u_0..u_{N-1}`` [, ``x_1..x_N``].
+    f : ndarray, shape (L, rows)
+    bound : ndarray, shape (rows,)
+        Half-widths of their box (``inf`` where unbounded); the unconstrained optimum
+        solves the constrained QP exactly iff ``|F x0 + f| <= bound``.
+    """
+
+    K: np.ndarray
+    kf: np.ndarray
+    P0: np.ndarray
+    p0: np.ndarray
+    c0: np.ndarray
+    F: np.ndarray
+    f: np.ndarray
+    bound: np.ndarray
+
+    def model(self, k: int) -> "LQParts":
+        """The parts of model ``k`` alone (leading axis dropped; ``bound`` is shared)."""
+        return LQParts(self.K[k], self.kf[k], self.P0[k], self.p0[k], self.c0[k], self.F[k], self.f[k], self.bound)
+
+    def finite(self) -> np.ndarray:
+        """Per model (batched parts): True where every part is finite. Shape (L,)."""
+        arrays = (self.K, self.kf, self.P0, self.p0, self.c0, self.F, self.f)
+        return np.logical_and.reduce([np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1) for a in arrays])
+
+
+def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> LQParts:
     """Unconstrained finite-horizon LQ solution for a batch of models (the MPC's fast path).
 
     Backward Riccati recursion with an affine term for the reference ``r``:
@@ -122,7 +183,7 @@ def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> dict:
 
     Returns
     -------
-    dict with K (L,N,m,n), kf (L,N,m), P0 (L,n,n), p0 (L,n), c0 (L,), F (L,rows,n), f (L,rows), bound (rows,)
+    LQParts
     """
     L, n, m = B.shape
     At, Bt = np.swapaxes(A, 1, 2), np.swapaxes(B, 1, 2)
@@ -156,13 +217,10 @@ def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> dict:
         Fx.append(Mx)
         fx.append(mx)
     F, f, bound = list(Fu), list(fu), [np.asarray(u_max, dtype=float)] * N
-    if x_max is not None or xf_max is not None:
-        big = np.full(n, np.inf)
-        boxes = [np.asarray(x_max, dtype=float) if x_max is not None else big for _ in range(N)]
-        if xf_max is not None:
-            boxes[-1] = np.minimum(boxes[-1], xf_max)
+    xb = state_box(n, N, x_max, xf_max)
+    if xb is not None:
         F += Fx
         f += fx
-        bound += boxes
-    return dict(K=K, kf=kf, P0=P, p0=p, c0=c, F=np.concatenate(F, axis=1), f=np.concatenate(f, axis=1),
-                bound=np.concatenate(bound))
+        bound.append(xb)
+    return LQParts(K=K, kf=kf, P0=P, p0=p, c0=c, F=np.concatenate(F, axis=1), f=np.concatenate(f, axis=1),
+                   bound=np.concatenate(bound))

@@ -94,9 +94,26 @@ def test_bench_mpc_quick_main_prints_result(capsys):
         assert p["solvers"]["engine run_closed_loops"]["max_abs_du"] == 0.0
 
 
-def test_blas_helper_reports_threads():
-    from _blas import blas_threads
+def test_blas_helper_reports_and_limits_threads():
+    from threadpoolctl import threadpool_limits
 
-    th = blas_threads()
+    with threadpool_limits(limits=1, user_api="blas"):
+        assert set(bench_mpc.blas_threads().values()) <= {1}
+    th = bench_sweep.blas_threads()
     assert isinstance(th, dict)
     assert all(isinstance(v, int) and v >= 1 for v in th.values())
+
+
+def test_bench_speed_quick_sections_agree(capsys):
+    import bench_speed
+
+    data = bench_speed.main(["--quick", "--skip", "numba,sweep"])
+    mpc = data["saturated_mpc"]
+    assert mpc["qp_steps"] == mpc["qp_steps_osqp"] > 0  # the bound is active: both engines solve QPs
+    assert mpc["max_abs_du"] < 1e-8 and mpc["failure_mismatches"] == 0
+    text = capsys.readouterr().out
+    assert "target >= 25x" in text
+    if data["numba"]:
+        ident = data["identification"]
+        assert ident["fused kernel floor"]["best"] > 0 and ident["ratio_engine_to_floor"] > 0
+        assert "target <= 1.5x" in text

@@ -62,3 +62,69 @@ def test_subtractive_dither_needs_rng():
     spec = QuantizerSpec()
     with pytest.raises(ValueError, match="random generator"):
         quantized_moments(prepare(data, spec), [4], spec, None)
+
+
+kernels = pytest.importorskip("qsid_core.kernels")
+needs_numba = pytest.mark.skipif(not kernels.AVAILABLE, reason=f"numba kernels unavailable: {kernels.REASON}")
+
+
+@needs_numba
+@pytest.mark.parametrize(
+    "spec", [QuantizerSpec(), QuantizerSpec(range_mode="shared", guard=True), QuantizerSpec(dither="none"),
+             QuantizerSpec(range_mode="fixed", fixed_range=(-0.5, 0.5))],  # the last one overloads
+)
+@pytest.mark.parametrize("chunk", [None, 777])  # 777 rows: chunk and kernel-block edges inside runs
+def test_numba_kernel_equals_numpy_reference(spec, chunk, monkeypatch):
+    import qsid_core.moments as moments
+
+    if chunk:
+        monkeypatch.setattr(moments, "CHUNK_ROWS", chunk)
+    data = simulate(boeing747(), 7, 450, seed=3)
+    prep = prepare(data, spec)
+    bits = [1, 2, 5, 11, 16]
+    a = quantized_moments(prep, bits, spec, np.random.default_rng(4), engine="numba")
+    b = quantized_moments(prep, bits, spec, np.random.default_rng(4), engine="numpy")
+    for x, y in zip(a, b):
+        assert np.abs(x.PP - y.PP).max() <= 1e-12 * np.abs(y.PP).max()
+        assert np.abs(x.XP - y.XP).max() <= 1e-12 * np.abs(y.XP).max()
+        assert x.overload_fraction == y.overload_fraction
+        np.testing.assert_array_equal(x.eps, y.eps)
+    if spec.range_mode == "fixed":
+        assert max(x.overload_fraction for x in a) > 0  # the overload count was exercised
+
+
+def test_unknown_or_unavailable_engine_is_a_config_error(monkeypatch):
+    from qsid_core import ConfigError
+
+    data = simulate(dc_motor(), 2, 50, seed=0)
+    spec = QuantizerSpec()
+    prep = prepare(data, spec)
+    with pytest.raises(ConfigError, match="engine"):
+        quantized_moments(prep, [4], spec, np.random.default_rng(0), engine="fortran")
+    monkeypatch.setattr(kernels, "AVAILABLE", False)
+    monkeypatch.setattr(kernels, "REASON", "numba is not installed")
+    with pytest.raises(ConfigError, match="numba is not installed"):
+        quantized_moments(prep, [4], spec, np.random.default_rng(0), engine="numba")
+    # auto falls back to numpy
+    assert quantized_moments(prep, [4], spec, np.random.default_rng(0))[0].T == data.T
+
+
+def test_cache_dir_falls_back_to_a_user_cache_when_the_package_is_read_only(monkeypatch, tmp_path):
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setattr(kernels.os, "access", lambda path, mode: False)
+    assert kernels.cache_dir() == str(tmp_path / "qsid" / "numba")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "/somewhere")
+    assert kernels.cache_dir() == "/somewhere"
+
+
+def test_numba_can_be_switched_off_with_a_reason():
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    env = {**__import__("os").environ, "QSID_NO_NUMBA": "1"}
+    out = subprocess.run([sys.executable, "-c", "from qsid_core import kernels; print(kernels.AVAILABLE, kernels.REASON)"],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+    assert out.stdout.strip() == "False numba disabled by QSID_NO_NUMBA"

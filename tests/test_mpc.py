@@ -8,8 +8,7 @@ from qsid_core.systems import boeing747, dc_motor
 
 def _ctrl(s, **kw):
     w = MPCConfig(**kw).resolve(s)
-    return MPCController(s.A, s.B, w["Q"], w["R"], kw.get("horizon", 10), w["u_max"], w["x_max"], w["xf_max"],
-                         w["x_ref"], w["Qf"])
+    return MPCController(s.A, s.B, w.Q, w.R, kw.get("horizon", 10), w.u_max, w.x_max, w.xf_max, w.x_ref, w.Qf)
 
 
 @pytest.mark.parametrize("system", [dc_motor, boeing747])
@@ -91,9 +90,9 @@ def test_failures_are_recorded_not_raised():
 
 def test_diverging_closed_loop_is_a_failure():
     s = dc_motor()
-    # a wildly wrong model: inputs push the true system the wrong way
+    # a wildly wrong model (the DARE is solvable): its inputs push the 3x-unstable true system the wrong way
     loops = run_closed_loops([(s.A, -s.B * 0.01)], s.A * 3, s.B, MPCConfig(steps=200), s)
-    assert loops.failure[0] in ("diverged", "dare")
+    assert loops.failure[0] == "diverged"
 
 
 def test_dare_failure_kind():
@@ -127,14 +126,13 @@ def test_weights_must_fit_the_system():
 def _reference_loop(model, s, cfg):
     """Plain per-step MPC: the definition the batched, speculative engine loop must reproduce."""
     w = cfg.resolve(s)
-    c = MPCController(model[0], model[1], w["Q"], w["R"], cfg.horizon, w["u_max"], w["x_max"], w["xf_max"],
-                      w["x_ref"], w["Qf"])
-    x = w["x0"].copy()
+    c = MPCController(model[0], model[1], w.Q, w.R, cfg.horizon, w.u_max, w.x_max, w.xf_max, w.x_ref, w.Qf)
+    x = w.x0.copy()
     X, U, J0, cost = [x], [], None, 0.0
     for t in range(cfg.steps):
         u, J, _ = c.solve(x)
         J0 = J if t == 0 else J0
-        cost += (x - w["x_ref"]) @ w["Q"] @ (x - w["x_ref"]) + u @ w["R"] @ u
+        cost += (x - w.x_ref) @ w.Q @ (x - w.x_ref) + u @ w.R @ u
         x = s.A @ x + s.B @ u
         X.append(x)
         U.append(u)
@@ -173,3 +171,50 @@ def test_batched_doubling_dare_matches_scipy():
         assert ok[:6].all() and not ok[6]  # the last model cannot be stabilized
         for k in range(6):
             np.testing.assert_allclose(X[k], dare_stabilizing(As[k], Bs[k], s.Q, s.R), rtol=1e-8, atol=1e-10)
+
+
+def test_resolve_returns_named_weights_with_shapes():
+    from qsid_core import MPCWeights
+
+    s = boeing747()
+    w = MPCConfig(u_max=0.3, x_max=5.0).resolve(s)
+    assert isinstance(w, MPCWeights)
+    assert w.Q.shape == (4, 4) and w.R.shape == (2, 2) and w.x0.shape == (4,) and w.x_ref.shape == (4,)
+    np.testing.assert_array_equal(w.u_max, [0.3, 0.3])
+    np.testing.assert_array_equal(w.x_max, [5.0] * 4)
+    assert w.Qf is None and w.xf_max is None
+    assert w["u_max"] is w.u_max  # dict-style reads of older front-end code still work
+    with pytest.raises(KeyError):
+        w["nope"]
+
+
+def test_failure_kinds_are_strings_in_json_and_messages():
+    import json
+
+    from qsid_core import FailureKind
+    from qsid_core.mpc import FAILURE_KINDS
+
+    assert FAILURE_KINDS == ("ident", "dare", "infeasible", "max_iter", "solver", "diverged")
+    assert FailureKind("dare") is FailureKind.DARE and FailureKind.DARE == "dare"
+    assert json.dumps({FailureKind.MAX_ITER: [FailureKind.DIVERGED]}) == '{"max_iter": ["diverged"]}'
+    assert f"{FailureKind.INFEASIBLE}" == "infeasible" and str(FailureKind.SOLVER) == "solver"
+    assert MPCFailure("ident", "x").kind is FailureKind.IDENT
+
+
+def test_unknown_solver_is_a_config_error():
+    with pytest.raises(ConfigError, match="solver"):
+        MPCConfig(solver="cplex")
+
+
+@pytest.mark.parametrize("solver", ["daqp", "osqp"])
+def test_controller_qp_respects_the_box_and_matches_the_other_solver(solver):
+    s = boeing747()
+    c = _ctrl(s, u_max=0.3)
+    c.solver = solver
+    x = np.array([20.0, 20.0, 0.0, 0.0])
+    u, J = c.solve_qp(x)
+    c2 = _ctrl(s, u_max=0.3)
+    u2, J2 = c2.solve_osqp(x) if solver == "daqp" else c2.solve_qp(x)
+    assert np.all(np.abs(u) <= 0.3) and np.abs(u).max() == pytest.approx(0.3)
+    np.testing.assert_allclose(u, u2, atol=1e-7)
+    assert J == pytest.approx(J2, rel=1e-7)
