@@ -65,6 +65,32 @@ def update(values: Values, cache, renderer: Renderer, executor, tasks: int) -> d
     return out
 
 
+def per_view(values: Values, cache, bits: list, executor, tasks: int, pinned=None) -> dict:
+    """CPU milliseconds (this process) to build + serialise each registered view, per b.
+
+    CPU time, not wall time: on a shared, loaded machine wall times of a few ms are
+    mostly waiting; the CPU time is what the view costs.
+
+    The renderer redraws only the views whose inputs changed; this times every
+    view on the last frame of each b (cached engine results), so a view's cost is
+    visible even when it is in a tab the person is not looking at.
+    """
+    from app.figures import registry
+    from app.figures.compare import PINNED_VIEWS, overlay_pinned
+
+    out: dict = {v.name: [] for v in registry.VIEWS}
+    for b in bits:
+        frame = list(iter_frames(values.replace(bits=b), cache, executor, tasks))[-1]
+        for v in registry.VIEWS:
+            t = time.process_time()
+            fig = v.build(frame)
+            if pinned is not None and v.name in PINNED_VIEWS:
+                overlay_pinned(fig, v.build(pinned), "pinned")
+            fig.to_json()
+            out[v.name].append(1000 * (time.process_time() - t))
+    return out
+
+
 def _median(runs: list, key: str) -> float:
     return statistics.median(r[key] for r in runs)
 
@@ -82,6 +108,7 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=5, help="changes timed per case (median, min, max shown)")
     p.add_argument("--no-paper", action="store_true", help="skip the paper-scale case")
     p.add_argument("--system", default="dc-motor")
+    p.add_argument("--datalength", action="store_true", help="also time the data-length study (tens of seconds)")
     p.add_argument("--identification", default="LS + BCLS", choices=("LS", "BCLS", "LS + BCLS"))
     a = p.parse_args(argv)
     ex = None
@@ -103,6 +130,11 @@ def main(argv=None) -> int:
     bits = [5, 6, 3, 7, 4, 8, 2, 9, 10, 11]
     runs = [update(base.replace(bits=b), cache, ren, ex, tasks) for b in bits[: a.repeat]]
     _row("interactive: b change", runs, "<= 100 ms (all)")
+    pinned = list(iter_frames(base.replace(dither="none"), cache, ex, tasks))[-1]
+    for label, pin in (("", None), (" + pinned overlay", pinned)):
+        views = per_view(base, cache, bits[: a.repeat], ex, tasks, pin)
+        print(f"  per view, build + JSON{label} [CPU ms] (median min max over {a.repeat} b): " + " · ".join(
+            f"{k} {statistics.median(x):.0f} {min(x):.0f} {max(x):.0f}" for k, x in views.items()))
     v = base.replace(bits=bits[a.repeat - 1] if a.repeat <= len(bits) else 4)
     sysm = resolve_system(v).system
     lq, lr = log_from_weights(np.diag(sysm.Q)), log_from_weights(np.diag(sysm.R))
@@ -122,6 +154,15 @@ def main(argv=None) -> int:
         runs = [update(paper.replace(data_seed=200, bits=b), cache, ren, ex, tasks) for b in bits[: a.repeat]]
         _row("paper scale: b change", runs, "-")
     print(f"cache: {len(cache)} entries, ~{cache.nbytes / 2**20:.0f} MB, {cache.kinds()}")
+    if a.datalength:
+        from app.dashboard.background import datalength_config
+        from qsid_core.datalength import run_datalength
+
+        cfg = datalength_config(base)
+        t = time.perf_counter()
+        res = run_datalength(cfg, None, None, tasks=cfg.realizations)
+        print(f"data-length study (dashboard button, in-process, {cfg.realizations} realizations, "
+              f"{len(res.rows)} lengths up to {res.rows[-1].samples} samples): {time.perf_counter() - t:.1f} s")
     if ex is not None:
         ex.shutdown()
     return 0

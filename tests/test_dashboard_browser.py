@@ -78,7 +78,7 @@ def _open(browser_context, app, errors, ignored, count):
     session = max(sessions, key=lambda s: s.client.client_id)
     assert session.wait_idle(TIMEOUT_MS / 1000)
     page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
-    page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 4", timeout=TIMEOUT_MS)
+    page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 2", timeout=TIMEOUT_MS)
     page.wait_for_function(f"({ERROR_PLOT_MARKS})() !== null", timeout=TIMEOUT_MS)
     return page, session
 
@@ -113,6 +113,23 @@ def _scene_pixels_near(png: Path, rgb: tuple, tol: int = 24) -> int:
                if all(abs(a - b) <= tol for a, b in zip(px[x, y], rgb)))
 
 
+#: Text each plots-panel tab shows once its views are drawn (titles of the views in that tab).
+TAB_TEXTS = {"Identification": "‖A−Â‖/‖A‖", "Control": "closed loops at b", "Quantizer": "error variance",
+             "Data length": "error vs data length", "Compare": "phase portraits at b"}
+
+
+def _open_plot_tab(page, label: str) -> int:
+    """Click tab ``label`` of the plots panel (the right one: the left panel has a 'Quantizer' tab too);
+    wait until a visible plot shows the tab's text; returns how many plots are visible."""
+    page.get_by_role("tab", name=label, exact=True).last.click()
+    text = TAB_TEXTS[label]
+    page.wait_for_function(
+        """(t) => [...document.querySelectorAll('.js-plotly-plot')].some(
+               e => e.offsetParent !== null && e.textContent.includes(t))""", arg=text, timeout=TIMEOUT_MS)
+    return page.evaluate("[...document.querySelectorAll('.js-plotly-plot')].filter(e => e.offsetParent !== null)"
+                         ".length")
+
+
 def test_dashboard_in_a_real_browser(dash, tmp_path):
     from playwright.sync_api import sync_playwright
 
@@ -127,6 +144,24 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             assert page1.evaluate(ERROR_PLOT_MARKS) == [4, 4]
             assert _thumb_value(page1) == "4"
             assert page1.locator("text=Share").count() == 0  # viser's share button is hidden
+            # every tab of the plots panel opens and draws its views (no console errors: checked at the end)
+            from app.figures.registry import TABS, VIEWS
+
+            shots = os.environ.get("QSID_SCREENSHOT_DIR")
+            for label in TABS[1:] + TABS[:1]:
+                assert _open_plot_tab(page1, label) == sum(v.tab == label for v in VIEWS), label
+                if label == "Data length":  # press the button: the study runs in the background, then draws
+                    page1.get_by_role("button", name="Compute error vs data length").click()
+                    page1.wait_for_function(
+                        """() => [...document.querySelectorAll('.js-plotly-plot')].some(e => e.offsetParent !== null
+                               && e.textContent.includes('realizations') && e.textContent.includes('Theorem 1'))""",
+                        timeout=TIMEOUT_MS)
+                    assert s1.datalength.lookup(s1.last_frame.values) is not None
+                if shots:  # the README's per-tab pictures: the plots panel only
+                    page1.wait_for_timeout(800)
+                    box = page1.locator(".js-plotly-plot").locator("visible=true").first.bounding_box()
+                    page1.screenshot(path=os.path.join(shots, f"view-{label.lower().replace(' ', '-')}.png"),
+                                     clip=dict(x=box["x"] - 10, y=0, width=box["width"] + 30, height=900))
             sphere0 = float(s1.portrait.sphere.scale)
             pts0 = s1.portrait.traj.points.copy()
 
@@ -150,8 +185,9 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             assert page1.evaluate(ERROR_PLOT_MARKS) == [9, 9] and _thumb_value(page1) == "9"
             page2.close()
 
-            # dismiss viser's "software WebGL rendering" notice, then take the screenshot
+            # dismiss viser's "software WebGL rendering" notice, then take the screenshot (Control tab open)
             page1.bring_to_front()
+            _open_plot_tab(page1, "Control")
             close = page1.locator(".mantine-Notification-closeButton")
             for i in range(close.count()):
                 close.nth(i).click()

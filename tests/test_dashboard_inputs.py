@@ -94,7 +94,7 @@ def test_all_failed_identifications_or_infinite_eps_are_never_shown_as_ready():
 
     import numpy as np
 
-    from app.dashboard.session import _unusable
+    from app.dashboard.inputs import unusable as _unusable
 
     ok = NS(eps=np.array([0.1, 0.2]), failed=np.array([False, True]), notes=[])
     bad = NS(eps=np.array([0.1, 0.2]), failed=np.array([True, True]), notes=["identification failed: singular"])

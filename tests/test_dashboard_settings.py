@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from app.dashboard.viewpanel import VIEW_FIELDS
+
 from app.dashboard.controls import CONTROLS
 from app.dashboard.settings import (
     ALL_BITS, IDENT_CHOICES, INTERACTIVE, PAPER_SCALE, InputError, Values, estimators, format_weights,
@@ -158,4 +160,5 @@ def test_every_values_field_has_one_control():
     names = [c.name for c in CONTROLS]
     assert len(names) == len(set(names))
     fields = set(Values.__dataclass_fields__) - {"log_q", "log_r"}  # the weight sliders follow the system
+    fields -= set(VIEW_FIELDS)  # the views' own inputs sit next to the views (plots panel)
     assert set(names) == fields

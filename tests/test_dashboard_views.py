@@ -21,6 +21,7 @@ from qsid_core import Experiment
 from qsid_core.errors import QsidError
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
+NAMES = ("error", "eigen", "timeseries", "cost", "bound", "quantizer", "datalength", "portraits")
 
 
 def frames(v: Values, cache=None):
@@ -89,7 +90,7 @@ def test_scene_view_hides_failed_and_clips_diverging_loops():
 def test_figures_draw_partial_rows_and_move_the_marker():
     fr = list(iter_frames(Values(bits=5, **SMALL), SharedCache(), chunk=5, min_interval=0.0))
     figs = build_figures(fr[0])  # only the current b computed so far
-    assert set(figs) == {"error", "cost", "bound", "eigen"}
+    assert set(figs) == set(NAMES)
     xs = [x for tr in figs["error"].data for x in (tr.x or ())]
     assert 5 in xs and set(xs) <= {5, 6}  # one b (6 only on the -0.301/bit reference segment)
     partial = build_figures(fr[1])["error"]
@@ -111,7 +112,7 @@ def test_renderer_redraws_only_what_changed():
     v = Values(**SMALL)
     out = [ren.render(f) for f in iter_frames(v, cache)]
     assert out[0].scene is not None and out[0].summary and "eigen" in out[0].figures
-    assert set(out[-1].figures) == {"error", "cost", "bound"}
+    assert set(out[-1].figures) == {"error", "cost", "bound", "portraits"}
     err = ren.figures["error"]
     # a b change: new scene and eigenvalues, the curves are only re-marked (same figure objects)
     out = [ren.render(f) for f in iter_frames(v.replace(bits=8), cache)]
@@ -154,9 +155,10 @@ def test_a_failed_identification_is_reported_and_not_drawn():
 def test_every_registered_view_is_built():
     fr = frames(Values(bits=5, **SMALL))
     names = [v.name for v in VIEWS]
-    assert names == ["error", "cost", "bound", "eigen"] and len(set(names)) == len(names)
+    assert names == list(NAMES) and len(set(names)) == len(names)
     figs = build_figures(fr[-1])
-    assert list(figs) == names and all(len(f.data) > 0 for f in figs.values())
+    assert list(figs) == names
+    assert all(len(f.data) > 0 for n, f in figs.items() if n != "datalength")  # data length: on demand
 
 
 def test_a_new_view_is_one_registry_entry(monkeypatch):

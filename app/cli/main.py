@@ -14,22 +14,24 @@ import warnings
 from concurrent.futures.process import BrokenProcessPool
 from typing import Sequence
 
-from . import parser, reproduce, sweep, systems
+from . import datalength, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 #: name -> command module, in the order ``qsid --help`` lists them.
-COMMANDS = {"systems": systems, "sweep": sweep, "reproduce": reproduce}
+COMMANDS = {"systems": systems, "sweep": sweep, "reproduce": reproduce, "datalength": datalength}
 
 
-def build_parser():
-    """The ``qsid`` argument parser (errors raise :class:`~app.cli.parser.UsageError`)."""
-    return parser.build_parser(COMMANDS)
+def build_parser(only: str | None = "*"):
+    """The ``qsid`` argument parser (errors raise :class:`~app.cli.parser.UsageError`); ``only``: see
+    :func:`app.cli.parser.build_parser`."""
+    return parser.build_parser(COMMANDS, only)
 
 
 def _dispatch(argv: list, rep: Reporter) -> int:
-    args = build_parser().parse_args(argv)
+    name = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(name if name in COMMANDS else None).parse_args(argv)
     if args.command is None:
         raise UsageError(f"give a command: {', '.join(COMMANDS)} (see '{parser.PROG} --help')")
     rep.enabled = not getattr(args, "quiet", False)
@@ -56,6 +58,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return fail(exc)
         except ValueError as exc:  # every qsid_core user error is a ValueError subclass
             return fail(exc)
+        except OverflowError as exc:  # a value too large for the numerics (engines without a range check)
+            return fail(f"a value is too large for the computation ({one_line(exc)}); use smaller numbers")
         except MemoryError:
             return fail("not enough memory for this run; reduce --trajectories, --steps, --realizations or --bits")
         except BrokenProcessPool:

@@ -7,7 +7,7 @@ import json
 import math
 from typing import Any
 
-__all__ = ["clean", "dumps", "g", "format_table"]
+__all__ = ["clean", "dumps", "g", "format_table", "sweep_dict", "assumptions_lines"]
 
 
 def clean(obj: Any) -> Any:
@@ -29,6 +29,66 @@ def dumps(obj: Any, indent: int | None = 2) -> str:
     return json.dumps(clean(obj), indent=indent, allow_nan=False)
 
 
+def sweep_dict(res) -> dict:
+    """``res.to_dict()`` with the MPC's resolved settings (x0, x_ref, x_max, Q and R diagonals) in its config."""
+    d = res.to_dict()
+    mcfg = res.config.mpc
+    if mcfg is not None and d["config"].get("mpc") is not None:
+        r = mcfg.resolve(res.system)
+        d["config"]["mpc"].update(clean({
+            "x0": r.x0, "x_ref": r.x_ref, "x_max": r.x_max,
+            "Q": [float(v) for v in r.Q.diagonal()], "R": [float(v) for v in r.R.diagonal()],
+        }))
+    return d
+
+
+def _bits_list(bits: list) -> str:
+    """``[1, 2, 3, 5]`` -> ``"1..3, 5"``."""
+    out, run = [], []
+    for b in bits:
+        if run and b == run[-1] + 1:
+            run.append(b)
+        else:
+            if run:
+                out.append(f"{run[0]}..{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)))
+            run = [b]
+    if run:
+        out.append(f"{run[0]}..{run[-1]}" if len(run) > 2 else ", ".join(map(str, run)))
+    return ", ".join(out)
+
+
+#: Hypothesis flag in the JSON -> how the table names it when it fails.
+_HYPOTHESES = (("subtractive_dither", "subtractive dither"), ("no_overload", "no overload"),
+               ("stationary", "Psi Psi^T/T converges (no eigenvalue of A on/outside the unit circle)"),
+               ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"))
+
+
+def assumptions_lines(results: list) -> list:
+    """Plain lines saying which hypotheses of Theorem 1 / BCLS fail at which b (empty if all hold)."""
+    rows = [r for r in results if r.get("assumptions")]
+    lines = []
+    for key, name in _HYPOTHESES:
+        bad = [r["bits"] for r in rows if not r["assumptions"].get(key, True)]
+        if bad:
+            lines.append(f"  fails: {name} at b = {_bits_list(bad)}")
+    if lines:
+        t1 = [r["bits"] for r in rows if not r["assumptions"]["theorem1_holds"]]
+        bc = [r["bits"] for r in rows if not r["assumptions"]["bcls_holds"]]
+        head = (f"assumptions: Theorem 1's line does not apply at b = {_bits_list(t1) or 'none'}; "
+                f"BCLS's correction does not apply at b = {_bits_list(bc) or 'none'}")
+        lines.insert(0, head)
+    elif rows:
+        lines.append("assumptions: every hypothesis of Theorem 1 and BCLS holds at every b")
+    return lines
+
+
+def _flags(r: dict) -> str:
+    a = r.get("assumptions")
+    if not a:
+        return "-"
+    return f"{'yes' if a['theorem1_holds'] else 'no'}/{'yes' if a['bcls_holds'] else 'no'}"
+
+
 def g(v, fmt: str = ".3g", none: str = "-") -> str:
     return none if v is None else format(v, fmt)
 
@@ -39,10 +99,17 @@ def _pm(stats: dict | None) -> str:
     return f"{stats['mean']:.3e} +/- {stats['std']:.1e}"
 
 
+def _limits_text(c: dict) -> str:
+    fr = c.get("fixed_range")
+    if not fr:
+        return ""
+    return " " + ";".join(f"[{lo:g}, {hi:g}]" for lo, hi in fr)
+
+
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = ["b", "eps min..max", "err_A mean +/- std", "Thm1 A", "err_B mean +/- std", "Thm1 B", "overload",
-            "MPC cost (failed)", "delta bound", "|x_T| mean"]
+            "MPC cost (failed)", "delta bound", "|x_T| mean", "Thm1/BCLS hold"]
     rows = []
     for r in d["results"]:
         eps = list(r["eps_x"]) + list(r["eps_u"])
@@ -60,6 +127,7 @@ def format_table(d: dict) -> str:
             cost_s,
             g(r["ultimate_bound"], ".3e"),
             "-" if fsn is None else g(fsn.get("mean"), ".2e"),
+            _flags(r),
         ])
     # hand-written rather than rich.Table: this exact plain-text layout is the documented, diff-able stdout
     widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
@@ -71,7 +139,8 @@ def format_table(d: dict) -> str:
     c = d["config"]
     lines = [
         f"system {d['system']}: {c['trajectories']} x {c['steps']} samples, {c['realizations']} realizations, "
-        f"range {c['range']}{' + guard' if c['guard'] else ''}, dither {c['dither']}, estimator {c['estimator']}"
+        f"range {c['range']}{_limits_text(c)}{' + guard' if c['guard'] else ', no guard'}, "
+        f"inputs U[-{c.get('input_amplitude', 1):g}, {c.get('input_amplitude', 1):g}], dither {c['dither']}, estimator {c['estimator']}"
         + ("" if c["mpc"] is None else
            f", MPC horizon {c['mpc']['horizon']}, {c['mpc']['steps']} steps, u_max "
            f"{','.join(format(u, 'g') for u in c['mpc']['u_max'])}"),
@@ -92,6 +161,7 @@ def format_table(d: dict) -> str:
             fails[kind] = fails.get(kind, 0) + k
     if fails:
         lines.append("MPC failures by kind: " + ", ".join(f"{k} {v}" for k, v in sorted(fails.items())))
+    lines.extend(assumptions_lines(d["results"]))
     fb = sum(r.get("bcls_fallbacks", 0) for r in d["results"])
     if fb:
         lines.append(f"BCLS fell back to LS in {fb} realization(s) (corrected Gram matrix not positive definite)")

@@ -12,19 +12,36 @@ import math
 from types import ModuleType
 from typing import Mapping
 
-from qsid_core.experiment import SweepConfig
-from qsid_core.identify import ESTIMATORS
-from qsid_core.mpc import MPCConfig
-from qsid_core.quantize import DITHERS, RANGE_MODES, QuantizerSpec
 
-__all__ = ["PROG", "UsageError", "build_parser", "add_run_options", "bits_spec", "pos_int"]
+__all__ = ["PROG", "UsageError", "engine", "build_parser", "add_run_options", "add_data_options", "bits_spec", "pos_int",
+           "limits_spec", "floats_spec"]
 
 PROG = "qsid"
-_SWEEP = SweepConfig(mpc=None)  # the engine's defaults
-_MPC = MPCConfig()
-_QUANT = QuantizerSpec()
-#: Range modes the command line offers ("fixed" needs typed ranges, which only the dashboard has).
-CLI_RANGE_MODES = tuple(m for m in RANGE_MODES if m != "fixed")
+
+
+def engine():
+    """The engine's defaults and choices, imported on first use (``qsid --help`` never loads numpy).
+
+    Returns a namespace with ``sweep`` (``SweepConfig(mpc=None)``), ``mpc`` (``MPCConfig()``), ``quant``
+    (``QuantizerSpec()``), ``letter`` (``SweepConfig.letter()``), ``dithers``, ``range_modes`` (all of the
+    engine's; "fixed" needs --limits) and ``estimators``.
+    """
+    global _ENGINE
+    if _ENGINE is None:
+        from types import SimpleNamespace
+
+        from qsid_core.experiment import SweepConfig
+        from qsid_core.identify import ESTIMATORS
+        from qsid_core.mpc import MPCConfig
+        from qsid_core.quantize import DITHERS, RANGE_MODES, QuantizerSpec
+
+        _ENGINE = SimpleNamespace(sweep=SweepConfig(mpc=None), mpc=MPCConfig(), quant=QuantizerSpec(),
+                                  letter=SweepConfig.letter(mpc=None), dithers=DITHERS, range_modes=RANGE_MODES,
+                                  estimators=ESTIMATORS)
+    return _ENGINE
+
+
+_ENGINE = None
 
 
 class UsageError(Exception):
@@ -35,6 +52,8 @@ class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one line (raised, so ``main(argv)`` can return 2)."""
 
     def error(self, message: str):  # type: ignore[override]
+        if message.endswith("expected one argument"):
+            message += " (a value that starts with '-' needs '=', e.g. --limits=-20,20 or --x0=-1,0,0)"
         raise UsageError(message)
 
 
@@ -80,6 +99,56 @@ def _floats_type(text: str) -> tuple[float, ...]:
     return tuple(out)
 
 
+def _number(text: str, what: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what}; {text.strip()!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{what}; {text.strip()!r} is not finite")
+    return v
+
+
+def _float_list(text: str) -> tuple[float, ...]:
+    """``1,0,-0.5``: finite numbers, comma-separated (signs and sizes are the engine's to check)."""
+    what = "must be a number or comma-separated numbers"
+    parts = text.split(",")
+    if not text.strip() or any(not p.strip() for p in parts):
+        raise argparse.ArgumentTypeError(f"{what}; got {text!r}")
+    return tuple(_number(p, what) for p in parts)
+
+
+def _limits(text: str) -> tuple[tuple[float, float], ...]:
+    """``LO,HI`` (every channel) or ``LO,HI;LO,HI;...`` (one pair per channel: states, then inputs)."""
+    what = "must be 'LO,HI' or 'LO,HI;LO,HI;...' (one pair per channel, states then inputs)"
+    pairs = []
+    for part in text.split(";"):
+        nums = part.split(",")
+        if len(nums) != 2:
+            raise argparse.ArgumentTypeError(f"{what}; got {text!r}")
+        lo, hi = (_number(v, what) for v in nums)
+        if not lo < hi:
+            raise argparse.ArgumentTypeError(f"every range needs LO < HI; got {part.strip()!r}")
+        pairs.append((lo, hi))
+    return tuple(pairs)
+
+
+def _matrix_text(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must be a matrix: rows separated by ';', entries by spaces or commas")
+    return text
+
+
+def limits_spec(pairs) -> str:
+    """Fixed ranges as the ``--limits`` text (inverse of the parser's type)."""
+    return ";".join(f"{lo!r},{hi!r}" for lo, hi in pairs)
+
+
+def floats_spec(values) -> str:
+    """Numbers as a comma list, exactly (``repr``), for the command a dashboard shows."""
+    return ",".join(repr(float(v)) for v in values)
+
+
 pos_int = _int_type("positive integer", 1)
 _nonneg_int = _int_type("non-negative integer", 0)
 
@@ -96,60 +165,104 @@ def _g(v) -> str:
     return format(v, "g")
 
 
-def _add_data_options(p: argparse.ArgumentParser) -> None:
-    bits_default = bits_spec(_SWEEP.bits)
+def _onoff(v: bool) -> str:
+    return "on" if v else "off"
+
+
+def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -> None:
+    """System, data and quantizer options; defaults from ``base`` (a SweepConfig; default the engine's)."""
+    e = engine()
+    base = e.sweep if base is None else base
+    q0 = base.quantizer
+    bits_default = bits_spec(base.bits)
     g = p.add_argument_group("system and data")
-    g.add_argument("--system", default=_SWEEP.system, metavar="NAME|FILE",
+    g.add_argument("--system", default=base.system, metavar="NAME|FILE",
                    help="preset name (see 'qsid systems') or a .toml/.json file with A, B [, x0, Q, R, dt] "
-                        f"(default: {_SWEEP.system})")
+                        f"(default: {base.system})")
+    g.add_argument("--A", dest="a_text", type=_matrix_text, default=None, metavar="ROWS",
+                   help="a custom system typed inline, as in the dashboard: '0.9 0.1; 0 0.8' (with --B; "
+                        "x0 = e1, Q = I, R = I unless given)")
+    g.add_argument("--B", dest="b_text", type=_matrix_text, default=None, metavar="ROWS",
+                   help="input matrix of the inline custom system, one row per state: '0; 1'")
     g.add_argument("--bits", default=bits_default, metavar="SPEC",
                    help=f"word lengths: '2:12' (inclusive), '2:12:2' (step), '2,4,6' or '8' "
                         f"(default: {bits_default})")
-    g.add_argument("--realizations", type=pos_int, default=_SWEEP.realizations, metavar="N",
-                   help=f"dither realizations per word length (default: {_SWEEP.realizations})")
-    g.add_argument("--trajectories", type=pos_int, default=_SWEEP.trajectories, metavar="N",
-                   help=f"simulated trajectories (default: {_SWEEP.trajectories})")
-    g.add_argument("--steps", type=pos_int, default=_SWEEP.steps, metavar="N",
-                   help=f"samples per trajectory (default: {_SWEEP.steps})")
-    g.add_argument("--seed", type=_nonneg_int, default=None, metavar="N",
-                   help=f"seed of both the data and the dither streams (default: data {_SWEEP.data_seed}, "
-                        f"dither {_SWEEP.dither_seed})")
+    g.add_argument("--realizations", type=pos_int, default=base.realizations, metavar="N",
+                   help=f"dither realizations per word length (default: {base.realizations})")
+    g.add_argument("--trajectories", type=pos_int, default=base.trajectories, metavar="N",
+                   help=f"simulated trajectories (default: {base.trajectories})")
+    g.add_argument("--steps", type=pos_int, default=base.steps, metavar="N",
+                   help=f"samples per trajectory (default: {base.steps})")
+    g.add_argument("--input-amplitude", type=_float_type, default=base.input_amplitude, metavar="A",
+                   help=f"training inputs u ~ U[-A, A] (default: {_g(base.input_amplitude)}, the letter's)")
+    if seed:
+        g.add_argument("--seed", type=_nonneg_int, default=None, metavar="N",
+                       help="seed of both the data and the dither streams (sets --data-seed and --dither-seed)")
+    g.add_argument("--data-seed", type=_nonneg_int, default=None, metavar="N",
+                   help=f"seed of the simulated data (default: {base.data_seed})")
+    g.add_argument("--dither-seed", type=_nonneg_int, default=None, metavar="N",
+                   help=f"seed of the dither streams (default: {base.dither_seed})")
     q = p.add_argument_group("quantizer and identification")
-    q.add_argument("--range", dest="range_mode", choices=CLI_RANGE_MODES, default=_QUANT.range_mode,
-                   help=f"quantizer range: min/max per channel, or one range for all (default: {_QUANT.range_mode})")
-    q.add_argument("--guard", action="store_true",
-                   help="widen the range by half a cell on each side (no overload)")
-    q.add_argument("--dither", choices=DITHERS, default=_QUANT.dither,
-                   help=f"subtractive uniform dither or none (default: {_QUANT.dither})")
-    q.add_argument("--estimator", choices=ESTIMATORS, default=_SWEEP.estimator,
-                   help=f"least squares or bias-compensated LS (default: {_SWEEP.estimator})")
+    q.add_argument("--range", dest="range_mode", choices=e.range_modes, default=q0.range_mode,
+                   help="quantizer range: min/max per channel, one range for all, or fixed (--limits) "
+                        f"(default: {q0.range_mode})")
+    q.add_argument("--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]",
+                   help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
+                        "channel, states then inputs")
+    q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
+                   help="widen the range by half a cell on each side, so x + w never overloads "
+                        f"(default: {_onoff(q0.guard)})")
+    q.add_argument("--dither", choices=e.dithers, default=q0.dither,
+                   help=f"subtractive uniform dither or none (default: {q0.dither})")
+    q.add_argument("--estimator", choices=e.estimators, default=base.estimator,
+                   help=f"least squares or bias-compensated LS (default: {base.estimator})")
 
 
-def add_run_options(p: argparse.ArgumentParser) -> None:
-    """Options shared by ``sweep`` and ``reproduce`` (defaults are the engine's)."""
-    _add_data_options(p)
+def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
+    """Options shared by ``sweep`` and ``reproduce`` (defaults from ``base``: the engine's or the letter's)."""
+    e = engine()
+    base = e.sweep if base is None else base
+    mpc = e.mpc
+    add_data_options(p, base)
     m = p.add_argument_group("MPC and ultimate bound")
-    m.add_argument("--horizon", type=pos_int, default=_MPC.horizon, metavar="N",
-                   help=f"MPC horizon (default: {_MPC.horizon})")
-    m.add_argument("--mpc-steps", type=pos_int, default=_MPC.steps, metavar="N",
-                   help=f"closed-loop steps on the true system (default: {_MPC.steps})")
-    m.add_argument("--u-max", type=_floats_type, default=_MPC.u_max, metavar="X",
+    m.add_argument("--horizon", type=pos_int, default=mpc.horizon, metavar="N",
+                   help=f"MPC horizon (default: {mpc.horizon})")
+    m.add_argument("--mpc-steps", type=pos_int, default=mpc.steps, metavar="N",
+                   help=f"closed-loop steps on the true system (default: {mpc.steps})")
+    m.add_argument("--u-max", type=_floats_type, default=mpc.u_max, metavar="X",
                    help="input bound |u_i| <= X; one value or one per input, comma-separated "
-                        f"(default: {','.join(map(_g, _MPC.u_max))})")
-    m.add_argument("--theta", type=_float_type, default=_SWEEP.theta, metavar="X",
-                   help=f"theta of the ultimate bound, in (0, 1) (default: {_g(_SWEEP.theta)})")
+                        f"(default: {','.join(map(_g, mpc.u_max))})")
+    m.add_argument("--x0", type=_float_list, default=None, metavar="X1,X2,..",
+                   help="initial state of the closed loops, one per state (default: the system's x0)")
+    m.add_argument("--x-ref", type=_float_list, default=None, metavar="R1,R2,..",
+                   help="constant reference the MPC tracks, one value or one per state (default: 0)")
+    m.add_argument("--x-max", type=_float_list, default=None, metavar="X",
+                   help="state box |x_i| <= X on the predicted states, one value or one per state (default: none)")
+    m.add_argument("--Q", dest="q_diag", type=_float_list, default=None, metavar="Q1,Q2,..",
+                   help="diagonal of the state weight, one value or one per state (default: the system's Q)")
+    m.add_argument("--R", dest="r_diag", type=_float_list, default=None, metavar="R1,R2,..",
+                   help="diagonal of the input weight, one value or one per input (default: the system's R)")
+    m.add_argument("--theta", type=_float_type, default=base.theta, metavar="X",
+                   help=f"theta of the ultimate bound, in (0, 1) (default: {_g(base.theta)})")
     m.add_argument("--rho", type=_float_type, default=None, metavar="X",
                    help="rho of the ultimate bound, > 0 (default: the level-set ball through x0)")
+    add_running_options(p)
+
+
+def add_running_options(p: argparse.ArgumentParser) -> None:
     r = p.add_argument_group("running")
     r.add_argument("--workers", type=pos_int, default=1, metavar="N",
-                   help="processes (N > 1 uses a ProcessPoolExecutor; default: 1, in-process)")
+                   help="processes (N > 1 uses a ProcessPoolExecutor; at most the machine's CPU count; "
+                        "default: 1, in-process)")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
 
-def build_parser(commands: Mapping[str, ModuleType]) -> argparse.ArgumentParser:
+def build_parser(commands: Mapping[str, ModuleType], only: str | None = "*") -> argparse.ArgumentParser:
     """The ``qsid`` parser with one subcommand per module in ``commands`` (errors raise :class:`UsageError`).
 
-    Each module has ``HELP``, ``DESCRIPTION`` and ``add_arguments(parser)``.
+    Each module has ``HELP``, ``DESCRIPTION`` and ``add_arguments(parser)``. Only the options of command
+    ``only`` are built ("*": all; None: none, enough for ``qsid --help``), so a cold start loads only
+    what that command needs.
     """
     parser = _Parser(
         prog=PROG,
@@ -157,5 +270,7 @@ def build_parser(commands: Mapping[str, ModuleType]) -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, mod in commands.items():
-        mod.add_arguments(sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION))
+        sp = sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION)
+        if only == "*" or only == name:
+            mod.add_arguments(sp)
     return parser

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from .output import dumps, format_table, g
 from .parser import add_run_options
-from .runner import UsageError, check_writable, resolve_system, run as run_sweep, write_text
+from .runner import (UsageError, bits_text, check_writable, config, input_files, run as run_sweep, system_from_args,
+                     write_text)
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "PORTRAIT_BITS"]
 
@@ -48,8 +49,35 @@ body {{ font-family: system-ui, sans-serif; margin: 1em 2em; color: #222; }}
 
 
 def add_arguments(p) -> None:
-    add_run_options(p)
-    p.add_argument("--out", metavar="DIR", required=True, help="output directory (created if missing)")
+    from qsid_core.experiment import SweepConfig
+
+    add_run_options(p, base=SweepConfig.letter())  # defaults: the letter's settings (no guard band)
+    p.add_argument("--out", metavar="DIR", required=True,
+                   help="output directory (created if missing; a non-empty one needs --force)")
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out directory (files replaced)")
+
+
+def letter_note(cfg, system) -> str:
+    """One stderr line: the letter's settings this run keeps, and what the options changed."""
+    from qsid_core.experiment import SweepConfig
+
+    letter = SweepConfig.letter(system)
+    q, lq = cfg.quantizer, letter.quantizer
+    kept = (f"b = {bits_text(letter.bits)}, {letter.realizations} realizations, {letter.trajectories} x "
+            f"{letter.steps} samples, u ~ U[-{letter.input_amplitude:g}, {letter.input_amplitude:g}], "
+            f"{lq.dither} dither, {lq.range_mode} range from the data, "
+            f"{'a' if lq.guard else 'no'} guard band, {letter.estimator.upper()}")
+    changed = []
+    for name, a, b in (("bits", cfg.bits, letter.bits), ("realizations", cfg.realizations, letter.realizations),
+                       ("trajectories", cfg.trajectories, letter.trajectories), ("steps", cfg.steps, letter.steps),
+                       ("input amplitude", cfg.input_amplitude, letter.input_amplitude),
+                       ("dither", q.dither, lq.dither), ("range", q.range_mode, lq.range_mode),
+                       ("guard", q.guard, lq.guard), ("estimator", cfg.estimator, letter.estimator)):
+        if a != b:
+            shown = bits_text(a) if name == "bits" else ("on" if a else "off") if name == "guard" else a
+            changed.append(f"{name} {shown}")
+    return ("the letter's settings: " + kept + ("" if not changed else "; changed by your options: "
+                                                + ", ".join(changed)))
 
 
 def _split_error_panel(fig, col: int):
@@ -140,11 +168,22 @@ def _index_html(d: dict, system, panels: list) -> str:
                          links=links, panels="\n".join(divs))
 
 
-def _out_dir(text: str) -> Path:
+def _out_dir(text: str, force: bool, inputs=()) -> Path:
+    if not text.strip():
+        raise UsageError(f"argument --out: give a directory name; got {text!r}")
     outdir = Path(text)
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"argument --out: {text!r} exists and is not a directory")
-    outdir.mkdir(parents=True, exist_ok=True)  # fail before the run, not after it
+    for inp in inputs:
+        if outdir.resolve() in Path(inp).resolve().parents:
+            raise UsageError(f"argument --out: {text!r} holds the input file {str(inp)!r}; give another directory")
+    if outdir.is_dir() and any(outdir.iterdir()) and not force:
+        raise UsageError(f"argument --out: {text!r} is not empty; give a new directory or add --force "
+                         "(files of the same name are replaced)")
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)  # fail before the run, not after it
+    except OSError as exc:
+        raise UsageError(f"argument --out: cannot create {text!r}: {exc.strerror or exc}") from None
     check_writable(outdir)
     return outdir
 
@@ -152,12 +191,15 @@ def _out_dir(text: str) -> Path:
 def run(args, rep) -> int:
     from plotly.offline import get_plotlyjs
 
-    system = resolve_system(args.system)
+    system = system_from_args(args)
     if system.n < 3:
         raise UsageError(f"reproduce draws 3-D phase portraits and needs a system with at least 3 states; "
                          f"{system.name!r} has {system.n}")
-    outdir = _out_dir(args.out)
+    outdir = _out_dir(args.out, args.force, input_files(args))
+    if args.force and any(outdir.iterdir()):
+        rep.line(f"note: --force: files in {outdir} with the same names will be replaced")
     t0 = time.perf_counter()
+    rep.line(letter_note(config(args, system, True), system))
     res, ex = run_sweep(args, system, True, rep, extra_bits=PORTRAIT_BITS)
     d = res.to_dict()
     label = "BCLS" if res.config.estimator == "bcls" else "LS"

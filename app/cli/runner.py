@@ -6,6 +6,7 @@ Commands import this module (and :mod:`app.cli.output`), never each other.
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import sys
@@ -15,14 +16,10 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
 from typing import Sequence, TextIO
 
-from tqdm import tqdm
-
 from .parser import PROG, UsageError
 
-__all__ = ["UsageError", "Reporter", "one_line", "resolve_system", "config", "run", "check_writable",
-           "write_text", "MAX_WORKERS"]
-
-MAX_WORKERS = 256
+__all__ = ["UsageError", "Reporter", "one_line", "resolve_system", "system_from_args", "config", "workers", "run",
+           "check_writable", "write_text", "bits_text", "out_file", "input_files"]
 
 
 def one_line(text: object) -> str:
@@ -39,7 +36,7 @@ class Reporter:
             self.tty = bool(self.stream.isatty())
         except (AttributeError, ValueError):
             self.tty = False
-        self._bar: tqdm | None = None  # the running stage's bar (terminal only)
+        self._bar = None  # the running stage's bar (terminal only)
         self._seen: set = set()
         self._last = time.monotonic()
         self.after_stage: dict[str, str] = {}  # stage -> line to announce once it is complete
@@ -62,6 +59,8 @@ class Reporter:
         desc = f"{PROG}:   {stage}"
         if self._bar is None or self._bar.desc != desc:
             self._close()
+            from tqdm import tqdm
+
             width = min(100, shutil.get_terminal_size((80, 24)).columns)  # a pty may report 0 columns
             self._bar = tqdm(total=total, desc=desc, file=self.stream, leave=True, ncols=width)
         self._bar.total = total
@@ -102,38 +101,105 @@ def _worker_init() -> None:
     warnings.showwarning = rep.warning
 
 
+def _max_magnitude() -> float:
+    """The engine's bound on magnitudes (1e12 for engines before it had one)."""
+    try:
+        from qsid_core.validate import MAX_MAGNITUDE
+    except ImportError:  # pragma: no cover - engines before input validation
+        return 1e12
+    return float(MAX_MAGNITUDE)
+
+
 def resolve_system(spec: str):
-    """A preset name or a system file (``--system``)."""
+    """A preset name or a system file (``--system``); every bad file is one :class:`UsageError` line."""
     from qsid_core.systems import get_system
 
     p = Path(spec)
+    if p.is_dir():
+        raise UsageError(f"argument --system: {spec!r} is a directory; give a preset name or a .toml/.json file")
     if spec.lower().endswith((".toml", ".json")) and p.exists() and not p.is_file():
         raise UsageError(f"system file {spec!r} is not a regular file")
-    return get_system(spec)
+    try:
+        system = get_system(spec)
+    except (TypeError, OverflowError, RecursionError, AttributeError) as exc:
+        # engine versions without full input validation: still one line, naming the file
+        raise UsageError(f"system {spec!r}: an entry is not a usable number ({type(exc).__name__}: "
+                         f"{one_line(exc)[:200]})") from None
+    dt = getattr(system, "dt", 1.0)
+    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        raise UsageError(f"system {spec!r}: dt must be a positive finite sample time; got {dt!r}")
+    return system
+
+
+def system_from_args(args):
+    """The true system: ``--A``/``--B`` typed inline (a custom system), else ``--system``."""
+    a_text, b_text = getattr(args, "a_text", None), getattr(args, "b_text", None)
+    if a_text is None and b_text is None:
+        return resolve_system(args.system)
+    if a_text is None or b_text is None:
+        raise UsageError("an inline system needs both --A and --B")
+    from qsid_core.systems import LTISystem, parse_matrix
+
+    A, B = parse_matrix(a_text, "A"), parse_matrix(b_text, "B")
+    return LTISystem("custom", A, B, description="typed on the command line")
+
+
+def _quantizer(args, system):
+    from qsid_core import QuantizerSpec
+
+    fixed = args.limits
+    if args.range_mode == "fixed" and fixed is None:
+        raise UsageError("argument --range fixed needs --limits LO,HI (or one LO,HI per channel, ';'-separated)")
+    if fixed is not None and args.range_mode != "fixed":
+        raise UsageError(f"argument --limits: only used with --range fixed; got --range {args.range_mode}")
+    k = system.n + system.m
+    if fixed is not None and len(fixed) not in (1, k):
+        raise UsageError(f"argument --limits: give 1 pair or {k} pairs (states then inputs) for system "
+                         f"{system.name!r}; got {len(fixed)}")
+    return QuantizerSpec(dither=args.dither, range_mode=args.range_mode, guard=args.guard,
+                         fixed_range=None if fixed is None else (fixed[0] if len(fixed) == 1 else fixed))
+
+
+def _mpc_config(args, system):
+    from qsid_core import MPCConfig
+
+    if len(args.u_max) not in (1, system.m):
+        raise UsageError(f"argument --u-max: give 1 or {system.m} values for system {system.name!r}; "
+                         f"got {len(args.u_max)}")
+    u_max = args.u_max[0] if len(args.u_max) == 1 else args.u_max
+    mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
+                     x_max=args.x_max, Q=args.q_diag, R=args.r_diag)
+    mcfg.resolve(system)  # shape checks now, before any work
+    return mcfg
 
 
 def config(args, system, mpc: bool):
     """The engine's :class:`~qsid_core.SweepConfig` for parsed arguments (shapes checked before any work)."""
-    from qsid_core import MPCConfig, QuantizerSpec, SweepConfig, parse_bits
+    from qsid_core import SweepConfig, parse_bits
 
     bits = parse_bits(args.bits)
-    if args.u_max is not None and len(args.u_max) not in (1, system.m):
-        raise UsageError(f"argument --u-max: give 1 or {system.m} values for system {system.name!r}; "
-                         f"got {len(args.u_max)}")
-    if args.rho is not None and args.rho <= 0:
-        raise UsageError(f"argument --rho: must be > 0; got {args.rho:g}")
-    if args.workers > MAX_WORKERS:
-        raise UsageError(f"argument --workers: must be at most {MAX_WORKERS}; got {args.workers}")
-    seeds = {} if args.seed is None else {"data_seed": args.seed, "dither_seed": args.seed}
-    u_max = args.u_max[0] if len(args.u_max) == 1 else args.u_max
-    mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max) if mpc else None
-    if mcfg is not None:
-        mcfg.resolve(system)  # shape checks now, before any work
+    rho_max = _max_magnitude()
+    if args.rho is not None and not 0 < args.rho <= rho_max:
+        raise UsageError(f"argument --rho: must be > 0 and at most {rho_max:g}; got {args.rho:g}")
+    defaults = SweepConfig(mpc=None)
+    seed = getattr(args, "seed", None)
+    seeds = {"data_seed": next(v for v in (args.data_seed, seed, defaults.data_seed) if v is not None),
+             "dither_seed": next(v for v in (args.dither_seed, seed, defaults.dither_seed) if v is not None)}
     return SweepConfig(
         system=system, bits=bits, realizations=args.realizations, trajectories=args.trajectories,
-        steps=args.steps, quantizer=QuantizerSpec(dither=args.dither, range_mode=args.range_mode, guard=args.guard),
-        estimator=args.estimator, mpc=mcfg, theta=args.theta, rho=args.rho, **seeds,
+        steps=args.steps, quantizer=_quantizer(args, system), estimator=args.estimator,
+        mpc=_mpc_config(args, system) if mpc else None, theta=args.theta, rho=args.rho,
+        input_amplitude=args.input_amplitude, **seeds,
     )
+
+
+def workers(args, rep: "Reporter") -> int:
+    """``--workers``, capped at the machine's CPU count (said on stderr when it is)."""
+    cpus = os.cpu_count() or 1
+    if args.workers > cpus:
+        rep.line(f"note: --workers {args.workers} capped to {cpus} (the CPU count of this machine)")
+        return cpus
+    return args.workers
 
 
 def _executor(workers: int) -> Executor:
@@ -148,7 +214,7 @@ def _plural(k: int, word: str) -> str:
     return f"{k} {word}" + ("" if k == 1 else "s")
 
 
-def _bits_text(bits: Sequence[int]) -> str:
+def bits_text(bits: Sequence[int]) -> str:
     bits = list(bits)
     if len(bits) > 2 and bits == list(range(bits[0], bits[-1] + 1)):
         return f"{bits[0]}..{bits[-1]}"
@@ -160,12 +226,13 @@ def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = ()):
     from qsid_core import Experiment, run_sweep
 
     cfg = config(args, system, mpc)
-    pool = _executor(args.workers)
+    nw = workers(args, rep)
+    pool = _executor(nw)
     try:
-        ex = Experiment(cfg, pool, tasks=max(4, 2 * args.workers))
+        ex = Experiment(cfg, pool, tasks=max(4, 2 * nw))
         rep.stage(f"system {system.name!r} ({_plural(system.n, 'state')}, {_plural(system.m, 'input')}); "
-                  f"{cfg.trajectories} x {cfg.steps} samples, b = {_bits_text(cfg.bits)}, "
-                  f"{cfg.realizations} realizations, {args.workers} worker(s)")
+                  f"{cfg.trajectories} x {cfg.steps} samples, b = {bits_text(cfg.bits)}, "
+                  f"{cfg.realizations} realizations, {nw} worker(s)")
         rep.stage("[1/2] simulate data, quantize and identify")
         rep.after_stage["quantize + identify"] = (
             f"[2/2] Theorem 1, ultimate bound and MPC closed loops ({len(cfg.bits)} word lengths "
@@ -174,7 +241,7 @@ def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = ()):
         rep.after_stage.clear()
         todo = [b for b in extra_bits if b not in res.loops]
         if todo:
-            rep.stage(f"[+] closed loops for the phase portraits at b = {_bits_text(todo)}")
+            rep.stage(f"[+] closed loops for the phase portraits at b = {bits_text(todo)}")
             ex.moments(todo, rep)
             ex.closed_loops_many(todo, progress=rep)
         return res, ex
@@ -182,9 +249,56 @@ def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = ()):
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def check_writable(directory: Path) -> None:
+def check_writable(directory: Path, flag: str = "--out") -> None:
     if not os.access(directory, os.W_OK):
-        raise UsageError(f"argument --out: cannot write into {str(directory)!r} (permission denied)")
+        raise UsageError(f"argument {flag}: cannot write into {str(directory)!r} (permission denied)")
+
+
+def input_files(args) -> list:
+    """Files the run reads (an ``--out`` must never be one of them)."""
+    p = Path(args.system)
+    return [p] if getattr(args, "a_text", None) is None and p.is_file() else []
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
+
+
+def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs=()) -> Path | None:
+    """Check an output file before any work: a name, not a directory, not an input, writable.
+
+    An existing file is replaced, and that is said on stderr (before the run).
+    """
+    if text is None:
+        return None
+    if not text.strip():
+        raise UsageError(f"argument {flag}: give a file name; got {text!r}")
+    out = Path(text)
+    if out.is_dir():
+        raise UsageError(f"argument {flag}: {text!r} is a directory; give a file name")
+    for inp in inputs:
+        if _same_file(out, Path(inp)):
+            raise UsageError(f"argument {flag}: {text!r} is the input file {str(inp)!r}; writing it would destroy "
+                             "the input, give another name")
+    parent = out.parent
+    for up in (parent, *parent.parents):
+        if up.exists():
+            if not up.is_dir():
+                raise UsageError(f"argument {flag}: {str(up)!r} is a file, not a directory")
+            break
+    try:
+        parent.mkdir(parents=True, exist_ok=True)  # fail before the run, not after it
+    except OSError as exc:
+        raise UsageError(f"argument {flag}: cannot create {str(parent)!r}: {exc.strerror or exc}") from None
+    check_writable(parent, flag)
+    if out.exists():
+        if not os.access(out, os.W_OK):
+            raise UsageError(f"argument {flag}: {text!r} exists and is not writable")
+        rep.line(f"note: {flag} {text} exists; it will be replaced")
+    return out
 
 
 def write_text(path: Path, text: str) -> None:

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
-from .output import dumps, format_table
+from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
-from .runner import UsageError, check_writable, resolve_system, run as run_sweep, write_text
+from .runner import input_files, out_file, run as run_sweep, system_from_args, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -19,19 +17,16 @@ def add_arguments(p) -> None:
     add_run_options(p)
     p.add_argument("--no-mpc", action="store_true", help="skip the MPC closed loops (identification and theory)")
     p.add_argument("--json", action="store_true", help="print one JSON object to stdout instead of a table")
-    p.add_argument("--out", metavar="FILE", default=None, help="also write the JSON to FILE")
+    p.add_argument("--out", metavar="FILE", default=None,
+                   help="also write the JSON to FILE (checked before the run; an existing FILE is replaced, "
+                        "with a note on stderr; never an input file)")
 
 
 def run(args, rep) -> int:
-    system = resolve_system(args.system)
-    out = Path(args.out) if args.out else None
-    if out is not None and out.is_dir():
-        raise UsageError(f"argument --out: {args.out!r} is a directory; give a file name")
-    if out is not None:  # fail before the run, not after it
-        out.parent.mkdir(parents=True, exist_ok=True)
-        check_writable(out.parent)
+    system = system_from_args(args)
+    out = out_file(args.out, rep, inputs=input_files(args))
     res, _ = run_sweep(args, system, not args.no_mpc, rep)
-    d = res.to_dict()
+    d = sweep_dict(res)
     text = dumps(d)
     if out is not None:
         write_text(out, text + "\n")

@@ -57,6 +57,12 @@ class Frame:
         Plain-words notes about the system (e.g. not controllable).
     elapsed : float
         Seconds since the change that started this computation.
+    ex : Experiment
+        The engine's experiment (its cache holds every b computed so far).
+    pinned : Frame or None
+        A frame the person pinned for comparison (set by the tab, not computed).
+    datalength : DataLengthResult or None
+        The data-length study for these settings, if one finished (set by the tab).
     """
 
     stage: str
@@ -75,6 +81,9 @@ class Frame:
     notes: tuple = ()
     elapsed: float = 0.0
     timings: dict = field(default_factory=dict)
+    ex: object = None
+    pinned: object = None
+    datalength: object = None
 
     @property
     def complete(self) -> bool:
@@ -143,4 +152,4 @@ def fill_rows(job: Job, rows: dict, est: str, bits, loops: Mapping | None = None
 def make_frame(job: Job, stage: str, rows: dict, done: int, elapsed: float, timings: dict) -> Frame:
     """A frame with a copy of ``rows`` (the caller keeps filling its own)."""
     return Frame(stage, rows={lab: dict(r) for lab, r in rows.items()}, done=done, total=len(job.all_bits),
-                 elapsed=elapsed, timings=dict(timings), **job.common)
+                 elapsed=elapsed, timings=dict(timings), ex=job.ex, **job.common)

@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 import numbers
 
+import numpy as np
+
 from .controls import CONTROLS, Control
 from .settings import LOG_MAX, LOG_MIN, InputError
 
-__all__ = ["check_panel", "check_value", "MAX_TEXT", "MAX_NESTING", "NUMBER_MAX"]
+__all__ = ["check_panel", "check_value", "unusable", "MAX_TEXT", "MAX_NESTING", "NUMBER_MAX"]
 
 #: Longest text accepted in a text box (characters).
 MAX_TEXT = 20_000
@@ -96,3 +98,19 @@ def check_panel(el) -> None:
             if not LOG_MIN <= x <= LOG_MAX:
                 raise InputError(f"{s.label}: {s.value:g} is outside the slider's range {LOG_MIN:g} … {LOG_MAX:g} "
                                  f"(log10 of the {kind} weight)")
+
+
+def unusable(frame) -> str | None:
+    """Why a "current" frame must not be shown as a result (every identification failed, ε not finite), or None."""
+    if frame.stage != "current":
+        return None
+    for ident in frame.idents.values():
+        if not np.all(np.isfinite(ident.eps)):
+            return (f"the quantizer step ε at b = {frame.bits} is not a finite number (the range is too wide "
+                    "for floating point); choose a narrower range")
+    if frame.idents and all(np.all(ident.failed) for ident in frame.idents.values()):
+        ident = next(iter(frame.idents.values()))
+        why = "; ".join(ident.notes[:2]) or "no reason given"
+        return (f"every identification failed at b = {frame.bits} (all {len(ident.failed)} dither realizations): "
+                f"{why}")
+    return None

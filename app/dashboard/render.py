@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from app.figures.compare import PINNED_VIEWS, overlay_pinned
 from app.figures.phase_scene import SceneView, scene_view
 from app.figures import registry
 from app.figures.traces import move_current_bits
@@ -20,7 +21,13 @@ def build_figures(frame: Frame, which=None) -> dict:
 
     Rows may be partial: missing word lengths are simply absent from the curves.
     """
-    return {v.name: v.build(frame) for v in registry.VIEWS if which is None or v.name in which}
+    figs = {v.name: v.build(frame) for v in registry.VIEWS if which is None or v.name in which}
+    pinned = getattr(frame, "pinned", None)
+    if pinned is not None:  # a pinned earlier result: its curves dashed on top
+        for v in registry.VIEWS:
+            if v.name in figs and v.name in PINNED_VIEWS:
+                overlay_pinned(figs[v.name], v.build(pinned), f"pinned b={pinned.bits}")
+    return figs
 
 
 @dataclass
@@ -36,7 +43,7 @@ class Renderer:
     """Remembers what one tab drew last, so each frame redraws only what changed.
 
     * a "current" frame redraws the 3-D view and the summary, rebuilds the
-      ``"current"`` views if b or the models changed, and moves the current-b
+      ``"current"`` views whose key changed (default: b or the models), and moves the current-b
       marker of the ``"curves"`` views;
     * a "curves" frame rebuilds the ``"curves"`` views only if their rows
       changed (a pure b change leaves them alone and just moves the marker).
@@ -45,7 +52,7 @@ class Renderer:
     def __init__(self):
         self.figures: dict = {}
         self._rows_key = None
-        self._current_key = None
+        self._current_keys: dict = {}
 
     def render(self, frame: Frame, axes: str | None = None) -> Render:
         out: dict = {}
@@ -54,18 +61,24 @@ class Renderer:
         if frame.stage == "current":
             scene = scene_view(frame, axes)
             summary = summary_markdown(frame)
-            key = (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels))
-            if key != self._current_key:
-                out.update(build_figures(frame, [v.name for v in registry.VIEWS if v.depends == CURRENT]))
-                self._current_key = key
-        rows_key = (frame.labels, frame.true_cost,
+            models = (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels))
+            todo = []
+            for v in registry.VIEWS:
+                if v.depends == CURRENT:
+                    key = v.key(frame) if v.key is not None else models
+                    if self._current_keys.get(v.name) != key:
+                        todo.append(v.name)
+                        self._current_keys[v.name] = key
+            out.update(build_figures(frame, todo))
+        rows_key = (frame.labels, frame.true_cost, id(frame.pinned), frame.values.compare_bits, frame.values.axes,
                     tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())))
         if frame.stage == "curves" and rows_key != self._rows_key:
             out.update(build_figures(frame, curves))
             self._rows_key = rows_key
         else:
-            for name in curves:
-                if name in self.figures:
-                    out[name] = move_current_bits(self.figures[name], frame.bits)
+            for name in curves:  # only plots with a current-b marker are touched (and re-sent)
+                fig = self.figures.get(name)
+                if fig is not None and any(sh.x0 == sh.x1 for sh in fig.layout.shapes):
+                    out[name] = move_current_bits(fig, frame.bits)
         self.figures.update(out)
         return Render(scene, summary, out)

@@ -26,6 +26,7 @@ from .netcheck import OneLineParser, check_address, port_number
 from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
+from .share import load_settings_file
 
 __all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
 
@@ -52,11 +53,12 @@ class DashboardApp:
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
-                 cache_bytes: int = 256 * 2**20, task_timeout: float = DEFAULT_TIMEOUT):
+                 cache_bytes: int = 256 * 2**20, settings: Values | None = None,
+                 task_timeout: float = DEFAULT_TIMEOUT):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
-        self.defaults = Values(system=system, **size)
+        self.defaults = settings if settings is not None else Values(system=system, **size)
         self.cache = SharedCache(cache_bytes)
         self.slots = threading.BoundedSemaphore(max(1, slots))  # (4) at most `slots` tabs compute at once
         self.workers = max(0, int(workers))
@@ -146,6 +148,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--task-timeout", type=float, default=DEFAULT_TIMEOUT, metavar="SECONDS",
                    help=f"a pool task running longer counts as hung: its worker is replaced (default "
                         f"{DEFAULT_TIMEOUT:g})")
+    p.add_argument("--settings", metavar="FILE", default=None,
+                   help="start every new tab from a settings file (saved with the panel's 'Download settings')")
     return p
 
 
@@ -175,6 +179,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     try:
+        settings = None if args.settings is None else load_settings_file(args.settings)
         warning = check_address(args.host, args.port)
     except QsidError as exc:
         print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
@@ -186,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     code = 0
     try:
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
-                           task_timeout=args.task_timeout)
+                           settings=settings, task_timeout=args.task_timeout)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         _wait_for_stop_signal()
         print("\nqsid dashboard: stopping", flush=True)

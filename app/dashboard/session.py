@@ -15,33 +15,36 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
 7. the process pool (:class:`~app.dashboard.pool.Pool`): the heavy quantization and closed-loop work;
    ``Pool._lock`` guards its replacement, which only ever replaces the executor that failed.
-8. the pool's watchdog thread (:mod:`app.dashboard.pool`): abandons a tab's pool tasks as soon as
-   newer settings arrive, and times out a hung worker (the pool is replaced, the tab retries once).
-9. signals (server ``main``): SIGINT/SIGTERM are blocked in every thread and taken by ``sigwait``
+   Its watchdog thread abandons a tab's pool tasks as soon as newer settings arrive, and times
+   out a hung worker (the pool is replaced, the tab retries once).
+8. signals (server ``main``): SIGINT/SIGTERM are blocked in every thread and taken by ``sigwait``
    in the main thread, so no solver's handler can swallow Ctrl-C.
+9. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
+   demand, in-process; cancelled when the tab's generation changes (any new change).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 import traceback
-
-import numpy as np
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Callable, Iterator, MutableMapping
 
-from app.figures import registry
 from qsid_core.errors import QsidError
 from qsid_core.systems import PRESETS, get_system
 
+from .background import DataLengthRunner
 from .controls import make_gui_elements, read_values, set_system, show_weights
 from .frames import Frame, fill_rows, make_frame, start
-from .inputs import check_panel
+from .inputs import check_panel, unusable
 from .pool import PoolFailure, PoolTimeout, Superseded
 from .render import Renderer
 from .scene import PhasePortrait
 from .settings import ALL_BITS, InputError, Values, resolve_system
+from .share import add_share_panel, apply_pending, show_frame
+from .viewpanel import PANEL_WIDTH, ViewPanel
 
 __all__ = ["Session", "iter_frames"]
 
@@ -156,33 +159,6 @@ def iter_frames(values: Values, cache: MutableMapping | None = None, executor=No
         helper.shutdown(wait=False, cancel_futures=True)
 
 
-def _blank():
-    import plotly.graph_objects as go
-
-    fig = go.Figure()
-    fig.update_layout(height=200, template="plotly_white", margin=dict(l=10, r=10, t=10, b=10),
-                      annotations=[dict(text="computing …", showarrow=False, x=0.5, y=0.5, xref="paper",
-                                        yref="paper")],
-                      xaxis=dict(visible=False), yaxis=dict(visible=False))
-    return fig
-
-
-def _unusable(frame: Frame) -> str | None:
-    """Why ``frame`` must not be shown as a result (every identification failed, eps not finite), or None."""
-    if frame.stage != "current":
-        return None
-    for lab, ident in frame.idents.items():
-        if not np.all(np.isfinite(ident.eps)):
-            return (f"the quantizer step ε at b = {frame.bits} is not a finite number (the range is too wide "
-                    "for floating point); choose a narrower range")
-    if frame.idents and all(np.all(ident.failed) for ident in frame.idents.values()):
-        ident = next(iter(frame.idents.values()))
-        why = "; ".join(ident.notes[:2]) or "no reason given"
-        return (f"every identification failed at b = {frame.bits} (all {len(ident.failed)} dither realizations): "
-                f"{why}")
-    return None
-
-
 class Session:
     """One browser tab: its controls, scene, plots and the worker thread that redraws them.
 
@@ -209,11 +185,15 @@ class Session:
         gui.main_panel.dock_left()
         self.plots_panel = gui.add_panel()
         self.plots_panel.dock_right()
-        self.plots_panel.set_width(440)
+        self.plots_panel.set_width(PANEL_WIDTH)
         system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
         self.controls = make_gui_elements(gui, values, system, self.touch)
-        with self.plots_panel.add_tab("Plots"):
-            self.plots = {v.name: gui.add_plotly(_blank(), aspect=v.aspect) for v in registry.VIEWS}
+        self.share = add_share_panel(self)  # keep & share: settings file, command line, exports
+        self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
+        self.views = ViewPanel(gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin,
+                               self.start_datalength)
+        self.plots = self.views.plots
+        self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
         self.renderer = Renderer()
         self.portrait = PhasePortrait(client.scene)
         # (2) the tab's one worker
@@ -240,6 +220,30 @@ class Session:
         """Block until every change so far is fully drawn (for tests and benchmarks)."""
         with self._cond:
             return self._cond.wait_for(lambda: self._done == self._gen, timeout)
+
+    def pin(self) -> None:
+        """Keep the frame drawn last for comparison (dashed on the error, cost and bound plots)."""
+        if self.last_frame is not None:
+            self.pinned = dataclasses.replace(self.last_frame, pinned=None, datalength=None)
+            self.views.show_pinned(self.pinned)
+            self.touch()
+
+    def unpin(self) -> None:
+        self.pinned = None
+        self.views.show_pinned(None)
+        self.touch()
+
+    def start_datalength(self) -> None:
+        """The data-length study for what the tab shows now; any newer change cancels it."""
+        frame = self.last_frame
+        if frame is None:
+            return
+        gen = self._gen
+        self.datalength.start(frame.values, lambda: self._closed or self._gen != gen)
+
+    def _datalength_progress(self, fraction: float, text: str) -> None:
+        self.views.dl_progress.value = 100.0 * fraction
+        self.views.dl_status.content = text
 
     @property
     def generation(self) -> int:
@@ -286,6 +290,7 @@ class Session:
     def _run(self, gen: int) -> int:
         """Check, compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
+        apply_pending(self)  # settings uploaded since the last run
         try:
             check_panel(c)  # every raw value (anything can come over the websocket) before it is converted
         except InputError as exc:
@@ -296,6 +301,8 @@ class Session:
         if adapted is None:
             return gen
         gen, values = adapted
+        self.views.set_system(resolve_system(values).system)
+        values = values.replace(**self.views.values())
         for attempt in (1, 2):
             try:
                 return self._compute(gen, values)
@@ -330,7 +337,7 @@ class Session:
                     frame = next(frames, None)
                 if frame is None or self._stale(gen):
                     return gen
-                bad = _unusable(frame)
+                bad = unusable(frame)  # all identifications failed, eps not finite: never 'ready'
                 if bad:
                     self._show_error(bad)
                     return gen
@@ -365,6 +372,8 @@ class Session:
     def _draw(self, frame: Frame, gen: int) -> bool:
         """Push ``frame`` to the tab unless newer settings arrived meanwhile; True if drawn."""
         c = self.controls
+        frame.pinned = self.pinned
+        frame.datalength = self.datalength.lookup(frame.values)
         r = self.renderer.render(frame, c["axes"].value)
         if self._stale(gen):  # never draw an older result over a newer one
             self.renderer = Renderer()  # it remembered figures that were not pushed
@@ -380,5 +389,6 @@ class Session:
             for name, fig in r.figures.items():
                 self.plots[name].figure = fig
         self.last_frame = frame
+        show_frame(self, frame)
         self.frames_drawn += 1
         return True

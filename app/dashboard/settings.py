@@ -89,6 +89,10 @@ class Values:
     rho_auto: bool = _SWEEP.rho is None
     rho: float = 1.0
     axes: str = ""
+    x_ref: str = ""  # constant reference, one number per state ("" = regulate to 0)
+    x_max: str = ""  # state box |x_i| <= x_max_i: one number for all or one per state ("" = none)
+    view_channel: int = 0  # the quantizer view's channel (states, then inputs)
+    compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
 
     def replace(self, **kw) -> "Values":
         return dataclasses.replace(self, **kw)
@@ -233,6 +237,18 @@ def estimators(choice: str) -> tuple:
     return IDENT_CHOICES[choice]
 
 
+def _state_box(text: str, n: int, names: str) -> tuple | None:
+    """The state box typed in the panel: one bound for every state or one per state ("" = no box)."""
+    s = (text or "").strip()
+    if not s:
+        return None
+    k = len(s.replace(",", " ").replace(";", " ").split())
+    box = parse_vector(s, "x_max", 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
+    if not all(np.isfinite(x) and x > 0 for x in box):
+        raise InputError(f"x_max: every bound must be a positive number; got {s!r}")
+    return box if len(box) == n else box * n
+
+
 def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     """The MPC of the panel; log sliders are turned into weights, empty x0 = the system's."""
     n, m = system.n, system.m
@@ -240,8 +256,11 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     R = weights_from_log(v.log_r) if len(v.log_r) == m else None
     names = ", ".join(system.state_names)
     x0 = parse_vector(v.x0, "x0", n, f" (one per state: {names})")
+    x_ref = parse_vector(v.x_ref, "x_ref", n, f" (one per state: {names})")
+    x_max = _state_box(v.x_max, n, names)
     try:
-        return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0)
+        return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0,
+                         x_ref=x_ref, x_max=x_max)
     except QsidError as exc:
         raise InputError(str(exc)) from None
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from qsid_core.summary import saturated_steps
+
 from .frames import Frame
 
 __all__ = ["summary_markdown"]
@@ -18,6 +20,22 @@ def _failures(row: dict, lp) -> str:
         return "none"
     kinds = ", ".join(f"{n} {kind}" for kind, n in sorted(mc.get("failures", {}).items()))
     return f"{k}/{len(lp.failure)} ({kinds})"
+
+
+def _saturation(frame: Frame) -> str:
+    """Closed-loop steps with an input on its bound, per estimator (and the true-model loop)."""
+    mpc = frame.ex.config.mpc if frame.ex is not None else None
+    if mpc is None:
+        return ""
+    u_max = mpc.resolve(frame.system).u_max
+    loops = {lab: frame.loops[lab] for lab in frame.labels}
+    if frame.true_loop is not None:
+        loops["true model"] = frame.true_loop
+    parts = []
+    for lab, lp in loops.items():
+        k, j = saturated_steps(lp.inputs, u_max)
+        parts.append(f"{lab} {k} steps in {j}/{len(lp.inputs)} loops")
+    return "saturated inputs (|u| at its bound): " + ", ".join(parts)
 
 
 def summary_markdown(frame: Frame) -> str:
@@ -45,6 +63,7 @@ def summary_markdown(frame: Frame) -> str:
         lines.append(f"| {lab} | {_g(r['err_A']['mean'])} | {_g(r['err_B']['mean'])} | {_g(cost, '.4g')} | "
                      f"{_failures(r, frame.loops[lab])} |")
     lines.append(f"| Thm 1 | {_g(first['err_A_theory'])} | {_g(first['err_B_theory'])} | | |")
+    lines += ["", _saturation(frame)]
     lines.append("")
     tl = frame.true_loop
     why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
@@ -66,6 +85,9 @@ def summary_markdown(frame: Frame) -> str:
         msgs = sorted({m for m in frame.loops[lab].messages if m})
         if msgs:
             notes.append(f"{lab} MPC: " + "; ".join(msgs[:2]) + (" …" if len(msgs) > 2 else ""))
+    if frame.values.x_ref.strip() and any(float(x) for x in frame.ex.config.mpc.x_ref or ()):
+        notes.append("tracking x_ref ≠ 0: δ(ε) and the bound sphere assume x_ref = 0 (regulation); the loops "
+                     "settle near x_ref instead")
     if frame.theory.bound_note:
         notes.append(f"bound: {frame.theory.bound_note}")
     if notes:

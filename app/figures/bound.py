@@ -33,5 +33,11 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
     return fig
 
 
-VIEW = View("bound", aspect=0.6, depends=CURVES,
-            build=lambda frame: bound_figure(frame.series(), current_bits=frame.bits, height=260))
+def _build(frame) -> go.Figure:
+    fig = bound_figure(frame.series(), current_bits=frame.bits, height=260)
+    fig.add_annotation(text="δ(ε) assumes regulation to x_ref = 0", showarrow=False, x=1, y=1.02, xref="paper",
+                       yref="paper", xanchor="right", yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))
+    return fig
+
+
+VIEW = View("bound", aspect=0.6, depends=CURVES, build=_build)

@@ -6,16 +6,25 @@ creates one plot per entry and redraws it through the entry's ``build``.
 
 from __future__ import annotations
 
-from . import bound, cost, eigenvalues, error_vs_bits
+from dataclasses import replace
+
+from . import bound, compare, cost, datalength, eigenvalues, error_vs_bits, quantizer, time_series
 from .view import View
 
-__all__ = ["VIEWS", "view_names"]
+__all__ = ["TABS", "VIEWS", "view_names"]
+
+#: Tabs of the plots panel, in order (a view's ``tab``); the current-b views come first in each tab.
+TABS = ("Identification", "Control", "Quantizer", "Data length", "Compare")
 
 VIEWS: tuple[View, ...] = (
     error_vs_bits.VIEW,
-    cost.VIEW,
-    bound.VIEW,
     eigenvalues.VIEW,
+    time_series.VIEW,
+    replace(cost.VIEW, tab="Control"),
+    replace(bound.VIEW, tab="Control"),
+    quantizer.VIEW,
+    datalength.VIEW,
+    compare.VIEW,
 )
 
 

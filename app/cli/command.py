@@ -1,0 +1,99 @@
+"""The ``qsid sweep`` command line that reproduces a :class:`~qsid_core.SweepConfig` (the dashboard's
+"As a command").
+
+Only settings that differ from the parser's defaults are written, numbers exactly
+(``repr``), list values as ``--flag=value`` (a value may start with '-'). Parsing
+the line with :func:`app.cli.build_parser` and :func:`app.cli.runner.config`
+gives back an equal config (tested round trip).
+"""
+
+from __future__ import annotations
+
+import shlex
+
+from .parser import bits_spec, floats_spec, limits_spec
+
+__all__ = ["sweep_argv", "sweep_command", "system_text"]
+
+
+def system_text(M) -> str:
+    """A matrix as the ``--A``/``--B`` text: rows separated by '; ', entries exact."""
+    return "; ".join(" ".join(repr(float(v)) for v in row) for row in M)
+
+
+def _system_args(system, system_source: str | None) -> list:
+    from qsid_core.systems import PRESETS
+
+    if system_source is not None:
+        return [f"--system={system_source}"]
+    if system.name in PRESETS:
+        return [] if system.name == "dc-motor" else [f"--system={system.name}"]
+    return [f"--A={system_text(system.A)}", f"--B={system_text(system.B)}"]
+
+
+def _mpc_args(cfg, system) -> list:
+    from qsid_core import MPCConfig
+
+    m, d = cfg.mpc, MPCConfig()
+    if m is None:
+        return ["--no-mpc"]
+    out = []
+    if m.horizon != d.horizon:
+        out.append(f"--horizon={m.horizon}")
+    if m.steps != d.steps:
+        out.append(f"--mpc-steps={m.steps}")
+    if m.u_max != d.u_max:
+        out.append(f"--u-max={floats_spec(m.u_max)}")
+    for flag, v in (("--x0", m.x0), ("--x-ref", m.x_ref), ("--x-max", m.x_max), ("--Q", m.Q), ("--R", m.R)):
+        if v is not None:
+            out.append(f"{flag}={floats_spec(v)}")
+    unsupported = [k for k in ("xf_max", "Qf") if getattr(m, k) is not None]
+    unsupported += [k for k in ("eps", "max_iter") if getattr(m, k) != getattr(d, k)]
+    if unsupported:
+        raise ValueError(f"the command line has no flag for MPC setting(s) {', '.join(unsupported)}")
+    return out
+
+
+def sweep_argv(cfg, system_source: str | None = None) -> list:
+    """``qsid sweep`` arguments (after ``sweep``) that rebuild ``cfg``.
+
+    Parameters
+    ----------
+    cfg : SweepConfig
+        With ``system`` an :class:`~qsid_core.systems.LTISystem` (or a preset name).
+    system_source : str, optional
+        Give ``--system`` this way (a file name); default: the preset's name, or an
+        inline ``--A``/``--B`` for any other system.
+    """
+    from qsid_core import SweepConfig
+    from qsid_core.systems import get_system
+
+    system = get_system(cfg.system)
+    d, q, dq = SweepConfig(mpc=None), cfg.quantizer, SweepConfig(mpc=None).quantizer
+    out = _system_args(system, system_source)
+    if cfg.bits != d.bits:
+        out.append(f"--bits={bits_spec(cfg.bits)}")
+    for flag, v, dv in (("--realizations", cfg.realizations, d.realizations),
+                        ("--trajectories", cfg.trajectories, d.trajectories), ("--steps", cfg.steps, d.steps),
+                        ("--data-seed", cfg.data_seed, d.data_seed), ("--dither-seed", cfg.dither_seed, d.dither_seed),
+                        ("--range", q.range_mode, dq.range_mode), ("--dither", q.dither, dq.dither),
+                        ("--estimator", cfg.estimator, d.estimator)):
+        if v != dv:
+            out.append(f"{flag}={v}")
+    if cfg.input_amplitude != d.input_amplitude:
+        out.append(f"--input-amplitude={cfg.input_amplitude!r}")
+    if q.fixed_range is not None:
+        out.append(f"--limits={limits_spec(q.fixed_range)}")
+    if q.guard != dq.guard:
+        out.append("--guard" if q.guard else "--no-guard")
+    out += _mpc_args(cfg, system)
+    if cfg.theta != d.theta:
+        out.append(f"--theta={cfg.theta!r}")
+    if cfg.rho is not None:
+        out.append(f"--rho={cfg.rho!r}")
+    return out
+
+
+def sweep_command(cfg, system_source: str | None = None) -> str:
+    """The whole shell line ``qsid sweep ...`` (quoted for a POSIX shell)."""
+    return shlex.join(["qsid", "sweep", *sweep_argv(cfg, system_source)])

@@ -1,0 +1,99 @@
+"""The data-length study of a tab, on demand, in one background thread (mechanism (8) of :mod:`.session`).
+
+The study (:func:`qsid_core.datalength.run_datalength`) simulates up to 10^6
+samples per realization, seconds to a minute: it runs only when the person
+presses its button, in its own thread and in-process (not in the shared process
+pool, so the other views and tabs never wait behind it), one realization per
+task so a new change cancels it within about a second. A finished study is kept
+in the shared cache under its settings, so any tab with the same settings (and a
+b already computed) shows it at once.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Callable, MutableMapping
+
+from qsid_core.datalength import DEFAULT_SAMPLES, DataLengthConfig, DataLengthResult, run_datalength
+
+from .settings import Values, quantizer_spec, resolve_system
+
+__all__ = ["DataLengthRunner", "datalength_config", "MAX_REALIZATIONS"]
+
+#: Realizations of the study (the panel's, at most this many: 10 x 10^6 samples is ~15 s on one core).
+MAX_REALIZATIONS = 10
+
+
+def datalength_config(values: Values) -> DataLengthConfig:
+    """The study for the panel's system, quantizer, seeds and current b (ten lengths, 10^3..10^6 samples)."""
+    system = resolve_system(values).system
+    return DataLengthConfig(system=system, bits=int(values.bits), samples=DEFAULT_SAMPLES,
+                            realizations=min(int(values.realizations), MAX_REALIZATIONS),
+                            quantizer=quantizer_spec(values, system.n, system.m), data_seed=int(values.data_seed),
+                            dither_seed=int(values.dither_seed))
+
+
+def _key(cfg: DataLengthConfig) -> tuple:
+    s = cfg.system
+    return ("datalength", s.name, s.A.tobytes(), s.B.tobytes(), cfg.bits, cfg.samples, cfg.realizations,
+            repr(cfg.quantizer), cfg.data_seed, cfg.dither_seed)
+
+
+class DataLengthRunner:
+    """At most one data-length study per tab, in its own thread (``thread``).
+
+    Parameters
+    ----------
+    cache : mapping
+        The shared cache (finished studies are stored there).
+    on_progress : callable(fraction 0..1, text)
+        Progress and outcome in plain words (called from the study's thread).
+    on_done : callable()
+        A study finished: the tab redraws (its frame then finds the result in the cache).
+    """
+
+    def __init__(self, cache: MutableMapping, on_progress: Callable[[float, str], None], on_done: Callable[[], None]):
+        self.cache = cache
+        self.on_progress = on_progress
+        self.on_done = on_done
+        self.thread: threading.Thread | None = None
+
+    def lookup(self, values: Values) -> DataLengthResult | None:
+        """The finished study for ``values``, if any (None for settings that cannot be resolved)."""
+        try:
+            return self.cache.get(_key(datalength_config(values)))
+        except Exception:  # bad settings: the tab shows the error elsewhere
+            return None
+
+    @property
+    def running(self) -> bool:
+        return self.thread is not None and self.thread.is_alive()
+
+    def start(self, values: Values, stale: Callable[[], bool]) -> bool:
+        """Start the study for ``values`` unless one runs; ``stale()`` true (a newer change) cancels it."""
+        if self.running:
+            return False
+        cfg = datalength_config(values)
+        if self.cache.get(_key(cfg)) is not None:
+            self.on_done()
+            return True
+        self.thread = threading.Thread(target=self._run, args=(cfg, stale), name="qsid-datalength", daemon=True)
+        self.thread.start()
+        return True
+
+    def _run(self, cfg: DataLengthConfig, stale: Callable[[], bool]) -> None:
+        def progress(done: int, total: int, text: str) -> None:
+            self.on_progress(done / total, f"computing {done}/{total}: {text}")
+
+        try:
+            res = run_datalength(cfg, None, progress, should_stop=stale, tasks=cfg.realizations)
+        except Exception as exc:  # shown in the tab; the thread ends cleanly
+            self.on_progress(0.0, f"⚠️ data-length study failed: {type(exc).__name__}: {exc}")
+            return
+        if res.cancelled:
+            self.on_progress(0.0, f"cancelled by a change after {len(res.rows)} of {len(cfg.samples)} lengths; "
+                                  "press the button again")
+            return
+        self.cache[_key(cfg)] = res
+        self.on_progress(1.0, f"done: {len(res.rows)} lengths, {cfg.realizations} realizations, b = {cfg.bits}")
+        self.on_done()

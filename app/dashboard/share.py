@@ -1,0 +1,302 @@
+"""Keep and share a view (issue 8, item 6): settings as JSON (download / upload / ``--settings FILE``), the
+``qsid sweep`` line that reproduces the numbers, and exports of the current curves (CSV, JSON) and figures
+(one standalone offline HTML page).
+
+The pure functions (settings <-> JSON, command, exports) are tested directly; :func:`add_share_panel` and
+:func:`show_frame` are the session's two hooks.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import html
+import io
+import json
+import math
+from pathlib import Path
+
+from app.cli.command import sweep_command
+from app.cli.output import dumps
+
+from .controls import CONTROLS, read_values
+from .settings import IDENT_CHOICES, InputError, Values, estimators, resolve_system, sweep_config
+
+__all__ = ["SETTINGS_KIND", "settings_json", "values_from_json", "load_settings_file", "command_lines",
+           "curves_rows", "curves_csv", "curves_json", "figures_html", "apply_values", "add_share_panel",
+           "show_frame", "apply_pending", "frame_html", "ShareHandles", "panel_values"]
+
+#: The "kind" tag of a settings file (and its format version).
+SETTINGS_KIND, SETTINGS_VERSION = "qsid-dashboard-settings", 1
+_FIELDS = {f.name: f for f in dataclasses.fields(Values)}
+_DEFAULTS = Values()
+_CONTROL = {c.name: c for c in CONTROLS}
+
+
+def settings_json(v: Values) -> str:
+    """The panel's settings as a small JSON document (what "Download settings" saves)."""
+    return json.dumps({"kind": SETTINGS_KIND, "version": SETTINGS_VERSION, "values": dataclasses.asdict(v)},
+                      indent=2, allow_nan=False)
+
+
+def _field_value(name: str, value):
+    """``value`` converted to the type of Values' field ``name`` (InputError in plain words if it cannot be)."""
+    default = getattr(_DEFAULTS, name)
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise InputError(f"settings: {name} must be true or false; got {value!r:.40}")
+        return value
+    if isinstance(default, (int, float)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InputError(f"settings: {name} must be a finite number; got {value!r:.40}")
+        if isinstance(default, int):
+            if value != int(value):
+                raise InputError(f"settings: {name} must be a whole number; got {value!r}")
+            value = int(value)
+        c = _CONTROL.get(name)
+        lo = None if c is None else c.lo
+        hi = None if c is None or c.kind != "slider" else c.hi
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            span = f"at least {lo:g}" if hi is None else f"between {lo:g} and {hi:g}"
+            raise InputError(f"settings: {name} must be {span} (the panel's range); got {value:g}")
+        return type(default)(value)
+    if isinstance(default, tuple):
+        if not isinstance(value, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                  and math.isfinite(x) for x in value):
+            raise InputError(f"settings: {name} must be a list of finite numbers; got {value!r:.40}")
+        return tuple(float(x) for x in value)
+    if not isinstance(value, str):
+        raise InputError(f"settings: {name} must be text; got {value!r:.40}")
+    c = _CONTROL.get(name)
+    if c is not None and c.choices and value not in c.choices:
+        raise InputError(f"settings: {name} must be one of {', '.join(c.choices)}; got {value!r:.40}")
+    return value
+
+
+def values_from_json(text: str | bytes) -> Values:
+    """Settings saved by :func:`settings_json` back as :class:`Values` (checked: the engine accepts them).
+
+    Missing fields keep their defaults; unknown fields, wrong types and values the engine refuses raise
+    :class:`~app.dashboard.settings.InputError` (one line).
+    """
+    try:
+        d = json.loads(text)
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise InputError(f"settings: not a JSON file ({getattr(exc, 'msg', type(exc).__name__)})") from None
+    if not isinstance(d, dict) or d.get("kind") != SETTINGS_KIND or not isinstance(d.get("values"), dict):
+        raise InputError(f"settings: not a qsid settings file (needs \"kind\": \"{SETTINGS_KIND}\" and \"values\")")
+    unknown = sorted(set(d["values"]) - set(_FIELDS))
+    if unknown:
+        raise InputError(f"settings: unknown field(s) {', '.join(map(str, unknown))[:200]}")
+    v = Values(**{k: _field_value(k, x) for k, x in d["values"].items()})
+    sweep_config(v, resolve_system(v).system)  # every value usable (InputError in plain words otherwise)
+    return v
+
+
+def load_settings_file(path: str | Path) -> Values:
+    """``qsid-dashboard --settings FILE``: the file's settings (InputError naming the file if bad)."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"settings file {str(p)!r} " + ("is a directory" if p.is_dir() else "does not exist"))
+    try:
+        return values_from_json(p.read_bytes())
+    except InputError as exc:
+        raise InputError(f"{p.name}: {exc}") from None
+    except OSError as exc:
+        raise InputError(f"cannot read settings file {str(p)!r}: {exc.strerror or exc}") from None
+
+
+def command_lines(v: Values) -> list:
+    """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown)."""
+    system = resolve_system(v).system
+    cfg = sweep_config(v, system)
+    return [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
+
+
+# ----- exports of the current frame ----------------------------------------------------------------------------
+_COLUMNS = ("estimator", "bits", "err_A_mean", "err_A_std", "err_B_mean", "err_B_std", "err_A_theory",
+            "err_B_theory", "overload_fraction", "mpc_cost_mean", "mpc_cost_std", "mpc_failed", "ultimate_bound",
+            "ultimate_bound_realized_median", "ultimate_bound_realized_max", "final_state_norm_mean",
+            "theorem1_holds", "bcls_holds")
+
+
+def curves_rows(frame) -> list:
+    """One flat row per (estimator, b) of the curves computed so far."""
+    out = []
+    for lab in frame.labels:
+        for b, r in sorted(frame.rows[lab].items()):
+            cost, fsn = r.get("mpc_cost") or {}, r.get("final_state_norm") or {}
+            real, a = r.get("ultimate_bound_realized") or {}, r.get("assumptions") or {}
+            out.append({
+                "estimator": lab, "bits": b, "err_A_mean": r["err_A"]["mean"], "err_A_std": r["err_A"]["std"],
+                "err_B_mean": r["err_B"]["mean"], "err_B_std": r["err_B"]["std"],
+                "err_A_theory": r.get("err_A_theory"), "err_B_theory": r.get("err_B_theory"),
+                "overload_fraction": r.get("overload_fraction"), "mpc_cost_mean": cost.get("mean"),
+                "mpc_cost_std": cost.get("std"), "mpc_failed": cost.get("failed"),
+                "ultimate_bound": r.get("ultimate_bound"), "ultimate_bound_realized_median": real.get("median"),
+                "ultimate_bound_realized_max": real.get("max"), "final_state_norm_mean": fsn.get("mean"),
+                "theorem1_holds": a.get("theorem1_holds"), "bcls_holds": a.get("bcls_holds"),
+            })
+    return out
+
+
+def curves_csv(frame) -> str:
+    """The current curves as CSV (header + one row per estimator and b; empty cells for missing values)."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=_COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for r in curves_rows(frame):
+        w.writerow({k: ("" if v is None or (isinstance(v, float) and not math.isfinite(v)) else v)
+                    for k, v in r.items()})
+    return buf.getvalue()
+
+
+def curves_json(frame) -> str:
+    """The current curves, settings and command as strict JSON (rows as the CLI's ``results``)."""
+    return dumps({"system": frame.system.name, "settings": dataclasses.asdict(frame.values),
+                  "command": command_lines(frame.values), "bits_drawn": frame.bits,
+                  "complete": frame.done >= frame.total, "mpc_cost_true_model": frame.true_cost,
+                  "curves": {lab: [frame.rows[lab][b] for b in sorted(frame.rows[lab])] for lab in frame.labels}})
+
+
+def figures_html(figures: dict, title: str, caption: str) -> str:
+    """Plotly figures on one standalone page (plotly.js inlined once: works offline, one file)."""
+    import plotly.io as pio
+    from plotly.offline import get_plotlyjs
+
+    divs = [f'<div class="panel"><h2>{html.escape(fig.layout.title.text or name)}</h2>\n'
+            + pio.to_html(fig, include_plotlyjs=False, full_html=False, div_id=f"fig-{name}",
+                          config={"responsive": True}) + "\n</div>" for name, fig in figures.items()]
+    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
+            f"<title>{html.escape(title)}</title>\n<script>{get_plotlyjs()}</script>\n"
+            "<style>body{font-family:system-ui,sans-serif;margin:1em 2em;color:#222}"
+            ".panel{border:1px solid #ddd;border-radius:4px;padding:.3em;margin-bottom:1em}"
+            ".panel h2{font-size:1em;margin:.2em .4em}code{white-space:pre-wrap}</style></head>\n<body>\n"
+            f"<h1>{html.escape(title)}</h1>\n<p>{caption}</p>\n" + "\n".join(divs) + "\n</body></html>\n")
+
+
+def frame_html(frame) -> str:
+    """The current figures of ``frame`` (every registered view) as one offline page, with the command."""
+    from .render import build_figures
+
+    cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
+    caption = (f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "
+               f"lengths computed. Reproduce the numbers: {cmds}")
+    return figures_html(build_figures(frame), f"qsid dashboard: {frame.system.name}", caption)
+
+
+# ----- the panel (session hooks) -------------------------------------------------------------------------------
+@dataclasses.dataclass
+class ShareHandles:
+    """The "Keep & share" folder of one tab: command text, status line, and a settings upload waiting."""
+
+    command: object
+    status: object
+    pending: Values | None = None
+    shown: Values | None = None
+
+
+def apply_values(el, v: Values) -> None:
+    """Set every input of a tab's panel to ``v`` (from the tab's worker thread)."""
+    from .controls import _initial, set_system
+
+    system = resolve_system(v).system
+    h = el.inputs
+    for c in CONTROLS:
+        if c.name != "axes":
+            h[c.name].value = _initial(c, v, system)
+    el.system_key = None  # rebuild the weight sliders at the file's positions
+    set_system(el, system, v.log_q, v.log_r, reset=False)
+    axes = _initial(_CONTROL["axes"], v, system)
+    if axes in h["axes"].options:
+        h["axes"].value = axes
+
+
+def _download(session, name: str, make, needs_frame: bool = True) -> None:
+    sh = session.share
+    frame = session.last_frame
+    if needs_frame and frame is None:
+        sh.status.content = "Nothing computed yet: wait for the first view."
+        return
+    try:
+        text = make(frame)
+    except Exception as exc:  # an export must never take the tab down
+        sh.status.content = f"⚠️ Export failed ({type(exc).__name__}: {exc})"
+        return
+    session.client.send_file_download(name, text.encode("utf-8"))
+    sh.status.content = f"Sent **{name}** ({len(text) / 1024:.0f} KiB)."
+
+
+def _uploaded(session, name: str, content: bytes) -> None:
+    sh = session.share
+    try:
+        v = values_from_json(content)
+    except InputError as exc:
+        sh.status.content = f"⚠️ **Cannot load {html.escape(name)}:** {exc}"
+        return
+    sh.pending = v
+    sh.status.content = f"Loaded settings from **{html.escape(name)}**."
+    session.touch()
+
+
+def add_share_panel(session) -> ShareHandles:
+    """The "Keep & share" folder at the end of a tab's panel (built once, in the session's constructor)."""
+    gui = session.client.gui
+    with gui.add_folder("Save, load & export", expand_by_default=False):
+        down = gui.add_button("Download settings (JSON)", hint="Save every setting of this panel to a file")
+        up = gui.add_upload_button("Load settings (JSON)", mime_type="application/json",
+                                   hint="Set the panel from a file saved with 'Download settings'")
+        gui.add_markdown("**As a command** (reproduces the numbers of the curves):")
+        command = gui.add_markdown("")
+        csv_b = gui.add_button("Export curves (CSV)")
+        json_b = gui.add_button("Export curves (JSON)")
+        html_b = gui.add_button("Export figures (HTML, offline)")
+        status = gui.add_markdown("")
+    sh = ShareHandles(command=command, status=status)
+    stem = lambda: (session.last_frame.system.name if session.last_frame else "qsid")  # noqa: E731
+    down.on_click(lambda _: _download(session, "qsid-settings.json", lambda _f: settings_json(panel_values(session)),
+                                      False))
+    csv_b.on_click(lambda _: _download(session, f"{stem()}-curves.csv", curves_csv))
+    json_b.on_click(lambda _: _download(session, f"{stem()}-curves.json", curves_json))
+    html_b.on_click(lambda _: _download(session, f"{stem()}-figures.html", frame_html))
+    up.on_upload(lambda e: _uploaded(session, e.target.value.name, e.target.value.content))
+    return sh
+
+
+def panel_values(session) -> Values:
+    """Everything set in a tab: the controls and the view panel's own fields (channel, compared b)."""
+    v = read_values(session.controls)
+    views = getattr(session, "views", None)
+    return v.replace(**views.values()) if views is not None else v
+
+
+def _apply_views(views, v: Values) -> None:
+    names = list(views.channel.options)
+    views.channel.value = names[min(max(int(v.view_channel), 0), len(names) - 1)]
+    views.compare_bits.value = v.compare_bits
+
+
+def apply_pending(session) -> None:
+    """Hook at the start of the tab worker's run: apply settings uploaded since the last run."""
+    sh = getattr(session, "share", None)
+    if sh is not None and sh.pending is not None:
+        v, sh.pending = sh.pending, None
+        apply_values(session.controls, v)
+        views = getattr(session, "views", None)
+        if views is not None:
+            views.set_system(resolve_system(v).system)
+            _apply_views(views, v)
+
+
+def show_frame(session, frame) -> None:
+    """Hook after a frame is drawn: the command line for the settings it was computed with."""
+    sh = getattr(session, "share", None)
+    if sh is None or frame.values == sh.shown:
+        return
+    sh.shown = frame.values
+    try:
+        lines = command_lines(frame.values)
+    except Exception as exc:  # e.g. a setting without a flag: say so rather than show a wrong line
+        sh.command.content = f"*(no command line: {exc})*"
+        return
+    sh.command.content = "\n".join(f"```\n{ln}\n```" for ln in lines)

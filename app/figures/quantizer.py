@@ -1,0 +1,78 @@
+"""View: the quantizer on one channel of the training data, with subtractive dither and without.
+
+Top: a short window of the signal, its quantized values with subtractive dither
+(``Q(x + w) - w``) and without (``Q(x)``). Bottom: histograms of the two errors
+(density) against the uniform density ``1/ε`` on ``±ε/2``. The title gives the
+measured error variance next to ``ε²/12`` and the overload fraction. The
+numbers are :func:`qsid_core.quantizer_demo.channel_demo`'s; this module draws.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import plotly.graph_objects as go
+
+from qsid_core.quantizer_demo import QuantizerDemo, channel_demo
+
+from .palette import COLORS
+from .raw import arr, figure, stacked_axes
+from .view import CURRENT, View
+
+__all__ = ["quantizer_figure", "demo_text", "VIEW"]
+
+#: Colours of the two quantizers (dithered = the BCLS/theory story, plain = grey).
+DITHERED, PLAIN = COLORS["LS"], COLORS["ref"]
+
+
+def demo_text(d: QuantizerDemo) -> str:
+    """One line: ε, measured variances against ε²/12, overload (for the title and the summary)."""
+    return (f"{d.label}, b = {d.bits}: ε = {d.eps:.3g} · error variance / (ε²/12): dithered "
+            f"{d.var_dithered / d.var_theory:.3f} (± {d.var_sampling_std / d.var_theory:.3f}), "
+            f"plain {d.var_plain / d.var_theory:.3f} · overload {100 * d.overload_dithered:.2f} %")
+
+
+def quantizer_figure(d: QuantizerDemo, height: int = 460) -> go.Figure:
+    """Signal window and quantized values (top); error histograms vs the uniform density (bottom)."""
+    layout, (y1, y2) = stacked_axes(2, gap=0.16)
+    layout["xaxis"] = dict(anchor=y1, title=dict(text="sample"))
+    layout["xaxis2"] = dict(anchor=y2, title=dict(text="quantization error (signal units)"))
+    layout["yaxis2"]["anchor"] = "x2"
+    layout["yaxis"]["title"] = dict(text=d.label or "signal", font=dict(size=10))
+    layout["yaxis2"]["title"] = dict(text="density", font=dict(size=10))
+    data = [
+        dict(type="scatter", x=arr(d.t), y=arr(d.signal), mode="lines", name="signal", xaxis="x", yaxis=y1,
+             line=dict(color=COLORS["true"], width=1.5)),
+        dict(type="scatter", x=arr(d.t), y=arr(d.dithered), mode="lines", name="Q(x+w)−w (subtractive dither)",
+             xaxis="x", yaxis=y1, line=dict(color=DITHERED, width=1)),
+        dict(type="scatter", x=arr(d.t), y=arr(d.plain), mode="lines", name="Q(x) (no dither)", xaxis="x",
+             yaxis=y1, line=dict(color=PLAIN, width=1, shape="hv")),
+    ]
+    centers = 0.5 * (d.hist_edges[1:] + d.hist_edges[:-1])
+    width = float(np.diff(d.hist_edges).mean())
+    for name, h, c in (("error, dithered", d.hist_dithered, DITHERED), ("error, no dither", d.hist_plain, PLAIN)):
+        data.append(dict(type="bar", x=arr(centers), y=arr(h), width=width, name=name, xaxis="x2", yaxis=y2,
+                         marker=dict(color=c), opacity=0.55))
+    e2 = d.eps / 2
+    data.append(dict(type="scatter", x=[-e2, -e2, e2, e2], y=[0, d.uniform_density, d.uniform_density, 0],
+                     mode="lines", name="uniform 1/ε on ±ε/2", xaxis="x2", yaxis=y2,
+                     line=dict(color=COLORS["theory"], dash="dash", width=2)))
+    layout.update(height=height, barmode="overlay", bargap=0, margin=dict(l=60, r=10, t=50, b=40),
+                  title=dict(text=demo_text(d), font=dict(size=11)), legend=dict(orientation="h", y=-0.2))
+    return figure(data, layout)
+
+
+def channel_names(system) -> tuple:
+    """The channels the view offers: states, then inputs (``channel_demo``'s numbering)."""
+    return tuple(f"x: {s}" for s in system.state_names) + tuple(f"u: {u}" for u in system.input_names)
+
+
+def _build(frame) -> go.Figure:
+    k = min(max(int(frame.values.view_channel), 0), frame.system.n + frame.system.m - 1)
+    return quantizer_figure(channel_demo(frame.ex, k, frame.bits, window=120))
+
+
+def _key(frame) -> tuple:
+    return (frame.bits, frame.values.view_channel, id(frame.ex.prepared) if frame.ex is not None else None)
+
+
+VIEW = View("quantizer", aspect=0.95, depends=CURRENT, build=_build, tab="Quantizer", key=_key)

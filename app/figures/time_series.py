@@ -1,0 +1,139 @@
+"""View: x_i(t) and u_j(t) of the closed loops at the current b (true model, LS, BCLS), input bounds drawn.
+
+The arrays come from :func:`qsid_core.timeseries.time_series`; this module only
+draws them. With few realizations every loop is a thin line; with more than
+:data:`MAX_LINES` the mean and a mean +- std band are drawn instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import plotly.graph_objects as go
+
+from qsid_core.timeseries import TimeSeries, time_series
+
+from .palette import COLORS, color
+from .raw import arr, figure, hline, stacked_axes
+from .view import CURRENT, View
+
+__all__ = ["time_series_figure", "VIEW", "MAX_LINES"]
+
+#: More realizations than this: mean +- std band instead of one line per loop.
+MAX_LINES = 8
+
+
+def _lines(t, Y, ok, c: str, name: str, yaxis: str, legend: bool) -> list:
+    """One trace holding every successful loop (NaN-separated: one plotly trace, not R)."""
+    Y = Y[ok]
+    if Y.shape[0] == 0:
+        return []
+    gap = np.full((Y.shape[0], 1), np.nan)
+    xs = np.hstack([np.broadcast_to(t, Y.shape), gap]).reshape(-1)
+    ys = np.hstack([Y, gap]).reshape(-1)
+    return [dict(type="scatter", x=arr(xs), y=arr(ys), mode="lines", name=name, legendgroup=name,
+                 showlegend=legend, line=dict(color=c, width=1), opacity=0.55, xaxis="x", yaxis=yaxis)]
+
+
+def _band(t, m, s, c: str, name: str, yaxis: str, legend: bool) -> list:
+    if not np.all(np.isfinite(m)):
+        return []
+    return [dict(type="scatter", x=arr(np.concatenate([t, t[::-1]])), y=arr(np.concatenate([m + s, (m - s)[::-1]])),
+                 fill="toself", fillcolor=c, opacity=0.18, line=dict(width=0), hoverinfo="skip", showlegend=False,
+                 legendgroup=name, xaxis="x", yaxis=yaxis),
+            dict(type="scatter", x=arr(t), y=arr(m), mode="lines", name=f"{name} mean ± std", legendgroup=name,
+                 showlegend=legend, line=dict(color=c, width=1.5), xaxis="x", yaxis=yaxis)]
+
+
+def _channel(ts: TimeSeries, k: int, n: int):
+    """(t, every loop (R, T), mean, std) of channel k (states first, then inputs)."""
+    if k < n:
+        return ts.t, ts.states[..., k], ts.state_mean[:, k], ts.state_std[:, k]
+    return ts.t[:-1], ts.inputs[..., k - n], ts.input_mean[:, k - n], ts.input_std[:, k - n]
+
+
+def time_series_figure(series: dict, true: TimeSeries | None, state_names, input_names, x_ref=None, x_max=None,
+                       height: int = 520, title: str = "") -> go.Figure:
+    """One subplot per state, then one per input, over one shared time axis.
+
+    Parameters
+    ----------
+    series : dict label -> TimeSeries
+        Closed loops of the identified models (``states`` (R, T+1, n), ``inputs`` (R, T, m)).
+    true : TimeSeries or None
+        The MPC built on the true model (one loop), drawn black.
+    x_ref, x_max : array (n,) or None
+        Reference (dotted, green) and state box (dashed) drawn on the state rows; input bounds
+        (``TimeSeries.u_max``) dashed on the input rows.
+    """
+    n, m = len(state_names), len(input_names)
+    layout, yax = stacked_axes(n + m, x_title="closed-loop step t")
+    data, shapes = [], []
+    for i, (label, ts) in enumerate(series.items()):
+        c, many = color(label, i), int(ts.ok.sum()) > MAX_LINES
+        for k in range(n + m):
+            t, Y, mean, std = _channel(ts, k, n)
+            data += _band(t, mean, std, c, label, yax[k], k == 0) if many else _lines(t, Y, ts.ok, c, label,
+                                                                                        yax[k], k == 0)
+    if true is not None and true.ok.any():
+        for k in range(n + m):
+            t, Y, _, _ = _channel(true, k, n)
+            data.append(dict(type="scatter", x=arr(t), y=arr(Y[0]), mode="lines", name="true model",
+                             legendgroup="true", showlegend=k == 0, line=dict(color=COLORS["true"], width=1.5),
+                             xaxis="x", yaxis=yax[k]))
+    umax = next((ts.u_max for ts in series.values() if ts.u_max is not None), None)
+    for j in range(m):
+        if umax is not None and np.isfinite(umax[j]):
+            shapes += [hline(s * float(umax[j]), yax[n + j], COLORS["ref"]) for s in (1, -1)]
+    for k in range(n):
+        if x_ref is not None and x_ref[k] != 0:
+            shapes.append(hline(float(x_ref[k]), yax[k], COLORS["theory"], dash="dot"))
+        if x_max is not None and np.isfinite(x_max[k]):
+            shapes += [hline(s * float(x_max[k]), yax[k], COLORS["ref"]) for s in (1, -1)]
+    names = [f"x: {s}" for s in state_names] + [f"u: {u}" for u in input_names]
+    for k, nm in enumerate(names):
+        layout["yaxis" if k == 0 else f"yaxis{k + 1}"]["title"] = dict(text=nm, font=dict(size=10))
+    layout.update(height=height, shapes=shapes, margin=dict(l=60, r=10, t=30 if title else 10, b=40),
+                  legend=dict(orientation="h", y=-0.12))
+    if title:
+        layout["title"] = dict(text=title, font=dict(size=12))
+    return figure(data, layout)
+
+
+def mpc_arrays(frame) -> dict:
+    """The frame's MPC settings as arrays (``u_max``, ``x_ref``, ``x_max``; empty without an MPC)."""
+    mpc = frame.ex.config.mpc if frame.ex is not None else None
+    if mpc is None:
+        return {}
+    w = mpc.resolve(frame.system)  # MPCWeights
+    return {"u_max": w.u_max, "x_ref": w.x_ref, "x_max": w.x_max}
+
+
+def loop_series(frame) -> tuple[dict, TimeSeries | None]:
+    """The frame's closed loops at the current b as :class:`~qsid_core.timeseries.TimeSeries` (label -> ts, true)."""
+    u_max = mpc_arrays(frame).get("u_max")
+    ts = {lab: time_series(frame.loops[lab], frame.x0, u_max) for lab in frame.labels}
+    true = time_series(frame.true_loop, frame.x0, u_max) if frame.true_loop is not None else None
+    return ts, true
+
+
+def saturation_text(ts: dict) -> str:
+    """'LS 12 steps in 3/20 loops, BCLS ...' (steps with an input on its bound)."""
+    return ", ".join(f"{lab} {s.saturated_steps} steps in {s.saturated_loops}/{len(s.ok)} loops"
+                     for lab, s in ts.items())
+
+
+def _build(frame) -> go.Figure:
+    ts, true = loop_series(frame)
+    rm = mpc_arrays(frame)
+    x_ref, x_max = rm.get("x_ref"), rm.get("x_max")
+    rows = len(frame.system.state_names) + len(frame.system.input_names)
+    return time_series_figure(ts, true, frame.system.state_names, frame.system.input_names, x_ref, x_max,
+                              height=110 * rows + 90,
+                              title=f"closed loops at b = {frame.bits} · saturated: {saturation_text(ts)}")
+
+
+def _key(frame) -> tuple:
+    return (frame.bits, tuple(id(frame.loops[lab]) for lab in frame.labels), id(frame.true_loop))
+
+
+VIEW = View("timeseries", aspect=1.25, depends=CURRENT, build=_build, tab="Control", key=_key)
