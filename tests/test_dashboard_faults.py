@@ -18,14 +18,14 @@ from app.dashboard.pool import Pool, PoolTimeout, Superseded
 from test_dashboard_server import SMALL, app, open_tab  # noqa: F401  (the in-process app fixture)
 
 HEAVIER = dict(trajectories=200, steps=1000, realizations=50)  # the letter's size: seconds of pool work
-LIGHTER = dict(trajectories=60, steps=400, realizations=40)
+LIGHTER = dict(trajectories=20, steps=100, realizations=6)  # milliseconds of work: only a hang times out
 
 
 def _pids(app) -> list[int]:
     return [p.pid for p in app.executor._processes.values()]
 
 
-def _fault_while_two_tabs_compute(sig, timeout: float, size: dict) -> None:
+def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool = False) -> None:
     app = DashboardApp(host="127.0.0.1", port=0, workers=2, task_timeout=timeout)
     tabs, victims = [], []
     try:
@@ -33,13 +33,17 @@ def _fault_while_two_tabs_compute(sig, timeout: float, size: dict) -> None:
         old = app.executor
         # one dead worker breaks the whole pool; a frozen one only hangs its own task: freeze them all
         victims = _pids(app)[:1] if sig == signal.SIGKILL else _pids(app)
+        if before:  # the tabs' next tasks go to the frozen workers for sure
+            for v in victims:
+                os.kill(v, sig)
         for t, b in zip(tabs, (7, 9)):
             for k, v in size.items():
                 t.controls[k].value = v
             t.controls["bits"].value = b
-        time.sleep(0.5)  # both tabs have work in the pool
-        for v in victims:
-            os.kill(v, sig)
+        if not before:
+            time.sleep(0.5)  # both tabs have work in the pool
+            for v in victims:
+                os.kill(v, sig)
         for t in tabs:
             t.wait(90)
         assert app.executor is not old and app.pool.replacements == 1  # once, not once per tab
@@ -62,7 +66,7 @@ def test_a_killed_worker_is_replaced_once_and_both_tabs_recover():
 
 
 def test_frozen_workers_time_out_are_replaced_and_both_tabs_recover():
-    _fault_while_two_tabs_compute(signal.SIGSTOP, 3.0, LIGHTER)
+    _fault_while_two_tabs_compute(signal.SIGSTOP, 3.0, LIGHTER, before=True)
 
 
 def test_a_tab_says_so_when_the_pool_fails_twice(app, monkeypatch):
