@@ -29,8 +29,12 @@ from typing import Callable
 
 from qsid_core.errors import QsidError
 
+from .memory import trim
+
 __all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Superseded", "DEFAULT_TIMEOUT"]
 
+#: Seconds between two ``malloc_trim`` calls of the watchdog.
+TRIM_EVERY = 10.0
 #: Seconds one pool task may run before its worker counts as hung (paper-scale tasks take a few seconds).
 DEFAULT_TIMEOUT = 60.0
 
@@ -132,8 +136,12 @@ class Pool:
             self._pending.append(entry)
 
     def _watchdog(self) -> None:
+        last_trim = time.monotonic()
         while True:
             time.sleep(0.1)
+            if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
+                trim()
+                last_trim = time.monotonic()
             with self._plock:
                 entries = [e for e in self._pending if not e[0].done()]
                 self._pending = entries

@@ -22,6 +22,7 @@ import viser
 from qsid_core.errors import QsidError
 
 from .cache import SharedCache
+from .memory import limit_arenas, trim
 from .netcheck import OneLineParser, check_address, port_number
 from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
@@ -106,7 +107,8 @@ class DashboardApp:
         with self._lock:
             s = self.sessions.pop(client.client_id, None)
         if s is not None:
-            s.close()
+            s.close(wait=False)  # never block viser's callback threads; the worker ends at its next check
+            trim()
 
     def wait_for_sessions(self, count: int, timeout: float = 30.0) -> list:
         end = time.monotonic() + timeout
@@ -148,6 +150,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--task-timeout", type=float, default=DEFAULT_TIMEOUT, metavar="SECONDS",
                    help=f"a pool task running longer counts as hung: its worker is replaced (default "
                         f"{DEFAULT_TIMEOUT:g})")
+    p.add_argument("--cache-mb", type=int, default=256, metavar="MB",
+                   help="memory budget of the results cache shared by all tabs (default 256)")
     p.add_argument("--settings", metavar="FILE", default=None,
                    help="start every new tab from a settings file (saved with the panel's 'Download settings')")
     return p
@@ -174,6 +178,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"qsid-dashboard: error: --workers must be between 0 and {4 * (os.cpu_count() or 1)} "
               f"(this machine has {os.cpu_count()} CPUs); got {args.workers}", file=sys.stderr)
         return 2
+    if not 16 <= args.cache_mb <= 65536:
+        print(f"qsid-dashboard: error: --cache-mb must be between 16 and 65536; got {args.cache_mb}", file=sys.stderr)
+        return 2
     if not (args.task_timeout > 0 and args.task_timeout < 1e6):
         print(f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
               file=sys.stderr)
@@ -187,11 +194,12 @@ def main(argv: list[str] | None = None) -> int:
     if warning:
         print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
     signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)  # before any thread exists: all inherit it
+    limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
     app = None
     code = 0
     try:
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
-                           settings=settings, task_timeout=args.task_timeout)
+                           settings=settings, task_timeout=args.task_timeout, cache_bytes=args.cache_mb * 2**20)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         _wait_for_stop_signal()
         print("\nqsid dashboard: stopping", flush=True)
