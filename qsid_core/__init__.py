@@ -10,7 +10,7 @@ Theorem 1 and BCLS hold), ``datalength`` (error against data length),
 """
 
 from .data import Dataset, simulate
-from .errors import ConfigError, DataOverflowError, QsidError, SystemDefinitionError
+from .errors import ConfigError, DataOverflowError, IdentificationError, QsidError, SystemDefinitionError
 from .config import SweepConfig, parse_bits
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
@@ -33,7 +33,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Assumptions", "ClosedLoops", "ConfigError", "DataLengthConfig", "DataLengthResult", "DataOverflowError",
-    "Dataset", "Experiment", "Identified", "InlineExecutor", "LETTER_QUANTIZER", "LTISystem", "MPCConfig",
+    "Dataset", "Experiment", "Identified", "IdentificationError", "InlineExecutor", "LETTER_QUANTIZER", "LTISystem", "MPCConfig",
     "MPCController", "MPCFailure", "Moments", "PRESETS", "QsidError", "QuantizerDemo", "QuantizerSpec",
     "RealizedBounds", "SummaryRow", "SweepConfig", "SweepResult", "SystemDefinitionError", "TimeSeries",
     "UncontrollableWarning", "boeing747", "channel_demo", "dc_motor", "dc_motor_physical", "fit_slope", "get_system",

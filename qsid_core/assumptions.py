@@ -142,8 +142,11 @@ def assess(ex, b: int) -> Assumptions:
     eps = moms[0].eps
     rad = float(np.abs(np.linalg.eigvals(sysm.A)).max())
     fA, fB = finite_data_fluctuation(sysm.G, ex.prepared.exact.PP, eps)
-    fA /= float(np.linalg.norm(sysm.A))
-    fB /= float(np.linalg.norm(sysm.B))
+    # the same denominators as identify.relative_errors (an all-zero A or B is measured against ||[A, B]||)
+    nG = float(np.linalg.norm(sysm.G))
+    nA, nB = float(np.linalg.norm(sysm.A)), float(np.linalg.norm(sysm.B))
+    fA /= nA if nA > 0 else nG
+    fB /= nB if nB > 0 else nG
     dith = c.quantizer.dither == "subtractive"
     no_over = over <= OVERLOAD_TOLERANCE
     stat = rad < 1.0 - STATIONARITY_MARGIN

@@ -11,7 +11,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .errors import ConfigError, check_choice, check_float, check_int
+from .errors import ConfigError, check_choice, check_float, check_int, short_repr
+from .config_checks import check_sweep_parts
 from .identify import ESTIMATORS
 from .mpc import MPCConfig
 from .quantize import LETTER_QUANTIZER, MAX_BITS, QuantizerSpec
@@ -29,12 +30,16 @@ def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
         If the text is not of one of those forms or a b is outside 1..32.
     """
     if isinstance(spec, (list, tuple, range, np.ndarray)):
+        if len(spec) > 1000 if not isinstance(spec, range) else not (0 <= spec.start and spec.stop <= 1000):
+            raise ConfigError(f"bits: give at most a few dozen word lengths between 1 and {MAX_BITS}")
         vals = [check_int("bits", int(v) if isinstance(v, np.integer) else v, 1, MAX_BITS) for v in spec]
     elif isinstance(spec, int) and not isinstance(spec, bool):
         vals = [check_int("bits", spec, 1, MAX_BITS)]
     else:
-        s = str(spec).strip()
         form = "bits must look like '2:12' (inclusive), '2:12:2' (with a step), '2,4,6' or '8'"
+        if not isinstance(spec, str) or len(spec) > 200:
+            raise ConfigError(f"{form}; got {short_repr(spec)}")
+        s = spec.strip()
         try:
             if ":" in s:
                 parts = [int(v) for v in s.split(":")]
@@ -45,15 +50,17 @@ def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
             else:
                 vals = [int(v) for v in s.split(",") if v.strip()]
         except ValueError:
-            raise ConfigError(f"{form}; got {s!r}") from None
+            raise ConfigError(f"{form}; got {short_repr(s)}") from None
         if ":" in s:
             if step < 1:
-                raise ConfigError(f"bits step must be >= 1; got {step} in {s!r}")
+                raise ConfigError(f"bits step must be >= 1; got {short_repr(step)} in {short_repr(s)}")
             if hi < lo:
-                raise ConfigError(f"bits range {s!r} is empty (end {hi} < start {lo})")
+                raise ConfigError(f"bits range {short_repr(s)} is empty (end {short_repr(hi)} < start {short_repr(lo)})")
+            check_int("bits range start", lo, 1, MAX_BITS)  # bounds before building the range
+            check_int("bits range end", hi, 1, MAX_BITS)
             vals = list(range(lo, hi + 1, step))
         if not vals:
-            raise ConfigError(f"{form}; got {s!r}")
+            raise ConfigError(f"{form}; got {short_repr(s)}")
         vals = [check_int("bits", v, 1, MAX_BITS) for v in vals]
     out = tuple(sorted(set(vals)))
     if not out:
@@ -132,3 +139,4 @@ class SweepConfig:
             check_float("rho", self.rho, 0.0, lo_open=True)
         if not isinstance(self.quantizer, QuantizerSpec):
             raise ConfigError("quantizer must be a QuantizerSpec")
+        check_sweep_parts(self.system, self.mpc, self.rho)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DataOverflowError, check_float, check_int
+from .errors import ConfigError, DataOverflowError, check_float, check_int
 from .systems import LTISystem
 
 __all__ = ["Dataset", "simulate", "OVERFLOW_LIMIT"]
@@ -102,13 +102,15 @@ def simulate(
     DataOverflowError
         If a state exceeds :data:`OVERFLOW_LIMIT` (unstable A with long runs).
     """
+    if not isinstance(system, LTISystem):
+        raise ConfigError(f"system must be an LTISystem; got {type(system).__name__}")
+    if seed is not None:
+        check_int("seed", seed, 0)
     trajectories = check_int("trajectories", trajectories, 1, 100_000)
     steps = check_int("steps", steps, 1, 1_000_000)
     input_amplitude = check_float("input amplitude", input_amplitude, 0.0, 1e12, lo_open=True)
     n, m = system.n, system.m
     if trajectories * steps < n + m:
-        from .errors import ConfigError
-
         raise ConfigError(
             f"trajectories*steps = {trajectories * steps} samples cannot identify {n}+{m} unknowns per row; "
             f"use at least {n + m} samples"

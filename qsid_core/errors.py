@@ -6,9 +6,11 @@ says what was wrong and what is allowed, so front ends can show it as one line.
 
 from __future__ import annotations
 
+import operator
+import reprlib
 from enum import Enum
 
-__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "MPCFailure", "FailureKind", "check_choice", "check_int", "check_float"]
+__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "MPCFailure", "FailureKind", "IdentificationError", "short_repr", "check_choice", "check_int", "check_float"]
 
 
 class QsidError(ValueError):
@@ -25,6 +27,10 @@ class SystemDefinitionError(QsidError):
 
 class DataOverflowError(QsidError):
     """Simulated data left the floating-point range (an unstable system)."""
+
+
+class IdentificationError(QsidError):
+    """Identification is impossible from these (quantized) data; sweeps record it per realization."""
 
 
 class FailureKind(str, Enum):
@@ -67,23 +73,42 @@ class MPCFailure(QsidError):
         self.kind = FailureKind(kind)
 
 
+_repr = reprlib.Repr()
+_repr.maxlevel = 3
+_repr.maxlist = _repr.maxtuple = _repr.maxdict = _repr.maxset = 6
+_repr.maxstring = _repr.maxother = 40
+_repr.maxlong = 24
+
+
+def short_repr(value: object) -> str:
+    """A repr of ``value`` that stays short for huge integers, long texts and deep nesting."""
+    try:
+        return _repr.repr(value)
+    except Exception:  # a failing __repr__ (or one too deep): the type name is enough
+        return f"<{type(value).__name__}>"
+
+
 def check_choice(name: str, value: str, allowed: tuple[str, ...]) -> str:
     """Return ``value`` if it is one of ``allowed``, else raise :class:`ConfigError`."""
-    if value not in allowed:
-        raise ConfigError(f"{name} must be one of {', '.join(repr(a) for a in allowed)}; got {value!r}")
+    if not isinstance(value, str) or value not in allowed:
+        raise ConfigError(f"{name} must be one of {', '.join(repr(a) for a in allowed)}; got {short_repr(value)}")
     return value
 
 
 def check_int(name: str, value: object, lo: int, hi: int | None = None) -> int:
-    """Return ``value`` as int if it is an integer in ``[lo, hi]``, else raise :class:`ConfigError`."""
-    if isinstance(value, bool) or not isinstance(value, (int,)) and not (
-        hasattr(value, "__index__") and not isinstance(value, float)
-    ):
+    """Return ``value`` as int if it is an integer in ``[lo, hi]``, else raise :class:`ConfigError`.
+
+    Accepts Python and numpy integers; rejects bools, floats, texts and arrays.
+    """
+    if isinstance(value, bool) or type(value).__name__ == "bool_":
         raise ConfigError(f"{name} must be an integer; got {value!r}")
-    v = int(value)  # type: ignore[arg-type]
+    try:
+        v = operator.index(value)  # type: ignore[arg-type]
+    except TypeError:
+        raise ConfigError(f"{name} must be an integer; got {short_repr(value)}") from None
     if v < lo or (hi is not None and v > hi):
         rng = f">= {lo}" if hi is None else f"between {lo} and {hi}"
-        raise ConfigError(f"{name} must be {rng}; got {v}")
+        raise ConfigError(f"{name} must be {rng}; got {short_repr(v)}")
     return v
 
 
@@ -96,13 +121,23 @@ def check_float(
     lo_open: bool = False,
     hi_open: bool = False,
 ) -> float:
-    """Return ``value`` as a finite float inside the given bounds, else raise :class:`ConfigError`."""
+    """Return ``value`` as a finite float inside the given bounds, else raise :class:`ConfigError`.
+
+    Accepts Python and numpy real numbers; rejects bools, texts, arrays, integers
+    too large for a float, nan and inf.
+    """
+    if isinstance(value, (str, bytes)) or isinstance(value, bool) or type(value).__name__ == "bool_":
+        raise ConfigError(f"{name} must be a number; got {short_repr(value)}")
+    if getattr(value, "ndim", 0):  # a numpy array of any size
+        raise ConfigError(f"{name} must be a single number; got an array")
     try:
         v = float(value)  # type: ignore[arg-type]
+    except OverflowError:
+        raise ConfigError(f"{name} is too large for a floating-point number; got {short_repr(value)}") from None
     except (TypeError, ValueError):
-        raise ConfigError(f"{name} must be a number; got {value!r}") from None
+        raise ConfigError(f"{name} must be a number; got {short_repr(value)}") from None
     if v != v or v in (float("inf"), float("-inf")):
-        raise ConfigError(f"{name} must be finite; got {value!r}")
+        raise ConfigError(f"{name} must be finite; got {short_repr(value)}")
     bad = (
         (lo is not None and (v < lo or (lo_open and v == lo)))
         or (hi is not None and (v > hi or (hi_open and v == hi)))

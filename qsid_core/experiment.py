@@ -28,6 +28,7 @@ from .config import SweepConfig, parse_bits
 from .data import Dataset, simulate
 from .errors import ConfigError, check_choice, check_int
 from .executors import InlineExecutor, single_threaded_blas
+from .config_checks import check_run_args
 from .identify import ESTIMATORS, identify, relative_errors
 from .moments import Moments, PreparedData, prepare, quantized_moments
 from .closed_loop import ClosedLoops, run_closed_loops
@@ -171,7 +172,9 @@ class Experiment:
     ----------
     config : SweepConfig
     executor : concurrent.futures.Executor, optional
-        Runs independent tasks (default: :class:`InlineExecutor`).
+        Runs independent tasks (default: :class:`InlineExecutor`). If it has a
+        ``share(obj)`` method, the data every task needs is passed through it
+        once (a cluster sends it once per worker, not with every task).
     tasks : int
         Number of chunks the realizations are split into for the executor.
     cache : MutableMapping, optional
@@ -194,6 +197,7 @@ class Experiment:
         tasks: int = 4,
         cache: MutableMapping | None = None,
     ):
+        check_run_args(config, SweepConfig, executor, None)
         self.config = config
         self.system = get_system(config.system)
         self.executor = executor or InlineExecutor()
@@ -254,7 +258,10 @@ class Experiment:
             nt = min(self.tasks, c.realizations)
             size = math.ceil(c.realizations / nt)
             chunks = [seeds[i : i + size] for i in range(0, c.realizations, size)]
-            futs = [self.executor.submit(_moments_task, prep, todo, c.quantizer, ch) for ch in chunks]
+            # an executor with a ``share`` hook (e.g. app.distributed.DaskExecutor) sends the data once per worker
+            share = getattr(self.executor, "share", None)
+            prep_arg = share(prep) if callable(share) else prep
+            futs = [self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch) for ch in chunks]
             per_real: list[list[Moments]] = []
             for i, f in enumerate(futs):
                 per_real.extend(f.result())
@@ -318,8 +325,11 @@ class Experiment:
             ub = ultimate_bound(P, w.Q, w.R, sysm.A - Gp[:, :n], sysm.B - Gp[:, n:],
                                 theta=c.theta, rho=c.rho, x0=w.x0)
             delta = ub.delta
+            note = ub.note
         except MPCFailure as exc:
             delta, note = float("inf"), str(exc)
+        except np.linalg.LinAlgError:
+            delta, note = float("inf"), "no bound: the Riccati recursion of the predicted model is singular"
         except ConfigError as exc:
             delta, note = float("nan"), str(exc)
         res = TheoryAtBits(b, Gp, eA, eB, delta, note, ub)

@@ -21,12 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .errors import check_choice
+from .errors import IdentificationError, check_choice
 from .moments import Moments
 
 __all__ = ["ESTIMATORS", "Identified", "identify", "least_squares", "relative_errors"]
 
 ESTIMATORS = ("ls", "bcls")
+#: An identified entry beyond this is a numerical failure (true systems have entries <= 1e12).
+MAX_MODEL_MAGNITUDE = 1e150
 
 
 @dataclass
@@ -76,12 +78,16 @@ def least_squares(PP: np.ndarray, XP: np.ndarray, n: int) -> tuple[np.ndarray, n
 
     Raises
     ------
-    ValueError
-        If ``PP`` is singular (data not rich enough: Psi must have full row rank).
+    IdentificationError (a ValueError)
+        If ``PP`` is singular (data not rich enough: Psi must have full row rank)
+        or the solution is not finite.
     """
     G = _solve_spd(PP, XP)
     if G is None:
-        raise ValueError("Psi Psi^T is singular: the data are not rich enough to identify A and B")
+        raise IdentificationError("Psi Psi^T is singular: the data are not rich enough to identify A and B")
+    if not np.all(np.abs(G) <= MAX_MODEL_MAGNITUDE):  # also catches nan/inf
+        raise IdentificationError("least squares gave entries beyond 1e150 or non-finite numbers (Psi Psi^T is "
+                                  "too badly conditioned): no model")
     return G[:, :n], G[:, n:]
 
 
@@ -96,11 +102,14 @@ def identify(mom: Moments, estimator: str = "ls") -> Identified:
         Plain least squares or bias-compensated least squares.
     """
     check_choice("estimator", estimator, ESTIMATORS)
+    if not all(np.all(np.isfinite(v)) for v in (mom.PP, mom.XP, mom.eps)):
+        raise IdentificationError("the quantized data are not finite numbers (check the quantizer range): "
+                                  "no model")
     n = mom.XP.shape[0]
     if estimator == "bcls":
         D = mom.T * np.asarray(mom.eps, dtype=float) ** 2 / 12.0
         G = _solve_spd(mom.PP - np.diag(D), mom.XP)
-        if G is not None:
+        if G is not None and np.all(np.abs(G) <= MAX_MODEL_MAGNITUDE):
             return Identified(G[:, :n], G[:, n:], "bcls")
         A, B = least_squares(mom.PP, mom.XP, n)
         return Identified(
@@ -113,8 +122,16 @@ def identify(mom: Moments, estimator: str = "ls") -> Identified:
 
 
 def relative_errors(A_hat: np.ndarray, B_hat: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
-    """``(||A - A^||_F / ||A||_F, ||B - B^||_F / ||B||_F)``."""
+    """``(||A - A^||_F / ||A||_F, ||B - B^||_F / ||B||_F)``.
+
+    A true matrix that is all zeros has no size of its own to compare with: its
+    error is then taken relative to the whole model, ``||[A, B]||_F`` (finite,
+    since :class:`~qsid_core.systems.LTISystem` rejects A = B = 0). NaN models
+    (failed identifications) give NaN.
+    """
+    nG = float(np.linalg.norm(np.hstack([A, B])))
+    nA, nB = float(np.linalg.norm(A)), float(np.linalg.norm(B))
     return (
-        float(np.linalg.norm(A - A_hat) / np.linalg.norm(A)),
-        float(np.linalg.norm(B - B_hat) / np.linalg.norm(B)),
+        float(np.linalg.norm(A - A_hat) / (nA if nA > 0 else nG)),
+        float(np.linalg.norm(B - B_hat) / (nB if nB > 0 else nG)),
     )

@@ -36,6 +36,7 @@ import numpy as np
 from .condensed_qp import CondensedQP, DaqpMPC, condense
 from .errors import ConfigError, FailureKind, MPCFailure, check_choice, check_float, check_int
 from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
+from .validate import as_float_array
 
 __all__ = ["MPCConfig", "MPCWeights", "MPCFailure", "MPCController", "FailureKind", "FAILURE_KINDS", "SOLVERS",
            "dare_batch", "dare_stabilizing", "lq_parts"]
@@ -44,14 +45,15 @@ __all__ = ["MPCConfig", "MPCWeights", "MPCFailure", "MPCController", "FailureKin
 FAILURE_KINDS = tuple(k.value for k in FailureKind)
 #: QP solvers for the steps where a bound is active
 SOLVERS = ("daqp", "osqp")
+#: OSQP's setup error codes in words.
+OSQP_SETUP_ERRORS = {1: "invalid problem data", 2: "invalid settings", 3: "linear system solver failed",
+                     4: "the cost is not convex: a weight is not positive semidefinite", 5: "out of memory"}
 
 
 def _vec(name: str, v, k: int | None, positive: bool = False) -> tuple[float, ...] | None:
     if v is None:
         return None
-    arr = np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
-    if not np.all(np.isfinite(arr)):
-        raise ConfigError(f"{name} must contain finite numbers; got {v!r}")
+    arr = np.atleast_1d(as_float_array(name, v, ndim_max=1)).reshape(-1)  # finite, <= MAX_MAGNITUDE, not empty
     if positive and np.any(arr <= 0):
         raise ConfigError(f"{name} must be positive; got {v!r}")
     if k is not None and arr.size not in (1, k):
@@ -252,8 +254,13 @@ class MPCController:
             raise MPCFailure(FailureKind.IDENT, "no model: identification failed for this realization")
         self.Qf = dare_stabilizing(self.A, self.B, self.Q, self.R) if Qf is None else np.asarray(Qf, dtype=float)
         if parts is None:
-            parts = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
-                             self.u_max, self.x_max, self.xf_max).model(0)
+            with np.errstate(all="ignore"):
+                batch = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
+                                 self.u_max, self.x_max, self.xf_max)
+            if not batch.finite()[0]:
+                raise MPCFailure(FailureKind.DARE, "the finite-horizon Riccati recursion of the identified model is "
+                                 "singular or overflows: no MPC for this model")
+            parts = batch.model(0)
         self.parts = parts
         self.F, self.f, self.bound = parts.F, parts.f, parts.bound
         self._qp = None
@@ -311,10 +318,16 @@ class MPCController:
     def solve_osqp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
         """Solve the QP with OSQP on the sparse formulation (the previous engine); ``(u_0, J*)``."""
         if self._osqp is None:
+            import osqp
+
             from .sparse_qp import OsqpMPC
 
-            self._osqp = OsqpMPC(self.A, self.B, self.Q, self.R, self.Qf, self.x_ref, self.N, self.u_max,
-                                 self.x_max, self.xf_max, self.eps, self.max_iter)
+            try:
+                self._osqp = OsqpMPC(self.A, self.B, self.Q, self.R, self.Qf, self.x_ref, self.N, self.u_max,
+                                     self.x_max, self.xf_max, self.eps, self.max_iter)
+            except (ValueError, osqp.OSQPException) as exc:  # OSQP rejects the data (e.g. Qf numerically not PSD)
+                raise MPCFailure(FailureKind.SOLVER, f"OSQP cannot set up the MPC problem for this model "
+                                 f"({OSQP_SETUP_ERRORS.get(exc.args[0] if exc.args else 0, exc)})") from None
         return self._osqp.solve(x)
 
     def solve(self, x: np.ndarray) -> tuple[np.ndarray, float, bool]:

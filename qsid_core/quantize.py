@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError, check_choice, check_int
+from .validate import as_float_array, check_bool, check_quantizer_range, checked_signal
 
 __all__ = [
     "DITHERS",
@@ -77,14 +78,16 @@ class QuantizerSpec:
     def __post_init__(self) -> None:
         check_choice("dither", self.dither, DITHERS)
         check_choice("range", self.range_mode, RANGE_MODES)
+        object.__setattr__(self, "guard", check_bool("guard", self.guard))
         if self.range_mode == "fixed" and self.fixed_range is None:
             raise ConfigError("range 'fixed' needs fixed_range=(lo, hi) or one (lo, hi) per channel")
         if self.fixed_range is not None:
-            fr = np.asarray(self.fixed_range, dtype=float)
+            fr = as_float_array("fixed_range", self.fixed_range, ndim_max=2, max_abs=None)
             if fr.shape == (2,):
                 fr = fr[None, :]
-            if fr.ndim != 2 or fr.shape[1] != 2 or not np.all(np.isfinite(fr)) or np.any(fr[:, 1] <= fr[:, 0]):
+            if fr.ndim != 2 or fr.shape[1] != 2 or np.any(fr[:, 1] <= fr[:, 0]):
                 raise ConfigError("fixed_range must be (lo, hi) with lo < hi, or a list of such pairs per channel")
+            check_quantizer_range("fixed_range", fr[:, 0], fr[:, 1])
             object.__setattr__(self, "fixed_range", tuple(map(tuple, fr.tolist())))
         if not isinstance(self.guard, (bool, np.bool_)):
             raise ConfigError(f"guard must be True or False; got {self.guard!r}")
@@ -175,11 +178,8 @@ def quantize(
     """
     check_choice("dither", dither, DITHERS)
     bits = check_int("bits", bits, 1, MAX_BITS)
-    x = np.asarray(x, dtype=float)
-    lo_a = np.asarray(lo, dtype=float)
-    hi_a = np.asarray(hi, dtype=float)
-    if np.any(~np.isfinite(lo_a)) or np.any(~np.isfinite(hi_a)) or np.any(hi_a <= lo_a):
-        raise ConfigError("quantizer range must be finite with hi > lo for every channel")
+    guard = check_bool("guard", guard)
+    x, lo_a, hi_a = checked_signal(x, lo, hi, unit_dither, rng)
     lo_q, eps = effective_ranges(lo_a, hi_a, bits, guard)
     if dither == "subtractive":
         if unit_dither is None:

@@ -36,8 +36,13 @@ def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray)
     if not np.all(np.isfinite(X)):
         raise MPCFailure(FailureKind.DARE, "DARE has no stabilizing solution for the identified model")
     X = (X + X.T) / 2
-    K = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
-    if np.abs(np.linalg.eigvals(A - B @ K)).max() >= 1.0 or np.linalg.eigvalsh(X).min() < -1e-9:
+    try:
+        with np.errstate(all="ignore"):
+            K = np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
+            stabilizing = np.abs(np.linalg.eigvals(A - B @ K)).max() < 1.0 and np.linalg.eigvalsh(X).min() >= -1e-9
+    except (np.linalg.LinAlgError, ValueError):  # singular R + B'XB, or non-finite gains
+        stabilizing = False
+    if not stabilizing:
         raise MPCFailure(FailureKind.DARE, "DARE solution is not stabilizing for the identified model")
     return X
 
@@ -95,12 +100,29 @@ def dare_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, tol: 
         ok = done & np.all(np.isfinite(X), axis=(1, 2))
         if ok.any():
             Bt = np.swapaxes(B, 1, 2)
-            K = np.linalg.solve(R + Bt @ X @ B, Bt @ X @ A)
-            Acl = np.where(ok[:, None, None], A - B @ K, 0.0)
-            rho = np.abs(np.linalg.eigvals(Acl)).max(axis=1)
-            ok &= rho < 1.0
+            try:
+                K = np.linalg.solve(R + Bt @ X @ B, Bt @ X @ A)
+                Acl = np.where(ok[:, None, None], A - B @ K, 0.0)
+                rho = np.abs(np.linalg.eigvals(Acl)).max(axis=1)
+                ok &= rho < 1.0
+            except (np.linalg.LinAlgError, ValueError):  # one singular/non-finite model spoils the batch:
+                ok[:] = False  # leave every model to the callers' per-model fallback (dare_stabilizing)
     X[~ok] = np.nan
     return X, ok
+
+
+def _solve_each(S: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``S^-1 rhs`` for a batch; a singular ``S`` gives NaN for its model only (not a LinAlgError for all)."""
+    try:
+        return np.linalg.solve(S, rhs)
+    except np.linalg.LinAlgError:
+        out = np.full(rhs.shape, np.nan)
+        for i in range(S.shape[0]):
+            try:
+                out[i] = np.linalg.solve(S[i], rhs[i])
+            except np.linalg.LinAlgError:
+                pass
+        return out
 
 
 def state_box(n: int, N: int, x_max=None, xf_max=None) -> np.ndarray | None:
@@ -196,9 +218,9 @@ def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> LQParts:
     for k in range(N - 1, -1, -1):
         BtP = Bt @ P
         S = R + BtP @ B
-        Kk = np.linalg.solve(S, BtP @ A)
+        Kk = _solve_each(S, BtP @ A)
         Btp = np.einsum("lij,lj->li", Bt, p)
-        kk = np.linalg.solve(S, Btp[..., None])[..., 0]
+        kk = _solve_each(S, Btp[..., None])[..., 0]
         c = c + rQr - np.einsum("li,li->l", Btp, kk)
         p = -(Q @ r) + np.einsum("lji,lj->li", A - B @ Kk, p)
         P = Q + At @ P @ A - np.swapaxes(BtP @ A, 1, 2) @ Kk

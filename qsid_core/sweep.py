@@ -20,6 +20,7 @@ from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, T
 from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
 from .systems import LTISystem
 from .theory import RealizedBounds
+from .config_checks import check_run_args
 
 __all__ = ["SweepResult", "SummaryRow", "run_sweep", "summary_row", "summarize", "fit_slope"]
 
@@ -153,7 +154,17 @@ def run_sweep(
         Reuse its caches (e.g. a dashboard session).
     tasks : int
         Chunks the realizations are split into (use >= the executor's workers).
+
+    Raises
+    ------
+    QsidError
+        Only for bad settings (ConfigError, SystemDefinitionError) or data that
+        overflow (DataOverflowError). Per-realization failures are *recorded*, not
+        raised: identification (``BitsIdentification.failed`` and ``notes``), the
+        ultimate bound (``delta = inf`` with ``bound_note``) and the closed loops
+        (``ClosedLoops.failure`` / ``messages``); reported numbers are otherwise finite.
     """
+    check_run_args(config, SweepConfig, executor, progress)
     with single_threaded_blas():
         t0 = time.perf_counter()
         ex = experiment.with_config(config) if experiment is not None else Experiment(config, executor, tasks)

@@ -30,7 +30,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .errors import SystemDefinitionError
+from .errors import ConfigError, SystemDefinitionError, check_float, short_repr
+from .validate import MAX_MAGNITUDE, as_float_array, as_matrix, check_text, parse_matrix, weight_matrix
 
 __all__ = [
     "LTISystem",
@@ -50,40 +51,11 @@ class UncontrollableWarning(UserWarning):
     """(A, B) is not controllable: identification works, MPC may not regulate."""
 
 
-def _as_matrix(name: str, value: Any, shape: tuple[int | None, int | None]) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SystemDefinitionError(f"{name} must be a matrix of numbers; got {value!r}") from None
-    if arr.ndim == 1 and shape[1] == 1:
-        arr = arr.reshape(-1, 1)
-    if arr.ndim != 2:
-        raise SystemDefinitionError(f"{name} must be a 2-D matrix (list of rows); got {arr.ndim}-D")
-    for axis, want in enumerate(shape):
-        if want is not None and arr.shape[axis] != want:
-            raise SystemDefinitionError(
-                f"{name} must have shape {tuple(s if s is not None else '*' for s in shape)}; got {arr.shape}"
-            )
-    if arr.size == 0:
-        raise SystemDefinitionError(f"{name} must not be empty")
-    if not np.all(np.isfinite(arr)):
-        raise SystemDefinitionError(f"{name} must contain only finite numbers")
-    return arr
-
-
-def _weight(name: str, value: Any, k: int) -> np.ndarray:
-    """A weight matrix: a k x k matrix, or a length-k vector meaning its diagonal."""
-    arr = np.array(value, dtype=float) if value is not None else None
-    if arr is None:
-        raise SystemDefinitionError(f"{name} is missing")
-    if arr.ndim == 1:
-        if arr.shape[0] != k:
-            raise SystemDefinitionError(f"{name} as a diagonal must have {k} entries; got {arr.shape[0]}")
-        arr = np.diag(arr)
-    arr = _as_matrix(name, arr, (k, k))
-    if not np.allclose(arr, arr.T, atol=1e-12):
-        raise SystemDefinitionError(f"{name} must be symmetric")
-    return arr
+#: Largest number of states / inputs of a system (the controllability test builds an n x n*m matrix).
+MAX_STATES = 100
+MAX_INPUTS = 100
+#: Largest system file read (bytes).
+MAX_FILE_BYTES = 10_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,17 +104,38 @@ class LTISystem:
     input_names: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
-        A = _as_matrix("A", self.A, (None, None))
+        check_text("system name", self.name, SystemDefinitionError)
+        check_text("description", self.description, SystemDefinitionError)
+        try:
+            object.__setattr__(self, "dt", check_float("dt", self.dt, 0.0, lo_open=True))
+        except ConfigError:
+            raise SystemDefinitionError(
+                f"dt (the sample time) must be a positive, finite number of seconds; got {short_repr(self.dt)}"
+            ) from None
+        A = as_matrix("A", self.A, (None, None))
         n = A.shape[0]
         if A.shape != (n, n):
             raise SystemDefinitionError(f"A must be square; got shape {A.shape}")
-        B = _as_matrix("B", self.B, (n, None))
+        if n > MAX_STATES:
+            raise SystemDefinitionError(f"A: at most {MAX_STATES} states; got {n}")
+        B = as_matrix("B", self.B, (n, None))
         m = B.shape[1]
-        x0 = np.eye(n)[0] if self.x0 is None else np.array(self.x0, dtype=float).reshape(-1)
-        if x0.shape != (n,) or not np.all(np.isfinite(x0)):
-            raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {self.x0!r}")
-        Q = np.eye(n) if self.Q is None else _weight("Q", self.Q, n)
-        R = np.eye(m) if self.R is None else _weight("R", self.R, m)
+        if m > MAX_INPUTS:
+            raise SystemDefinitionError(f"B: at most {MAX_INPUTS} inputs; got {m}")
+        if max(np.abs(A).max(), np.abs(B).max()) < 1.0 / MAX_MAGNITUDE:
+            raise SystemDefinitionError(
+                f"A and B are both (nearly) all zeros (every entry below {1.0 / MAX_MAGNITUDE:g} in magnitude): "
+                "there is nothing to identify and relative model errors are undefined"
+            )
+        if self.x0 is None:
+            x0 = np.eye(n)[0]
+        else:
+            x0 = as_float_array("x0", self.x0, ndim_max=2, error=SystemDefinitionError,
+                                what=f"a list of {n} numbers").reshape(-1)
+        if x0.shape != (n,):
+            raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {short_repr(self.x0)}")
+        Q = np.eye(n) if self.Q is None else weight_matrix("Q", self.Q, n)
+        R = np.eye(m) if self.R is None else weight_matrix("R", self.R, m)
         if np.linalg.eigvalsh(Q).min() < -1e-12:
             raise SystemDefinitionError("Q must be positive semidefinite")
         if np.linalg.eigvalsh(R).min() <= 0:
@@ -154,10 +147,13 @@ class LTISystem:
         object.__setattr__(self, "x0", x0)
         object.__setattr__(self, "Q", Q)
         object.__setattr__(self, "R", R)
-        names = tuple(self.state_names) or tuple(f"x{i + 1}" for i in range(n))
-        inames = tuple(self.input_names) or tuple(f"u{i + 1}" for i in range(m))
-        if len(names) != n or len(inames) != m:
-            raise SystemDefinitionError(f"state_names must have {n} and input_names {m} entries")
+        try:
+            names = tuple(self.state_names) or tuple(f"x{i + 1}" for i in range(n))
+            inames = tuple(self.input_names) or tuple(f"u{i + 1}" for i in range(m))
+        except TypeError:
+            raise SystemDefinitionError("state_names and input_names must be sequences of texts") from None
+        if len(names) != n or len(inames) != m or not all(isinstance(x, str) for x in names + inames):
+            raise SystemDefinitionError(f"state_names must have {n} and input_names {m} entries (texts)")
         object.__setattr__(self, "state_names", names)
         object.__setattr__(self, "input_names", inames)
         if not self.controllable:
@@ -190,11 +186,21 @@ class LTISystem:
 
     @property
     def controllability_rank(self) -> int:
-        """Rank of python-control's ``ctrb(A, B)``."""
-        import control
-
-        C = control.ctrb(self.A, self.B)
-        return int(np.linalg.matrix_rank(C, tol=1e-9 * max(1.0, np.abs(C).max())))
+        """Rank of the controllability matrix ``[B, AB, ..., A^(n-1) B]`` (python-control's ``ctrb``; built
+        here with numpy, so building a system never imports python-control, ~2-5 s)."""
+        # scaling A and B by positive numbers leaves the rank unchanged and keeps A^k from overflowing
+        a = np.abs(self.A).max()
+        A = self.A / a if a > 1.0 else self.A
+        blocks = [self.B]
+        for _ in range(self.n - 1):
+            blocks.append(A @ blocks[-1])
+        C = np.hstack(blocks)
+        try:
+            return int(np.linalg.matrix_rank(C, tol=1e-9 * max(1.0, np.abs(C).max())))
+        except np.linalg.LinAlgError:  # the SVD did not converge: badly scaled (A, B)
+            raise SystemDefinitionError(
+                "cannot decide whether (A, B) is controllable: the controllability matrix is too badly scaled"
+            ) from None
 
     @property
     def controllable(self) -> bool:
@@ -246,16 +252,21 @@ def dc_motor_physical(
     With the defaults it reproduces the printed matrices of :func:`dc_motor`
     to their three printed decimals (the letter truncates: max difference < 1e-3).
     """
-    import control
+    from scipy.linalg import expm
 
-    for nm, v in dict(dt=dt, J=J, L=L).items():
-        if not (np.isfinite(v) and v > 0):
-            raise SystemDefinitionError(f"{nm} must be a positive number; got {v!r}")
+    for nm, v in dict(dt=dt, J=J, L=L, c=c, K=K, Ke=Ke, r=r).items():
+        try:
+            check_float(nm, v, 0.0, MAX_MAGNITUDE, lo_open=nm in ("dt", "J", "L"))
+        except ConfigError as exc:
+            raise SystemDefinitionError(str(exc)) from None
     Ac = np.array([[0.0, 1.0, 0.0], [0.0, -c / J, K / J], [0.0, -Ke / L, -r / L]])
     Bc = np.array([[0.0, 0.0], [0.0, 1.0 / J], [1.0 / L, 0.0]])
-    sysd = control.c2d(control.ss(Ac, Bc, np.eye(3), np.zeros((3, 2))), dt)
+    # zero-order hold (python-control's c2d(..., method="zoh")): expm([[Ac, Bc], [0, 0]] dt) = [[Ad, Bd], [0, I]]
+    M = np.zeros((5, 5))
+    M[:3, :3], M[:3, 3:] = Ac, Bc
+    E = expm(M * dt)
     return LTISystem(
-        "dc-motor-physical", np.asarray(sysd.A), np.asarray(sysd.B), x0=[1.0, 0.0, 0.0],
+        "dc-motor-physical", E[:3, :3], E[:3, 3:], x0=[1.0, 0.0, 0.0],
         Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=dt,
         description=f"DC motor with load from physical parameters, ZOH at {dt:g} s",
         state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),
@@ -299,14 +310,12 @@ def system_from_dict(d: Mapping[str, Any], name: str = "custom") -> LTISystem:
     for key in ("A", "B"):
         if key not in d:
             raise SystemDefinitionError(f"system definition is missing {key!r} (needs A and B)")
-    dt = d.get("dt", 1.0)
-    try:
-        dt = float(dt)
-    except (TypeError, ValueError):
-        raise SystemDefinitionError(f"dt must be a number; got {dt!r}") from None
+    for key in ("x0", "Q", "R"):
+        if key in d and d[key] is None:
+            raise SystemDefinitionError(f"{key} is empty (null); leave it out to use the default")
     return LTISystem(
-        str(d.get("name", name)), d["A"], d["B"], x0=d.get("x0"), Q=d.get("Q"), R=d.get("R"), dt=dt,
-        description=str(d.get("description", "custom system")),
+        d.get("name", name), d["A"], d["B"], x0=d.get("x0"), Q=d.get("Q"), R=d.get("R"), dt=d.get("dt", 1.0),
+        description=d.get("description", "custom system"),
     )
 
 
@@ -316,13 +325,23 @@ def load_system(path: str | Path) -> LTISystem:
     The file holds ``A`` (n x n), ``B`` (n x m) and optionally ``x0`` (n), ``Q``
     (n x n or n diagonal entries), ``R`` (m x m or m entries) and ``dt``.
     """
+    if not isinstance(path, (str, Path)):
+        raise SystemDefinitionError(f"system file must be a path; got {short_repr(path)}")
     p = Path(path)
-    if not p.is_file():
-        raise SystemDefinitionError(f"system file {str(p)!r} does not exist")
+    shown = short_repr(str(p))
+    try:
+        st = p.stat()
+    except (OSError, ValueError) as exc:  # missing, name too long, NUL byte, no permission
+        why = "does not exist" if isinstance(exc, FileNotFoundError) else f"cannot be opened ({_reason(exc)})"
+        raise SystemDefinitionError(f"system file {shown} {why}") from None
+    if p.is_dir():
+        raise SystemDefinitionError(f"{shown} is a directory, not a system file (.toml or .json)")
+    if st.st_size > MAX_FILE_BYTES:
+        raise SystemDefinitionError(f"system file {shown} is {st.st_size} bytes; at most {MAX_FILE_BYTES} allowed")
     try:
         text = p.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise SystemDefinitionError(f"cannot read system file {p.name!r}: {exc}") from None
+        raise SystemDefinitionError(f"cannot read system file {p.name!r}: {_reason(exc)}") from None
     suffix = p.suffix.lower()
     try:
         if suffix == ".json":
@@ -337,6 +356,8 @@ def load_system(path: str | Path) -> LTISystem:
             raise SystemDefinitionError(f"system file must end in .toml or .json; got {p.name!r}")
     except SystemDefinitionError:
         raise
+    except RecursionError:
+        raise SystemDefinitionError(f"cannot parse {p.name}: lists are nested too deeply") from None
     except Exception as exc:  # parse errors of either format
         raise SystemDefinitionError(f"cannot parse {p.name}: {exc}") from None
     return system_from_dict(d, name=p.stem)
@@ -346,39 +367,32 @@ def get_system(name_or_path: str | Path | LTISystem) -> LTISystem:
     """A preset by name (see :data:`PRESETS`), or a system file path, or pass an LTISystem through."""
     if isinstance(name_or_path, LTISystem):
         return name_or_path
+    if not isinstance(name_or_path, (str, Path)):
+        raise SystemDefinitionError(
+            f"system must be a preset name ({', '.join(PRESETS)}), a path to a .toml/.json file or an LTISystem; "
+            f"got {short_repr(name_or_path)}"
+        )
     key = str(name_or_path)
     if key in PRESETS:
         return PRESETS[key]()
-    if key.lower().endswith((".toml", ".json")) or Path(key).exists():
+    if key.lower().endswith((".toml", ".json")) or _exists(key):
         return load_system(key)
     raise SystemDefinitionError(
-        f"unknown system {key!r}; use one of {', '.join(PRESETS)} or a path to a .toml/.json file"
+        f"unknown system {short_repr(key)}: not a preset ({', '.join(PRESETS)}) and not an existing "
+        ".toml/.json file"
     )
 
 
-def parse_matrix(text: str, name: str = "matrix") -> np.ndarray:
-    """Parse a matrix typed by a person: rows separated by ``;`` or newlines, entries by spaces or commas.
+def _exists(path: str) -> bool:
+    """``Path(path).exists()`` that says False for names the OS refuses (too long, NUL byte)."""
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):
+        return False
 
-    Also accepts a JSON list of lists. Raises :class:`SystemDefinitionError` with the
-    offending row when the rows have different lengths or an entry is not a number.
-    """
-    s = text.strip()
-    if not s:
-        raise SystemDefinitionError(f"{name} is empty")
-    if s.startswith("["):
-        try:
-            return _as_matrix(name, json.loads(s), (None, None))
-        except json.JSONDecodeError as exc:
-            raise SystemDefinitionError(f"{name}: not valid JSON ({exc.msg})") from None
-    rows = [r for r in s.replace(";", "\n").splitlines() if r.strip()]
-    out = []
-    for i, row in enumerate(rows, 1):
-        parts = row.replace(",", " ").split()
-        try:
-            out.append([float(v) for v in parts])
-        except ValueError:
-            raise SystemDefinitionError(f"{name} row {i}: {row.strip()!r} has an entry that is not a number") from None
-    widths = {len(r) for r in out}
-    if len(widths) != 1:
-        raise SystemDefinitionError(f"{name}: rows have different lengths {[len(r) for r in out]}")
-    return _as_matrix(name, out, (None, None))
+
+def _reason(exc: BaseException) -> str:
+    """An OS error in words, without repeating the (possibly very long) file name."""
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    return short_repr(str(exc))

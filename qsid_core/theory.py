@@ -99,6 +99,7 @@ class UltimateBound:
     dA_norm: float
     dB_norm: float
     C: float
+    note: str = ""  #: why ``delta`` is infinite, in plain words (empty when it is finite)
 
 
 def ultimate_bound(
@@ -160,18 +161,28 @@ def ultimate_bound(
         raise ConfigError("the ultimate bound needs Q and R positive definite (letter, Assumption 4)")
     ep = np.linalg.eigvalsh((P + P.T) / 2)
     pmin, pmax = float(ep.min()), float(ep.max())
-    if pmin <= 0:
+    if not (pmin > 0 and np.isfinite(pmax)):
         return UltimateBound(float("inf"), pmin, pmax, alpha1, alpha2, float("inf"), float("nan"), theta,
-                             float(np.linalg.norm(dA)), float(np.linalg.norm(dB)), float("inf"))
+                             float(np.linalg.norm(dA)), float(np.linalg.norm(dB)), float("inf"),
+                             note=f"no bound: the Riccati matrix P is not positive definite "
+                                  f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function")
     if rho is None:
         r0 = float(np.linalg.norm(x0)) if x0 is not None else 1.0
         rho = np.sqrt(pmax / pmin) * (r0 if r0 > 0 else 1.0)
     rho = check_float("rho", rho, 0.0, lo_open=True)
-    omega_v = 2.0 * pmax * rho
-    na, nb = float(np.linalg.norm(dA)), float(np.linalg.norm(dB))
-    C = omega_v**2 * (na**2 / (2 * alpha1) + nb**2 / (2 * alpha2))
-    delta = float(np.sqrt(pmax / pmin * 2 * C / (theta * alpha1)))
-    return UltimateBound(delta, pmin, pmax, alpha1, alpha2, omega_v, float(rho), theta, na, nb, C)
+    # numpy scalars: an overflow gives inf (explained in the note), never OverflowError/ZeroDivisionError
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        omega_v = np.float64(2.0) * pmax * rho
+        na, nb = np.float64(np.linalg.norm(dA)), np.float64(np.linalg.norm(dB))
+        C = omega_v**2 * (na**2 / (2 * np.float64(alpha1)) + nb**2 / (2 * np.float64(alpha2)))
+        delta = np.sqrt(pmax / np.float64(pmin) * 2 * C / (np.float64(theta) * alpha1))
+    note = ""
+    if not np.isfinite(delta):
+        delta = np.float64(np.inf)
+        note = (f"no bound: delta overflows the floating-point range (rho = {rho:.3g}, lambda_max(P) = {pmax:.3g}, "
+                f"theta = {theta:.3g}, alpha1 = {alpha1:.3g})")
+    return UltimateBound(float(delta), pmin, pmax, alpha1, alpha2, float(omega_v), float(rho), theta, float(na),
+                         float(nb), float(C), note=note)
 
 
 def _riccati_finite_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray,

@@ -157,6 +157,12 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
                                && e.textContent.includes('realizations') && e.textContent.includes('Theorem 1'))""",
                         timeout=TIMEOUT_MS)
                     assert s1.datalength.lookup(s1.last_frame.values) is not None
+                if label == "Compare":  # pin the current result: the note says so, the error plot gets dashed lines
+                    page1.get_by_role("button", name="Pin current result").click()
+                    page1.wait_for_function("() => document.body.textContent.includes('Pinned (dashed)')",
+                                            timeout=TIMEOUT_MS)
+                    assert s1.wait_idle(60) and s1.pinned is not None
+                    assert any("(pinned" in (tr.name or "") for tr in s1.plots["error"].figure.data)
                 if shots:  # the README's per-tab pictures: the plots panel only
                     page1.wait_for_timeout(800)
                     box = page1.locator(".js-plotly-plot").locator("visible=true").first.bounding_box()
@@ -196,10 +202,16 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             shot = tmp_path / "dashboard.png"
             page1.screenshot(path=str(shot))
             assert shot.stat().st_size > 50_000
-            # the 3-D LS lines show on screen in the palette's LS blue (#1f77b4), as in the plots
-            assert _scene_pixels_near(shot, (0x1F, 0x77, 0xB4)) >= 30
             if os.environ.get("QSID_SCREENSHOT"):
                 shutil.copyfile(shot, os.environ["QSID_SCREENSHOT"])
+            # the 3-D LS lines show on screen in the palette's LS blue (#1f77b4), as in the plots
+            # (LS alone: with both estimators the red BCLS lines can cover nearly identical LS lines)
+            s1.controls["identification"].value = "LS"
+            assert s1.wait_idle(60)
+            page1.wait_for_timeout(1500)
+            shot_ls = tmp_path / "dashboard_ls.png"
+            page1.screenshot(path=str(shot_ls))
+            assert _scene_pixels_near(shot_ls, (0x1F, 0x77, 0xB4)) >= 30
         finally:
             browser.close()
     assert errors == [], f"console errors: {errors}"

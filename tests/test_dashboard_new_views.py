@@ -67,22 +67,21 @@ def test_tracking_reference_and_state_box_reach_the_loops(tab):
 
 def test_quantizer_view_changes_with_channel_and_bits(tab):
     q = fig(tab, "quantizer")
-    assert q.layout.title.text.startswith("x1, b = 4")
+    assert q.layout.title.text.startswith("x: angle, b = 4")
     tab.session.views.channel.value = "u: voltage"
     tab.wait()
     q2 = fig(tab, "quantizer")
-    assert q2.layout.title.text.startswith("u1, b = 4") and q2 is not q
+    assert q2.layout.title.text.startswith("u: voltage, b = 4") and q2 is not q
     tab.set(bits=8)
     q3 = fig(tab, "quantizer")
-    assert q3.layout.title.text.startswith("u1, b = 8")
+    assert q3.layout.title.text.startswith("u: voltage, b = 8")
     ratio = float(q3.layout.title.text.split("dithered ")[1].split(" ")[0])
     assert 0.85 < ratio < 1.15  # measured variance / (eps^2/12), no overload with the guard band
 
 
 def test_pin_overlays_dashed_curves_until_unpinned(tab):
     n_err = len(fig(tab, "error").data)
-    tab.session.views.pin.value = False  # (buttons have no value; press it like a person)
-    tab.session.pin()
+    tab.session.pin()  # what the "Pin current result" button calls (the browser test presses the button)
     tab.wait()
     assert "Pinned" in tab.session.views.pin_note.content and not tab.session.views.unpin.disabled
     tab.set(dither="none")

@@ -12,8 +12,8 @@ import argparse
 import math
 
 from .output import dumps, g
-from .parser import _float_type, _limits, _nonneg_int, _onoff, engine, pos_int
-from .runner import _quantizer, input_files, out_file, resolve_system, workers, write_text
+from .parser import _float_type, _limits, _nonneg_int, _onoff, add_running_options, engine, pos_int
+from .runner import _quantizer, executor, input_files, out_file, resolve_system, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -70,9 +70,7 @@ def add_arguments(p) -> None:
     r = p.add_argument_group("output and running")
     r.add_argument("--json", action="store_true", help="print one JSON object (one row per length) to stdout")
     r.add_argument("--out", metavar="FILE", default=None, help="also write the JSON to FILE")
-    r.add_argument("--workers", type=pos_int, default=1, metavar="N",
-                   help="processes (at most the CPU count; default: 1, in-process)")
-    r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    add_running_options(p)
 
 
 def _pm(s: dict) -> str:
@@ -106,9 +104,6 @@ def format_table(d: dict) -> str:
 
 
 def run(args, rep) -> int:
-    from concurrent.futures import ProcessPoolExecutor
-
-    from qsid_core import InlineExecutor
     from qsid_core.datalength import DataLengthConfig, run_datalength, runs_and_steps
 
     system = resolve_system(args.system)
@@ -118,14 +113,10 @@ def run(args, rep) -> int:
                            data_seed=args.data_seed, dither_seed=args.dither_seed)
     plan = ", ".join(f"{T}: {'x'.join(map(str, runs_and_steps(T, cfg.steps_per_run, cfg.min_runs)))}"
                      for T in cfg.samples)
-    nw = workers(args, rep)
     rep.stage(f"system {system.name!r}, b = {cfg.bits}, {cfg.realizations} realizations; "
               f"runs x steps per length: {plan}")
-    pool = ProcessPoolExecutor(max_workers=nw) if nw > 1 else InlineExecutor()
-    try:
+    with executor(args, rep) as (pool, nw):
         res = run_datalength(cfg, pool, progress=rep, tasks=max(4, 2 * nw))
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
     d = res.to_dict()
     text = dumps(d)
     if out is not None:

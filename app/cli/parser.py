@@ -254,6 +254,9 @@ def add_running_options(p: argparse.ArgumentParser) -> None:
     r.add_argument("--workers", type=pos_int, default=1, metavar="N",
                    help="processes (N > 1 uses a ProcessPoolExecutor; at most the machine's CPU count; "
                         "default: 1, in-process)")
+    r.add_argument("--dask", metavar="SPEC", default=None,
+                   help="run on dask.distributed: 'local' or 'local:N' (a LocalCluster of N worker processes "
+                        "here) or 'tcp://HOST:PORT' (a running 'dask scheduler'); needs the 'distributed' package")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
 

@@ -6,6 +6,7 @@ Commands import this module (and :mod:`app.cli.output`), never each other.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
@@ -210,6 +211,27 @@ def _executor(workers: int) -> Executor:
     return InlineExecutor()
 
 
+@contextlib.contextmanager
+def executor(args, rep: "Reporter"):
+    """The executor of a run and its task count: ``--dask`` (a dask.distributed cluster), else ``--workers``."""
+    spec = getattr(args, "dask", None)
+    if spec is not None:
+        if args.workers != 1:
+            raise UsageError("argument --dask: use either --dask or --workers (the cluster's workers do the work)")
+        from app.distributed import make_executor
+
+        with make_executor(spec, progress=rep.stage) as pool:
+            nw = max(1, int(getattr(pool, "workers", 1) or 1))
+            yield pool, nw
+        return
+    nw = workers(args, rep)
+    pool = _executor(nw)
+    try:
+        yield pool, nw
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _plural(k: int, word: str) -> str:
     return f"{k} {word}" + ("" if k == 1 else "s")
 
@@ -226,9 +248,7 @@ def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = ()):
     from qsid_core import Experiment, run_sweep
 
     cfg = config(args, system, mpc)
-    nw = workers(args, rep)
-    pool = _executor(nw)
-    try:
+    with executor(args, rep) as (pool, nw):
         ex = Experiment(cfg, pool, tasks=max(4, 2 * nw))
         rep.stage(f"system {system.name!r} ({_plural(system.n, 'state')}, {_plural(system.m, 'input')}); "
                   f"{cfg.trajectories} x {cfg.steps} samples, b = {bits_text(cfg.bits)}, "
@@ -245,8 +265,6 @@ def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = ()):
             ex.moments(todo, rep)
             ex.closed_loops_many(todo, progress=rep)
         return res, ex
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def check_writable(directory: Path, flag: str = "--out") -> None:

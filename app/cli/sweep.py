@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
-from .runner import input_files, out_file, run as run_sweep, system_from_args, write_text
+from .runner import UsageError, input_files, out_file, run as run_sweep, system_from_args, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -17,6 +17,9 @@ def add_arguments(p) -> None:
     add_run_options(p)
     p.add_argument("--no-mpc", action="store_true", help="skip the MPC closed loops (identification and theory)")
     p.add_argument("--json", action="store_true", help="print one JSON object to stdout instead of a table")
+    p.add_argument("--csv", metavar="FILE", default=None,
+                   help="also write one row per (b, estimator, realization): errors, overload, MPC cost, failure "
+                        "kind, final norm (checked before the run like --out)")
     p.add_argument("--out", metavar="FILE", default=None,
                    help="also write the JSON to FILE (checked before the run; an existing FILE is replaced, "
                         "with a note on stderr; never an input file)")
@@ -25,8 +28,16 @@ def add_arguments(p) -> None:
 def run(args, rep) -> int:
     system = system_from_args(args)
     out = out_file(args.out, rep, inputs=input_files(args))
+    csv_out = out_file(args.csv, rep, flag="--csv", inputs=input_files(args))
+    if out is not None and csv_out is not None and out.resolve() == csv_out.resolve():
+        raise UsageError("arguments --out and --csv name the same file; give two names")
     res, _ = run_sweep(args, system, not args.no_mpc, rep)
     d = sweep_dict(res)
+    if csv_out is not None:
+        from qsid_core.records import write_csv
+
+        rows = write_csv(res, csv_out)
+        rep.stage(f"{rows} rows (b x realizations) written to {csv_out}")
     text = dumps(d)
     if out is not None:
         write_text(out, text + "\n")

@@ -68,7 +68,9 @@ def channel_names(system) -> tuple:
 
 def _build(frame) -> go.Figure:
     k = min(max(int(frame.values.view_channel), 0), frame.system.n + frame.system.m - 1)
-    return quantizer_figure(channel_demo(frame.ex, k, frame.bits, window=120))
+    d = channel_demo(frame.ex, k, frame.bits, window=120)
+    d.label = channel_names(frame.system)[k]  # "x: angle" rather than the engine's "x1"
+    return quantizer_figure(d)
 
 
 def _key(frame) -> tuple:
