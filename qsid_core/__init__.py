@@ -5,8 +5,11 @@ Pure numerics: no GUI, no plotting, no printing, no global state. Modules:
 ``riccati``, ``mpc``, ``closed_loop``, ``config``, ``executors``, ``experiment``,
 ``sweep``, ``summary`` (typed per-b rows), ``assumptions`` (which hypotheses of
 Theorem 1 and BCLS hold), ``datalength`` (error against data length),
-``quantizer_demo`` (one signal quantized with and without dither) and
-``timeseries`` (closed loops as x(t), u(t), ||x_t||).
+``quantizer_demo`` (one signal quantized with and without dither),
+``timeseries`` (closed loops as x(t), u(t), ||x_t||), ``records`` (one row per
+b, estimator and realization: CSV, columns or a pandas DataFrame) and ``interop``
+(python-control ``StateSpace`` in and out; python-control and pandas are imported
+only when those functions run).
 """
 
 from .data import Dataset, simulate
@@ -27,6 +30,9 @@ from .mpc import FailureKind, MPCWeights
 from .riccati import LQParts
 from .quantize import LETTER_QUANTIZER, QuantizerSpec, quantize
 from .systems import PRESETS, LTISystem, UncontrollableWarning, boeing747, dc_motor, dc_motor_physical, get_system, load_system
+from .records import COLUMNS as RECORD_COLUMNS
+from .records import RealizationRecord, experiment_records, realization_records, to_columns, to_pandas, write_csv
+from .interop import identified_statespaces, model_to_statespace, system_from_statespace, system_to_statespace
 from .theory import RealizedBounds, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
 
 __version__ = "0.1.0"
@@ -43,3 +49,6 @@ __all__ = [
     "ultimate_bound",
 ]
 __all__ += ["FailureKind", "LQParts", "MPCWeights"]
+__all__ += ["RECORD_COLUMNS", "RealizationRecord", "experiment_records", "realization_records", "to_columns",
+            "to_pandas", "write_csv"]
+__all__ += ["identified_statespaces", "model_to_statespace", "system_from_statespace", "system_to_statespace"]
