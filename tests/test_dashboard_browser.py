@@ -168,14 +168,14 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
                     box = page1.locator(".js-plotly-plot").locator("visible=true").first.bounding_box()
                     page1.screenshot(path=os.path.join(shots, f"view-{label.lower().replace(' ', '-')}.png"),
                                      clip=dict(x=box["x"] - 10, y=0, width=box["width"] + 30, height=900))
-            sphere0 = float(s1.portrait.sphere.scale)
+            sphere0 = s1.portrait.view.sphere_radius
             pts0 = s1.portrait.traj.points.copy()
 
             # move the word-length slider in the browser: plot marker, sphere and lines follow
             _set_bits(page1, 12)
             assert s1.wait_idle(60)
             assert s1.last_frame.bits == 12 and s1.controls["bits"].value == 12
-            assert float(s1.portrait.sphere.scale) < sphere0
+            assert s1.portrait.view.sphere_radius < sphere0
             assert not (s1.portrait.traj.points == pts0).all()
             assert "b = **12** bits" in s1.controls.summary.content
 

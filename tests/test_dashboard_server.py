@@ -130,10 +130,10 @@ def test_first_view_draws_scene_plots_and_summary(tab):
     R, T = 4, 15
     assert p.traj.points.shape == (2 * R * T, 2, 3)  # ONE node: every realization of LS and BCLS
     assert p.true.points.shape == (T, 2, 3)
-    # at b = 4 the dc motor's bound is larger than the view: drawn capped, fainter, and labelled so
-    assert p.sphere.visible and p.sphere.opacity == 0.12 and "(sphere capped)" in p.sphere_label.text
+    # at b = 4 the dc motor's bounds are larger than the view: no outline hides the loops, a label says so
+    assert not p.sphere.visible and not p.realized.visible and "off scale" in p.sphere_label.text
     assert [lab.text for lab in p.axis_labels] == ["angle", "speed", "current"]
-    assert "display scale" in p.scale_label.text and "δ(ε)" in p.sphere_label.text
+    assert "1 box unit =" in p.scale_label.text and "δ(ε)" in p.sphere_label.text
     assert set(tab.session.plots) == set(view_names())
     for name, h in tab.session.plots.items():
         assert len(h.figure.data) > 0 or name == "datalength", name  # data length: on demand
@@ -146,13 +146,13 @@ def test_first_view_draws_scene_plots_and_summary(tab):
 def test_word_length_change_moves_sphere_lines_and_marker(tab):
     p = tab.session.portrait
     traj_handle = p.traj
-    pts, scale = p.traj.points.copy(), p.sphere.scale
+    pts, radius = p.traj.points.copy(), p.view.sphere_radius
     eig = tab.session.plots["eigen"].figure.to_json()
     assert marks(tab) == [4, 4]
     tab.set(bits=10)
     assert p.traj is traj_handle  # updated in place, not re-added
     assert not np.array_equal(p.traj.points, pts)
-    assert p.sphere.scale < scale  # delta(eps) shrinks with more bits
+    assert p.view.sphere_radius < radius  # delta(eps) shrinks with more bits
     assert marks(tab) == [10, 10]
     assert tab.session.plots["eigen"].figure.to_json() != eig
     assert tab.frame.bits == 10 and "b = **10** bits" in tab.summary
@@ -204,7 +204,7 @@ def test_failing_mpc_is_reported_per_realization(tab):
     assert "4/4 (" in tab.summary and "diverged" in tab.summary and "LS MPC: " in tab.summary
     assert "its MPC failed: closed loop diverged" in tab.summary
     v = tab.session.portrait.view
-    assert v.failed == 8 and np.isfinite(v.segments).all() and v.axis_names == ("x1", "-", "-")
+    assert v.failed == 8 and np.isfinite(v.segments).all() and v.axis_names == ("x1", "time", "")
 
 
 def test_boeing_axes_dropdown_picks_the_drawn_states(tab):

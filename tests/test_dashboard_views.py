@@ -21,7 +21,7 @@ from qsid_core import Experiment
 from qsid_core.errors import QsidError
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
-NAMES = ("error", "eigen", "timeseries", "cost", "bound", "quantizer", "datalength", "portraits")
+NAMES = ("error", "eigen", "timeseries", "cost", "bound", "norm_time", "quantizer", "datalength", "portraits")
 
 
 def frames(v: Values, cache=None):
@@ -71,7 +71,8 @@ def test_scene_view_shapes_scale_and_sphere():
     np.testing.assert_allclose(sv.true_segments[0, 0], ts[0, [0, 2, 3]] / sv.scale, rtol=1e-6)
     np.testing.assert_allclose(sv.start, ts[0, [0, 2, 3]] / sv.scale)
     assert sv.delta == pytest.approx(f.theory.delta)
-    assert sv.sphere_radius == pytest.approx(min(f.theory.delta / sv.scale, SPHERE_CAP))
+    assert sv.sphere_radius == pytest.approx(f.theory.delta / sv.scale)
+    assert sv.sphere_capped == (sv.sphere_radius > SPHERE_CAP) and (sv.bound_circles.shape[0] > 0) != sv.sphere_capped
     assert np.abs(sv.segments).max() <= CLIP
 
 

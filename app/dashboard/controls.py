@@ -19,12 +19,14 @@ from app.figures.phase_scene import axes_options
 from qsid_core.quantize import DITHERS, RANGE_MODES
 from qsid_core.systems import LTISystem
 
+from .lessons import NONE, lesson_markdown, lesson_names, lesson_values
 from .settings import (
     ALL_BITS, IDENT_CHOICES, INTERACTIVE, LOG_MAX, LOG_MIN, PAPER_SCALE, SYSTEM_CHOICES, Values, format_weights,
     log_from_weights, matrix_text, weights_from_log,
 )
 
-__all__ = ["Control", "CONTROLS", "GuiElements", "make_gui_elements", "read_values", "set_scale", "set_system"]
+__all__ = ["Control", "CONTROLS", "GuiElements", "make_gui_elements", "read_values", "set_scale", "set_system",
+           "apply_lesson"]
 
 MATRIX_HINT = "One row per line (or separate rows with ';'); numbers separated by spaces or commas."
 
@@ -53,6 +55,8 @@ class Control:
 _R = "Dither realizations"
 #: Every input of the panel, in display order (tabs appear in order of first use).
 CONTROLS: tuple[Control, ...] = (
+    Control("lesson", "dropdown", "lesson", choices=lesson_names(),
+            hint="A lesson sets the controls and says what to look at (every claim is tested)"),
     Control("bits", "slider", "word length b", lo=ALL_BITS[0], hi=ALL_BITS[-1], step=1, convert=int,
             hint=f"Bits per sample of the quantizer ({ALL_BITS[0]}..{ALL_BITS[-1]}). "
                  "Curves show every b; the 3-D view shows this one."),
@@ -78,6 +82,9 @@ CONTROLS: tuple[Control, ...] = (
     Control("steps", "slider", "steps", "Data", 10, 2000, 10, convert=int,
             hint=f"Steps per training run (paper: {PAPER_SCALE['steps']})"),
     Control("data_seed", "number", "data seed", "Data", 0, step=1, convert=int),
+    Control("input_amplitude", "number", "input amplitude", "Data", 1e-6, step=0.1, convert=float,
+            hint="Training inputs u ~ U[-A, A] (the letter: A = 1). Small A: a small signal against the "
+                 "quantizer range"),
     Control("identification", "dropdown", "estimator", "Identify", choices=tuple(IDENT_CHOICES),
             hint="LS: least squares on quantized data. BCLS: bias-compensated LS "
                  "(subtracts the known dither noise T·diag(ε²/12))."),
@@ -94,6 +101,8 @@ CONTROLS: tuple[Control, ...] = (
     Control("rho_auto", "checkbox", "ρ auto", "Theory", convert=bool,
             hint="ρ = sqrt(λmax(P)/λmin(P))·‖x0‖ (engine default)"),
     Control("rho", "number", "ρ", "Theory", 1e-6, step=0.1, convert=float),
+    Control("show_bound", "checkbox", "bound in 3-D", "Theory", convert=bool,
+            hint="Draw the ultimate bounds as circles in the 3-D view (hide them to see the loops alone)"),
 )
 
 
@@ -113,6 +122,7 @@ class GuiElements:
     summary: object
     system_note: object
     weights_note: object
+    lesson_text: object
     q_folder: object
     r_folder: object
     on_change: Callable[[], None]
@@ -188,15 +198,19 @@ def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callabl
         h.on_update(lambda _event: on_change())  # only mark dirty; the tab's worker redraws
         handles[c.name] = h
 
-    add(CONTROLS[0])  # the word length, always visible above the tabs
+    for c in (c for c in CONTROLS if c.tab == ""):  # the lesson and the word length, above the tabs
+        add(c)
+        if c.name == "lesson":
+            text = lesson_markdown(values.lesson)
+            extra["lesson_text"] = gui.add_markdown(text, visible=bool(text))
     extra["progress"] = gui.add_progress_bar(0.0, animated=False)
     extra["status"] = gui.add_markdown("starting …")
     extra["error"] = gui.add_markdown("", visible=False)
     tabs = gui.add_tab_group()
-    for tab in dict.fromkeys(c.tab for c in CONTROLS[1:]):
+    for tab in dict.fromkeys(c.tab for c in CONTROLS if c.tab):
         with tabs.add_tab(tab):
             folders: dict = {}
-            for c in (c for c in CONTROLS[1:] if c.tab == tab):
+            for c in (c for c in CONTROLS if c.tab == tab):
                 if c.folder is None:
                     add(c)
                 else:
@@ -274,6 +288,34 @@ def show_weights(el: GuiElements) -> None:
     q = weights_from_log([s.value for s in el.q_sliders])
     r = weights_from_log([s.value for s in el.r_sliders])
     el.weights_note.content = f"{format_weights('Q', q)}, {format_weights('R', r)}"
+
+
+def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
+    """Set the panel to lesson ``name`` (system first, then every other input) and show its text.
+
+    ``resolve(values) -> LTISystem`` builds the lesson's system. Returns True if inputs were set
+    (False for no lesson: the panel stays as it is).
+    """
+    text = lesson_markdown(name)
+    el.lesson_text.content = text
+    el.lesson_text.visible = bool(text)
+    if name == NONE:
+        return False
+    v = lesson_values(name, read_values(el))
+    h = el.inputs
+    h["system"].value = v.system
+    system = resolve(v)
+    set_system(el, system, reset=True)
+    for s, x in zip(el.q_sliders + el.r_sliders, log_from_weights(np.diag(system.Q)) + log_from_weights(np.diag(system.R))):
+        s.value = x
+    for c in CONTROLS:
+        if c.name in ("lesson", "system", "a_text", "b_text", "axes"):
+            continue
+        value = getattr(v, c.name) if c.name != "x0" or v.x0 else ", ".join(f"{x:g}" for x in system.x0)
+        if h[c.name].value != value:
+            h[c.name].value = value
+    show_weights(el)
+    return True
 
 
 def read_values(el: GuiElements) -> Values:

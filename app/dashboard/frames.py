@@ -27,6 +27,14 @@ def row(r) -> dict:
     return r.to_dict() if hasattr(r, "to_dict") else dict(r)
 
 
+def full_row(ex: Experiment, est: str, b: int, lp) -> dict:
+    """The engine's complete row at ``b`` (closed loops ``lp``, the a-posteriori bound, the assumptions,
+    the saturated steps), as the dict the views read."""
+    u_max = ex.config.mpc.resolve(ex.system)["u_max"]
+    return row(summary_row(ex.system.n, ex.identification(b, est), ex.theory(b), lp, u_max=u_max,
+                           realized=ex.realized_bound(b, est), assumptions=ex.assumptions(b)))
+
+
 @dataclass
 class Frame:
     """One drawable state of a tab: the current b in full, and the rows of every b computed so far.
@@ -133,7 +141,7 @@ def start(values: Values, cache: MutableMapping | None, executor, tasks: int) ->
     idents = {LABELS[e]: ex.identification(b, e) for e in ests}
     th = ex.theory(b)
     loops = {LABELS[e]: ex.closed_loops(b, e) for e in ests}
-    rows = {LABELS[e]: {b: row(summary_row(system.n, idents[LABELS[e]], th, loops[LABELS[e]]))} for e in ests}
+    rows = {LABELS[e]: {b: full_row(ex, e, b, loops[LABELS[e]])} for e in ests}
     mc = mpc_config(values, system)
     x0 = np.asarray(mc.x0 if mc.x0 is not None else system.x0, dtype=float)
     common = dict(values=values, system=system, bits=b, labels=tuple(LABELS[e] for e in ests), loops=loops,
@@ -146,7 +154,7 @@ def fill_rows(job: Job, rows: dict, est: str, bits, loops: Mapping | None = None
     ex = job.ex
     for x in bits:
         lp = loops[x] if loops is not None else ex.closed_loops(x, est)
-        rows[LABELS[est]][x] = row(summary_row(job.n, ex.identification(x, est), ex.theory(x), lp))
+        rows[LABELS[est]][x] = full_row(ex, est, x, lp)
 
 
 def make_frame(job: Job, stage: str, rows: dict, done: int, elapsed: float, timings: dict) -> Frame:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from app.figures.compare import PINNED_VIEWS, overlay_pinned
 from app.figures.phase_scene import SceneView, scene_view
 from app.figures import registry
+from app.figures.axes import finite_axes
 from app.figures.traces import move_current_bits
 from app.figures.view import CURRENT, CURVES
 
@@ -27,7 +28,7 @@ def build_figures(frame: Frame, which=None) -> dict:
         for v in registry.VIEWS:
             if v.name in figs and v.name in PINNED_VIEWS:
                 overlay_pinned(figs[v.name], v.build(pinned), f"pinned b={pinned.bits}")
-    return figs
+    return {name: finite_axes(fig) for name, fig in figs.items()}
 
 
 @dataclass

@@ -19,7 +19,8 @@ __all__ = ["PhasePortrait"]
 AXIS = 1.25  # half length of the drawn axes, in box units
 _GREY = rgb("axes")
 _SPHERE = rgb("bound")
-_CAPPED = rgb("bound_capped")
+_REALIZED = rgb("realized")
+_NONE = np.zeros((1, 2, 3), dtype=np.float32)
 
 
 class PhasePortrait:
@@ -51,8 +52,11 @@ class PhasePortrait:
         ]
         self.scale_label = scene.add_label(f"{prefix}/scale", "", position=(0.0, 0.0, -AXIS - 0.05),
                                            anchor="top-center", font_screen_scale=0.85)
-        self.sphere = scene.add_icosphere(f"{prefix}/bound", radius=1.0, color=_SPHERE, opacity=0.25,
-                                          subdivisions=3, scale=1e-3, cast_shadow=False, receive_shadow=False)
+        self.sphere = self._add_circles("bound", _NONE, _SPHERE)
+        self.realized = self._add_circles("bound_realized", _NONE, _REALIZED)
+        self.marks = scene.add_point_cloud(f"{prefix}/time_marks", np.zeros((1, 3), dtype=np.float32),
+                                           np.array(rgb("true"), dtype=np.uint8), point_size=0.035,
+                                           point_shape="circle")
         self.sphere_label = scene.add_label(f"{prefix}/bound_label", "", position=(0.0, 0.0, 0.0),
                                             anchor="bottom-center", font_screen_scale=0.9)
         self.start = scene.add_icosphere(f"{prefix}/x0", radius=0.035, color=(0, 0, 0), subdivisions=2,
@@ -64,6 +68,23 @@ class PhasePortrait:
         self.true = self._add_true(empty)
 
     # ----- nodes ------------------------------------------------------------------------
+    def _add_circles(self, name: str, pts, color):
+        """Thin outline circles of a bound (unobtrusive: never hides the loops)."""
+        return self.scene.add_line_segments(f"{self.p}/{name}", pts, np.array(color, dtype=np.uint8),
+                                            thickness=1.2, thickness_units="screen")
+
+    def _set_circles(self, attr: str, name: str, pts, color) -> None:
+        node = getattr(self, attr)
+        if pts.shape[0] == 0:
+            node.visible = False
+            return
+        if node.points.shape != pts.shape:
+            node = self._add_circles(name, pts, color)
+            setattr(self, attr, node)
+        else:
+            node.points = pts
+        node.visible = True
+
     def _add_traj(self, pts, cols):
         return self.scene.add_line_segments(f"{self.p}/trajectories", pts, cols, thickness=2.0,
                                             thickness_units="screen")
@@ -89,26 +110,34 @@ class PhasePortrait:
                 lab.text = name
         self.start.position = tuple(float(x) for x in v.start)
         self.start_label.position = tuple(float(x) for x in v.start)
-        r = v.sphere_radius
-        self.sphere.scale = max(r, 1e-4)
-        self.sphere.visible = r > 0
-        # a bound larger than the view is drawn capped, fainter and orange (the label says so)
-        self.sphere.color = _CAPPED if v.sphere_capped else _SPHERE
-        self.sphere.opacity = 0.12 if v.sphere_capped else 0.25
-        if v.delta is None:
-            stext = "δ(ε): no bound at this b"
-        elif v.sphere_capped:
-            stext = f"δ(ε) = {v.delta:.3g} = {v.delta / v.scale:.3g} box units (sphere capped)"
-        else:
-            stext = f"δ(ε) = {v.delta:.3g}"
-        self.sphere_label.text = stext
+        self._set_circles("sphere", "bound", v.bound_circles, _SPHERE)
+        self._set_circles("realized", "bound_realized", v.realized_circles, _REALIZED)
+        self.sphere_label.text = v.bound_text if v.show_bound else ""
+        self.sphere_label.visible = v.show_bound
+        r = min(v.sphere_radius, 1.6) if v.bound_circles.shape[0] else 0.0
         self.sphere_label.position = (0.0, 0.0, float(max(r, 0.02)))
+        if v.time_marks.shape[0] and v.time_marks.shape != self.marks.points.shape:
+            self.marks = self.scene.add_point_cloud(f"{self.p}/time_marks", v.time_marks,
+                                                    np.array(rgb("true"), dtype=np.uint8), point_size=0.035,
+                                                    point_shape="circle")
+        elif v.time_marks.shape[0]:
+            self.marks.points = v.time_marks
+        self.marks.visible = v.time_marks.shape[0] > 0
+        ax = np.zeros((3, 2, 3), dtype=np.float32)
+        for i, name in enumerate(v.axis_names):  # an unused axis (1-state systems) is not drawn
+            self.axis_labels[i].visible = bool(name)
+            if name:
+                ax[i, 0, i], ax[i, 1, i] = (0.0 if name == "time" else -AXIS), AXIS
+        if not np.array_equal(self.axes.points, ax):
+            self.axes.points = ax
         extra = []
         if v.failed:
             extra.append(f"{v.failed} failed loops hidden")
         if v.clipped:
             extra.append(f"{v.clipped} loops leave the view (clipped)")
-        self.scale_label.text = (f"{v.polylines} closed loops · display scale: 1 box unit = {v.scale:.3g}"
+        same = "" if v.polylines == v.realizations else f" ({v.realizations} computed, identical without dither)"
+        self.scale_label.text = (f"{v.polylines} distinct closed loops{same} · dots every {v.mark_every} steps on "
+                                 f"the true-model loop · 1 box unit = {v.scale:.3g}"
                                  + (" · " + " · ".join(extra) if extra else ""))
         self.view = v
         self.draws += 1

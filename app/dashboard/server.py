@@ -22,6 +22,7 @@ import viser
 from qsid_core.errors import QsidError
 
 from .cache import SharedCache
+from .lessons import get_lesson, lesson_names, lesson_values
 from .memory import limit_arenas, trim
 from .netcheck import OneLineParser, check_address, port_number
 from .pool import DEFAULT_TIMEOUT, Pool
@@ -54,12 +55,14 @@ class DashboardApp:
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
-                 cache_bytes: int = 256 * 2**20, settings: Values | None = None,
+                 cache_bytes: int = 256 * 2**20, settings: Values | None = None, lesson: str | None = None,
                  task_timeout: float = DEFAULT_TIMEOUT):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
         self.defaults = settings if settings is not None else Values(system=system, **size)
+        if lesson is not None:  # every new tab opens on the lesson (its settings, its text)
+            self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
         self.cache = SharedCache(cache_bytes)
         self.slots = threading.BoundedSemaphore(max(1, slots))  # (4) at most `slots` tabs compute at once
         self.workers = max(0, int(workers))
@@ -133,6 +136,14 @@ class DashboardApp:
         self.server.stop()
 
 
+def _check_lesson(name: str) -> str:
+    try:
+        get_lesson(name)
+    except KeyError as exc:
+        raise QsidError(exc.args[0]) from None
+    return name
+
+
 def _parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog="qsid-dashboard", description="Live dashboard: quantized data -> "
                                 "identification -> MPC. Open the printed URL in a browser.")
@@ -154,6 +165,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="memory budget of the results cache shared by all tabs (default 256)")
     p.add_argument("--settings", metavar="FILE", default=None,
                    help="start every new tab from a settings file (saved with the panel's 'Download settings')")
+    p.add_argument("--lesson", default=None, metavar="NAME",
+                   help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}")
     return p
 
 
@@ -185,6 +198,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
               file=sys.stderr)
         return 2
+    if args.lesson is not None:
+        try:
+            _check_lesson(args.lesson)
+        except QsidError as exc:
+            print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
+            return 2
     try:
         settings = None if args.settings is None else load_settings_file(args.settings)
         warning = check_address(args.host, args.port)
@@ -199,7 +218,8 @@ def main(argv: list[str] | None = None) -> int:
     code = 0
     try:
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
-                           settings=settings, task_timeout=args.task_timeout, cache_bytes=args.cache_mb * 2**20)
+                           settings=settings, lesson=args.lesson, task_timeout=args.task_timeout,
+                           cache_bytes=args.cache_mb * 2**20)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         _wait_for_stop_signal()
         print("\nqsid dashboard: stopping", flush=True)

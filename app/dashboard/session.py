@@ -36,7 +36,7 @@ from qsid_core.errors import QsidError
 from qsid_core.systems import PRESETS, get_system
 
 from .background import DataLengthRunner
-from .controls import make_gui_elements, read_values, set_system, show_weights
+from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
 from .frames import Frame, fill_rows, make_frame, start
 from .inputs import check_panel, unusable
 from .pool import PoolFailure, PoolTimeout, Superseded
@@ -188,6 +188,7 @@ class Session:
         self.plots_panel.set_width(PANEL_WIDTH)
         system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
         self.controls = make_gui_elements(gui, values, system, self.touch)
+        self._lesson = values.lesson  # the lesson whose settings the panel was given
         self.share = add_share_panel(self)  # keep & share: settings file, command line, exports
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
         self.views = ViewPanel(gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin,
@@ -287,6 +288,17 @@ class Session:
             values = read_values(c)
         return gen, values
 
+    def _open_lesson(self, gen: int) -> int:
+        """A newly picked lesson sets the panel (the worker's own changes: their generation is adopted)."""
+        name = self.controls["lesson"].value
+        if name == self._lesson:
+            return gen
+        self._lesson = name
+        if apply_lesson(self.controls, name, lambda v: resolve_system(v).system):
+            with self._cond:
+                gen = self._gen
+        return gen
+
     def _run(self, gen: int) -> int:
         """Check, compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
@@ -297,6 +309,7 @@ class Session:
             self._show_error(str(exc))
             return gen
         show_weights(c)
+        gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:
             return gen

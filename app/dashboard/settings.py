@@ -26,7 +26,7 @@ from qsid_core.systems import PRESETS, LTISystem, UncontrollableWarning, get_sys
 
 __all__ = [
     "ALL_BITS", "INTERACTIVE", "PAPER_SCALE", "SYSTEM_CHOICES", "IDENT_CHOICES", "LABELS", "LOG_MIN", "LOG_MAX",
-    "InputError", "Values", "SystemChoice", "resolve_system", "matrix_text", "quantizer_spec", "mpc_config",
+    "NO_LESSON", "InputError", "Values", "SystemChoice", "resolve_system", "matrix_text", "quantizer_spec", "mpc_config",
     "sweep_config", "estimators", "weights_from_log", "log_from_weights", "format_weights", "parse_vector",
 ]
 
@@ -48,6 +48,8 @@ LABELS = {e: e.upper() for e in ESTIMATORS}
 IDENT_CHOICES = {**{LABELS[e]: (e,) for e in ESTIMATORS}, " + ".join(LABELS[e] for e in ESTIMATORS): ESTIMATORS}
 #: Range of the log10 weight sliders.
 LOG_MIN, LOG_MAX = -3.0, 3.0
+#: The lesson selector's "no lesson" entry (lessons: :mod:`app.dashboard.lessons`).
+NO_LESSON = "(none)"
 #: Largest custom system the dashboard accepts (3-D view choices grow as n^3).
 MAX_CUSTOM_STATES = 12
 #: Largest |lo|, |hi| of a typed fixed quantizer range (beyond it eps overflows or loses all precision).
@@ -78,6 +80,7 @@ class Values:
     trajectories: int = INTERACTIVE["trajectories"]
     steps: int = INTERACTIVE["steps"]
     data_seed: int = _SWEEP.data_seed
+    input_amplitude: float = _SWEEP.input_amplitude
     identification: str = tuple(IDENT_CHOICES)[-1]
     horizon: int = _MPC.horizon
     log_q: tuple = ()
@@ -89,6 +92,8 @@ class Values:
     rho_auto: bool = _SWEEP.rho is None
     rho: float = 1.0
     axes: str = ""
+    show_bound: bool = True
+    lesson: str = NO_LESSON
     x_ref: str = ""  # constant reference, one number per state ("" = regulate to 0)
     x_max: str = ""  # state box |x_i| <= x_max_i: one number for all or one per state ("" = none)
     view_channel: int = 0  # the quantizer view's channel (states, then inputs)
@@ -271,10 +276,13 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"word length b must be between {ALL_BITS[0]} and {ALL_BITS[-1]}; got {v.bits}")
     if not v.rho_auto and not (np.isfinite(v.rho) and v.rho > 0):
         raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
+    if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
+        raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
     try:
         return SweepConfig(
             system=system, bits=ALL_BITS, realizations=int(v.realizations), trajectories=int(v.trajectories),
-            steps=int(v.steps), data_seed=int(v.data_seed), dither_seed=int(v.dither_seed),
+            steps=int(v.steps), input_amplitude=float(v.input_amplitude), data_seed=int(v.data_seed),
+            dither_seed=int(v.dither_seed),
             quantizer=quantizer_spec(v, system.n, system.m), estimator=estimators(v.identification)[0],
             mpc=mpc_config(v, system), theta=float(v.theta), rho=None if v.rho_auto else float(v.rho),
         )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from app.figures.hypotheses import CAPTION, bcls_reasons, theorem1_reasons
 from qsid_core.summary import saturated_steps
 
 from .frames import Frame
@@ -20,6 +21,36 @@ def _failures(row: dict, lp) -> str:
         return "none"
     kinds = ", ".join(f"{n} {kind}" for kind, n in sorted(mc.get("failures", {}).items()))
     return f"{k}/{len(lp.failure)} ({kinds})"
+
+
+def _bounds(frame: Frame, first: dict) -> str:
+    """The two ultimate bounds at the current b, the rho they used, and what they mean."""
+    rho = first.get("rho")
+    rho_text = f"ρ = {_g(rho)} ({'automatic' if frame.values.rho_auto else 'set in the panel'})"
+    parts = [f"letter's δ(ε) = {_g(first['ultimate_bound'])} (Theorem 1's T → ∞ model errors)"]
+    for lab in frame.labels:
+        rb = frame.rows[lab][frame.bits].get("ultimate_bound_realized") or {}
+        parts.append(f"a-posteriori δ {lab} = {_g(rb.get('median'))} median, {_g(rb.get('max'))} max "
+                     "(each realization's own model error and P)")
+    return "**Ultimate bound** · " + " · ".join(parts) + f" · {rho_text}.  \n*{CAPTION}.*"
+
+
+def _hypotheses(frame: Frame) -> list:
+    """Which hypotheses of Theorem 1 and BCLS fail at the current b, and why (the engine's flags)."""
+    b = frame.bits
+    first = frame.rows[frame.labels[0]][b]
+    a = first.get("assumptions")
+    if not a:
+        return []
+    t1 = theorem1_reasons([first])
+    bc = bcls_reasons([first])
+    lines = ["**Theorem 1** (dashed line): " + ("all hypotheses hold." if not t1 else
+                                              "does not apply here (line faded):")]
+    lines += [f"- {w}" for w in t1]
+    lines += ["", "**BCLS** (known noise ε²/12): " + ("its hypotheses hold." if not bc else
+                                                    "its noise model fails (✕ marks):")]
+    lines += [f"- {w}" for w in bc]
+    return lines
 
 
 def _saturation(frame: Frame) -> str:
@@ -45,14 +76,19 @@ def summary_markdown(frame: Frame) -> str:
     first = frame.rows[frame.labels[0]][b]
     eps_x = ", ".join(f"{nm} {e:.3g}" for nm, e in zip(sysm.state_names, first["eps_x"]))
     eps_u = ", ".join(f"{nm} {e:.3g}" for nm, e in zip(sysm.input_names, first["eps_u"]))
+    eff = first.get("effective_realizations") or frame.values.realizations
+    distinct = "" if eff == frame.values.realizations else f" ({eff} distinct: no dither, all identical)"
     lines = [
-        f"**{sysm.name}**, b = **{b}** bits, {frame.values.realizations} dither realizations, "
+        f"**{sysm.name}**, b = **{b}** bits, {frame.values.realizations} dither realizations{distinct}, "
         f"{frame.values.trajectories} × {frame.values.steps} samples",
         "",
         f"ε states: {eps_x}  ",
         f"ε inputs: {eps_u}  ",
-        f"overload: {100 * first['overload_fraction']:.2f} % of samples · "
-        f"δ(ε) = {_g(first['ultimate_bound'])}",
+        f"overload: {100 * first['overload_fraction']:.2f} % of samples",
+        "",
+        _bounds(frame, first),
+        "",
+        *_hypotheses(frame),
         "",
         "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost | MPC failures |",
         "|---|---|---|---|---|",

@@ -1,43 +1,94 @@
-"""View: the ultimate bound delta(eps) against the measured final state norm, over b."""
+"""View: the two ultimate bounds against b, and the measured final state norm.
+
+* the letter's delta(eps) (green, dashed): from Theorem 1's predicted (T -> inf) model errors;
+* the a-posteriori delta (purple): from each realization's own model error and its own P,
+  median (line) and max (band) over realizations -- the honest companion for finite data;
+* ``||x_T||`` mean and max per estimator at the end of the drawn closed loops.
+
+Both bounds hold only as t -> inf and assume the reference x_ref = 0 (caption).
+"""
 
 from __future__ import annotations
 
+import numpy as np
 import plotly.graph_objects as go
 
+from qsid_core.timeseries import CONVERGED_REL_FLOOR
+
+from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .traces import BITS_AXIS, Series, mark_bits, xy
 from .view import CURVES, View
 
-__all__ = ["bound_figure", "VIEW"]
+__all__ = ["bound_figure", "VIEW", "CAPTION"]
 
 
-def bound_figure(series: Series, current_bits: int | None = None, height: int = 300) -> go.Figure:
-    """delta(eps) (theory, from the first series, dashed) and ``|x_T|`` mean and max per series."""
+
+def _realized(fig, rows, label: str, c: str) -> None:
+    """Median line and median..max band of the a-posteriori bound of one estimator."""
+    mx, my = xy(rows, "ultimate_bound_realized", "median")
+    if not mx:
+        return
+    top = dict(zip(*xy(rows, "ultimate_bound_realized", "max")))
+    bx = [b for b in mx if b in top]
+    if bx:
+        lo = dict(zip(mx, my))
+        fig.add_trace(go.Scatter(x=bx + bx[::-1], y=[top[b] for b in bx] + [lo[b] for b in bx[::-1]],
+                                 fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
+                                 showlegend=False, legendgroup=f"re{label}"))
+    fig.add_trace(go.Scatter(x=mx, y=my, mode="lines+markers", name=f"a-posteriori δ, {label} (median; band: max)",
+                             legendgroup=f"re{label}", line=dict(color=c, width=1.5),
+                             marker=dict(symbol="diamond", size=5)))
+
+
+def _floored(ys: list, floor: float | None) -> tuple[list, bool]:
+    if floor is None:
+        return ys, False
+    return [max(y, floor) for y in ys], any(y < floor for y in ys)
+
+
+def bound_figure(series: Series, current_bits: int | None = None, height: int = 300,
+                 floor: float | None = None) -> go.Figure:
+    """Letter's delta(eps) (dashed), a-posteriori delta per series (median, max band), ``|x_T|`` mean and max.
+
+    ``floor`` (state units, e.g. ``1e-12 ||x0||``): final norms below it are converged and drawn at it
+    (floating-point noise such as 1e-48 is no distance to the origin).
+    """
     fig = go.Figure()
+    conv = False
     for i, (label, rows) in enumerate(series.items()):
         c = color(label, i)
         if i == 0:
             bx, by = xy(rows, "ultimate_bound")
-            fig.add_trace(go.Scatter(x=bx, y=by, mode="lines+markers", name="δ(ε) bound",
+            fig.add_trace(go.Scatter(x=bx, y=by, mode="lines+markers", name="letter's δ(ε) (Theorem 1 errors)",
                                      line=dict(color=COLORS["theory"], dash="dash")))
+        _realized(fig, rows, label, COLORS["realized"] if i == 0 else c)
         mx, my = xy(rows, "final_state_norm", "mean")
+        my, c1 = _floored(my, floor)
         fig.add_trace(go.Scatter(x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean", line=dict(color=c)))
         xx, xy_ = xy(rows, "final_state_norm", "max")
+        xy_, c2 = _floored(xy_, floor)
+        conv = conv or c1 or c2
         fig.add_trace(go.Scatter(x=xx, y=xy_, mode="markers", name=f"{label} ‖x_T‖ max",
                                  marker=dict(color=c, symbol="triangle-up")))
     mark_bits(fig, current_bits)
+    fig.add_annotation(text=CAPTION, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
+                       yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))
+    if conv:
+        fig.add_hline(y=floor, line=dict(color=COLORS["ref"], dash="dot", width=1),
+                      annotation_text="converged (‖x_T‖ ≤ 1e-12‖x0‖)", annotation_position="bottom right",
+                      annotation_font_size=9)
     fig.update_yaxes(type="log", title_text="norm", exponentformat="power")
     fig.update_xaxes(**BITS_AXIS)
-    fig.update_layout(height=height, margin=dict(l=50, r=10, t=20, b=40), template="plotly_white",
+    fig.update_layout(height=height, margin=dict(l=50, r=10, t=30, b=40), template="plotly_white",
                       legend=dict(orientation="h", y=-0.3))
     return fig
 
 
 def _build(frame) -> go.Figure:
-    fig = bound_figure(frame.series(), current_bits=frame.bits, height=260)
-    fig.add_annotation(text="δ(ε) assumes regulation to x_ref = 0", showarrow=False, x=1, y=1.02, xref="paper",
-                       yref="paper", xanchor="right", yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))
-    return fig
+    r0 = float(np.linalg.norm(frame.x0))
+    floor = CONVERGED_REL_FLOOR * (r0 if r0 > 0 else 1.0)
+    return bound_figure(frame.series(), current_bits=frame.bits, height=300, floor=floor)
 
 
-VIEW = View("bound", aspect=0.6, depends=CURVES, build=_build)
+VIEW = View("bound", aspect=0.75, depends=CURVES, build=_build)

@@ -6,20 +6,51 @@ import numpy as np
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
+from .hypotheses import bcls_reasons, flags, theorem1_reasons
 from .palette import COLORS, color
-from .traces import BITS_AXIS, Series, band, mark_bits, xy
+from .traces import BITS_AXIS, Series, band, get, mark_bits, xy
 from .view import CURVES, View
 
 __all__ = ["error_figure", "VIEW"]
 
 
-def _theory_and_reference(fig, rows, key: str, col: int, ref_slope: float) -> None:
-    """Theorem 1's prediction (dashed) and a ``ref_slope``/bit line through the first mean (dotted)."""
+def _holds(rows, key: str = "theorem1_holds") -> dict:
+    """b -> whether the engine says the hypotheses hold (True where the row has no assumptions)."""
+    return {r["bits"]: bool((flags(r) or {}).get(key, True)) for r in rows}
+
+
+def _theorem1(fig, rows, key: str, col: int) -> None:
+    """Theorem 1's line: dashed where its hypotheses hold, faded and dotted where they fail."""
     tx, ty = xy(rows, f"{key}_theory")
-    if tx:
-        fig.add_trace(go.Scatter(x=tx, y=ty, mode="lines", name="Theorem 1", legendgroup="th",
-                                 showlegend=(col == 1), line=dict(color=COLORS["theory"], dash="dash")),
-                      row=1, col=col)
+    ok = _holds(rows)
+    # the faded part also takes the neighbours of a failing b, so the two parts join up
+    good = [y if ok[b] else None for b, y in zip(tx, ty)]
+    bad = [y if not ok[b] or (i > 0 and not ok[tx[i - 1]]) or (i + 1 < len(tx) and not ok[tx[i + 1]]) else None
+           for i, (b, y) in enumerate(zip(tx, ty))]
+    if any(v is not None for v in good):
+        fig.add_trace(go.Scatter(x=tx, y=good, mode="lines", name="Theorem 1", legendgroup="th",
+                                 showlegend=(col == 1), connectgaps=False,
+                                 line=dict(color=COLORS["theory"], dash="dash")), row=1, col=col)
+    if any(v is not None for v in bad) and not all(ok.values()):
+        fig.add_trace(go.Scatter(x=tx, y=bad, mode="lines", name="Theorem 1 (hypotheses fail)", legendgroup="thx",
+                                 showlegend=(col == 1), connectgaps=False, opacity=0.35,
+                                 line=dict(color=COLORS["theory"], dash="dot", width=1.5)), row=1, col=col)
+
+
+def _bcls_marks(fig, rows, key: str, col: int) -> None:
+    """Open crosses on the BCLS mean where its known-noise model fails (no dither, overload)."""
+    ok = _holds(rows, "bcls_holds")
+    pts = [(r["bits"], get(r, key, "mean")) for r in rows if not ok[r["bits"]]]
+    pts = [(b, y) for b, y in pts if y is not None and np.isfinite(y) and y > 0]
+    if pts:
+        fig.add_trace(go.Scatter(x=[p[0] for p in pts], y=[p[1] for p in pts], mode="markers",
+                                 name="BCLS: noise not ε²/12", legendgroup="bclsx", showlegend=(col == 1),
+                                 marker=dict(color=COLORS["BCLS"], symbol="x-open", size=11)), row=1, col=col)
+
+
+def _theory_and_reference(fig, rows, key: str, col: int, ref_slope: float) -> None:
+    """Theorem 1's prediction (dashed / faded) and a ``ref_slope``/bit line through the first mean (dotted)."""
+    _theorem1(fig, rows, key, col)
     mx, my = xy(rows, key, "mean")
     if mx:
         b = np.array([mx[0], max(mx[-1], mx[0] + 1)])
@@ -44,12 +75,35 @@ def error_figure(series: Series, current_bits: int | None = None, ref_slope: flo
             band(fig, rows, key, color(label, i), label, row=1, col=col, showlegend=(col == 1))
             if i == 0:
                 _theory_and_reference(fig, rows, key, col, ref_slope)
+            if label == "BCLS":
+                _bcls_marks(fig, rows, key, col)
+    first = next(iter(series.values()), [])
+    notes = [f"Theorem 1 faded: {w}" for w in theorem1_reasons(first)]
+    if "BCLS" in series:
+        notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series["BCLS"])]
+    if notes:
+        fig.add_annotation(text="<br>".join(_wrap(t) for t in notes), xref="paper", yref="paper", x=0, y=1.0,
+                           yanchor="bottom", xanchor="left", yshift=22, showarrow=False, align="left",
+                           font=dict(size=9, color="#555555"))
     fig.update_yaxes(type="log", exponentformat="power")
     fig.update_xaxes(**BITS_AXIS)
     mark_bits(fig, current_bits, row="all", col="all")
-    fig.update_layout(height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.25),
-                      template="plotly_white")
+    top = 30 + 13 * sum(len(_wrap(t).split("<br>")) for t in notes)
+    fig.update_layout(height=height + top - 30, margin=dict(l=50, r=10, t=top, b=40),
+                      legend=dict(orientation="h", y=-0.25), template="plotly_white")
     return fig
+
+
+def _wrap(text: str, width: int = 95) -> str:
+    """Break a note into lines of at most ``width`` characters (plotly does not wrap)."""
+    lines, cur = [], ""
+    for w in text.split():
+        if cur and len(cur) + 1 + len(w) > width:
+            lines.append(cur)
+            cur = w
+        else:
+            cur = f"{cur} {w}".strip()
+    return "<br>".join(lines + [cur])
 
 
 VIEW = View("error", aspect=0.62, depends=CURVES,

@@ -19,6 +19,7 @@ COLORS = {
     "axes": "#969696",  # 3-D axes
     "bound": "#2ca02c",  # 3-D bound sphere
     "bound_capped": "#ff7f0e",  # 3-D bound sphere drawn capped (larger than the view)
+    "realized": "#9467bd",  # purple: the a-posteriori bound (each realization's own model error and P)
     "unit_circle": "#bbbbbb",
 }
 #: Colours for further series (labels without a named colour), in order.

@@ -13,12 +13,16 @@ import numpy as np
 
 from .palette import vertex_rgb
 
-__all__ = ["CLIP", "SPHERE_CAP", "SceneView", "scene_view", "axes_options", "axes_indices"]
+__all__ = ["CLIP", "SPHERE_CAP", "TIME", "SceneView", "scene_view", "axes_options", "axes_indices", "circles"]
 
 #: Display coordinates are clipped to +-CLIP box units (diverging loops would swamp the view).
 CLIP = 6.0
-#: The bound sphere is drawn at most this many box units wide (larger bounds are drawn capped, as wireframe).
+#: A bound circle is drawn to scale up to this radius (box units); larger: an off-scale label instead.
 SPHERE_CAP = 1.6
+#: For n <= 2 the free axis is time: step t is drawn at TIME * t / steps box units.
+TIME = 1.2
+#: Time markers: about this many dots along the true-model loop.
+TIME_MARKS = 10
 
 
 @dataclass
@@ -35,29 +39,50 @@ class SceneView:
         (:func:`app.figures.palette.vertex_rgb`), so the screen shows the palette colour.
     true_segments : float32 array (T, 2, 3)
         The true-model closed loop.
+    time_marks : float32 array (K, 3)
+        Dots on the true-model loop every ``mark_every`` steps.
     start : array (3,)
         x0 in display units.
     scale : float
         State units per box unit.
-    sphere_radius, sphere_capped, delta
-        Bound sphere radius (box units, at most :data:`SPHERE_CAP`), whether capped, delta(eps) (state units).
+    delta, delta_realized : float or None
+        The letter's delta(eps) and the a-posteriori median (state units).
+    bound_circles, realized_circles : float32 array (K, 2, 3)
+        Outline circles of the two bounds around x_ref = 0 (empty if off scale or hidden).
+    bound_text : str
+        Both bounds in words (with "off scale" where a circle would not fit).
+    show_bound : bool
+    sphere_radius : float
+        The letter's bound in box units (uncapped; 0 if none).
+    sphere_capped : bool
+        It does not fit the view (:data:`SPHERE_CAP`): no circle, an off-scale label.
     axis_names : tuple of 3 str
-    failed, clipped, polylines : int
-        Failed realizations (hidden), realizations leaving the view, realizations drawn.
+        State names; "time" on the free axis of 1- and 2-state systems; "" for an unused axis.
+    failed, clipped, polylines, realizations : int
+        Failed loops (hidden), loops leaving the view, distinct loops drawn, loops computed.
+    mark_every : int
     """
 
     segments: np.ndarray
     colors: np.ndarray
     true_segments: np.ndarray
+    time_marks: np.ndarray
     start: np.ndarray
     scale: float
+    delta: float | None
+    delta_realized: float | None
+    bound_circles: np.ndarray
+    realized_circles: np.ndarray
+    bound_text: str
+    show_bound: bool
     sphere_radius: float
     sphere_capped: bool
-    delta: float | None
     axis_names: tuple
     failed: int
     clipped: int
     polylines: int
+    realizations: int
+    mark_every: int
 
 
 def axes_options(names) -> list:
@@ -82,13 +107,28 @@ def axes_indices(choice: str, names) -> tuple:
     return tuple(idx + [None] * (3 - len(idx)))
 
 
-def _to_segments(states: np.ndarray, dims: tuple, scale: float, start: np.ndarray) -> tuple:
-    """(R, T+1, n) trajectories -> (R*T, 2, 3) display segments, #failed, #clipped."""
+def _time_axis(dims: tuple) -> int | None:
+    """The display axis that shows time (the first unused one) for 1- and 2-state systems."""
+    return dims.index(None) if None in dims else None
+
+
+def _points(states: np.ndarray, dims: tuple, scale: float) -> np.ndarray:
+    """(R, T+1, n) states -> (R, T+1, 3) display points (time on the free axis of small systems)."""
     R, T1, _ = states.shape
     P = np.zeros((R, T1, 3))
     for j, d in enumerate(dims):
         if d is not None:
             P[:, :, j] = states[:, :, d] / scale
+    ta = _time_axis(dims)
+    if ta is not None:
+        P[:, :, ta] = TIME * np.arange(T1) / max(T1 - 1, 1)
+    return P
+
+
+def _to_segments(states: np.ndarray, dims: tuple, scale: float, start: np.ndarray) -> tuple:
+    """(R, T+1, n) trajectories -> (R*T, 2, 3) display segments, #failed, #clipped."""
+    R = states.shape[0]
+    P = _points(states, dims, scale)
     bad = ~np.all(np.isfinite(P.reshape(R, -1)), axis=1)
     P[bad] = start
     clipped = int(np.sum(np.any(np.abs(P.reshape(R, -1)) > CLIP, axis=1)))
@@ -108,21 +148,68 @@ def _display_scale(true_states: np.ndarray, x0: np.ndarray, sel: list) -> float:
     return scale
 
 
+def circles(radius: float, dims: tuple, k: int = 48) -> np.ndarray:
+    """Outline of a ball of ``radius`` (box units) around the origin: one circle per pair of state axes
+    ((K, 2, 3) segments); small systems: in the state plane (or a segment for n = 1) at the last time."""
+    state_axes = [j for j, d in enumerate(dims) if d is not None]
+    ta = _time_axis(dims)
+    th = np.linspace(0.0, 2.0 * np.pi, k + 1)
+    segs = []
+    if len(state_axes) == 1:
+        p = np.zeros((2, 3))
+        p[:, state_axes[0]] = (-radius, radius)
+        if ta is not None:
+            p[:, ta] = TIME
+        return p[None].astype(np.float32)
+    for a, b in itertools.combinations(state_axes, 2):
+        p = np.zeros((k + 1, 3))
+        p[:, a], p[:, b] = radius * np.cos(th), radius * np.sin(th)
+        if ta is not None:
+            p[:, ta] = TIME
+        segs.append(np.stack([p[:-1], p[1:]], axis=1))
+    return np.concatenate(segs).astype(np.float32)
+
+
+def _bounds(frame, dims: tuple, scale: float) -> dict:
+    """The two bounds: circles drawn to scale when they fit, else words only."""
+    first = frame.rows[frame.labels[0]].get(frame.bits, {})
+    d = frame.theory.delta
+    d = float(d) if d is not None and np.isfinite(d) and d > 0 else None
+    rb = (first.get("ultimate_bound_realized") or {}).get("median")
+    rb = float(rb) if rb is not None and np.isfinite(rb) and rb > 0 else None
+    show = bool(getattr(frame.values, "show_bound", True))
+    empty = np.zeros((0, 2, 3), dtype=np.float32)
+    out, words = {}, []
+    for key, val, name in (("bound_circles", d, "letter's δ(ε)"), ("realized_circles", rb, "a-posteriori δ")):
+        r = val / scale if val is not None else 0.0
+        fits = 0 < r <= SPHERE_CAP
+        out[key] = circles(r, dims) if (fits and show) else empty
+        if val is None:
+            words.append(f"{name}: no bound at this b")
+        else:
+            words.append(f"{name} = {val:.3g}" + ("" if fits else f" (off scale: {r:.3g} box units)"))
+    radius = d / scale if d is not None else 0.0
+    out.update(delta=d, delta_realized=rb, show_bound=show, sphere_radius=radius,
+               sphere_capped=radius > SPHERE_CAP,
+               bound_text=" · ".join(words) + " · as t → ∞, around x_ref = 0")
+    return out
+
+
 def scene_view(frame, axes: str | None = None) -> SceneView:
     """What the 3-D phase portrait draws for ``frame``: closed loops at the current b, the
-    true-model loop, the start point, and the bound sphere, all divided by one display scale.
+    true-model loop with time markers, the start point, and the two bounds as outlines.
 
     The display scale is the largest |state| of the true-model loop on the drawn axes
-    (so that loop fits the unit box); the sphere of radius delta(eps) uses the same scale.
-    ``axes`` (e.g. ``"u, q, theta"``) defaults to the frame's panel choice.
+    (so that loop fits the unit box); the bounds use the same scale. ``axes`` (e.g.
+    ``"u, q, theta"``) defaults to the frame's panel choice.
     """
     names = frame.system.state_names
     dims = axes_indices(axes if axes is not None else frame.values.axes, names)
     ts = frame.true_loop.states[0]
     x0 = np.asarray(frame.x0, dtype=float)  # the engine's start state (also if loops failed)
     scale = _display_scale(ts, x0, [d for d in dims if d is not None])
-    start = np.array([x0[d] / scale if d is not None else 0.0 for d in dims])
-    segs, cols, failed, clipped, poly = [], [], 0, 0, 0
+    start = _points(x0[None, None, :], dims, scale)[0, 0]
+    segs, cols, failed, clipped, poly, total = [], [], 0, 0, 0, 0
     for i, lab in enumerate(frame.labels):
         st = frame.loops[lab].states
         s, f, c = _to_segments(st, dims, scale, start)
@@ -130,16 +217,21 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         cols.append(np.broadcast_to(np.array(vertex_rgb(lab, i), dtype=np.uint8), s.shape))
         failed += f
         clipped += c
-        poly += st.shape[0]
+        total += st.shape[0]
+        poly += min(st.shape[0], int(getattr(frame.idents.get(lab), "effective_realizations", st.shape[0])))
     tseg, _, _ = _to_segments(ts[None], dims, scale, start)
-    delta = frame.theory.delta
-    ok = delta is not None and np.isfinite(delta) and delta > 0
-    radius = float(delta) / scale if ok else 0.0
+    every = max(1, (ts.shape[0] - 1) // TIME_MARKS)
+    marks = np.clip(_points(ts[None, ::every], dims, scale)[0], -CLIP, CLIP)
+    marks = marks[np.all(np.isfinite(marks), axis=1)]
+    ta = _time_axis(dims)
+    if ta is not None:  # time axis: the markers sit at their own times
+        marks[:, ta] = TIME * np.arange(0, ts.shape[0], every)[: len(marks)] / max(ts.shape[0] - 1, 1)
+    labels = [names[d] if d is not None else "" for d in dims]
+    if ta is not None:
+        labels[ta] = "time"
     return SceneView(
         segments=np.concatenate(segs).astype(np.float32), colors=np.ascontiguousarray(np.concatenate(cols)),
-        true_segments=tseg.astype(np.float32), start=start, scale=scale,
-        sphere_radius=min(radius, SPHERE_CAP), sphere_capped=radius > SPHERE_CAP,
-        delta=float(delta) if ok else None,
-        axis_names=tuple(names[d] if d is not None else "-" for d in dims), failed=failed, clipped=clipped,
-        polylines=poly,
+        true_segments=tseg.astype(np.float32), time_marks=marks.astype(np.float32), start=start, scale=scale,
+        axis_names=tuple(labels), failed=failed, clipped=clipped, polylines=poly, realizations=total,
+        mark_every=every, **_bounds(frame, dims, scale),
     )

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from . import bound, compare, cost, datalength, eigenvalues, error_vs_bits, quantizer, time_series
+from . import bound, compare, cost, datalength, eigenvalues, error_vs_bits, norm_time, quantizer, time_series
 from .view import View
 
 __all__ = ["TABS", "VIEWS", "view_names"]
@@ -22,6 +22,7 @@ VIEWS: tuple[View, ...] = (
     time_series.VIEW,
     replace(cost.VIEW, tab="Control"),
     replace(bound.VIEW, tab="Control"),
+    replace(norm_time.VIEW, tab="Control"),
     quantizer.VIEW,
     datalength.VIEW,
     compare.VIEW,

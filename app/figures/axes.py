@@ -1,0 +1,136 @@
+"""Axis ranges that cannot blow up: every 2-D axis range from the finite data drawn on it.
+
+:func:`finite_axes` is applied to every dashboard figure (by
+:func:`app.dashboard.render.build_figures`), so a new view gets it for free.
+Rules (log axes in decades, plotly's own unit for log ranges):
+
+* only finite numbers count (and only positive ones on a log axis);
+* a log axis spans at most :data:`MAX_DECADES`; if the data span more, the
+  window holding the most points is kept and the axis title says that values
+  lie off the axis (e.g. diverged closed loops with cost 1e289);
+* a log axis spans at least :data:`MIN_DECADES` and, while it spans fewer than
+  2.5 decades, is ticked at 1, 2, 5 per decade (no crowded "10 9 8 .. 2 1");
+* a margin of :data:`MARGIN` of the span on each side.
+
+Only reshaping for display: nothing is computed from the numbers but their extent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import plotly.graph_objects as go
+
+__all__ = ["finite_axes", "axis_ranges", "MAX_DECADES", "MIN_DECADES", "MARGIN"]
+
+#: Largest span of a log axis (decades).
+MAX_DECADES = 12.0
+#: Smallest span of a log axis (decades).
+MIN_DECADES = 1.0
+#: Margin on each side, as a share of the span.
+MARGIN = 0.05
+
+
+def _numbers(seq) -> np.ndarray:
+    """Finite floats of a plotly data array (None, strings and non-finite values dropped)."""
+    if seq is None:
+        return np.zeros(0)
+    out = []
+    for v in np.asarray(seq, dtype=object).reshape(-1):
+        if isinstance(v, (bool, np.bool_)) or v is None:
+            continue
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            continue
+        if np.isfinite(f):
+            out.append(f)
+    return np.asarray(out, dtype=float)
+
+
+def _axis_name(ref: str | None, letter: str) -> str:
+    """Trace/shape reference ('x', 'x2', 'y3 domain') -> layout key ('xaxis', 'xaxis2')."""
+    ref = (ref or letter).split(" ")[0]
+    return f"{letter}axis{ref[1:]}"
+
+
+def _collect(fig: go.Figure) -> dict:
+    """layout axis key -> finite data drawn on it (traces, and lines drawn in data units)."""
+    data: dict = {}
+    for tr in fig.data:
+        if not hasattr(tr, "xaxis") or not hasattr(tr, "y"):
+            continue
+        for letter in ("x", "y"):
+            key = _axis_name(getattr(tr, f"{letter}axis"), letter)
+            data.setdefault(key, []).append(_numbers(getattr(tr, letter, None)))
+    for sh in fig.layout.shapes or ():
+        for letter in ("x", "y"):
+            ref = getattr(sh, f"{letter}ref") or letter
+            if ref in ("paper",) or ref.endswith("domain"):
+                continue
+            key = _axis_name(ref, letter)
+            data.setdefault(key, []).append(_numbers([getattr(sh, f"{letter}0"), getattr(sh, f"{letter}1")]))
+    return {k: np.concatenate(v) if v else np.zeros(0) for k, v in data.items()}
+
+
+def _log_range(vals: np.ndarray, max_dec: float) -> tuple[list, bool]:
+    """(range in decades, some data off the axis)."""
+    L = np.sort(np.log10(vals[vals > 0]))
+    width = max_dec / (1 + 2 * MARGIN)
+    lo, hi = float(L[0]), float(L[-1])
+    off = False
+    if hi - lo > width:  # the window of `width` decades holding the most points
+        j = np.searchsorted(L, L + width, side="right")
+        i = int(np.argmax(j - np.arange(L.size)))
+        lo, hi, off = float(L[i]), float(L[i]) + width, True
+    if hi - lo < MIN_DECADES:
+        mid = 0.5 * (hi + lo)
+        lo, hi = mid - MIN_DECADES / 2, mid + MIN_DECADES / 2
+    pad = MARGIN * (hi - lo)
+    return [lo - pad, hi + pad], off
+
+
+def _lin_range(vals: np.ndarray) -> list:
+    lo, hi = float(vals.min()), float(vals.max())
+    if hi - lo <= 1e-12 * max(abs(lo), abs(hi), 1e-300):
+        half = 0.1 * abs(lo) if lo != 0 else 1.0
+        lo, hi = lo - half, hi + half
+    pad = MARGIN * (hi - lo)
+    return [lo - pad, hi + pad]
+
+
+def finite_axes(fig: go.Figure, max_decades: float = MAX_DECADES) -> go.Figure:
+    """Set every 2-D axis range of ``fig`` from its finite data (rules: module docstring); in place.
+
+    Axes with an explicit range keep it; axes without numeric data are left alone.
+    """
+    for key, vals in _collect(fig).items():
+        ax = fig.layout[key] if key in fig.layout else None
+        if ax is None or ax.range is not None:
+            continue
+        log = ax.type == "log"
+        if log:
+            vals = vals[vals > 0]
+        if vals.size == 0:
+            continue
+        if log:
+            rng, off = _log_range(vals, max_decades)
+            upd = dict(range=rng, autorange=False)
+            if rng[1] - rng[0] < 2.5:
+                upd["dtick"] = "D2"
+            if off:
+                title = ax.title.text or ""
+                upd["title_text"] = (title + " " if title else "") + "(some values off the axis)"
+            fig.layout[key].update(**upd)
+        else:
+            fig.layout[key].update(range=_lin_range(vals), autorange=False)
+    return fig
+
+
+def axis_ranges(fig: go.Figure) -> dict:
+    """layout axis key -> (type, range) of every 2-D axis with data (for tests and checks)."""
+    out = {}
+    for key in _collect(fig):
+        if key in fig.layout:
+            ax = fig.layout[key]
+            out[key] = (ax.type or "linear", None if ax.range is None else tuple(ax.range))
+    return out
