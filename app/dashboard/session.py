@@ -13,12 +13,9 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 4. ``DashboardApp.slots`` (server): a semaphore, at most a few tabs compute at once.
 5. ``DashboardApp._lock`` (server): the tab registry.
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
-7. the process pool (:class:`~app.dashboard.pool.Pool`): the heavy quantization and closed-loop work;
-   ``Pool._lock`` guards its replacement, which only ever replaces the executor that failed.
-   Its watchdog thread abandons a tab's pool tasks as soon as newer settings arrive, and times
-   out a hung worker (the pool is replaced, the tab retries once).
-8. signals (server ``main``): SIGINT/SIGTERM are blocked in every thread and taken by ``sigwait``
-   in the main thread, so no solver's handler can swallow Ctrl-C.
+7. the process pool (:mod:`.pool`): ``Pool._lock`` guards its replacement (only of the failed executor);
+   its watchdog abandons stale pool tasks and times out hung workers (the tab retries once).
+8. signals (server ``main``): SIGINT/SIGTERM blocked in every thread, taken by ``sigwait`` in main.
 9. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
    demand, in-process; cancelled when the tab's generation changes (any new change).
 """
@@ -323,12 +320,10 @@ class Session:
                 self.app.pool.replace(exc.executor)  # only if no other tab replaced it already
                 if self._stale(gen):
                     return gen
-                if attempt == 1:
-                    c.status.content = f"a worker process failed ({exc}); retrying …"
-                    continue
-                hint = (" Try smaller settings, or start the server with a larger --task-timeout."
-                        if isinstance(exc, PoolTimeout) else " Change a setting to try again.")
-                self._show_error(f"{exc} (twice).{hint}")
+                c.status.content = f"a worker process failed ({exc}); retrying …"
+                if attempt == 2:
+                    self._show_error(f"{exc} (twice)." + (" Try smaller settings, or start the server with a larger "
+                                     "--task-timeout." if isinstance(exc, PoolTimeout) else " Change a setting to retry."))
         return gen
 
     def _compute(self, gen: int, values: Values) -> int:
@@ -350,9 +345,8 @@ class Session:
                     frame = next(frames, None)
                 if frame is None or self._stale(gen):
                     return gen
-                bad = unusable(frame)  # all identifications failed, eps not finite: never 'ready'
-                if bad:
-                    self._show_error(bad)
+                if unusable(frame):  # all identifications failed, eps not finite: never 'ready'
+                    self._show_error(unusable(frame))
                     return gen
                 if not self._draw(frame, gen):
                     return gen
@@ -361,10 +355,9 @@ class Session:
                     c.progress.value = 100.0
                     c.status.content = (f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
                                         f"all curves in {self.timings['all']:.2f} s")
-        except PoolFailure:
-            raise
-        except Superseded:
-            return gen
+        except (PoolFailure, Superseded) as exc:
+            if isinstance(exc, PoolFailure):
+                raise
         except QsidError as exc:
             self._show_error(str(exc))
         except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
