@@ -108,8 +108,9 @@ def test_all_failed_identifications_or_infinite_eps_are_never_shown_as_ready():
 
 @pytest.mark.parametrize("value", [float("nan"), float("inf"), "3", None, True, [1]])
 def test_check_value_refuses_what_is_not_a_number(value):
+    bits = next(c for c in CONTROLS if c.name == "bits")
     with pytest.raises(InputError, match="word length b"):
-        check_value(CONTROLS[0], value)
+        check_value(bits, value)
 
 
 def test_dropdown_and_checkbox_values_must_be_offered():

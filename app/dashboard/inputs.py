@@ -62,6 +62,8 @@ def check_value(c: Control, value, options=None) -> None:
     elif c.kind == "number":
         x = _number(lab, value, c.convert is int)
         hi = NUMBER_MAX.get(c.name, 1e9)
+        if c.lo is not None and c.lo > 0 and x < c.lo:
+            raise InputError(f"{lab} must be a positive number (at least {c.lo:g}); got {value:g}")
         if not (c.lo if c.lo is not None else -hi) <= x <= hi:
             raise InputError(f"{lab}: {value:g} is outside {c.lo:g} … {hi:g}")
     elif c.kind == "checkbox":
