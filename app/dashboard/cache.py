@@ -8,6 +8,7 @@ closed loops, and memory stays bounded.
 from __future__ import annotations
 
 import dataclasses
+import sys
 import threading
 from collections import OrderedDict
 from collections.abc import MutableMapping
@@ -18,22 +19,31 @@ __all__ = ["SharedCache"]
 
 
 def _nbytes(obj, depth: int = 0) -> int:
-    """Rough memory size of a cached stage result (arrays dominate)."""
+    """Memory held by a cached stage result: array data AND the Python objects around it.
+
+    Many entries are small (a few realizations of 3 x 4 Gram matrices): there
+    the object overhead (an array's header is ~112 bytes, a dataclass instance
+    with its ``__dict__`` several hundred) outweighs the numbers, and counting
+    only ``nbytes`` let the cache hold several times its budget.
+    """
     if isinstance(obj, np.ndarray):
-        return int(obj.nbytes)
-    if depth > 4:
+        return int(obj.nbytes) + 112  # a view keeps its base alive: counted as if it owned its data
+    if isinstance(obj, (str, bytes, int, float, bool, type(None))):
+        return sys.getsizeof(obj)
+    if depth > 6:
         return 64
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return 64 + sum(_nbytes(getattr(obj, f.name), depth + 1) for f in dataclasses.fields(obj))
-    if isinstance(obj, (list, tuple)):
-        return 64 + sum(_nbytes(x, depth + 1) for x in obj)
+        return 64 + sys.getsizeof(getattr(obj, "__dict__", {})) + sum(
+            _nbytes(getattr(obj, f.name), depth + 1) for f in dataclasses.fields(obj))
+    if isinstance(obj, (list, tuple, set, frozenset)):
+        return sys.getsizeof(obj) + sum(_nbytes(x, depth + 1) for x in obj)
     if isinstance(obj, dict):
-        return 64 + sum(_nbytes(x, depth + 1) for x in obj.values())
-    return 64
+        return sys.getsizeof(obj) + sum(_nbytes(k, depth + 1) + _nbytes(x, depth + 1) for k, x in obj.items())
+    return max(64, sys.getsizeof(obj))
 
 
 class SharedCache(MutableMapping):
-    """A thread-safe LRU mapping bounded by an estimate of its memory (default 512 MB).
+    """A thread-safe LRU mapping bounded by an estimate of its memory (default 256 MB).
 
     Passed as ``Experiment(..., cache=shared)`` by every browser tab, so equal
     settings share the data, moments, models and closed loops. The least
@@ -41,7 +51,7 @@ class SharedCache(MutableMapping):
     dropped (the engine reads an entry right after storing it).
     """
 
-    def __init__(self, max_bytes: int = 512 * 2**20, keep: int = 64):
+    def __init__(self, max_bytes: int = 256 * 2**20, keep: int = 64):
         self.max_bytes = int(max_bytes)
         self.keep = int(keep)
         self._d: OrderedDict = OrderedDict()

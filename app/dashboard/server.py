@@ -10,13 +10,12 @@ cannot exhaust the machine. Threading is described in :mod:`app.dashboard.sessio
 from __future__ import annotations
 
 import argparse
-import multiprocessing
+import os
 import signal
 import sys
 import threading
 import time
 import traceback
-from concurrent.futures import ProcessPoolExecutor
 
 import viser
 
@@ -24,6 +23,9 @@ from qsid_core.errors import QsidError
 
 from .cache import SharedCache
 from .lessons import get_lesson, lesson_names, lesson_values
+from .memory import limit_arenas, trim
+from .netcheck import OneLineParser, check_address, port_number
+from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
@@ -32,10 +34,6 @@ __all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
 
 #: Systems a tab can start with (the panel's presets; 'custom' is typed in the panel).
 STARTING_SYSTEMS = tuple(x for x in SYSTEM_CHOICES if x != "custom")
-
-
-def _ignore_sigint() -> None:  # pool workers: Ctrl-C is handled by the server process
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 class DashboardApp:
@@ -51,11 +49,14 @@ class DashboardApp:
         How many tabs may compute at the same time.
     scale : {"interactive", "paper"}
         Initial data size of new tabs.
+    task_timeout : float
+        Seconds one pool task may run before its worker counts as hung and is replaced.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
-                 cache_bytes: int = 512 * 2**20, settings: Values | None = None, lesson: str | None = None):
+                 cache_bytes: int = 256 * 2**20, settings: Values | None = None, lesson: str | None = None,
+                 task_timeout: float = DEFAULT_TIMEOUT):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
@@ -66,8 +67,8 @@ class DashboardApp:
         self.slots = threading.BoundedSemaphore(max(1, slots))  # (4) at most `slots` tabs compute at once
         self.workers = max(0, int(workers))
         self.tasks = max(1, self.workers)
-        self._lock = threading.Lock()  # (5) guards `sessions` and the swap of `executor`
-        self.executor = self._new_executor()  # (7) the process pool (None: in-process)
+        self._lock = threading.Lock()  # (5) guards `sessions`
+        self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog
         self.sessions: dict[int, Session] = {}
         self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
@@ -79,26 +80,10 @@ class DashboardApp:
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
 
-    def _new_executor(self):
-        if self.workers == 0:
-            return None
-        pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_ignore_sigint)
-        try:
-            for f in [pool.submit(abs, 0) for _ in range(self.workers)]:  # start the workers now
-                f.result()
-        except Exception as exc:  # e.g. started from a script without a __main__ guard
-            pool.shutdown(wait=False, cancel_futures=True)
-            print(f"qsid-dashboard: no worker processes ({type(exc).__name__}: {exc}); computing in-process",
-                  file=sys.stderr)
-            return None
-        return pool
-
-    def reset_executor(self) -> None:
-        with self._lock:
-            old, self.executor = self.executor, self._new_executor()
-        if old is not None:
-            old.shutdown(wait=False, cancel_futures=True)
+    @property
+    def executor(self):
+        """The process pool now in use (None: in-process)."""
+        return self.pool.current
 
     @property
     def host(self) -> str:
@@ -125,7 +110,8 @@ class DashboardApp:
         with self._lock:
             s = self.sessions.pop(client.client_id, None)
         if s is not None:
-            s.close()
+            s.close(wait=False)  # never block viser's callback threads; the worker ends at its next check
+            trim()
 
     def wait_for_sessions(self, count: int, timeout: float = 30.0) -> list:
         end = time.monotonic() + timeout
@@ -136,15 +122,18 @@ class DashboardApp:
             time.sleep(0.05)
         raise TimeoutError(f"{count} browser tab(s) did not connect within {timeout} s")
 
-    def stop(self) -> None:
+    def stop(self, wait: bool = True) -> None:
+        """Close every tab, the server and the pool (``wait=False``: do not wait for the tabs' workers)."""
         with self._lock:
             sessions = list(self.sessions.values())
             self.sessions.clear()
         for s in sessions:
-            s.close()
+            s.close(wait=False)
+        self.pool.shutdown()  # workers killed: a tab's pending task fails at once
+        if wait:
+            for s in sessions:
+                s.close()
         self.server.stop()
-        if self.executor is not None:
-            self.executor.shutdown(wait=True, cancel_futures=True)
 
 
 def _check_lesson(name: str) -> str:
@@ -156,10 +145,11 @@ def _check_lesson(name: str) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="qsid-dashboard", description="Live dashboard: quantized data -> "
+    p = OneLineParser(prog="qsid-dashboard", description="Live dashboard: quantized data -> "
                                 "identification -> MPC. Open the printed URL in a browser.")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--port", type=int, default=8080, help="port (default 8080; the next free one if taken)")
+    p.add_argument("--port", type=port_number, default=8080,
+                   help="port 0-65535 (default 8080; the next free one if taken; 0: any free port)")
     p.add_argument("--system", default="dc-motor", choices=STARTING_SYSTEMS, help="initial system of new tabs")
     p.add_argument("--scale", default="interactive", choices=("interactive", "paper"),
                    help=f"initial data size: interactive ({INTERACTIVE['trajectories']} x {INTERACTIVE['steps']}, "
@@ -168,6 +158,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2,
                    help="processes for the quantization and closed-loop work, shared by all tabs "
                         "(0 = in-process; default 2)")
+    p.add_argument("--task-timeout", type=float, default=DEFAULT_TIMEOUT, metavar="SECONDS",
+                   help=f"a pool task running longer counts as hung: its worker is replaced (default "
+                        f"{DEFAULT_TIMEOUT:g})")
+    p.add_argument("--cache-mb", type=int, default=256, metavar="MB",
+                   help="memory budget of the results cache shared by all tabs (default 256)")
     p.add_argument("--settings", metavar="FILE", default=None,
                    help="start every new tab from a settings file (saved with the panel's 'Download settings')")
     p.add_argument("--lesson", default=None, metavar="NAME",
@@ -175,37 +170,67 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+def _wait_for_stop_signal() -> None:
+    """Block until Ctrl-C or SIGTERM, whatever handler a solver installed meanwhile.
+
+    Both signals are blocked in every thread (the mask is set before any thread
+    starts and threads inherit it), so they stay pending until this ``sigwait``
+    takes them: a library that swaps the SIGINT handler from a worker thread
+    (OSQP does, on every solve) cannot swallow Ctrl-C.
+    """
+    signal.sigwait(_STOP_SIGNALS)
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the dashboard until Ctrl-C / SIGTERM; exit status 2 for bad options."""
     args = _parser().parse_args(argv)
+    if args.workers < 0 or args.workers > 4 * (os.cpu_count() or 1):
+        print(f"qsid-dashboard: error: --workers must be between 0 and {4 * (os.cpu_count() or 1)} "
+              f"(this machine has {os.cpu_count()} CPUs); got {args.workers}", file=sys.stderr)
+        return 2
+    if not 16 <= args.cache_mb <= 65536:
+        print(f"qsid-dashboard: error: --cache-mb must be between 16 and 65536; got {args.cache_mb}", file=sys.stderr)
+        return 2
+    if not (args.task_timeout > 0 and args.task_timeout < 1e6):
+        print(f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
+              file=sys.stderr)
+        return 2
     if args.lesson is not None:
         try:
             _check_lesson(args.lesson)
         except QsidError as exc:
             print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
             return 2
-
-    def _term(_sig, _frm):
-        raise KeyboardInterrupt
-
-    app = None
     try:
-        signal.signal(signal.SIGINT, signal.default_int_handler)  # also when started with SIGINT ignored
-        signal.signal(signal.SIGTERM, _term)
         settings = None if args.settings is None else load_settings_file(args.settings)
+        warning = check_address(args.host, args.port)
+    except QsidError as exc:
+        print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
+        return 2
+    if warning:
+        print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
+    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)  # before any thread exists: all inherit it
+    limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
+    app = None
+    code = 0
+    try:
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
-                           settings=settings, lesson=args.lesson)
+                           settings=settings, lesson=args.lesson, task_timeout=args.task_timeout,
+                           cache_bytes=args.cache_mb * 2**20)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
-        while True:
-            time.sleep(3600)
-    except KeyboardInterrupt:
+        _wait_for_stop_signal()
         print("\nqsid dashboard: stopping", flush=True)
     except (QsidError, OSError) as exc:
         print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
-        return 2
+        code = 2
     finally:
-        if app is not None:
-            try:
-                app.stop()
-            except KeyboardInterrupt:
-                pass
-    return 0
+        if app is not None:  # stop within ~1 s whatever the tabs are computing, then leave at once
+            stopper = threading.Thread(target=app.stop, kwargs={"wait": False}, daemon=True)
+            stopper.start()
+            stopper.join(1.0)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)

@@ -11,10 +11,12 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
    next chunk of word lengths while the worker runs closed loops, and runs the
    second estimator's closed loops beside the first.
 4. ``DashboardApp.slots`` (server): a semaphore, at most a few tabs compute at once.
-5. ``DashboardApp._lock`` (server): the tab registry and the process-pool swap.
+5. ``DashboardApp._lock`` (server): the tab registry.
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
-7. the process pool (server): the heavy quantization and closed-loop work.
-8. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
+7. the process pool (:mod:`.pool`): ``Pool._lock`` guards its replacement (only of the failed executor);
+   its watchdog abandons stale pool tasks and times out hung workers (the tab retries once).
+8. signals (server ``main``): SIGINT/SIGTERM blocked in every thread, taken by ``sigwait`` in main.
+9. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
    demand, in-process; cancelled when the tab's generation changes (any new change).
 """
 
@@ -25,7 +27,6 @@ import threading
 import time
 import traceback
 from concurrent.futures import Future, ThreadPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterator, MutableMapping
 
 from qsid_core.errors import QsidError
@@ -34,9 +35,11 @@ from qsid_core.systems import PRESETS, get_system
 from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
 from .frames import Frame, fill_rows, make_frame, start
+from .inputs import check_panel, unusable
+from .pool import PoolFailure, PoolTimeout, Superseded
 from .render import Renderer
 from .scene import PhasePortrait
-from .settings import ALL_BITS, Values, resolve_system
+from .settings import ALL_BITS, InputError, Values, resolve_system
 from .share import add_share_panel, apply_pending, show_frame
 from .viewpanel import PANEL_WIDTH, ViewPanel
 
@@ -205,11 +208,12 @@ class Session:
             self._gen += 1
             self._cond.notify_all()
 
-    def close(self) -> None:
+    def close(self, wait: bool = True) -> None:
+        """Stop the worker (its computation is dropped at the next check); ``wait``: join it (10 s at most)."""
         with self._cond:
             self._closed = True
             self._cond.notify_all()
-        if threading.current_thread() is not self.thread:
+        if wait and threading.current_thread() is not self.thread:
             self.thread.join(timeout=10)
 
     def wait_idle(self, timeout: float = 60.0) -> bool:
@@ -295,9 +299,14 @@ class Session:
         return gen
 
     def _run(self, gen: int) -> int:
-        """Compute and draw generation ``gen``; returns the generation handled."""
+        """Check, compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
         apply_pending(self)  # settings uploaded since the last run
+        try:
+            check_panel(c)  # every raw value (anything can come over the websocket) before it is converted
+        except InputError as exc:
+            self._show_error(str(exc))
+            return gen
         show_weights(c)
         gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
@@ -306,6 +315,21 @@ class Session:
         gen, values = adapted
         self.views.set_system(resolve_system(values).system)
         values = values.replace(**self.views.values())
+        for attempt in (1, 2):
+            try:
+                return self._compute(gen, values)
+            except PoolFailure as exc:
+                self.app.pool.replace(exc.executor)  # only if no other tab replaced it already
+                if self._stale(gen):
+                    return gen
+                c.status.content = f"a worker process failed ({exc}); retrying …"
+                if attempt == 2:
+                    self._show_error(f"{exc} (twice)." + (" Try smaller settings, or start the server with a larger "
+                                     "--task-timeout." if isinstance(exc, PoolTimeout) else " Change a setting to retry."))
+        return gen
+
+    def _compute(self, gen: int, values: Values) -> int:
+        c = self.controls
         t0 = time.perf_counter()
 
         def progress(done: int, total: int, text: str) -> None:
@@ -313,7 +337,7 @@ class Session:
                 c.progress.value = 100.0 * done / total
                 c.status.content = text
 
-        frames = iter_frames(values, self.app.cache, self.app.executor, self.app.tasks,
+        frames = iter_frames(values, self.app.cache, self.app.pool.guarded(lambda: self._stale(gen)), self.app.tasks,
                              should_stop=lambda: self._stale(gen), on_progress=progress)
         try:
             while True:
@@ -321,18 +345,26 @@ class Session:
                     if self._stale(gen):
                         return gen
                     frame = next(frames, None)
-                if frame is None or self._stale(gen) or not self._draw(frame, gen):
+                if frame is None or self._stale(gen):
+                    return gen
+                if unusable(frame):  # all identifications failed, eps not finite: never 'ready'
+                    self._show_error(unusable(frame))
+                    return gen
+                if not self._draw(frame, gen):
                     return gen
                 self.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
                 if frame.complete:
                     c.progress.value = 100.0
                     c.status.content = (f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
                                         f"all curves in {self.timings['all']:.2f} s")
+        except (PoolFailure, Superseded) as exc:
+            if isinstance(exc, PoolFailure):
+                raise
         except QsidError as exc:
             self._show_error(str(exc))
-        except BrokenProcessPool:
-            self.app.reset_executor()
-            self._show_error("the computation pool crashed and was restarted; change a setting to retry")
+        except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
+            self._show_error(f"these settings cannot be computed ({type(exc).__name__}: {exc}); "
+                             "try smaller or less extreme values")
         finally:
             frames.close()
         return gen

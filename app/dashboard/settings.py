@@ -52,6 +52,8 @@ LOG_MIN, LOG_MAX = -3.0, 3.0
 NO_LESSON = "(none)"
 #: Largest custom system the dashboard accepts (3-D view choices grow as n^3).
 MAX_CUSTOM_STATES = 12
+#: Largest |lo|, |hi| of a typed fixed quantizer range (beyond it eps overflows or loses all precision).
+FIXED_RANGE_MAX = 1e12
 
 
 class InputError(QsidError):
@@ -196,8 +198,13 @@ def _fixed_range(text: str, n: int, m: int) -> tuple:
     else:
         raise InputError(f"fixed range: give one 'lo, hi' pair, or {n + m} rows 'lo hi' (states then inputs); "
                          f"got shape {M.shape}")
+    if not np.all(np.isfinite(pairs)) or np.abs(pairs).max() > FIXED_RANGE_MAX:
+        raise InputError(f"fixed range: every number must lie between -{FIXED_RANGE_MAX:g} and {FIXED_RANGE_MAX:g}")
     if np.any(pairs[:, 1] <= pairs[:, 0]):
         raise InputError("fixed range: every range needs lo < hi")
+    if np.any(pairs[:, 1] - pairs[:, 0] < 1e-9 * np.maximum(1.0, np.abs(pairs).max(axis=1))):
+        raise InputError("fixed range: a range this narrow leaves no room for 2^b cells "
+                         "(hi - lo must be at least 1e-9 × max(1, |lo|, |hi|))")
     return tuple(map(tuple, pairs.tolist()))
 
 

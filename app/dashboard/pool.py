@@ -1,0 +1,205 @@
+"""The process pool every tab shares, and the guard each computation reaches it through.
+
+Threading (see the list in :mod:`app.dashboard.session`):
+
+- ``Pool._lock`` guards the swap of :attr:`Pool.current`. A pool is only ever
+  replaced by :meth:`Pool.replace` *for the executor that failed*: a tab that
+  saw the old pool break does not shut down the new one another tab already
+  installed (that was "cannot schedule new futures after shutdown").
+- one watchdog thread (``qsid-pool-watch``) looks at every pending task a few
+  times a second: a task whose tab has newer settings is abandoned at once
+  (:class:`Superseded`; queued work is cancelled), a task running longer than
+  ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced
+  (the hung worker is killed).
+
+The engine only sees :class:`Guarded`, an executor whose futures settle in one of
+those ways; everything else (results, exceptions) passes through unchanged.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import sys
+import threading
+import time
+from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import Callable
+
+from qsid_core.errors import QsidError
+
+from .memory import trim
+
+__all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Superseded", "DEFAULT_TIMEOUT"]
+
+#: Seconds between two ``malloc_trim`` calls of the watchdog.
+TRIM_EVERY = 10.0
+#: Seconds one pool task may run before its worker counts as hung (paper-scale tasks take a few seconds).
+DEFAULT_TIMEOUT = 60.0
+
+
+class PoolFailure(QsidError):
+    """A worker process of the shared pool died or hung; ``executor`` is the pool it happened in."""
+
+    def __init__(self, message: str, executor=None):
+        super().__init__(message)
+        self.executor = executor
+
+
+class PoolBroken(PoolFailure):
+    """A worker process died (killed, out of memory, crashed)."""
+
+
+class PoolTimeout(PoolFailure):
+    """A task ran longer than the pool's per-task timeout."""
+
+
+class Superseded(Exception):
+    """The tab has newer settings: its pending pool work was abandoned."""
+
+
+def _worker_init() -> None:
+    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+
+
+def kill_workers(ex) -> None:
+    """SIGKILL every process of ``ex`` (works on a stopped, SIGSTOPped one too)."""
+    procs = getattr(ex, "_processes", None) or {}  # ProcessPoolExecutor's own table of its workers
+    for p in list(procs.values()):
+        try:
+            p.kill()
+        except Exception:
+            pass
+
+
+class Pool:
+    """The tabs' shared process pool (``workers`` processes; 0 = compute in-process)."""
+
+    def __init__(self, workers: int, timeout: float = DEFAULT_TIMEOUT):
+        self.workers = max(0, int(workers))
+        self.timeout = float(timeout)
+        self.replacements = 0
+        self._lock = threading.Lock()
+        self._pending: list = []  # [outer, inner, guard, started-at or None]
+        self._plock = threading.Lock()
+        self._closed = False
+        self.current = self._new()
+        self._watch = threading.Thread(target=self._watchdog, name="qsid-pool-watch", daemon=True)
+        self._watch.start()
+
+    def _new(self):
+        if self.workers == 0:
+            return None
+        pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_worker_init)
+        try:
+            for f in [pool.submit(abs, 0) for _ in range(self.workers)]:  # start the workers now
+                f.result(timeout=120)
+        except Exception as exc:  # e.g. started from a script without a __main__ guard
+            pool.shutdown(wait=False, cancel_futures=True)
+            print(f"qsid-dashboard: no worker processes ({type(exc).__name__}: {exc}); computing in-process",
+                  file=sys.stderr)
+            return None
+        return pool
+
+    def guarded(self, stop: Callable[[], bool] | None = None) -> "Guarded | None":
+        """An executor for one computation (None: compute in-process); ``stop()`` true abandons its tasks."""
+        ex = self.current
+        return None if ex is None else Guarded(self, ex, stop or (lambda: False))
+
+    def replace(self, broken) -> bool:
+        """Replace the pool if ``broken`` is still the current one (its workers are killed); True if replaced."""
+        with self._lock:
+            if broken is None or broken is not self.current or self._closed:
+                return False
+            self.current = self._new()
+            self.replacements += 1
+        kill_workers(broken)
+        broken.shutdown(wait=False, cancel_futures=True)
+        return True
+
+    def shutdown(self) -> None:
+        """Stop at once: kill the workers (nothing waits for them)."""
+        with self._lock:
+            self._closed = True
+            ex, self.current = self.current, None
+        if ex is not None:
+            kill_workers(ex)
+            ex.shutdown(wait=False, cancel_futures=True)
+
+    # ----- watchdog -------------------------------------------------------------------------
+    def _track(self, entry: list) -> None:
+        with self._plock:
+            self._pending.append(entry)
+
+    def _watchdog(self) -> None:
+        last_trim = time.monotonic()
+        while True:
+            time.sleep(0.1)
+            if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
+                trim()
+                last_trim = time.monotonic()
+            with self._plock:
+                entries = [e for e in self._pending if not e[0].done()]
+                self._pending = entries
+            now = time.monotonic()
+            for e in entries:
+                outer, inner, guard = e[0], e[1], e[2]
+                if guard.stop():
+                    inner.cancel()
+                    _settle(outer, exc=Superseded())
+                    continue
+                if e[3] is None and inner.running():
+                    e[3] = now
+                if e[3] is not None and now - e[3] > self.timeout:
+                    _settle(outer, exc=PoolTimeout(
+                        f"a worker process did not finish its task within {self.timeout:g} s (hung?); "
+                        "it was stopped and the pool restarted", guard.executor))
+                    self.replace(guard.executor)
+
+
+def _settle(fut: Future, result=None, exc: BaseException | None = None) -> None:
+    try:
+        if exc is not None:
+            fut.set_exception(exc)
+        else:
+            fut.set_result(result)
+    except InvalidStateError:  # already settled (by the watchdog or the worker)
+        pass
+
+
+class Guarded:
+    """The executor one computation uses: tasks of one pool, watched for newer settings and time-outs."""
+
+    def __init__(self, pool: Pool, executor, stop: Callable[[], bool]):
+        self.pool, self.executor, self.stop = pool, executor, stop
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        if self.stop():
+            raise Superseded()
+        try:
+            inner = self.executor.submit(fn, *args, **kwargs)
+        except (RuntimeError, BrokenProcessPool) as exc:  # the pool was shut down or broke meanwhile
+            raise PoolBroken(f"the worker pool was restarted ({exc})", self.executor) from None
+        outer: Future = Future()
+        outer.set_running_or_notify_cancel()
+
+        def copy(f: Future) -> None:
+            if f.cancelled():
+                _settle(outer, exc=Superseded())
+                return
+            exc = f.exception()
+            if isinstance(exc, BrokenProcessPool):
+                exc = PoolBroken("a worker process died (killed or out of memory)", self.executor)
+            _settle(outer, f.result() if exc is None else None, exc)
+
+        inner.add_done_callback(copy)
+        self.pool._track([outer, inner, self, None])
+        return outer
+
+    def map(self, fn, *iterables):
+        futs = [self.submit(fn, *a) for a in zip(*iterables)]
+        return (f.result() for f in futs)

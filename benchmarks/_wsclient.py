@@ -1,0 +1,116 @@
+"""A minimal viser websocket client: what a browser tab sends and reads, without a browser.
+
+Used by the soak/flood tests (``tests/test_dashboard_load.py``) and ``benchmarks/bench_soak.py``.
+Speaks viser's wire protocol: msgpack messages to the server; from the server, frames of
+``[8 B size][8 B zstd size][zstd msgpack {"messages": [...]}][binary buffers]``.
+It learns each input's uuid from the server's ``Gui*Message`` (by label) and
+follows every markdown's content, so it can tell when the tab says "ready".
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import msgspec
+import viser
+import zstandard
+from websockets.sync.client import connect
+
+__all__ = ["WsTab", "rss_mb"]
+
+_CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0], "fov": 1.0,
+           "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400, "look_at": [0.0, 0.0, 0.0],
+           "up_direction": [0.0, 0.0, 1.0]}
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of process ``pid`` (MB), from /proc."""
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+class WsTab:
+    """One tab over the websocket: ``send(label, value)`` as a browser would; ``ready`` when it says so."""
+
+    def __init__(self, url: str, timeout: float = 30.0):
+        self.ws = connect(url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"],
+                          max_size=None, open_timeout=timeout, close_timeout=2)
+        self.uuids: dict[str, str] = {}  # input label -> uuid
+        self.markdown: dict[str, str] = {}  # markdown uuid -> content
+        self.received = 0
+        self.closed = False
+        self._dz = zstandard.ZstdDecompressor()
+        self._lock = threading.Lock()
+        self.thread = threading.Thread(target=self._read, daemon=True)
+        self.thread.start()
+        self.ws.send(msgspec.msgpack.encode(_CAMERA))  # viser counts a client once it reports its camera
+
+    def _read(self) -> None:
+        try:
+            while True:
+                raw = self.ws.recv()
+                self.received += len(raw)
+                if isinstance(raw, bytes) and len(raw) >= 16:
+                    size = int.from_bytes(raw[8:16], "little")
+                    payload = msgspec.msgpack.decode(self._dz.decompress(raw[16:16 + size]))
+                    for m in payload.get("messages", ()):
+                        self._note(m)
+        except Exception:
+            self.closed = True
+
+    def _note(self, m: dict) -> None:
+        typ = m.get("type", "")
+        with self._lock:
+            if typ == "GuiMarkdownMessage":
+                self.markdown[m["uuid"]] = m.get("props", {}).get("content", "")
+            elif typ.startswith("Gui") and isinstance(m.get("props"), dict) and "label" in m["props"]:
+                self.uuids[m["props"]["label"]] = m["uuid"]
+            elif typ == "GuiUpdateMessage" and "content" in m.get("updates", {}):
+                self.markdown[m["uuid"]] = m["updates"]["content"]
+
+    def wait_for(self, label: str, timeout: float = 30.0) -> str:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            with self._lock:
+                if label in self.uuids:
+                    return self.uuids[label]
+            time.sleep(0.02)
+        raise TimeoutError(f"input {label!r} not shown within {timeout} s")
+
+    @property
+    def status(self) -> str:
+        """The status line ("ready · ...", "computing ...", "error ...")."""
+        with self._lock:
+            texts = list(self.markdown.values())
+        return next((t for t in texts if t.startswith(("ready", "computing", "error", "starting"))), "")
+
+    @property
+    def ready(self) -> bool:
+        return self.status.startswith("ready")
+
+    def wait_ready(self, timeout: float = 60.0) -> float:
+        """Seconds until the tab says ready (TimeoutError otherwise)."""
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < timeout:
+            if self.ready:
+                return time.monotonic() - t0
+            if self.closed:
+                raise ConnectionError("the server closed the connection")
+            time.sleep(0.02)
+        raise TimeoutError(f"the tab was not ready within {timeout} s (status: {self.status!r})")
+
+    def send(self, label: str, value) -> None:
+        """Set input ``label`` to ``value`` exactly as a browser does (no range check on this side)."""
+        uuid = self.uuids.get(label) or self.wait_for(label)
+        self.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": uuid,
+                                             "updates": {"value": value}}))
+
+    def close(self) -> None:
+        try:
+            self.ws.close()
+        except Exception:
+            pass

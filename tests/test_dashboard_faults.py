@@ -1,0 +1,127 @@
+"""Faults of the shared process pool while several tabs compute: a worker killed, a worker frozen.
+
+Each test runs a real server in-process (workers=2) with two tabs; the pool is
+replaced exactly once per failed pool (never one another tab already replaced),
+and every tab either draws its newest setting after one retry or says why.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import pytest
+
+from app.dashboard import DashboardApp
+from app.dashboard.pool import Pool, PoolTimeout, Superseded
+from test_dashboard_server import SMALL, app, open_tab  # noqa: F401  (the in-process app fixture)
+
+HEAVIER = dict(trajectories=200, steps=1000, realizations=50)  # the letter's size: seconds of pool work
+LIGHTER = dict(trajectories=20, steps=100, realizations=6)  # milliseconds of work: only a hang times out
+
+
+def _pids(app) -> list[int]:
+    return [p.pid for p in app.executor._processes.values()]
+
+
+def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool = False) -> None:
+    app = DashboardApp(host="127.0.0.1", port=0, workers=2, task_timeout=timeout)
+    tabs, victims = [], []
+    try:
+        tabs = [open_tab(app), open_tab(app)]
+        old = app.executor
+        # one dead worker breaks the whole pool; a frozen one only hangs its own task: freeze them all
+        victims = _pids(app)[:1] if sig == signal.SIGKILL else _pids(app)
+        if before:  # the tabs' next tasks go to the frozen workers for sure
+            for v in victims:
+                os.kill(v, sig)
+        for t, b in zip(tabs, (7, 9)):
+            for k, v in size.items():
+                t.controls[k].value = v
+            t.controls["bits"].value = b
+        if not before:
+            time.sleep(0.5)  # both tabs have work in the pool
+            for v in victims:
+                os.kill(v, sig)
+        for t in tabs:
+            t.wait(90)
+        assert app.executor is not old and app.pool.replacements >= 1
+        if sig == signal.SIGKILL:
+            assert app.pool.replacements == 1  # once, not once per tab
+        for t, b in zip(tabs, (7, 9)):
+            if t.error is None:  # retried on the new pool
+                assert t.frame.bits == b and t.frame.complete
+                assert t.frame.values.realizations == size["realizations"]
+            else:  # a fresh worker's first task (imports, JIT) can itself outlast a 3 s timeout on a busy machine
+                assert "did not finish its task within 3 s" in t.error and "(twice)" in t.error, t.error
+            assert "internal error" not in (t.error or "") and "cannot schedule" not in (t.error or "")
+    finally:
+        for v in victims:
+            try:
+                os.kill(v, signal.SIGKILL)
+            except OSError:
+                pass
+        for t in tabs:
+            t.close()
+        app.stop()
+
+
+def test_a_killed_worker_is_replaced_once_and_both_tabs_recover():
+    _fault_while_two_tabs_compute(signal.SIGKILL, 120.0, HEAVIER)
+
+
+def test_frozen_workers_time_out_are_replaced_and_both_tabs_recover():
+    _fault_while_two_tabs_compute(signal.SIGSTOP, 3.0, LIGHTER, before=True)
+
+
+def test_a_tab_says_so_when_the_pool_fails_twice(app, monkeypatch):
+    import app.dashboard.session as session
+
+    tab = open_tab(app)
+    try:
+        calls = []
+
+        def failing(*a, **k):
+            calls.append(1)
+            raise PoolTimeout("a worker process did not finish its task within 3 s (hung?)", app.executor)
+            yield  # pragma: no cover
+
+        monkeypatch.setattr(session, "iter_frames", failing)
+        tab.set(bits=6)
+        assert len(calls) == 2 and "did not finish its task within 3 s" in tab.error and "(twice)" in tab.error
+        assert "--task-timeout" in tab.error and "internal error" not in tab.error
+        monkeypatch.undo()
+        tab.set(bits=7, **SMALL)
+        assert tab.error is None and tab.frame.bits == 7
+    finally:
+        tab.close()
+
+
+def test_replace_only_replaces_the_failed_pool():
+    pool = Pool(1, timeout=5)
+    try:
+        first = pool.current
+        assert pool.replace(first) and pool.current is not first
+        second = pool.current
+        assert not pool.replace(first)  # a second tab reporting the same failure: nothing happens
+        assert pool.current is second and pool.replacements == 1
+        assert pool.guarded().submit(abs, -3).result(10) == 3
+    finally:
+        pool.shutdown()
+
+
+def test_newer_settings_abandon_pool_work_at_once():
+    pool = Pool(1, timeout=30)
+    stop = []
+    try:
+        g = pool.guarded(lambda: bool(stop))
+        f = g.submit(time.sleep, 5)
+        time.sleep(0.2)
+        stop.append(1)
+        t0 = time.monotonic()
+        with pytest.raises(Superseded):
+            f.result(5)
+        assert time.monotonic() - t0 < 1.0
+    finally:
+        pool.shutdown()

@@ -1,0 +1,122 @@
+"""Every value that reaches the server over the websocket is checked before anything is computed.
+
+A browser offers only what the panel allows; these tests send what a hand-made
+client could (out-of-range sliders, huge numbers, absurd texts) exactly as the
+browser would (a ``GuiUpdateMessage`` over the tab's own websocket), and check
+that the tab explains it in plain words and keeps its last good view.
+"""
+
+from __future__ import annotations
+
+import time
+
+import msgspec
+import pytest
+
+from app.dashboard.controls import CONTROLS
+from app.dashboard.inputs import MAX_TEXT, check_value
+from app.dashboard.settings import InputError
+from test_dashboard_server import app, open_tab  # noqa: F401  (fixtures and helpers of the server tests)
+
+
+def send(tab, handle, value, timeout: float = 20.0):
+    """Send ``value`` for ``handle`` over the tab's websocket, as a browser does; wait until handled."""
+    g0 = tab.session.generation
+    tab.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid,
+                                        "updates": {"value": value}}))
+    end = time.monotonic() + timeout
+    while tab.session.generation == g0 and time.monotonic() < end:
+        time.sleep(0.01)
+    assert tab.session.generation > g0, "the server did not take the value"
+    return tab.wait()
+
+
+@pytest.fixture
+def tab(app):  # noqa: F811
+    t = open_tab(app)
+    yield t
+    t.close()
+
+
+BAD = [
+    ("q0", 400.0, "outside the slider's range -3 … 3"),  # was OverflowError in 10**400
+    ("q0", 1e308, "outside the slider's range"),
+    ("bits", 400, "word length b: 400 is outside the slider's range 1 … 16"),
+    ("bits", 1e308, "word length b: 1e+308 is outside"),
+    ("trajectories", 5000, "trajectories: 5000 is outside"),
+    ("steps", -5, "outside"),
+    ("horizon", 200, "horizon: 200 is outside"),
+    ("mpc_steps", 10000, "outside"),
+    ("u_max", 1e308, "input bound"),
+    ("data_seed", 1e308, "data seed"),
+    ("rho", 1e300, "ρ"),
+    ("theta", 5.0, "θ"),
+]
+
+
+def test_out_of_range_values_are_explained_and_the_view_stays(tab):
+    for name, value, words in BAD:
+        view, frames = tab.session.portrait.view, tab.session.frames_drawn
+        handle = tab.controls.q_sliders[0] if name == "q0" else tab.controls[name]
+        send(tab, handle, value)
+        assert tab.error is not None and words in tab.error, (name, value, tab.error)
+        assert "internal error" not in tab.error
+        assert tab.session.portrait.view is view and tab.session.frames_drawn == frames  # the last good view stays
+        assert not tab.controls.status.content.startswith("ready")
+        good = 0.0 if name == "q0" else CONTROLS[[c.name for c in CONTROLS].index(name)].lo
+        send(tab, handle, int(good) if isinstance(handle.value, int) else good)
+        assert tab.error is None and tab.controls.status.content.startswith("ready"), (name, tab.error)
+
+
+def test_deeply_nested_brackets_are_refused_in_plain_words(tab):
+    tab.set(system="custom")
+    send(tab, tab.controls["a_text"], "[" * 5000 + "1" + "]" * 5000)  # was RecursionError
+    assert "A: too many nested brackets" in tab.error and "internal error" not in tab.error
+    send(tab, tab.controls["a_text"], "1" * (MAX_TEXT + 1))
+    assert "too long" in tab.error
+
+
+def test_absurd_fixed_ranges_are_refused(tab):
+    tab.set(range_mode="fixed")
+    view = tab.session.portrait.view
+    for text, words in [
+        ("0, 5e-324", "narrow"),                  # was: every realization fails, then a reshape error
+        ("-1e308, 1e308", "between -1e+12"),      # was: 'ready' with eps = inf and 20/20 failures
+        ("nan, 1", "finite"),
+    ]:
+        send(tab, tab.controls["fixed_range"], text)
+        assert tab.error is not None and words in tab.error, tab.error
+        assert tab.session.portrait.view is view
+
+
+def test_all_failed_identifications_or_infinite_eps_are_never_shown_as_ready():
+    from types import SimpleNamespace as NS
+
+    import numpy as np
+
+    from app.dashboard.inputs import unusable as _unusable
+
+    ok = NS(eps=np.array([0.1, 0.2]), failed=np.array([False, True]), notes=[])
+    bad = NS(eps=np.array([0.1, 0.2]), failed=np.array([True, True]), notes=["identification failed: singular"])
+    inf = NS(eps=np.array([np.inf, 0.2]), failed=np.array([False, False]), notes=[])
+    frame = lambda **idents: NS(stage="current", bits=5, idents=idents)  # noqa: E731
+    assert _unusable(frame(LS=ok, BCLS=bad)) is None  # one estimator still has models: a result
+    msg = _unusable(frame(LS=bad, BCLS=bad))
+    assert "every identification failed at b = 5 (all 2 dither realizations): identification failed: singular" == msg
+    assert "not a finite number" in _unusable(frame(LS=inf))
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), "3", None, True, [1]])
+def test_check_value_refuses_what_is_not_a_number(value):
+    bits = next(c for c in CONTROLS if c.name == "bits")
+    with pytest.raises(InputError, match="word length b"):
+        check_value(bits, value)
+
+
+def test_dropdown_and_checkbox_values_must_be_offered():
+    dither = next(c for c in CONTROLS if c.name == "dither")
+    with pytest.raises(InputError, match="is not one of"):
+        check_value(dither, "telepathy")
+    guard = next(c for c in CONTROLS if c.name == "guard")
+    with pytest.raises(InputError, match="on/off"):
+        check_value(guard, 1)

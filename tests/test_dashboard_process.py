@@ -1,0 +1,133 @@
+"""The dashboard as a program: bad --port/--host, the beyond-loopback warning, Ctrl-C during heavy work.
+
+The server runs as ``python -m app.dashboard`` (cwd = repo root); tabs are plain
+websocket clients (:mod:`benchmarks._wsclient`) that send what a browser would.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _wsclient import WsTab  # noqa: E402
+
+ENV = dict(os.environ, PYTHONPATH=str(ROOT))
+
+
+def run(*args, timeout=60):
+    return subprocess.run([sys.executable, "-m", "app.dashboard", *args], cwd=ROOT, capture_output=True, text=True,
+                          env=ENV, timeout=timeout)
+
+
+def children(pid: int) -> list[int]:
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
+                        out.append(int(d))
+            except (OSError, ValueError, IndexError):
+                pass
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+class Server:
+    """``python -m app.dashboard`` on a free loopback port; ``url`` once it printed it."""
+
+    def __init__(self, *args):
+        self.p = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", "0", *args], cwd=ROOT, env=ENV,
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line, end = "", time.time() + 60
+        while not line.startswith("qsid dashboard:") and time.time() < end and self.p.poll() is None:
+            line = self.p.stdout.readline()
+        assert line.startswith("qsid dashboard: http://"), line
+        self.url = line.split()[2]
+
+    def kill(self):
+        if self.p.poll() is None:
+            self.p.kill()
+            self.p.wait(10)
+
+
+@pytest.mark.parametrize("port", ["70000", "-1", "http"])
+def test_bad_port_is_one_line_and_exit_2(port):
+    t0 = time.monotonic()
+    r = run("--port", port)
+    assert r.returncode == 2 and time.monotonic() - t0 < 30
+    assert "Traceback" not in r.stderr and "--port" in r.stderr and r.stdout == ""
+    assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_unresolvable_host_is_one_line_and_exit_2():
+    r = run("--host", "no-such-host.invalid", "--port", "0")
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip().splitlines() == [r.stderr.strip()] and "cannot be resolved" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_a_host_that_is_not_this_machine_is_one_line_and_exit_2():
+    r = run("--host", "192.0.2.1", "--port", "0")  # TEST-NET-1: never an address of this machine
+    assert r.returncode == 2 and "not an address of this machine" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_listening_beyond_loopback_warns():
+    s = Server("--host", "0.0.0.0", "--workers", "0")
+    try:
+        s.p.send_signal(signal.SIGINT)
+        out, err = s.p.communicate(timeout=30)
+    finally:
+        s.kill()
+    assert "anyone who can reach it on the network can use the dashboard" in err
+    assert s.p.returncode == 0
+
+
+HEAVY = {"realizations": 100, "trajectories": 400, "steps": 2000, "horizon": 50, "closed-loop steps": 300}
+
+
+def test_ctrl_c_stops_within_2_s_during_concurrent_mpc_work():
+    """Three tabs compute saturated settings with the process pool busy; SIGINT ends it all within 2 s."""
+    s = Server("--workers", "2")
+    tabs = []
+    try:
+        tabs = [WsTab(s.url) for _ in range(3)]
+        for i, t in enumerate(tabs):
+            t.wait_for("closed-loop steps")
+            for label, value in HEAVY.items():
+                t.send(label, value)
+            t.send("word length b", 3 + i)
+        time.sleep(4.0)  # everyone deep in quantization and closed loops
+        workers = children(s.p.pid)
+        assert len(workers) >= 2
+        assert not any(t.ready for t in tabs)  # still computing
+        t0 = time.monotonic()
+        s.p.send_signal(signal.SIGINT)
+        s.p.wait(timeout=10)
+        took = time.monotonic() - t0
+        err = s.p.stderr.read()
+    finally:
+        for t in tabs:
+            t.close()
+        s.kill()
+    assert took < 2.0, f"stopped after {took:.2f} s"
+    assert s.p.returncode == 0 and "Traceback" not in err, err
+    end = time.monotonic() + 5
+    while any(alive(w) for w in workers) and time.monotonic() < end:
+        time.sleep(0.05)
+    assert not any(alive(w) for w in workers), "pool workers outlived the server"
