@@ -55,6 +55,13 @@ class PoolTimeout(PoolFailure):
     """A task ran longer than the pool's per-task timeout."""
 
 
+def twice_message(exc: PoolFailure) -> str:
+    """What a tab says when its work failed in the pool twice in a row."""
+    hint = (" Try smaller settings, or start the server with a larger --task-timeout." if isinstance(exc, PoolTimeout)
+            else " Change a setting to retry.")
+    return f"{exc} (twice).{hint}"
+
+
 class Superseded(Exception):
     """The tab has newer settings: its pending pool work was abandoned."""
 

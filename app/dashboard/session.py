@@ -36,7 +36,7 @@ from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
 from .frames import Frame, fill_rows, make_frame, start
 from .inputs import check_panel, unusable
-from .pool import PoolFailure, PoolTimeout, Superseded
+from .pool import PoolFailure, Superseded, twice_message
 from .render import Renderer
 from .scene import PhasePortrait
 from .settings import ALL_BITS, InputError, Values, resolve_system
@@ -45,8 +45,7 @@ from .viewpanel import PANEL_WIDTH, ViewPanel
 
 __all__ = ["Session", "iter_frames"]
 
-#: A chunk quantized faster than this (seconds) counts as cheap (cached or small): queue all the rest at once.
-CHEAP = 0.15
+CHEAP = 0.15  #: a chunk quantized faster than this (s) is cheap (cached or small): queue all the rest at once
 
 
 class _Ahead:
@@ -324,8 +323,7 @@ class Session:
                     return gen
                 c.status.content = f"a worker process failed ({exc}); retrying …"
                 if attempt == 2:
-                    self._show_error(f"{exc} (twice)." + (" Try smaller settings, or start the server with a larger "
-                                     "--task-timeout." if isinstance(exc, PoolTimeout) else " Change a setting to retry."))
+                    self._show_error(twice_message(exc))
         return gen
 
     def _compute(self, gen: int, values: Values) -> int:
