@@ -127,8 +127,7 @@ def ultimate_bound(
     * ``omega_v = 2 lambda_max(P) rho``: Lipschitz constant of ``V`` on the ball of
       radius ``rho``; ``rho`` automatic (below) unless given; the value used is
       returned in :attr:`UltimateBound.rho`.
-    * ``c_A = ||dA||_F``, ``c_B = ||dB||_F`` (Frobenius, the letter's norm), the model
-      errors passed in (``eps^2`` is absorbed: ``dA = eps^2 Delta_A``).
+    * ``c_A = ||dA||_F``, ``c_B = ||dB||_F`` (Frobenius), with ``eps^2`` absorbed: ``dA = eps^2 Delta_A``.
     * ``theta`` in (0, 1), default 0.5.
     * The bound holds only as t -> inf and for ``x_ref = 0``; input and state
       constraints are not part of the proof's quadratic ``V``.
