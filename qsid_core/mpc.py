@@ -198,11 +198,6 @@ class MPCWeights:
     x_max: np.ndarray | None
     xf_max: np.ndarray | None
 
-    def __getitem__(self, name: str):
-        """Read-only dict-style access (``w["Q"]``), kept so older front-end code keeps working."""
-        if name not in self.__dataclass_fields__:
-            raise KeyError(name)
-        return getattr(self, name)
 
 
 class MPCController:

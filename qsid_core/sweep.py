@@ -63,7 +63,7 @@ def summarize(ex: Experiment, b: int, estimator: str | None = None) -> SummaryRo
     est = estimator or ex.config.estimator
     cfg = ex.config.mpc
     lp = ex.closed_loops(b, est) if cfg is not None else None
-    u_max = cfg.resolve(ex.system)["u_max"] if cfg is not None else _UNKNOWN
+    u_max = cfg.resolve(ex.system).u_max if cfg is not None else _UNKNOWN
     return summary_row(ex.system.n, ex.identification(b, est), ex.theory(b), lp, u_max=u_max,
                        realized=ex.realized_bound(b, est), assumptions=ex.assumptions(b))
 
@@ -106,7 +106,7 @@ class SweepResult:
     def summary(self, b: int) -> SummaryRow:
         """The typed summary at word length ``b``; ``.to_dict()`` is the CLI's ``results`` entry."""
         lp = self.loops.get(b)
-        u_max = self.config.mpc.resolve(self.system)["u_max"] if (lp is not None and self.config.mpc) else _UNKNOWN
+        u_max = self.config.mpc.resolve(self.system).u_max if (lp is not None and self.config.mpc) else _UNKNOWN
         return summary_row(self.system.n, self.identification[b], self.theory[b], lp, u_max=u_max,
                            realized=self.realized.get(b), assumptions=self.assumptions.get(b))
 

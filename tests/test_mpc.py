@@ -183,9 +183,7 @@ def test_resolve_returns_named_weights_with_shapes():
     np.testing.assert_array_equal(w.u_max, [0.3, 0.3])
     np.testing.assert_array_equal(w.x_max, [5.0] * 4)
     assert w.Qf is None and w.xf_max is None
-    assert w["u_max"] is w.u_max  # dict-style reads of older front-end code still work
-    with pytest.raises(KeyError):
-        w["nope"]
+    assert not hasattr(w, "__getitem__")  # attributes only: no dict-style reads left anywhere
 
 
 def test_failure_kinds_are_strings_in_json_and_messages():

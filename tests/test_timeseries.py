@@ -12,12 +12,12 @@ def test_time_series_of_saturating_loops():
     ex = Experiment(cfg)
     lp = ex.closed_loops(8)
     w = cfg.mpc.resolve(ex.system)
-    ts = time_series(lp, w["x0"], w["u_max"])
+    ts = time_series(lp, w.x0, w.u_max)
     assert ts.states.shape == (4, 31, 4) and ts.inputs.shape == (4, 30, 2) and ts.t.tolist() == list(range(31))
     assert ts.saturated_steps == int(ts.saturated.sum()) > 0 and ts.saturated_loops == 4
     assert np.all(np.abs(ts.inputs) <= 0.05 * (1 + 1e-6))
     np.testing.assert_allclose(ts.state_mean, lp.states.mean(axis=0))
-    np.testing.assert_allclose(ts.norms[:, 0], np.linalg.norm(w["x0"]))
+    np.testing.assert_allclose(ts.norms[:, 0], np.linalg.norm(w.x0))
 
 
 def test_converged_norms_are_floored_not_1e_minus_48():

@@ -30,7 +30,7 @@ def row(r) -> dict:
 def full_row(ex: Experiment, est: str, b: int, lp) -> dict:
     """The engine's complete row at ``b`` (closed loops ``lp``, the a-posteriori bound, the assumptions,
     the saturated steps), as the dict the views read."""
-    u_max = ex.config.mpc.resolve(ex.system)["u_max"]
+    u_max = ex.config.mpc.resolve(ex.system).u_max
     return row(summary_row(ex.system.n, ex.identification(b, est), ex.theory(b), lp, u_max=u_max,
                            realized=ex.realized_bound(b, est), assumptions=ex.assumptions(b)))
 
