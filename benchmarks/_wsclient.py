@@ -24,6 +24,10 @@ _CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "positio
            "up_direction": [0.0, 0.0, 1.0]}
 
 
+#: The keys a markdown's text arrives under (viser >= 1.0: "_markdown"; older: "content").
+_TEXT_KEYS = ("_markdown", "content")
+
+
 def rss_mb(pid: int) -> float:
     """Resident memory of process ``pid`` (MB), from /proc."""
     with open(f"/proc/{pid}/status") as f:
@@ -66,11 +70,15 @@ class WsTab:
         typ = m.get("type", "")
         with self._lock:
             if typ == "GuiMarkdownMessage":
-                self.markdown[m["uuid"]] = m.get("props", {}).get("content", "")
+                props = m.get("props", {})
+                self.markdown[m["uuid"]] = props.get("_markdown", props.get("content", ""))
             elif typ.startswith("Gui") and isinstance(m.get("props"), dict) and "label" in m["props"]:
                 self.uuids[m["props"]["label"]] = m["uuid"]
-            elif typ == "GuiUpdateMessage" and "content" in m.get("updates", {}):
-                self.markdown[m["uuid"]] = m["updates"]["content"]
+            elif typ == "GuiUpdateMessage":
+                up = m.get("updates", {})
+                for key in _TEXT_KEYS:  # viser 1.x sends a markdown's text as "_markdown"
+                    if key in up:
+                        self.markdown[m["uuid"]] = up[key]
 
     def wait_for(self, label: str, timeout: float = 30.0) -> str:
         end = time.monotonic() + timeout
