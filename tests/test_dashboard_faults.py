@@ -44,8 +44,8 @@ def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool 
             time.sleep(0.5)  # both tabs have work in the pool
             for v in victims:
                 os.kill(v, sig)
-        for t in tabs:
-            t.wait(90)
+        for t in tabs:  # a hung task times out, the pool is rebuilt (spawn + imports: slow on a busy machine)
+            t.wait(240)
         assert app.executor is not old and app.pool.replacements >= 1
         if sig == signal.SIGKILL:
             assert app.pool.replacements == 1  # once, not once per tab
@@ -53,8 +53,8 @@ def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool 
             if t.error is None:  # retried on the new pool
                 assert t.frame.bits == b and t.frame.complete
                 assert t.frame.values.realizations == size["realizations"]
-            else:  # a fresh worker's first task (imports, JIT) can itself outlast a 3 s timeout on a busy machine
-                assert "did not finish its task within 3 s" in t.error and "(twice)" in t.error, t.error
+            else:  # a fresh worker's first task (imports, JIT) can itself outlast a short timeout on a busy machine
+                assert f"did not finish its task within {timeout:g} s" in t.error and "(twice)" in t.error, t.error
             assert "internal error" not in (t.error or "") and "cannot schedule" not in (t.error or "")
     finally:
         for v in victims:
@@ -72,7 +72,7 @@ def test_a_killed_worker_is_replaced_once_and_both_tabs_recover():
 
 
 def test_frozen_workers_time_out_are_replaced_and_both_tabs_recover():
-    _fault_while_two_tabs_compute(signal.SIGSTOP, 3.0, LIGHTER, before=True)
+    _fault_while_two_tabs_compute(signal.SIGSTOP, 6.0, LIGHTER, before=True)
 
 
 def test_a_tab_says_so_when_the_pool_fails_twice(app, monkeypatch):
