@@ -120,3 +120,28 @@ def test_dropdown_and_checkbox_values_must_be_offered():
     guard = next(c for c in CONTROLS if c.name == "guard")
     with pytest.raises(InputError, match="on/off"):
         check_value(guard, 1)
+
+
+def _send_raw(tab, handle, updates: dict) -> None:
+    tab.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid, "updates": updates}))
+
+
+@pytest.mark.parametrize("updates, words", [
+    ({"value": "abc"}, "ValueError"),        # text for a slider: viser's own int() refuses it
+    ({"value": [1, 2]}, "TypeError"),
+    ({"no_such_prop": 1}, "AssertionError"),  # a property the input does not have
+])
+def test_values_viser_itself_refuses_are_explained_not_dropped(tab, updates, words):
+    """These never reach our callbacks (viser converts first): the tab says so, the view and the value stay."""
+    handle, before = tab.controls["bits"], tab.controls["bits"].value
+    gen, frames = tab.session.generation, tab.session.frames_drawn
+    _send_raw(tab, handle, updates)
+    end = time.monotonic() + 20
+    while tab.error is None and time.monotonic() < end:
+        time.sleep(0.02)
+    assert tab.error is not None, "nothing shown"
+    assert "word length b: the value sent" in tab.error and "was refused" in tab.error and words in tab.error
+    assert "keeps its last value" in tab.error
+    assert handle.value == before and tab.session.generation == gen and tab.session.frames_drawn == frames
+    send(tab, handle, 7)  # a good value clears it
+    assert tab.error is None and tab.frame.bits == 7

@@ -19,6 +19,7 @@ from app.figures.phase_scene import axes_options
 from qsid_core.quantize import DITHERS, RANGE_MODES
 from qsid_core.systems import LTISystem
 
+from .flow import inline
 from .lessons import NONE, lesson_markdown, lesson_names, lesson_values
 from .settings import (
     ALL_BITS, IDENT_CHOICES, INTERACTIVE, LOG_MAX, LOG_MIN, PAPER_SCALE, SYSTEM_CHOICES, Values, format_weights,
@@ -195,7 +196,7 @@ def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callabl
 
     def add(c: Control) -> None:
         h = _add(gui, c, _initial(c, values, system), system, custom)
-        h.on_update(lambda _event: on_change())  # only mark dirty; the tab's worker redraws
+        h.on_update(inline(lambda _event: on_change()))  # only mark dirty (at once); the tab's worker redraws
         handles[c.name] = h
 
     for c in (c for c in CONTROLS if c.tab == ""):  # the lesson and the word length, above the tabs
@@ -246,7 +247,7 @@ def _weight_sliders(el: GuiElements, folder, kind: str, names, logs) -> list:
                                      hint=f"log10 of the weight of {'state' if kind == 'Q' else 'input'} {nm}")
                    for nm, x in zip(names, logs)]
     for h in sliders:
-        h.on_update(lambda _event: el.on_change())
+        h.on_update(inline(lambda _event: el.on_change()))
     return sliders
 
 

@@ -19,10 +19,15 @@ those ways; everything else (results, exceptions) passes through unchanged.
 from __future__ import annotations
 
 import multiprocessing
+import os
+import pickle
+import shutil
 import signal
 import sys
+import tempfile
 import threading
 import time
+from collections import OrderedDict
 from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
@@ -31,12 +36,45 @@ from qsid_core.errors import QsidError
 
 from .memory import trim
 
-__all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Superseded", "DEFAULT_TIMEOUT"]
+__all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Superseded", "DEFAULT_TIMEOUT", "SHARE_BYTES"]
 
 #: Seconds between two ``malloc_trim`` calls of the watchdog.
 TRIM_EVERY = 10.0
 #: Seconds one pool task may run before its worker counts as hung (paper-scale tasks take a few seconds).
 DEFAULT_TIMEOUT = 60.0
+#: Data every task of a pass needs and larger than this (bytes) goes to the workers once, through a file.
+SHARE_BYTES = 1 << 20
+#: How many shared objects the server keeps on disk, and each worker in memory.
+SHARE_KEEP, WORKER_KEEP = 8, 2
+
+_worker_shared: OrderedDict = OrderedDict()  # in a pool worker: file -> object, the last WORKER_KEEP
+
+
+def _load_shared(path: str):
+    """In a pool worker: the object the server shared as ``path`` (read once, then kept)."""
+    obj = _worker_shared.get(path)
+    if obj is None:
+        try:
+            with open(path, "rb") as f:
+                obj = pickle.load(f)
+        except FileNotFoundError:
+            raise QsidError("the data of this task were replaced meanwhile (many tabs changed their data at "
+                            "once); change a setting to retry") from None
+        _worker_shared[path] = obj
+        while len(_worker_shared) > WORKER_KEEP:
+            _worker_shared.popitem(last=False)
+    _worker_shared.move_to_end(path)
+    return obj
+
+
+class _Shared:
+    """Pickles as a file name; unpickles in the worker as the object itself (read once per worker)."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def __reduce__(self):
+        return _load_shared, (self.path,)
 
 
 class PoolFailure(QsidError):
@@ -93,6 +131,9 @@ class Pool:
         self._pending: list = []  # [outer, inner, guard, started-at or None]
         self._plock = threading.Lock()
         self._closed = False
+        self._shared: OrderedDict = OrderedDict()  # id(obj) -> (obj, what tasks get); see share()
+        self._share_dir: str | None = None
+        self._slock = threading.Lock()
         self.current = self._new()
         self._watch = threading.Thread(target=self._watchdog, name="qsid-pool-watch", daemon=True)
         self._watch.start()
@@ -117,6 +158,35 @@ class Pool:
         ex = self.current
         return None if ex is None else Guarded(self, ex, stop or (lambda: False))
 
+    def share(self, obj):
+        """What pool tasks get instead of ``obj``: the object itself if small, else a reference to a file
+        written once (each worker reads it once), so a pass split into many short tasks does not send the
+        data with every task."""
+        with self._slock:
+            hit = self._shared.get(id(obj))
+            if hit is not None and hit[0] is obj:
+                self._shared.move_to_end(id(obj))
+                return hit[1]
+            data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+            if len(data) < SHARE_BYTES:
+                arg = obj
+            else:
+                if self._share_dir is None:
+                    self._share_dir = tempfile.mkdtemp(prefix="qsid-share-")
+                fd, path = tempfile.mkstemp(dir=self._share_dir, suffix=".pkl")
+                with os.fdopen(fd, "wb") as f:
+                    f.write(data)
+                arg = _Shared(path)
+            self._shared[id(obj)] = (obj, arg)
+            while len(self._shared) > SHARE_KEEP:
+                _, (_, old) = self._shared.popitem(last=False)
+                if isinstance(old, _Shared):
+                    try:
+                        os.unlink(old.path)
+                    except OSError:
+                        pass
+            return arg
+
     def replace(self, broken) -> bool:
         """Replace the pool if ``broken`` is still the current one (its workers are killed); True if replaced."""
         with self._lock:
@@ -136,6 +206,11 @@ class Pool:
         if ex is not None:
             kill_workers(ex)
             ex.shutdown(wait=False, cancel_futures=True)
+        with self._slock:
+            self._shared.clear()
+            if self._share_dir is not None:
+                shutil.rmtree(self._share_dir, ignore_errors=True)
+                self._share_dir = None
 
     # ----- watchdog -------------------------------------------------------------------------
     def _track(self, entry: list) -> None:
@@ -206,6 +281,10 @@ class Guarded:
         inner.add_done_callback(copy)
         self.pool._track([outer, inner, self, None])
         return outer
+
+    def share(self, obj):
+        """See :meth:`Pool.share` (the engine passes the data every task needs through this hook)."""
+        return self.pool.share(obj)
 
     def map(self, fn, *iterables):
         futs = [self.submit(fn, *a) for a in zip(*iterables)]

@@ -22,6 +22,7 @@ import viser
 from qsid_core.errors import QsidError
 
 from .cache import SharedCache
+from .flow import FairSlots, limit_reads
 from .lessons import get_lesson, lesson_names, lesson_values
 from .memory import limit_arenas, trim
 from .netcheck import OneLineParser, check_address, port_number
@@ -64,7 +65,7 @@ class DashboardApp:
         if lesson is not None:  # every new tab opens on the lesson (its settings, its text)
             self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
         self.cache = SharedCache(cache_bytes)
-        self.slots = threading.BoundedSemaphore(max(1, slots))  # (4) at most `slots` tabs compute at once
+        self.slots = FairSlots(slots)  # (4) at most `slots` tabs compute at once, first come first served
         self.workers = max(0, int(workers))
         self.tasks = max(1, self.workers)
         self._lock = threading.Lock()  # (5) guards `sessions`
@@ -98,6 +99,7 @@ class DashboardApp:
         return f"http://{self.host}:{self.port}"
 
     def _connect(self, client) -> None:
+        limit_reads(self.server, client.client_id)  # a flooding tab cannot make the event loop's turns long
         try:
             s = Session(self, client, self.defaults)
         except Exception:  # a broken tab must not take the server down

@@ -2,15 +2,20 @@
 
 Concurrency in the dashboard, every mechanism in one list (each is commented where it lives):
 
-1. ``Session._cond`` (one per tab): viser runs input callbacks on its own thread
-   pool; a callback only bumps the tab's generation under this condition and
-   wakes the worker; :meth:`Session.wait_idle` waits on it too.
+1. ``Session._cond`` (one per tab): an input callback only bumps the tab's generation under this
+   condition and wakes the worker; :meth:`Session.wait_idle` waits on it too. Those callbacks run
+   where viser receives the message (its event loop); the tab's other callbacks (buttons, views) run
+   in ``Session.callbacks`` (:class:`~app.dashboard.flow.TabCallbacks`, one thread per tab, at most one
+   queued call per callback: a flood of changes cannot queue work without bound).
 2. ``Session.thread`` (one per tab): the only thread that reads the panel,
-   computes and draws; it drops a computation as soon as a newer generation exists.
-3. the helper thread of :func:`iter_frames` (one per computation): quantizes the
+   computes and draws; it drops a computation as soon as a newer generation exists, and starts
+   at most one computation per ``MIN_GAP`` seconds (a burst of changes: only the newest is computed;
+   a tab whose changes keep dropping its work before anything is drawn waits longer, up to ``MAX_GAP``).
+3. the helper thread of :func:`iter_frames` (:mod:`.stages`, one per computation): quantizes the
    next chunk of word lengths while the worker runs closed loops, and runs the
    second estimator's closed loops beside the first.
-4. ``DashboardApp.slots`` (server): a semaphore, at most a few tabs compute at once.
+4. ``DashboardApp.slots`` (server, :class:`~app.dashboard.flow.FairSlots`): at most a few tabs compute at
+   once, served in the order they asked.
 5. ``DashboardApp._lock`` (server): the tab registry.
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
 7. the process pool (:mod:`.pool`): ``Pool._lock`` guards its replacement (only of the failed executor);
@@ -26,136 +31,30 @@ import dataclasses
 import threading
 import time
 import traceback
-from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Callable, Iterator, MutableMapping
 
 from qsid_core.errors import QsidError
 from qsid_core.systems import PRESETS, get_system
 
 from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
-from .frames import Frame, fill_rows, make_frame, start
+from .flow import TabCallbacks, guard_updates
+from .frames import Frame
 from .inputs import check_panel, unusable
 from .pool import PoolFailure, Superseded, twice_message
 from .render import Renderer
 from .scene import PhasePortrait
-from .settings import ALL_BITS, InputError, Values, resolve_system
+from .settings import InputError, Values, resolve_system
 from .share import add_share_panel, apply_pending, show_frame
+from .stages import iter_frames
 from .viewpanel import PANEL_WIDTH, ViewPanel
 
-__all__ = ["Session", "iter_frames"]
+__all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
 
-CHEAP = 0.15  #: a chunk quantized faster than this (s) is cheap (cached or small): queue all the rest at once
-
-
-class _Ahead:
-    """Quantizes ``parts`` (``ex.moments``) in the helper thread, one expensive part ahead of the reader."""
-
-    def __init__(self, helper: ThreadPoolExecutor, ex, parts: list, stop: Callable[[], bool]):
-        self.helper, self.ex, self.parts, self.stop = helper, ex, parts, stop
-        self.futures: list[Future] = []
-
-    def _task(self, part) -> float | None:
-        if self.stop():
-            return None
-        t = time.perf_counter()
-        self.ex.moments(part)
-        return time.perf_counter() - t  # seconds: decides whether the rest is queued at once
-
-    def _submit_through(self, k: int) -> None:
-        while len(self.futures) <= min(k, len(self.parts) - 1):
-            self.futures.append(self.helper.submit(self._task, self.parts[len(self.futures)]))
-
-    def wait(self, k: int) -> None:
-        """Return once part ``k`` is quantized (re-raises the helper's error); part k + 1 starts meanwhile."""
-        self._submit_through(k + 1)
-        if self.futures[k].result() is None:  # the helper skipped it (stop() was true): compute here
-            self.ex.moments(self.parts[k])
-        costs = [f.result() for f in self.futures if f.done() and f.exception() is None]
-        if all(c is not None and c <= CHEAP for c in costs):
-            self._submit_through(len(self.parts) - 1)
-
-    @property
-    def finished(self) -> bool:
-        """Every part is quantized (and cached)."""
-        return len(self.futures) == len(self.parts) and all(f.done() for f in self.futures)
-
-
-def _loops_all(helper: ThreadPoolExecutor, job, rows: dict, bits: list) -> None:
-    """Closed loops at ``bits`` for every estimator: the second one's in the helper thread, side by side."""
-    first, *others = job.estimators
-    futs = [(e, helper.submit(job.ex.closed_loops_many, bits, e)) for e in others]
-    fill_rows(job, rows, first, bits, job.ex.closed_loops_many(bits, first))
-    for e, f in futs:
-        fill_rows(job, rows, e, bits, f.result())
-
-
-def iter_frames(values: Values, cache: MutableMapping | None = None, executor=None, tasks: int = 1,
-                should_stop: Callable[[], bool] | None = None, chunk: int = len(ALL_BITS) - 1, min_interval: float = 0.3,
-                on_progress: Callable[[int, int, str], None] | None = None) -> Iterator[Frame]:
-    """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames.
-
-    Parameters
-    ----------
-    values : Values
-    cache : mapping, optional
-        Shared :class:`~app.dashboard.cache.SharedCache` (anything a change does not touch is reused).
-    executor, tasks
-        Passed to :class:`~qsid_core.experiment.Experiment` (e.g. the dashboard's process pool).
-    should_stop : callable, optional
-        Polled between chunks; True ends the iteration (newer settings arrived).
-    chunk : int
-        Word lengths quantized per pass over the data. Default: all the others in one pass (each pass
-        draws the dither again; one pass instead of three cut a paper-scale data change's CPU time by
-        ~30%, benchmarks/bench_dashboard.py); a newer change then waits for that pass.
-    min_interval : float
-        A "curves" frame is yielded when this many seconds passed since the last one, and at the end.
-    on_progress : callable(done, total, text), optional
-        Called before each chunk ("computing b=5..9 (6/16)").
-
-    Raises
-    ------
-    qsid_core.errors.QsidError
-        Bad settings, data overflow, ... in plain words.
-    """
-    stop = should_stop or (lambda: False)
-    t0 = time.perf_counter()
-    b, total = int(values.bits), len(ALL_BITS)
-    if on_progress:
-        on_progress(0, total, f"computing b={b} (1/{total})")
-    job, rows = start(values, cache, executor, tasks)
-    timings = {"current": time.perf_counter() - t0}
-    yield make_frame(job, "current", rows, 1, timings["current"], timings)
-    rest = [x for x in job.all_bits if x != b]
-    parts = [rest[i:i + chunk] for i in range(0, len(rest), chunk)]
-    helper = ThreadPoolExecutor(1, thread_name_prefix="qsid-helper")
-    ahead = _Ahead(helper, job.ex, parts, stop)
-    last, done, k = time.perf_counter(), 1, 0
-    try:
-        while k < len(parts):
-            if stop():
-                return
-            if on_progress:
-                on_progress(done, total, f"computing b={parts[k][0]}..{parts[k][-1]} ({done + 1}/{total})")
-            ahead.wait(k)
-            if executor is not None and ahead.finished:
-                # every b quantized (or cached): spread all remaining closed loops over the executor at once
-                part, k = [x for p in parts[k:] for x in p], len(parts)
-                _loops_all(helper, job, rows, part)
-            else:
-                # closed loops here, side by side with the quantization of the next chunk in the helper
-                part, k = parts[k], k + 1
-                for e in job.estimators:
-                    fill_rows(job, rows, e, part)
-            done += len(part)
-            now = time.perf_counter()
-            if done >= total or now - last >= min_interval:
-                last = now
-                timings["curves"] = now - t0
-                yield make_frame(job, "curves", rows, done, now - t0, timings)
-    finally:
-        helper.shutdown(wait=False, cancel_futures=True)
-
+#: Seconds between the starts of two computations of one tab (changes arriving meanwhile are merged) ...
+MIN_GAP = 0.1
+#: ... doubled up to this after each computation a newer change dropped before anything was drawn (a flood),
+#: back to MIN_GAP once a frame is drawn: a tab flooding changes cannot take the CPU from the others.
+MAX_GAP = 2.0
 
 class Session:
     """One browser tab: its controls, scene, plots and the worker thread that redraws them.
@@ -173,11 +72,17 @@ class Session:
         self._gen = 0
         self._done = -1
         self._closed = False
+        self._last_start, self._gap = 0.0, MIN_GAP
         self.frames_drawn = 0
         self.last_frame: Frame | None = None
         self.last_error: str | None = None
         self.timings: dict = {}
         gui = client.gui
+        # (1) this tab's callbacks: cheap ones at once, others in one thread of its own, never queued twice
+        self.callbacks = TabCallbacks(str(client.client_id))
+        if hasattr(gui, "_thread_executor"):
+            gui._thread_executor = self.callbacks
+        guard_updates(gui, self._show_error)  # a value viser refuses is explained, not dropped
         gui.configure_theme(show_share_button=False, control_width="large", show_logo=False)
         # place the panels before filling them: moving a filled panel re-mounts its plots
         gui.main_panel.dock_left()
@@ -212,6 +117,7 @@ class Session:
         with self._cond:
             self._closed = True
             self._cond.notify_all()
+        self.callbacks.shutdown()
         if wait and threading.current_thread() is not self.thread:
             self.thread.join(timeout=10)
 
@@ -259,12 +165,19 @@ class Session:
                 self._cond.wait_for(lambda: self._closed or self._done != self._gen)
                 if self._closed:
                     return
+                # (2) a burst of changes: wait out the gap since the last start, then take the newest
+                self._cond.wait_for(lambda: self._closed, self._last_start + self._gap - time.monotonic())
+                if self._closed:
+                    return
                 gen = self._gen
+            self._last_start, drawn = time.monotonic(), self.frames_drawn
             try:
                 gen = self._run(gen)
             except Exception as exc:  # never let the worker die: show it, keep the last view
                 traceback.print_exc()
                 self._show_error(f"internal error ({type(exc).__name__}): {exc}")
+            flooded = self.frames_drawn == drawn and self._stale(gen)
+            self._gap = min(MAX_GAP, 2.0 * self._gap) if flooded else MIN_GAP
             with self._cond:
                 self._done = gen
                 self._cond.notify_all()
@@ -380,6 +293,8 @@ class Session:
         c = self.controls
         frame.pinned = self.pinned
         frame.datalength = self.datalength.lookup(frame.values)
+        if self._stale(gen):
+            return False
         r = self.renderer.render(frame, c["axes"].value)
         if self._stale(gen):  # never draw an older result over a newer one
             self.renderer = Renderer()  # it remembered figures that were not pushed

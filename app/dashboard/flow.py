@@ -1,0 +1,204 @@
+"""Back-pressure: what one tab may queue, how tabs share the compute slots, and how big pool tasks are.
+
+A hand-made client can send tens of thousands of changes a second. viser runs a
+plain ``def`` input callback by submitting it to its one shared thread pool,
+once per message: under a flood that queue grew without bound, and a new tab's
+connect callback (queued behind it) did not run for more than 30 s.
+
+- :class:`TabCallbacks` replaces viser's thread pool *for one tab's panel*
+  (``client.gui``): a callback marked :func:`inline` (it only marks the tab
+  dirty) runs at once where the message arrives; any other callback runs in the
+  tab's own callback thread, and while one call of it is queued a newer one
+  only replaces its arguments (only the newest matters). A tab can therefore
+  queue at most one call per callback, whatever it sends.
+- :class:`FairSlots`: the compute slots are handed out first come, first served,
+  so a tab that keeps computing cannot take a slot back before a waiting tab.
+- :func:`guard_updates`: a value viser itself cannot take (e.g. text sent for a
+  slider) is explained in the tab instead of ending as "Task exception was never
+  retrieved" on the server's console.
+- :func:`limit_reads`: the event loop reads at most :data:`READ_BYTES` of one tab's socket at a time.
+  viser turns every message read into tasks before the loop does anything else; one 256 KiB read
+  of a flooding client (thousands of messages) made every loop turn last ~1 s, and a new tab's
+  handshake needs several turns (it took 5-11 s during a flood).
+- :func:`pool_tasks`: how many pool tasks a quantization pass is split into, so
+  each lasts a fraction of a second (a newer setting never waits long for the
+  pool to finish abandoned work).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import OrderedDict, deque
+from concurrent.futures import Future
+from typing import Callable
+
+__all__ = ["inline", "TabCallbacks", "FairSlots", "guard_updates", "limit_reads", "pool_tasks", "TASK_SECONDS",
+           "READ_BYTES"]
+
+#: Target length of one pool task (s): abandoned tasks still running delay a newer setting by about this much.
+TASK_SECONDS = 0.3
+#: Seconds of one worker per data sample, realization and first word length (measured: 400 x 2000 samples of the
+#: dc motor, 100 realizations, one b: 1.8 s on 2 workers); each further b of the same pass adds ~11 %.
+_SAMPLE_SECONDS = 4.5e-8
+#: Bytes the event loop reads from one tab's socket per turn (asyncio's default: 256 KiB); ~40 changes.
+READ_BYTES = 4096
+
+
+def inline(fn: Callable) -> Callable:
+    """Mark an input callback as cheap (it only marks the tab dirty): it runs where the message arrives."""
+    fn.qsid_inline = True
+    return fn
+
+
+def _done(result=None) -> Future:
+    f: Future = Future()
+    f.set_result(result)
+    return f
+
+
+class TabCallbacks:
+    """The executor of one tab's panel callbacks (installed as ``client.gui._thread_executor``).
+
+    ``submit(fn, *args)`` runs an :func:`inline` callback at once; any other callback
+    is queued for the tab's callback thread, at most once: a newer call of a queued
+    callback replaces its arguments. Every callback's errors are printed (as viser does).
+    """
+
+    def __init__(self, name: str):
+        self.name = name
+        self._lock = threading.Condition()
+        self._queue: OrderedDict = OrderedDict()  # fn -> [args, kwargs, future]
+        self._closed = False
+        self._thread: threading.Thread | None = None
+        self.coalesced = 0  #: calls merged into a queued one (for tests and benchmarks)
+
+    def submit(self, fn: Callable, /, *args, **kwargs) -> Future:
+        if getattr(fn, "qsid_inline", False):
+            fut: Future = Future()
+            try:
+                fut.set_result(fn(*args, **kwargs))
+            except Exception as exc:  # reported by viser's done-callback
+                fut.set_exception(exc)
+            return fut
+        with self._lock:
+            if self._closed:
+                return _done()
+            entry = self._queue.get(fn)
+            if entry is not None:  # already queued: only the newest arguments matter
+                entry[0], entry[1] = args, kwargs
+                self.coalesced += 1
+                return entry[2]
+            fut = Future()
+            self._queue[fn] = [args, kwargs, fut]
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name=f"qsid-callbacks-{self.name}", daemon=True)
+                self._thread.start()
+            self._lock.notify()
+            return fut
+
+    def _run(self) -> None:
+        while True:
+            with self._lock:
+                self._lock.wait_for(lambda: self._closed or self._queue)
+                if self._closed:
+                    return
+                fn, (args, kwargs, fut) = self._queue.popitem(last=False)
+            try:
+                fut.set_result(fn(*args, **kwargs))
+            except Exception as exc:
+                fut.set_exception(exc)
+
+    def shutdown(self, wait: bool = False, cancel_futures: bool = True) -> None:
+        with self._lock:
+            self._closed = True
+            for _args, _kw, fut in self._queue.values():
+                fut.cancel()
+            self._queue.clear()
+            self._lock.notify_all()
+
+
+class FairSlots:
+    """At most ``n`` holders at once, handed out in the order they were asked for (a context manager)."""
+
+    def __init__(self, n: int):
+        self._free = max(1, int(n))
+        self._lock = threading.Lock()
+        self._waiting: deque = deque()
+
+    def acquire(self) -> None:
+        with self._lock:
+            if self._free > 0 and not self._waiting:
+                self._free -= 1
+                return
+            turn = threading.Event()
+            self._waiting.append(turn)
+        turn.wait()  # release() hands its slot over directly: nobody can barge in between
+
+    def release(self) -> None:
+        with self._lock:
+            if self._waiting:
+                self._waiting.popleft().set()
+            else:
+                self._free += 1
+
+    def __enter__(self) -> "FairSlots":
+        self.acquire()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def guard_updates(gui, on_reject: Callable[[str], None]) -> bool:
+    """Wrap viser's handler of one tab's input messages: a value viser cannot take is explained by ``on_reject``.
+
+    viser converts each value to the input's type before any callback runs (text sent for
+    a slider, a list for a checkbox ...); that error used to end unnoticed in the event loop.
+    Returns False (nothing wrapped) if this viser version has no such handler.
+    """
+    from viser._messages import GuiUpdateMessage
+
+    conn = getattr(gui, "_websock_interface", None)
+    orig = getattr(gui, "_handle_gui_updates", None)
+    if conn is None or orig is None or orig not in conn._incoming_handlers.get(GuiUpdateMessage, ()):
+        return False
+
+    async def checked(client_id, message) -> None:
+        try:
+            await orig(client_id, message)
+        except Exception as exc:
+            handle = gui._gui_input_handle_from_uuid.get(message.uuid)
+            label = getattr(handle, "label", None) or "an input"
+            sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in dict(message.updates).items())
+            on_reject(f"{label}: the value sent ({sent}) was refused ({type(exc).__name__}: {str(exc)[:80]}); "
+                      "the input keeps its last value")
+
+    conn.unregister_handler(GuiUpdateMessage, orig)
+    conn.register_handler(GuiUpdateMessage, checked)
+    return True
+
+
+def limit_reads(server, client_id, nbytes: int = READ_BYTES) -> bool:
+    """Make the event loop read at most ``nbytes`` of client ``client_id``'s socket per turn.
+
+    ``server`` is the ``viser.ViserServer``. Returns False (nothing changed) if this viser or
+    asyncio keeps the connection elsewhere (e.g. another event loop implementation).
+    """
+    conns = getattr(getattr(server, "_websock_server", None), "_live_connections", None) or {}
+    transport = getattr(conns.get(client_id), "transport", None)
+    if transport is None or not isinstance(getattr(transport, "max_size", None), int):
+        return False
+    transport.max_size = int(nbytes)
+    return True
+
+
+def pool_tasks(samples: int, realizations: int, bits: int, workers: int, target: float = TASK_SECONDS) -> int:
+    """How many pool tasks to split ``realizations`` into for one pass over ``bits`` word lengths.
+
+    Each task should last about ``target`` seconds (estimated from ``samples`` = trajectories x
+    steps x channels / 4); at least one task per worker, at most one per realization.
+    """
+    per_real = _SAMPLE_SECONDS * samples * (1.0 + 0.11 * (max(1, bits) - 1))
+    per_task = max(1, int(target // per_real)) if per_real > 0 else realizations
+    return int(min(max(workers, math.ceil(realizations / per_task)), max(1, realizations)))

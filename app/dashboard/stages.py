@@ -1,0 +1,143 @@
+"""The stages of one tab's computation (:func:`iter_frames`): the current b in full, then every other b.
+
+Threads: :func:`iter_frames` runs in the tab's worker (see the list in
+:mod:`app.dashboard.session`); its helper thread quantizes the next chunk of word
+lengths while the worker runs closed loops. Every stage can be left within about a
+second of a newer setting: pool work through :class:`~app.dashboard.pool.Guarded`
+is abandoned by the pool's watchdog and split into tasks of a fraction of a second
+(:func:`~app.dashboard.flow.pool_tasks`), and closed loops computed here are checked
+word length by word length.
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Callable, Iterator, MutableMapping
+
+from .flow import pool_tasks
+from .frames import Frame, fill_rows, make_frame, start
+from .settings import ALL_BITS, Values
+
+__all__ = ["iter_frames", "CHEAP"]
+
+CHEAP = 0.15  #: a chunk quantized faster than this (s) is cheap (cached or small): queue all the rest at once
+
+
+class _Ahead:
+    """Quantizes ``parts`` (``ex.moments``) in the helper thread, one expensive part ahead of the reader."""
+
+    def __init__(self, helper: ThreadPoolExecutor, ex, parts: list, stop: Callable[[], bool]):
+        self.helper, self.ex, self.parts, self.stop = helper, ex, parts, stop
+        self.futures: list[Future] = []
+
+    def _task(self, part) -> float | None:
+        if self.stop():
+            return None
+        t = time.perf_counter()
+        self.ex.moments(part)
+        return time.perf_counter() - t  # seconds: decides whether the rest is queued at once
+
+    def _submit_through(self, k: int) -> None:
+        while len(self.futures) <= min(k, len(self.parts) - 1):
+            self.futures.append(self.helper.submit(self._task, self.parts[len(self.futures)]))
+
+    def wait(self, k: int) -> None:
+        """Return once part ``k`` is quantized (re-raises the helper's error); part k + 1 starts meanwhile."""
+        self._submit_through(k + 1)
+        if self.futures[k].result() is None:  # the helper skipped it (stop() was true): compute here
+            self.ex.moments(self.parts[k])
+        costs = [f.result() for f in self.futures if f.done() and f.exception() is None]
+        if all(c is not None and c <= CHEAP for c in costs):
+            self._submit_through(len(self.parts) - 1)
+
+    @property
+    def finished(self) -> bool:
+        """Every part is quantized (and cached)."""
+        return len(self.futures) == len(self.parts) and all(f.done() for f in self.futures)
+
+
+def _loops_all(helper: ThreadPoolExecutor, job, rows: dict, bits: list) -> None:
+    """Closed loops at ``bits`` for every estimator: the second one's in the helper thread, side by side."""
+    first, *others = job.estimators
+    futs = [(e, helper.submit(job.ex.closed_loops_many, bits, e)) for e in others]
+    fill_rows(job, rows, first, bits, job.ex.closed_loops_many(bits, first))
+    for e, f in futs:
+        fill_rows(job, rows, e, bits, f.result())
+
+
+def iter_frames(values: Values, cache: MutableMapping | None = None, executor=None, tasks: int = 1,
+                should_stop: Callable[[], bool] | None = None, chunk: int = len(ALL_BITS) - 1, min_interval: float = 0.3,
+                on_progress: Callable[[int, int, str], None] | None = None) -> Iterator[Frame]:
+    """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames.
+
+    Parameters
+    ----------
+    values : Values
+    cache : mapping, optional
+        Shared :class:`~app.dashboard.cache.SharedCache` (anything a change does not touch is reused).
+    executor, tasks
+        Passed to :class:`~qsid_core.experiment.Experiment` (e.g. the dashboard's process pool).
+    should_stop : callable, optional
+        Polled between chunks; True ends the iteration (newer settings arrived).
+    chunk : int
+        Word lengths quantized per pass over the data. Default: all the others in one pass (each pass
+        draws the dither again; one pass instead of three cut a paper-scale data change's CPU time by
+        ~30%, benchmarks/bench_dashboard.py); a newer change then waits for that pass.
+    min_interval : float
+        A "curves" frame is yielded when this many seconds passed since the last one, and at the end.
+    on_progress : callable(done, total, text), optional
+        Called before each chunk ("computing b=5..9 (6/16)").
+
+    Raises
+    ------
+    qsid_core.errors.QsidError
+        Bad settings, data overflow, ... in plain words.
+    """
+    stop = should_stop or (lambda: False)
+    t0 = time.perf_counter()
+    b, total = int(values.bits), len(ALL_BITS)
+    if on_progress:
+        on_progress(0, total, f"computing b={b} (1/{total})")
+    samples = int(values.trajectories) * int(values.steps)
+    job, rows = start(values, cache, executor, pool_tasks(samples, int(values.realizations), 1, tasks)
+                      if executor is not None else tasks)
+    timings = {"current": time.perf_counter() - t0}
+    yield make_frame(job, "current", rows, 1, timings["current"], timings)
+    rest = [x for x in job.all_bits if x != b]
+    parts = [rest[i:i + chunk] for i in range(0, len(rest), chunk)]
+    if executor is not None and parts:  # tasks of a fraction of a second: abandoned work never holds the pool long
+        channels = job.n + job.common["system"].m
+        job.ex.tasks = pool_tasks(samples * channels // 4, int(values.realizations), len(parts[0]), tasks)
+    helper = ThreadPoolExecutor(1, thread_name_prefix="qsid-helper")
+    ahead = _Ahead(helper, job.ex, parts, stop)
+    last, done, k = time.perf_counter(), 1, 0
+    try:
+        while k < len(parts):
+            if stop():
+                return
+            if on_progress:
+                on_progress(done, total, f"computing b={parts[k][0]}..{parts[k][-1]} ({done + 1}/{total})")
+            ahead.wait(k)
+            if executor is not None and ahead.finished:
+                # every b quantized (or cached): spread all remaining closed loops over the executor at once
+                part, k = [x for p in parts[k:] for x in p], len(parts)
+                _loops_all(helper, job, rows, part)
+            else:
+                # closed loops here, side by side with the quantization of the next chunk in the helper
+                part, k = parts[k], k + 1
+                for x in part:  # one b at a time: a newer setting never waits for a whole chunk of loops
+                    for e in job.estimators:
+                        if stop():
+                            return
+                        fill_rows(job, rows, e, [x])
+            done += len(part)
+            now = time.perf_counter()
+            if done >= total or now - last >= min_interval:
+                last = now
+                timings["curves"] = now - t0
+                yield make_frame(job, "curves", rows, done, now - t0, timings)
+    finally:
+        helper.shutdown(wait=False, cancel_futures=True)
+
+

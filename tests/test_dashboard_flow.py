@@ -1,0 +1,112 @@
+"""Back-pressure pieces (:mod:`app.dashboard.flow`) and the pool's data sharing, without a server."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from app.dashboard.flow import FairSlots, TabCallbacks, inline, pool_tasks
+from app.dashboard.pool import SHARE_BYTES, Pool, _Shared
+
+
+def test_inline_callbacks_run_at_once_in_the_callers_thread():
+    calls = []
+    cb = TabCallbacks("t")
+    f = cb.submit(inline(lambda x: calls.append((x, threading.current_thread().name)) or "ok"), 5)
+    assert f.done() and f.result() == "ok" and calls == [(5, threading.current_thread().name)]
+    cb.shutdown()
+
+
+def test_a_flood_of_calls_queues_at_most_one_per_callback_with_the_newest_arguments():
+    cb = TabCallbacks("t")
+    gate, seen = threading.Event(), []
+
+    def slow(x):
+        gate.wait(10)
+        seen.append(("slow", x))
+
+    def other(x):
+        seen.append(("other", x))
+
+    cb.submit(slow, -1)  # runs in the tab's callback thread and blocks it
+    time.sleep(0.2)
+    for i in range(10_000):
+        cb.submit(slow, i)
+        cb.submit(other, i)
+    assert len(cb._queue) == 2 and cb.coalesced == 2 * 10_000 - 2  # bounded: one queued call per callback
+    gate.set()
+    end = time.monotonic() + 10
+    while len(seen) < 3 and time.monotonic() < end:
+        time.sleep(0.01)
+    time.sleep(0.1)
+    assert seen == [("slow", -1), ("slow", 9_999), ("other", 9_999)]  # only the newest arguments ran
+    cb.shutdown()
+
+
+def test_errors_of_queued_callbacks_land_in_their_future():
+    cb = TabCallbacks("t")
+    f = cb.submit(lambda: 1 / 0)
+    assert isinstance(f.exception(timeout=5), ZeroDivisionError)
+    f2 = cb.submit(lambda: "still running")
+    assert f2.result(timeout=5) == "still running"
+    cb.shutdown()
+    assert cb.submit(lambda: 1).result(timeout=1) is None  # after shutdown: nothing runs
+
+
+def test_fair_slots_are_handed_out_in_order_nobody_barges_in():
+    slots = FairSlots(1)
+    order, ready = [], []
+    slots.acquire()
+
+    def waiter(k):
+        ready.append(k)
+        with slots:
+            order.append(k)
+            time.sleep(0.01)
+
+    threads = []
+    for k in range(5):
+        t = threading.Thread(target=waiter, args=(k,))
+        t.start()
+        threads.append(t)
+        while len(slots._waiting) < k + 1:  # each in line before the next arrives
+            time.sleep(0.005)
+    slots.release()
+    for _ in range(3):  # the releaser asks again at once: it must queue behind the five
+        with slots:
+            order.append("again")
+    for t in threads:
+        t.join(5)
+    assert order[:5] == [0, 1, 2, 3, 4] and order[5:] == ["again"] * 3
+
+
+def test_pool_tasks_last_a_fraction_of_a_second_and_use_every_worker():
+    assert pool_tasks(50 * 200, 20, 1, 2) == 2            # small data: one task per worker
+    assert pool_tasks(400 * 2000, 100, 1, 2) >= 8          # the panel's largest data: short tasks
+    assert pool_tasks(400 * 2000, 100, 15, 2) > pool_tasks(400 * 2000, 100, 1, 2)  # a pass over more b
+    assert pool_tasks(10**8, 3, 15, 2) == 3                # never more tasks than realizations
+    assert pool_tasks(10, 1, 1, 4) == 1
+
+
+def _sum(a):
+    return float(np.asarray(a).sum())
+
+
+def test_large_shared_data_goes_to_each_worker_once_through_a_file():
+    pool = Pool(1, timeout=60)
+    try:
+        big = np.arange(SHARE_BYTES // 8 + 1000, dtype=float)
+        g = pool.guarded()
+        arg = g.share(big)
+        assert isinstance(arg, _Shared) and g.share(big) is arg  # written once
+        assert g.submit(_sum, arg).result(30) == big.sum()
+        small = np.arange(10.0)
+        assert g.share(small) is small  # small data: sent with the task as before
+        for k in range(12):  # old files are deleted (the server keeps a few)
+            g.share(np.full(SHARE_BYTES // 8 + 10, float(k)))
+        assert len(pool._shared) <= 8
+    finally:
+        pool.shutdown()
+    assert pool._share_dir is None
