@@ -167,3 +167,17 @@ def test_norm_time_view_shows_both_bounds_and_never_below_the_floor():
     assert min(min(y for y in t.y if y is not None) for t in fig.data) >= floor * (1 - 1e-12)
     assert CAPTION in fig.layout.title.text
     check_axes({"norm_time": fig})
+    lo, hi = fig.layout.yaxis.range  # both bounds and the start of the loops are on the axis
+    for y in (r["ultimate_bound"], r["ultimate_bound_realized"]["median"], np.linalg.norm(f.x0)):
+        assert lo <= np.log10(y) <= hi, (y, lo, hi)
+
+
+def test_norm_time_keeps_the_bounds_on_the_axis_when_loops_converge_far_below():
+    """dc-motor at b = 4 (the default): bounds ~10-100 above ||x0||, loops converge to 1e-12 ||x0||."""
+    f = last(Values(bits=4, mpc_steps=50, **{k: v for k, v in SMALL.items() if k != "mpc_steps"}))
+    fig = build_figures(f, ["norm_time"])["norm_time"]
+    lo, hi = fig.layout.yaxis.range
+    r = f.rows["LS"][4]
+    for y in (r["ultimate_bound"], r["ultimate_bound_realized"]["median"]):
+        assert lo <= np.log10(y) <= hi, (y, lo, hi)
+    assert hi - lo <= MAX_DECADES + 1e-9
