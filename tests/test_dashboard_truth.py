@@ -181,3 +181,22 @@ def test_norm_time_keeps_the_bounds_on_the_axis_when_loops_converge_far_below():
     for y in (r["ultimate_bound"], r["ultimate_bound_realized"]["median"]):
         assert lo <= np.log10(y) <= hi, (y, lo, hi)
     assert hi - lo <= MAX_DECADES + 1e-9
+
+
+def test_bound_view_keeps_the_bounds_on_the_axis_and_shows_converged_norms_on_its_edge():
+    """dc-motor default: bounds 1e-6..1e4 over b, final norms converged to 1e-12 ||x0|| (16 decades in all)."""
+    f = last(Values(bits=4, mpc_steps=50, **{k: v for k, v in SMALL.items() if k != "mpc_steps"}))
+    fig = build_figures(f, ["bound"])["bound"]
+    lo, hi = fig.layout.yaxis.range
+    assert hi - lo <= MAX_DECADES + 1e-9
+    for b, r in f.rows["LS"].items():
+        for y in (r["ultimate_bound"], r["ultimate_bound_realized"]["median"]):
+            assert y is None or not np.isfinite(y) or y <= 0 or lo <= np.log10(y) <= hi, (b, y, lo, hi)
+    below = [t for t in fig.data if (t.name or "").startswith("‖x_T‖ below the axis")]
+    finals = [r["final_state_norm"]["mean"] for r in f.rows["LS"].values()]
+    n_below = sum(1 for y in finals if y is not None and 0 < y < 10 ** lo)
+    assert n_below > 0  # the converged loops of this setting
+    mean_below = [t for t in below if t.meta == "LS ‖x_T‖ mean"]
+    assert sum(bool(t.showlegend) for t in below) == 1  # one legend entry for the edge
+    assert len(mean_below) == 1 and len(mean_below[0].x) == n_below
+    assert all(lo <= np.log10(y) <= hi for y in mean_below[0].y)

@@ -15,6 +15,7 @@ import plotly.graph_objects as go
 
 from qsid_core.timeseries import CONVERGED_REL_FLOOR
 
+from .axes import top_log_range
 from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .raw import figure, hline
@@ -77,12 +78,42 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
     shapes = mark_bits(current_bits)
     notes = [dict(text=CAPTION, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
                   yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))]
-    if conv:
+    yaxis = dict(type="log", title=dict(text="norm"), exponentformat="power")
+    # the bounds always show; final norms off the axis sit on its edge, marked (_off_axis)
+    bounds = [v for tr in data if "δ" in tr.get("name", "") for v in tr["y"]]
+    rng = top_log_range([v for tr in data for v in tr["y"]], keep=bounds)
+    if rng is not None:
+        yaxis.update(range=rng, autorange=False)
+        data += _off_axis(data, rng)
+    if conv and (rng is None or np.log10(floor) >= rng[0]):
         shapes.append(hline(float(floor), "y", COLORS["ref"], "dot", 1.0))
         notes.append(hline_note(floor, "converged (‖x_T‖ ≤ 1e-12‖x0‖)", where="bottom", size=9))
     return figure(data, dict(height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
-                             shapes=shapes, annotations=notes, xaxis=dict(BITS_AXIS),
-                             yaxis=dict(type="log", title=dict(text="norm"), exponentformat="power")))
+                             shapes=shapes, annotations=notes, xaxis=dict(BITS_AXIS), yaxis=yaxis))
+
+
+def _off_axis(data: list, rng: list) -> list:
+    """The ``‖x_T‖`` points outside the axis range (decades), drawn on its edge as open triangles.
+
+    Below: converged loops; above: diverged ones. The hover text gives the true value.
+    """
+    out = []
+    for tr in data:
+        if "‖x_T‖" not in tr.get("name", ""):
+            continue
+        c = (tr.get("line") or tr.get("marker") or {}).get("color")
+        for where, test, y_edge, sym in (("below", lambda y: y < 10.0 ** rng[0], rng[0] + 0.01, "triangle-down-open"),
+                                         ("above", lambda y: y > 10.0 ** rng[1], rng[1] - 0.01, "triangle-up-open")):
+            pts = [(b, y) for b, y in zip(tr["x"], tr["y"]) if y is not None and y > 0 and test(y)]
+            if pts:  # one legend entry per edge ("‖x_T‖ below the axis"); the hover names the series
+                first = not any(o["legendgroup"] == where for o in out)
+                out.append(dict(type="scatter", x=[b for b, _ in pts], y=[10.0 ** y_edge] * len(pts), mode="markers",
+                                name=f"‖x_T‖ {where} the axis (hover: value)", meta=tr["name"], legendgroup=where,
+                                showlegend=first,
+                                text=[f"{y:.3g}" for _, y in pts],
+                                hovertemplate=f"{tr['name']}, b = %{{x}}: %{{text}}<extra></extra>", cliponaxis=False,
+                                marker=dict(color=c, symbol=sym, size=9)))
+    return out
 
 
 def _build(frame) -> go.Figure:

@@ -12,7 +12,7 @@ import plotly.graph_objects as go
 
 from qsid_core.timeseries import time_series
 
-from .axes import MARGIN, MAX_DECADES, MIN_DECADES
+from .axes import top_log_range
 from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .raw import arr, figure, hline
@@ -76,7 +76,8 @@ def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None
     _hline(shapes, notes, floor, "converged (1e-12‖x0‖)", COLORS["ref"], "dot", 1.0, where="bottom")
     title = CAPTION + (f" · b = {bits}" if bits is not None else "")
     yaxis = dict(type="log", title=dict(text="‖x_t‖"), exponentformat="power")
-    rng = _y_range(data, [s["y0"] for s in shapes])
+    # top-anchored: the start of the loops and both bounds always show (axes.top_log_range)
+    rng = top_log_range([v for tr in data for v in tr["y"]] + [s["y0"] for s in shapes])
     if rng is not None:
         yaxis.update(range=rng, autorange=False)
         if floor is not None and np.log10(floor) < rng[0]:
@@ -85,27 +86,6 @@ def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None
         height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
         title=dict(text=title, font=dict(size=11), x=0.01), shapes=shapes, annotations=notes,
         yaxis=yaxis, xaxis=dict(title=dict(text="closed-loop step t"))))
-
-
-def _y_range(data: list, lines: list) -> list | None:
-    """Log y range (decades) from the top down: the start of the loops and both bounds always show.
-
-    The generic rule (:func:`app.figures.axes.finite_axes`) keeps the 12 decades holding the most
-    points, which here are the converged tails at the floor, and so cut off the bounds. This
-    view is about where the loops end up relative to the bounds: the top (largest norm or bound)
-    is kept and the axis spans at most :data:`~app.figures.axes.MAX_DECADES` below it.
-    """
-    vals = [v for tr in data for v in tr["y"] if v is not None] + [v for v in lines if v is not None]
-    logs = np.log10([v for v in vals if np.isfinite(v) and v > 0])
-    if logs.size == 0:
-        return None
-    width = MAX_DECADES / (1 + 2 * MARGIN)
-    hi = float(logs.max())
-    lo = max(float(logs.min()), hi - width)
-    if hi - lo < MIN_DECADES:
-        lo, hi = 0.5 * (lo + hi) - MIN_DECADES / 2, 0.5 * (lo + hi) + MIN_DECADES / 2
-    pad = MARGIN * (hi - lo)
-    return [lo - pad, hi + pad]
 
 
 def _g(y) -> str:
