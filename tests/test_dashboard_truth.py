@@ -200,3 +200,18 @@ def test_bound_view_keeps_the_bounds_on_the_axis_and_shows_converged_norms_on_it
     assert sum(bool(t.showlegend) for t in below) == 1  # one legend entry for the edge
     assert len(mean_below) == 1 and len(mean_below[0].x) == n_below
     assert all(lo <= np.log10(y) <= hi for y in mean_below[0].y)
+
+
+def test_time_markers_do_not_pile_up_where_the_loop_has_converged():
+    """dc-motor default (3 states, no time axis): the loop converges within ~10 of 50 steps; markers every
+    5 steps used to stack on the origin. Kept markers are at least MARK_GAP apart, and the first is x0."""
+    from app.figures.phase_scene import MARK_GAP, scene_view
+
+    f = last(Values(mpc_steps=50, **{k: v for k, v in SMALL.items() if k != "mpc_steps"}))
+    sv = scene_view(f)
+    m = sv.time_marks
+    assert 1 <= m.shape[0] < 50 // sv.mark_every + 1  # some were dropped
+    assert np.allclose(m[0], sv.start, atol=1e-6)
+    d = np.linalg.norm(np.diff(m, axis=0), axis=1)
+    assert np.all(d >= MARK_GAP - 1e-6)
+    assert all(len(line) <= 60 for line in sv.bound_text.split("\n"))  # one fact per line: fits the canvas
