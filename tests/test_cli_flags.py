@@ -131,3 +131,13 @@ def test_table_carries_the_assumption_flags(capsys):
     for r in json.loads(out)["results"]:
         a = r["assumptions"]
         assert a["stationary"] is False and a["theorem1_holds"] is False and isinstance(a["no_overload"], bool)
+
+
+def test_threads_give_the_same_numbers_as_one_thread_and_bad_counts_are_usage_errors(capsys):
+    small = ("sweep", "--trajectories", "20", "--steps", "100", "--realizations", "5", "--bits", "2:8",
+             "--json", "-q")
+    one = json.loads(_run(capsys, *small, "--threads", "1")[1])
+    two = json.loads(_run(capsys, *small, "--threads", "2")[1])
+    assert one["results"] == two["results"] and one["results"]
+    code, _, err = _run(capsys, *small, "--threads", "0")
+    assert code == 2 and "--threads" in err and "Traceback" not in err

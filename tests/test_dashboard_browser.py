@@ -9,6 +9,7 @@ write it there (that is how the committed copy was made).
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -178,6 +179,24 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             assert s1.portrait.view.sphere_radius < sphere0
             assert not (s1.portrait.traj.points == pts0).all()
             assert "b = **12** bits" in s1.controls.summary.content
+
+            # settings round trip in the browser: download (b = 12), move b, upload the file: b = 12 again
+            page1.get_by_text("Save, load & export").first.click()
+            with page1.expect_download(timeout=TIMEOUT_MS) as dl:
+                page1.get_by_role("button", name="Download settings (JSON)", exact=True).click()
+            saved = tmp_path / "settings.json"
+            dl.value.save_as(saved)
+            assert json.loads(saved.read_text())["values"]["bits"] == 12
+            _set_bits(page1, 6)
+            assert s1.wait_idle(60) and s1.last_frame.bits == 6
+            with page1.expect_file_chooser(timeout=TIMEOUT_MS) as chooser:
+                page1.get_by_role("button", name="Load settings (JSON)", exact=True).click()
+            chooser.value.set_files(str(saved))
+            page1.wait_for_function("() => document.body.textContent.includes('Loaded settings from')",
+                                    timeout=TIMEOUT_MS)
+            assert s1.wait_idle(60) and s1.last_frame.bits == 12 and s1.controls["bits"].value == 12
+            page1.wait_for_function("() => document.body.textContent.includes('b = 12 bits')", timeout=TIMEOUT_MS)
+            assert page1.evaluate(ERROR_PLOT_MARKS) == [12, 12]
 
             # a second tab has its own settings
             page2, s2 = _open(ctx, dash, errors, ignored, 2)

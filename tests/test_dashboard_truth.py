@@ -167,3 +167,51 @@ def test_norm_time_view_shows_both_bounds_and_never_below_the_floor():
     assert min(min(y for y in t.y if y is not None) for t in fig.data) >= floor * (1 - 1e-12)
     assert CAPTION in fig.layout.title.text
     check_axes({"norm_time": fig})
+    lo, hi = fig.layout.yaxis.range  # both bounds and the start of the loops are on the axis
+    for y in (r["ultimate_bound"], r["ultimate_bound_realized"]["median"], np.linalg.norm(f.x0)):
+        assert lo <= np.log10(y) <= hi, (y, lo, hi)
+
+
+def test_norm_time_keeps_the_bounds_on_the_axis_when_loops_converge_far_below():
+    """dc-motor at b = 4 (the default): bounds ~10-100 above ||x0||, loops converge to 1e-12 ||x0||."""
+    f = last(Values(bits=4, mpc_steps=50, **{k: v for k, v in SMALL.items() if k != "mpc_steps"}))
+    fig = build_figures(f, ["norm_time"])["norm_time"]
+    lo, hi = fig.layout.yaxis.range
+    r = f.rows["LS"][4]
+    for y in (r["ultimate_bound"], r["ultimate_bound_realized"]["median"]):
+        assert lo <= np.log10(y) <= hi, (y, lo, hi)
+    assert hi - lo <= MAX_DECADES + 1e-9
+
+
+def test_bound_view_keeps_the_bounds_on_the_axis_and_shows_converged_norms_on_its_edge():
+    """dc-motor default: bounds 1e-6..1e4 over b, final norms converged to 1e-12 ||x0|| (16 decades in all)."""
+    f = last(Values(bits=4, mpc_steps=50, **{k: v for k, v in SMALL.items() if k != "mpc_steps"}))
+    fig = build_figures(f, ["bound"])["bound"]
+    lo, hi = fig.layout.yaxis.range
+    assert hi - lo <= MAX_DECADES + 1e-9
+    for b, r in f.rows["LS"].items():
+        for y in (r["ultimate_bound"], r["ultimate_bound_realized"]["median"]):
+            assert y is None or not np.isfinite(y) or y <= 0 or lo <= np.log10(y) <= hi, (b, y, lo, hi)
+    below = [t for t in fig.data if (t.name or "").startswith("‖x_T‖ below the axis")]
+    finals = [r["final_state_norm"]["mean"] for r in f.rows["LS"].values()]
+    n_below = sum(1 for y in finals if y is not None and 0 < y < 10 ** lo)
+    assert n_below > 0  # the converged loops of this setting
+    mean_below = [t for t in below if t.meta == "LS ‖x_T‖ mean"]
+    assert sum(bool(t.showlegend) for t in below) == 1  # one legend entry for the edge
+    assert len(mean_below) == 1 and len(mean_below[0].x) == n_below
+    assert all(lo <= np.log10(y) <= hi for y in mean_below[0].y)
+
+
+def test_time_markers_do_not_pile_up_where_the_loop_has_converged():
+    """dc-motor default (3 states, no time axis): the loop converges within ~10 of 50 steps; markers every
+    5 steps used to stack on the origin. Kept markers are at least MARK_GAP apart, and the first is x0."""
+    from app.figures.phase_scene import MARK_GAP, scene_view
+
+    f = last(Values(mpc_steps=50, **{k: v for k, v in SMALL.items() if k != "mpc_steps"}))
+    sv = scene_view(f)
+    m = sv.time_marks
+    assert 1 <= m.shape[0] < 50 // sv.mark_every + 1  # some were dropped
+    assert np.allclose(m[0], sv.start, atol=1e-6)
+    d = np.linalg.norm(np.diff(m, axis=0), axis=1)
+    assert np.all(d >= MARK_GAP - 1e-6)
+    assert all(len(line) <= 60 for line in sv.bound_text.split("\n"))  # one fact per line: fits the canvas

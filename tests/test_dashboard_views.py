@@ -118,7 +118,7 @@ def test_renderer_redraws_only_what_changed():
     # a b change: new scene and eigenvalues, the curves are only re-marked (same figure objects)
     out = [ren.render(f) for f in iter_frames(v.replace(bits=8), cache)]
     assert out[0].scene is not None and "eigen" in out[0].figures
-    assert out[-1].figures["error"] is err and [s.x0 for s in err.layout.shapes] == [8, 8]
+    assert out[-1].figures["error"].figure is err and [s.x0 for s in err.layout.shapes] == [8, 8]
     # a Q change: same models, no new eigenvalue plot, new curves
     out = [ren.render(f) for f in iter_frames(v.replace(bits=8, log_q=(1.0, -1.0, -1.0)), cache)]
     assert "eigen" not in out[0].figures

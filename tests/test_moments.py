@@ -128,3 +128,13 @@ def test_numba_can_be_switched_off_with_a_reason():
     out = subprocess.run([sys.executable, "-c", "from qsid_core import kernels; print(kernels.AVAILABLE, kernels.REASON)"],
                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
     assert out.stdout.strip() == "False numba disabled by QSID_NO_NUMBA"
+
+
+def test_unit_dither_is_numpys_uniform_bit_for_bit_and_leaves_the_stream_where_it_did():
+    from qsid_core.moments import _unit_dither
+
+    for seed in (0, 1, 12345):
+        a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+        for shape in ((16384, 5), (7, 3), (1, 1)):
+            assert np.array_equal(_unit_dither(a, shape), b.uniform(-0.5, 0.5, size=shape))
+        assert a.random() == b.random()  # the same number of draws was consumed

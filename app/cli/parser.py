@@ -254,6 +254,10 @@ def add_running_options(p: argparse.ArgumentParser) -> None:
     r.add_argument("--workers", type=pos_int, default=1, metavar="N",
                    help="processes (N > 1 uses a ProcessPoolExecutor; at most the machine's CPU count; "
                         "default: 1, in-process)")
+    r.add_argument("--threads", type=pos_int, default=2, metavar="N",
+                   help="threads of an in-process run (--workers 1): the compiled kernels run beside each other "
+                        "without the GIL, with the same results (default: 2, at most the CPU count; "
+                        "1: one thread)")
     r.add_argument("--dask", metavar="SPEC", default=None,
                    help="run on dask.distributed: 'local' or 'local:N' (a LocalCluster of N worker processes "
                         "here) or 'tcp://HOST:PORT' (a running 'dask scheduler'); needs the 'distributed' package")

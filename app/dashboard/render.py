@@ -8,6 +8,7 @@ from app.figures.compare import PINNED_VIEWS, overlay_pinned
 from app.figures.phase_scene import SceneView, scene_view
 from app.figures import registry
 from app.figures.axes import finite_axes
+from app.figures.raw import Wire
 from app.figures.traces import move_current_bits
 from app.figures.view import CURRENT, CURVES
 
@@ -82,4 +83,5 @@ class Renderer:
                 if fig is not None and any(sh.x0 == sh.x1 for sh in fig.layout.shapes):
                     out[name] = move_current_bits(fig, frame.bits)
         self.figures.update(out)
-        return Render(scene, summary, out)
+        # viser's plot handle calls figure.to_json(): Wire's skips plotly's deep copy (raw.to_json)
+        return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()})

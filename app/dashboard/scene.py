@@ -136,8 +136,9 @@ class PhasePortrait:
         if v.clipped:
             extra.append(f"{v.clipped} loops leave the view (clipped)")
         same = "" if v.polylines == v.realizations else f" ({v.realizations} computed, identical without dither)"
-        self.scale_label.text = (f"{v.polylines} distinct closed loops{same} · dots every {v.mark_every} steps on "
-                                 f"the true-model loop · 1 box unit = {v.scale:.3g}"
-                                 + (" · " + " · ".join(extra) if extra else ""))
+        # one fact per line (viser splits labels at newlines): a long single line was cut at the canvas edge
+        self.scale_label.text = "\n".join([f"{v.polylines} distinct closed loops{same}",
+                                           f"dots every {v.mark_every} steps on the true-model loop "
+                                           "(until it converges)", f"1 box unit = {v.scale:.3g}", *extra])
         self.view = v
         self.draws += 1

@@ -223,7 +223,8 @@ def _download(session, name: str, make, needs_frame: bool = True) -> None:
     except Exception as exc:  # an export must never take the tab down
         sh.status.content = f"⚠️ Export failed ({type(exc).__name__}: {exc})"
         return
-    session.client.send_file_download(name, text.encode("utf-8"))
+    # save_immediately: one click saves the file (otherwise viser shows a link to click a second time)
+    session.client.send_file_download(name, text.encode("utf-8"), save_immediately=True)
     sh.status.content = f"Sent **{name}** ({len(text) / 1024:.0f} KiB)."
 
 

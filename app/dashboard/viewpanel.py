@@ -16,6 +16,8 @@ import plotly.graph_objects as go
 from app.figures import registry
 from app.figures.quantizer import channel_names
 
+from .plotlyjs import send_basic_bundle
+
 __all__ = ["ViewPanel", "blank_figure", "PANEL_WIDTH", "VIEW_FIELDS"]
 
 #: The :class:`~app.dashboard.settings.Values` fields set by the views' own inputs (not :data:`CONTROLS`).
@@ -52,6 +54,8 @@ class ViewPanel:
                  on_unpin: Callable[[], None], on_datalength: Callable[[], None]):
         self.plots: dict = {}
         self.system_names: tuple = ()
+        #: None: plotly.js's basic bundle was sent (1.2 MB, not 4.8 MB); else why viser's full one goes
+        self.plotly_js_note = send_basic_bundle(gui)
         for tab in registry.TABS:
             with panel.add_tab(tab):
                 if tab == "Quantizer":

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import plotly.graph_objects as go
 
-__all__ = ["finite_axes", "axis_ranges", "MAX_DECADES", "MIN_DECADES", "MARGIN"]
+__all__ = ["finite_axes", "axis_ranges", "top_log_range", "MAX_DECADES", "MIN_DECADES", "MARGIN"]
 
 #: Largest span of a log axis (decades).
 MAX_DECADES = 12.0
@@ -94,6 +94,36 @@ def _lin_range(vals: np.ndarray) -> list:
     if hi - lo <= 1e-12 * max(abs(lo), abs(hi), 1e-300):
         half = 0.1 * abs(lo) if lo != 0 else 1.0
         lo, hi = lo - half, hi + half
+    pad = MARGIN * (hi - lo)
+    return [lo - pad, hi + pad]
+
+
+def _logs(values) -> np.ndarray:
+    v = np.asarray([x for x in values if x is not None], dtype=float)
+    return np.log10(v[np.isfinite(v) & (v > 0)])
+
+
+def top_log_range(values, keep=()) -> list | None:
+    """A log axis range (decades) of at most MAX_DECADES that always shows ``keep``, then the top of ``values``.
+
+    For views whose point is a few lines (bounds, starting norms) while other values lie
+    far below or above: the generic rule (:func:`finite_axes`) keeps the window holding
+    the most points, which can be converged tails, and cut the bounds off. Here the
+    window covers ``keep`` (its top part if ``keep`` alone spans more), then grows up
+    to the largest of ``values``, then down. None if nothing is finite and positive.
+    """
+    width = MAX_DECADES / (1 + 2 * MARGIN)
+    allv, k = _logs(list(values) + list(keep)), _logs(keep)
+    if allv.size == 0:
+        return None
+    if k.size == 0:
+        k = allv[[np.argmax(allv)]]
+    lo, hi = float(k.min()), float(k.max())
+    lo = max(lo, hi - width)
+    hi = min(float(allv.max()), lo + width) if allv.max() > hi else hi
+    lo = max(float(allv.min()), hi - width) if allv.min() < lo else lo
+    if hi - lo < MIN_DECADES:
+        lo, hi = 0.5 * (lo + hi) - MIN_DECADES / 2, 0.5 * (lo + hi) + MIN_DECADES / 2
     pad = MARGIN * (hi - lo)
     return [lo - pad, hi + pad]
 

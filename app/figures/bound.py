@@ -15,30 +15,34 @@ import plotly.graph_objects as go
 
 from qsid_core.timeseries import CONVERGED_REL_FLOOR
 
+from .axes import top_log_range
 from .hypotheses import CAPTION
 from .palette import COLORS, color
-from .traces import BITS_AXIS, Series, mark_bits, xy
+from .raw import figure, hline
+from .traces import BITS_AXIS, Series, hline_note, mark_bits, xy
 from .view import CURVES, View
 
 __all__ = ["bound_figure", "VIEW", "CAPTION"]
 
 
 
-def _realized(fig, rows, label: str, c: str) -> None:
-    """Median line and median..max band of the a-posteriori bound of one estimator."""
+def _realized(rows, label: str, c: str) -> list:
+    """Trace dicts: median line and median..max band of the a-posteriori bound of one estimator."""
     mx, my = xy(rows, "ultimate_bound_realized", "median")
     if not mx:
-        return
+        return []
+    out = []
     top = dict(zip(*xy(rows, "ultimate_bound_realized", "max")))
     bx = [b for b in mx if b in top]
     if bx:
         lo = dict(zip(mx, my))
-        fig.add_trace(go.Scatter(x=bx + bx[::-1], y=[top[b] for b in bx] + [lo[b] for b in bx[::-1]],
-                                 fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
-                                 showlegend=False, legendgroup=f"re{label}"))
-    fig.add_trace(go.Scatter(x=mx, y=my, mode="lines+markers", name=f"a-posteriori δ, {label} (median; band: max)",
-                             legendgroup=f"re{label}", line=dict(color=c, width=1.5),
-                             marker=dict(symbol="diamond", size=5)))
+        out.append(dict(type="scatter", x=bx + bx[::-1], y=[top[b] for b in bx] + [lo[b] for b in bx[::-1]],
+                        fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
+                        showlegend=False, legendgroup=f"re{label}"))
+    out.append(dict(type="scatter", x=mx, y=my, mode="lines+markers", legendgroup=f"re{label}",
+                    name=f"a-posteriori δ, {label} (median; band: max)", line=dict(color=c, width=1.5),
+                    marker=dict(symbol="diamond", size=5)))
+    return out
 
 
 def _floored(ys: list, floor: float | None) -> tuple[list, bool]:
@@ -54,35 +58,62 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
     ``floor`` (state units, e.g. ``1e-12 ||x0||``): final norms below it are converged and drawn at it
     (floating-point noise such as 1e-48 is no distance to the origin).
     """
-    fig = go.Figure()
-    conv = False
+    data, conv = [], False
     for i, (label, rows) in enumerate(series.items()):
         c = color(label, i)
         if i == 0:
             bx, by = xy(rows, "ultimate_bound")
-            fig.add_trace(go.Scatter(x=bx, y=by, mode="lines+markers", name="letter's δ(ε) (Theorem 1 errors)",
-                                     line=dict(color=COLORS["theory"], dash="dash")))
-        _realized(fig, rows, label, COLORS["realized"] if i == 0 else c)
+            data.append(dict(type="scatter", x=bx, y=by, mode="lines+markers", name="letter's δ(ε) (Theorem 1 errors)",
+                             line=dict(color=COLORS["theory"], dash="dash")))
+        data += _realized(rows, label, COLORS["realized"] if i == 0 else c)
         mx, my = xy(rows, "final_state_norm", "mean")
         my, c1 = _floored(my, floor)
-        fig.add_trace(go.Scatter(x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean", line=dict(color=c)))
+        data.append(dict(type="scatter", x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean",
+                         line=dict(color=c)))
         xx, xy_ = xy(rows, "final_state_norm", "max")
         xy_, c2 = _floored(xy_, floor)
         conv = conv or c1 or c2
-        fig.add_trace(go.Scatter(x=xx, y=xy_, mode="markers", name=f"{label} ‖x_T‖ max",
-                                 marker=dict(color=c, symbol="triangle-up")))
-    mark_bits(fig, current_bits)
-    fig.add_annotation(text=CAPTION, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
-                       yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))
-    if conv:
-        fig.add_hline(y=floor, line=dict(color=COLORS["ref"], dash="dot", width=1),
-                      annotation_text="converged (‖x_T‖ ≤ 1e-12‖x0‖)", annotation_position="bottom right",
-                      annotation_font_size=9)
-    fig.update_yaxes(type="log", title_text="norm", exponentformat="power")
-    fig.update_xaxes(**BITS_AXIS)
-    fig.update_layout(height=height, margin=dict(l=50, r=10, t=30, b=40), template="plotly_white",
-                      legend=dict(orientation="h", y=-0.3))
-    return fig
+        data.append(dict(type="scatter", x=xx, y=xy_, mode="markers", name=f"{label} ‖x_T‖ max",
+                         marker=dict(color=c, symbol="triangle-up")))
+    shapes = mark_bits(current_bits)
+    notes = [dict(text=CAPTION, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
+                  yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))]
+    yaxis = dict(type="log", title=dict(text="norm"), exponentformat="power")
+    # the bounds always show; final norms off the axis sit on its edge, marked (_off_axis)
+    bounds = [v for tr in data if "δ" in tr.get("name", "") for v in tr["y"]]
+    rng = top_log_range([v for tr in data for v in tr["y"]], keep=bounds)
+    if rng is not None:
+        yaxis.update(range=rng, autorange=False)
+        data += _off_axis(data, rng)
+    if conv and (rng is None or np.log10(floor) >= rng[0]):
+        shapes.append(hline(float(floor), "y", COLORS["ref"], "dot", 1.0))
+        notes.append(hline_note(floor, "converged (‖x_T‖ ≤ 1e-12‖x0‖)", where="bottom", size=9))
+    return figure(data, dict(height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
+                             shapes=shapes, annotations=notes, xaxis=dict(BITS_AXIS), yaxis=yaxis))
+
+
+def _off_axis(data: list, rng: list) -> list:
+    """The ``‖x_T‖`` points outside the axis range (decades), drawn on its edge as open triangles.
+
+    Below: converged loops; above: diverged ones. The hover text gives the true value.
+    """
+    out = []
+    for tr in data:
+        if "‖x_T‖" not in tr.get("name", ""):
+            continue
+        c = (tr.get("line") or tr.get("marker") or {}).get("color")
+        for where, test, y_edge, sym in (("below", lambda y: y < 10.0 ** rng[0], rng[0] + 0.01, "triangle-down-open"),
+                                         ("above", lambda y: y > 10.0 ** rng[1], rng[1] - 0.01, "triangle-up-open")):
+            pts = [(b, y) for b, y in zip(tr["x"], tr["y"]) if y is not None and y > 0 and test(y)]
+            if pts:  # one legend entry per edge ("‖x_T‖ below the axis"); the hover names the series
+                first = not any(o["legendgroup"] == where for o in out)
+                out.append(dict(type="scatter", x=[b for b, _ in pts], y=[10.0 ** y_edge] * len(pts), mode="markers",
+                                name=f"‖x_T‖ {where} the axis (hover: value)", meta=tr["name"], legendgroup=where,
+                                showlegend=first,
+                                text=[f"{y:.3g}" for _, y in pts],
+                                hovertemplate=f"{tr['name']}, b = %{{x}}: %{{text}}<extra></extra>", cliponaxis=False,
+                                marker=dict(color=c, symbol=sym, size=9)))
+    return out
 
 
 def _build(frame) -> go.Figure:

@@ -6,7 +6,8 @@ import numpy as np
 import plotly.graph_objects as go
 
 from .palette import COLORS, color
-from .traces import BITS_AXIS, Series, band, mark_bits
+from .raw import figure, hline
+from .traces import BITS_AXIS, Series, band, hline_note, mark_bits
 from .view import CURVES, View
 
 __all__ = ["cost_figure", "VIEW"]
@@ -15,18 +16,15 @@ __all__ = ["cost_figure", "VIEW"]
 def cost_figure(series: Series, true_cost: float | None = None, current_bits: int | None = None,
                 height: int = 300) -> go.Figure:
     """Mean +- std of the closed-loop cost per estimator against b, and the true-model cost (dashed)."""
-    fig = go.Figure()
+    data, shapes, notes = [], mark_bits(current_bits), []
     for i, (label, rows) in enumerate(series.items()):
-        band(fig, rows, "mpc_cost", color(label, i), f"{label} model")
-    if true_cost is not None and np.isfinite(true_cost):
-        fig.add_hline(y=true_cost, line=dict(color=COLORS["true"], dash="dash"),
-                      annotation_text=f"true model {true_cost:.4g}", annotation_position="top right")
-    mark_bits(fig, current_bits)
-    fig.update_yaxes(type="log", title_text="closed-loop cost")
-    fig.update_xaxes(**BITS_AXIS)
-    fig.update_layout(height=height, margin=dict(l=50, r=10, t=20, b=40), template="plotly_white",
-                      legend=dict(orientation="h", y=-0.3))
-    return fig
+        data += band(rows, "mpc_cost", color(label, i), f"{label} model")
+    if true_cost is not None and np.isfinite(true_cost) and true_cost > 0:
+        shapes.append(hline(float(true_cost), "y", COLORS["true"], "dash", 2.0))
+        notes.append(hline_note(true_cost, f"true model {true_cost:.4g}"))
+    return figure(data, dict(height=height, margin=dict(l=50, r=10, t=20, b=40), legend=dict(orientation="h", y=-0.3),
+                             shapes=shapes, annotations=notes, xaxis=dict(BITS_AXIS),
+                             yaxis=dict(type="log", title=dict(text="closed-loop cost"))))
 
 
 VIEW = View("cost", aspect=0.6, depends=CURVES,

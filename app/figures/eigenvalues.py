@@ -8,6 +8,7 @@ import numpy as np
 import plotly.graph_objects as go
 
 from .palette import COLORS, color
+from .raw import arr, figure
 from .view import CURRENT, View
 
 __all__ = ["eigen_figure", "VIEW"]
@@ -22,20 +23,20 @@ def eigen_figure(eigs: Mapping[str, np.ndarray] | np.ndarray, true_eigs: np.ndar
     if not isinstance(eigs, Mapping):
         eigs = {"Â": eigs}
     th = np.linspace(0, 2 * np.pi, 181)
-    fig = go.Figure(go.Scatter(x=np.cos(th), y=np.sin(th), mode="lines", name="unit circle",
-                               line=dict(color=COLORS["unit_circle"], width=1), hoverinfo="skip"))
+    data = [dict(type="scatter", x=arr(np.cos(th)), y=arr(np.sin(th)), mode="lines", name="unit circle",
+                 line=dict(color=COLORS["unit_circle"], width=1), hoverinfo="skip")]
     for i, (label, ev) in enumerate(eigs.items()):
         ev = np.asarray(ev).reshape(-1)
-        fig.add_trace(go.Scatter(x=ev.real, y=ev.imag, mode="markers", name=f"eig {label}",
-                                 marker=dict(color=color(label, i), size=6, opacity=0.5)))
+        data.append(dict(type="scatter", x=arr(ev.real), y=arr(ev.imag), mode="markers", name=f"eig {label}",
+                         marker=dict(color=color(label, i), size=6, opacity=0.5)))
     te = np.asarray(true_eigs).reshape(-1)
-    fig.add_trace(go.Scatter(x=te.real, y=te.imag, mode="markers", name="eig A (true)",
-                             marker=dict(color=COLORS["true"], symbol="x", size=11)))
-    fig.update_xaxes(title_text="Re", zeroline=True)
-    fig.update_yaxes(title_text="Im", scaleanchor="x", scaleratio=1, zeroline=True)
-    fig.update_layout(height=height, margin=dict(l=50, r=10, t=30 if title else 10, b=40), template="plotly_white",
-                      title=title or None, legend=dict(orientation="h", y=-0.25))
-    return fig
+    data.append(dict(type="scatter", x=arr(te.real), y=arr(te.imag), mode="markers", name="eig A (true)",
+                     marker=dict(color=COLORS["true"], symbol="x", size=11)))
+    return figure(data, dict(
+        height=height, margin=dict(l=50, r=10, t=30 if title else 10, b=40), legend=dict(orientation="h", y=-0.25),
+        xaxis=dict(title=dict(text="Re"), zeroline=True),
+        yaxis=dict(title=dict(text="Im"), scaleanchor="x", scaleratio=1, zeroline=True),
+        **({"title": dict(text=title)} if title else {})))
 
 
 def _build(frame) -> go.Figure:

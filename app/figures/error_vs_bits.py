@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import plotly.graph_objects as go
-from plotly.subplots import make_subplots
 
 from .hypotheses import bcls_reasons, flags, theorem1_reasons
 from .palette import COLORS, color
+from .raw import figure
 from .traces import BITS_AXIS, Series, band, get, mark_bits, xy
 from .view import CURVES, View
 
@@ -19,7 +19,11 @@ def _holds(rows, key: str = "theorem1_holds") -> dict:
     return {r["bits"]: bool((flags(r) or {}).get(key, True)) for r in rows}
 
 
-def _theorem1(fig, rows, key: str, col: int) -> None:
+def _axes(col: int) -> dict:
+    return dict(xaxis="x" if col == 1 else f"x{col}", yaxis="y" if col == 1 else f"y{col}")
+
+
+def _theorem1(rows, key: str, col: int) -> list:
     """Theorem 1's line: dashed where its hypotheses hold, faded and dotted where they fail."""
     tx, ty = xy(rows, f"{key}_theory")
     ok = _holds(rows)
@@ -27,37 +31,45 @@ def _theorem1(fig, rows, key: str, col: int) -> None:
     good = [y if ok[b] else None for b, y in zip(tx, ty)]
     bad = [y if not ok[b] or (i > 0 and not ok[tx[i - 1]]) or (i + 1 < len(tx) and not ok[tx[i + 1]]) else None
            for i, (b, y) in enumerate(zip(tx, ty))]
+    out = []
     if any(v is not None for v in good):
-        fig.add_trace(go.Scatter(x=tx, y=good, mode="lines", name="Theorem 1", legendgroup="th",
-                                 showlegend=(col == 1), connectgaps=False,
-                                 line=dict(color=COLORS["theory"], dash="dash")), row=1, col=col)
+        out.append(dict(type="scatter", x=tx, y=good, mode="lines", name="Theorem 1", legendgroup="th",
+                        showlegend=(col == 1), connectgaps=False, line=dict(color=COLORS["theory"], dash="dash"),
+                        **_axes(col)))
     if any(v is not None for v in bad) and not all(ok.values()):
-        fig.add_trace(go.Scatter(x=tx, y=bad, mode="lines", name="Theorem 1 (hypotheses fail)", legendgroup="thx",
-                                 showlegend=(col == 1), connectgaps=False, opacity=0.35,
-                                 line=dict(color=COLORS["theory"], dash="dot", width=1.5)), row=1, col=col)
+        out.append(dict(type="scatter", x=tx, y=bad, mode="lines", name="Theorem 1 (hypotheses fail)",
+                        legendgroup="thx", showlegend=(col == 1), connectgaps=False, opacity=0.35,
+                        line=dict(color=COLORS["theory"], dash="dot", width=1.5), **_axes(col)))
+    return out
 
 
-def _bcls_marks(fig, rows, key: str, col: int) -> None:
+def _bcls_marks(rows, key: str, col: int) -> list:
     """Open crosses on the BCLS mean where its known-noise model fails (no dither, overload)."""
     ok = _holds(rows, "bcls_holds")
     pts = [(r["bits"], get(r, key, "mean")) for r in rows if not ok[r["bits"]]]
     pts = [(b, y) for b, y in pts if y is not None and np.isfinite(y) and y > 0]
-    if pts:
-        fig.add_trace(go.Scatter(x=[p[0] for p in pts], y=[p[1] for p in pts], mode="markers",
-                                 name="BCLS: noise not ε²/12", legendgroup="bclsx", showlegend=(col == 1),
-                                 marker=dict(color=COLORS["BCLS"], symbol="x-open", size=11)), row=1, col=col)
+    if not pts:
+        return []
+    return [dict(type="scatter", x=[p[0] for p in pts], y=[p[1] for p in pts], mode="markers",
+                 name="BCLS: noise not ε²/12", legendgroup="bclsx", showlegend=(col == 1),
+                 marker=dict(color=COLORS["BCLS"], symbol="x-open", size=11), **_axes(col))]
 
 
-def _theory_and_reference(fig, rows, key: str, col: int, ref_slope: float) -> None:
+def _theory_and_reference(rows, key: str, col: int, ref_slope: float) -> list:
     """Theorem 1's prediction (dashed / faded) and a ``ref_slope``/bit line through the first mean (dotted)."""
-    _theorem1(fig, rows, key, col)
+    out = _theorem1(rows, key, col)
     mx, my = xy(rows, key, "mean")
     if mx:
         b = np.array([mx[0], max(mx[-1], mx[0] + 1)])
         ry = my[0] * 10.0 ** (ref_slope * (b - mx[0]))
-        fig.add_trace(go.Scatter(x=b.tolist(), y=ry.tolist(), mode="lines", name=f"{ref_slope:+.3f}/bit",
-                                 legendgroup="ref", showlegend=(col == 1),
-                                 line=dict(color=COLORS["ref"], dash="dot")), row=1, col=col)
+        out.append(dict(type="scatter", x=b.tolist(), y=ry.tolist(), mode="lines", name=f"{ref_slope:+.3f}/bit",
+                        legendgroup="ref", showlegend=(col == 1), line=dict(color=COLORS["ref"], dash="dot"),
+                        **_axes(col)))
+    return out
+
+
+#: Two panels side by side (as ``make_subplots(1, 2, horizontal_spacing=0.12)`` lays them out).
+_PANELS = (("‖A−Â‖/‖A‖", [0.0, 0.44]), ("‖B−B̂‖/‖B‖", [0.56, 1.0]))
 
 
 def error_figure(series: Series, current_bits: int | None = None, ref_slope: float = -0.301,
@@ -69,29 +81,33 @@ def error_figure(series: Series, current_bits: int | None = None, ref_slope: flo
     ``ref_slope`` per bit (the letter's -0.301 = -log10 2) passes through the
     first series' mean at the smallest b; the current b is marked.
     """
-    fig = make_subplots(rows=1, cols=2, subplot_titles=("‖A−Â‖/‖A‖", "‖B−B̂‖/‖B‖"), horizontal_spacing=0.12)
+    data = []
     for i, (label, rows) in enumerate(series.items()):
         for col, key in ((1, "err_A"), (2, "err_B")):
-            band(fig, rows, key, color(label, i), label, row=1, col=col, showlegend=(col == 1))
+            data += band(rows, key, color(label, i), label, showlegend=(col == 1), **_axes(col))
             if i == 0:
-                _theory_and_reference(fig, rows, key, col, ref_slope)
+                data += _theory_and_reference(rows, key, col, ref_slope)
             if label == "BCLS":
-                _bcls_marks(fig, rows, key, col)
+                data += _bcls_marks(rows, key, col)
     first = next(iter(series.values()), [])
     notes = [f"Theorem 1 faded: {w}" for w in theorem1_reasons(first)]
     if "BCLS" in series:
         notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series["BCLS"])]
+    annotations = [dict(text=t, x=sum(dom) / 2, xanchor="center", xref="paper", y=1.0, yanchor="bottom",
+                        yref="paper", showarrow=False, font=dict(size=16)) for t, dom in _PANELS]
     if notes:
-        fig.add_annotation(text="<br>".join(_wrap(t) for t in notes), xref="paper", yref="paper", x=0, y=1.0,
-                           yanchor="bottom", xanchor="left", yshift=22, showarrow=False, align="left",
-                           font=dict(size=9, color="#555555"))
-    fig.update_yaxes(type="log", exponentformat="power")
-    fig.update_xaxes(**BITS_AXIS)
-    mark_bits(fig, current_bits, row="all", col="all")
+        annotations.append(dict(text="<br>".join(_wrap(t) for t in notes), xref="paper", yref="paper", x=0, y=1.0,
+                                yanchor="bottom", xanchor="left", yshift=22, showarrow=False, align="left",
+                                font=dict(size=9, color="#555555")))
+    layout = dict(annotations=annotations, shapes=mark_bits(current_bits, (("x", "y"), ("x2", "y2"))))
+    for col, (_, dom) in enumerate(_PANELS, start=1):
+        ax = _axes(col)
+        layout["xaxis" if col == 1 else f"xaxis{col}"] = dict(BITS_AXIS, anchor=ax["yaxis"], domain=dom)
+        layout["yaxis" if col == 1 else f"yaxis{col}"] = dict(type="log", exponentformat="power",
+                                                               anchor=ax["xaxis"], domain=[0.0, 1.0])
     top = 30 + 13 * sum(len(_wrap(t).split("<br>")) for t in notes)
-    fig.update_layout(height=height + top - 30, margin=dict(l=50, r=10, t=top, b=40),
-                      legend=dict(orientation="h", y=-0.25), template="plotly_white")
-    return fig
+    return figure(data, dict(layout, height=height + top - 30, margin=dict(l=50, r=10, t=top, b=40),
+                             legend=dict(orientation="h", y=-0.25)))
 
 
 def _wrap(text: str, width: int = 95) -> str:

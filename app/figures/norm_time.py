@@ -12,17 +12,23 @@ import plotly.graph_objects as go
 
 from qsid_core.timeseries import time_series
 
+from .axes import top_log_range
 from .hypotheses import CAPTION
 from .palette import COLORS, color
+from .raw import arr, figure, hline
 from .view import CURRENT, View
 
 __all__ = ["norm_time_figure", "VIEW"]
 
 
-def _hline(fig, y, name: str, c: str, dash: str) -> None:
-    if y is not None and np.isfinite(y) and y > 0:
-        fig.add_hline(y=y, line=dict(color=c, dash=dash, width=1.5), annotation_text=f"{name} {y:.3g}",
-                      annotation_position="top right", annotation_font_size=9)
+def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: float = 1.5,
+           where: str = "top") -> None:
+    """A labelled horizontal line at ``y`` (skipped unless finite and > 0: the y axis is log)."""
+    if y is None or not np.isfinite(y) or y <= 0:
+        return
+    shapes.append(hline(float(y), "y", c, dash, width))
+    notes.append(dict(xref="x domain", x=1, xanchor="right", yref="y", y=float(np.log10(y)), showarrow=False,
+                      yanchor="bottom" if where == "top" else "top", text=name, font=dict(size=9)))
 
 
 def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None = None,
@@ -40,8 +46,10 @@ def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None
         The letter's delta(eps) (state units).
     realized : dict label -> {"median", "max"}, optional
         The a-posteriori bound per estimator.
+
+    Built from plain dicts (:mod:`.raw`): this view is redrawn on every b change.
     """
-    fig = go.Figure()
+    data, shapes, notes = [], [], []
     floor = None
     for i, (label, lp) in enumerate(loops.items()):
         ts = time_series(lp, x0)
@@ -51,29 +59,37 @@ def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None
             continue
         t = ts.t.tolist()
         c = color(label, i)
-        fig.add_trace(go.Scatter(x=t + t[::-1], y=np.nanmax(d, 0).tolist() + np.nanmin(d, 0)[::-1].tolist(),
-                                 fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
-                                 showlegend=False, legendgroup=label))
-        fig.add_trace(go.Scatter(x=t, y=np.nanmedian(d, 0).tolist(), mode="lines", legendgroup=label,
-                                 name=f"{label} ‖x_t‖ (median; band: min..max)", line=dict(color=c)))
+        data.append(dict(type="scatter", x=t + t[::-1], y=arr(np.nanmax(d, 0)) + arr(np.nanmin(d, 0)[::-1]),
+                         fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
+                         showlegend=False, legendgroup=label))
+        data.append(dict(type="scatter", x=t, y=arr(np.nanmedian(d, 0)), mode="lines", legendgroup=label,
+                         name=f"{label} ‖x_t‖ (median; band: min..max)", line=dict(color=c)))
     if true_loop is not None:
         ts = time_series(true_loop, x0)
         if ts.ok[0]:
-            fig.add_trace(go.Scatter(x=ts.t.tolist(), y=ts.norms_display[0].tolist(), mode="lines",
-                                     name="true model", line=dict(color=COLORS["true"], width=1.5)))
-    _hline(fig, letter_delta, "letter's δ(ε)", COLORS["theory"], "dash")
+            data.append(dict(type="scatter", x=ts.t.tolist(), y=arr(ts.norms_display[0]), mode="lines",
+                             name="true model", line=dict(color=COLORS["true"], width=1.5)))
+    _hline(shapes, notes, letter_delta, f"letter's δ(ε) {_g(letter_delta)}", COLORS["theory"], "dash")
     for label, rb in (realized or {}).items():
-        _hline(fig, (rb or {}).get("median"), f"a-posteriori δ {label}", COLORS["realized"], "dot")
-    if floor is not None:
-        fig.add_hline(y=floor, line=dict(color=COLORS["ref"], dash="dot", width=1),
-                      annotation_text="converged (1e-12‖x0‖)", annotation_position="bottom right",
-                      annotation_font_size=9)
-    fig.update_yaxes(type="log", title_text="‖x_t‖", exponentformat="power")
-    fig.update_xaxes(title_text="closed-loop step t")
+        y = (rb or {}).get("median")
+        _hline(shapes, notes, y, f"a-posteriori δ {label} {_g(y)}", COLORS["realized"], "dot")
+    _hline(shapes, notes, floor, "converged (1e-12‖x0‖)", COLORS["ref"], "dot", 1.0, where="bottom")
     title = CAPTION + (f" · b = {bits}" if bits is not None else "")
-    fig.update_layout(height=height, margin=dict(l=50, r=10, t=30, b=40), template="plotly_white",
-                      legend=dict(orientation="h", y=-0.3), title=dict(text=title, font=dict(size=11), x=0.01))
-    return fig
+    yaxis = dict(type="log", title=dict(text="‖x_t‖"), exponentformat="power")
+    # top-anchored: the start of the loops and both bounds always show (axes.top_log_range)
+    rng = top_log_range([v for tr in data for v in tr["y"]] + [s["y0"] for s in shapes])
+    if rng is not None:
+        yaxis.update(range=rng, autorange=False)
+        if floor is not None and np.log10(floor) < rng[0]:
+            yaxis["title"]["text"] = "‖x_t‖ (converged tails below the axis)"
+    return figure(data, dict(
+        height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
+        title=dict(text=title, font=dict(size=11), x=0.01), shapes=shapes, annotations=notes,
+        yaxis=yaxis, xaxis=dict(title=dict(text="closed-loop step t"))))
+
+
+def _g(y) -> str:
+    return f"{y:.3g}" if y is not None and np.isfinite(y) else ""
 
 
 def _build(frame) -> go.Figure:

@@ -23,6 +23,8 @@ SPHERE_CAP = 1.6
 TIME = 1.2
 #: Time markers: about this many dots along the true-model loop.
 TIME_MARKS = 10
+#: time markers closer than this (box units) to the previous one are not drawn (the scene's dots are 0.035 wide)
+MARK_GAP = 0.05
 
 
 @dataclass
@@ -191,8 +193,20 @@ def _bounds(frame, dims: tuple, scale: float) -> dict:
     radius = d / scale if d is not None else 0.0
     out.update(delta=d, delta_realized=rb, show_bound=show, sphere_radius=radius,
                sphere_capped=radius > SPHERE_CAP,
-               bound_text=" · ".join(words) + " · as t → ∞, around x_ref = 0")
+               bound_text="\n".join(words + ["as t → ∞, around x_ref = 0"]))  # one per line: fits the canvas
     return out
+
+
+def _spread(marks: np.ndarray, gap: float = MARK_GAP) -> np.ndarray:
+    """Drop time markers closer than ``gap`` (box units) to the last one kept: once the loop has converged
+    its markers all sit on one point, where they piled into one black blob over the origin."""
+    if marks.shape[0] == 0:
+        return marks
+    keep = [0]
+    for k in range(1, marks.shape[0]):
+        if np.linalg.norm(marks[k] - marks[keep[-1]]) >= gap:
+            keep.append(k)
+    return marks[keep]
 
 
 def scene_view(frame, axes: str | None = None) -> SceneView:
@@ -226,6 +240,7 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
     ta = _time_axis(dims)
     if ta is not None:  # time axis: the markers sit at their own times
         marks[:, ta] = TIME * np.arange(0, ts.shape[0], every)[: len(marks)] / max(ts.shape[0] - 1, 1)
+    marks = _spread(marks)
     labels = [names[d] if d is not None else "" for d in dims]
     if ta is not None:
         labels[ta] = "time"

@@ -16,12 +16,12 @@ import plotly.graph_objects as go
 
 from .palette import COLORS
 
-__all__ = ["Rows", "Series", "get", "xy", "band", "mark_bits", "move_current_bits", "BITS_AXIS"]
+__all__ = ["Rows", "Series", "get", "xy", "band", "mark_bits", "hline_note", "move_current_bits", "BITS_AXIS"]
 
 Rows = Sequence[Mapping]
 Series = Mapping[str, Rows]
 #: x axis of every plot against the word length.
-BITS_AXIS = dict(title_text="word length b [bits]", dtick=2)
+BITS_AXIS = dict(title=dict(text="word length b [bits]"), dtick=2)
 
 
 def get(row: Mapping, *path):
@@ -45,33 +45,41 @@ def xy(rows: Rows, *path) -> tuple[list, list]:
     return xs, ys
 
 
-def band(fig, rows: Rows, key: str, color: str, name: str, row=None, col=None, showlegend=True) -> None:
-    """Mean line with a mean +- std band (clipped above zero for the log axis)."""
+def band(rows: Rows, key: str, color: str, name: str, xaxis: str = "x", yaxis: str = "y",
+         showlegend: bool = True) -> list:
+    """Trace dicts: mean line with a mean +- std band (clipped above zero for the log axis); [] if no mean."""
     pts = []
     for r in sorted(rows, key=lambda r: r["bits"]):
         m, s = get(r, key, "mean"), get(r, key, "std")
         if m is not None and np.isfinite(m) and m > 0:
-            pts.append((r["bits"], m, s or 0.0))
+            pts.append((r["bits"], m, s if s is not None and np.isfinite(s) else 0.0))
     if not pts:
-        return
+        return []
     b = [p[0] for p in pts]
-    m = np.array([p[1] for p in pts])
-    s = np.array([p[2] for p in pts])
-    up = m + s
+    m = np.array([p[1] for p in pts], dtype=float)
+    s = np.array([p[2] for p in pts], dtype=float)
     lo = np.where(m - s > 0, m - s, m / 10)
-    kw = {} if row is None else {"row": row, "col": col}
-    fig.add_trace(go.Scatter(x=b + b[::-1], y=list(up) + list(lo[::-1]), fill="toself", fillcolor=color,
-                             opacity=0.18, line=dict(width=0), hoverinfo="skip", showlegend=False,
-                             legendgroup=name), **kw)
-    fig.add_trace(go.Scatter(x=b, y=list(m), mode="lines+markers", name=name, legendgroup=name,
-                             showlegend=showlegend, line=dict(color=color),
-                             error_y=dict(type="data", array=list(s), visible=False)), **kw)
+    ax = dict(xaxis=xaxis, yaxis=yaxis)
+    return [dict(type="scatter", x=b + b[::-1], y=(m + s).tolist() + lo[::-1].tolist(), fill="toself",
+                 fillcolor=color, opacity=0.18, line=dict(width=0), hoverinfo="skip", showlegend=False,
+                 legendgroup=name, **ax),
+            dict(type="scatter", x=b, y=m.tolist(), mode="lines+markers", name=name, legendgroup=name,
+                 showlegend=showlegend, line=dict(color=color),
+                 error_y=dict(type="data", array=s.tolist(), visible=False), **ax)]
 
 
-def mark_bits(fig, current_bits: int | None, **kw) -> None:
-    """A dotted vertical line at the current word length (none if ``current_bits`` is None)."""
-    if current_bits is not None:
-        fig.add_vline(x=current_bits, line=dict(color=COLORS["marker"], dash="dot", width=1), **kw)
+def mark_bits(current_bits: int | None, axes=(("x", "y"),)) -> list:
+    """Shape dicts: a dotted vertical line at the current word length on each (x, y) axis pair ([] if None)."""
+    if current_bits is None:
+        return []
+    return [dict(type="line", x0=current_bits, x1=current_bits, xref=xa, y0=0, y1=1, yref=f"{ya} domain",
+                 line=dict(color=COLORS["marker"], dash="dot", width=1)) for xa, ya in axes]
+
+
+def hline_note(y: float, text: str, yaxis: str = "y", where: str = "top", log: bool = True, size: int = 10) -> dict:
+    """Annotation dict: ``text`` at the right end of a horizontal line at ``y`` (log axis: plotly takes log10 y)."""
+    return dict(xref="x domain", x=1, xanchor="right", yref=yaxis, y=float(np.log10(y)) if log else float(y),
+                yanchor="bottom" if where == "top" else "top", showarrow=False, text=text, font=dict(size=size))
 
 
 def move_current_bits(fig: go.Figure, current_bits: int) -> go.Figure:
