@@ -145,3 +145,10 @@ def test_values_viser_itself_refuses_are_explained_not_dropped(tab, updates, wor
     assert handle.value == before and tab.session.generation == gen and tab.session.frames_drawn == frames
     send(tab, handle, 7)  # a good value clears it
     assert tab.error is None and tab.frame.bits == 7
+
+
+def test_a_share_url_request_from_a_client_opens_no_public_tunnel(tab):
+    """viser would open a tunnel through its public relay for any client asking (the button is hidden)."""
+    tab.ws.send(msgspec.msgpack.encode({"type": "ShareUrlRequest"}))
+    send(tab, tab.controls["bits"], 6)  # handled after the request (one connection, messages in order)
+    assert tab.app.server._share_tunnel is None

@@ -78,6 +78,7 @@ class DashboardApp:
         cam.position = (1.7, -2.2, 1.4)
         cam.look_at = (0.0, 0.0, 0.0)
         cam.up = (0.0, 0.0, 1.0)
+        _refuse_share_requests(self.server)
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
 
@@ -136,6 +137,16 @@ class DashboardApp:
             for s in sessions:
                 s.close()
         self.server.stop()
+
+
+def _refuse_share_requests(server) -> None:
+    """Ignore viser's "share URL" requests: the button is hidden, but any client could still send one and
+    make the server open a public tunnel through viser's relay (the whole class's server on the internet)."""
+    from viser import _messages
+
+    handlers = getattr(getattr(server, "_websock_server", None), "_incoming_handlers", {})
+    for msg in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
+        handlers.pop(msg, None)
 
 
 def _check_lesson(name: str) -> str:
