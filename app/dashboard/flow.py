@@ -113,7 +113,7 @@ class TabCallbacks:
         with self._lock:
             self._closed = True
             for _args, _kw, fut in self._queue.values():
-                fut.cancel()
+                fut.set_result(None)  # dropped (not "cancelled": viser would print that for each)
             self._queue.clear()
             self._lock.notify_all()
 

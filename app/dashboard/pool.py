@@ -27,6 +27,7 @@ import sys
 import tempfile
 import threading
 import time
+import weakref
 from collections import OrderedDict
 from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -131,7 +132,7 @@ class Pool:
         self._pending: list = []  # [outer, inner, guard, started-at or None]
         self._plock = threading.Lock()
         self._closed = False
-        self._shared: OrderedDict = OrderedDict()  # id(obj) -> (obj, what tasks get); see share()
+        self._shared: OrderedDict = OrderedDict()  # id(obj) -> (weak ref, what tasks get); see share()
         self._share_dir: str | None = None
         self._slock = threading.Lock()
         self.current = self._new()
@@ -161,30 +162,32 @@ class Pool:
     def share(self, obj):
         """What pool tasks get instead of ``obj``: the object itself if small, else a reference to a file
         written once (each worker reads it once), so a pass split into many short tasks does not send the
-        data with every task."""
+        data with every task. Only a weak reference to ``obj`` is kept (the cache decides how long it lives)."""
         with self._slock:
             hit = self._shared.get(id(obj))
-            if hit is not None and hit[0] is obj:
+            if hit is not None and hit[0]() is obj:
                 self._shared.move_to_end(id(obj))
                 return hit[1]
             data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
             if len(data) < SHARE_BYTES:
-                arg = obj
-            else:
-                if self._share_dir is None:
-                    self._share_dir = tempfile.mkdtemp(prefix="qsid-share-")
-                fd, path = tempfile.mkstemp(dir=self._share_dir, suffix=".pkl")
-                with os.fdopen(fd, "wb") as f:
-                    f.write(data)
-                arg = _Shared(path)
-            self._shared[id(obj)] = (obj, arg)
+                return obj
+            if self._share_dir is None:
+                self._share_dir = tempfile.mkdtemp(prefix="qsid-share-")
+            fd, path = tempfile.mkstemp(dir=self._share_dir, suffix=".pkl")
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+            arg = _Shared(path)
+            try:
+                ref = weakref.ref(obj)
+            except TypeError:  # not weakly referenceable: keep it while its file is kept
+                ref = lambda obj=obj: obj  # noqa: E731
+            self._shared[id(obj)] = (ref, arg)
             while len(self._shared) > SHARE_KEEP:
                 _, (_, old) = self._shared.popitem(last=False)
-                if isinstance(old, _Shared):
-                    try:
-                        os.unlink(old.path)
-                    except OSError:
-                        pass
+                try:
+                    os.unlink(old.path)
+                except OSError:
+                    pass
             return arg
 
     def replace(self, broken) -> bool:
