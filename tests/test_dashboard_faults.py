@@ -125,3 +125,44 @@ def test_newer_settings_abandon_pool_work_at_once():
         assert time.monotonic() - t0 < 1.0
     finally:
         pool.shutdown()
+
+
+def test_a_tab_closed_while_it_is_being_built_is_not_kept(monkeypatch):
+    """On a busy server building a tab takes seconds; a tab closed meanwhile used to stay registered for
+    good (its worker, panel and plots: the memory kept growing with every batch of new tabs)."""
+    import threading
+
+    import msgspec
+    import viser
+    from websockets.sync.client import connect
+
+    import app.dashboard.server as server
+
+    built = []
+
+    class SlowSession(server.Session):
+        def __init__(self, *a, **k):
+            time.sleep(2.0)  # the tab closes meanwhile
+            super().__init__(*a, **k)
+            built.append(self)
+
+    monkeypatch.setattr(server, "Session", SlowSession)
+    app = DashboardApp(host="127.0.0.1", port=0, workers=0)
+    try:
+        ws = connect(app.url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"])
+        ws.send(msgspec.msgpack.encode({
+            "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0],
+            "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
+            "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}))
+        time.sleep(0.5)
+        ws.close()  # before the tab is built
+        end = time.monotonic() + 30
+        while not built and time.monotonic() < end:
+            time.sleep(0.05)
+        assert built, "the tab was never built"
+        built[0].thread.join(10)
+        assert not built[0].thread.is_alive()  # its worker ended
+        assert app.sessions == {} and not app._gone
+        assert threading.active_count() < 50
+    finally:
+        app.stop()

@@ -37,7 +37,8 @@ from qsid_core.errors import QsidError
 
 from .memory import trim
 
-__all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Superseded", "DEFAULT_TIMEOUT", "SHARE_BYTES"]
+__all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Superseded", "DEFAULT_TIMEOUT",
+           "SHARE_BYTES"]
 
 #: Seconds between two ``malloc_trim`` calls of the watchdog.
 TRIM_EVERY = 10.0

@@ -16,6 +16,7 @@ import sys
 import threading
 import time
 import traceback
+from collections import OrderedDict
 
 import viser
 
@@ -68,9 +69,10 @@ class DashboardApp:
         self.slots = FairSlots(slots)  # (4) at most `slots` tabs compute at once, first come first served
         self.workers = max(0, int(workers))
         self.tasks = max(1, self.workers)
-        self._lock = threading.Lock()  # (5) guards `sessions`
+        self._lock = threading.Lock()  # (5) guards `sessions` and `_gone`
         self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog
         self.sessions: dict[int, Session] = {}
+        self._gone: OrderedDict = OrderedDict()  # client ids that closed before their tab was built
         self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
@@ -107,11 +109,20 @@ class DashboardApp:
             traceback.print_exc()
             return
         with self._lock:
-            self.sessions[client.client_id] = s
+            gone = self._gone.pop(client.client_id, None) is not None
+            if not gone:
+                self.sessions[client.client_id] = s
+        if gone:  # the tab closed while it was being built (seconds on a busy server): nobody would close it
+            s.close(wait=False)
+            trim()
 
     def _disconnect(self, client) -> None:
         with self._lock:
             s = self.sessions.pop(client.client_id, None)
+            if s is None:  # still being built by _connect (both run in viser's thread pool, in any order)
+                self._gone[client.client_id] = True
+                while len(self._gone) > 4096:  # ids whose _connect never came (bounded)
+                    self._gone.popitem(last=False)
         if s is not None:
             s.close(wait=False)  # never block viser's callback threads; the worker ends at its next check
             trim()

@@ -10,7 +10,7 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 2. ``Session.thread`` (one per tab): the only thread that reads the panel,
    computes and draws; it drops a computation as soon as a newer generation exists, and starts
    at most one computation per ``MIN_GAP`` seconds (a burst of changes: only the newest is computed;
-   a tab whose changes keep dropping its work before anything is drawn waits longer, up to ``MAX_GAP``).
+   a tab flooded with changes faster than any person makes them waits longer, up to ``MAX_GAP``).
 3. the helper thread of :func:`iter_frames` (:mod:`.stages`, one per computation): quantizes the
    next chunk of word lengths while the worker runs closed loops, and runs the
    second estimator's closed loops beside the first.
@@ -52,9 +52,11 @@ __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
 
 #: Seconds between the starts of two computations of one tab (changes arriving meanwhile are merged) ...
 MIN_GAP = 0.1
-#: ... doubled up to this after each computation a newer change dropped before anything was drawn (a flood),
-#: back to MIN_GAP once a frame is drawn: a tab flooding changes cannot take the CPU from the others.
+#: ... doubled up to this after each computation that a flood dropped before anything was drawn (at least
+#: FLOOD_CHANGES changes at FLOOD_RATE per second or more: no person drags a slider that fast), back to
+#: MIN_GAP otherwise: a tab flooding changes cannot take the CPU from the others.
 MAX_GAP = 2.0
+FLOOD_CHANGES, FLOOD_RATE = 20, 200.0
 
 class Session:
     """One browser tab: its controls, scene, plots and the worker thread that redraws them.
@@ -72,7 +74,7 @@ class Session:
         self._gen = 0
         self._done = -1
         self._closed = False
-        self._last_start, self._gap = 0.0, MIN_GAP
+        self._last_start, self._gap, self._touches = 0.0, MIN_GAP, 0
         self.frames_drawn = 0
         self.last_frame: Frame | None = None
         self.last_error: str | None = None
@@ -110,6 +112,7 @@ class Session:
         """Something changed: the worker recomputes from the newest values (older work is dropped)."""
         with self._cond:
             self._gen += 1
+            self._touches += 1
             self._cond.notify_all()
 
     def close(self, wait: bool = True) -> None:
@@ -170,13 +173,14 @@ class Session:
                 if self._closed:
                     return
                 gen = self._gen
-            self._last_start, drawn = time.monotonic(), self.frames_drawn
+            self._last_start, drawn, touches = time.monotonic(), self.frames_drawn, self._touches
             try:
                 gen = self._run(gen)
             except Exception as exc:  # never let the worker die: show it, keep the last view
                 traceback.print_exc()
                 self._show_error(f"internal error ({type(exc).__name__}): {exc}")
-            flooded = self.frames_drawn == drawn and self._stale(gen)
+            n, dt = self._touches - touches, max(1e-3, time.monotonic() - self._last_start)
+            flooded = self.frames_drawn == drawn and self._stale(gen) and n >= FLOOD_CHANGES and n / dt >= FLOOD_RATE
             self._gap = min(MAX_GAP, 2.0 * self._gap) if flooded else MIN_GAP
             with self._cond:
                 self._done = gen
