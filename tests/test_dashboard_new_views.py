@@ -88,6 +88,10 @@ def test_pin_overlays_dashed_curves_until_unpinned(tab):
     for name in ("error", "cost", "bound"):
         pinned = [tr for tr in fig(tab, name).data if "(pinned" in (tr.name or "")]
         assert pinned and all(tr.line.dash == "dash" for tr in pinned), name
+        # measured curves only: no pinned copies of reference lines (slope, Theorem 1) or of marks
+        assert not [tr for tr in pinned if tr.mode == "markers" or "Theorem 1" in tr.name or "/bit" in tr.name]
+    assert {tr.name for tr in fig(tab, "error").data if "(pinned" in (tr.name or "")} == \
+        {"LS (pinned b=4)", "BCLS (pinned b=4)"}
     assert len(fig(tab, "error").data) > n_err
     tab.session.unpin()
     tab.wait()

@@ -22,6 +22,8 @@ __all__ = ["PINNED_VIEWS", "overlay_pinned", "parse_bits", "portraits_figure", "
 
 #: The views that show a pinned result as dashed lines.
 PINNED_VIEWS = ("error", "cost", "bound")
+#: Legend groups of reference lines, not measurements: not copied by :func:`overlay_pinned`.
+REFERENCE_GROUPS = ("ref", "th", "thx")
 
 
 def overlay_pinned(fig: go.Figure, pinned_fig: go.Figure, label: str) -> go.Figure:
@@ -29,6 +31,8 @@ def overlay_pinned(fig: go.Figure, pinned_fig: go.Figure, label: str) -> go.Figu
     for tr in pinned_fig.data:
         if getattr(tr, "fill", None) in ("toself", "tonexty") or tr.type != "scatter":
             continue  # bands and bars stay with the live figure
+        if tr.mode == "markers" or tr.legendgroup in REFERENCE_GROUPS:
+            continue  # marks and reference lines (slope, Theorem 1) would only double the legend
         d = tr.to_plotly_json()
         d["line"] = {**(d.get("line") or {}), "dash": "dash", "width": 1.5}
         d["marker"] = {**(d.get("marker") or {}), "symbol": "circle-open"}
