@@ -235,3 +235,25 @@ def test_norm_time_without_converged_loops_has_no_floor_line_and_no_false_title(
     assert lo > np.log10(floor) + 3  # the axis is not stretched down to the floor
     xs = [a.x for a in fig.layout.annotations]
     assert len(set(xs)) == len(xs)  # bound labels at different places (they printed on each other)
+
+
+def test_quantizer_view_counts_errors_off_the_histogram_under_overload():
+    """Walkthrough repro: fixed range -1, 1 (most samples overloaded) showed a uniform-looking histogram and
+    a variance ratio of ~5e6 '(± 0.009)'."""
+    f = last(Values(range_mode="fixed", fixed_range="-1, 1", **SMALL))
+    title = build_figures(f, ["quantizer"])["quantizer"].layout.title.text
+    assert "errors outside ±ε/2" in title and "(±" not in title
+    ok = build_figures(last(Values(**SMALL)), ["quantizer"])["quantizer"].layout.title.text
+    assert "(±" in ok and "outside" not in ok  # no overload with the guard band: the ideal law and its spread
+
+
+def test_time_series_title_counts_failed_loops():
+    """Walkthrough repro: with x_max = 0.5 every LS loop was infeasible, yet the title said 'LS 0 steps in 0/5
+    loops' and LS silently left the legend."""
+    f = last(Values(system="boeing747", x0="5, 5, 0, 0", x_max="0.5", **SMALL))
+    failed = {lab: int(f.loops[lab].failed.sum()) for lab in f.labels}
+    assert any(failed.values()), failed  # the setting does make loops fail
+    title = build_figures(f, ["timeseries"])["timeseries"].layout.title.text
+    for lab, k in failed.items():
+        if k:
+            assert f"{lab} {k}/{len(f.loops[lab].failure)} failed (" in title and "not drawn" in title
