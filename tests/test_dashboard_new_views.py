@@ -106,6 +106,10 @@ def test_portraits_at_several_word_lengths(tab):
     tab.wait()
     p2 = fig(tab, "portraits")
     assert {tr.xaxis for tr in p2.data} == {"x", "x2"} and "ignored: 40" in p2.layout.title.text
+    tab.session.views.compare_bits.value = "two"  # nothing usable: the letter's 2, 4, 6 and a note, not a blank
+    tab.wait()
+    p3 = fig(tab, "portraits")
+    assert {tr.xaxis for tr in p3.data} == {"x", "x2", "x3"} and "ignored: two" in p3.layout.title.text
 
 
 def test_datalength_on_demand_with_progress_cancel_and_cache(app, monkeypatch):

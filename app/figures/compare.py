@@ -22,6 +22,8 @@ __all__ = ["PINNED_VIEWS", "overlay_pinned", "parse_bits", "portraits_figure", "
 
 #: The views that show a pinned result as dashed lines.
 PINNED_VIEWS = ("error", "cost", "bound")
+#: Word lengths of the portraits when none usable is typed (the letter's figures (d)-(f)).
+DEFAULT_BITS = (2, 4, 6)
 #: Legend groups of reference lines, not measurements: not copied by :func:`overlay_pinned`.
 REFERENCE_GROUPS = ("ref", "th", "thx")
 
@@ -104,6 +106,8 @@ def portraits_figure(loops: dict, true_states: np.ndarray | None, dims: tuple, n
 
 def _build(frame) -> go.Figure:
     bits, bad = parse_bits(frame.values.compare_bits, frame.ex.config.bits)
+    if not bits:  # nothing usable typed: the letter's word lengths, and the note says what was ignored
+        bits = tuple(b for b in DEFAULT_BITS if b in frame.ex.config.bits) or tuple(frame.ex.config.bits[:1])
     names = frame.system.state_names
     i, j, _ = axes_indices(frame.values.axes, names)
     j = j if j is not None else i
