@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from app.figures.hypotheses import CAPTION, bcls_reasons, theorem1_reasons
 from qsid_core.summary import saturated_steps
+from qsid_core.assumptions import OVERLOAD_TOLERANCE
 
 from .frames import Frame
 
@@ -84,7 +85,8 @@ def summary_markdown(frame: Frame) -> str:
         "",
         f"ε states: {eps_x}  ",
         f"ε inputs: {eps_u}  ",
-        f"overload: {100 * first['overload_fraction']:.2f} % of samples",
+        f"overload: {100 * first['overload_fraction']:.2f} % of samples "
+        f"(up to {100 * OVERLOAD_TOLERANCE:g} % counts as no overload)",
         "",
         _bounds(frame, first),
         "",
