@@ -70,6 +70,25 @@ def _saturation(frame: Frame) -> str:
     return "saturated inputs (|u| at its bound): " + ", ".join(parts)
 
 
+def _lesson_changes(values) -> list:
+    """A line when a lesson is open but its own settings were changed since (its text describes those)."""
+    from .lessons import NONE, get_lesson, lesson_values
+
+    name = getattr(values, "lesson", NONE)
+    if not name or name == NONE:
+        return []
+    try:
+        ref = lesson_values(name)
+    except KeyError:
+        return []
+    keys = [k for k in get_lesson(name).settings if k != "lesson"]
+    changed = [k for k in keys if getattr(values, k, None) != getattr(ref, k, None)]
+    if not changed:
+        return []
+    return [f"*Lesson **{name}** with changed settings ({', '.join(changed)}): its text describes its own "
+            "settings.*", ""]
+
+
 def summary_markdown(frame: Frame) -> str:
     """The numeric summary at the current b: eps per channel, errors, overload, failures."""
     sysm = frame.system
@@ -80,6 +99,7 @@ def summary_markdown(frame: Frame) -> str:
     eff = first.get("effective_realizations") or frame.values.realizations
     distinct = "" if eff == frame.values.realizations else f" ({eff} distinct: no dither, all identical)"
     lines = [
+        *_lesson_changes(frame.values),
         f"**{sysm.name}**, b = **{b}** bits, {frame.values.realizations} dither realizations{distinct}, "
         f"{frame.values.trajectories} × {frame.values.steps} samples",
         "",
