@@ -45,8 +45,15 @@ def _kind(value: Any) -> str:
 
 
 def _where(path: tuple) -> str:
-    """``"entry [i][j] is"``, or ``"it is"`` for a single value."""
-    return ("entry " + "".join(f"[{i}]" for i in path) + " is") if path else "it is"
+    """Where a bad value is, counted from 1 as a person reads it: ``"entry 3 is"`` (a list),
+    ``"row 2, column 1 is"`` (a matrix), ``"entry (1, 2, 3) is"`` (deeper), ``"it is"`` (a single value)."""
+    if not path:
+        return "it is"
+    if len(path) == 1:
+        return f"entry {path[0] + 1} is"
+    if len(path) == 2:
+        return f"row {path[0] + 1}, column {path[1] + 1} is"
+    return f"entry ({', '.join(str(i + 1) for i in path)}) is"
 
 
 def _walk(name: str, value: Any, ndim_max: int, error: type, what: str | None = None) -> None:
@@ -115,8 +122,9 @@ def as_float_array(
     bad = ~np.isfinite(arr)
     if bad.any():
         idx = tuple(int(i) for i in np.argwhere(bad)[0])
-        raise error(f"{name} must contain only finite numbers (no nan or inf); {_where(idx)} "
-                    f"{arr[idx] if idx else arr.item()}")
+        v = arr[idx] if idx else arr.item()
+        why = " (a number beyond ±1.8e308 reads as inf)" if np.isinf(v) else ""
+        raise error(f"{name} must contain only finite numbers (no nan or inf); {_where(idx)} {v}{why}")
     if max_abs is not None and arr.size and np.abs(arr).max() > max_abs:
         idx = tuple(int(i) for i in np.argwhere(np.abs(arr) > max_abs)[0])
         raise error(f"{name}: entries must be at most {max_abs:g} in magnitude; {_where(idx)} "

@@ -88,6 +88,10 @@ def test_pin_overlays_dashed_curves_until_unpinned(tab):
     for name in ("error", "cost", "bound"):
         pinned = [tr for tr in fig(tab, name).data if "(pinned" in (tr.name or "")]
         assert pinned and all(tr.line.dash == "dash" for tr in pinned), name
+        # measured curves only: no pinned copies of reference lines (slope, Theorem 1) or of marks
+        assert not [tr for tr in pinned if tr.mode == "markers" or "Theorem 1" in tr.name or "/bit" in tr.name]
+    assert {tr.name for tr in fig(tab, "error").data if "(pinned" in (tr.name or "")} == \
+        {"LS (pinned b=4)", "BCLS (pinned b=4)"}
     assert len(fig(tab, "error").data) > n_err
     tab.session.unpin()
     tab.wait()
@@ -102,6 +106,10 @@ def test_portraits_at_several_word_lengths(tab):
     tab.wait()
     p2 = fig(tab, "portraits")
     assert {tr.xaxis for tr in p2.data} == {"x", "x2"} and "ignored: 40" in p2.layout.title.text
+    tab.session.views.compare_bits.value = "two"  # nothing usable: the letter's 2, 4, 6 and a note, not a blank
+    tab.wait()
+    p3 = fig(tab, "portraits")
+    assert {tr.xaxis for tr in p3.data} == {"x", "x2", "x3"} and "ignored: two" in p3.layout.title.text
 
 
 def test_datalength_on_demand_with_progress_cancel_and_cache(app, monkeypatch):

@@ -129,6 +129,10 @@ def test_export_figures_is_one_offline_page(frame):
     assert page.startswith("<!DOCTYPE html>") and page.count('class="panel"') >= 3
     assert not re.search(r"<script[^>]*src=", page)  # plotly.js inlined: one file, works offline
     assert "Plotly.newPlot" in page and "qsid sweep" in page
+    from app.figures import registry
+
+    frame.datalength = None  # the data-length study was not run: its empty plot is left out of the page
+    assert page.count('class="panel"') == share.frame_html(frame).count('class="panel"') == len(registry.VIEWS) - 1
 
 
 def test_download_then_upload_gives_the_same_view(monkeypatch):

@@ -79,7 +79,9 @@ def test_dc_motor_integrator_fades_theorem1_and_says_why():
     assert faded and all(t.opacity < 0.5 and t.line.dash == "dot" for t in faded)
     assert "Theorem 1" not in names  # no b where the hypotheses hold: no normal line at all
     note = " ".join(a.text for a in fig.layout.annotations)
-    assert "unit circle (integrator)" in note and "does not converge" in note
+    assert "unit circle (integrator)" in note and note.count("<br>") <= 1  # a few words on the plot ...
+    why = " ".join(a.hovertext or "" for a in fig.layout.annotations)
+    assert "does not converge" in why  # ... the whole sentence on hover (and in the summary)
     assert "unit circle (integrator): Ψ Ψᵀ/T does not converge" in summary_markdown(f)
 
 
@@ -110,7 +112,10 @@ def test_bound_plot_shows_both_bounds_with_the_caption():
     med = [t for t in fig.data if (t.name or "").startswith("a-posteriori δ, LS")][0]
     assert len(med.x) == 16
     assert med.y[3] == pytest.approx(f.rows["LS"][4]["ultimate_bound_realized"]["median"])
-    assert fig.layout.annotations[0].text == CAPTION
+    assert fig.layout.annotations[0].text.startswith(CAPTION)
+    assert f"T = {f.values.mpc_steps} steps" in fig.layout.annotations[0].text  # ‖x_T‖ is at a finite T
+    ls_d, bcls_d = (next(t for t in fig.data if (t.name or "").startswith(f"a-posteriori δ, {k}")) for k in ("LS", "BCLS"))
+    assert ls_d.line.color == bcls_d.line.color and bcls_d.line.dash == "dot"  # the bound's colour, not BCLS red
     s = summary_markdown(f)
     assert f"ρ = {f.rows['LS'][4]['rho']:.3g} (automatic)" in s and "a-posteriori δ LS" in s
 
@@ -215,3 +220,40 @@ def test_time_markers_do_not_pile_up_where_the_loop_has_converged():
     d = np.linalg.norm(np.diff(m, axis=0), axis=1)
     assert np.all(d >= MARK_GAP - 1e-6)
     assert all(len(line) <= 60 for line in sv.bound_text.split("\n"))  # one fact per line: fits the canvas
+
+
+def test_norm_time_without_converged_loops_has_no_floor_line_and_no_false_title():
+    """Boeing at b = 2 over 15 steps: the loops are far from converged; the axis follows the data."""
+    f = last(Values(system="boeing747", bits=2, **SMALL))
+    fig = build_figures(f, ["norm_time"])["norm_time"]
+    ys = [y for t in fig.data for y in t.y if y is not None and y > 0]
+    floor = 1e-12 * np.linalg.norm(f.x0)
+    assert min(ys) > 10 * floor  # nothing converged in this setting
+    assert not any("converged" in (a.text or "") for a in fig.layout.annotations)
+    assert "below the axis" not in fig.layout.yaxis.title.text
+    lo, hi = fig.layout.yaxis.range
+    assert lo > np.log10(floor) + 3  # the axis is not stretched down to the floor
+    xs = [a.x for a in fig.layout.annotations]
+    assert len(set(xs)) == len(xs)  # bound labels at different places (they printed on each other)
+
+
+def test_quantizer_view_counts_errors_off_the_histogram_under_overload():
+    """Walkthrough repro: fixed range -1, 1 (most samples overloaded) showed a uniform-looking histogram and
+    a variance ratio of ~5e6 '(± 0.009)'."""
+    f = last(Values(range_mode="fixed", fixed_range="-1, 1", **SMALL))
+    title = build_figures(f, ["quantizer"])["quantizer"].layout.title.text
+    assert "errors outside ±ε/2" in title and "(±" not in title
+    ok = build_figures(last(Values(**SMALL)), ["quantizer"])["quantizer"].layout.title.text
+    assert "(±" in ok and "outside" not in ok  # no overload with the guard band: the ideal law and its spread
+
+
+def test_time_series_title_counts_failed_loops():
+    """Walkthrough repro: with x_max = 0.5 every LS loop was infeasible, yet the title said 'LS 0 steps in 0/5
+    loops' and LS silently left the legend."""
+    f = last(Values(system="boeing747", x0="5, 5, 0, 0", x_max="0.5", **SMALL))
+    failed = {lab: int(f.loops[lab].failed.sum()) for lab in f.labels}
+    assert any(failed.values()), failed  # the setting does make loops fail
+    title = build_figures(f, ["timeseries"])["timeseries"].layout.title.text
+    for lab, k in failed.items():
+        if k:
+            assert f"{lab} {k}/{len(f.loops[lab].failure)} failed (" in title and "not drawn" in title

@@ -129,7 +129,7 @@ def test_summary_lists_eps_errors_overload_and_failures():
     f = frames(Values(bits=2, **SMALL))[-1]
     text = summary_markdown(f)
     assert "b = **2** bits" in text and "ε states: angle" in text and "ε inputs: voltage" in text
-    assert "overload:" in text and "| LS |" in text and "| BCLS |" in text and "Thm 1" in text
+    assert "overload:" in text and "(up to 0.1 % counts as no overload)" in text and "| LS |" in text and "| BCLS |" in text and "Thm 1" in text
     assert "MPC cost with the true model" in text
     lp = f.loops["LS"]
     lp.failure[0], lp.messages[0] = "dare", "DARE has no stabilizing solution for the identified model"
@@ -199,3 +199,15 @@ def test_reproduce_portrait_uses_the_palette():
     f = frames(Values(bits=4, identification="BCLS", **SMALL))[0]
     fig = phase_portrait_figure(f.loops["BCLS"].states, f.true_loop.states[0], label="BCLS")
     assert [tr.line.color for tr in fig.data[:2]] == [COLORS["BCLS"], COLORS["true"]]
+
+
+def test_summary_says_when_a_lessons_own_settings_were_changed():
+    from app.dashboard.lessons import lesson_values
+
+    v = lesson_values("saturation").replace(**SMALL)
+    f = frames(v)[-1]
+    first = summary_markdown(f).split("\n")[0]
+    assert "u_max" not in first  # only the sizes shrunk for this test differ from the lesson
+    second = summary_markdown(frames(v.replace(u_max=1.0))[-1]).split("\n")[0]
+    assert "Lesson **saturation** with changed settings (" in second and "u_max" in second
+    assert "with changed" not in summary_markdown(frames(Values(**SMALL))[-1])  # no lesson open

@@ -62,11 +62,11 @@ BIG = "1" + "0" * 400
 # (id, callable, expected error class, regex the message must match)
 SYSTEM_CASES = [
     ("A-dict", _sys(A=[[{}]]), "A must be a matrix of numbers.*table/object"),
-    ("A-string", _sys(A=[["1"]]), r"A must be a matrix of numbers.*entry \[0\]\[0\] is text '1'"),
+    ("A-string", _sys(A=[["1"]]), r"A must be a matrix of numbers.*row 1, column 1 is text '1'"),
     ("A-true", _sys(A=[[True]]), r"A must be a matrix.*true/false"),
     ("A-nan", _sys(A=[[float("nan")]]), "A must contain only finite numbers"),
     ("A-inf", _sys(A=[[float("inf")]]), "A must contain only finite numbers"),
-    ("A-int-400-digits", _sys(A=[[10**400]]), "A: entry .* integer with about 401 digits"),
+    ("A-int-400-digits", _sys(A=[[10**400]]), "A: row 1, column 1 is an integer with about 401 digits"),
     ("A-1e300", _sys(A=[[1e300]]), r"A: entries must be at most 1e\+12 in magnitude"),
     ("A-empty", _sys(A=[]), "A must not be empty"),
     ("A-5000-nested", _sys(A=nested(5000)), "A must be a matrix.*nested deeper than 2"),
@@ -109,7 +109,7 @@ FILE_CASES = [
     ("toml-dt-nan", "s.toml", "A = [[0.5]]\nB = [[1.0]]\ndt = nan\n", "dt .* got nan"),
     ("json-object-as-Q", "s.json", '{"A": [[0.5]], "B": [[1.0]], "Q": {"a": 1}}', "Q must be .*table/object"),
     ("json-object-as-x0", "s.json", '{"A": [[0.5]], "B": [[1.0]], "x0": {"a": 1}}', "x0 must be .*table/object"),
-    ("json-1e400-int-in-A", "s.json", '{"A": [[' + BIG + ']], "B": [[1.0]]}', "A: entry .*401 digits"),
+    ("json-1e400-int-in-A", "s.json", '{"A": [[' + BIG + ']], "B": [[1.0]]}', "A: row 1, column 1 is an .*401 digits"),
     ("json-1e400-int-in-x0", "s.json", '{"A": [[0.5]], "B": [[1.0]], "x0": [' + BIG + "]}", "x0: entry .*401 digits"),
     ("json-dt-minus-5", "s.json", '{"A": [[0.5]], "B": [[1.0]], "dt": -5}', "dt .* got -5"),
     ("json-5000-nested", "s.json", '{"A": ' + "[" * 5000 + "1" + "]" * 5000 + ', "B": [[1]]}',
@@ -527,3 +527,12 @@ def test_fuzz_ultimate_bound(P, q, r, dA, dB, theta, rho, x0):
     if ub is not None:
         assert math.isfinite(ub.delta) or ub.note, f"delta = {ub.delta} without a note"
         assert not math.isnan(ub.delta) and ub.delta >= 0
+
+
+def test_non_finite_entries_are_located_as_a_person_counts_and_inf_is_explained():
+    from qsid_core.validate import as_float_array
+
+    with pytest.raises(ValueError, match=r"x0 must contain only finite numbers .*entry 2 is inf \(a number beyond"):
+        as_float_array("x0", [1.0, float("inf")], ndim_max=1)
+    with pytest.raises(ValueError, match=r"row 2, column 1 is nan$"):
+        as_float_array("A", [[1.0, 2.0], [float("nan"), 0.0]], ndim_max=2)

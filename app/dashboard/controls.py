@@ -215,7 +215,8 @@ def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callabl
                 if c.folder is None:
                     add(c)
                 else:
-                    folders.setdefault(c.folder, gui.add_folder(c.folder))
+                    if c.folder not in folders:  # (setdefault would build a new, empty folder every time)
+                        folders[c.folder] = gui.add_folder(c.folder)
                     with folders[c.folder]:
                         add(c)
                 _extras_after(gui, c.name, values, handles, extra)
@@ -302,7 +303,7 @@ def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
     el.lesson_text.visible = bool(text)
     if name == NONE:
         return False
-    v = lesson_values(name, read_values(el))
+    v = lesson_values(name)  # from the defaults: what a lesson shows must not depend on the lessons opened before
     h = el.inputs
     h["system"].value = v.system
     system = resolve(v)

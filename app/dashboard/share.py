@@ -182,7 +182,10 @@ def frame_html(frame) -> str:
     cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
     caption = (f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "
                f"lengths computed. Reproduce the numbers: {cmds}")
-    return figures_html(build_figures(frame), f"qsid dashboard: {frame.system.name}", caption)
+    figs = build_figures(frame)
+    if getattr(frame, "datalength", None) is None:  # not computed: no empty "press Compute" plot in the page
+        figs.pop("datalength", None)
+    return figures_html(figs, f"qsid dashboard: {frame.system.name}", caption)
 
 
 # ----- the panel (session hooks) -------------------------------------------------------------------------------

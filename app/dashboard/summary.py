@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from app.figures.hypotheses import CAPTION, bcls_reasons, theorem1_reasons
 from qsid_core.summary import saturated_steps
+from qsid_core.assumptions import OVERLOAD_TOLERANCE
 
 from .frames import Frame
 
@@ -69,6 +70,25 @@ def _saturation(frame: Frame) -> str:
     return "saturated inputs (|u| at its bound): " + ", ".join(parts)
 
 
+def _lesson_changes(values) -> list:
+    """A line when a lesson is open but its own settings were changed since (its text describes those)."""
+    from .lessons import NONE, get_lesson, lesson_values
+
+    name = getattr(values, "lesson", NONE)
+    if not name or name == NONE:
+        return []
+    try:
+        ref = lesson_values(name)
+    except KeyError:
+        return []
+    keys = [k for k in get_lesson(name).settings if k != "lesson"]
+    changed = [k for k in keys if getattr(values, k, None) != getattr(ref, k, None)]
+    if not changed:
+        return []
+    return [f"*Lesson **{name}** with changed settings ({', '.join(changed)}): its text describes its own "
+            "settings.*", ""]
+
+
 def summary_markdown(frame: Frame) -> str:
     """The numeric summary at the current b: eps per channel, errors, overload, failures."""
     sysm = frame.system
@@ -79,12 +99,14 @@ def summary_markdown(frame: Frame) -> str:
     eff = first.get("effective_realizations") or frame.values.realizations
     distinct = "" if eff == frame.values.realizations else f" ({eff} distinct: no dither, all identical)"
     lines = [
+        *_lesson_changes(frame.values),
         f"**{sysm.name}**, b = **{b}** bits, {frame.values.realizations} dither realizations{distinct}, "
         f"{frame.values.trajectories} × {frame.values.steps} samples",
         "",
         f"ε states: {eps_x}  ",
         f"ε inputs: {eps_u}  ",
-        f"overload: {100 * first['overload_fraction']:.2f} % of samples",
+        f"overload: {100 * first['overload_fraction']:.2f} % of samples "
+        f"(up to {100 * OVERLOAD_TOLERANCE:g} % counts as no overload)",
         "",
         _bounds(frame, first),
         "",

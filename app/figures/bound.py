@@ -26,7 +26,7 @@ __all__ = ["bound_figure", "VIEW", "CAPTION"]
 
 
 
-def _realized(rows, label: str, c: str) -> list:
+def _realized(rows, label: str, c: str, dash: str = "solid") -> list:
     """Trace dicts: median line and median..max band of the a-posteriori bound of one estimator."""
     mx, my = xy(rows, "ultimate_bound_realized", "median")
     if not mx:
@@ -40,7 +40,7 @@ def _realized(rows, label: str, c: str) -> list:
                         fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
                         showlegend=False, legendgroup=f"re{label}"))
     out.append(dict(type="scatter", x=mx, y=my, mode="lines+markers", legendgroup=f"re{label}",
-                    name=f"a-posteriori δ, {label} (median; band: max)", line=dict(color=c, width=1.5),
+                    name=f"a-posteriori δ, {label} (median; band: max)", line=dict(color=c, width=1.5, dash=dash),
                     marker=dict(symbol="diamond", size=5)))
     return out
 
@@ -52,7 +52,7 @@ def _floored(ys: list, floor: float | None) -> tuple[list, bool]:
 
 
 def bound_figure(series: Series, current_bits: int | None = None, height: int = 300,
-                 floor: float | None = None) -> go.Figure:
+                 floor: float | None = None, steps: int | None = None) -> go.Figure:
     """Letter's delta(eps) (dashed), a-posteriori delta per series (median, max band), ``|x_T|`` mean and max.
 
     ``floor`` (state units, e.g. ``1e-12 ||x0||``): final norms below it are converged and drawn at it
@@ -64,8 +64,9 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
         if i == 0:
             bx, by = xy(rows, "ultimate_bound")
             data.append(dict(type="scatter", x=bx, y=by, mode="lines+markers", name="letter's δ(ε) (Theorem 1 errors)",
-                             line=dict(color=COLORS["theory"], dash="dash")))
-        data += _realized(rows, label, COLORS["realized"] if i == 0 else c)
+                             legendgroup="th", line=dict(color=COLORS["theory"], dash="dash")))
+        # every a-posteriori δ in the bound colour (not the estimator's: BCLS δ and BCLS ‖x_T‖ looked alike)
+        data += _realized(rows, label, COLORS["realized"], "solid" if i == 0 else "dot")
         mx, my = xy(rows, "final_state_norm", "mean")
         my, c1 = _floored(my, floor)
         data.append(dict(type="scatter", x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean",
@@ -76,7 +77,8 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
         data.append(dict(type="scatter", x=xx, y=xy_, mode="markers", name=f"{label} ‖x_T‖ max",
                          marker=dict(color=c, symbol="triangle-up")))
     shapes = mark_bits(current_bits)
-    notes = [dict(text=CAPTION, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
+    caption = CAPTION + ("" if steps is None else f" · ‖x_T‖: last state of the drawn loops, T = {steps} steps")
+    notes = [dict(text=caption, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
                   yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))]
     yaxis = dict(type="log", title=dict(text="norm"), exponentformat="power")
     # the bounds always show; final norms off the axis sit on its edge, marked (_off_axis)
@@ -119,7 +121,8 @@ def _off_axis(data: list, rng: list) -> list:
 def _build(frame) -> go.Figure:
     r0 = float(np.linalg.norm(frame.x0))
     floor = CONVERGED_REL_FLOOR * (r0 if r0 > 0 else 1.0)
-    return bound_figure(frame.series(), current_bits=frame.bits, height=300, floor=floor)
+    return bound_figure(frame.series(), current_bits=frame.bits, height=300, floor=floor,
+                        steps=int(frame.values.mpc_steps))
 
 
 VIEW = View("bound", aspect=0.75, depends=CURVES, build=_build)

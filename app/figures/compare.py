@@ -22,6 +22,10 @@ __all__ = ["PINNED_VIEWS", "overlay_pinned", "parse_bits", "portraits_figure", "
 
 #: The views that show a pinned result as dashed lines.
 PINNED_VIEWS = ("error", "cost", "bound")
+#: Word lengths of the portraits when none usable is typed (the letter's figures (d)-(f)).
+DEFAULT_BITS = (2, 4, 6)
+#: Legend groups of reference lines, not measurements: not copied by :func:`overlay_pinned`.
+REFERENCE_GROUPS = ("ref", "th", "thx")
 
 
 def overlay_pinned(fig: go.Figure, pinned_fig: go.Figure, label: str) -> go.Figure:
@@ -29,6 +33,8 @@ def overlay_pinned(fig: go.Figure, pinned_fig: go.Figure, label: str) -> go.Figu
     for tr in pinned_fig.data:
         if getattr(tr, "fill", None) in ("toself", "tonexty") or tr.type != "scatter":
             continue  # bands and bars stay with the live figure
+        if tr.mode == "markers" or tr.legendgroup in REFERENCE_GROUPS:
+            continue  # marks and reference lines (slope, Theorem 1) would only double the legend
         d = tr.to_plotly_json()
         d["line"] = {**(d.get("line") or {}), "dash": "dash", "width": 1.5}
         d["marker"] = {**(d.get("marker") or {}), "symbol": "circle-open"}
@@ -100,6 +106,8 @@ def portraits_figure(loops: dict, true_states: np.ndarray | None, dims: tuple, n
 
 def _build(frame) -> go.Figure:
     bits, bad = parse_bits(frame.values.compare_bits, frame.ex.config.bits)
+    if not bits:  # nothing usable typed: the letter's word lengths, and the note says what was ignored
+        bits = tuple(b for b in DEFAULT_BITS if b in frame.ex.config.bits) or tuple(frame.ex.config.bits[:1])
     names = frame.system.state_names
     i, j, _ = axes_indices(frame.values.axes, names)
     j = j if j is not None else i

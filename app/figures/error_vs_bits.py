@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import plotly.graph_objects as go
 
-from .hypotheses import bcls_reasons, flags, theorem1_reasons
+from .hypotheses import bcls_reasons, flags, short, theorem1_reasons
 from .palette import COLORS, color
 from .raw import figure
 from .traces import BITS_AXIS, Series, band, get, mark_bits, xy
@@ -95,19 +95,27 @@ def error_figure(series: Series, current_bits: int | None = None, ref_slope: flo
         notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series["BCLS"])]
     annotations = [dict(text=t, x=sum(dom) / 2, xanchor="center", xref="paper", y=1.0, yanchor="bottom",
                         yref="paper", showarrow=False, font=dict(size=16)) for t, dom in _PANELS]
-    if notes:
-        annotations.append(dict(text="<br>".join(_wrap(t) for t in notes), xref="paper", yref="paper", x=0, y=1.0,
-                                yanchor="bottom", xanchor="left", yshift=22, showarrow=False, align="left",
-                                font=dict(size=9, color="#555555")))
+    shown = ""
+    if notes:  # a few words each (the plot keeps its height); the full sentences on hover and in the summary
+        shown = _wrap(" · ".join(_short(t) for t in notes) + " (hover: why)")
+        annotations.append(dict(text=shown, hovertext="<br>".join(_wrap(t) for t in notes), xref="paper",
+                                yref="paper", x=0, y=1.0, yanchor="bottom", xanchor="left", yshift=22,
+                                showarrow=False, align="left", font=dict(size=9, color="#555555")))
     layout = dict(annotations=annotations, shapes=mark_bits(current_bits, (("x", "y"), ("x2", "y2"))))
     for col, (_, dom) in enumerate(_PANELS, start=1):
         ax = _axes(col)
         layout["xaxis" if col == 1 else f"xaxis{col}"] = dict(BITS_AXIS, anchor=ax["yaxis"], domain=dom)
         layout["yaxis" if col == 1 else f"yaxis{col}"] = dict(type="log", exponentformat="power",
                                                                anchor=ax["xaxis"], domain=[0.0, 1.0])
-    top = 30 + 13 * sum(len(_wrap(t).split("<br>")) for t in notes)
+    top = 30 + 13 * len(shown.split("<br>")) if shown else 30
     return figure(data, dict(layout, height=height + top - 30, margin=dict(l=50, r=10, t=top, b=40),
                              legend=dict(orientation="h", y=-0.25)))
+
+
+def _short(note: str) -> str:
+    """'Theorem 1 faded: finite data: …sentence… (b = 2–16)' -> 'Theorem 1 faded: finite data (b = 2–16)'."""
+    who, _, reason = note.partition(": ")
+    return f"{who}: {short(reason)}"
 
 
 def _wrap(text: str, width: int = 95) -> str:

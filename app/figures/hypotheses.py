@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
-__all__ = ["flags", "theorem1_reasons", "bcls_reasons", "bits_text", "CAPTION"]
+__all__ = ["flags", "theorem1_reasons", "bcls_reasons", "bits_text", "short", "CAPTION"]
 
 #: What every view of the ultimate bound says about it.
 CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
@@ -19,8 +19,8 @@ _WHY = {
                           "not independent noise of variance ε²/12",
     "no_overload": "overload: x + w leaves the quantizer range, so the error exceeds ε/2 and depends on the "
                    "signal (guard band or a wider range fixes it)",
-    "large_data": "finite data: the O(ε) fluctuation of this data size exceeds Theorem 1's O(ε²) bias, "
-                  "so the measured error lies above the line",
+    "large_data": "finite data: at this data size the predicted O(ε) fluctuation exceeds Theorem 1's O(ε²) "
+                  "bias, so the error is expected above the line (a prediction: compare the points with it)",
 }
 
 
@@ -72,3 +72,11 @@ def theorem1_reasons(rows: Sequence[Mapping]) -> list[str]:
 def bcls_reasons(rows: Sequence[Mapping]) -> list[str]:
     """Why BCLS's known-noise model fails (dither, overload), with the b where it fails."""
     return _reasons(rows, ("subtractive_dither", "no_overload"))
+
+
+def short(reason: str) -> str:
+    """A reason in a few words for a plot's note: the part before ':' and the word lengths it names
+    ("finite data (b = 2–16)"); the full sentence goes to the summary and the note's hover text."""
+    head = reason.split(":")[0]
+    tail = reason[reason.rfind(" (b = "):] if reason.endswith(")") and " (b = " in reason else ""
+    return head + tail

@@ -27,8 +27,10 @@ def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: fl
     if y is None or not np.isfinite(y) or y <= 0:
         return
     shapes.append(hline(float(y), "y", c, dash, width))
-    notes.append(dict(xref="x domain", x=1, xanchor="right", yref="y", y=float(np.log10(y)), showarrow=False,
-                      yanchor="bottom" if where == "top" else "top", text=name, font=dict(size=9)))
+    # labels staggered right, left, middle: lines close together no longer print their labels on each other
+    x, anchor = ((1, "right"), (0, "left"), (0.5, "center"))[len(notes) % 3]
+    notes.append(dict(xref="x domain", x=x, xanchor=anchor, yref="y", y=float(np.log10(y)), showarrow=False,
+                      yanchor="bottom" if where == "top" else "top", text=name, font=dict(size=9, color=c)))
 
 
 def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None = None,
@@ -73,15 +75,18 @@ def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None
     for label, rb in (realized or {}).items():
         y = (rb or {}).get("median")
         _hline(shapes, notes, y, f"a-posteriori δ {label} {_g(y)}", COLORS["realized"], "dot")
-    _hline(shapes, notes, floor, "converged (1e-12‖x0‖)", COLORS["ref"], "dot", 1.0, where="bottom")
+    ys = [v for tr in data for v in tr["y"] if v is not None and np.isfinite(v) and v > 0]
+    converged = floor is not None and bool(ys) and min(ys) <= floor * (1 + 1e-9)
+    if converged:  # the floor line only when some loop reached it (else it stretched the axis for nothing)
+        _hline(shapes, notes, floor, "converged (1e-12‖x0‖)", COLORS["ref"], "dot", 1.0, where="bottom")
     title = CAPTION + (f" · b = {bits}" if bits is not None else "")
     yaxis = dict(type="log", title=dict(text="‖x_t‖"), exponentformat="power")
     # top-anchored: the start of the loops and both bounds always show (axes.top_log_range)
-    rng = top_log_range([v for tr in data for v in tr["y"]] + [s["y0"] for s in shapes])
+    rng = top_log_range(ys + [s["y0"] for s in shapes])
     if rng is not None:
         yaxis.update(range=rng, autorange=False)
-        if floor is not None and np.log10(floor) < rng[0]:
-            yaxis["title"]["text"] = "‖x_t‖ (converged tails below the axis)"
+        if ys and np.log10(min(ys)) < rng[0]:
+            yaxis["title"]["text"] = "‖x_t‖ (" + ("converged tails" if converged else "some values") + " below the axis)"
     return figure(data, dict(
         height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
         title=dict(text=title, font=dict(size=11), x=0.01), shapes=shapes, annotations=notes,

@@ -25,10 +25,20 @@ DITHERED, PLAIN = COLORS["LS"], COLORS["ref"]
 
 
 def demo_text(d: QuantizerDemo) -> str:
-    """One line: ε, measured variances against ε²/12, overload (for the title and the summary)."""
-    return (f"{d.label}, b = {d.bits}: ε = {d.eps:.3g} · error variance / (ε²/12): dithered "
-            f"{d.var_dithered / d.var_theory:.3f} (± {d.var_sampling_std / d.var_theory:.3f}), "
-            f"plain {d.var_plain / d.var_theory:.3f} · overload {100 * d.overload_dithered:.2f} %")
+    """One line: ε, measured variances against ε²/12, overload (for the title and the summary).
+
+    The ± is the sampling error of an ideal (uniform) error's variance: it is shown only without
+    overload; with overload the errors outside ±ε/2 (not in the histogram) are counted instead.
+    """
+    ideal = d.outside_dithered == 0 and d.overload_dithered == 0
+    spread = (f" (± {d.var_sampling_std / d.var_theory:.3f})" if ideal else "")
+    text = (f"{d.label}, b = {d.bits}: ε = {d.eps:.3g} · error variance / (ε²/12): dithered "
+            f"{d.var_dithered / d.var_theory:.3g}{spread}, plain {d.var_plain / d.var_theory:.3g} · "
+            f"overload {100 * d.overload_dithered:.2f} %")
+    if d.outside_dithered > 0 or d.outside_plain > 0:
+        text += (f"<br>errors outside ±ε/2 (off the histogram): dithered {100 * d.outside_dithered:.2f} %, "
+                 f"plain {100 * d.outside_plain:.2f} % — the ε²/12 law needs no overload")
+    return text
 
 
 def quantizer_figure(d: QuantizerDemo, height: int = 460) -> go.Figure:

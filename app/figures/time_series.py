@@ -92,7 +92,7 @@ def time_series_figure(series: dict, true: TimeSeries | None, state_names, input
     names = [f"x: {s}" for s in state_names] + [f"u: {u}" for u in input_names]
     for k, nm in enumerate(names):
         layout["yaxis" if k == 0 else f"yaxis{k + 1}"]["title"] = dict(text=nm, font=dict(size=10))
-    layout.update(height=height, shapes=shapes, margin=dict(l=60, r=10, t=30 if title else 10, b=40),
+    layout.update(height=height, shapes=shapes, margin=dict(l=60, r=10, t=30 + 14 * title.count("<br>") if title else 10, b=40),
                   legend=dict(orientation="h", y=-0.12))
     if title:
         layout["title"] = dict(text=title, font=dict(size=12))
@@ -122,14 +122,26 @@ def saturation_text(ts: dict) -> str:
                      for lab, s in ts.items())
 
 
+def failure_text(loops: dict) -> str:
+    """'LS 5/5 failed (infeasible)' for the estimators with failed loops ('' if none): those loops are not drawn."""
+    out = []
+    for lab, lp in loops.items():
+        kinds = [str(getattr(f, "value", f)) for f in lp.failure if f]
+        if kinds:
+            out.append(f"{lab} {len(kinds)}/{len(lp.failure)} failed ({', '.join(sorted(set(kinds)))}; not drawn)")
+    return ", ".join(out)
+
+
 def _build(frame) -> go.Figure:
     ts, true = loop_series(frame)
     rm = mpc_arrays(frame)
     x_ref, x_max = rm.get("x_ref"), rm.get("x_max")
     rows = len(frame.system.state_names) + len(frame.system.input_names)
+    failed = failure_text({lab: frame.loops[lab] for lab in frame.labels})
     return time_series_figure(ts, true, frame.system.state_names, frame.system.input_names, x_ref, x_max,
                               height=110 * rows + 90,
-                              title=f"closed loops at b = {frame.bits} · saturated: {saturation_text(ts)}")
+                              title=f"closed loops at b = {frame.bits} · saturated: {saturation_text(ts)}"
+                                    + (f"<br>{failed}" if failed else ""))
 
 
 def _key(frame) -> tuple:
