@@ -208,6 +208,8 @@ def main(argv=None) -> dict:
     finally:
         out["stop_seconds"] = round(server.stop(), 2)
         out["server_tracebacks"] = sum("Traceback" in line for line in server.errors)
+        if out["server_tracebacks"]:
+            out["server_stderr_tail"] = "".join(server.errors)[-4000:]
     print(json.dumps({k: v for k, v in out.items() if k != "samples"}, indent=1))
     if args.json:
         args.json.write_text(json.dumps(out, indent=1))
