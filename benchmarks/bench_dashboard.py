@@ -18,7 +18,7 @@ whether the measured median meets it):
 
 Usage::
 
-    python benchmarks/bench_dashboard.py                # process pool of 2 (the dashboard's default)
+    python benchmarks/bench_dashboard.py                # the dashboard's own process pool of 2 (app.dashboard.pool)
     python benchmarks/bench_dashboard.py --workers 0    # everything in-process
     python benchmarks/bench_dashboard.py --pool thread  # a thread pool of 2 (the kernels release the GIL)
     python benchmarks/bench_dashboard.py --no-paper     # interactive only
@@ -38,10 +38,9 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # a
     os.environ.setdefault(_var, "1")
 
 import argparse
-import multiprocessing
 import statistics
 import time
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,11 +136,14 @@ def main(argv=None) -> int:
     p.add_argument("--datalength", action="store_true", help="also time the data-length study (tens of seconds)")
     p.add_argument("--identification", default="LS + BCLS", choices=("LS", "BCLS", "LS + BCLS"))
     a = p.parse_args(argv)
-    ex = None
+    ex = pool = None
     if a.workers and a.pool == "thread":
         ex = ThreadPoolExecutor(a.workers)
-    elif a.workers:
-        ex = ProcessPoolExecutor(a.workers, mp_context=multiprocessing.get_context("spawn"))
+    elif a.workers:  # the dashboard's own pool, as a tab uses it (data shared once per worker, watched tasks)
+        from app.dashboard.pool import Pool
+
+        pool = Pool(a.workers)
+        ex = pool.guarded()
         for f in [ex.submit(abs, 0) for _ in range(a.workers)]:
             f.result()
     tasks = max(1, a.workers)
@@ -194,7 +196,7 @@ def main(argv=None) -> int:
         print(f"data-length study (dashboard button, in-process, {cfg.realizations} realizations, "
               f"{len(res.rows)} lengths up to {res.rows[-1].samples} samples): {time.perf_counter() - t:.1f} s")
     if ex is not None:
-        ex.shutdown()
+        (pool if a.pool == "process" else ex).shutdown()
     return 0
 
 
