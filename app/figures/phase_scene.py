@@ -23,8 +23,8 @@ SPHERE_CAP = 1.6
 TIME = 1.2
 #: Time markers: about this many dots along the true-model loop.
 TIME_MARKS = 10
-#: time markers closer than this (box units) to the previous one are not drawn (the scene's dots are 0.035 wide)
-MARK_GAP = 0.05
+#: time markers closer than this (box units) to the previous one are not drawn (dots 0.035 wide; ~20 px apart)
+MARK_GAP = 0.15
 
 
 @dataclass
