@@ -16,6 +16,7 @@ from .axes import top_log_range
 from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .raw import arr, figure, hline
+from .traces import hline_note
 from .view import CURRENT, View
 
 __all__ = ["norm_time_figure", "VIEW"]
@@ -28,9 +29,7 @@ def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: fl
         return
     shapes.append(hline(float(y), "y", c, dash, width))
     # labels staggered right, left, middle: lines close together no longer print their labels on each other
-    x, anchor = ((1, "right"), (0, "left"), (0.5, "center"))[len(notes) % 3]
-    notes.append(dict(xref="x domain", x=x, xanchor=anchor, yref="y", y=float(np.log10(y)), showarrow=False,
-                      yanchor="bottom" if where == "top" else "top", text=name, font=dict(size=9, color=c)))
+    notes.append(hline_note(y, name, where=where, size=9, x=(1.0, 0.0, 0.5)[len(notes) % 3], color=c))
 
 
 def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None = None,

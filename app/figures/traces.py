@@ -76,10 +76,14 @@ def mark_bits(current_bits: int | None, axes=(("x", "y"),)) -> list:
                  line=dict(color=COLORS["marker"], dash="dot", width=1)) for xa, ya in axes]
 
 
-def hline_note(y: float, text: str, yaxis: str = "y", where: str = "top", log: bool = True, size: int = 10) -> dict:
-    """Annotation dict: ``text`` at the right end of a horizontal line at ``y`` (log axis: plotly takes log10 y)."""
-    return dict(xref="x domain", x=1, xanchor="right", yref=yaxis, y=float(np.log10(y)) if log else float(y),
-                yanchor="bottom" if where == "top" else "top", showarrow=False, text=text, font=dict(size=size))
+def hline_note(y: float, text: str, yaxis: str = "y", where: str = "top", log: bool = True, size: int = 10,
+               x: float = 1.0, color: str | None = None) -> dict:
+    """Annotation dict: ``text`` on a horizontal line at ``y`` (log axis: plotly takes log10 y), at ``x`` of the
+    plot's width (1: right end, 0: left end, 0.5: middle), optionally in ``color``."""
+    anchor = {1.0: "right", 0.0: "left"}.get(float(x), "center")
+    font = dict(size=size) if color is None else dict(size=size, color=color)
+    return dict(xref="x domain", x=x, xanchor=anchor, yref=yaxis, y=float(np.log10(y)) if log else float(y),
+                yanchor="bottom" if where == "top" else "top", showarrow=False, text=text, font=font)
 
 
 def move_current_bits(fig: go.Figure, current_bits: int) -> go.Figure:
