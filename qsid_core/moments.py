@@ -24,7 +24,7 @@ import numpy as np
 
 from .data import Dataset
 from .errors import ConfigError, check_choice
-from .quantize import QuantizerSpec, data_ranges, effective_ranges
+from .quantize import QuantizerSpec, data_ranges, effective_ranges, draw_unit_dither
 
 __all__ = ["Moments", "PreparedData", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
 
@@ -197,13 +197,6 @@ def _gram(prep: PreparedData, b: int, guard: bool, acc: _Sums, j: int, upper_onl
     return Moments(PP=PP, XP=XP, T=T, eps=eps, overload_fraction=acc.over[j] / total_entries)
 
 
-def _unit_dither(rng: np.random.Generator, shape: tuple) -> np.ndarray:
-    """U[-1/2, 1/2) draws, bit for bit ``rng.uniform(-0.5, 0.5, shape)`` (which is ``-0.5 + 1.0 * r``), ~35% faster."""
-    u = rng.random(size=shape)
-    u -= 0.5
-    return u
-
-
 def quantized_moments(
     prep: PreparedData,
     bits: list[int] | tuple[int, ...],
@@ -260,7 +253,7 @@ def quantized_moments(
     acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
     for start in range(0, N, CHUNK_ROWS):
         y = yc[start : start + CHUNK_ROWS]
-        u = _unit_dither(rng, y.shape) if dithered else None
+        u = draw_unit_dither(rng, y.shape) if dithered else None
         if compiled:
             kernels.accumulate_chunk(y, np.zeros_like(y) if u is None else u, scale, half, start, S1, acc.M,
                                      acc.C, acc.sums, acc.over, acc.prev, acc.v_last, acc.v_first)

@@ -131,10 +131,10 @@ def test_numba_can_be_switched_off_with_a_reason():
 
 
 def test_unit_dither_is_numpys_uniform_bit_for_bit_and_leaves_the_stream_where_it_did():
-    from qsid_core.moments import _unit_dither
+    from qsid_core.quantize import draw_unit_dither
 
     for seed in (0, 1, 12345):
         a, b = np.random.default_rng(seed), np.random.default_rng(seed)
         for shape in ((16384, 5), (7, 3), (1, 1)):
-            assert np.array_equal(_unit_dither(a, shape), b.uniform(-0.5, 0.5, size=shape))
+            assert np.array_equal(draw_unit_dither(a, shape), b.uniform(-0.5, 0.5, size=shape))
         assert a.random() == b.random()  # the same number of draws was consumed
