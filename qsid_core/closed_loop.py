@@ -49,6 +49,14 @@ class ClosedLoops:
         Plain-words reason per failed realisation.
     qp_steps : int
         How many MPC steps needed the QP solver (the rest took the exact fast path).
+    outcome : list of str
+        Verdict per loop on the true plant (:mod:`qsid_core.verdicts`): ``"converged"``,
+        ``"bounded"``, ``"diverged"`` or ``"failed"`` (the MPC could not run); empty when
+        the loops were not judged (``MPCConfig.verify_steps=None``).
+    spectral_radius : ndarray, shape (R,)
+        ``max |eig(A - B K^)|`` of the unconstrained MPC law on the true plant (NaN where no MPC).
+    verdict_steps : ndarray of int, shape (R,)
+        Closed-loop steps it took to reach the verdict (``steps`` plus any extra steps).
     """
 
     states: np.ndarray
@@ -58,6 +66,15 @@ class ClosedLoops:
     failure: list = field(default_factory=list)
     messages: list = field(default_factory=list)
     qp_steps: int = 0
+    outcome: list = field(default_factory=list)
+    spectral_radius: np.ndarray | None = None
+    verdict_steps: np.ndarray | None = None
+
+    def outcome_counts(self) -> dict:
+        """``{"converged", "bounded", "diverged", "failed"}`` -> number of loops (empty if not judged)."""
+        if not self.outcome:
+            return {}
+        return {k: sum(o == k for o in self.outcome) for k in ("converged", "bounded", "diverged", "failed")}
 
     @property
     def osqp_steps(self) -> int:
@@ -115,7 +132,8 @@ def _controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, messages:
 class _Loops:
     """State of the batched closed loops (arrays indexed by realisation ``i``)."""
 
-    def __init__(self, ctrls: list, w: MPCWeights, A: np.ndarray, B: np.ndarray, steps: int, out: ClosedLoops):
+    def __init__(self, ctrls: list, w: MPCWeights, A: np.ndarray, B: np.ndarray, steps: int, out: ClosedLoops,
+                 x_start: np.ndarray | None = None, cq=None):
         self.ctrls, self.w, self.A, self.B, self.steps, self.out = ctrls, w, A, B, steps, out
         self.n, self.m = B.shape
         live = np.flatnonzero([c is not None for c in ctrls])
@@ -127,9 +145,10 @@ class _Loops:
         self.pos = np.full(len(ctrls), -1)  # realisation -> row of the live arrays
         self.pos[live] = np.arange(live.size)
         self.acc = np.zeros(len(ctrls))  # realised cost so far
-        self.x = np.tile(w.x0, (len(ctrls), 1))  # current true state per realisation
+        # current true state per realisation (x0, or where an earlier run stopped)
+        self.x = np.tile(w.x0, (len(ctrls), 1)) if x_start is None else np.array(x_start, dtype=float)
         out.states[live, 0] = self.x[live]
-        self.cq = None  # condensed QPs of the live models (built at the first constrained step)
+        self.cq = cq  # condensed QPs of the live models (built at the first constrained step)
         # box-only problems solved by DAQP: guess the active set in one batch, DAQP only where the guess fails
         self.solver_is_daqp = ctrls[live[0]].solver == "daqp"
         self.guess = self.solver_is_daqp and self.bound.size == ctrls[live[0]].N * self.m  # no state rows
@@ -352,9 +371,26 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
                       np.full(Rn, np.nan), [""] * Rn, [""] * Rn, 0)
     ctrls = _controllers(models, w, cfg, out.failure, out.messages)
     if all(c is None for c in ctrls):
+        if cfg.verify_steps is not None:
+            out.outcome = ["failed"] * Rn
+            out.spectral_radius = np.full(Rn, np.nan)
+            out.verdict_steps = np.zeros(Rn, dtype=int)
         return out
     loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out)
-    active, t = loops.live.copy(), 0
+    advance(loops, loops.live.copy())
+    ok = np.array([not fl for fl in out.failure])
+    out.cost[ok] = loops.acc[ok]
+    out.J0[~ok] = np.nan
+    if cfg.verify_steps is not None:
+        from .verdicts import judge
+
+        judge(loops, cfg.verify_steps)
+    return out
+
+
+def advance(loops: _Loops, active: np.ndarray) -> None:
+    """Run the loops ``active`` for ``loops.steps`` steps: the fast path ahead, one step at a time where a bound is active."""
+    t, steps = 0, loops.steps
     with np.errstate(over="ignore", invalid="ignore"):
         while t < steps and active.size:
             active, t = loops.speculate(active, t)
@@ -363,7 +399,3 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
                 t += 1
                 if all_fast:
                     break
-    ok = np.array([not fl for fl in out.failure])
-    out.cost[ok] = loops.acc[ok]
-    out.J0[~ok] = np.nan
-    return out

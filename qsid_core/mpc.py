@@ -94,6 +94,10 @@ class MPCConfig:
         QP solver for the steps where a bound is active: DAQP on the condensed
         problem (default, exact active set) or OSQP on the sparse one (the
         previous engine, kept as a reference).
+    verify_steps : int or None, 0..1000000
+        At most this many closed-loop steps beyond ``steps`` to decide whether a
+        loop converges, stays bounded or diverges (:mod:`qsid_core.verdicts`;
+        default 20000); None skips the verdicts.
     """
 
     horizon: int = 10
@@ -109,9 +113,12 @@ class MPCConfig:
     eps: float = 1e-9
     max_iter: int = 20000
     solver: str = "daqp"
+    verify_steps: int | None = 20000
 
     def __post_init__(self) -> None:
         check_choice("solver", self.solver, SOLVERS)
+        if self.verify_steps is not None:
+            check_int("verify steps", self.verify_steps, 0, 1_000_000)
         check_int("horizon", self.horizon, 1, 200)
         check_int("mpc steps", self.steps, 1, 10000)
         check_float("OSQP eps", self.eps, 0.0, 1e-2, lo_open=True)
