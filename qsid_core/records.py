@@ -59,6 +59,14 @@ class RealizationRecord:
         ``J*(x0)`` the MPC predicted with its own model (NaN if failed or off).
     final_state_norm : float
         ``||x_T||_2`` at the end of the closed loop (NaN if failed or off).
+    outcome : str
+        The loop's verdict on the true plant: ``"converged"``, ``"bounded"``, ``"diverged"``,
+        ``"failed"`` (:mod:`qsid_core.verdicts`), or ``"off"`` without MPC or verdicts.
+    closed_loop_spectral_radius : float
+        ``max |eig(A - B K^)|`` of the MPC's unconstrained law on the true plant (NaN if no MPC).
+    controllability : float
+        Relative smallest singular value of the controllability matrix of ``(A^, B^)``
+        (0: uncontrollable; the letter's Assumption 2), NaN if identification failed.
     """
 
     system: str
@@ -74,6 +82,9 @@ class RealizationRecord:
     mpc_cost: float
     mpc_predicted_cost: float
     final_state_norm: float
+    outcome: str = "off"
+    closed_loop_spectral_radius: float = math.nan
+    controllability: float = math.nan
 
 
 COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(RealizationRecord))
@@ -87,15 +98,20 @@ def _rows(system: str, estimator: str, ident, loops) -> list[RealizationRecord]:
         if len(loops.cost) != R:
             raise ConfigError(f"closed loops ({len(loops.cost)}) and realizations ({R}) disagree at b={ident.bits}")
     out = []
+    ctrb = ident.controllability
     for r in range(R):
+        outcome, radius = "off", math.nan
         if loops is None:
             status, cost, j0, norm = "off", math.nan, math.nan, math.nan
         else:
             status = loops.failure[r] or "ok"
             cost, j0, norm = float(loops.cost[r]), float(loops.J0[r]), float(fsn[r])
+            if loops.outcome:
+                outcome, radius = loops.outcome[r], float(loops.spectral_radius[r])
         out.append(RealizationRecord(
             system, int(ident.bits), estimator, r, float(ident.err_A[r]), float(ident.err_B[r]),
             float(ident.overload[r]), bool(ident.failed[r]), bool(ident.fallback[r]), status, cost, j0, norm,
+            outcome, radius, float(ctrb[r]),
         ))
     return out
 

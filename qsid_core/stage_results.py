@@ -6,7 +6,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,6 +52,7 @@ class BitsIdentification:
     notes: list
     failed: np.ndarray | None = None
     dither: str = "subtractive"
+    _ctrb: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.failed is None:
@@ -70,6 +71,16 @@ class BitsIdentification:
     @property
     def models(self) -> list[tuple[np.ndarray, np.ndarray]]:
         return list(zip(self.A_hat, self.B_hat))
+
+    @property
+    def controllability(self) -> np.ndarray:
+        """shape (R,): relative smallest singular value of the controllability matrix of each ``(A^, B^)``
+        (:func:`qsid_core.stability.controllability_margin`; NaN for a failed identification)."""
+        if self._ctrb is None:
+            from .stability import controllability_margin
+
+            object.__setattr__(self, "_ctrb", controllability_margin(self.A_hat, self.B_hat))
+        return self._ctrb
 
     @property
     def eigenvalues(self) -> np.ndarray:

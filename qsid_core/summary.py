@@ -107,6 +107,18 @@ class SummaryRow(Mapping):
     saturated_steps : dict or None
         ``{"steps": k, "loops": l, "of_steps": R*steps}``: closed-loop steps with an
         input on its bound, and loops with at least one.
+    stabilized_fraction : float or None
+        Share of the loops judged ``converged`` on the true plant (:mod:`qsid_core.verdicts`).
+    closed_loop_outcomes : dict or None
+        ``{"converged", "bounded", "diverged", "failed"}`` -> number of loops.
+    closed_loop_spectral_radius : dict or None
+        ``{"median", "max"}`` of ``max |eig(A - B K^)|`` over the loops with an MPC.
+    bound_self_consistent, bound_informative : bool or None
+        The letter's delta below rho (else its proof gives no bound) and below ``||x0||``.
+    controllability : dict or None
+        ``{"min_margin", "uncontrollable"}``: the smallest relative singular value of the
+        controllability matrix of ``(A^, B^)`` and how many models fall below
+        :data:`UNCONTROLLABLE` (the letter's Assumption 2 fails for them).
     """
 
     bits: int
@@ -130,6 +142,12 @@ class SummaryRow(Mapping):
     final_state_norm: dict | None = None
     osqp_steps: int | None = None
     saturated_steps: dict | None = None
+    stabilized_fraction: float | None = None
+    closed_loop_outcomes: dict | None = None
+    closed_loop_spectral_radius: dict | None = None
+    bound_self_consistent: bool | None = None
+    bound_informative: bool | None = None
+    controllability: dict | None = None
     _dict: dict | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
@@ -151,6 +169,12 @@ class SummaryRow(Mapping):
                 "rho": self.rho, "ultimate_bound_realized": self.ultimate_bound_realized,
                 "assumptions": None if self.assumptions is None else self.assumptions.to_dict(),
                 "saturated_steps": self.saturated_steps,
+                "stabilized_fraction": self.stabilized_fraction,
+                "closed_loop_outcomes": self.closed_loop_outcomes,
+                "closed_loop_spectral_radius": self.closed_loop_spectral_radius,
+                "bound_self_consistent": self.bound_self_consistent,
+                "bound_informative": self.bound_informative,
+                "controllability": self.controllability,
             })
             object.__setattr__(self, "_dict", json_clean(d))
         return self._dict
@@ -167,6 +191,36 @@ class SummaryRow(Mapping):
 
 
 _UNKNOWN = object()
+
+#: relative smallest singular value of the controllability matrix below which a model counts as uncontrollable
+UNCONTROLLABLE = 1e-9
+
+
+def _loop_verdicts(lp) -> dict:
+    """The verdict fields of a row from judged closed loops (empty if they were not judged)."""
+    counts = lp.outcome_counts()
+    if not counts:
+        return {}
+    rad = np.asarray(lp.spectral_radius, dtype=float)
+    rad = rad[np.isfinite(rad)]
+    return {
+        "stabilized_fraction": counts["converged"] / max(len(lp.outcome), 1),
+        "closed_loop_outcomes": counts,
+        "closed_loop_spectral_radius": {"median": float(np.median(rad)) if rad.size else None,
+                                        "max": float(rad.max()) if rad.size else None},
+    }
+
+
+def _bound_flags(th, realized) -> dict:
+    """Whether the letter's delta (and each a-posteriori delta) is below rho and below ||x0||."""
+    ub = getattr(th, "bound", None)
+    out: dict = {}
+    if ub is not None and np.isfinite(ub.delta):
+        out["bound_self_consistent"] = ub.self_consistent
+        out["bound_informative"] = ub.informative if np.isfinite(ub.x0_norm) else None
+    elif ub is not None or np.isinf(getattr(th, "delta", np.nan)):
+        out["bound_self_consistent"], out["bound_informative"] = False, False
+    return out
 
 
 def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assumptions=None) -> SummaryRow:
@@ -202,6 +256,16 @@ def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assu
         if u_max is not _UNKNOWN:
             k, loops = saturated_steps(lp.inputs, u_max)
             kw["saturated_steps"] = {"steps": k, "loops": loops, "of_steps": int(lp.inputs.shape[0] * lp.inputs.shape[1])}
+        kw.update(_loop_verdicts(lp))
+    kw.update(_bound_flags(th, realized))
+    cm = ident.controllability
+    cm_ok = cm[np.isfinite(cm)]
+    kw["controllability"] = {"min_margin": float(cm_ok.min()) if cm_ok.size else None,
+                             "uncontrollable": int(np.sum(cm_ok < UNCONTROLLABLE))}
+    realized_d = None
+    if realized is not None:
+        realized_d = {"median": _num(realized.median), "max": _num(realized.max),
+                      "self_consistent": realized.self_consistent, "informative": realized.informative}
     return SummaryRow(
         bits=ident.bits, eps_x=tuple(ident.eps[:n].tolist()), eps_u=tuple(ident.eps[n:].tolist()),
         err_A=Stats.of(ident.err_A), err_B=Stats.of(ident.err_B),
@@ -210,7 +274,6 @@ def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assu
         ultimate_bound=_num(th.delta), ultimate_bound_note=th.bound_note, ident_failures=int(ident.failed.sum()),
         realizations=ident.realizations, effective_realizations=ident.effective_realizations,
         rho=_num(getattr(th, "rho", float("nan"))),
-        ultimate_bound_realized=None if realized is None else {"median": _num(realized.median),
-                                                               "max": _num(realized.max)},
+        ultimate_bound_realized=realized_d,
         assumptions=assumptions, **kw,
     )

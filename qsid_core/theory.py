@@ -100,6 +100,18 @@ class UltimateBound:
     dB_norm: float
     C: float
     note: str = ""  #: why ``delta`` is infinite, in plain words (empty when it is finite)
+    x0_norm: float = float("nan")  #: ``||x0||`` of the loop it bounds (NaN if not given)
+
+    @property
+    def self_consistent(self) -> bool:
+        """``delta < rho``: the proof assumes the state stays in the ball of radius ``rho``; an
+        ultimate bound at least ``rho`` contradicts that assumption, so the proof gives no bound."""
+        return bool(self.delta < self.rho)
+
+    @property
+    def informative(self) -> bool:
+        """``delta < ||x0||``: the bound says more than "the state ends no farther out than it started"."""
+        return bool(self.delta < self.x0_norm)
 
 
 def ultimate_bound(
@@ -144,8 +156,10 @@ def ultimate_bound(
         Share of the decrease used to dominate the disturbance (default 0.5).
     rho : float > 0, optional
         Radius of the ball the state stays in, for ``omega_v = 2 lambda_max(P) rho``.
-        Default: ``sqrt(lambda_max(P)/lambda_min(P)) * ||x0||``, the radius of the
-        smallest ball holding the sublevel set ``{V <= V(x0)}`` (1 if x0 is not given).
+        Default: ``sqrt(x0'P x0 / lambda_min(P))``, the radius of the smallest ball
+        holding the sublevel set ``{V <= V(x0)}`` (V never grows while the proof's
+        decrease holds, so the state stays in that set). Without ``x0`` (or with
+        ``x0 = 0``): ``sqrt(lambda_max(P)/lambda_min(P))``, the same for the worst unit ``x0``.
 
     Raises
     ------
@@ -164,10 +178,15 @@ def ultimate_bound(
         return UltimateBound(float("inf"), pmin, pmax, alpha1, alpha2, float("inf"), float("nan"), theta,
                              float(np.linalg.norm(dA)), float(np.linalg.norm(dB)), float("inf"),
                              note=f"no bound: the Riccati matrix P is not positive definite "
-                                  f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function")
+                                  f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function",
+                             x0_norm=float(np.linalg.norm(x0)) if x0 is not None else float("nan"))
+    x0_norm = float(np.linalg.norm(x0)) if x0 is not None else float("nan")
     if rho is None:
-        r0 = float(np.linalg.norm(x0)) if x0 is not None else 1.0
-        rho = np.sqrt(pmax / pmin) * (r0 if r0 > 0 else 1.0)
+        if x0 is not None and x0_norm > 0:
+            x0v = np.asarray(x0, dtype=float)
+            rho = float(np.sqrt(max(x0v @ ((P + P.T) / 2) @ x0v, 0.0) / pmin))
+        else:
+            rho = float(np.sqrt(pmax / pmin))
     rho = check_float("rho", rho, 0.0, lo_open=True)
     # numpy scalars: an overflow gives inf (explained in the note), never OverflowError/ZeroDivisionError
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
@@ -181,7 +200,7 @@ def ultimate_bound(
         note = (f"no bound: delta overflows the floating-point range (rho = {rho:.3g}, lambda_max(P) = {pmax:.3g}, "
                 f"theta = {theta:.3g}, alpha1 = {alpha1:.3g})")
     return UltimateBound(float(delta), pmin, pmax, alpha1, alpha2, float(omega_v), float(rho), theta, float(na),
-                         float(nb), float(C), note=note)
+                         float(nb), float(C), note=note, x0_norm=x0_norm)
 
 
 def _riccati_finite_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray,
@@ -214,6 +233,19 @@ class RealizedBounds:
 
     delta: np.ndarray
     rho: np.ndarray
+    x0_norm: float = float("nan")
+
+    @property
+    def self_consistent(self) -> int:
+        """Realizations whose bound is below its ``rho`` (elsewhere the proof gives no bound)."""
+        with np.errstate(invalid="ignore"):
+            return int(np.sum(np.asarray(self.delta, float) < np.asarray(self.rho, float)))
+
+    @property
+    def informative(self) -> int:
+        """Realizations whose bound is below ``||x0||``."""
+        with np.errstate(invalid="ignore"):
+            return int(np.sum(np.asarray(self.delta, float) < self.x0_norm))
 
     def _finite(self) -> np.ndarray:
         d = np.asarray(self.delta, dtype=float)
@@ -285,4 +317,4 @@ def realized_bounds(models, A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.n
             Ah, Bh = models[i]
             ub = ultimate_bound(P[k], Q, R, A - Ah, B - Bh, theta=theta, rho=rho, x0=x0)
             delta[i], rhos[i] = ub.delta, ub.rho
-    return RealizedBounds(delta, rhos)
+    return RealizedBounds(delta, rhos, float(np.linalg.norm(x0)) if x0 is not None else float("nan"))

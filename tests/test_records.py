@@ -27,7 +27,8 @@ def test_one_row_per_b_and_realization_with_the_sweeps_numbers(result):
     recs = realization_records(result)
     assert len(recs) == 3 * 5
     assert COLUMNS == ("system", "bits", "estimator", "realization", "err_A", "err_B", "overload", "ident_failed",
-                       "bcls_fallback", "mpc_status", "mpc_cost", "mpc_predicted_cost", "final_state_norm")
+                       "bcls_fallback", "mpc_status", "mpc_cost", "mpc_predicted_cost", "final_state_norm", "outcome",
+                       "closed_loop_spectral_radius", "controllability")
     assert [(r.bits, r.realization) for r in recs] == [(b, i) for b in (1, 4, 10) for i in range(5)]
     for b in result.bits:
         rows = [r for r in recs if r.bits == b]

@@ -25,7 +25,8 @@ def test_summary_row_is_typed_and_its_dict_keeps_old_keys_and_values():
     assert d["ultimate_bound"] == th.delta and d["rho"] == pytest.approx(th.bound.rho) and d["rho"] > 0
     assert d["effective_realizations"] == d["realizations"] == 4
     rb = res.realized[4]
-    assert d["ultimate_bound_realized"] == {"median": pytest.approx(rb.median), "max": pytest.approx(rb.max)}
+    assert d["ultimate_bound_realized"] == {"median": pytest.approx(rb.median), "max": pytest.approx(rb.max),
+                                            "self_consistent": rb.self_consistent, "informative": rb.informative}
     assert d["assumptions"]["bits"] == 4 and isinstance(d["assumptions"]["notes"], list)
     assert d["saturated_steps"]["of_steps"] == 4 * res.config.mpc.steps
     # a row reads like the former dict rows (front ends written for them keep working)

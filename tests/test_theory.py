@@ -51,7 +51,7 @@ def test_ultimate_bound_scales_with_eps_squared():
     assert u1.delta / u2.delta == pytest.approx(4.0)
     # by hand, from the letter's formulas
     ev = np.linalg.eigvalsh(X)
-    rho = np.sqrt(ev.max() / ev.min()) * np.linalg.norm(s.x0)
+    rho = np.sqrt(s.x0 @ X @ s.x0 / ev.min())  # the smallest ball holding {V <= V(x0)}
     wv = 2 * ev.max() * rho
     C = wv**2 * (np.linalg.norm(dA) ** 2 / (2 * 0.1) + np.linalg.norm(dB) ** 2 / 2)
     assert u1.delta == pytest.approx(np.sqrt(ev.max() / ev.min() * 2 * C / (0.5 * 0.1)))

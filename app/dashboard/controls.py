@@ -100,7 +100,7 @@ CONTROLS: tuple[Control, ...] = (
     Control("theta", "slider", "θ", "Theory", 0.05, 0.95, 0.05, convert=float,
             hint="Share of the Lyapunov decrease used against the model error (ultimate bound δ(ε))"),
     Control("rho_auto", "checkbox", "ρ auto", "Theory", convert=bool,
-            hint="ρ = sqrt(λmax(P)/λmin(P))·‖x0‖ (engine default)"),
+            hint="ρ = sqrt(x0ᵀP x0 / λmin(P)), the smallest ball holding {V ≤ V(x0)} (engine default)"),
     Control("rho", "number", "ρ", "Theory", 1e-6, step=0.1, convert=float),
     Control("show_bound", "checkbox", "bound in 3-D", "Theory", convert=bool,
             hint="Draw the ultimate bounds as circles in the 3-D view (hide them to see the loops alone)"),
