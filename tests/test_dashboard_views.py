@@ -135,8 +135,13 @@ def test_summary_lists_eps_errors_overload_and_failures():
     lp.failure[0], lp.messages[0] = "dare", "DARE has no stabilizing solution for the identified model"
     f.rows["LS"][2]["mpc_cost"]["failed"] = 1
     f.rows["LS"][2]["mpc_cost"]["failures"] = {"dare": 1}
+    assert f.rows["LS"][2]["closed_loop_outcomes"] == {"converged": 4, "bounded": 0, "diverged": 0, "failed": 0}
+    assert "all 4 converged" in text
+    f.rows["LS"][2]["closed_loop_outcomes"] = {"converged": 2, "bounded": 1, "diverged": 0, "failed": 1}
+    f.rows["LS"][2]["closed_loop_spectral_radius"] = {"median": 0.5, "max": 1.25}
     text = summary_markdown(f)
-    assert "1/4 (1 dare)" in text and "LS MPC: DARE has no stabilizing solution" in text
+    assert "**2/4 did not converge**: 2 converged, 1 bounded, 1 failed (ρ(A − BK̂) up to 1.2500)" in text
+    assert "LS MPC: DARE has no stabilizing solution" in text and "none failed" not in text
 
 
 def test_a_failed_identification_is_reported_and_not_drawn():

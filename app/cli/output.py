@@ -106,10 +106,46 @@ def _limits_text(c: dict) -> str:
     return " " + ";".join(f"[{lo:g}, {hi:g}]" for lo, hi in fr)
 
 
+def _stabilized(r: dict) -> str:
+    """``48/50`` loops judged converged on the true plant ("-" without MPC verdicts)."""
+    oc = r.get("closed_loop_outcomes")
+    if not oc:
+        return "-"
+    return f"{oc['converged']}/{sum(oc.values())}"
+
+
+def verdict_lines(results: list) -> list:
+    """One line per b where some closed loop did not converge: how many stayed bounded, diverged, failed."""
+    out = []
+    for r in results:
+        oc = r.get("closed_loop_outcomes") or {}
+        total = sum(oc.values())
+        if not oc or oc["converged"] == total:
+            continue
+        parts = [f"{oc[k]} {k}" for k in ("bounded", "diverged", "failed") if oc.get(k)]
+        rad = (r.get("closed_loop_spectral_radius") or {}).get("max")
+        out.append(f"b = {r['bits']}: {total - oc['converged']} of {total} closed loops did not converge "
+                   f"({', '.join(parts)}; spectral radius of A - B K^ up to {g(rad, '.4f')})")
+    return out
+
+
+def bound_lines(results: list) -> list:
+    """Where the letter's delta says nothing: delta >= rho (its proof does not apply) or delta >= ||x0||."""
+    bad = [r["bits"] for r in results if r.get("bound_self_consistent") is False]
+    weak = [r["bits"] for r in results if r.get("bound_self_consistent") and r.get("bound_informative") is False]
+    out = []
+    if bad:
+        out.append(f"* delta >= rho at b = {_bits_list(bad)}: the proof assumes the state stays within rho, "
+                   "so there it gives no bound")
+    if weak:
+        out.append(f"delta >= ||x0|| at b = {_bits_list(weak)}: a bound, but larger than the start")
+    return out
+
+
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = ["b", "eps min..max", "err_A mean +/- std", "Thm1 A", "err_B mean +/- std", "Thm1 B", "overload",
-            "MPC cost (failed)", "delta bound", "|x_T| mean", "Thm1/BCLS hold"]
+            "MPC cost (failed)", "stabilized", "delta bound", "|x_T| mean", "Thm1/BCLS hold"]
     rows = []
     for r in d["results"]:
         eps = list(r["eps_x"]) + list(r["eps_u"])
@@ -125,7 +161,8 @@ def format_table(d: dict) -> str:
             g(r["err_B_theory"], ".3e"),
             f"{100 * r['overload_fraction']:.2f}%",
             cost_s,
-            g(r["ultimate_bound"], ".3e"),
+            _stabilized(r),
+            g(r["ultimate_bound"], ".3e") + ("" if r.get("bound_self_consistent") is not False else "*"),
             "-" if fsn is None else g(fsn.get("mean"), ".2e"),
             _flags(r),
         ])
@@ -161,6 +198,8 @@ def format_table(d: dict) -> str:
             fails[kind] = fails.get(kind, 0) + k
     if fails:
         lines.append("MPC failures by kind: " + ", ".join(f"{k} {v}" for k, v in sorted(fails.items())))
+    lines.extend(verdict_lines(d["results"]))
+    lines.extend(bound_lines(d["results"]))
     lines.extend(assumptions_lines(d["results"]))
     fb = sum(r.get("bcls_fallbacks", 0) for r in d["results"])
     if fb:

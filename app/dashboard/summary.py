@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from app.figures.hypotheses import CAPTION, bcls_reasons, theorem1_reasons
 from qsid_core.summary import saturated_steps
 from qsid_core.assumptions import OVERLOAD_TOLERANCE
@@ -16,23 +18,41 @@ def _g(x, fmt=".3g") -> str:
 
 
 def _failures(row: dict, lp) -> str:
+    """How the closed loops ended on the true plant: all converged, or the counts of each verdict."""
     mc = row.get("mpc_cost") or {}
+    oc = row.get("closed_loop_outcomes") or {}
+    total = len(lp.failure)
+    if oc:
+        if oc["converged"] == total:
+            return f"all {total} converged"
+        parts = [f"{oc[k]} {k}" for k in ("converged", "bounded", "diverged", "failed") if oc.get(k)]
+        rad = (row.get("closed_loop_spectral_radius") or {}).get("max")
+        text = f"**{total - oc['converged']}/{total} did not converge**: " + ", ".join(parts)
+        return text + (f" (ρ(A − BK̂) up to {rad:.4f})" if rad is not None and rad >= 1 else "")
     k = mc.get("failed", 0)
     if not k:
-        return "none"
+        return "none failed (not judged)"
     kinds = ", ".join(f"{n} {kind}" for kind, n in sorted(mc.get("failures", {}).items()))
-    return f"{k}/{len(lp.failure)} ({kinds})"
+    return f"{k}/{total} ({kinds})"
 
 
 def _bounds(frame: Frame, first: dict) -> str:
     """The two ultimate bounds at the current b, the rho they used, and what they mean."""
     rho = first.get("rho")
     rho_text = f"ρ = {_g(rho)} ({'automatic' if frame.values.rho_auto else 'set in the panel'})"
-    parts = [f"letter's δ(ε) = {_g(first['ultimate_bound'])} (Theorem 1's T → ∞ model errors)"]
+    x0n = float(np.linalg.norm(frame.x0))
+    verdict = ""
+    if first.get("bound_self_consistent") is False:
+        verdict = " — **not a bound here**: δ ≥ ρ, and the proof assumes the state stays within ρ"
+    elif first.get("bound_informative") is False:
+        verdict = f" — δ ≥ ‖x0‖ = {x0n:.3g}: larger than the start"
+    parts = [f"letter's δ(ε) = {_g(first['ultimate_bound'])} (Theorem 1's T → ∞ model errors){verdict}"]
     for lab in frame.labels:
         rb = frame.rows[lab][frame.bits].get("ultimate_bound_realized") or {}
+        sc = rb.get("self_consistent")
+        ok = "" if sc is None else f", below its ρ in {sc}/{frame.values.realizations}"
         parts.append(f"a-posteriori δ {lab} = {_g(rb.get('median'))} median, {_g(rb.get('max'))} max "
-                     "(each realization's own model error and P)")
+                     f"(each realization's own model error and P{ok})")
     return "**Ultimate bound** · " + " · ".join(parts) + f" · {rho_text}.  \n*{CAPTION}.*"
 
 
@@ -112,7 +132,7 @@ def summary_markdown(frame: Frame) -> str:
         "",
         *_hypotheses(frame),
         "",
-        "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost | MPC failures |",
+        "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost | closed loops on the true plant |",
         "|---|---|---|---|---|",
     ]
     for lab in frame.labels:
@@ -133,6 +153,11 @@ def summary_markdown(frame: Frame) -> str:
             why = "; ".join(x for x in frame.idents[lab].notes if x.startswith("identification failed"))[:200]
             notes.append(f"{lab} identification failed in {k} of {frame.values.realizations} realizations "
                          f"(their loops are not drawn): {why}")
+    for lab in frame.labels:
+        k = (frame.rows[lab][b].get("controllability") or {}).get("uncontrollable") or 0
+        if k:
+            notes.append(f"{lab}: {k} of {frame.values.realizations} identified models are not controllable "
+                         "(the letter's Assumption 2 fails for them)")
     if "BCLS" in frame.labels:
         r = frame.rows["BCLS"][b]
         if r["bcls_fallbacks"]:
