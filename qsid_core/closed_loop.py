@@ -57,6 +57,8 @@ class ClosedLoops:
         ``max |eig(A - B K^)|`` of the unconstrained MPC law on the true plant (NaN where no MPC).
     verdict_steps : ndarray of int, shape (R,)
         Closed-loop steps it took to reach the verdict (``steps`` plus any extra steps).
+    gains : list of ndarray (m, n) or None
+        ``K^`` of each loop's unconstrained law ``u = -K^ x + k`` (None where no MPC ran).
     """
 
     states: np.ndarray
@@ -69,6 +71,7 @@ class ClosedLoops:
     outcome: list = field(default_factory=list)
     spectral_radius: np.ndarray | None = None
     verdict_steps: np.ndarray | None = None
+    gains: list = field(default_factory=list)
 
     def outcome_counts(self) -> dict:
         """``{"converged", "bounded", "diverged", "failed"}`` -> number of loops (empty if not judged)."""
@@ -375,6 +378,7 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
             out.outcome = ["failed"] * Rn
             out.spectral_radius = np.full(Rn, np.nan)
             out.verdict_steps = np.zeros(Rn, dtype=int)
+            out.gains = [None] * Rn
         return out
     loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out)
     advance(loops, loops.live.copy())

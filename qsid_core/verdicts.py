@@ -164,5 +164,8 @@ def judge(loops: _Loops, budget: int) -> None:
     for i in pending:  # budget 0: no stepping allowed
         jd.outcome[i] = "bounded"
     out.outcome = jd.outcome
+    out.gains = [None] * len(loops.ctrls)
+    for i in jd.live:
+        out.gains[i] = -loops.F[loops.pos[i], : loops.m].copy()
     out.spectral_radius = jd.radius
     out.verdict_steps = jd.steps

@@ -14,13 +14,13 @@ import warnings
 from concurrent.futures.process import BrokenProcessPool
 from typing import Sequence
 
-from . import datalength, parser, reproduce, sweep, systems
+from . import bits, datalength, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 #: name -> command module, in the order ``qsid --help`` lists them.
-COMMANDS = {"systems": systems, "sweep": sweep, "reproduce": reproduce, "datalength": datalength}
+COMMANDS = {"systems": systems, "sweep": sweep, "bits": bits, "reproduce": reproduce, "datalength": datalength}
 
 
 def build_parser(only: str | None = "*"):

@@ -242,6 +242,10 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
                    help="diagonal of the state weight, one value or one per state (default: the system's Q)")
     m.add_argument("--R", dest="r_diag", type=_float_list, default=None, metavar="R1,R2,..",
                    help="diagonal of the input weight, one value or one per input (default: the system's R)")
+    m.add_argument("--verify-steps", type=_nonneg_int, default=mpc.verify_steps, metavar="N",
+                   help="at most N closed-loop steps beyond --mpc-steps to decide whether a loop converges, stays "
+                        f"bounded or diverges on the true plant (default: {mpc.verify_steps}; 0: judge from the "
+                        "run alone where the spectral radius and the certificate decide, else call it bounded)")
     m.add_argument("--theta", type=_float_type, default=base.theta, metavar="X",
                    help=f"theta of the ultimate bound, in (0, 1) (default: {_g(base.theta)})")
     m.add_argument("--rho", type=_float_type, default=None, metavar="X",

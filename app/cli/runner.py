@@ -169,7 +169,8 @@ def _mpc_config(args, system):
                          f"got {len(args.u_max)}")
     u_max = args.u_max[0] if len(args.u_max) == 1 else args.u_max
     mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
-                     x_max=args.x_max, Q=args.q_diag, R=args.r_diag)
+                     x_max=args.x_max, Q=args.q_diag, R=args.r_diag,
+                     verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps))
     mcfg.resolve(system)  # shape checks now, before any work
     return mcfg
 
