@@ -12,14 +12,14 @@ are recorded per model, never raised.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from .condensed_qp import box_qp_batch, condense
 from .errors import FailureKind, MPCFailure
 from .mpc import MPCConfig, MPCController, MPCWeights
 from .riccati import dare_batch, lq_parts
+from .stage_results import ClosedLoops
+from .verdicts import judge
 
 __all__ = ["ClosedLoops", "run_closed_loops"]
 
@@ -27,72 +27,6 @@ __all__ = ["ClosedLoops", "run_closed_loops"]
 DIVERGED = 1e12
 #: at most this many models are stepped model by model (numpy's per-call overhead dominates tiny batches)
 SMALL = 4
-
-
-@dataclass
-class ClosedLoops:
-    """Closed loops of several identified models, each run on the true system.
-
-    Attributes
-    ----------
-    states : ndarray, shape (R, steps + 1, n)
-        True-system trajectories (NaN after a failure), in the system's state units.
-    inputs : ndarray, shape (R, steps, m)
-        Applied inputs (NaN after a failure).
-    cost : ndarray, shape (R,)
-        Realised cost ``sum_{t<steps} (x_t-r)'Q(x_t-r) + u_t'R u_t`` on the true system (NaN if failed).
-    J0 : ndarray, shape (R,)
-        Predicted optimal cost ``J*(x0)`` of the first MPC problem (NaN if failed).
-    failure : list of str
-        ``""`` for success, else a :class:`~qsid_core.errors.FailureKind` (a ``str``).
-    messages : list of str
-        Plain-words reason per failed realisation.
-    qp_steps : int
-        How many MPC steps needed the QP solver (the rest took the exact fast path).
-    outcome : list of str
-        Verdict per loop on the true plant (:mod:`qsid_core.verdicts`): ``"converged"``,
-        ``"bounded"``, ``"diverged"`` or ``"failed"`` (the MPC could not run); empty when
-        the loops were not judged (``MPCConfig.verify_steps=None``).
-    spectral_radius : ndarray, shape (R,)
-        ``max |eig(A - B K^)|`` of the unconstrained MPC law on the true plant (NaN where no MPC).
-    verdict_steps : ndarray of int, shape (R,)
-        Closed-loop steps it took to reach the verdict (``steps`` plus any extra steps).
-    gains : list of ndarray (m, n) or None
-        ``K^`` of each loop's unconstrained law ``u = -K^ x + k`` (None where no MPC ran).
-    """
-
-    states: np.ndarray
-    inputs: np.ndarray
-    cost: np.ndarray
-    J0: np.ndarray
-    failure: list = field(default_factory=list)
-    messages: list = field(default_factory=list)
-    qp_steps: int = 0
-    outcome: list = field(default_factory=list)
-    spectral_radius: np.ndarray | None = None
-    verdict_steps: np.ndarray | None = None
-    gains: list = field(default_factory=list)
-
-    def outcome_counts(self) -> dict:
-        """``{"converged", "bounded", "diverged", "failed"}`` -> number of loops (empty if not judged)."""
-        if not self.outcome:
-            return {}
-        return {k: sum(o == k for o in self.outcome) for k in ("converged", "bounded", "diverged", "failed")}
-
-    @property
-    def osqp_steps(self) -> int:
-        """Old name of :attr:`qp_steps` (the sweep's JSON key ``osqp_steps`` keeps it)."""
-        return self.qp_steps
-
-    @property
-    def failed(self) -> np.ndarray:
-        """shape (R,): True where the loop failed."""
-        return np.array([bool(f) for f in self.failure])
-
-    @property
-    def final_state_norm(self) -> np.ndarray:
-        """shape (R,): ``||x_steps||_2``."""
-        return np.linalg.norm(self.states[:, -1, :], axis=1)
 
 
 def _controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, messages: list) -> list:
@@ -370,8 +304,7 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     w = cfg.resolve(system)
     n, m = B_true.shape
     Rn, steps = len(models), cfg.steps
-    out = ClosedLoops(np.full((Rn, steps + 1, n), np.nan), np.full((Rn, steps, m), np.nan), np.full(Rn, np.nan),
-                      np.full(Rn, np.nan), [""] * Rn, [""] * Rn, 0)
+    out = ClosedLoops.empty(Rn, steps, n, m)
     ctrls = _controllers(models, w, cfg, out.failure, out.messages)
     if all(c is None for c in ctrls):
         if cfg.verify_steps is not None:
@@ -386,10 +319,25 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     out.cost[ok] = loops.acc[ok]
     out.J0[~ok] = np.nan
     if cfg.verify_steps is not None:
-        from .verdicts import judge
-
-        judge(loops, cfg.verify_steps)
+        judge(loops, cfg.verify_steps, _extender(loops))
     return out
+
+
+def _extender(loops: _Loops):
+    """``extend(x, k, active)``: run the loops ``active`` on from states ``x`` for ``k`` more steps.
+
+    Returns the extra steps' :class:`ClosedLoops` and the states reached; the
+    condensed QPs are shared with ``loops`` (built once).
+    """
+
+    def extend(x: np.ndarray, k: int, active: list) -> tuple[ClosedLoops, np.ndarray]:
+        scratch = ClosedLoops.empty(len(loops.ctrls), k, loops.n, loops.m)
+        ext = _Loops(loops.ctrls, loops.w, loops.A, loops.B, k, scratch, x_start=x, cq=loops.cq)
+        advance(ext, np.array(active))
+        loops.cq = ext.cq
+        return scratch, ext.x
+
+    return extend
 
 
 def advance(loops: _Loops, active: np.ndarray) -> None:

@@ -53,8 +53,13 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
     v = CASES[name]
     system = resolve_system(v).system
     want = sweep_config(v, system)
-    lines = share.command_lines(v)
+    *lines, bits_line = share.command_lines(v)
     assert len(lines) == (2 if v.identification == "LS + BCLS" else 1)
+    argv = shlex.split(bits_line)
+    assert argv[:2] == ["qsid", "bits"]
+    args = build_parser().parse_args(argv[1:])
+    _same_config(config(args, system_from_args(args), mpc=True), want)
+    assert (args.target, args.cost_gap) == (v.target, v.cost_gap)
     for line, est in zip(lines, (("ls", "bcls") if len(lines) == 2 else (want.estimator,))):
         argv = shlex.split(line)
         assert argv[:2] == ["qsid", "sweep"]
@@ -65,7 +70,10 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
 
 def test_command_is_short_at_the_defaults_and_names_changes():
     assert share.command_lines(Values(identification="LS")) == [
-        "qsid sweep --realizations=20 --trajectories=50 --steps=200"]
+        "qsid sweep --realizations=20 --trajectories=50 --steps=200",
+        "qsid bits --realizations=20 --trajectories=50 --steps=200"]
+    line = share.command_lines(Values(identification="LS", target=0.9, cost_gap=0.05, verify_steps=100))[-1]
+    assert line.endswith("--verify-steps=100 --target=0.9 --cost-gap=0.05")
     line = share.command_lines(CASES["boeing, fixed per channel, no guard, BCLS"])[0]
     assert "--system=boeing747" in line and "--no-guard" in line and "--limits=-20.0,20.0;" in line
 

@@ -13,7 +13,7 @@ import shlex
 
 from .parser import bits_spec, floats_spec, limits_spec
 
-__all__ = ["sweep_argv", "sweep_command", "system_text"]
+__all__ = ["sweep_argv", "sweep_command", "bits_command", "system_text"]
 
 
 def system_text(M) -> str:
@@ -44,6 +44,10 @@ def _mpc_args(cfg, system) -> list:
         out.append(f"--mpc-steps={m.steps}")
     if m.u_max != d.u_max:
         out.append(f"--u-max={floats_spec(m.u_max)}")
+    if m.verify_steps != d.verify_steps:
+        if m.verify_steps is None:
+            raise ValueError("the command line has no flag for switching the closed-loop verdicts off")
+        out.append(f"--verify-steps={m.verify_steps}")
     for flag, v in (("--x0", m.x0), ("--x-ref", m.x_ref), ("--x-max", m.x_max), ("--Q", m.Q), ("--R", m.R)):
         if v is not None:
             out.append(f"{flag}={floats_spec(v)}")
@@ -97,3 +101,10 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
 def sweep_command(cfg, system_source: str | None = None) -> str:
     """The whole shell line ``qsid sweep ...`` (quoted for a POSIX shell)."""
     return shlex.join(["qsid", "sweep", *sweep_argv(cfg, system_source)])
+
+
+def bits_command(cfg, target: float = 0.95, cost_gap: float = 0.01, system_source: str | None = None) -> str:
+    """The shell line ``qsid bits ...`` for ``cfg`` and the answer's thresholds (defaults left out)."""
+    extra = ([] if target == 0.95 else [f"--target={target!r}"]) + \
+            ([] if cost_gap == 0.01 else [f"--cost-gap={cost_gap!r}"])
+    return shlex.join(["qsid", "bits", *sweep_argv(cfg, system_source), *extra])

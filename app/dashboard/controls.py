@@ -54,6 +54,7 @@ class Control:
 
 
 _R = "Dither realizations"
+_V = "How many bits?"
 #: Every input of the panel, in display order (tabs appear in order of first use).
 CONTROLS: tuple[Control, ...] = (
     Control("lesson", "dropdown", "lesson", choices=lesson_names(),
@@ -97,6 +98,13 @@ CONTROLS: tuple[Control, ...] = (
             hint="Constant reference, one number per state (empty = regulate to 0). δ(ε) assumes x_ref = 0."),
     Control("x_max", "text", "state box x_max", "MPC",
             hint="|x_i| <= x_max_i over the horizon: one number for every state or one per state (empty = none)"),
+    Control("verify_steps", "number", "verdict steps", "MPC", 0, step=500, folder=_V, convert=int,
+            hint="At most this many extra closed-loop steps to decide whether a loop converges, stays bounded "
+                 "or diverges on the true plant (where the spectral radius alone does not decide)"),
+    Control("target", "slider", "target stabilized", "MPC", 0.5, 1.0, 0.01, folder=_V, convert=float,
+            hint="b_observed: the smallest b from which on at least this share of the loops converge …"),
+    Control("cost_gap", "number", "cost gap", "MPC", 0.0, step=0.005, folder=_V, convert=float,
+            hint="… and the mean closed-loop cost is within this relative gap of the true model's (0.01 = 1 %)"),
     Control("theta", "slider", "θ", "Theory", 0.05, 0.95, 0.05, convert=float,
             hint="Share of the Lyapunov decrease used against the model error (ultimate bound δ(ε))"),
     Control("rho_auto", "checkbox", "ρ auto", "Theory", convert=bool,

@@ -98,6 +98,9 @@ class Values:
     x_max: str = ""  # state box |x_i| <= x_max_i: one number for all or one per state ("" = none)
     view_channel: int = 0  # the quantizer view's channel (states, then inputs)
     compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
+    verify_steps: int = _MPC.verify_steps  # extra closed-loop steps allowed to judge each loop
+    target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
+    cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
 
     def replace(self, **kw) -> "Values":
         return dataclasses.replace(self, **kw)
@@ -265,7 +268,7 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     x_max = _state_box(v.x_max, n, names)
     try:
         return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0,
-                         x_ref=x_ref, x_max=x_max)
+                         x_ref=x_ref, x_max=x_max, verify_steps=int(v.verify_steps))
     except QsidError as exc:
         raise InputError(str(exc)) from None
 
@@ -276,6 +279,10 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"word length b must be between {ALL_BITS[0]} and {ALL_BITS[-1]}; got {v.bits}")
     if not v.rho_auto and not (np.isfinite(v.rho) and v.rho > 0):
         raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
+    if not (np.isfinite(v.target) and 0 < v.target <= 1):
+        raise InputError(f"target share of stabilized loops must be in (0, 1]; got {v.target}")
+    if not (np.isfinite(v.cost_gap) and v.cost_gap >= 0):
+        raise InputError(f"cost gap must be >= 0 (relative: 0.01 = 1 %); got {v.cost_gap}")
     if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
         raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
     try:

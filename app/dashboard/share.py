@@ -16,7 +16,7 @@ import json
 import math
 from pathlib import Path
 
-from app.cli.command import sweep_command
+from app.cli.command import bits_command, sweep_command
 from app.cli.output import dumps
 
 from .controls import CONTROLS, read_values
@@ -110,7 +110,8 @@ def command_lines(v: Values) -> list:
     """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown)."""
     system = resolve_system(v).system
     cfg = sweep_config(v, system)
-    return [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
+    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
+    return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]
 
 
 # ----- exports of the current frame ----------------------------------------------------------------------------
