@@ -133,6 +133,8 @@ class PhasePortrait:
         extra = []
         if v.failed:
             extra.append(f"{v.failed} failed loops hidden")
+        if v.not_converged:
+            extra.append(f"{v.not_converged} loops do not converge on the true plant")
         if v.clipped:
             extra.append(f"{v.clipped} loops leave the view (clipped)")
         same = "" if v.polylines == v.realizations else f" ({v.realizations} computed, identical without dither)"

@@ -63,6 +63,8 @@ class SceneView:
     failed, clipped, polylines, realizations : int
         Failed loops (hidden), loops leaving the view, distinct loops drawn, loops computed.
     mark_every : int
+    not_converged : int
+        Drawn loops judged bounded or diverged on the true plant (they never settle).
     """
 
     segments: np.ndarray
@@ -85,6 +87,7 @@ class SceneView:
     polylines: int
     realizations: int
     mark_every: int
+    not_converged: int = 0
 
 
 def axes_options(names) -> list:
@@ -223,7 +226,7 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
     x0 = np.asarray(frame.x0, dtype=float)  # the engine's start state (also if loops failed)
     scale = _display_scale(ts, x0, [d for d in dims if d is not None])
     start = _points(x0[None, None, :], dims, scale)[0, 0]
-    segs, cols, failed, clipped, poly, total = [], [], 0, 0, 0, 0
+    segs, cols, failed, clipped, poly, total, stuck = [], [], 0, 0, 0, 0, 0
     for i, lab in enumerate(frame.labels):
         st = frame.loops[lab].states
         s, f, c = _to_segments(st, dims, scale, start)
@@ -231,6 +234,8 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         cols.append(np.broadcast_to(np.array(vertex_rgb(lab, i), dtype=np.uint8), s.shape))
         failed += f
         clipped += c
+        oc = frame.loops[lab].outcome_counts()
+        stuck += oc.get("bounded", 0) + oc.get("diverged", 0)
         total += st.shape[0]
         poly += min(st.shape[0], int(getattr(frame.idents.get(lab), "effective_realizations", st.shape[0])))
     tseg, _, _ = _to_segments(ts[None], dims, scale, start)
@@ -248,5 +253,5 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         segments=np.concatenate(segs).astype(np.float32), colors=np.ascontiguousarray(np.concatenate(cols)),
         true_segments=tseg.astype(np.float32), time_marks=marks.astype(np.float32), start=start, scale=scale,
         axis_names=tuple(labels), failed=failed, clipped=clipped, polylines=poly, realizations=total,
-        mark_every=every, **_bounds(frame, dims, scale),
+        mark_every=every, not_converged=stuck, **_bounds(frame, dims, scale),
     )

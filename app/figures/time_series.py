@@ -123,12 +123,18 @@ def saturation_text(ts: dict) -> str:
 
 
 def failure_text(loops: dict) -> str:
-    """'LS 5/5 failed (infeasible)' for the estimators with failed loops ('' if none): those loops are not drawn."""
+    """'LS 5/5 failed (infeasible; not drawn)' and 'LS 48/50 did not converge (48 bounded)' per estimator
+    ('' if every loop converged): failed loops are not drawn, loops that did not converge are."""
     out = []
     for lab, lp in loops.items():
         kinds = [str(getattr(f, "value", f)) for f in lp.failure if f]
         if kinds:
             out.append(f"{lab} {len(kinds)}/{len(lp.failure)} failed ({', '.join(sorted(set(kinds)))}; not drawn)")
+        oc = lp.outcome_counts()
+        stuck = {k: oc[k] for k in ("bounded", "diverged") if oc.get(k)}
+        if stuck and sum(stuck.values()) > len(kinds):
+            out.append(f"{lab} {len(lp.outcome) - oc['converged']}/{len(lp.outcome)} did not converge on the true "
+                       f"plant ({', '.join(f'{v} {k}' for k, v in stuck.items())})")
     return ", ".join(out)
 
 
