@@ -1,6 +1,7 @@
 """The Control tab's "how many bits" view, the bound view's no-bound shading and the loops' plain-words counts."""
 
 import numpy as np
+import pytest
 
 from app.figures.bits_needed import answers, bits_figure
 from app.figures.bound import bound_figure
@@ -56,3 +57,19 @@ def test_time_series_title_counts_loops_that_do_not_converge():
     lp.failure = [""] * 4
     assert failure_text({"LS": lp}) == ""
     assert np.isnan(lp.cost).all()
+
+
+@pytest.mark.slow
+def test_dashboard_summary_counts_the_boeing_loops_that_do_not_converge():
+    """Paper scale, Boeing, b = 2 (the guard band default): the summary says how many loops did not converge."""
+    from app.dashboard.cache import SharedCache
+    from app.dashboard.session import iter_frames
+    from app.dashboard.settings import Values
+    from app.dashboard.summary import summary_markdown
+
+    v = Values(system="boeing747", bits=2, realizations=50, trajectories=200, steps=1000, identification="LS")
+    cur = next(f for f in iter_frames(v, SharedCache(), chunk=16, min_interval=0.0) if f.stage == "current")
+    text = summary_markdown(cur)
+    oc = cur.rows["LS"][2]["closed_loop_outcomes"]
+    assert oc["converged"] <= 10 and f"**{50 - oc['converged']}/50 did not converge**" in text
+    assert "not a bound here" in text  # the letter's delta >= rho at b = 2
