@@ -73,3 +73,16 @@ def test_dashboard_summary_counts_the_boeing_loops_that_do_not_converge():
     oc = cur.rows["LS"][2]["closed_loop_outcomes"]
     assert oc["converged"] <= 10 and f"**{50 - oc['converged']}/50 did not converge**" in text
     assert "not a bound here" in text  # the letter's delta >= rho at b = 2
+
+
+def test_cost_view_says_where_loops_did_not_converge():
+    from app.figures.cost import cost_figure
+
+    rows = [{"bits": 1, "mpc_cost": {"mean": 3.0, "std": 0.1},
+             "closed_loop_outcomes": {"converged": 2, "bounded": 48, "diverged": 0, "failed": 0}},
+            {"bits": 2, "mpc_cost": {"mean": 2.0, "std": 0.1},
+             "closed_loop_outcomes": {"converged": 50, "bounded": 0, "diverged": 0, "failed": 0}}]
+    texts = [a.text for a in cost_figure({"LS": rows}, true_cost=1.9).layout.annotations]
+    assert "did not converge: LS: b=1 48/50" in texts
+    assert not any("did not converge" in t for t in
+                   (a.text for a in cost_figure({"LS": rows[1:]}, true_cost=1.9).layout.annotations))
