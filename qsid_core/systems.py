@@ -252,8 +252,6 @@ def dc_motor_physical(
     With the defaults it reproduces the printed matrices of :func:`dc_motor`
     to their three printed decimals (the letter truncates: max difference < 1e-3).
     """
-    from scipy.linalg import expm
-
     for nm, v in dict(dt=dt, J=J, L=L, c=c, K=K, Ke=Ke, r=r).items():
         try:
             check_float(nm, v, 0.0, MAX_MAGNITUDE, lo_open=nm in ("dt", "J", "L"))
@@ -261,12 +259,9 @@ def dc_motor_physical(
             raise SystemDefinitionError(str(exc)) from None
     Ac = np.array([[0.0, 1.0, 0.0], [0.0, -c / J, K / J], [0.0, -Ke / L, -r / L]])
     Bc = np.array([[0.0, 0.0], [0.0, 1.0 / J], [1.0 / L, 0.0]])
-    # zero-order hold (python-control's c2d(..., method="zoh")): expm([[Ac, Bc], [0, 0]] dt) = [[Ad, Bd], [0, I]]
-    M = np.zeros((5, 5))
-    M[:3, :3], M[:3, 3:] = Ac, Bc
-    E = expm(M * dt)
+    Ad, Bd = _zoh(Ac, Bc, dt)  # python-control's c2d(..., method="zoh")
     return LTISystem(
-        "dc-motor-physical", E[:3, :3], E[:3, 3:], x0=[1.0, 0.0, 0.0],
+        "dc-motor-physical", Ad, Bd, x0=[1.0, 0.0, 0.0],
         Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=dt,
         description=f"DC motor with load from physical parameters, ZOH at {dt:g} s",
         state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),
@@ -292,7 +287,64 @@ def boeing747() -> LTISystem:
     )
 
 
-PRESETS = {"dc-motor": dc_motor, "boeing747": boeing747, "dc-motor-physical": dc_motor_physical}
+def _zoh(Ac, Bc, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation: ``expm([[Ac, Bc], [0, 0]] dt) = [[Ad, Bd], [0, I]]``."""
+    from scipy.linalg import expm
+
+    Ac, Bc = np.asarray(Ac, dtype=float), np.asarray(Bc, dtype=float)
+    n, m = Bc.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n], M[:n, n:] = Ac, Bc
+    E = expm(M * dt)
+    return E[:n, :n], E[:n, n:]
+
+
+def dc_motor_fast() -> LTISystem:
+    """:func:`dc_motor_physical` sampled at 0.05 s: the same motor, transients over many samples."""
+    s = dc_motor_physical(0.05)
+    return LTISystem("dc-motor-50ms", s.A, s.B, x0=s.x0, Q=s.Q, R=s.R, dt=0.05,
+                     description="DC motor with load from physical parameters, ZOH at 0.05 s (many-step transients)",
+                     state_names=s.state_names, input_names=s.input_names)
+
+
+def inverted_pendulum() -> LTISystem:
+    """Inverted pendulum on a cart, linearised about upright, ZOH at 0.05 s (open-loop unstable).
+
+    Ogata, *Modern Control Engineering*, 5th ed., Example 12-5 (cart mass M = 2 kg,
+    pendulum mass m = 0.1 kg, length l = 0.5 m, g = 9.81 m/s^2):
+    ``theta'' = (M + m) g / (M l) theta - u / (M l)``, ``x'' = -m g / M theta + u / M``.
+    States: angle [rad], angular rate, cart position [m], cart velocity; input: force [N].
+    Its unstable pole e^{4.54 * 0.05} = 1.255 needs more than log2 1.255 = 0.33 bits per
+    sample through any quantized feedback channel (data-rate theorem). Open loop the data
+    grow as 1.255^t: use many short training runs (``--trajectories 1000 --steps 15``: the
+    MPC then works from b = 8 on). x0 = 0.02 rad tilt (with
+    the default |u| <= 1 N the upright can be caught from there), Q = diag(10, 1, 1, 1), R = 1.
+    """
+    M, m, l, g = 2.0, 0.1, 0.5, 9.81
+    Ac = [[0, 1, 0, 0], [(M + m) * g / (M * l), 0, 0, 0], [0, 0, 0, 1], [-m * g / M, 0, 0, 0]]
+    Bc = [[0], [-1 / (M * l)], [0], [1 / M]]
+    A, B = _zoh(Ac, Bc, 0.05)
+    return LTISystem("inverted-pendulum", A, B, x0=[0.02, 0.0, 0.0, 0.0], Q=[10.0, 1.0, 1.0, 1.0], R=[1.0], dt=0.05,
+                     description="inverted pendulum on a cart (Ogata Ex. 12-5), ZOH at 0.05 s, open-loop unstable",
+                     state_names=("angle", "rate", "position", "velocity"), input_names=("force",))
+
+
+def mass_spring_damper() -> LTISystem:
+    """A lightly damped mass-spring-damper, ZOH at 0.1 s (slow, oscillating transients).
+
+    m x'' + c x' + k x = u with m = 1 kg, c = 0.2 N s/m, k = 1 N/m (damping ratio 0.1;
+    e.g. Ogata, *Modern Control Engineering*, Sec. 2-3). States: position [m],
+    velocity; input: force [N]. x0 = [1, 0], Q = I, R = 1.
+    """
+    A, B = _zoh([[0, 1], [-1.0, -0.2]], [[0], [1.0]], 0.1)
+    return LTISystem("mass-spring-damper", A, B, x0=[1.0, 0.0], Q=[1.0, 1.0], R=[1.0], dt=0.1,
+                     description="mass-spring-damper, damping ratio 0.1, ZOH at 0.1 s",
+                     state_names=("position", "velocity"), input_names=("force",))
+
+
+PRESETS = {"dc-motor": dc_motor, "boeing747": boeing747, "dc-motor-physical": dc_motor_physical,
+           "dc-motor-50ms": dc_motor_fast, "inverted-pendulum": inverted_pendulum,
+           "mass-spring-damper": mass_spring_damper}
 
 
 def system_from_dict(d: Mapping[str, Any], name: str = "custom") -> LTISystem:

@@ -41,7 +41,7 @@ PAPER_SCALE = {"trajectories": _SWEEP.trajectories, "steps": _SWEEP.steps, "real
 #: Interactive default: every update stays fast (see benchmarks/bench_dashboard.py).
 INTERACTIVE = {"trajectories": 50, "steps": 200, "realizations": 20}
 #: Systems offered in the panel (the engine's presets the panel shows, plus a typed one).
-SYSTEM_CHOICES = ("dc-motor", "boeing747", "custom")
+SYSTEM_CHOICES = (*PRESETS, "custom")
 #: Display label of each engine estimator (also the palette's colour keys).
 LABELS = {e: e.upper() for e in ESTIMATORS}
 #: Identification choices -> engine estimators: each estimator alone, then all side by side.

@@ -15,6 +15,7 @@ import numpy as np
 import plotly.graph_objects as go
 
 from qsid_core.bits import BitsAnswer, answer_from_rows, predicted_small_gain
+from qsid_core.stability import data_rate_bits
 
 from .palette import COLORS, color
 from .raw import figure, hline, stacked_axes
@@ -102,7 +103,7 @@ def answers(series: Series, true_cost, ex, target: float, cost_gap: float) -> di
         if robust is None and ex is not None:
             robust = {int(r["bits"]): predicted_small_gain(ex, int(r["bits"])) for r in rows}
         out[lab] = answer_from_rows(getattr(ex.system, "name", ""), {}, rows, true_cost, robust=robust,
-                                    target=target, cost_gap=cost_gap)
+                                    target=target, cost_gap=cost_gap, data_rate=data_rate_bits(ex.system.A))
     return out
 
 
