@@ -38,6 +38,9 @@ CASES = {
     "tracking with a state box": Values(system="boeing747", x_ref="0.1, 0, 0, 0", x_max="5", compare_bits="2, 8"),
     "one fixed pair": Values(range_mode="fixed", fixed_range="-2.5, 2.5", log_q=(0.0, 1.0, -2.0),
                              log_r=(0.7, 0.7)),
+    "terminal weight Q and box, verdict settings": Values(qf="Q", terminal_box="0.8, 2, 2", verify_steps=1500,
+                                                           target=0.9, cost_gap=0.02, log_q=(0.3, -1.0, 0.0)),
+    "terminal weight numbers": Values(system="boeing747", qf="5", terminal_box="3"),
 }
 
 

@@ -48,11 +48,11 @@ def _mpc_args(cfg, system) -> list:
         if m.verify_steps is None:
             raise ValueError("the command line has no flag for switching the closed-loop verdicts off")
         out.append(f"--verify-steps={m.verify_steps}")
-    for flag, v in (("--x0", m.x0), ("--x-ref", m.x_ref), ("--x-max", m.x_max), ("--Q", m.Q), ("--R", m.R)):
+    for flag, v in (("--x0", m.x0), ("--x-ref", m.x_ref), ("--x-max", m.x_max), ("--terminal-box", m.xf_max),
+                    ("--Qf", m.Qf), ("--Q", m.Q), ("--R", m.R)):
         if v is not None:
             out.append(f"{flag}={floats_spec(v)}")
-    unsupported = [k for k in ("xf_max", "Qf") if getattr(m, k) is not None]
-    unsupported += [k for k in ("eps", "max_iter") if getattr(m, k) != getattr(d, k)]
+    unsupported = [k for k in ("eps", "max_iter") if getattr(m, k) != getattr(d, k)]
     if unsupported:
         raise ValueError(f"the command line has no flag for MPC setting(s) {', '.join(unsupported)}")
     return out

@@ -118,6 +118,20 @@ def _float_list(text: str) -> tuple[float, ...]:
     return tuple(_number(p, what) for p in parts)
 
 
+def _qf_spec(text: str):
+    """``dare`` (None: each model's DARE solution), ``Q`` (the stage weight) or a diagonal ``F1,F2,..``."""
+    t = text.strip()
+    if t.lower() == "dare":
+        return None
+    if t == "Q":
+        return "Q"
+    try:
+        return _float_list(t)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"must be 'dare', 'Q' or numbers (one or one per state); got {text!r}") \
+            from None
+
+
 def _limits(text: str) -> tuple[tuple[float, float], ...]:
     """``LO,HI`` (every channel) or ``LO,HI;LO,HI;...`` (one pair per channel: states, then inputs)."""
     what = "must be 'LO,HI' or 'LO,HI;LO,HI;...' (one pair per channel, states then inputs)"
@@ -238,6 +252,12 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
                    help="constant reference the MPC tracks, one value or one per state (default: 0)")
     m.add_argument("--x-max", type=_float_list, default=None, metavar="X",
                    help="state box |x_i| <= X on the predicted states, one value or one per state (default: none)")
+    m.add_argument("--Qf", dest="qf", type=_qf_spec, default=None, metavar="dare|Q|F1,F2,..",
+                   help="terminal weight of the MPC: 'dare' (the stabilizing DARE solution of each identified "
+                        "model, the default), 'Q' (the stage weight) or a diagonal, one value or one per state")
+    m.add_argument("--terminal-box", dest="xf_max", type=_float_list, default=None, metavar="X",
+                   help="terminal box |x_N,i| <= X_i on the last predicted state, one value or one per state "
+                        "(default: none)")
     m.add_argument("--Q", dest="q_diag", type=_float_list, default=None, metavar="Q1,Q2,..",
                    help="diagonal of the state weight, one value or one per state (default: the system's Q)")
     m.add_argument("--R", dest="r_diag", type=_float_list, default=None, metavar="R1,R2,..",

@@ -168,8 +168,14 @@ def _mpc_config(args, system):
         raise UsageError(f"argument --u-max: give 1 or {system.m} values for system {system.name!r}; "
                          f"got {len(args.u_max)}")
     u_max = args.u_max[0] if len(args.u_max) == 1 else args.u_max
+    qf = getattr(args, "qf", None)
+    if qf == "Q":  # the stage weight as the terminal weight
+        Q = system.Q
+        if args.q_diag is None and abs(Q).sum() != abs(Q.diagonal()).sum():
+            raise UsageError(f"argument --Qf: Q of system {system.name!r} is not diagonal; give Qf as numbers")
+        qf = args.q_diag if args.q_diag is not None else tuple(float(x) for x in Q.diagonal())
     mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
-                     x_max=args.x_max, Q=args.q_diag, R=args.r_diag,
+                     x_max=args.x_max, xf_max=getattr(args, "xf_max", None), Qf=qf, Q=args.q_diag, R=args.r_diag,
                      verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps))
     mcfg.resolve(system)  # shape checks now, before any work
     return mcfg

@@ -98,6 +98,12 @@ CONTROLS: tuple[Control, ...] = (
             hint="Constant reference, one number per state (empty = regulate to 0). δ(ε) assumes x_ref = 0."),
     Control("x_max", "text", "state box x_max", "MPC",
             hint="|x_i| <= x_max_i over the horizon: one number for every state or one per state (empty = none)"),
+    Control("qf", "text", "terminal weight Qf", "MPC",
+            hint="'dare' (each model's stabilizing DARE solution, default), 'Q' (the stage weight) or a "
+                 "diagonal: one number for every state or one per state"),
+    Control("terminal_box", "text", "terminal box", "MPC",
+            hint="|x_N,i| <= X_i on the last predicted state: one number for every state or one per state "
+                 "(empty = none)"),
     Control("verify_steps", "number", "verdict steps", "MPC", 0, step=500, folder=_V, convert=int,
             hint="At most this many extra closed-loop steps to decide whether a loop converges, stays bounded "
                  "or diverges on the true plant (where the spectral radius alone does not decide)"),

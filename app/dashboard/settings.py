@@ -98,6 +98,8 @@ class Values:
     x_max: str = ""  # state box |x_i| <= x_max_i: one number for all or one per state ("" = none)
     view_channel: int = 0  # the quantizer view's channel (states, then inputs)
     compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
+    qf: str = "dare"  # terminal weight: "dare", "Q" or a diagonal (one number or one per state)
+    terminal_box: str = ""  # |x_N,i| <= X_i on the last predicted state ("" = none)
     verify_steps: int = _MPC.verify_steps  # extra closed-loop steps allowed to judge each loop
     target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
     cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
@@ -245,15 +247,15 @@ def estimators(choice: str) -> tuple:
     return IDENT_CHOICES[choice]
 
 
-def _state_box(text: str, n: int, names: str) -> tuple | None:
-    """The state box typed in the panel: one bound for every state or one per state ("" = no box)."""
+def _state_box(text: str, n: int, names: str, what: str = "x_max") -> tuple | None:
+    """A state box typed in the panel: one bound for every state or one per state ("" = no box)."""
     s = (text or "").strip()
     if not s:
         return None
     k = len(s.replace(",", " ").replace(";", " ").split())
-    box = parse_vector(s, "x_max", 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
+    box = parse_vector(s, what, 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
     if not all(np.isfinite(x) and x > 0 for x in box):
-        raise InputError(f"x_max: every bound must be a positive number; got {s!r}")
+        raise InputError(f"{what}: every bound must be a positive number; got {s!r}")
     return box if len(box) == n else box * n
 
 
@@ -266,9 +268,18 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     x0 = parse_vector(v.x0, "x0", n, f" (one per state: {names})")
     x_ref = parse_vector(v.x_ref, "x_ref", n, f" (one per state: {names})")
     x_max = _state_box(v.x_max, n, names)
+    xf_max = _state_box(v.terminal_box, n, names, "terminal box")
+    qf_text = (v.qf or "").strip()
+    if qf_text.lower() in ("", "dare"):
+        Qf = None
+    elif qf_text == "Q":
+        Qf = Q if Q is not None else tuple(float(x) for x in np.diag(system.Q))
+    else:
+        k = len(qf_text.replace(",", " ").replace(";", " ").split())
+        Qf = parse_vector(qf_text, "Qf", 1 if k == 1 else n, f" ('dare', 'Q', one number or one per state: {names})")
     try:
         return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0,
-                         x_ref=x_ref, x_max=x_max, verify_steps=int(v.verify_steps))
+                         x_ref=x_ref, x_max=x_max, xf_max=xf_max, Qf=Qf, verify_steps=int(v.verify_steps))
     except QsidError as exc:
         raise InputError(str(exc)) from None
 
