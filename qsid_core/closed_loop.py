@@ -16,6 +16,7 @@ import numpy as np
 
 from .condensed_qp import box_qp_batch, condense
 from .errors import FailureKind, MPCFailure
+from .loop_noise import LoopNoise, loop_noise
 from .mpc import MPCConfig, MPCController, MPCWeights
 from .riccati import dare_batch, lq_parts
 from .stage_results import ClosedLoops
@@ -70,8 +71,9 @@ class _Loops:
     """State of the batched closed loops (arrays indexed by realisation ``i``)."""
 
     def __init__(self, ctrls: list, w: MPCWeights, A: np.ndarray, B: np.ndarray, steps: int, out: ClosedLoops,
-                 x_start: np.ndarray | None = None, cq=None):
+                 x_start: np.ndarray | None = None, cq=None, noise: LoopNoise | None = None):
         self.ctrls, self.w, self.A, self.B, self.steps, self.out = ctrls, w, A, B, steps, out
+        self.noise = noise  # disturbance and measurement draws (None: exact state feedback, no disturbance)
         self.n, self.m = B.shape
         live = np.flatnonzero([c is not None for c in ctrls])
         self.live = live
@@ -93,6 +95,15 @@ class _Loops:
         self.prevU = np.full((len(ctrls), self.nU), np.nan)  # last optimal input sequence per model
         self.prev_t = np.full(len(ctrls), -2)  # the step it was computed at
         self.ub = np.tile(w.u_max, self.nU // self.m)  # box of U = [u_0; ...; u_{N-1}]
+
+    def seen(self, x: np.ndarray, t: int) -> np.ndarray:
+        """What the controller measures of true states ``x`` (shape (L, n)) at step ``t``."""
+        return x if self.noise is None else self.noise.measure(x, t)
+
+    def moved(self, x: np.ndarray, u: np.ndarray, t: int) -> np.ndarray:
+        """The true plant's next states ``A x + B u`` (+ the disturbance at step ``t``)."""
+        xn = x @ self.A.T + u @ self.B.T
+        return xn if self.noise is None else xn + self.noise.w[t]
 
     def rows(self, active: np.ndarray) -> np.ndarray:
         """Rows of the live-model arrays (``F``, ``f``, the condensed QPs) of realisations ``active``."""
@@ -128,16 +139,23 @@ class _Loops:
         H = self.steps - t
         xs = np.empty((active.size, H + 1, n))
         xs[:, 0] = self.x[active]
-        for h in range(H):
-            xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
-        z = np.einsum("lrn,lhn->lhr", self.F[j], xs[:, :H]) + self.f[j][:, None, :]
+        if self.noise is None:
+            for h in range(H):
+                xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
+            z = np.einsum("lrn,lhn->lhr", self.F[j], xs[:, :H]) + self.f[j][:, None, :]
+        else:  # the law acts on what the controller measures; the true plant is disturbed
+            z = np.empty((active.size, H, self.f.shape[1]))
+            for h in range(H):
+                z[:, h] = np.einsum("lrn,ln->lr", self.F[j], self.noise.measure(xs[:, h], t + h)) + self.f[j]
+                xs[:, h + 1] = xs[:, h] @ self.A.T + z[:, h, :m] @ self.B.T + self.noise.w[t + h]
         ok = np.all(np.abs(z) <= self.bound, axis=2)
         ok &= np.all(np.isfinite(xs[:, 1:]), axis=2) & (np.abs(xs[:, 1:]).max(axis=2) <= DIVERGED)
         first_bad = np.where(ok.all(axis=1), H, np.argmin(ok, axis=1))
         if t == 0:
+            y0 = self.seen(xs[:, 0], 0)
             for a, i in enumerate(active):
                 if first_bad[a] > 0:
-                    out.J0[i] = self.ctrls[i].cost_to_go(xs[a, 0])
+                    out.J0[i] = self.ctrls[i].cost_to_go(y0[a])
         tau = int(first_bad.min())
         done = first_bad == H
         us = z[:, :, :m]
@@ -217,20 +235,21 @@ class _Loops:
         keep, all_fast = [], True
         for i in active:
             c, x = self.ctrls[i], self.x[i]
-            z = c.F @ x + c.f
+            y = self.seen(x[None], t)[0]
+            z = c.F @ y + c.f
             fast = bool(np.all(np.abs(z) <= c.bound))
             try:
                 if fast:
-                    u, J = z[:m], (c.cost_to_go(x) if t == 0 else np.nan)
+                    u, J = z[:m], (c.cost_to_go(y) if t == 0 else np.nan)
                 else:
                     out.qp_steps += 1
-                    u, J = c.solve_qp(x)
+                    u, J = c.solve_qp(y)
             except MPCFailure as exc:
                 self.fail(i, exc.kind, f"step {t}: {exc}")
                 continue
             if t == 0:
                 out.J0[i] = J
-            xn = self.A @ x + self.B @ u  # the true plant moves
+            xn = self.moved(x[None], np.asarray(u)[None], t)[0]  # the true plant moves
             if not np.all(np.isfinite(xn)) or np.abs(xn).max() > DIVERGED:
                 self.fail(i, FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
                 continue
@@ -249,19 +268,19 @@ class _Loops:
         """
         j = self.rows(active)
         xi = self.x[active]
-        z1 = np.einsum("lrn,ln->lr", self.F[j], xi) + self.f[j]
+        yi = self.seen(xi, t)
+        z1 = np.einsum("lrn,ln->lr", self.F[j], yi) + self.f[j]
         fast_ok = np.all(np.abs(z1) <= self.bound, axis=1)
         u = z1[:, : self.m].copy()
         keep = np.ones(active.size, dtype=bool)
         slow = np.flatnonzero(~fast_ok)
         if slow.size:
-            u[slow], ok = self.solve_slow(active[slow], xi[slow], z1[slow], t)
+            u[slow], ok = self.solve_slow(active[slow], yi[slow], z1[slow], t)
             keep[slow] = ok
         if t == 0:
             for a in np.flatnonzero(fast_ok):
-                self.out.J0[active[a]] = self.ctrls[active[a]].cost_to_go(xi[a])
-        # the true plant moves: x+ = A x + B u
-        xn = xi @ self.A.T + u @ self.B.T
+                self.out.J0[active[a]] = self.ctrls[active[a]].cost_to_go(yi[a])
+        xn = self.moved(xi, u, t)  # the true plant moves: x+ = A x + B u (+ w)
         bad = ~np.all(np.isfinite(xn), axis=1) | (np.abs(xn).max(axis=1) > DIVERGED)
         for a in np.flatnonzero(bad & keep):
             self.fail(int(active[a]), FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
@@ -274,7 +293,8 @@ class _Loops:
         return sel, bool(fast_ok[keep].all())
 
 
-def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system) -> ClosedLoops:
+def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system,
+                     feedback_range: tuple | None = None) -> ClosedLoops:
     """Run the MPC built on each model ``(A^, B^)`` in closed loop on the true system.
 
     Exact and fast: while the unconstrained LQ optimum is feasible, the MPC law
@@ -296,6 +316,11 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     cfg : MPCConfig
     system : LTISystem
         Supplies default Q, R and x0 (see :meth:`MPCConfig.resolve`).
+    feedback_range : (lo, hi, guard), optional
+        The training data's state range, for ``cfg.feedback_bits`` (:mod:`qsid_core.loop_noise`).
+        With a disturbance or a quantized/noisy measurement the verdicts are those of
+        the same MPC on the noise-free plant (the law's stability), except that a
+        loop whose disturbed run diverged is ``diverged``.
 
     Returns
     -------
@@ -305,6 +330,7 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     n, m = B_true.shape
     Rn, steps = len(models), cfg.steps
     out = ClosedLoops.empty(Rn, steps, n, m)
+    out.x_ref = w.x_ref
     ctrls = _controllers(models, w, cfg, out.failure, out.messages)
     if all(c is None for c in ctrls):
         if cfg.verify_steps is not None:
@@ -313,13 +339,20 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
             out.verdict_steps = np.zeros(Rn, dtype=int)
             out.gains = [None] * Rn
         return out
-    loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out)
+    noise = loop_noise(cfg, n, steps, feedback_range)
+    loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out, noise=noise)
     advance(loops, loops.live.copy())
     ok = np.array([not fl for fl in out.failure])
     out.cost[ok] = loops.acc[ok]
     out.J0[~ok] = np.nan
-    if cfg.verify_steps is not None:
+    if cfg.verify_steps is None:
+        return out
+    if noise is None:
         judge(loops, cfg.verify_steps, _extender(loops))
+    else:
+        clean = run_closed_loops(models, A_true, B_true, cfg.nominal(), system)
+        out.outcome = ["diverged" if f == FailureKind.DIVERGED else o for f, o in zip(out.failure, clean.outcome)]
+        out.spectral_radius, out.verdict_steps, out.gains = clean.spectral_radius, clean.verdict_steps, clean.gains
     return out
 
 

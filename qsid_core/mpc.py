@@ -29,7 +29,7 @@ The solver's status is checked every step; failures raise :class:`MPCFailure`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -94,6 +94,17 @@ class MPCConfig:
         QP solver for the steps where a bound is active: DAQP on the condensed
         problem (default, exact active set) or OSQP on the sparse one (the
         previous engine, kept as a reference).
+    disturbance : float >= 0
+        Standard deviation of the process disturbance added to the true plant in
+        the closed loop (:mod:`qsid_core.loop_noise`; default 0).
+    disturbance_kind : {"gaussian", "uniform"}
+    feedback_bits : int or None, 1..32
+        The MPC measures the state through a quantizer of this many bits per state
+        (subtractive dither, the training data's range); None: exact (default).
+    feedback_noise : float >= 0
+        Standard deviation of sensor noise on that measurement (default 0).
+    loop_seed : int >= 0
+        Seed of the disturbance, feedback dither and sensor noise (shared by every loop).
     verify_steps : int or None, 0..1000000
         At most this many closed-loop steps beyond ``steps`` to decide whether a
         loop converges, stays bounded or diverges (:mod:`qsid_core.verdicts`;
@@ -114,9 +125,29 @@ class MPCConfig:
     max_iter: int = 20000
     solver: str = "daqp"
     verify_steps: int | None = 20000
+    disturbance: float = 0.0
+    disturbance_kind: str = "gaussian"
+    feedback_bits: int | None = None
+    feedback_noise: float = 0.0
+    loop_seed: int = 0
+
+    def nominal(self) -> "MPCConfig":
+        """The same MPC with exact state feedback and no disturbance."""
+        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0)
+
+    @property
+    def noisy(self) -> bool:
+        """Whether the loop is disturbed or measures the state inexactly."""
+        return bool(self.disturbance or self.feedback_noise or self.feedback_bits is not None)
 
     def __post_init__(self) -> None:
         check_choice("solver", self.solver, SOLVERS)
+        check_choice("disturbance kind", self.disturbance_kind, ("gaussian", "uniform"))
+        object.__setattr__(self, "disturbance", check_float("disturbance", self.disturbance, 0.0, 1e6))
+        object.__setattr__(self, "feedback_noise", check_float("feedback noise", self.feedback_noise, 0.0, 1e6))
+        if self.feedback_bits is not None:
+            check_int("feedback bits", self.feedback_bits, 1, 32)
+        check_int("loop seed", self.loop_seed, 0)
         if self.verify_steps is not None:
             check_int("verify steps", self.verify_steps, 0, 1_000_000)
         check_int("horizon", self.horizon, 1, 200)

@@ -155,6 +155,8 @@ class ClosedLoops:
         Closed-loop steps it took to reach the verdict (``steps`` plus any extra steps).
     gains : list of ndarray (m, n) or None
         ``K^`` of each loop's unconstrained law ``u = -K^ x + k`` (None where no MPC ran).
+    x_ref : ndarray, shape (n,), or None
+        The reference the loops were steered to.
     """
 
     states: np.ndarray
@@ -168,6 +170,20 @@ class ClosedLoops:
     spectral_radius: np.ndarray | None = None
     verdict_steps: np.ndarray | None = None
     gains: list = field(default_factory=list)
+    x_ref: np.ndarray | None = None
+
+    @property
+    def steady_state_error(self) -> np.ndarray:
+        """shape (R,): RMS of ``||x_t - x_ref||`` over the last half of each loop (NaN where it failed).
+
+        With a disturbance or a quantized measurement this is the residual the loop
+        keeps; without them it is what is left of the transient.
+        """
+        st = self.states
+        T = st.shape[1]
+        ref = 0.0 if self.x_ref is None else self.x_ref
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(np.mean(np.sum((st[:, T // 2:] - ref) ** 2, axis=2), axis=1))
 
     @classmethod
     def empty(cls, loops: int, steps: int, n: int, m: int) -> "ClosedLoops":

@@ -61,7 +61,7 @@ def _peak(states: np.ndarray, x_ref: np.ndarray) -> float:
 class _Judge:
     """The verdict state of every loop of one :func:`judge` call."""
 
-    def __init__(self, loops: _Loops):
+    def __init__(self, loops):
         self.loops = loops
         out = loops.out
         Rn, m = len(loops.ctrls), loops.m

@@ -44,6 +44,15 @@ def _mpc_args(cfg, system) -> list:
         out.append(f"--mpc-steps={m.steps}")
     if m.u_max != d.u_max:
         out.append(f"--u-max={floats_spec(m.u_max)}")
+    if m.disturbance:
+        out.append(f"--disturbance={m.disturbance!r}" + ("" if m.disturbance_kind == "gaussian" else
+                                                         f":{m.disturbance_kind}"))
+    if m.feedback_bits is not None:
+        out.append(f"--feedback-bits={m.feedback_bits}")
+    if m.feedback_noise:
+        out.append(f"--feedback-noise={m.feedback_noise!r}")
+    if m.loop_seed != d.loop_seed:
+        out.append(f"--loop-seed={m.loop_seed}")
     if m.verify_steps != d.verify_steps:
         if m.verify_steps is None:
             raise ValueError("the command line has no flag for switching the closed-loop verdicts off")

@@ -176,7 +176,11 @@ def _mpc_config(args, system):
         qf = args.q_diag if args.q_diag is not None else tuple(float(x) for x in Q.diagonal())
     mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
                      x_max=args.x_max, xf_max=getattr(args, "xf_max", None), Qf=qf, Q=args.q_diag, R=args.r_diag,
-                     verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps))
+                     verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps),
+                     disturbance=getattr(args, "disturbance", (0.0, "gaussian"))[0],
+                     disturbance_kind=getattr(args, "disturbance", (0.0, "gaussian"))[1],
+                     feedback_bits=getattr(args, "feedback_bits", None),
+                     feedback_noise=getattr(args, "feedback_noise", 0.0), loop_seed=getattr(args, "loop_seed", 0))
     mcfg.resolve(system)  # shape checks now, before any work
     return mcfg
 

@@ -55,6 +55,7 @@ class Control:
 
 _R = "Dither realizations"
 _V = "How many bits?"
+_L = "Real loop"
 #: Every input of the panel, in display order (tabs appear in order of first use).
 CONTROLS: tuple[Control, ...] = (
     Control("lesson", "dropdown", "lesson", choices=lesson_names(),
@@ -104,6 +105,16 @@ CONTROLS: tuple[Control, ...] = (
     Control("terminal_box", "text", "terminal box", "MPC",
             hint="|x_N,i| <= X_i on the last predicted state: one number for every state or one per state "
                  "(empty = none)"),
+    Control("disturbance", "number", "disturbance σ", "MPC", 0.0, step=0.005, folder=_L, convert=float,
+            hint="Process noise added to the true plant in the closed loop (standard deviation; the same draws "
+                 "for every b, estimator and the true-model loop)"),
+    Control("disturbance_kind", "dropdown", "disturbance kind", "MPC", choices=("gaussian", "uniform"), folder=_L),
+    Control("feedback_bits", "slider", "feedback bits", "MPC", 0, 16, 1, folder=_L, convert=int,
+            hint="The MPC measures the state through this many bits per state (subtractive dither, the training "
+                 "data's range); 0 = exact state"),
+    Control("feedback_noise", "number", "sensor noise σ", "MPC", 0.0, step=0.005, folder=_L, convert=float,
+            hint="Noise on the state the MPC measures (standard deviation)"),
+    Control("loop_seed", "number", "loop seed", "MPC", 0, step=1, folder=_L, convert=int),
     Control("verify_steps", "number", "verdict steps", "MPC", 0, step=500, folder=_V, convert=int,
             hint="At most this many extra closed-loop steps to decide whether a loop converges, stays bounded "
                  "or diverges on the true plant (where the spectral radius alone does not decide)"),

@@ -100,6 +100,11 @@ class Values:
     compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
     qf: str = "dare"  # terminal weight: "dare", "Q" or a diagonal (one number or one per state)
     terminal_box: str = ""  # |x_N,i| <= X_i on the last predicted state ("" = none)
+    disturbance: float = 0.0  # process noise on the true plant in the loop (standard deviation)
+    disturbance_kind: str = "gaussian"
+    feedback_bits: int = 0  # the MPC measures the state through this many bits per state (0 = exact)
+    feedback_noise: float = 0.0  # sensor noise on that measurement (standard deviation)
+    loop_seed: int = 0  # seed of the loop's disturbance, feedback dither and sensor noise
     verify_steps: int = _MPC.verify_steps  # extra closed-loop steps allowed to judge each loop
     target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
     cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
@@ -279,7 +284,10 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
         Qf = parse_vector(qf_text, "Qf", 1 if k == 1 else n, f" ('dare', 'Q', one number or one per state: {names})")
     try:
         return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0,
-                         x_ref=x_ref, x_max=x_max, xf_max=xf_max, Qf=Qf, verify_steps=int(v.verify_steps))
+                         x_ref=x_ref, x_max=x_max, xf_max=xf_max, Qf=Qf, verify_steps=int(v.verify_steps),
+                         disturbance=float(v.disturbance), disturbance_kind=v.disturbance_kind,
+                         feedback_bits=int(v.feedback_bits) or None, feedback_noise=float(v.feedback_noise),
+                         loop_seed=int(v.loop_seed))
     except QsidError as exc:
         raise InputError(str(exc)) from None
 
