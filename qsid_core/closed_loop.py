@@ -17,6 +17,7 @@ import numpy as np
 from .condensed_qp import box_qp_batch, condense
 from .errors import FailureKind, MPCFailure
 from .loop_noise import LoopNoise, loop_noise
+from .tracking import Preview
 from .mpc import MPCConfig, MPCController, MPCWeights
 from .riccati import dare_batch, lq_parts
 from .stage_results import ClosedLoops
@@ -74,6 +75,7 @@ class _Loops:
                  x_start: np.ndarray | None = None, cq=None, noise: LoopNoise | None = None):
         self.ctrls, self.w, self.A, self.B, self.steps, self.out = ctrls, w, A, B, steps, out
         self.noise = noise  # disturbance and measurement draws (None: exact state feedback, no disturbance)
+        self.preview: Preview | None = None  # a time-varying reference (None: the constant x_ref)
         self.n, self.m = B.shape
         live = np.flatnonzero([c is not None for c in ctrls])
         self.live = live
@@ -109,9 +111,19 @@ class _Loops:
         """Rows of the live-model arrays (``F``, ``f``, the condensed QPs) of realisations ``active``."""
         return self.pos[active]
 
-    def stage_cost(self, xs: np.ndarray, us: np.ndarray) -> np.ndarray:
-        """``(x - r)'Q(x - r) + u'R u`` over the last axis."""
-        e = xs - self.w.x_ref
+    def track(self) -> None:
+        """Follow ``w.reference`` with preview (the controllers were built for a zero reference)."""
+        self.condensed()
+        self.preview = Preview(self.cq, self.F.shape[1], self.w.reference)
+
+    def ref_offsets(self, j: np.ndarray, t: int, H: int):
+        """The reference part of the prediction map at steps ``t..t+H-1`` (0 without a time-varying reference)."""
+        return 0.0 if self.preview is None else self.preview.offsets(j, t, H)
+
+    def stage_cost(self, xs: np.ndarray, us: np.ndarray, t: int = 0) -> np.ndarray:
+        """``(x - r)'Q(x - r) + u'R u`` over the last axis (``xs`` from step ``t``)."""
+        # a time-varying reference runs along the time axis (second to last) from step t
+        e = xs - (self.w.x_ref if self.preview is None else self.preview.r[t : t + xs.shape[-2]])
         return np.einsum("...i,ij,...j->...", e, self.w.Q, e) + np.einsum("...i,ij,...j->...", us, self.w.R, us)
 
     def fail(self, i: int, kind: FailureKind, msg: str) -> None:
@@ -139,15 +151,15 @@ class _Loops:
         H = self.steps - t
         xs = np.empty((active.size, H + 1, n))
         xs[:, 0] = self.x[active]
-        if self.noise is None:
+        if self.noise is None and self.preview is None:
             for h in range(H):
                 xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
             z = np.einsum("lrn,lhn->lhr", self.F[j], xs[:, :H]) + self.f[j][:, None, :]
-        else:  # the law acts on what the controller measures; the true plant is disturbed
-            z = np.empty((active.size, H, self.f.shape[1]))
+        else:  # the law acts on what the controller measures and previews; the true plant may be disturbed
+            z = np.zeros((active.size, H, self.f.shape[1])) + self.ref_offsets(j, t, H)
             for h in range(H):
-                z[:, h] = np.einsum("lrn,ln->lr", self.F[j], self.noise.measure(xs[:, h], t + h)) + self.f[j]
-                xs[:, h + 1] = xs[:, h] @ self.A.T + z[:, h, :m] @ self.B.T + self.noise.w[t + h]
+                z[:, h] += np.einsum("lrn,ln->lr", self.F[j], self.seen(xs[:, h], t + h)) + self.f[j]
+                xs[:, h + 1] = self.moved(xs[:, h], z[:, h, :m], t + h)
         ok = np.all(np.abs(z) <= self.bound, axis=2)
         ok &= np.all(np.isfinite(xs[:, 1:]), axis=2) & (np.abs(xs[:, 1:]).max(axis=2) <= DIVERGED)
         first_bad = np.where(ok.all(axis=1), H, np.argmin(ok, axis=1))
@@ -155,7 +167,7 @@ class _Loops:
             y0 = self.seen(xs[:, 0], 0)
             for a, i in enumerate(active):
                 if first_bad[a] > 0:
-                    out.J0[i] = self.ctrls[i].cost_to_go(y0[a])
+                    out.J0[i] = self.first_cost(i, y0[a], z[a, 0, : self.nU])
         tau = int(first_bad.min())
         done = first_bad == H
         us = z[:, :, :m]
@@ -164,9 +176,17 @@ class _Loops:
             if k:
                 out.states[i, t + 1 : t + k + 1] = xs[a, 1 : k + 1]
                 out.inputs[i, t : t + k] = us[a, :k]
-                self.acc[i] += self.stage_cost(xs[a, :k], us[a, :k]).sum()
+                self.acc[i] += self.stage_cost(xs[a, :k], us[a, :k], t).sum()
                 self.x[i] = xs[a, k]
         return active[~done], t + tau
+
+    def first_cost(self, i: int, y: np.ndarray, U: np.ndarray) -> float:
+        """``J*(x0)`` of loop ``i``'s first problem from its unconstrained optimum ``U``."""
+        c = self.ctrls[i]
+        if self.preview is None:
+            return c.cost_to_go(y)
+        self.preview.set_qp(c._qp, self.pos[i], 0)
+        return c.qp_cost(y, U)
 
     def condensed(self) -> None:
         """Condense the QPs of all live models in one batch (once) and hand them to the controllers."""
@@ -199,6 +219,8 @@ class _Loops:
         if self.guess:
             j = self.rows(idx)
             g = np.einsum("lij,lj->li", self.cq.Gx[j], xs) + self.cq.g0[j]
+            if self.preview is not None:
+                g += self.preview.g(j, t)
             prev = self.prevU[idx]
             shifted = np.concatenate([prev[:, m:], prev[:, -m:]], axis=1)
             fresh = (self.prev_t[idx] != t - 1)[:, None]  # no solution at the previous step: guess afresh
@@ -212,6 +234,8 @@ class _Loops:
         solved = np.ones(idx.size, dtype=bool)
         for a in np.flatnonzero(todo):
             i, c = int(idx[a]), self.ctrls[int(idx[a])]
+            if self.preview is not None:
+                self.preview.set_qp(c._qp, self.pos[i], t)
             try:
                 if c.solver == "daqp":
                     U = c.solve_daqp(xs[a])
@@ -225,7 +249,10 @@ class _Loops:
                 solved[a] = False
         if t == 0 and self.solver_is_daqp:  # the predicted optimal cost J*(x0) of the first problem
             for a in np.flatnonzero(solved):
-                self.out.J0[idx[a]] = self.ctrls[int(idx[a])].qp_cost(xs[a], self.prevU[idx[a]])
+                c = self.ctrls[int(idx[a])]
+                if self.preview is not None:
+                    self.preview.set_qp(c._qp, self.pos[idx[a]], 0)
+                self.out.J0[idx[a]] = c.qp_cost(xs[a], self.prevU[idx[a]])
         # the active set meets the bounds up to rounding: clip that rounding
         return np.clip(u, -self.w.u_max, self.w.u_max), solved
 
@@ -237,10 +264,13 @@ class _Loops:
             c, x = self.ctrls[i], self.x[i]
             y = self.seen(x[None], t)[0]
             z = c.F @ y + c.f
+            if self.preview is not None:
+                z = z + self.preview.offsets(self.pos[[i]], t, 1)[0, 0]
+                self.preview.set_qp(c._qp, self.pos[i], t)
             fast = bool(np.all(np.abs(z) <= c.bound))
             try:
                 if fast:
-                    u, J = z[:m], (c.cost_to_go(y) if t == 0 else np.nan)
+                    u, J = z[:m], (self.first_cost(i, y, z[: self.nU]) if t == 0 else np.nan)
                 else:
                     out.qp_steps += 1
                     u, J = c.solve_qp(y)
@@ -254,7 +284,7 @@ class _Loops:
                 self.fail(i, FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
                 continue
             out.states[i, t + 1], out.inputs[i, t] = xn, u
-            self.acc[i] += self.stage_cost(x, u)
+            self.acc[i] += self.stage_cost(x[None], np.asarray(u)[None], t)[0]
             self.x[i] = xn
             keep.append(i)
             all_fast &= fast
@@ -270,6 +300,8 @@ class _Loops:
         xi = self.x[active]
         yi = self.seen(xi, t)
         z1 = np.einsum("lrn,ln->lr", self.F[j], yi) + self.f[j]
+        if self.preview is not None:
+            z1 += self.preview.offsets(j, t, 1)[:, 0]
         fast_ok = np.all(np.abs(z1) <= self.bound, axis=1)
         u = z1[:, : self.m].copy()
         keep = np.ones(active.size, dtype=bool)
@@ -279,7 +311,7 @@ class _Loops:
             keep[slow] = ok
         if t == 0:
             for a in np.flatnonzero(fast_ok):
-                self.out.J0[active[a]] = self.ctrls[active[a]].cost_to_go(yi[a])
+                self.out.J0[active[a]] = self.first_cost(int(active[a]), yi[a], z1[a, : self.nU])
         xn = self.moved(xi, u, t)  # the true plant moves: x+ = A x + B u (+ w)
         bad = ~np.all(np.isfinite(xn), axis=1) | (np.abs(xn).max(axis=1) > DIVERGED)
         for a in np.flatnonzero(bad & keep):
@@ -288,7 +320,8 @@ class _Loops:
         sel = active[keep]
         self.out.states[sel, t + 1] = xn[keep]
         self.out.inputs[sel, t] = u[keep]
-        self.acc[sel] += self.stage_cost(xi[keep], u[keep])
+        self.acc[sel] += self.stage_cost(xi[keep], u[keep], t) if self.preview is None else \
+            self.stage_cost(xi[keep][:, None], u[keep][:, None], t)[:, 0]
         self.x[sel] = xn[keep]
         return sel, bool(fast_ok[keep].all())
 
@@ -341,13 +374,16 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
         return out
     noise = loop_noise(cfg, n, steps, feedback_range)
     loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out, noise=noise)
+    if w.reference is not None:
+        loops.track()
+        out.x_ref = w.reference[: steps + 1]
     advance(loops, loops.live.copy())
     ok = np.array([not fl for fl in out.failure])
     out.cost[ok] = loops.acc[ok]
     out.J0[~ok] = np.nan
     if cfg.verify_steps is None:
         return out
-    if noise is None:
+    if noise is None and w.reference is None:
         judge(loops, cfg.verify_steps, _extender(loops))
     else:
         clean = run_closed_loops(models, A_true, B_true, cfg.nominal(), system)

@@ -36,6 +36,7 @@ import numpy as np
 from .condensed_qp import CondensedQP, DaqpMPC, condense
 from .errors import ConfigError, FailureKind, MPCFailure, check_choice, check_float, check_int
 from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
+from .reference import reference_samples
 from .validate import as_float_array
 
 __all__ = ["MPCConfig", "MPCWeights", "MPCFailure", "MPCController", "FailureKind", "FAILURE_KINDS", "SOLVERS",
@@ -105,6 +106,10 @@ class MPCConfig:
         Standard deviation of sensor noise on that measurement (default 0).
     loop_seed : int >= 0
         Seed of the disturbance, feedback dither and sensor noise (shared by every loop).
+    reference : str or tuple of rows, optional
+        A time-varying reference with preview (:mod:`qsid_core.reference`):
+        ``"step:STATE:AMP:TIME"``, ``"sine:STATE:AMP:PERIOD"``, ``"square:STATE:AMP:PERIOD"``
+        or samples (one row per step, one column per state). Excludes ``x_ref``.
     verify_steps : int or None, 0..1000000
         At most this many closed-loop steps beyond ``steps`` to decide whether a
         loop converges, stays bounded or diverges (:mod:`qsid_core.verdicts`;
@@ -130,10 +135,11 @@ class MPCConfig:
     feedback_bits: int | None = None
     feedback_noise: float = 0.0
     loop_seed: int = 0
+    reference: str | tuple | None = None
 
     def nominal(self) -> "MPCConfig":
-        """The same MPC with exact state feedback and no disturbance."""
-        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0)
+        """The same MPC regulating to the constant ``x_ref``, with exact state feedback and no disturbance."""
+        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0, reference=None)
 
     @property
     def noisy(self) -> bool:
@@ -148,6 +154,15 @@ class MPCConfig:
         if self.feedback_bits is not None:
             check_int("feedback bits", self.feedback_bits, 1, 32)
         check_int("loop seed", self.loop_seed, 0)
+        if self.reference is not None and not isinstance(self.reference, str):
+            rows = np.atleast_2d(np.asarray(self.reference, dtype=float))
+            if rows.ndim != 2 or rows.size == 0 or not np.all(np.isfinite(rows)):
+                raise ConfigError("reference samples must be a non-empty table of finite numbers (rows: steps)")
+            object.__setattr__(self, "reference", tuple(tuple(r) for r in rows.tolist()))
+        if self.reference is not None and self.solver == "osqp":
+            raise ConfigError("a time-varying reference needs solver='daqp' (the condensed problem)")
+        if self.reference is not None and self.x_ref is not None:
+            raise ConfigError("give either a constant x_ref or a time-varying reference, not both")
         if self.verify_steps is not None:
             check_int("verify steps", self.verify_steps, 0, 1_000_000)
         check_int("horizon", self.horizon, 1, 200)
@@ -197,6 +212,8 @@ class MPCConfig:
             u_max=full("u_max", self.u_max, m, None),
             x_max=None if self.x_max is None else full("x_max", self.x_max, n, None),
             xf_max=None if self.xf_max is None else full("xf_max", self.xf_max, n, None),
+            reference=None if self.reference is None else
+            reference_samples(self.reference, system.state_names, self.steps + self.horizon + 1),
         )
 
 
@@ -225,6 +242,8 @@ class MPCWeights:
         State box on the predicted ``x_1..x_N``.
     xf_max : ndarray, shape (n,), or None
         Terminal box on ``x_N``.
+    reference : ndarray, shape (steps + horizon + 1, n), or None
+        The time-varying reference ``r_0 ..`` (with it ``x_ref`` is 0 and unused).
     """
 
     Q: np.ndarray
@@ -235,6 +254,7 @@ class MPCWeights:
     u_max: np.ndarray
     x_max: np.ndarray | None
     xf_max: np.ndarray | None
+    reference: np.ndarray | None = None
 
 
 

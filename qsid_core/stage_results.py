@@ -155,8 +155,8 @@ class ClosedLoops:
         Closed-loop steps it took to reach the verdict (``steps`` plus any extra steps).
     gains : list of ndarray (m, n) or None
         ``K^`` of each loop's unconstrained law ``u = -K^ x + k`` (None where no MPC ran).
-    x_ref : ndarray, shape (n,), or None
-        The reference the loops were steered to.
+    x_ref : ndarray, shape (n,) or (steps + 1, n), or None
+        The reference the loops were steered to (constant, or ``r_0 .. r_steps``).
     """
 
     states: np.ndarray
@@ -171,6 +171,14 @@ class ClosedLoops:
     verdict_steps: np.ndarray | None = None
     gains: list = field(default_factory=list)
     x_ref: np.ndarray | None = None
+
+    @property
+    def tracking_error(self) -> np.ndarray:
+        """shape (R,): RMS of ``||x_t - r_t||`` over the whole loop (NaN where it failed)."""
+        st = self.states
+        ref = 0.0 if self.x_ref is None else self.x_ref
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(np.mean(np.sum((st - ref) ** 2, axis=2), axis=1))
 
     @property
     def steady_state_error(self) -> np.ndarray:
