@@ -189,7 +189,9 @@ class ClosedLoops:
         """
         st = self.states
         T = st.shape[1]
-        ref = 0.0 if self.x_ref is None else self.x_ref
+        ref = 0.0 if self.x_ref is None else np.asarray(self.x_ref)
+        if np.ndim(ref) == 2:  # a time-varying reference, r_0 .. r_steps
+            ref = ref[T // 2:]
         with np.errstate(invalid="ignore"):
             return np.sqrt(np.mean(np.sum((st[:, T // 2:] - ref) ** 2, axis=2), axis=1))
 

@@ -126,6 +126,8 @@ class SweepResult:
                     "disturbance": c.mpc.disturbance, "disturbance_kind": c.mpc.disturbance_kind,
                     "feedback_bits": c.mpc.feedback_bits, "feedback_noise": c.mpc.feedback_noise,
                     "loop_seed": c.mpc.loop_seed,
+                    "reference": c.mpc.reference if isinstance(c.mpc.reference, (str, type(None)))
+                    else [list(r) for r in c.mpc.reference],
                 },
                 "theta": c.theta, "rho": c.rho, "input_amplitude": c.input_amplitude,
                 "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
@@ -134,6 +136,7 @@ class SweepResult:
             "mpc_cost_true_model": None if self.true_loop is None else float(self.true_loop.cost[0]),
             "steady_state_error_true_model": None if self.true_loop is None else
             float(self.true_loop.steady_state_error[0]),
+            "tracking_error_true_model": None if self.true_loop is None else float(self.true_loop.tracking_error[0]),
             "data_rate_bits": data_rate_bits(self.system.A),
             "slope_A": float(self.slope_A),
             "slope_B": float(self.slope_B),

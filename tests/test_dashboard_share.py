@@ -41,6 +41,7 @@ CASES = {
     "terminal weight Q and box, verdict settings": Values(qf="Q", terminal_box="0.8, 2, 2", verify_steps=1500,
                                                            target=0.9, cost_gap=0.02, log_q=(0.3, -1.0, 0.0)),
     "terminal weight numbers": Values(system="boeing747", qf="5", terminal_box="3"),
+    "tracking a sine": Values(system="boeing747", reference="sine:u:1:40"),
     "real loop": Values(disturbance=0.01, disturbance_kind="uniform", feedback_bits=6, feedback_noise=0.002,
                         loop_seed=4),
 }

@@ -44,6 +44,11 @@ def _mpc_args(cfg, system) -> list:
         out.append(f"--mpc-steps={m.steps}")
     if m.u_max != d.u_max:
         out.append(f"--u-max={floats_spec(m.u_max)}")
+    if m.reference is not None:
+        if not isinstance(m.reference, str):
+            raise ValueError("the command line gives a sampled reference as a CSV file: write it and use "
+                             "--reference FILE.csv")
+        out.append(f"--reference={m.reference}")
     if m.disturbance:
         out.append(f"--disturbance={m.disturbance!r}" + ("" if m.disturbance_kind == "gaussian" else
                                                          f":{m.disturbance_kind}"))

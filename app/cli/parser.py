@@ -278,6 +278,11 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
                    help="initial state of the closed loops, one per state (default: the system's x0)")
     m.add_argument("--x-ref", type=_float_list, default=None, metavar="R1,R2,..",
                    help="constant reference the MPC tracks, one value or one per state (default: 0)")
+    m.add_argument("--reference", default=None, metavar="SPEC|FILE.csv",
+                   help="time-varying reference the MPC tracks with preview: step:STATE:AMPLITUDE:TIME, "
+                        "sine:STATE:AMPLITUDE:PERIOD, square:STATE:AMPLITUDE:PERIOD (STATE a name or 1-based "
+                        "index, times in samples) or a CSV file with one row per step and one column per state; "
+                        "excludes --x-ref")
     m.add_argument("--x-max", type=_float_list, default=None, metavar="X",
                    help="state box |x_i| <= X on the predicted states, one value or one per state (default: none)")
     m.add_argument("--Qf", dest="qf", type=_qf_spec, default=None, metavar="dare|Q|F1,F2,..",

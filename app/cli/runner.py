@@ -161,6 +161,33 @@ def _quantizer(args, system):
                          fixed_range=None if fixed is None else (fixed[0] if len(fixed) == 1 else fixed))
 
 
+def _reference(text: str | None, system):
+    """``--reference``: a text form (checked against the system's states) or the samples of a CSV file."""
+    if text is None:
+        return None
+    from qsid_core.reference import KINDS, parse_reference
+
+    if text.split(":", 1)[0].strip().lower() in KINDS:
+        parse_reference(text, system.state_names)  # one clear error now, before any work
+        return text
+    p = Path(text)
+    if not p.is_file():
+        raise UsageError(f"argument --reference: {text!r} is neither step:/sine:/square:... nor a CSV file")
+    import numpy as np
+
+    try:
+        rows = [ln for ln in p.read_text(encoding="utf-8").splitlines() if ln.strip()]
+        if rows and any(c.isalpha() for c in rows[0].replace("e", "").replace("E", "")):
+            rows = rows[1:]  # a header row
+        data = np.array([[float(v) for v in ln.split(",")] for ln in rows], dtype=float)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise UsageError(f"argument --reference: cannot read {text!r} as CSV numbers ({one_line(exc)})") from None
+    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != system.n:
+        raise UsageError(f"argument --reference: {text!r} needs one row per step and {system.n} columns (one per "
+                         f"state: {', '.join(system.state_names)})")
+    return tuple(tuple(r) for r in data.tolist())
+
+
 def _mpc_config(args, system):
     from qsid_core import MPCConfig
 
@@ -174,7 +201,11 @@ def _mpc_config(args, system):
         if args.q_diag is None and abs(Q).sum() != abs(Q.diagonal()).sum():
             raise UsageError(f"argument --Qf: Q of system {system.name!r} is not diagonal; give Qf as numbers")
         qf = args.q_diag if args.q_diag is not None else tuple(float(x) for x in Q.diagonal())
+    reference = _reference(getattr(args, "reference", None), system)
+    if reference is not None and args.x_ref is not None:
+        raise UsageError("arguments --reference and --x-ref exclude each other (a reference is constant or not)")
     mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
+                     reference=reference,
                      x_max=args.x_max, xf_max=getattr(args, "xf_max", None), Qf=qf, Q=args.q_diag, R=args.r_diag,
                      verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps),
                      disturbance=getattr(args, "disturbance", (0.0, "gaussian"))[0],

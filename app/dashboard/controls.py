@@ -97,6 +97,9 @@ CONTROLS: tuple[Control, ...] = (
     Control("mpc_steps", "slider", "closed-loop steps", "MPC", 5, 300, 5, convert=int),
     Control("x_ref", "text", "reference x_ref", "MPC",
             hint="Constant reference, one number per state (empty = regulate to 0). δ(ε) assumes x_ref = 0."),
+    Control("reference", "text", "reference r(t)", "MPC",
+            hint="Time-varying reference with preview: step:STATE:AMP:TIME, sine:STATE:AMP:PERIOD or "
+                 "square:STATE:AMP:PERIOD (STATE a name or 1-based, times in samples); empty = constant x_ref"),
     Control("x_max", "text", "state box x_max", "MPC",
             hint="|x_i| <= x_max_i over the horizon: one number for every state or one per state (empty = none)"),
     Control("qf", "text", "terminal weight Qf", "MPC",

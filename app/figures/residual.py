@@ -22,8 +22,11 @@ __all__ = ["residual_figure", "VIEW"]
 
 
 def residual_figure(series: Series, true_error: float | None = None, current_bits: int | None = None,
-                    causes: str = "", height: int = 280) -> go.Figure:
-    """Mean and max steady-state error per estimator against b; the true-model loop's as a dashed line."""
+                    causes: str = "", height: int = 280, tracking: bool = False,
+                    true_tracking: float | None = None) -> go.Figure:
+    """Mean and max steady-state error per estimator against b; the true-model loop's as a dashed line.
+
+    With ``tracking`` (a time-varying reference) also the tracking error over the whole loop (dotted)."""
     data, shapes, notes = [], mark_bits(current_bits), []
     for i, (label, rows) in enumerate(series.items()):
         c = color(label, i)
@@ -32,9 +35,14 @@ def residual_figure(series: Series, true_error: float | None = None, current_bit
         mx, my = xy(rows, "steady_state_error", "max")
         data.append(dict(type="scatter", x=mx, y=my, mode="markers", name=f"{label} max",
                          marker=dict(color=c, symbol="triangle-up")))
-    if true_error is not None and np.isfinite(true_error) and true_error > 0:
-        shapes.append(hline(float(true_error), "y", COLORS["true"], "dash", 2.0))
-        notes.append(hline_note(true_error, f"true model {true_error:.3g}"))
+        if tracking:
+            tx, ty = xy(rows, "tracking_error", "mean")
+            data.append(dict(type="scatter", x=tx, y=ty, mode="lines+markers", name=f"{label} tracking (whole loop)",
+                             line=dict(color=c, dash="dot"), marker=dict(symbol="square", size=5)))
+    for val, what, dash in ((true_error, "true model", "dash"), (true_tracking, "true model, tracking", "dot")):
+        if val is not None and np.isfinite(val) and val > 0:
+            shapes.append(hline(float(val), "y", COLORS["true"], dash, 2.0))
+            notes.append(hline_note(val, f"{what} {val:.3g}", where="bottom" if dash == "dot" else "top"))
     title = ("steady-state error (RMS of ‖x_t − x_ref‖, last half of the loop)"
              + (f"<br>causes besides the model: {causes}" if causes else "<br>exact state, no disturbance: "
                 "what is left of the transient"))
@@ -55,13 +63,19 @@ def causes_text(mpc) -> str:
         out.append(f"feedback quantized to {mpc.feedback_bits} bits per state")
     if mpc.feedback_noise:
         out.append(f"sensor noise σ {mpc.feedback_noise:g}")
+    if mpc.reference is not None:
+        out.append("a time-varying reference")
     return ", ".join(out)
 
 
 def _build(frame) -> go.Figure:
     tl = frame.true_loop
     true_err = float(tl.steady_state_error[0]) if tl is not None else None
-    return residual_figure(frame.series(), true_err, frame.bits, causes_text(frame.ex.config.mpc))
+    mpc = frame.ex.config.mpc
+    tracking = mpc is not None and mpc.reference is not None
+    true_tr = float(tl.tracking_error[0]) if (tl is not None and tracking) else None
+    return residual_figure(frame.series(), true_err, frame.bits, causes_text(mpc), tracking=tracking,
+                           true_tracking=true_tr)
 
 
 VIEW = View("residual", aspect=0.6, depends=CURVES, build=_build, tab="Control")
