@@ -39,6 +39,7 @@ class _Loops:
         self.ctrls, self.w, self.A, self.B, self.steps, self.out = ctrls, w, A, B, steps, out
         self.noise = noise  # disturbance and measurement draws (None: exact state feedback, no disturbance)
         self.preview: Preview | None = None  # a time-varying reference (None: the constant x_ref)
+        self.offset_free = False  # the input cost (u - u_ref)'R(u - u_ref) instead of the letter's u'R u
         self.n, self.m = B.shape
         live = np.flatnonzero([c is not None for c in ctrls])
         self.live = live
@@ -77,7 +78,9 @@ class _Loops:
     def track(self) -> None:
         """Follow ``w.reference`` with preview (the controllers were built for a zero reference)."""
         self.condensed()
-        self.preview = Preview(self.cq, self.F.shape[1], self.w.reference)
+        cs = [self.ctrls[i] for i in self.live]
+        free = (np.stack([c.A for c in cs]), np.stack([c.B for c in cs]), self.w.R) if self.offset_free else None
+        self.preview = Preview(self.cq, self.F.shape[1], self.w.reference, free)
 
     def ref_offsets(self, j: np.ndarray, t: int, H: int):
         """The reference part of the prediction map at steps ``t..t+H-1`` (0 without a time-varying reference)."""
@@ -338,6 +341,7 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     noise = loop_noise(cfg, n, steps, feedback_range)
     loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out, noise=noise)
     if w.reference is not None:
+        loops.offset_free = cfg.tracking == "offset-free"
         loops.track()
         out.x_ref = w.reference[: steps + 1]
     advance(loops, loops.live.copy())

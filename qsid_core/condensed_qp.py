@@ -156,7 +156,8 @@ class DaqpMPC:
         self._sense = np.zeros(nU + nc, dtype=np.int32)
         self.max_iter = int(max_iter)
         self._model = None
-        self.g_ref = 0.0  # with a time-varying reference: Gr rbar of the current step (set by the caller)
+        self.g_ref = 0.0  # with a time-varying reference: its part of g at the current step (set by the caller)
+        self.c_ref = 0.0  # ... and of the cost's constant (offset-free form: u_ref'R u_ref terms)
 
     def _bounds(self, x0: np.ndarray) -> None:
         """State rows: ``-box - (Sx x0)_i <= (Su U)_i <= box - (Sx x0)_i``."""
@@ -213,7 +214,7 @@ class DaqpMPC:
         g = self.Gx @ x0 + self.g0 + self.g_ref
         e = self.Sx @ x0 - self.rbar
         d0 = x0 - self.r
-        return float(U @ self.H @ U + 2 * g @ U + e @ self.Qbar @ e + d0 @ self.Q @ d0)
+        return float(U @ self.H @ U + 2 * g @ U + e @ self.Qbar @ e + d0 @ self.Q @ d0 + self.c_ref)
 
 
 def active_set_solution(H, g, upper, lower, ub, tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

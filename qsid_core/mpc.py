@@ -40,12 +40,14 @@ from .reference import reference_samples
 from .validate import as_float_array
 
 __all__ = ["MPCConfig", "MPCWeights", "MPCFailure", "MPCController", "FailureKind", "FAILURE_KINDS", "SOLVERS",
-           "dare_batch", "dare_stabilizing", "lq_parts"]
+           "dare_batch", "dare_stabilizing", "lq_parts", "TRACKING"]
 
 #: every failure kind's value, in :class:`FailureKind` order
 FAILURE_KINDS = tuple(k.value for k in FailureKind)
 #: QP solvers for the steps where a bound is active
 SOLVERS = ("daqp", "osqp")
+#: cost forms of reference tracking: the letter's, or offset-free with a steady-state input target
+TRACKING = ("letter", "offset-free")
 #: OSQP's setup error codes in words.
 OSQP_SETUP_ERRORS = {1: "invalid problem data", 2: "invalid settings", 3: "linear system solver failed",
                      4: "the cost is not convex: a weight is not positive semidefinite", 5: "out of memory"}
@@ -106,6 +108,11 @@ class MPCConfig:
         Standard deviation of sensor noise on that measurement (default 0).
     loop_seed : int >= 0
         Seed of the disturbance, feedback dither and sensor noise (shared by every loop).
+    tracking : {"letter", "offset-free"}
+        The letter's cost ``(x - r)'Q(x - r) + u'R u`` (default) or the offset-free form
+        ``(x - r)'Q(x - r) + (u - u_ref)'R(u - u_ref)`` with ``u_ref = B^+ (I - A^) r`` per
+        model (the input that holds the model at ``r``, least squares when ``r`` is not an
+        equilibrium); applies to ``x_ref`` and to ``reference``.
     reference : str or tuple of rows, optional
         A time-varying reference with preview (:mod:`qsid_core.reference`):
         ``"step:STATE:AMP:TIME"``, ``"sine:STATE:AMP:PERIOD"``, ``"square:STATE:AMP:PERIOD"``
@@ -136,10 +143,13 @@ class MPCConfig:
     feedback_noise: float = 0.0
     loop_seed: int = 0
     reference: str | tuple | None = None
+    tracking: str = "letter"
 
     def nominal(self) -> "MPCConfig":
-        """The same MPC regulating to the constant ``x_ref``, with exact state feedback and no disturbance."""
-        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0, reference=None)
+        """The same MPC law regulating to the constant ``x_ref`` in the letter's form, with exact state
+        feedback and no disturbance (both forms share the law's linear part, hence its stability)."""
+        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0, reference=None,
+                       tracking="letter")
 
     @property
     def noisy(self) -> bool:
@@ -154,6 +164,9 @@ class MPCConfig:
         if self.feedback_bits is not None:
             check_int("feedback bits", self.feedback_bits, 1, 32)
         check_int("loop seed", self.loop_seed, 0)
+        check_choice("tracking", self.tracking, TRACKING)
+        if self.tracking == "offset-free" and self.solver == "osqp":
+            raise ConfigError("the offset-free form needs solver='daqp' (the condensed problem)")
         if self.reference is not None and not isinstance(self.reference, str):
             rows = np.atleast_2d(np.asarray(self.reference, dtype=float))
             if rows.ndim != 2 or rows.size == 0 or not np.all(np.isfinite(rows)):
@@ -203,18 +216,27 @@ class MPCConfig:
 
         Q = np.diag(full("Q", self.Q, n, None)) if self.Q is not None else np.array(system.Q, dtype=float)
         R = np.diag(full("R", self.R, m, None)) if self.R is not None else np.array(system.R, dtype=float)
+        x_ref = full("x_ref", self.x_ref, n, np.zeros(n))
         return MPCWeights(
             Q=Q,
             R=R,
             Qf=None if self.Qf is None else np.diag(full("Qf", self.Qf, n, None)),
             x0=full("x0", self.x0, n, np.array(system.x0, dtype=float)),
-            x_ref=full("x_ref", self.x_ref, n, np.zeros(n)),
+            x_ref=x_ref if self.tracking == "letter" else np.zeros(n),
             u_max=full("u_max", self.u_max, m, None),
             x_max=None if self.x_max is None else full("x_max", self.x_max, n, None),
             xf_max=None if self.xf_max is None else full("xf_max", self.xf_max, n, None),
-            reference=None if self.reference is None else
-            reference_samples(self.reference, system.state_names, self.steps + self.horizon + 1),
+            reference=self._reference_samples(system, x_ref),
         )
+
+    def _reference_samples(self, system, x_ref: np.ndarray) -> np.ndarray | None:
+        """The time-varying reference (a constant x_ref too in the offset-free form), or None."""
+        length = self.steps + self.horizon + 1
+        if self.reference is not None:
+            return reference_samples(self.reference, system.state_names, length)
+        if self.tracking == "offset-free":
+            return np.tile(x_ref, (length, 1))
+        return None
 
 
 @dataclass(frozen=True, eq=False)

@@ -125,7 +125,7 @@ class SweepResult:
                     "horizon": c.mpc.horizon, "steps": c.mpc.steps, "u_max": list(c.mpc.u_max),
                     "disturbance": c.mpc.disturbance, "disturbance_kind": c.mpc.disturbance_kind,
                     "feedback_bits": c.mpc.feedback_bits, "feedback_noise": c.mpc.feedback_noise,
-                    "loop_seed": c.mpc.loop_seed,
+                    "loop_seed": c.mpc.loop_seed, "tracking": c.mpc.tracking,
                     "reference": c.mpc.reference if isinstance(c.mpc.reference, (str, type(None)))
                     else [list(r) for r in c.mpc.reference],
                 },

@@ -42,6 +42,7 @@ CASES = {
                                                            target=0.9, cost_gap=0.02, log_q=(0.3, -1.0, 0.0)),
     "terminal weight numbers": Values(system="boeing747", qf="5", terminal_box="3"),
     "tracking a sine": Values(system="boeing747", reference="sine:u:1:40"),
+    "offset-free constant reference": Values(tracking="offset-free", x_ref="0.5, 0, 0"),
     "real loop": Values(disturbance=0.01, disturbance_kind="uniform", feedback_bits=6, feedback_noise=0.002,
                         loop_seed=4),
 }

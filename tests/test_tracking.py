@@ -25,8 +25,11 @@ def _direct(s, cfg, A_hat, B_hat):
     cq = condense(A_hat[None], B_hat[None], w.Q, w.R, Qf[None], np.zeros(n), N)
     ub = np.tile(w.u_max, N)
     x, xs = w.x0.copy(), [w.x0.copy()]
+    Ku = np.linalg.pinv(B_hat) @ (np.eye(n) - A_hat)
     for t in range(cfg.steps):
         g = cq.Gx[0] @ x + cq.Gr[0] @ w.reference[t + 1 : t + 1 + N].reshape(-1)
+        if cfg.tracking == "offset-free":  # -R u_ref,k on the rows of u_k
+            g -= (w.reference[t : t + N] @ Ku.T @ w.R.T).reshape(-1)
         U, _, flag, _ = daqp.solve(np.ascontiguousarray(cq.H[0]), g, np.zeros((0, N * m)), ub, -ub,
                                    np.zeros(N * m, dtype=np.int32))
         assert flag == 1
@@ -35,12 +38,15 @@ def _direct(s, cfg, A_hat, B_hat):
     return np.array(xs)
 
 
-@pytest.mark.parametrize("u_max, ref", [(100.0, "sine:1:1:40"), (0.3, "square:2:0.5:20"), (0.5, "step:theta:0.3:5")])
-def test_tracking_loop_is_the_condensed_qp_solved_step_by_step(u_max, ref):
+@pytest.mark.parametrize("u_max, ref, form", [(100.0, "sine:1:1:40", "letter"), (0.3, "square:2:0.5:20", "letter"),
+                                              (0.5, "step:theta:0.3:5", "letter"),
+                                              (100.0, "sine:1:1:40", "offset-free"),
+                                              (0.3, "square:4:0.5:20", "offset-free")])
+def test_tracking_loop_is_the_condensed_qp_solved_step_by_step(u_max, ref, form):
     s = get_system("boeing747")
     rng = np.random.default_rng(0)
     A_hat, B_hat = s.A + 1e-3 * rng.standard_normal(s.A.shape), s.B + 1e-3 * rng.standard_normal(s.B.shape)
-    cfg = MPCConfig(reference=ref, u_max=u_max, steps=40, verify_steps=None)
+    cfg = MPCConfig(reference=ref, u_max=u_max, steps=40, verify_steps=None, tracking=form)
     lp = run_closed_loops([(A_hat, B_hat), (s.A, s.B)], s.A, s.B, cfg, s)
     np.testing.assert_allclose(lp.states[0], _direct(s, cfg, A_hat, B_hat), rtol=1e-7, atol=1e-9)
     np.testing.assert_allclose(lp.states[1], _direct(s, cfg, s.A, s.B), rtol=1e-7, atol=1e-9)
@@ -103,3 +109,20 @@ def test_cli_reference_file_and_bad_input(tmp_path, capsys):
         assert main([*base, *args]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and msg in err, err
+
+
+def test_offset_free_form_removes_the_offset_at_an_equilibrium_reference():
+    s = get_system("boeing747")
+    u_bar = np.array([0.05, -0.02])
+    x_eq = np.linalg.solve(np.eye(4) - s.A, s.B @ u_bar)  # an equilibrium of the true plant
+    out = {}
+    for form in ("letter", "offset-free"):
+        cfg = MPCConfig(x_ref=tuple(x_eq), tracking=form, steps=400, u_max=10.0, verify_steps=None)
+        out[form] = np.linalg.norm(run_closed_loops([(s.A, s.B)], s.A, s.B, cfg, s).states[0, -1] - x_eq)
+    assert out["offset-free"] < 1e-6 < 1e-2 < out["letter"]
+    # a time-varying reference in the offset-free form is still the condensed QP solved exactly
+    cfg = MPCConfig(reference="step:theta:0.2:5", tracking="offset-free", steps=30, u_max=0.4, verify_steps=None)
+    lp = run_closed_loops([(s.A, s.B)], s.A, s.B, cfg, s)
+    assert np.isfinite(lp.states).all() and lp.outcome == []
+    with pytest.raises(ConfigError, match="tracking"):
+        MPCConfig(tracking="smooth")

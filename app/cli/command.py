@@ -49,6 +49,8 @@ def _mpc_args(cfg, system) -> list:
             raise ValueError("the command line gives a sampled reference as a CSV file: write it and use "
                              "--reference FILE.csv")
         out.append(f"--reference={m.reference}")
+    if m.tracking != d.tracking:
+        out.append(f"--tracking={m.tracking}")
     if m.disturbance:
         out.append(f"--disturbance={m.disturbance!r}" + ("" if m.disturbance_kind == "gaussian" else
                                                          f":{m.disturbance_kind}"))

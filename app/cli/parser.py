@@ -283,6 +283,9 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
                         "sine:STATE:AMPLITUDE:PERIOD, square:STATE:AMPLITUDE:PERIOD (STATE a name or 1-based "
                         "index, times in samples) or a CSV file with one row per step and one column per state; "
                         "excludes --x-ref")
+    m.add_argument("--tracking", choices=("letter", "offset-free"), default="letter",
+                   help="the cost's input term: the letter's u'Ru, or offset-free (u - u_ref)'R(u - u_ref) with "
+                        "u_ref = B^+ (I - A^) r, the input that holds the model at the reference (default: letter)")
     m.add_argument("--x-max", type=_float_list, default=None, metavar="X",
                    help="state box |x_i| <= X on the predicted states, one value or one per state (default: none)")
     m.add_argument("--Qf", dest="qf", type=_qf_spec, default=None, metavar="dare|Q|F1,F2,..",

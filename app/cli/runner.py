@@ -205,7 +205,7 @@ def _mpc_config(args, system):
     if reference is not None and args.x_ref is not None:
         raise UsageError("arguments --reference and --x-ref exclude each other (a reference is constant or not)")
     mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
-                     reference=reference,
+                     reference=reference, tracking=getattr(args, "tracking", "letter"),
                      x_max=args.x_max, xf_max=getattr(args, "xf_max", None), Qf=qf, Q=args.q_diag, R=args.r_diag,
                      verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps),
                      disturbance=getattr(args, "disturbance", (0.0, "gaussian"))[0],

@@ -100,6 +100,9 @@ CONTROLS: tuple[Control, ...] = (
     Control("reference", "text", "reference r(t)", "MPC",
             hint="Time-varying reference with preview: step:STATE:AMP:TIME, sine:STATE:AMP:PERIOD or "
                  "square:STATE:AMP:PERIOD (STATE a name or 1-based, times in samples); empty = constant x_ref"),
+    Control("tracking", "dropdown", "tracking form", "MPC", choices=("letter", "offset-free"),
+            hint="letter: cost u'Ru (a reference that is no equilibrium leaves an offset); offset-free: "
+                 "(u - u_ref)'R(u - u_ref) with u_ref = B^+(I - A^) r, the input that holds the model at r"),
     Control("x_max", "text", "state box x_max", "MPC",
             hint="|x_i| <= x_max_i over the horizon: one number for every state or one per state (empty = none)"),
     Control("qf", "text", "terminal weight Qf", "MPC",

@@ -100,6 +100,7 @@ class Values:
     compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
     qf: str = "dare"  # terminal weight: "dare", "Q" or a diagonal (one number or one per state)
     terminal_box: str = ""  # |x_N,i| <= X_i on the last predicted state ("" = none)
+    tracking: str = "letter"  # the cost's input term: the letter's u'Ru or offset-free (u - u_ref)'R(u - u_ref)
     reference: str = ""  # time-varying reference: step:/sine:/square:STATE:AMP:TIME|PERIOD ("" = constant x_ref)
     disturbance: float = 0.0  # process noise on the true plant in the loop (standard deviation)
     disturbance_kind: str = "gaussian"
@@ -290,7 +291,7 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
 
             parse_reference(reference, system.state_names)
         return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0,
-                         x_ref=x_ref, reference=reference,
+                         x_ref=x_ref, reference=reference, tracking=v.tracking,
                          x_max=x_max, xf_max=xf_max, Qf=Qf, verify_steps=int(v.verify_steps),
                          disturbance=float(v.disturbance), disturbance_kind=v.disturbance_kind,
                          feedback_bits=int(v.feedback_bits) or None, feedback_noise=float(v.feedback_noise),
