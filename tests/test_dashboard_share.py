@@ -129,6 +129,10 @@ def test_export_curves_csv_and_json(frame):
     assert float(ls4["err_A_mean"]) == pytest.approx(frame.rows["LS"][4]["err_A"]["mean"])
     a = frame.rows["LS"][4].get("assumptions")  # rows carry them once the dashboard computes them
     assert ls4["theorem1_holds"] == ("" if not a else str(a["theorem1_holds"]))
+    r4 = frame.rows["LS"][4]
+    assert float(ls4["stabilized_fraction"]) == pytest.approx(r4["stabilized_fraction"])
+    assert int(ls4["converged"]) == r4["closed_loop_outcomes"]["converged"]
+    assert float(ls4["steady_state_error_mean"]) == pytest.approx(r4["steady_state_error"]["mean"])
 
     def bad(c):
         raise AssertionError(c)

@@ -126,3 +126,22 @@ def test_offset_free_form_removes_the_offset_at_an_equilibrium_reference():
     assert np.isfinite(lp.states).all() and lp.outcome == []
     with pytest.raises(ConfigError, match="tracking"):
         MPCConfig(tracking="smooth")
+
+
+def test_dashboard_draws_the_reference_in_3d_and_in_the_time_series():
+    from app.dashboard.cache import SharedCache
+    from app.dashboard.render import build_figures
+    from app.dashboard.session import iter_frames
+    from app.dashboard.settings import Values
+    from app.figures.phase_scene import scene_view
+
+    small = dict(realizations=3, trajectories=20, steps=100, identification="LS")
+    fr = list(iter_frames(Values(system="boeing747", bits=8, reference="sine:u:1:20", **small), SharedCache(),
+                          chunk=16, min_interval=0.0))
+    v = scene_view(fr[-1])
+    assert v.ref_segments.shape == (50, 2, 3) and np.isfinite(v.ref_segments).all()
+    ts = build_figures(fr[-1], ["timeseries"])["timeseries"]
+    ref = [d for d in ts.data if d.name == "reference"]
+    assert len(ref) == 1 and len(ref[0].y) == 51 and max(ref[0].y) == pytest.approx(1.0, abs=0.01)
+    plain = list(iter_frames(Values(system="boeing747", bits=8, **small), SharedCache(), chunk=16, min_interval=0.0))
+    assert scene_view(plain[-1]).ref_segments.shape == (0, 2, 3)

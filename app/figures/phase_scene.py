@@ -7,7 +7,7 @@ pushes a SceneView into a tab's scene nodes.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -65,6 +65,8 @@ class SceneView:
     mark_every : int
     not_converged : int
         Drawn loops judged bounded or diverged on the true plant (they never settle).
+    ref_segments : float32 array (T, 2, 3)
+        The path of a time-varying reference (empty for a constant one).
     """
 
     segments: np.ndarray
@@ -88,6 +90,7 @@ class SceneView:
     realizations: int
     mark_every: int
     not_converged: int = 0
+    ref_segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3), dtype=np.float32))
 
 
 def axes_options(names) -> list:
@@ -128,6 +131,16 @@ def _points(states: np.ndarray, dims: tuple, scale: float) -> np.ndarray:
     if ta is not None:
         P[:, :, ta] = TIME * np.arange(T1) / max(T1 - 1, 1)
     return P
+
+
+def _reference_path(frame, dims: tuple, scale: float, start: np.ndarray) -> np.ndarray:
+    """Display segments of a time-varying reference over the drawn loop (empty when it is constant)."""
+    mpc = frame.ex.config.mpc if frame.ex is not None else None
+    if mpc is None or mpc.reference is None:
+        return np.zeros((0, 2, 3), dtype=np.float32)
+    ref = mpc.resolve(frame.system).reference[: mpc.steps + 1]
+    seg, _, _ = _to_segments(ref[None], dims, scale, start)
+    return np.clip(seg, -CLIP, CLIP).astype(np.float32)
 
 
 def _to_segments(states: np.ndarray, dims: tuple, scale: float, start: np.ndarray) -> tuple:
@@ -253,5 +266,6 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         segments=np.concatenate(segs).astype(np.float32), colors=np.ascontiguousarray(np.concatenate(cols)),
         true_segments=tseg.astype(np.float32), time_marks=marks.astype(np.float32), start=start, scale=scale,
         axis_names=tuple(labels), failed=failed, clipped=clipped, polylines=poly, realizations=total,
-        mark_every=every, not_converged=stuck, **_bounds(frame, dims, scale),
+        mark_every=every, not_converged=stuck, ref_segments=_reference_path(frame, dims, scale, start),
+        **_bounds(frame, dims, scale),
     )
