@@ -9,7 +9,7 @@ other. Accepted values:
     (``local`` = one per CPU core).
 ``tcp://HOST:PORT``
     Connect to a running ``dask scheduler`` (its workers must have the same qsid
-    installed, e.g. ``pip install 'qsid[distributed]'``).
+    installed, e.g. ``pip install ".[distributed]"``).
 
 What the wrapper adds to a plain ``client.get_executor()``:
 
@@ -106,7 +106,7 @@ def _import_distributed():
         import distributed
     except ImportError:
         raise ConfigError("dask: the 'distributed' package is not installed; "
-                          "install the extra: pip install 'qsid[distributed]'") from None
+                          'install the extra from the checkout: pip install ".[distributed]"') from None
     return distributed
 
 
@@ -292,7 +292,8 @@ def _check_workers(client) -> None:
     for worker, (status, ver, npver) in sorted(client.run(probe).items()):
         if status != "ok":
             raise ClusterError(f"dask worker {worker} cannot import qsid ({ver}); install qsid on every "
-                               "worker (pip install 'qsid[distributed]') or put it on the workers' PYTHONPATH")
+                               'worker (pip install ".[distributed]" from the checkout) or put it on the '
+                               "workers' PYTHONPATH")
         if ver != qsid_core.__version__:
             raise ClusterError(f"dask worker {worker} has qsid {ver}, this client {qsid_core.__version__}; "
                                "install the same version everywhere")

@@ -65,13 +65,13 @@ class Server:
     def rss(self) -> float:
         return rss_mb(self.pid)
 
-    def stop(self) -> float:
-        """SIGINT; seconds until the process ended."""
+    def stop(self, grace: float = 15.0) -> float:
+        """SIGINT; seconds until the process ended (killed after ``grace`` s)."""
         t0 = time.monotonic()
         if self.p.poll() is None:
             self.p.send_signal(signal.SIGINT)
             try:
-                self.p.wait(15)
+                self.p.wait(grace)
             except subprocess.TimeoutExpired:
                 self.p.kill()
                 self.p.wait(5)
@@ -81,10 +81,10 @@ class Server:
 class Clients:
     """``n`` tabs changing random inputs at ``rate`` changes/s each (``rate <= 0``: as fast as they can)."""
 
-    def __init__(self, url: str, n: int, rate: float, seed: int = 0):
-        self.url, self.rate, self.sent, self.failed = url, rate, 0, 0
+    def __init__(self, url: str, n: int, rate: float, seed: int = 0, timeout: float = 60.0):
+        self.url, self.rate, self.sent, self.failed, self.timeout = url, rate, 0, 0, timeout
         self._stop = threading.Event()
-        self.tabs = [WsTab(url) for _ in range(n)]
+        self.tabs = [WsTab(url, timeout) for _ in range(n)]
         self.threads = [threading.Thread(target=self._run, args=(t, seed + i), daemon=True)
                         for i, t in enumerate(self.tabs)]
         for th in self.threads:
@@ -93,7 +93,7 @@ class Clients:
     def _run(self, tab: WsTab, seed: int) -> None:
         rnd = random.Random(seed)
         try:
-            tab.wait_for("closed-loop steps", 60)
+            tab.wait_for("closed-loop steps", self.timeout)
             while not self._stop.is_set():
                 label, value = rnd.choice(CHANGES)
                 tab.send(label, value(rnd))

@@ -49,7 +49,7 @@ class FailureKind(str, Enum):
     MAX_ITER = "max_iter"
     #: any other QP solver failure
     SOLVER = "solver"
-    #: the true-system state left the floating-point range (|x| > 1e12)
+    #: the true-system state left the floating-point range (``|x| > 1e12``)
     DIVERGED = "diverged"
 
     def __str__(self) -> str:  # 'dare', not 'FailureKind.DARE' (also in f-strings on Python < 3.12)

@@ -5,8 +5,12 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
+if str(ROOT) not in sys.path:  # the checkout's packages come first
     sys.path.insert(0, str(ROOT))
+if str(ROOT / "tests") not in sys.path:  # the shared helpers (tests/support.py)
+    sys.path.append(str(ROOT / "tests"))
+
+from support import open_tab  # noqa: E402
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -17,3 +21,28 @@ def pytest_runtest_makereport(item, call):
     if os.environ.get("QSID_REQUIRE_BROWSER") == "1" and item.get_closest_marker("browser") and rep.skipped:
         rep.outcome = "failed"
         rep.longrepr = f"browser test skipped in CI (QSID_REQUIRE_BROWSER=1): {rep.longrepr}"
+
+
+@pytest.fixture
+def dashboard():
+    """An in-process dashboard server on 127.0.0.1 (no process pool); stopped afterwards."""
+    from app.dashboard import DashboardApp
+
+    a = DashboardApp(host="127.0.0.1", port=0, workers=0)
+    yield a
+    a.stop()
+
+
+@pytest.fixture
+def tab(dashboard):
+    """A connected tab of ``dashboard`` at a small data size, its first view drawn (support.open_tab)."""
+    t = open_tab(dashboard)
+    yield t
+    t.close()
+
+
+def pytest_collection_modifyitems(config, items):
+    """Browser and cluster tests start real processes (Chromium, dask) and take seconds: slow too."""
+    for item in items:
+        if item.get_closest_marker("browser") or item.get_closest_marker("cluster"):
+            item.add_marker(pytest.mark.slow)

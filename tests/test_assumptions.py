@@ -7,6 +7,7 @@ from qsid_core.assumptions import OVERLOAD_TOLERANCE, finite_data_fluctuation
 SMALL = dict(trajectories=20, steps=300, realizations=3, mpc=None)
 
 
+@pytest.mark.slow
 def test_letter_quantizer_overloads_and_guard_band_does_not():
     letter = Experiment(SweepConfig(system="dc-motor", bits=(2,), quantizer=LETTER_QUANTIZER, **SMALL)).assumptions(2)
     guard = Experiment(SweepConfig(system="dc-motor", bits=(2,), **SMALL)).assumptions(2)

@@ -75,6 +75,7 @@ def test_mpc_engine_variants_agree_and_use_both_paths():
 
 
 @pytest.mark.parametrize("peer", ["cvxpy+OSQP tight (eps 1e-9)", "do-mpc+IPOPT tight (tol 1e-12)"])
+@pytest.mark.slow
 def test_mpc_peers_agree_with_engine(peer):
     pytest.importorskip("cvxpy" if "cvxpy" in peer else "do_mpc")
     res = bench_mpc.check_agreement(quick=True, solvers=[bench_mpc.ENGINE[0], peer])
@@ -104,6 +105,7 @@ def test_blas_helper_reports_and_limits_threads():
     assert all(isinstance(v, int) and v >= 1 for v in th.values())
 
 
+@pytest.mark.slow
 def test_bench_speed_quick_sections_agree(capsys):
     import bench_speed
 

@@ -248,11 +248,11 @@ def test_uncontrollable_system_warns_once_and_runs(capsys, tmp_path):
 
 def test_subprocess_exit_codes(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "app.cli", "sweep", "--bits", "5:2"], cwd=ROOT,
-                         capture_output=True, text=True, timeout=120)
+                         capture_output=True, text=True, timeout=600)
     assert bad.returncode == 2 and bad.stdout == ""
     assert bad.stderr.count("\n") == 1 and bad.stderr.startswith("qsid: error: ")
     good = subprocess.run([sys.executable, "-m", "app.cli", "sweep", *TINY, "--no-mpc", "--json"], cwd=ROOT,
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=600)
     assert good.returncode == 0, good.stderr
     assert _strict_json(good.stdout)["config"]["realizations"] == 3
     assert "Traceback" not in good.stderr and "quantize + identify" in good.stderr

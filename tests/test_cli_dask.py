@@ -5,20 +5,14 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 
 import pytest
 
 from app.cli import main
+from support import dask_cluster
+from support import need_distributed as _need_distributed
 
 TINY = ["--trajectories", "12", "--steps", "150", "--realizations", "4", "--bits", "2,5"]
-
-
-def _need_distributed():
-    if os.environ.get("QSID_REQUIRE_DISTRIBUTED") == "1":
-        import distributed  # noqa: F401 -- CI: must run
-    else:
-        pytest.importorskip("distributed")
 
 
 def _run(capsys, *argv):
@@ -63,12 +57,14 @@ def test_bad_dask_is_one_line(capsys, extra, needle):
     assert len(err.splitlines()) == 1 and err.startswith("qsid: error: ") and needle in err, err
 
 
+@pytest.mark.slow
 def test_unreachable_scheduler_is_one_line(capsys):
     _need_distributed()
     code, out, err = _run(capsys, "sweep", *TINY, "-q", "--dask", "tcp://127.0.0.1:9")
     assert code == 2 and len(err.splitlines()) == 1 and "cannot reach a scheduler" in err
 
 
+@pytest.mark.slow
 def test_local_cluster_gives_the_in_process_numbers(capsys, tmp_path):
     _need_distributed()
     code, ref, _ = _run(capsys, "sweep", *TINY, "--json", "-q")
@@ -79,10 +75,9 @@ def test_local_cluster_gives_the_in_process_numbers(capsys, tmp_path):
     assert "dask: connected to tcp://127.0.0.1:" in err and "(2 worker(s))" in err
 
 
+@pytest.mark.slow
 def test_real_scheduler_and_two_workers(capsys, tmp_path):
     _need_distributed()
-    from tests.test_distributed import dask_cluster
-
     code, ref, _ = _run(capsys, "sweep", *TINY, "--json", "-q")
     assert code == 0
     with dask_cluster(tmp_path, workers=2) as (address, *_):

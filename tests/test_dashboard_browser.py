@@ -21,7 +21,7 @@ import pytest
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
         "--no-first-run", "--disable-quic", "--disable-sync"]
-TIMEOUT_MS = 120_000
+TIMEOUT_MS = 300_000  # a hang guard for every wait, not a speed target
 
 # Console messages that are not errors of the dashboard: headless Chromium renders WebGL in software
 # (SwiftShader) and says so; GPU driver chatter; three.js deprecation notes. Only these are ignored.
@@ -75,7 +75,7 @@ def _open(browser_context, app, errors, ignored, count):
     page = browser_context.new_page()
     _watch_console(page, errors, ignored)
     page.goto(app.url, timeout=TIMEOUT_MS)
-    sessions = app.wait_for_sessions(count, timeout=60)
+    sessions = app.wait_for_sessions(count, timeout=TIMEOUT_MS / 1000)
     session = max(sessions, key=lambda s: s.client.client_id)
     assert session.wait_idle(TIMEOUT_MS / 1000)
     page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
@@ -162,7 +162,7 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
                     page1.get_by_role("button", name="Pin current result").click()
                     page1.wait_for_function("() => document.body.textContent.includes('Pinned (dashed)')",
                                             timeout=TIMEOUT_MS)
-                    assert s1.wait_idle(60) and s1.pinned is not None
+                    assert s1.wait_idle(TIMEOUT_MS / 1000) and s1.pinned is not None
                     assert any("(pinned" in (tr.name or "") for tr in s1.plots["error"].figure.data)
                 if shots:  # the README's per-tab pictures: the plots panel only
                     page1.wait_for_timeout(800)
@@ -174,7 +174,7 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
 
             # move the word-length slider in the browser: plot marker, sphere and lines follow
             _set_bits(page1, 12)
-            assert s1.wait_idle(60)
+            assert s1.wait_idle(TIMEOUT_MS / 1000)
             assert s1.last_frame.bits == 12 and s1.controls["bits"].value == 12
             assert s1.portrait.view.sphere_radius < sphere0
             assert not (s1.portrait.traj.points == pts0).all()
@@ -188,13 +188,13 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             dl.value.save_as(saved)
             assert json.loads(saved.read_text())["values"]["bits"] == 12
             _set_bits(page1, 6)
-            assert s1.wait_idle(60) and s1.last_frame.bits == 6
+            assert s1.wait_idle(TIMEOUT_MS / 1000) and s1.last_frame.bits == 6
             with page1.expect_file_chooser(timeout=TIMEOUT_MS) as chooser:
                 page1.get_by_role("button", name="Load settings (JSON)", exact=True).click()
             chooser.value.set_files(str(saved))
             page1.wait_for_function("() => document.body.textContent.includes('Loaded settings from')",
                                     timeout=TIMEOUT_MS)
-            assert s1.wait_idle(60) and s1.last_frame.bits == 12 and s1.controls["bits"].value == 12
+            assert s1.wait_idle(TIMEOUT_MS / 1000) and s1.last_frame.bits == 12 and s1.controls["bits"].value == 12
             page1.wait_for_function("() => document.body.textContent.includes('b = 12 bits')", timeout=TIMEOUT_MS)
             assert page1.evaluate(ERROR_PLOT_MARKS) == [12, 12]
 
@@ -203,7 +203,7 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             assert s2 is not s1
             assert page2.evaluate(ERROR_PLOT_MARKS) == [4, 4] and _thumb_value(page2) == "4"
             _set_bits(page1, 9)
-            assert s1.wait_idle(60) and s2.wait_idle(60)
+            assert s1.wait_idle(TIMEOUT_MS / 1000) and s2.wait_idle(TIMEOUT_MS / 1000)
             time.sleep(1.0)
             assert page2.evaluate(ERROR_PLOT_MARKS) == [4, 4] and _thumb_value(page2) == "4"
             assert s2.last_frame.bits == 4 and s1.last_frame.bits == 9
@@ -226,7 +226,7 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             # the 3-D LS lines show on screen in the palette's LS blue (#1f77b4), as in the plots
             # (LS alone: with both estimators the red BCLS lines can cover nearly identical LS lines)
             s1.controls["identification"].value = "LS"
-            assert s1.wait_idle(60)
+            assert s1.wait_idle(TIMEOUT_MS / 1000)
             page1.wait_for_timeout(1500)
             shot_ls = tmp_path / "dashboard_ls.png"
             page1.screenshot(path=str(shot_ls))

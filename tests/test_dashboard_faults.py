@@ -15,7 +15,7 @@ import pytest
 
 from app.dashboard import DashboardApp
 from app.dashboard.pool import Pool, PoolTimeout, Superseded
-from test_dashboard_server import SMALL, app, open_tab  # noqa: F401  (the in-process app fixture)
+from support import CAMERA, HANG_S, SMALL, connect_ws, open_tab, wait_until
 
 HEAVIER = dict(trajectories=200, steps=1000, realizations=50)  # the letter's size: seconds of pool work
 LIGHTER = dict(trajectories=20, steps=100, realizations=6)  # milliseconds of work: only a hang times out
@@ -45,7 +45,7 @@ def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool 
             for v in victims:
                 os.kill(v, sig)
         for t in tabs:  # a hung task times out, the pool is rebuilt (spawn + imports: slow on a busy machine)
-            t.wait(240)
+            t.wait(2 * HANG_S)
         assert app.executor is not old and app.pool.replacements >= 1
         if sig == signal.SIGKILL:
             assert app.pool.replacements == 1  # once, not once per tab
@@ -67,24 +67,26 @@ def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool 
         app.stop()
 
 
+@pytest.mark.slow
 def test_a_killed_worker_is_replaced_once_and_both_tabs_recover():
     _fault_while_two_tabs_compute(signal.SIGKILL, 120.0, HEAVIER)
 
 
+@pytest.mark.slow
 def test_frozen_workers_time_out_are_replaced_and_both_tabs_recover():
     _fault_while_two_tabs_compute(signal.SIGSTOP, 6.0, LIGHTER, before=True)
 
 
-def test_a_tab_says_so_when_the_pool_fails_twice(app, monkeypatch):
+def test_a_tab_says_so_when_the_pool_fails_twice(dashboard, monkeypatch):
     import app.dashboard.session as session
 
-    tab = open_tab(app)
+    tab = open_tab(dashboard)
     try:
         calls = []
 
         def failing(*a, **k):
             calls.append(1)
-            raise PoolTimeout("a worker process did not finish its task within 3 s (hung?)", app.executor)
+            raise PoolTimeout("a worker process did not finish its task within 3 s (hung?)", dashboard.executor)
             yield  # pragma: no cover
 
         monkeypatch.setattr(session, "iter_frames", failing)
@@ -98,31 +100,30 @@ def test_a_tab_says_so_when_the_pool_fails_twice(app, monkeypatch):
         tab.close()
 
 
+@pytest.mark.slow
 def test_replace_only_replaces_the_failed_pool():
-    pool = Pool(1, timeout=5)
+    pool = Pool(1, timeout=HANG_S)  # replace() is tested here, not the task timeout
     try:
         first = pool.current
         assert pool.replace(first) and pool.current is not first
         second = pool.current
         assert not pool.replace(first)  # a second tab reporting the same failure: nothing happens
         assert pool.current is second and pool.replacements == 1
-        assert pool.guarded().submit(abs, -3).result(10) == 3
+        assert pool.guarded().submit(abs, -3).result(HANG_S) == 3
     finally:
         pool.shutdown()
 
 
 def test_newer_settings_abandon_pool_work_at_once():
-    pool = Pool(1, timeout=30)
+    """The caller is released by newer settings while the task itself would still run for minutes."""
+    pool = Pool(1, timeout=4 * HANG_S)  # the watchdog must not be what ends the task
     stop = []
     try:
         g = pool.guarded(lambda: bool(stop))
-        f = g.submit(time.sleep, 5)
-        time.sleep(0.2)
+        f = g.submit(time.sleep, 2 * HANG_S)
         stop.append(1)
-        t0 = time.monotonic()
-        with pytest.raises(Superseded):
-            f.result(5)
-        assert time.monotonic() - t0 < 1.0
+        with pytest.raises(Superseded):  # a TimeoutError here would mean it waited for the task
+            f.result(HANG_S)
     finally:
         pool.shutdown()
 
@@ -133,36 +134,33 @@ def test_a_tab_closed_while_it_is_being_built_is_not_kept(monkeypatch):
     import threading
 
     import msgspec
-    import viser
-    from websockets.sync.client import connect
 
     import app.dashboard.server as server
 
-    built = []
+    built, started, release = [], threading.Event(), threading.Event()
 
     class SlowSession(server.Session):
         def __init__(self, *a, **k):
-            time.sleep(2.0)  # the tab closes meanwhile
+            started.set()
+            release.wait(HANG_S)  # the test closes the tab meanwhile
             super().__init__(*a, **k)
             built.append(self)
 
     monkeypatch.setattr(server, "Session", SlowSession)
     app = DashboardApp(host="127.0.0.1", port=0, workers=0)
     try:
-        ws = connect(app.url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"])
-        ws.send(msgspec.msgpack.encode({
-            "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0],
-            "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
-            "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}))
-        time.sleep(0.5)
+        ws = connect_ws(app)
+        ws.send(msgspec.msgpack.encode(CAMERA))
+        assert started.wait(HANG_S), "the tab was never started"
         ws.close()  # before the tab is built
-        end = time.monotonic() + 30
-        while not built and time.monotonic() < end:
-            time.sleep(0.05)
-        assert built, "the tab was never built"
-        built[0].thread.join(10)
+        wait_until(lambda: bool(app._gone), "the server saw the tab close")
+        release.set()
+        wait_until(lambda: bool(built), "the tab was built")
+        built[0].thread.join(HANG_S)
         assert not built[0].thread.is_alive()  # its worker ended
-        assert app.sessions == {} and not app._gone
+        wait_until(lambda: not app._gone, "the closed tab was dropped")
+        assert app.sessions == {}
         assert threading.active_count() < 50
     finally:
+        release.set()
         app.stop()

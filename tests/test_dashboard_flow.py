@@ -9,6 +9,7 @@ import numpy as np
 
 from app.dashboard.flow import FairSlots, TabCallbacks, inline, pool_tasks
 from app.dashboard.pool import SHARE_BYTES, Pool, _Shared
+from support import HANG_S, wait_until
 
 
 def test_inline_callbacks_run_at_once_in_the_callers_thread():
@@ -21,25 +22,24 @@ def test_inline_callbacks_run_at_once_in_the_callers_thread():
 
 def test_a_flood_of_calls_queues_at_most_one_per_callback_with_the_newest_arguments():
     cb = TabCallbacks("t")
-    gate, seen = threading.Event(), []
+    gate, running, seen = threading.Event(), threading.Event(), []
 
     def slow(x):
-        gate.wait(10)
+        running.set()
+        gate.wait(HANG_S)
         seen.append(("slow", x))
 
     def other(x):
         seen.append(("other", x))
 
     cb.submit(slow, -1)  # runs in the tab's callback thread and blocks it
-    time.sleep(0.2)
+    assert running.wait(HANG_S), "the callback thread never ran"
     for i in range(10_000):
         cb.submit(slow, i)
         cb.submit(other, i)
     assert len(cb._queue) == 2 and cb.coalesced == 2 * 10_000 - 2  # bounded: one queued call per callback
     gate.set()
-    end = time.monotonic() + 10
-    while len(seen) < 3 and time.monotonic() < end:
-        time.sleep(0.01)
+    wait_until(lambda: len(seen) >= 3, "the queued calls ran", every=0.01)
     time.sleep(0.1)
     assert seen == [("slow", -1), ("slow", 9_999), ("other", 9_999)]  # only the newest arguments ran
     cb.shutdown()
@@ -48,11 +48,11 @@ def test_a_flood_of_calls_queues_at_most_one_per_callback_with_the_newest_argume
 def test_errors_of_queued_callbacks_land_in_their_future():
     cb = TabCallbacks("t")
     f = cb.submit(lambda: 1 / 0)
-    assert isinstance(f.exception(timeout=5), ZeroDivisionError)
+    assert isinstance(f.exception(timeout=HANG_S), ZeroDivisionError)
     f2 = cb.submit(lambda: "still running")
-    assert f2.result(timeout=5) == "still running"
+    assert f2.result(timeout=HANG_S) == "still running"
     cb.shutdown()
-    assert cb.submit(lambda: 1).result(timeout=1) is None  # after shutdown: nothing runs
+    assert cb.submit(lambda: 1).result(timeout=HANG_S) is None  # after shutdown: nothing runs
 
 
 def test_fair_slots_are_handed_out_in_order_nobody_barges_in():
@@ -78,7 +78,7 @@ def test_fair_slots_are_handed_out_in_order_nobody_barges_in():
         with slots:
             order.append("again")
     for t in threads:
-        t.join(5)
+        t.join(HANG_S)
     assert order[:5] == [0, 1, 2, 3, 4] and order[5:] == ["again"] * 3
 
 
@@ -95,13 +95,13 @@ def _sum(a):
 
 
 def test_large_shared_data_goes_to_each_worker_once_through_a_file():
-    pool = Pool(1, timeout=60)
+    pool = Pool(1, timeout=HANG_S)
     try:
         big = np.arange(SHARE_BYTES // 8 + 1000, dtype=float)
         g = pool.guarded()
         arg = g.share(big)
         assert isinstance(arg, _Shared) and g.share(big) is arg  # written once
-        assert g.submit(_sum, arg).result(30) == big.sum()
+        assert g.submit(_sum, arg).result(HANG_S) == big.sum()
         small = np.arange(10.0)
         assert g.share(small) is small  # small data: sent with the task as before
         for k in range(12):  # old files are deleted (the server keeps a few)

@@ -8,7 +8,6 @@ that the tab explains it in plain words and keeps its last good view.
 
 from __future__ import annotations
 
-import time
 
 import msgspec
 import pytest
@@ -16,26 +15,16 @@ import pytest
 from app.dashboard.controls import CONTROLS
 from app.dashboard.inputs import MAX_TEXT, check_value
 from app.dashboard.settings import InputError
-from test_dashboard_server import app, open_tab  # noqa: F401  (fixtures and helpers of the server tests)
+from support import HANG_S, wait_until
 
 
-def send(tab, handle, value, timeout: float = 20.0):
+def send(tab, handle, value, timeout: float = HANG_S):
     """Send ``value`` for ``handle`` over the tab's websocket, as a browser does; wait until handled."""
     g0 = tab.session.generation
     tab.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid,
                                         "updates": {"value": value}}))
-    end = time.monotonic() + timeout
-    while tab.session.generation == g0 and time.monotonic() < end:
-        time.sleep(0.01)
-    assert tab.session.generation > g0, "the server did not take the value"
+    wait_until(lambda: tab.session.generation > g0, "the server took the value", timeout, every=0.01)
     return tab.wait()
-
-
-@pytest.fixture
-def tab(app):  # noqa: F811
-    t = open_tab(app)
-    yield t
-    t.close()
 
 
 BAD = [
@@ -54,6 +43,7 @@ BAD = [
 ]
 
 
+@pytest.mark.slow
 def test_out_of_range_values_are_explained_and_the_view_stays(tab):
     for name, value, words in BAD:
         view, frames = tab.session.portrait.view, tab.session.frames_drawn
@@ -136,10 +126,7 @@ def test_values_viser_itself_refuses_are_explained_not_dropped(tab, updates, wor
     handle, before = tab.controls["bits"], tab.controls["bits"].value
     gen, frames = tab.session.generation, tab.session.frames_drawn
     _send_raw(tab, handle, updates)
-    end = time.monotonic() + 20
-    while tab.error is None and time.monotonic() < end:
-        time.sleep(0.02)
-    assert tab.error is not None, "nothing shown"
+    wait_until(lambda: tab.error is not None, "an error shown")
     assert "word length b: the value sent" in tab.error and "was refused" in tab.error and words in tab.error
     assert "keeps its last value" in tab.error
     assert handle.value == before and tab.session.generation == gen and tab.session.frames_drawn == frames

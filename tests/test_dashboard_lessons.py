@@ -11,7 +11,7 @@ from app.dashboard.lessons import LESSONS, get_lesson, lesson_names, lesson_valu
 from app.dashboard.settings import LABELS, estimators, resolve_system, sweep_config
 from qsid_core import Experiment
 from qsid_core.sweep import fit_slope
-from tests.test_dashboard_server import app, tab  # noqa: F401  (the served-tab fixtures)
+from support import HANG_S, ROOT, Tab
 
 _EX: dict = {}
 
@@ -47,6 +47,7 @@ def test_every_lesson_is_short_and_its_settings_are_valid():
         get_lesson("nope")
 
 
+@pytest.mark.slow
 def test_fig1_letter_settings_0p3_per_bit_faded_theorem_loops_close_in():
     ex = experiment("fig1")
     c = ex.config
@@ -60,6 +61,7 @@ def test_fig1_letter_settings_0p3_per_bit_faded_theorem_loops_close_in():
     assert spread(ex, 2) > spread(ex, 4) > spread(ex, 6)
 
 
+@pytest.mark.slow
 def test_fig2_boeing_cost_approaches_true_cost():
     ex = experiment("fig2")
     e = {b: ex.identification(b, "ls").err_A.mean() for b in range(2, 17)}
@@ -71,6 +73,7 @@ def test_fig2_boeing_cost_approaches_true_cost():
     assert max(gap.values()) < 1e-4, gap
 
 
+@pytest.mark.slow
 def test_theorem1_ls_on_the_line_where_hypotheses_hold():
     ex = experiment("theorem1")
     holds = [b for b in range(1, 17) if ex.assumptions(b).theorem1_holds]
@@ -89,6 +92,7 @@ def test_why_dither_bcls_removes_known_noise_only_with_dither():
     assert d.assumptions(3).bcls_holds and not n.assumptions(3).bcls_holds
 
 
+@pytest.mark.slow
 def test_data_length_more_finite_data_flags_at_the_small_size():
     small = experiment("data-length")
     big = experiment("data-length", trajectories=200, steps=1000)
@@ -134,6 +138,7 @@ def test_selecting_a_lesson_sets_the_controls_and_shows_its_text(tab):
     assert not c.lesson_text.visible and c["system"].value == "boeing747"  # the panel stays as it is
 
 
+@pytest.mark.slow
 def test_a_lesson_does_not_depend_on_the_lessons_opened_before(tab):
     """Walkthrough repro: saturation (|u| <= 0.2), then fig2 kept the bound 0.2 (50/50 loops saturated)."""
     tab.set(lesson="fig2")
@@ -169,20 +174,20 @@ def test_a_bad_input_after_a_lesson_is_explained_and_the_view_stays(tab):
     assert tab.session.portrait.view is view
 
 
+@pytest.mark.slow
 def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
     import subprocess
     import sys
 
     from app.dashboard import DashboardApp
-    from tests.test_dashboard_server import ROOT, Tab
 
     out = subprocess.run([sys.executable, "-m", "app.dashboard", "--lesson", "nope"], cwd=ROOT,
-                         capture_output=True, text=True, timeout=60)
+                         capture_output=True, text=True, timeout=HANG_S)
     assert out.returncode == 2 and out.stderr.strip().count("\n") == 0
     assert "unknown lesson 'nope'; choose one of fig1" in out.stderr
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson="bound")
     try:
-        t = Tab(app).wait(180)
+        t = Tab(app).wait()
         assert t.controls["lesson"].value == "bound" and "The ultimate bound" in t.controls.lesson_text.content
         assert t.frame.system.name == "dc-motor" and t.frame.bits == 8
         t.close()

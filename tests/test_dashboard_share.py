@@ -22,6 +22,7 @@ from app.cli.runner import config, system_from_args
 from app.dashboard import share
 from app.dashboard.session import iter_frames
 from app.dashboard.settings import InputError, Values, resolve_system, sweep_config
+from support import HANG_S, Tab
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
@@ -154,9 +155,9 @@ def test_export_figures_is_one_offline_page(frame):
     assert page.count('class="panel"') == share.frame_html(frame).count('class="panel"') == len(registry.VIEWS) - 1
 
 
+@pytest.mark.slow
 def test_download_then_upload_gives_the_same_view(monkeypatch):
     from app.dashboard import DashboardApp
-    from tests.test_dashboard_server import Tab
 
     app = DashboardApp(host="127.0.0.1", port=0, workers=0)
     try:
@@ -165,17 +166,17 @@ def test_download_then_upload_gives_the_same_view(monkeypatch):
         one.set(guard=False, dither_seed=3, horizon=12, x_ref="0.1, 0, 0, 0", **SMALL)
         one.session.views.compare_bits.value = "3, 5"
         one.session.controls.q_sliders[1].value = 1.5
-        one.wait(120)
+        one.wait()
         sent = {}
         monkeypatch.setattr(one.session.client, "send_file_download",
                             lambda name, content, **kw: sent.update({name: content}))
         share._download(one.session, "qsid-settings.json",
                         lambda _f: share.settings_json(share.panel_values(one.session)), False)
         assert set(sent) == {"qsid-settings.json"}
-        two = Tab(app).wait(120)
+        two = Tab(app).wait()
         assert two.frame.values != one.frame.values
         share._uploaded(two.session, "qsid-settings.json", sent["qsid-settings.json"])
-        two.wait(120)
+        two.wait()
         assert "Loaded settings" in two.session.share.status.content
         assert two.frame.values == one.frame.values and two.frame.values.log_q[1] == 1.5
         assert two.frame.values.compare_bits == "3, 5" and two.frame.values.x_ref == "0.1, 0, 0, 0"
@@ -193,21 +194,20 @@ def test_dashboard_settings_flag(tmp_path):
     bad.write_text('{"kind": "qsid-dashboard-settings", "values": {"bits": 99}}')
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     r = subprocess.run([sys.executable, "-m", "app.dashboard", "--settings", str(bad), "--port", "0",
-                        "--workers", "0"], cwd=ROOT, capture_output=True, text=True, env=env, timeout=120)
+                        "--workers", "0"], cwd=ROOT, capture_output=True, text=True, env=env, timeout=HANG_S)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith("qsid-dashboard: error: bad.json: settings: bits"), r.stderr
 
 
 def test_new_tabs_start_from_the_settings_file(tmp_path):
     from app.dashboard import DashboardApp
-    from tests.test_dashboard_server import Tab
 
     v = Values(system="boeing747", bits=6, guard=False, **SMALL)
     f = tmp_path / "s.json"
     f.write_text(share.settings_json(v))
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, settings=share.load_settings_file(f))
     try:
-        t = Tab(app).wait(120)
+        t = Tab(app).wait()
         assert t.frame.values.system == "boeing747" and t.frame.values.bits == 6 and t.frame.values.guard is False
         t.close()
     finally:

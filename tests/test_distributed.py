@@ -10,13 +10,10 @@ JSON with the in-process run (timings excluded). They skip only when the
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -24,77 +21,20 @@ import pytest
 from app.distributed import ClusterError, DaskExecutor, make_executor, parse_dask_spec
 from qsid_core import SweepConfig, run_sweep
 from qsid_core.errors import ConfigError
-
-ROOT = Path(__file__).resolve().parents[1]
-STARTUP_S = 60.0
+from support import HANG_S, dask_cluster, wait_until
+from support import need_distributed as _need_distributed
 
 TINY = dict(bits=(2, 5, 9), realizations=8, trajectories=12, steps=150)
-
-
-def _need_distributed():
-    if os.environ.get("QSID_REQUIRE_DISTRIBUTED") == "1":
-        import distributed  # noqa: F401 -- CI: must run, a missing package fails
-    else:
-        pytest.importorskip("distributed")
+#: How long a broken cluster may stall before the executor gives up; it also bounds how long sharing
+#: an object with the workers may take, so it is generous (a busy machine only makes a test slower).
+STALL_S = 20.0
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _json(res) -> str:
     d = res.to_dict()
     d.pop("timing_s")
     return json.dumps(d, sort_keys=True)
-
-
-def _kill(proc: subprocess.Popen) -> None:
-    """Stop a process started in its own session, with its children (the nanny's worker)."""
-    if proc.poll() is not None:
-        return
-    with contextlib.suppress(ProcessLookupError):
-        os.killpg(proc.pid, signal.SIGTERM)
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(10)
-
-
-@contextlib.contextmanager
-def dask_cluster(tmp: Path, workers: int = 2):
-    """A scheduler and ``workers`` worker processes on 127.0.0.1; yields (address, workers, scheduler)."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    procs: list[subprocess.Popen] = []
-
-    def start(args, log):
-        fh = open(tmp / log, "wb")
-        p = subprocess.Popen([sys.executable, "-m", "dask", *args], cwd=ROOT, env=env, stdout=fh,
-                             stderr=subprocess.STDOUT, start_new_session=True)
-        fh.close()
-        procs.append(p)
-        return p
-
-    try:
-        sfile = tmp / "scheduler.json"
-        sched = start(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                       "--scheduler-file", str(sfile)], "scheduler.log")
-        end = time.monotonic() + STARTUP_S
-        while not sfile.exists() or not sfile.read_text().strip():
-            assert sched.poll() is None, (tmp / "scheduler.log").read_text()
-            assert time.monotonic() < end, "dask scheduler did not start in time"
-            time.sleep(0.1)
-        time.sleep(0.1)
-        address = json.loads(sfile.read_text())["address"]
-        assert address.startswith("tcp://127.0.0.1:")
-        wprocs = [start(["worker", address, "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
-                         "--no-dashboard", "--name", f"w{i}", "--local-directory", str(tmp / f"w{i}")],
-                        f"worker{i}.log") for i in range(workers)]
-        from distributed import Client
-
-        with Client(address, timeout=10, set_as_default=False) as c:
-            c.wait_for_workers(workers, timeout=STARTUP_S)
-        yield address, wprocs, sched
-    finally:
-        for p in reversed(procs):
-            _kill(p)
 
 
 @pytest.fixture(scope="module")
@@ -173,12 +113,10 @@ def test_wrong_address_is_one_clear_line():
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    t0 = time.monotonic()
     with pytest.raises(ConfigError, match=rf"cannot reach a scheduler at tcp://127.0.0.1:{port} within 2 s") as ei:
         with make_executor(f"tcp://127.0.0.1:{port}", connect_timeout=2):
             pass
     assert "\n" not in str(ei.value)
-    assert time.monotonic() - t0 < 20
 
 
 @pytest.mark.cluster
@@ -187,7 +125,7 @@ def test_lost_worker_is_rerun_and_losing_all_is_reported(tmp_path, reference):
     big = dict(TINY, trajectories=60, steps=1000)
     expect = _json(run_sweep(SweepConfig(**big)))
     with dask_cluster(tmp_path) as (address, wprocs, _):
-        with make_executor(address, stall_timeout=3, connect_timeout=5) as ex:
+        with make_executor(address, stall_timeout=STALL_S, connect_timeout=HANG_S) as ex:
             def kill_one(i, n, stage):
                 if wprocs[1].poll() is None:
                     os.killpg(wprocs[1].pid, signal.SIGKILL)
@@ -197,36 +135,30 @@ def test_lost_worker_is_rerun_and_losing_all_is_reported(tmp_path, reference):
             assert _json(res) == expect  # the scheduler reran the lost tasks on the other worker
 
             os.killpg(wprocs[0].pid, signal.SIGKILL)
-            wprocs[0].wait(10)
-            end = time.monotonic() + 20
-            while ex.workers and time.monotonic() < end:  # the scheduler notices the closed connection
-                time.sleep(0.05)
-            t0 = time.monotonic()
+            wprocs[0].wait(HANG_S)
+            wait_until(lambda: not ex.workers, "the scheduler noticed the closed connection", every=0.05)
             with pytest.raises(ClusterError, match="no workers") as ei:
                 run_sweep(SweepConfig(**dict(TINY, data_seed=5)), ex, tasks=4)
             assert "\n" not in str(ei.value)
-            assert time.monotonic() - t0 < 30
 
 
 @pytest.mark.cluster
 def test_lost_scheduler_is_one_clear_line(tmp_path):
     _need_distributed()
     with dask_cluster(tmp_path, workers=1) as (address, _, sched):
-        with make_executor(address, stall_timeout=3) as ex:
+        with make_executor(address, stall_timeout=STALL_S) as ex:
             def kill_scheduler(i, n, stage):
                 if sched.poll() is None:
                     os.killpg(sched.pid, signal.SIGKILL)
 
-            t0 = time.monotonic()
             with pytest.raises(ClusterError, match="scheduler") as ei:
                 run_sweep(SweepConfig(**dict(TINY, trajectories=60, steps=1000)), ex, progress=kill_scheduler, tasks=6)
             assert "\n" not in str(ei.value)
-            assert time.monotonic() - t0 < 30
 
 
 def test_missing_distributed_says_which_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
-    with pytest.raises(ConfigError, match=r"pip install 'qsid\[distributed\]'"):
+    with pytest.raises(ConfigError, match=r'pip install "\.\[distributed\]"'):
         with make_executor("local:1"):
             pass
 

@@ -345,6 +345,7 @@ def _call(fn, *a, **k):
 
 @FUZZ
 @given(kw=system_kwargs())
+@pytest.mark.slow
 def test_fuzz_ltisystem(kw):
     s = _call(LTISystem, kw.pop("name"), kw.pop("A"), kw.pop("B"), **kw)
     if s is not None:

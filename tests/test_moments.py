@@ -126,7 +126,7 @@ def test_numba_can_be_switched_off_with_a_reason():
 
     env = {**__import__("os").environ, "QSID_NO_NUMBA": "1"}
     out = subprocess.run([sys.executable, "-c", "from qsid_core import kernels; print(kernels.AVAILABLE, kernels.REASON)"],
-                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert out.stdout.strip() == "False numba disabled by QSID_NO_NUMBA"
 
 

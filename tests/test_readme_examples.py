@@ -64,6 +64,7 @@ def test_number_comparison_catches_a_changed_result():
         assert_same_text("b = 4 dt 0.1 ['x1']", "b = 4 dt 0.1 ['pos']", rtol=1e-4, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_interop_example_prints_what_the_readme_shows(tmp_path):
     pytest.importorskip("control")
     out = run_example("interop", tmp_path)

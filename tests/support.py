@@ -1,0 +1,191 @@
+"""Helpers shared by several test modules (not a test module itself: pytest collects nothing here).
+
+* :class:`Tab` and :func:`open_tab`: a websocket client of an in-process dashboard server plus the
+  server-side session viser built for it (the ``dashboard`` and ``tab`` fixtures of ``conftest.py``
+  use them);
+* :func:`dask_cluster` and :func:`need_distributed`: a real dask scheduler and workers on 127.0.0.1.
+
+Every wait here is a liveness guard against a hang, never a speed claim: :data:`HANG_S` is minutes,
+so a busy machine only makes a test slower, never red.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import msgspec
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Seconds any single wait may take before the test calls it a hang (not a speed target).
+HANG_S = 300.0
+
+#: A small data size: every view of a tab is drawn in well under a second on a quiet machine.
+SMALL = dict(trajectories=10, steps=60, realizations=4)
+
+#: What a browser sends first; viser counts a client as connected once it reports its camera.
+CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0],
+          "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
+          "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}
+
+
+def connect_ws(app, **kwargs):
+    """A raw websocket to ``app`` speaking viser's protocol (nothing sent yet)."""
+    import viser
+    from websockets.sync.client import connect
+
+    return connect(app.url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"],
+                   max_size=None, open_timeout=kwargs.pop("open_timeout", 120), **kwargs)
+
+
+class Tab:
+    """One browser tab: a websocket client that reads everything, and its server-side session.
+
+    Parameters
+    ----------
+    app : app.dashboard.DashboardApp
+        A running in-process server.
+    """
+
+    def __init__(self, app):
+        self.app = app
+        before = set(app.sessions)
+        self.ws = connect_ws(app)
+        self.received = 0
+        self.thread = threading.Thread(target=self._read, daemon=True)
+        self.thread.start()
+        self.ws.send(msgspec.msgpack.encode(CAMERA))
+        sessions = app.wait_for_sessions(len(before) + 1, timeout=HANG_S)
+        self.session = next(s for s in sessions if s.client.client_id not in before)
+        self.controls = self.session.controls
+
+    def _read(self) -> None:
+        try:
+            while True:
+                self.ws.recv()
+                self.received += 1
+        except Exception:
+            pass
+
+    def set(self, **values) -> "Tab":
+        """Set inputs as a person would (each runs the input's callbacks), then wait until redrawn."""
+        for name, value in values.items():
+            self.controls[name].value = value
+        return self.wait()
+
+    def wait(self, timeout: float = HANG_S) -> "Tab":
+        """Wait until the tab has drawn its newest settings; ``timeout`` only guards against a hang."""
+        assert self.session.wait_idle(timeout), f"the tab was not redrawn within {timeout:g} s (hung?)"
+        return self
+
+    @property
+    def frame(self):
+        return self.session.last_frame
+
+    @property
+    def error(self) -> str | None:
+        """The error text shown in the panel (None if hidden)."""
+        return self.controls.error.content if self.controls.error.visible else None
+
+    @property
+    def summary(self) -> str:
+        return self.controls.summary.content
+
+    def close(self) -> None:
+        self.ws.close()
+
+
+def open_tab(app) -> Tab:
+    """A tab at a small data size, its first view drawn."""
+    t = Tab(app)
+    t.set(mpc_steps=15, **SMALL)
+    return t.wait()
+
+
+def marks(tab: Tab, name: str = "error") -> list:
+    """Where the dotted current-b markers of a plot are."""
+    return [sh.x0 for sh in tab.session.plots[name].figure.layout.shapes if sh.name == "current b"]
+
+
+def wait_until(predicate, what: str, timeout: float = HANG_S, every: float = 0.02) -> None:
+    """Poll ``predicate()`` until true; fail after ``timeout`` s (a hang guard, not a speed claim)."""
+    end = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < end, f"{what}: not after {timeout:g} s (hung?)"
+        time.sleep(every)
+
+
+def need_distributed() -> None:
+    """Skip without the ``distributed`` package; with QSID_REQUIRE_DISTRIBUTED=1 (CI) fail instead."""
+    if os.environ.get("QSID_REQUIRE_DISTRIBUTED") == "1":
+        import distributed  # noqa: F401 -- CI: must run, a missing package fails
+    else:
+        pytest.importorskip("distributed")
+
+
+def kill_group(proc: subprocess.Popen) -> None:
+    """Stop a process started in its own session, with its children (the nanny's worker)."""
+    if proc.poll() is not None:
+        return
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGTERM)
+    try:
+        proc.wait(30)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(30)
+
+
+def _scheduler_address(sfile: Path) -> str | None:
+    """The address in a dask scheduler file, or None while it is missing or half written."""
+    try:
+        return json.loads(sfile.read_text())["address"]
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+@contextlib.contextmanager
+def dask_cluster(tmp: Path, workers: int = 2):
+    """A scheduler and ``workers`` worker processes on 127.0.0.1; yields (address, workers, scheduler)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    procs: list[subprocess.Popen] = []
+
+    def start(args, log):
+        fh = open(tmp / log, "wb")
+        p = subprocess.Popen([sys.executable, "-m", "dask", *args], cwd=ROOT, env=env, stdout=fh,
+                             stderr=subprocess.STDOUT, start_new_session=True)
+        fh.close()
+        procs.append(p)
+        return p
+
+    try:
+        sfile = tmp / "scheduler.json"
+        sched = start(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                       "--scheduler-file", str(sfile)], "scheduler.log")
+        end = time.monotonic() + HANG_S
+        while (address := _scheduler_address(sfile)) is None:  # the file may be half written at first
+            assert sched.poll() is None, (tmp / "scheduler.log").read_text()
+            assert time.monotonic() < end, "dask scheduler did not start (hung?)"
+            time.sleep(0.1)
+        assert address.startswith("tcp://127.0.0.1:")
+        wprocs = [start(["worker", address, "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
+                         "--no-dashboard", "--name", f"w{i}", "--local-directory", str(tmp / f"w{i}")],
+                        f"worker{i}.log") for i in range(workers)]
+        from distributed import Client
+
+        with Client(address, timeout=HANG_S, set_as_default=False) as c:
+            c.wait_for_workers(workers, timeout=HANG_S)
+        yield address, wprocs, sched
+    finally:
+        for p in reversed(procs):
+            kill_group(p)
