@@ -232,7 +232,7 @@ def test_fig2_text_note_and_marks_agree():
     note = " ".join(a.text for a in fig.layout.annotations)
     assert "overload: the per-channel data range (min/max, no guard band) clips" in note and "for B̂" in note
     # the theory lines are drawn last: above the data, never hidden
-    kinds = [t.name for t in fig.data]
+    kinds = [t.name or "" for t in fig.data]
     assert max(i for i, k in enumerate(kinds) if k == "LS") < min(i for i, k in enumerate(kinds)
                                                                     if k.startswith("Theorem 1"))
     # the slope is read out next to the letter's
@@ -303,3 +303,24 @@ def test_lesson_flag_opens_on_its_tab(name, tab_name):
         t.close()
     finally:
         a.stop()
+
+
+def test_fig1_and_theorem1_text_agree_with_marks():
+    """fig1 says Theorem 1's line is faded (integrator): no dashed line, the note says why. theorem1 says
+    LS sits on the dashed line where every hypothesis holds: the dashed A line is drawn exactly there or
+    where LS is within 5 % of it, and it is faded at fine b."""
+    from app.figures.error_vs_bits import error_figure
+
+    assert "Theorem 1's line is faded: the motor angle is an integrator" in get_lesson("fig1").text
+    fig = error_figure({"LS": _ls_rows(experiment("fig1"), range(4, 13))})
+    assert not _line(fig, "Theorem 1", "x") and not _line(fig, "Theorem 1", "x2")
+    assert "integrator" in " ".join(a.text for a in fig.layout.annotations)
+    ex = experiment("theorem1")
+    rows = _ls_rows(ex, range(1, 17))
+    fig = error_figure({"LS": rows})
+    drawn = _line(fig, "Theorem 1", "x")
+    holds = {r["bits"] for r in rows if r["assumptions"]["theorem1_holds_A"]}
+    assert holds and holds <= drawn and 16 not in drawn and 16 in _line(fig, "Theorem 1 (hypotheses fail)", "x")
+    for r in rows:
+        if r["bits"] in drawn:
+            assert r["err_A"]["mean"] == pytest.approx(r["err_A_theory"], rel=0.10), r["bits"]

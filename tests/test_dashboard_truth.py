@@ -107,7 +107,7 @@ def test_bcls_without_dither_is_marked():
     marks = [t for t in fig.data if t.name == "BCLS: noise not ε²/12"]
     assert marks and len(marks[0].x) == len(f.rows["BCLS"])
     s = summary_markdown(f)
-    assert "its noise model fails" in s and "4 dither realizations (1 distinct" in s
+    assert "its hypotheses fail" in s and "4 dither realizations (1 distinct" in s
 
 
 def test_bound_plot_shows_both_bounds_with_the_caption():

@@ -113,3 +113,25 @@ def test_letter_boeing_overload_moves_b_not_a():
     assert a.no_overload_A and not a.no_overload_B and a.theorem1_holds_A and not a.theorem1_holds_B
     assert a.overload_effect_B > 3 * a.fluctuation_B and a.overload_effect_A < a.fluctuation_A / 3
     assert ex.identification(2, "ls").err_A.mean() == pytest.approx(a.bias_A, rel=0.01)
+
+
+def test_quantizer_error_against_signal_sawtooth_and_band():
+    """Plain quantization error is a deterministic sawtooth of x (99.6 % of its variance fixed by the cell
+    position, at every b), the dithered one a band independent of x (< 1 %), while the correlation with x
+    alone shrinks to ~0 at fine b for both; the quantizer view draws both against x with that reading."""
+    from app.figures.quantizer import dependence_text, quantizer_figure
+    from qsid_core.quantizer_demo import quantizer_demo
+
+    x = np.random.default_rng(1).uniform(-1, 1, 20000)
+    for b in (2, 8):
+        d = quantizer_demo(x, -1, 1, b)
+        assert d.cell_dependence_plain > 0.99 and d.cell_dependence_dithered < 0.01
+        pos = np.mod((d.scatter_x - d.lo_q) / d.eps, 1.0)
+        np.testing.assert_allclose(d.scatter_plain, d.eps * (pos - 0.5), atol=1e-9 * d.eps)  # the sawtooth
+        assert np.all(np.abs(d.scatter_dithered) <= d.eps / 2 + 1e-12)  # the band
+    assert abs(d.corr_plain) < 0.05  # correlation with x alone misses the sawtooth at b = 8
+    fig = quantizer_figure(d)
+    names = {t.name for t in fig.data}
+    assert {"error vs x, dithered", "error vs x, no dither"} <= names
+    assert dependence_text(d) in " ".join(a.text for a in fig.layout.annotations)
+    assert "plain 100 %" in dependence_text(d)

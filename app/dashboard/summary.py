@@ -123,7 +123,7 @@ def _hypotheses(frame: Frame) -> list:
     lines = ["**Theorem 1** (dashed line): " + head]
     lines += [f"- {w}" for w in t1 + fits]
     lines += ["", "**BCLS** (known noise ε²/12): " + ("its hypotheses hold." if not bc else
-                                                    "its noise model fails (✕ marks):")]
+                                                    "its hypotheses fail (✕ marks):")]
     lines += [f"- {w}" for w in bc]
     return lines
 

@@ -109,8 +109,10 @@ class ViewPanel:
         if not self._orders:
             self._orders = {name: float(h.order) for name, h in self.plots.items()}
         same = [v.name for v in registry.VIEWS if v.tab == tab]
-        for name in same:  # the key view just above the tab's first view, the others where they were
-            self.plots[name].order = (min(self._orders[n] for n in same) - 0.5) if name == plot else self._orders[name]
+        for name, h in self.plots.items():  # the key view just above its tab's first view, the others as built
+            want = (min(self._orders[n] for n in same) - 0.5) if name == plot else self._orders[name]
+            if h.order != want:
+                h.order = want
         self.set_system(system)
         names = self.system_names
         self.channel.value = names[min(max(int(channel), 0), len(names) - 1)]
