@@ -272,6 +272,9 @@ def test_lesson_opens_on_its_plot_above_the_fold(size, tmp_path):
                     .map(e => [e.getBoundingClientRect().top, e.textContent.includes('a-posteriori δ')])""")
                 bound_top = min(t for t, is_bound in tops if is_bound)
                 assert bound_top == min(t for t, _ in tops) and bound_top < 0.5 * size[1], tops
+                shots = os.environ.get("QSID_SCREENSHOT_DIR")
+                if shots and size == (1920, 1080):  # the lesson screenshot of the README
+                    page.screenshot(path=os.path.join(shots, "lesson.png"))
                 session.controls["lesson"].value = "one-cell"
                 page.wait_for_function(f"({_ACTIVE_PLOT_TAB})() === 'Quantizer'", timeout=TIMEOUT_MS)
                 session.controls["lesson"].value = "fig1"

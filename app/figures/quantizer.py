@@ -47,14 +47,14 @@ def demo_text(d: QuantizerDemo) -> str:
 
 def dependence_text(d: QuantizerDemo) -> str:
     """One-line reading of the error-vs-signal panel: how much of each error the signal value fixes."""
-    return (f"error fixed by where x sits in its cell: plain {100 * d.cell_dependence_plain:.0f} % (a deterministic "
-            f"sawtooth of x), dithered {100 * d.cell_dependence_dithered:.1f} % (noise independent of x) · "
-            f"correlation with x: plain {d.corr_plain:+.2f}, dithered {d.corr_dithered:+.2f}")
+    return (f"error fixed by x's place in its cell: plain {100 * d.cell_dependence_plain:.0f} % (a sawtooth of x), "
+            f"dithered {100 * d.cell_dependence_dithered:.1f} % (independent of x)<br>correlation with x: plain "
+            f"{d.corr_plain:+.2f}, dithered {d.corr_dithered:+.2f} (it misses the sawtooth at fine b)")
 
 
 def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
     """Signal window (top); errors against the signal value (middle); error histograms vs uniform (bottom)."""
-    layout, (y1, y2, y3) = stacked_axes(3, gap=0.12)
+    layout, (y1, y2, y3) = stacked_axes(3, gap=0.15)
     layout["xaxis"] = dict(anchor=y1, title=dict(text="sample"))
     layout["xaxis2"] = dict(anchor=y2, title=dict(text=f"signal value {d.label}"))
     layout["xaxis3"] = dict(anchor=y3, title=dict(text="quantization error (signal units)"))
@@ -86,7 +86,7 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
                      line=dict(color=COLORS["theory"], dash="dash", width=2)))
     top2 = layout["yaxis2"]["domain"][1]
     note = dict(text=dependence_text(d), xref="paper", yref="paper", x=0, y=top2, xanchor="left",
-                yanchor="bottom", showarrow=False, align="left", font=dict(size=11, color="#444444"))
+                yanchor="bottom", showarrow=False, align="left", font=dict(size=10, color="#444444"))
     layout.update(height=height, barmode="overlay", bargap=0, margin=dict(l=60, r=10, t=50, b=40),
                   annotations=[note], title=dict(text=demo_text(d), font=dict(size=11)),
                   legend=dict(orientation="h", y=-0.12))
