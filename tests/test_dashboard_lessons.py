@@ -9,8 +9,8 @@ import pytest
 from app.dashboard.frames import full_row
 from app.dashboard.lessons import LESSONS, get_lesson, lesson_names, lesson_values
 from app.dashboard.settings import LABELS, estimators, resolve_system, sweep_config
-from qsid_core import Experiment
 from app.figures import registry
+from qsid_core import Experiment
 from qsid_core.sweep import fit_slope
 from tests.test_dashboard_server import app, tab  # noqa: F401  (the served-tab fixtures)
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import plotly.graph_objects as go
 
+from qsid_core.sweep import fit_slope
+
 from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, short, theorem1_reasons
 from .palette import COLORS, color
 from .raw import figure
 from .traces import BITS_AXIS, Series, band, get, mark_bits, xy
 from .view import CURVES, View
-from qsid_core.sweep import fit_slope
 
 __all__ = ["error_figure", "slope_text", "LETTER_SLOPES", "VIEW"]
 
