@@ -97,7 +97,9 @@ def _flags(r: dict) -> str:
     a = r.get("assumptions")
     if not a:
         return "-"
-    return f"{'yes' if a['theorem1_holds'] else 'no'}/{'yes' if a['bcls_holds'] else 'no'}"
+    t1 = "yes" if a["theorem1_holds"] else ("A" if a.get("theorem1_holds_A") else
+                                            "B" if a.get("theorem1_holds_B") else "no")  # one block only
+    return f"{t1}/{'yes' if a['bcls_holds'] else 'no'}"
 
 
 def g(v, fmt: str = ".3g", none: str = "-") -> str:
