@@ -27,6 +27,7 @@ Each is None when no b of the sweep qualifies.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -35,6 +36,7 @@ import numpy as np
 
 from .errors import ConfigError, check_float
 from .experiment import Experiment, Progress, SweepConfig
+from .stability import data_rate_bits
 from .summary import json_clean
 from .sweep import SweepResult, run_sweep
 
@@ -128,6 +130,10 @@ class BitsAnswer:
     rows : tuple of BitsRow
     true_cost : float or None
         Closed-loop cost of the MPC built on the true model.
+    data_rate_bits : float or None
+        The data-rate theorem's floor for *quantized feedback* of this plant
+        (:func:`qsid_core.stability.data_rate_bits`); a different question from the
+        word length of the training data, given for comparison.
     """
 
     system: str
@@ -137,6 +143,7 @@ class BitsAnswer:
     b_letter: int | None
     rows: tuple
     true_cost: float | None = None
+    data_rate_bits: float | None = None
     result: SweepResult | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -155,12 +162,17 @@ class BitsAnswer:
                else f"the small-gain certificate needs b >= {self.b_robust}")
         let = ("the letter's bound says nothing up to the last b" if self.b_letter is None
                else f"the letter's bound says something from b = {self.b_letter}")
-        return f"{obs}; {rob}; {let}."
+        dr = ""
+        if self.data_rate_bits:
+            dr = (f" (Quantized feedback of this plant would need more than {self.data_rate_bits:.2f} bits per "
+                  "sample: the data-rate theorem.)")
+        return f"{obs}; {rob}; {let}.{dr}"
 
     def to_dict(self) -> dict:
         return json_clean({
             "system": self.system, "settings": self.settings, "b_observed": self.b_observed,
             "b_robust": self.b_robust, "b_letter": self.b_letter, "true_model_cost": self.true_cost,
+            "data_rate_bits": self.data_rate_bits,
             "sentence": self.sentence, "rows": [r.to_dict() for r in self.rows],
         })
 
@@ -227,7 +239,7 @@ def realized_small_gain(ident, loops, A: np.ndarray, B: np.ndarray) -> np.ndarra
 
 def answer_from_rows(system: str, settings: dict, rows: list, true_cost: float | None, *,
                      robust: dict | None = None, robust_realized: dict | None = None,
-                     target: float = 0.95, cost_gap: float = 0.01) -> BitsAnswer:
+                     target: float = 0.95, cost_gap: float = 0.01, data_rate: float | None = None) -> BitsAnswer:
     """The answer from a sweep's summary rows (``SummaryRow`` or their dicts), as the dashboard has them.
 
     Parameters
@@ -240,6 +252,8 @@ def answer_from_rows(system: str, settings: dict, rows: list, true_cost: float |
     robust_realized : dict b -> int, optional
     target, cost_gap : float
         ``target`` in (0, 1]; ``cost_gap`` >= 0 (relative).
+    data_rate : float, optional
+        The plant's data-rate floor (:func:`qsid_core.stability.data_rate_bits`).
     """
     target, cost_gap = _check_targets(target, cost_gap)
     out = []
@@ -264,7 +278,7 @@ def answer_from_rows(system: str, settings: dict, rows: list, true_cost: float |
     b_rob = from_on(bits, [bool(r.robust) for r in out]) if robust else None
     b_let = from_on(bits, [bool(r.bound_self_consistent) and bool(r.bound_informative) for r in out])
     return BitsAnswer(system, {**settings, "target": target, "cost_gap": cost_gap}, b_obs, b_rob, b_let, tuple(out),
-                      true_cost)
+                      true_cost, data_rate)
 
 
 def bits_needed(config: SweepConfig, *, target: float = 0.95, cost_gap: float = 0.01,
@@ -307,6 +321,6 @@ def bits_needed(config: SweepConfig, *, target: float = 0.95, cost_gap: float = 
     true_cost = float(res.true_loop.cost[0]) if res.true_loop is not None else None
     settings = res.to_dict()["config"]
     ans = answer_from_rows(res.system.name, settings, [res.summary(b) for b in res.bits], true_cost,
-                           robust=robust, robust_realized=rr, target=target, cost_gap=cost_gap)
-    return BitsAnswer(ans.system, ans.settings, ans.b_observed, ans.b_robust, ans.b_letter, ans.rows, ans.true_cost,
-                      result=res)
+                           robust=robust, robust_realized=rr, target=target, cost_gap=cost_gap,
+                           data_rate=data_rate_bits(res.system.A))
+    return dataclasses.replace(ans, result=res)

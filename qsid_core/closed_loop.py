@@ -12,14 +12,16 @@ are recorded per model, never raised.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from .condensed_qp import box_qp_batch, condense
 from .errors import FailureKind, MPCFailure
-from .mpc import MPCConfig, MPCController, MPCWeights
-from .riccati import dare_batch, lq_parts
+from .loop_noise import LoopNoise, loop_noise
+from .tracking import Preview
+from .controllers import build_controllers
+from .mpc import MPCConfig, MPCWeights
+from .stage_results import ClosedLoops
+from .verdicts import judge
 
 __all__ = ["ClosedLoops", "run_closed_loops"]
 
@@ -29,115 +31,15 @@ DIVERGED = 1e12
 SMALL = 4
 
 
-@dataclass
-class ClosedLoops:
-    """Closed loops of several identified models, each run on the true system.
-
-    Attributes
-    ----------
-    states : ndarray, shape (R, steps + 1, n)
-        True-system trajectories (NaN after a failure), in the system's state units.
-    inputs : ndarray, shape (R, steps, m)
-        Applied inputs (NaN after a failure).
-    cost : ndarray, shape (R,)
-        Realised cost ``sum_{t<steps} (x_t-r)'Q(x_t-r) + u_t'R u_t`` on the true system (NaN if failed).
-    J0 : ndarray, shape (R,)
-        Predicted optimal cost ``J*(x0)`` of the first MPC problem (NaN if failed).
-    failure : list of str
-        ``""`` for success, else a :class:`~qsid_core.errors.FailureKind` (a ``str``).
-    messages : list of str
-        Plain-words reason per failed realisation.
-    qp_steps : int
-        How many MPC steps needed the QP solver (the rest took the exact fast path).
-    outcome : list of str
-        Verdict per loop on the true plant (:mod:`qsid_core.verdicts`): ``"converged"``,
-        ``"bounded"``, ``"diverged"`` or ``"failed"`` (the MPC could not run); empty when
-        the loops were not judged (``MPCConfig.verify_steps=None``).
-    spectral_radius : ndarray, shape (R,)
-        ``max |eig(A - B K^)|`` of the unconstrained MPC law on the true plant (NaN where no MPC).
-    verdict_steps : ndarray of int, shape (R,)
-        Closed-loop steps it took to reach the verdict (``steps`` plus any extra steps).
-    gains : list of ndarray (m, n) or None
-        ``K^`` of each loop's unconstrained law ``u = -K^ x + k`` (None where no MPC ran).
-    """
-
-    states: np.ndarray
-    inputs: np.ndarray
-    cost: np.ndarray
-    J0: np.ndarray
-    failure: list = field(default_factory=list)
-    messages: list = field(default_factory=list)
-    qp_steps: int = 0
-    outcome: list = field(default_factory=list)
-    spectral_radius: np.ndarray | None = None
-    verdict_steps: np.ndarray | None = None
-    gains: list = field(default_factory=list)
-
-    def outcome_counts(self) -> dict:
-        """``{"converged", "bounded", "diverged", "failed"}`` -> number of loops (empty if not judged)."""
-        if not self.outcome:
-            return {}
-        return {k: sum(o == k for o in self.outcome) for k in ("converged", "bounded", "diverged", "failed")}
-
-    @property
-    def osqp_steps(self) -> int:
-        """Old name of :attr:`qp_steps` (the sweep's JSON key ``osqp_steps`` keeps it)."""
-        return self.qp_steps
-
-    @property
-    def failed(self) -> np.ndarray:
-        """shape (R,): True where the loop failed."""
-        return np.array([bool(f) for f in self.failure])
-
-    @property
-    def final_state_norm(self) -> np.ndarray:
-        """shape (R,): ``||x_steps||_2``."""
-        return np.linalg.norm(self.states[:, -1, :], axis=1)
-
-
-def _controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, messages: list) -> list:
-    """One :class:`MPCController` per model (None where it cannot be built; the reason is recorded).
-
-    The expensive parts are computed for all models at once: the terminal weights
-    ``Qf`` (stabilizing DARE solutions, by batched doubling; the few it cannot
-    settle go to scipy inside MPCController) and the fast-path parts (backward
-    Riccati recursion and prediction map, :func:`lq_parts`).
-    """
-    # models without finite entries (failed identifications) are left to MPCController to reject
-    fi = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
-    Qfs: list = [w.Qf] * len(models)
-    if w.Qf is None and fi:
-        X, okd = dare_batch(np.stack([models[i][0] for i in fi]), np.stack([models[i][1] for i in fi]), w.Q, w.R)
-        for k, i in enumerate(fi):
-            if okd[k]:
-                Qfs[i] = X[k]
-    ready = [i for i in fi if Qfs[i] is not None]
-    parts: dict = {}
-    if ready:
-        with np.errstate(all="ignore"):
-            bp = lq_parts(np.stack([np.asarray(models[i][0], float) for i in ready]),
-                          np.stack([np.asarray(models[i][1], float) for i in ready]), w.Q, w.R,
-                          np.stack([np.asarray(Qfs[i], float) for i in ready]), w.x_ref, cfg.horizon,
-                          w.u_max, w.x_max, w.xf_max)
-        fin = bp.finite()
-        parts = {i: bp.model(k) for k, i in enumerate(ready) if fin[k]}
-    ctrls: list = []
-    for i, (Ah, Bh) in enumerate(models):
-        try:
-            ctrls.append(MPCController(Ah, Bh, w.Q, w.R, cfg.horizon, w.u_max, w.x_max, w.xf_max, w.x_ref, Qfs[i],
-                                       cfg.eps, cfg.max_iter, parts=parts.get(i), solver=cfg.solver))
-        except MPCFailure as exc:
-            ctrls.append(None)
-            failure[i], messages[i] = exc.kind, str(exc)
-    return ctrls
-
-
 class _Loops:
     """State of the batched closed loops (arrays indexed by realisation ``i``)."""
 
     def __init__(self, ctrls: list, w: MPCWeights, A: np.ndarray, B: np.ndarray, steps: int, out: ClosedLoops,
-                 x_start: np.ndarray | None = None, cq=None):
+                 x_start: np.ndarray | None = None, cq=None, noise: LoopNoise | None = None):
         self.ctrls, self.w, self.A, self.B, self.steps, self.out = ctrls, w, A, B, steps, out
+        self.noise = noise  # disturbance and measurement draws (None: exact state feedback, no disturbance)
+        self.preview: Preview | None = None  # a time-varying reference (None: the constant x_ref)
+        self.offset_free = False  # the input cost (u - u_ref)'R(u - u_ref) instead of the letter's u'R u
         self.n, self.m = B.shape
         live = np.flatnonzero([c is not None for c in ctrls])
         self.live = live
@@ -160,13 +62,34 @@ class _Loops:
         self.prev_t = np.full(len(ctrls), -2)  # the step it was computed at
         self.ub = np.tile(w.u_max, self.nU // self.m)  # box of U = [u_0; ...; u_{N-1}]
 
+    def seen(self, x: np.ndarray, t: int) -> np.ndarray:
+        """What the controller measures of true states ``x`` (shape (L, n)) at step ``t``."""
+        return x if self.noise is None else self.noise.measure(x, t)
+
+    def moved(self, x: np.ndarray, u: np.ndarray, t: int) -> np.ndarray:
+        """The true plant's next states ``A x + B u`` (+ the disturbance at step ``t``)."""
+        xn = x @ self.A.T + u @ self.B.T
+        return xn if self.noise is None else xn + self.noise.w[t]
+
     def rows(self, active: np.ndarray) -> np.ndarray:
         """Rows of the live-model arrays (``F``, ``f``, the condensed QPs) of realisations ``active``."""
         return self.pos[active]
 
-    def stage_cost(self, xs: np.ndarray, us: np.ndarray) -> np.ndarray:
-        """``(x - r)'Q(x - r) + u'R u`` over the last axis."""
-        e = xs - self.w.x_ref
+    def track(self) -> None:
+        """Follow ``w.reference`` with preview (the controllers were built for a zero reference)."""
+        self.condensed()
+        cs = [self.ctrls[i] for i in self.live]
+        free = (np.stack([c.A for c in cs]), np.stack([c.B for c in cs]), self.w.R) if self.offset_free else None
+        self.preview = Preview(self.cq, self.F.shape[1], self.w.reference, free)
+
+    def ref_offsets(self, j: np.ndarray, t: int, H: int):
+        """The reference part of the prediction map at steps ``t..t+H-1`` (0 without a time-varying reference)."""
+        return 0.0 if self.preview is None else self.preview.offsets(j, t, H)
+
+    def stage_cost(self, xs: np.ndarray, us: np.ndarray, t: int = 0) -> np.ndarray:
+        """``(x - r)'Q(x - r) + u'R u`` over the last axis (``xs`` from step ``t``)."""
+        # a time-varying reference runs along the time axis (second to last) from step t
+        e = xs - (self.w.x_ref if self.preview is None else self.preview.r[t : t + xs.shape[-2]])
         return np.einsum("...i,ij,...j->...", e, self.w.Q, e) + np.einsum("...i,ij,...j->...", us, self.w.R, us)
 
     def fail(self, i: int, kind: FailureKind, msg: str) -> None:
@@ -194,16 +117,23 @@ class _Loops:
         H = self.steps - t
         xs = np.empty((active.size, H + 1, n))
         xs[:, 0] = self.x[active]
-        for h in range(H):
-            xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
-        z = np.einsum("lrn,lhn->lhr", self.F[j], xs[:, :H]) + self.f[j][:, None, :]
+        if self.noise is None and self.preview is None:
+            for h in range(H):
+                xs[:, h + 1] = np.einsum("lij,lj->li", Mcl, xs[:, h]) + ccl
+            z = np.einsum("lrn,lhn->lhr", self.F[j], xs[:, :H]) + self.f[j][:, None, :]
+        else:  # the law acts on what the controller measures and previews; the true plant may be disturbed
+            z = np.zeros((active.size, H, self.f.shape[1])) + self.ref_offsets(j, t, H)
+            for h in range(H):
+                z[:, h] += np.einsum("lrn,ln->lr", self.F[j], self.seen(xs[:, h], t + h)) + self.f[j]
+                xs[:, h + 1] = self.moved(xs[:, h], z[:, h, :m], t + h)
         ok = np.all(np.abs(z) <= self.bound, axis=2)
         ok &= np.all(np.isfinite(xs[:, 1:]), axis=2) & (np.abs(xs[:, 1:]).max(axis=2) <= DIVERGED)
         first_bad = np.where(ok.all(axis=1), H, np.argmin(ok, axis=1))
         if t == 0:
+            y0 = self.seen(xs[:, 0], 0)
             for a, i in enumerate(active):
                 if first_bad[a] > 0:
-                    out.J0[i] = self.ctrls[i].cost_to_go(xs[a, 0])
+                    out.J0[i] = self.first_cost(i, y0[a], z[a, 0, : self.nU])
         tau = int(first_bad.min())
         done = first_bad == H
         us = z[:, :, :m]
@@ -212,9 +142,17 @@ class _Loops:
             if k:
                 out.states[i, t + 1 : t + k + 1] = xs[a, 1 : k + 1]
                 out.inputs[i, t : t + k] = us[a, :k]
-                self.acc[i] += self.stage_cost(xs[a, :k], us[a, :k]).sum()
+                self.acc[i] += self.stage_cost(xs[a, :k], us[a, :k], t).sum()
                 self.x[i] = xs[a, k]
         return active[~done], t + tau
+
+    def first_cost(self, i: int, y: np.ndarray, U: np.ndarray) -> float:
+        """``J*(x0)`` of loop ``i``'s first problem from its unconstrained optimum ``U``."""
+        c = self.ctrls[i]
+        if self.preview is None:
+            return c.cost_to_go(y)
+        self.preview.set_qp(c._qp, self.pos[i], 0)
+        return c.qp_cost(y, U)
 
     def condensed(self) -> None:
         """Condense the QPs of all live models in one batch (once) and hand them to the controllers."""
@@ -247,6 +185,8 @@ class _Loops:
         if self.guess:
             j = self.rows(idx)
             g = np.einsum("lij,lj->li", self.cq.Gx[j], xs) + self.cq.g0[j]
+            if self.preview is not None:
+                g += self.preview.g(j, t)
             prev = self.prevU[idx]
             shifted = np.concatenate([prev[:, m:], prev[:, -m:]], axis=1)
             fresh = (self.prev_t[idx] != t - 1)[:, None]  # no solution at the previous step: guess afresh
@@ -260,6 +200,8 @@ class _Loops:
         solved = np.ones(idx.size, dtype=bool)
         for a in np.flatnonzero(todo):
             i, c = int(idx[a]), self.ctrls[int(idx[a])]
+            if self.preview is not None:
+                self.preview.set_qp(c._qp, self.pos[i], t)
             try:
                 if c.solver == "daqp":
                     U = c.solve_daqp(xs[a])
@@ -273,7 +215,10 @@ class _Loops:
                 solved[a] = False
         if t == 0 and self.solver_is_daqp:  # the predicted optimal cost J*(x0) of the first problem
             for a in np.flatnonzero(solved):
-                self.out.J0[idx[a]] = self.ctrls[int(idx[a])].qp_cost(xs[a], self.prevU[idx[a]])
+                c = self.ctrls[int(idx[a])]
+                if self.preview is not None:
+                    self.preview.set_qp(c._qp, self.pos[idx[a]], 0)
+                self.out.J0[idx[a]] = c.qp_cost(xs[a], self.prevU[idx[a]])
         # the active set meets the bounds up to rounding: clip that rounding
         return np.clip(u, -self.w.u_max, self.w.u_max), solved
 
@@ -283,25 +228,29 @@ class _Loops:
         keep, all_fast = [], True
         for i in active:
             c, x = self.ctrls[i], self.x[i]
-            z = c.F @ x + c.f
+            y = self.seen(x[None], t)[0]
+            z = c.F @ y + c.f
+            if self.preview is not None:
+                z = z + self.preview.offsets(self.pos[[i]], t, 1)[0, 0]
+                self.preview.set_qp(c._qp, self.pos[i], t)
             fast = bool(np.all(np.abs(z) <= c.bound))
             try:
                 if fast:
-                    u, J = z[:m], (c.cost_to_go(x) if t == 0 else np.nan)
+                    u, J = z[:m], (self.first_cost(i, y, z[: self.nU]) if t == 0 else np.nan)
                 else:
                     out.qp_steps += 1
-                    u, J = c.solve_qp(x)
+                    u, J = c.solve_qp(y)
             except MPCFailure as exc:
                 self.fail(i, exc.kind, f"step {t}: {exc}")
                 continue
             if t == 0:
                 out.J0[i] = J
-            xn = self.A @ x + self.B @ u  # the true plant moves
+            xn = self.moved(x[None], np.asarray(u)[None], t)[0]  # the true plant moves
             if not np.all(np.isfinite(xn)) or np.abs(xn).max() > DIVERGED:
                 self.fail(i, FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
                 continue
             out.states[i, t + 1], out.inputs[i, t] = xn, u
-            self.acc[i] += self.stage_cost(x, u)
+            self.acc[i] += self.stage_cost(x[None], np.asarray(u)[None], t)[0]
             self.x[i] = xn
             keep.append(i)
             all_fast &= fast
@@ -315,19 +264,21 @@ class _Loops:
         """
         j = self.rows(active)
         xi = self.x[active]
-        z1 = np.einsum("lrn,ln->lr", self.F[j], xi) + self.f[j]
+        yi = self.seen(xi, t)
+        z1 = np.einsum("lrn,ln->lr", self.F[j], yi) + self.f[j]
+        if self.preview is not None:
+            z1 += self.preview.offsets(j, t, 1)[:, 0]
         fast_ok = np.all(np.abs(z1) <= self.bound, axis=1)
         u = z1[:, : self.m].copy()
         keep = np.ones(active.size, dtype=bool)
         slow = np.flatnonzero(~fast_ok)
         if slow.size:
-            u[slow], ok = self.solve_slow(active[slow], xi[slow], z1[slow], t)
+            u[slow], ok = self.solve_slow(active[slow], yi[slow], z1[slow], t)
             keep[slow] = ok
         if t == 0:
             for a in np.flatnonzero(fast_ok):
-                self.out.J0[active[a]] = self.ctrls[active[a]].cost_to_go(xi[a])
-        # the true plant moves: x+ = A x + B u
-        xn = xi @ self.A.T + u @ self.B.T
+                self.out.J0[active[a]] = self.first_cost(int(active[a]), yi[a], z1[a, : self.nU])
+        xn = self.moved(xi, u, t)  # the true plant moves: x+ = A x + B u (+ w)
         bad = ~np.all(np.isfinite(xn), axis=1) | (np.abs(xn).max(axis=1) > DIVERGED)
         for a in np.flatnonzero(bad & keep):
             self.fail(int(active[a]), FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
@@ -335,12 +286,14 @@ class _Loops:
         sel = active[keep]
         self.out.states[sel, t + 1] = xn[keep]
         self.out.inputs[sel, t] = u[keep]
-        self.acc[sel] += self.stage_cost(xi[keep], u[keep])
+        self.acc[sel] += self.stage_cost(xi[keep], u[keep], t) if self.preview is None else \
+            self.stage_cost(xi[keep][:, None], u[keep][:, None], t)[:, 0]
         self.x[sel] = xn[keep]
         return sel, bool(fast_ok[keep].all())
 
 
-def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system) -> ClosedLoops:
+def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system,
+                     feedback_range: tuple | None = None) -> ClosedLoops:
     """Run the MPC built on each model ``(A^, B^)`` in closed loop on the true system.
 
     Exact and fast: while the unconstrained LQ optimum is feasible, the MPC law
@@ -362,6 +315,11 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     cfg : MPCConfig
     system : LTISystem
         Supplies default Q, R and x0 (see :meth:`MPCConfig.resolve`).
+    feedback_range : (lo, hi, guard), optional
+        The training data's state range, for ``cfg.feedback_bits`` (:mod:`qsid_core.loop_noise`).
+        With a disturbance or a quantized/noisy measurement the verdicts are those of
+        the same MPC on the noise-free plant (the law's stability), except that a
+        loop whose disturbed run diverged is ``diverged``.
 
     Returns
     -------
@@ -370,9 +328,9 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
     w = cfg.resolve(system)
     n, m = B_true.shape
     Rn, steps = len(models), cfg.steps
-    out = ClosedLoops(np.full((Rn, steps + 1, n), np.nan), np.full((Rn, steps, m), np.nan), np.full(Rn, np.nan),
-                      np.full(Rn, np.nan), [""] * Rn, [""] * Rn, 0)
-    ctrls = _controllers(models, w, cfg, out.failure, out.messages)
+    out = ClosedLoops.empty(Rn, steps, n, m)
+    out.x_ref = w.x_ref
+    ctrls = build_controllers(models, w, cfg, out.failure, out.messages)
     if all(c is None for c in ctrls):
         if cfg.verify_steps is not None:
             out.outcome = ["failed"] * Rn
@@ -380,16 +338,42 @@ def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCCon
             out.verdict_steps = np.zeros(Rn, dtype=int)
             out.gains = [None] * Rn
         return out
-    loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out)
+    noise = loop_noise(cfg, n, steps, feedback_range)
+    loops = _Loops(ctrls, w, np.asarray(A_true, float), np.asarray(B_true, float), steps, out, noise=noise)
+    if w.reference is not None:
+        loops.offset_free = cfg.tracking == "offset-free"
+        loops.track()
+        out.x_ref = w.reference[: steps + 1]
     advance(loops, loops.live.copy())
     ok = np.array([not fl for fl in out.failure])
     out.cost[ok] = loops.acc[ok]
     out.J0[~ok] = np.nan
-    if cfg.verify_steps is not None:
-        from .verdicts import judge
-
-        judge(loops, cfg.verify_steps)
+    if cfg.verify_steps is None:
+        return out
+    if noise is None and w.reference is None:
+        judge(loops, cfg.verify_steps, _extender(loops))
+    else:
+        clean = run_closed_loops(models, A_true, B_true, cfg.nominal(), system)
+        out.outcome = ["diverged" if f == FailureKind.DIVERGED else o for f, o in zip(out.failure, clean.outcome)]
+        out.spectral_radius, out.verdict_steps, out.gains = clean.spectral_radius, clean.verdict_steps, clean.gains
     return out
+
+
+def _extender(loops: _Loops):
+    """``extend(x, k, active)``: run the loops ``active`` on from states ``x`` for ``k`` more steps.
+
+    Returns the extra steps' :class:`ClosedLoops` and the states reached; the
+    condensed QPs are shared with ``loops`` (built once).
+    """
+
+    def extend(x: np.ndarray, k: int, active: list) -> tuple[ClosedLoops, np.ndarray]:
+        scratch = ClosedLoops.empty(len(loops.ctrls), k, loops.n, loops.m)
+        ext = _Loops(loops.ctrls, loops.w, loops.A, loops.B, k, scratch, x_start=x, cq=loops.cq)
+        advance(ext, np.array(active))
+        loops.cq = ext.cq
+        return scratch, ext.x
+
+    return extend
 
 
 def advance(loops: _Loops, active: np.ndarray) -> None:

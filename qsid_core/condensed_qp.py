@@ -55,6 +55,8 @@ class CondensedQP:
         Forced response (block lower triangular, ``A^{k-1-j} B`` blocks).
     Qbars : ndarray, shape (L, N*n, N*n)
         Weights of ``x_1..x_N`` per model: ``blkdiag(Q, ..., Q, Qf)`` (for ``c(x_0)``).
+    Gr : ndarray, shape (L, N*m, N*n)
+        ``-Su' Qbar``: a reference ``rbar = [r_1; ...; r_N]`` over the horizon adds ``Gr rbar`` to ``g``.
     """
 
     H: np.ndarray
@@ -63,6 +65,7 @@ class CondensedQP:
     Sx: np.ndarray
     Su: np.ndarray
     Qbars: np.ndarray
+    Gr: np.ndarray | None = None
 
 
 def condense(A, B, Q, R, Qf, r, N: int) -> CondensedQP:
@@ -106,7 +109,7 @@ def condense(A, B, Q, R, Qf, r, N: int) -> CondensedQP:
     H = (H + np.swapaxes(H, 1, 2)) / 2
     Gx = SuT_Qbar @ Sx
     g0 = -SuT_Qbar @ np.tile(np.asarray(r, float), N)
-    return CondensedQP(H=H, Gx=Gx, g0=g0, Sx=Sx, Su=Su, Qbars=Qbars)
+    return CondensedQP(H=H, Gx=Gx, g0=g0, Sx=Sx, Su=Su, Qbars=Qbars, Gr=-SuT_Qbar)
 
 
 class DaqpMPC:
@@ -153,6 +156,8 @@ class DaqpMPC:
         self._sense = np.zeros(nU + nc, dtype=np.int32)
         self.max_iter = int(max_iter)
         self._model = None
+        self.g_ref = 0.0  # with a time-varying reference: its part of g at the current step (set by the caller)
+        self.c_ref = 0.0  # ... and of the cost's constant (offset-free form: u_ref'R u_ref terms)
 
     def _bounds(self, x0: np.ndarray) -> None:
         """State rows: ``-box - (Sx x0)_i <= (Su U)_i <= box - (Sx x0)_i``."""
@@ -173,7 +178,7 @@ class DaqpMPC:
         MPCFailure
             kind ``infeasible`` (state box cannot be met), ``max_iter`` or ``solver``.
         """
-        g = self.Gx @ x0 + self.g0
+        g = self.Gx @ x0 + self.g0 + self.g_ref
         if self._model is None:
             self._setup(x0, g)
         elif self._xrows.size:
@@ -206,10 +211,10 @@ class DaqpMPC:
 
     def cost(self, x0: np.ndarray, U: np.ndarray) -> float:
         """``J(U; x0) = U'HU + 2 g'U + c(x0)``: the MPC cost of input sequence ``U`` from ``x0``."""
-        g = self.Gx @ x0 + self.g0
+        g = self.Gx @ x0 + self.g0 + self.g_ref
         e = self.Sx @ x0 - self.rbar
         d0 = x0 - self.r
-        return float(U @ self.H @ U + 2 * g @ U + e @ self.Qbar @ e + d0 @ self.Q @ d0)
+        return float(U @ self.H @ U + 2 * g @ U + e @ self.Qbar @ e + d0 @ self.Q @ d0 + self.c_ref)
 
 
 def active_set_solution(H, g, upper, lower, ub, tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -62,9 +62,9 @@ def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: l
     return out
 
 
-def _loops_task(models, A, B, cfg: MPCConfig, system: LTISystem) -> ClosedLoops:
+def _loops_task(models, A, B, cfg: MPCConfig, system: LTISystem, feedback_range=None) -> ClosedLoops:
     with single_threaded_blas():
-        return run_closed_loops(models, A, B, cfg, system)
+        return run_closed_loops(models, A, B, cfg, system, feedback_range)
 
 
 class Experiment:
@@ -266,6 +266,14 @@ class Experiment:
         return self._cache[k]
 
     # ----- MPC -------------------------------------------------------------------------
+    def feedback_range(self) -> tuple | None:
+        """``(lo, hi, guard)`` of the training data's states, for a quantized measurement in the loop (else None)."""
+        cfg = self.config.mpc
+        if cfg is None or cfg.feedback_bits is None:
+            return None
+        prep = self.prepared
+        return prep.lo, prep.hi, self.config.quantizer.guard
+
     def closed_loops(self, b: int, estimator: str | None = None) -> ClosedLoops:
         """Closed loops on the true system of the MPC built on each realization's model at ``b``."""
         cfg = self.config.mpc
@@ -275,7 +283,8 @@ class Experiment:
         k = ("loops", est, cfg) + self._key_mom(b)
         if k not in self._cache:
             ident = self.identification(b, est)
-            self._cache[k] = run_closed_loops(ident.models, self.system.A, self.system.B, cfg, self.system)
+            self._cache[k] = run_closed_loops(ident.models, self.system.A, self.system.B, cfg, self.system,
+                                              self.feedback_range())
         return self._cache[k]
 
     def closed_loops_many(self, bits, estimator: str | None = None, progress: Progress | None = None) -> dict:
@@ -289,7 +298,7 @@ class Experiment:
         todo = [b for b in bits if keys[b] not in self._cache]
         futs = {
             b: self.executor.submit(_loops_task, self.identification(b, est).models, self.system.A, self.system.B,
-                                    cfg, self.system)
+                                    cfg, self.system, self.feedback_range())
             for b in todo
         }
         for i, (b, f) in enumerate(futs.items()):
@@ -303,8 +312,8 @@ class Experiment:
         cfg = self.config.mpc
         if cfg is None:
             raise ConfigError("this experiment has MPC switched off (mpc=None)")
-        k = ("true-loop", cfg) + self._key_data()[:7]
+        k = ("true-loop", cfg) + (self._key_prep() if cfg.feedback_bits is not None else self._key_data()[:7])
         if k not in self._cache:
             self._cache[k] = run_closed_loops([(self.system.A, self.system.B)], self.system.A, self.system.B, cfg,
-                                              self.system)
+                                              self.system, self.feedback_range())
         return self._cache[k]

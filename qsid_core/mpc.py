@@ -29,22 +29,26 @@ The solver's status is checked every step; failures raise :class:`MPCFailure`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .condensed_qp import CondensedQP, DaqpMPC, condense
 from .errors import ConfigError, FailureKind, MPCFailure, check_choice, check_float, check_int
 from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
+from .mpc_weights import MPCWeights
+from .reference import reference_samples
 from .validate import as_float_array
 
 __all__ = ["MPCConfig", "MPCWeights", "MPCFailure", "MPCController", "FailureKind", "FAILURE_KINDS", "SOLVERS",
-           "dare_batch", "dare_stabilizing", "lq_parts"]
+           "dare_batch", "dare_stabilizing", "lq_parts", "TRACKING"]
 
 #: every failure kind's value, in :class:`FailureKind` order
 FAILURE_KINDS = tuple(k.value for k in FailureKind)
 #: QP solvers for the steps where a bound is active
 SOLVERS = ("daqp", "osqp")
+#: cost forms of reference tracking: the letter's, or offset-free with a steady-state input target
+TRACKING = ("letter", "offset-free")
 #: OSQP's setup error codes in words.
 OSQP_SETUP_ERRORS = {1: "invalid problem data", 2: "invalid settings", 3: "linear system solver failed",
                      4: "the cost is not convex: a weight is not positive semidefinite", 5: "out of memory"}
@@ -94,6 +98,26 @@ class MPCConfig:
         QP solver for the steps where a bound is active: DAQP on the condensed
         problem (default, exact active set) or OSQP on the sparse one (the
         previous engine, kept as a reference).
+    disturbance : float >= 0
+        Standard deviation of the process disturbance added to the true plant in
+        the closed loop (:mod:`qsid_core.loop_noise`; default 0).
+    disturbance_kind : {"gaussian", "uniform"}
+    feedback_bits : int or None, 1..32
+        The MPC measures the state through a quantizer of this many bits per state
+        (subtractive dither, the training data's range); None: exact (default).
+    feedback_noise : float >= 0
+        Standard deviation of sensor noise on that measurement (default 0).
+    loop_seed : int >= 0
+        Seed of the disturbance, feedback dither and sensor noise (shared by every loop).
+    tracking : {"letter", "offset-free"}
+        The letter's cost ``(x - r)'Q(x - r) + u'R u`` (default) or the offset-free form
+        ``(x - r)'Q(x - r) + (u - u_ref)'R(u - u_ref)`` with ``u_ref = B^+ (I - A^) r`` per
+        model (the input that holds the model at ``r``, least squares when ``r`` is not an
+        equilibrium); applies to ``x_ref`` and to ``reference``.
+    reference : str or tuple of rows, optional
+        A time-varying reference with preview (:mod:`qsid_core.reference`):
+        ``"step:STATE:AMP:TIME"``, ``"sine:STATE:AMP:PERIOD"``, ``"square:STATE:AMP:PERIOD"``
+        or samples (one row per step, one column per state). Excludes ``x_ref``.
     verify_steps : int or None, 0..1000000
         At most this many closed-loop steps beyond ``steps`` to decide whether a
         loop converges, stays bounded or diverges (:mod:`qsid_core.verdicts`;
@@ -114,9 +138,45 @@ class MPCConfig:
     max_iter: int = 20000
     solver: str = "daqp"
     verify_steps: int | None = 20000
+    disturbance: float = 0.0
+    disturbance_kind: str = "gaussian"
+    feedback_bits: int | None = None
+    feedback_noise: float = 0.0
+    loop_seed: int = 0
+    reference: str | tuple | None = None
+    tracking: str = "letter"
+
+    def nominal(self) -> "MPCConfig":
+        """The same MPC law regulating to the constant ``x_ref`` in the letter's form, with exact state
+        feedback and no disturbance (both forms share the law's linear part, hence its stability)."""
+        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0, reference=None,
+                       tracking="letter")
+
+    @property
+    def noisy(self) -> bool:
+        """Whether the loop is disturbed or measures the state inexactly."""
+        return bool(self.disturbance or self.feedback_noise or self.feedback_bits is not None)
 
     def __post_init__(self) -> None:
         check_choice("solver", self.solver, SOLVERS)
+        check_choice("disturbance kind", self.disturbance_kind, ("gaussian", "uniform"))
+        object.__setattr__(self, "disturbance", check_float("disturbance", self.disturbance, 0.0, 1e6))
+        object.__setattr__(self, "feedback_noise", check_float("feedback noise", self.feedback_noise, 0.0, 1e6))
+        if self.feedback_bits is not None:
+            check_int("feedback bits", self.feedback_bits, 1, 32)
+        check_int("loop seed", self.loop_seed, 0)
+        check_choice("tracking", self.tracking, TRACKING)
+        if self.tracking == "offset-free" and self.solver == "osqp":
+            raise ConfigError("the offset-free form needs solver='daqp' (the condensed problem)")
+        if self.reference is not None and not isinstance(self.reference, str):
+            rows = np.atleast_2d(np.asarray(self.reference, dtype=float))
+            if rows.ndim != 2 or rows.size == 0 or not np.all(np.isfinite(rows)):
+                raise ConfigError("reference samples must be a non-empty table of finite numbers (rows: steps)")
+            object.__setattr__(self, "reference", tuple(tuple(r) for r in rows.tolist()))
+        if self.reference is not None and self.solver == "osqp":
+            raise ConfigError("a time-varying reference needs solver='daqp' (the condensed problem)")
+        if self.reference is not None and self.x_ref is not None:
+            raise ConfigError("give either a constant x_ref or a time-varying reference, not both")
         if self.verify_steps is not None:
             check_int("verify steps", self.verify_steps, 0, 1_000_000)
         check_int("horizon", self.horizon, 1, 200)
@@ -157,54 +217,27 @@ class MPCConfig:
 
         Q = np.diag(full("Q", self.Q, n, None)) if self.Q is not None else np.array(system.Q, dtype=float)
         R = np.diag(full("R", self.R, m, None)) if self.R is not None else np.array(system.R, dtype=float)
+        x_ref = full("x_ref", self.x_ref, n, np.zeros(n))
         return MPCWeights(
             Q=Q,
             R=R,
             Qf=None if self.Qf is None else np.diag(full("Qf", self.Qf, n, None)),
             x0=full("x0", self.x0, n, np.array(system.x0, dtype=float)),
-            x_ref=full("x_ref", self.x_ref, n, np.zeros(n)),
+            x_ref=x_ref if self.tracking == "letter" else np.zeros(n),
             u_max=full("u_max", self.u_max, m, None),
             x_max=None if self.x_max is None else full("x_max", self.x_max, n, None),
             xf_max=None if self.xf_max is None else full("xf_max", self.xf_max, n, None),
+            reference=self._reference_samples(system, x_ref),
         )
 
-
-@dataclass(frozen=True, eq=False)
-class MPCWeights:
-    """An :class:`MPCConfig` resolved for one system (``n`` states, ``m`` inputs).
-
-    Units are the system's: states and inputs as in ``A``, ``B``; the cost is the
-    sum of ``x'Qx + u'Ru`` terms.
-
-    Attributes
-    ----------
-    Q : ndarray, shape (n, n)
-        Stage state weight (positive semidefinite).
-    R : ndarray, shape (m, m)
-        Stage input weight (positive definite).
-    Qf : ndarray, shape (n, n), or None
-        Terminal weight; None means "the DARE solution of each identified model".
-    x0 : ndarray, shape (n,)
-        Initial state of every closed loop.
-    x_ref : ndarray, shape (n,)
-        Constant reference the state is steered to.
-    u_max : ndarray, shape (m,)
-        Input box half-widths, ``|u_i| <= u_max_i`` (> 0).
-    x_max : ndarray, shape (n,), or None
-        State box on the predicted ``x_1..x_N``.
-    xf_max : ndarray, shape (n,), or None
-        Terminal box on ``x_N``.
-    """
-
-    Q: np.ndarray
-    R: np.ndarray
-    Qf: np.ndarray | None
-    x0: np.ndarray
-    x_ref: np.ndarray
-    u_max: np.ndarray
-    x_max: np.ndarray | None
-    xf_max: np.ndarray | None
-
+    def _reference_samples(self, system, x_ref: np.ndarray) -> np.ndarray | None:
+        """The time-varying reference (a constant x_ref too in the offset-free form), or None."""
+        length = self.steps + self.horizon + 1
+        if self.reference is not None:
+            return reference_samples(self.reference, system.state_names, length)
+        if self.tracking == "offset-free":
+            return np.tile(x_ref, (length, 1))
+        return None
 
 
 class MPCController:

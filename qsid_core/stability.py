@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["spectral_radius", "lyapunov_batch", "lyapunov_gains", "certify", "certify_batch", "complex_stability_radius", "small_gain_margin",
-           "small_gain_holds",
+           "small_gain_holds", "data_rate_bits",
            "controllability_margin"]
 
 
@@ -325,6 +325,22 @@ def small_gain_margin(A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np
     E = (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K
     pert = float(np.linalg.norm(E, 2)) if np.all(np.isfinite(E)) else float("inf")
     return pert, complex_stability_radius(A_hat - B_hat @ K)
+
+
+def data_rate_bits(A: np.ndarray) -> float:
+    """The data-rate theorem's floor: ``sum over |lambda_i| >= 1 of log2 |lambda_i|`` bits per sample.
+
+    Any feedback loop that measures the state through a digital channel must send
+    more than this many bits per sample to stabilize the plant, whatever the
+    controller (Tatikonda & Mitter, IEEE TAC 2004; Nair & Evans, SIAM J. Control
+    Optim. 2004). 0 for a stable (or marginally stable) plant.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+    """
+    lam = np.abs(np.linalg.eigvals(np.asarray(A, dtype=float)))
+    return float(np.sum(np.log2(lam[lam >= 1.0])))
 
 
 def controllability_margin(A: np.ndarray, B: np.ndarray) -> np.ndarray:

@@ -115,6 +115,11 @@ class SummaryRow(Mapping):
         ``{"median", "max"}`` of ``max |eig(A - B K^)|`` over the loops with an MPC.
     bound_self_consistent, bound_informative : bool or None
         The letter's delta below rho (else its proof gives no bound) and below ``||x0||``.
+    steady_state_error : dict or None
+        ``{"mean", "max"}`` over the loops of the RMS of ``||x_t - x_ref||`` over the last
+        half of each loop (:attr:`ClosedLoops.steady_state_error`).
+    tracking_error : dict or None
+        ``{"mean", "max"}`` of the RMS of ``||x_t - r_t||`` over each whole loop.
     controllability : dict or None
         ``{"min_margin", "uncontrollable"}``: the smallest relative singular value of the
         controllability matrix of ``(A^, B^)`` and how many models fall below
@@ -148,6 +153,8 @@ class SummaryRow(Mapping):
     bound_self_consistent: bool | None = None
     bound_informative: bool | None = None
     controllability: dict | None = None
+    steady_state_error: dict | None = None
+    tracking_error: dict | None = None
     _dict: dict | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
@@ -175,6 +182,8 @@ class SummaryRow(Mapping):
                 "bound_self_consistent": self.bound_self_consistent,
                 "bound_informative": self.bound_informative,
                 "controllability": self.controllability,
+                "steady_state_error": self.steady_state_error,
+                "tracking_error": self.tracking_error,
             })
             object.__setattr__(self, "_dict", json_clean(d))
         return self._dict
@@ -253,6 +262,9 @@ def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assu
         kw["final_state_norm"] = {"mean": float(fsn.mean()) if fsn.size else None,
                                   "max": float(fsn.max()) if fsn.size else None}
         kw["osqp_steps"] = lp.osqp_steps
+        for key, vals in (("steady_state_error", lp.steady_state_error), ("tracking_error", lp.tracking_error)):
+            ok = vals[np.isfinite(vals)]
+            kw[key] = {"mean": float(ok.mean()) if ok.size else None, "max": float(ok.max()) if ok.size else None}
         if u_max is not _UNKNOWN:
             k, loops = saturated_steps(lp.inputs, u_max)
             kw["saturated_steps"] = {"steps": k, "loops": loops, "of_steps": int(lp.inputs.shape[0] * lp.inputs.shape[1])}

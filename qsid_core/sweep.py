@@ -18,6 +18,7 @@ from .assumptions import Assumptions
 from .closed_loop import ClosedLoops
 from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, TheoryAtBits, single_threaded_blas
 from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
+from .stability import data_rate_bits
 from .systems import LTISystem
 from .theory import RealizedBounds
 from .config_checks import check_run_args
@@ -122,12 +123,21 @@ class SweepResult:
                 "range": q.range_mode, "guard": q.guard, "estimator": c.estimator,
                 "mpc": None if c.mpc is None else {
                     "horizon": c.mpc.horizon, "steps": c.mpc.steps, "u_max": list(c.mpc.u_max),
+                    "disturbance": c.mpc.disturbance, "disturbance_kind": c.mpc.disturbance_kind,
+                    "feedback_bits": c.mpc.feedback_bits, "feedback_noise": c.mpc.feedback_noise,
+                    "loop_seed": c.mpc.loop_seed, "tracking": c.mpc.tracking,
+                    "reference": c.mpc.reference if isinstance(c.mpc.reference, (str, type(None)))
+                    else [list(r) for r in c.mpc.reference],
                 },
                 "theta": c.theta, "rho": c.rho, "input_amplitude": c.input_amplitude,
                 "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
             },
             "results": [self.summary(b).to_dict() for b in self.bits],
             "mpc_cost_true_model": None if self.true_loop is None else float(self.true_loop.cost[0]),
+            "steady_state_error_true_model": None if self.true_loop is None else
+            float(self.true_loop.steady_state_error[0]),
+            "tracking_error_true_model": None if self.true_loop is None else float(self.true_loop.tracking_error[0]),
+            "data_rate_bits": data_rate_bits(self.system.A),
             "slope_A": float(self.slope_A),
             "slope_B": float(self.slope_B),
             "timing_s": self.timing_s,

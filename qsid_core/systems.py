@@ -1,6 +1,6 @@
-"""Reference systems and custom system files.
+"""Reference systems (presets) and custom system files.
 
-A :class:`LTISystem` is the *true* discrete-time plant ``x+ = A x + B u`` together
+A :class:`~qsid_core.lti.LTISystem` is the *true* discrete-time plant ``x+ = A x + B u`` together
 with the letter's default regulation task (initial state ``x0`` and the MPC
 weights ``Q`` and ``R``).
 
@@ -23,15 +23,14 @@ Presets
 from __future__ import annotations
 
 import json
-import warnings
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from .errors import ConfigError, SystemDefinitionError, check_float, short_repr
-from .validate import MAX_MAGNITUDE, as_float_array, as_matrix, check_text, parse_matrix, weight_matrix
+from .lti import LTISystem, UncontrollableWarning
+from .validate import MAX_MAGNITUDE, parse_matrix
 
 __all__ = [
     "LTISystem",
@@ -47,177 +46,8 @@ __all__ = [
 ]
 
 
-class UncontrollableWarning(UserWarning):
-    """(A, B) is not controllable: identification works, MPC may not regulate."""
-
-
-#: Largest number of states / inputs of a system (the controllability test builds an n x n*m matrix).
-MAX_STATES = 100
-MAX_INPUTS = 100
 #: Largest system file read (bytes).
 MAX_FILE_BYTES = 10_000_000
-
-
-@dataclass(frozen=True, eq=False)
-class LTISystem:
-    """A true discrete-time LTI plant and its default regulation task.
-
-    Parameters
-    ----------
-    name : str
-        Short identifier (``"dc-motor"``, ``"boeing747"`` or a file stem).
-    A : ndarray, shape (n, n)
-        State matrix of ``x+ = A x + B u``.
-    B : ndarray, shape (n, m)
-        Input matrix.
-    x0 : ndarray, shape (n,)
-        Initial state of the MPC regulation task (default: first unit vector).
-    Q : ndarray, shape (n, n)
-        State weight, symmetric positive semidefinite (default: identity).
-    R : ndarray, shape (m, m)
-        Input weight, symmetric positive definite (default: identity).
-    dt : float
-        Sample time in seconds (informative).
-    description : str
-        One line for listings.
-
-    Raises
-    ------
-    SystemDefinitionError
-        If shapes disagree or entries are not finite, or Q/R are not PSD/PD.
-
-    Warns
-    -----
-    UncontrollableWarning
-        If ``rank ctrb(A, B) < n``.
-    """
-
-    name: str
-    A: np.ndarray
-    B: np.ndarray
-    x0: np.ndarray | None = None
-    Q: np.ndarray | None = None
-    R: np.ndarray | None = None
-    dt: float = 1.0
-    description: str = ""
-    state_names: tuple[str, ...] = field(default=())
-    input_names: tuple[str, ...] = field(default=())
-
-    def __post_init__(self) -> None:
-        check_text("system name", self.name, SystemDefinitionError)
-        check_text("description", self.description, SystemDefinitionError)
-        try:
-            object.__setattr__(self, "dt", check_float("dt", self.dt, 0.0, lo_open=True))
-        except ConfigError:
-            raise SystemDefinitionError(
-                f"dt (the sample time) must be a positive, finite number of seconds; got {short_repr(self.dt)}"
-            ) from None
-        A = as_matrix("A", self.A, (None, None))
-        n = A.shape[0]
-        if A.shape != (n, n):
-            raise SystemDefinitionError(f"A must be square; got shape {A.shape}")
-        if n > MAX_STATES:
-            raise SystemDefinitionError(f"A: at most {MAX_STATES} states; got {n}")
-        B = as_matrix("B", self.B, (n, None))
-        m = B.shape[1]
-        if m > MAX_INPUTS:
-            raise SystemDefinitionError(f"B: at most {MAX_INPUTS} inputs; got {m}")
-        if max(np.abs(A).max(), np.abs(B).max()) < 1.0 / MAX_MAGNITUDE:
-            raise SystemDefinitionError(
-                f"A and B are both (nearly) all zeros (every entry below {1.0 / MAX_MAGNITUDE:g} in magnitude): "
-                "there is nothing to identify and relative model errors are undefined"
-            )
-        if self.x0 is None:
-            x0 = np.eye(n)[0]
-        else:
-            x0 = as_float_array("x0", self.x0, ndim_max=2, error=SystemDefinitionError,
-                                what=f"a list of {n} numbers").reshape(-1)
-        if x0.shape != (n,):
-            raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {short_repr(self.x0)}")
-        Q = np.eye(n) if self.Q is None else weight_matrix("Q", self.Q, n)
-        R = np.eye(m) if self.R is None else weight_matrix("R", self.R, m)
-        if np.linalg.eigvalsh(Q).min() < -1e-12:
-            raise SystemDefinitionError("Q must be positive semidefinite")
-        if np.linalg.eigvalsh(R).min() <= 0:
-            raise SystemDefinitionError("R must be positive definite")
-        for arr in (A, B, x0, Q, R):
-            arr.setflags(write=False)
-        object.__setattr__(self, "A", A)
-        object.__setattr__(self, "B", B)
-        object.__setattr__(self, "x0", x0)
-        object.__setattr__(self, "Q", Q)
-        object.__setattr__(self, "R", R)
-        try:
-            names = tuple(self.state_names) or tuple(f"x{i + 1}" for i in range(n))
-            inames = tuple(self.input_names) or tuple(f"u{i + 1}" for i in range(m))
-        except TypeError:
-            raise SystemDefinitionError("state_names and input_names must be sequences of texts") from None
-        if len(names) != n or len(inames) != m or not all(isinstance(x, str) for x in names + inames):
-            raise SystemDefinitionError(f"state_names must have {n} and input_names {m} entries (texts)")
-        object.__setattr__(self, "state_names", names)
-        object.__setattr__(self, "input_names", inames)
-        if not self.controllable:
-            warnings.warn(
-                f"system {self.name!r}: (A, B) is not controllable (rank of the controllability "
-                f"matrix {self.controllability_rank} < n = {n}); MPC may fail to regulate",
-                UncontrollableWarning,
-                stacklevel=3,
-            )
-
-    @property
-    def n(self) -> int:
-        """Number of states."""
-        return self.A.shape[0]
-
-    @property
-    def m(self) -> int:
-        """Number of inputs."""
-        return self.B.shape[1]
-
-    @property
-    def eigenvalues(self) -> np.ndarray:
-        """Eigenvalues of the true A, shape (n,) complex."""
-        return np.linalg.eigvals(self.A)
-
-    @property
-    def G(self) -> np.ndarray:
-        """``[A, B]``, shape (n, n+m)."""
-        return np.hstack([self.A, self.B])
-
-    @property
-    def controllability_rank(self) -> int:
-        """Rank of the controllability matrix ``[B, AB, ..., A^(n-1) B]`` (python-control's ``ctrb``; built
-        here with numpy, so building a system never imports python-control, ~2-5 s)."""
-        # scaling A and B by positive numbers leaves the rank unchanged and keeps A^k from overflowing
-        a = np.abs(self.A).max()
-        A = self.A / a if a > 1.0 else self.A
-        blocks = [self.B]
-        for _ in range(self.n - 1):
-            blocks.append(A @ blocks[-1])
-        C = np.hstack(blocks)
-        try:
-            return int(np.linalg.matrix_rank(C, tol=1e-9 * max(1.0, np.abs(C).max())))
-        except np.linalg.LinAlgError:  # the SVD did not converge: badly scaled (A, B)
-            raise SystemDefinitionError(
-                "cannot decide whether (A, B) is controllable: the controllability matrix is too badly scaled"
-            ) from None
-
-    @property
-    def controllable(self) -> bool:
-        """True if ``rank ctrb(A, B) == n`` (Assumption 1 of the letter)."""
-        return self.controllability_rank == self.n
-
-    def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready description (what :func:`system_from_dict` reads back)."""
-        return {
-            "name": self.name,
-            "A": self.A.tolist(),
-            "B": self.B.tolist(),
-            "x0": self.x0.tolist(),
-            "Q": self.Q.tolist(),
-            "R": self.R.tolist(),
-            "dt": self.dt,
-        }
 
 
 def dc_motor() -> LTISystem:
@@ -252,8 +82,6 @@ def dc_motor_physical(
     With the defaults it reproduces the printed matrices of :func:`dc_motor`
     to their three printed decimals (the letter truncates: max difference < 1e-3).
     """
-    from scipy.linalg import expm
-
     for nm, v in dict(dt=dt, J=J, L=L, c=c, K=K, Ke=Ke, r=r).items():
         try:
             check_float(nm, v, 0.0, MAX_MAGNITUDE, lo_open=nm in ("dt", "J", "L"))
@@ -261,12 +89,9 @@ def dc_motor_physical(
             raise SystemDefinitionError(str(exc)) from None
     Ac = np.array([[0.0, 1.0, 0.0], [0.0, -c / J, K / J], [0.0, -Ke / L, -r / L]])
     Bc = np.array([[0.0, 0.0], [0.0, 1.0 / J], [1.0 / L, 0.0]])
-    # zero-order hold (python-control's c2d(..., method="zoh")): expm([[Ac, Bc], [0, 0]] dt) = [[Ad, Bd], [0, I]]
-    M = np.zeros((5, 5))
-    M[:3, :3], M[:3, 3:] = Ac, Bc
-    E = expm(M * dt)
+    Ad, Bd = _zoh(Ac, Bc, dt)  # python-control's c2d(..., method="zoh")
     return LTISystem(
-        "dc-motor-physical", E[:3, :3], E[:3, 3:], x0=[1.0, 0.0, 0.0],
+        "dc-motor-physical", Ad, Bd, x0=[1.0, 0.0, 0.0],
         Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=dt,
         description=f"DC motor with load from physical parameters, ZOH at {dt:g} s",
         state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),
@@ -292,7 +117,64 @@ def boeing747() -> LTISystem:
     )
 
 
-PRESETS = {"dc-motor": dc_motor, "boeing747": boeing747, "dc-motor-physical": dc_motor_physical}
+def _zoh(Ac, Bc, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation: ``expm([[Ac, Bc], [0, 0]] dt) = [[Ad, Bd], [0, I]]``."""
+    from scipy.linalg import expm
+
+    Ac, Bc = np.asarray(Ac, dtype=float), np.asarray(Bc, dtype=float)
+    n, m = Bc.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n], M[:n, n:] = Ac, Bc
+    E = expm(M * dt)
+    return E[:n, :n], E[:n, n:]
+
+
+def dc_motor_fast() -> LTISystem:
+    """:func:`dc_motor_physical` sampled at 0.05 s: the same motor, transients over many samples."""
+    s = dc_motor_physical(0.05)
+    return LTISystem("dc-motor-50ms", s.A, s.B, x0=s.x0, Q=s.Q, R=s.R, dt=0.05,
+                     description="DC motor with load from physical parameters, ZOH at 0.05 s (many-step transients)",
+                     state_names=s.state_names, input_names=s.input_names)
+
+
+def inverted_pendulum() -> LTISystem:
+    """Inverted pendulum on a cart, linearised about upright, ZOH at 0.05 s (open-loop unstable).
+
+    Ogata, *Modern Control Engineering*, 5th ed., Example 12-5 (cart mass M = 2 kg,
+    pendulum mass m = 0.1 kg, length l = 0.5 m, g = 9.81 m/s^2):
+    ``theta'' = (M + m) g / (M l) theta - u / (M l)``, ``x'' = -m g / M theta + u / M``.
+    States: angle [rad], angular rate, cart position [m], cart velocity; input: force [N].
+    Its unstable pole e^{4.54 * 0.05} = 1.255 needs more than log2 1.255 = 0.33 bits per
+    sample through any quantized feedback channel (data-rate theorem). Open loop the data
+    grow as 1.255^t: use many short training runs (``--trajectories 1000 --steps 15``: the
+    MPC then works from b = 8 on). x0 = 0.02 rad tilt (with
+    the default |u| <= 1 N the upright can be caught from there), Q = diag(10, 1, 1, 1), R = 1.
+    """
+    M, m, l, g = 2.0, 0.1, 0.5, 9.81
+    Ac = [[0, 1, 0, 0], [(M + m) * g / (M * l), 0, 0, 0], [0, 0, 0, 1], [-m * g / M, 0, 0, 0]]
+    Bc = [[0], [-1 / (M * l)], [0], [1 / M]]
+    A, B = _zoh(Ac, Bc, 0.05)
+    return LTISystem("inverted-pendulum", A, B, x0=[0.02, 0.0, 0.0, 0.0], Q=[10.0, 1.0, 1.0, 1.0], R=[1.0], dt=0.05,
+                     description="inverted pendulum on a cart (Ogata Ex. 12-5), ZOH at 0.05 s, open-loop unstable",
+                     state_names=("angle", "rate", "position", "velocity"), input_names=("force",))
+
+
+def mass_spring_damper() -> LTISystem:
+    """A lightly damped mass-spring-damper, ZOH at 0.1 s (slow, oscillating transients).
+
+    m x'' + c x' + k x = u with m = 1 kg, c = 0.2 N s/m, k = 1 N/m (damping ratio 0.1;
+    e.g. Ogata, *Modern Control Engineering*, Sec. 2-3). States: position [m],
+    velocity; input: force [N]. x0 = [1, 0], Q = I, R = 1.
+    """
+    A, B = _zoh([[0, 1], [-1.0, -0.2]], [[0], [1.0]], 0.1)
+    return LTISystem("mass-spring-damper", A, B, x0=[1.0, 0.0], Q=[1.0, 1.0], R=[1.0], dt=0.1,
+                     description="mass-spring-damper, damping ratio 0.1, ZOH at 0.1 s",
+                     state_names=("position", "velocity"), input_names=("force",))
+
+
+PRESETS = {"dc-motor": dc_motor, "boeing747": boeing747, "dc-motor-physical": dc_motor_physical,
+           "dc-motor-50ms": dc_motor_fast, "inverted-pendulum": inverted_pendulum,
+           "mass-spring-damper": mass_spring_damper}
 
 
 def system_from_dict(d: Mapping[str, Any], name: str = "custom") -> LTISystem:

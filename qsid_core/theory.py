@@ -114,6 +114,14 @@ class UltimateBound:
         return bool(self.delta < self.x0_norm)
 
 
+def _auto_rho(P: np.ndarray, pmin: float, pmax: float, x0) -> float:
+    """The default ``rho``: radius of the smallest ball holding ``{x'Px <= x0'P x0}`` (worst unit x0 without x0)."""
+    if x0 is not None and np.linalg.norm(x0) > 0:
+        x0v = np.asarray(x0, dtype=float)
+        return float(np.sqrt(max(x0v @ ((P + P.T) / 2) @ x0v, 0.0) / pmin))
+    return float(np.sqrt(pmax / pmin))
+
+
 def ultimate_bound(
     P: np.ndarray,
     Q: np.ndarray,
@@ -157,9 +165,7 @@ def ultimate_bound(
     rho : float > 0, optional
         Radius of the ball the state stays in, for ``omega_v = 2 lambda_max(P) rho``.
         Default: ``sqrt(x0'P x0 / lambda_min(P))``, the radius of the smallest ball
-        holding the sublevel set ``{V <= V(x0)}`` (V never grows while the proof's
-        decrease holds, so the state stays in that set). Without ``x0`` (or with
-        ``x0 = 0``): ``sqrt(lambda_max(P)/lambda_min(P))``, the same for the worst unit ``x0``.
+        holding ``{V <= V(x0)}``; without ``x0``: ``sqrt(lambda_max(P)/lambda_min(P))``.
 
     Raises
     ------
@@ -174,20 +180,14 @@ def ultimate_bound(
         raise ConfigError("the ultimate bound needs Q and R positive definite (letter, Assumption 4)")
     ep = np.linalg.eigvalsh((P + P.T) / 2)
     pmin, pmax = float(ep.min()), float(ep.max())
+    x0_norm = float(np.linalg.norm(x0)) if x0 is not None else float("nan")
     if not (pmin > 0 and np.isfinite(pmax)):
         return UltimateBound(float("inf"), pmin, pmax, alpha1, alpha2, float("inf"), float("nan"), theta,
                              float(np.linalg.norm(dA)), float(np.linalg.norm(dB)), float("inf"),
                              note=f"no bound: the Riccati matrix P is not positive definite "
                                   f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function",
-                             x0_norm=float(np.linalg.norm(x0)) if x0 is not None else float("nan"))
-    x0_norm = float(np.linalg.norm(x0)) if x0 is not None else float("nan")
-    if rho is None:
-        if x0 is not None and x0_norm > 0:
-            x0v = np.asarray(x0, dtype=float)
-            rho = float(np.sqrt(max(x0v @ ((P + P.T) / 2) @ x0v, 0.0) / pmin))
-        else:
-            rho = float(np.sqrt(pmax / pmin))
-    rho = check_float("rho", rho, 0.0, lo_open=True)
+                             x0_norm=x0_norm)
+    rho = check_float("rho", _auto_rho(P, pmin, pmax, x0) if rho is None else rho, 0.0, lo_open=True)
     # numpy scalars: an overflow gives inf (explained in the note), never OverflowError/ZeroDivisionError
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         omega_v = np.float64(2.0) * pmax * rho

@@ -34,9 +34,10 @@ run itself; only their verdicts are kept, not the extra trajectories.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
-from .closed_loop import ClosedLoops, _Loops, advance
 from .errors import FailureKind
 from .stability import certify_batch, lyapunov_batch, spectral_radius
 
@@ -60,7 +61,7 @@ def _peak(states: np.ndarray, x_ref: np.ndarray) -> float:
 class _Judge:
     """The verdict state of every loop of one :func:`judge` call."""
 
-    def __init__(self, loops: _Loops):
+    def __init__(self, loops):
         self.loops = loops
         out = loops.out
         Rn, m = len(loops.ctrls), loops.m
@@ -125,33 +126,32 @@ class _Judge:
             self.steps[i] = done_steps
 
 
-def judge(loops: _Loops, budget: int) -> None:
-    """Give every loop of a finished run its verdict (fills ``outcome``, ``spectral_radius``, ``verdict_steps``).
+def judge(loops, budget: int, extend: Callable) -> None:
+    """Give every loop of a finished run its verdict (fills ``outcome``, ``spectral_radius``, ``verdict_steps``,
+    ``gains`` of ``loops.out``).
 
     Parameters
     ----------
-    loops : closed_loop._Loops
+    loops : qsid_core.closed_loop._Loops
         The run, after :func:`qsid_core.closed_loop.advance`; ``loops.out`` receives the verdicts.
     budget : int
         At most this many extra closed-loop steps per loop.
+    extend : callable(x, k, active) -> (ClosedLoops, ndarray)
+        Runs the loops ``active`` on from states ``x`` (R, n) for ``k`` steps; returns those
+        steps and the states reached.
     """
     out = loops.out
     jd = _Judge(loops)
     x = np.array(loops.x)
     pending = jd.first_look(x)
     extra = 0
-    n, m, Rn = loops.n, loops.m, len(loops.ctrls)
     while pending and extra < budget:
         k = min(WINDOW, budget - extra)
-        scratch = ClosedLoops(np.full((Rn, k + 1, n), np.nan), np.full((Rn, k, m), np.nan), np.full(Rn, np.nan),
-                              np.full(Rn, np.nan), [""] * Rn, [""] * Rn, 0)
-        ext = _Loops(loops.ctrls, loops.w, loops.A, loops.B, k, scratch, x_start=x, cq=loops.cq)
-        advance(ext, np.array(pending))
-        loops.cq = ext.cq
+        scratch, x_next = extend(x, k, pending)
         extra += k
         last = extra >= budget
         ok = [i for i in pending if not scratch.failure[i]]
-        x[ok] = ext.x[ok]
+        x[ok] = x_next[ok]
         cert = dict(zip(ok, jd.certified(ok, x)))
         for i in pending:
             if scratch.failure[i]:

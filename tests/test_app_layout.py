@@ -122,6 +122,7 @@ def test_every_view_module_is_registered_and_imports_no_other_view():
     view_modules = {f"app.figures.{v.build.__module__.rsplit('.', 1)[-1]}" for v in registry.VIEWS}
     assert view_modules == {"app.figures.error_vs_bits", "app.figures.cost", "app.figures.bound",
                             "app.figures.eigenvalues", "app.figures.time_series", "app.figures.quantizer",
-                            "app.figures.datalength", "app.figures.compare", "app.figures.norm_time"}
+                            "app.figures.datalength", "app.figures.compare", "app.figures.norm_time",
+                            "app.figures.bits_needed", "app.figures.residual"}
     for name in view_modules:
         assert not _imports(name, *mods[name], set(mods)) & view_modules, name

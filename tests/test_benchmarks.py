@@ -117,3 +117,12 @@ def test_bench_speed_quick_sections_agree(capsys):
         ident = data["identification"]
         assert ident["fused kernel floor"]["best"] > 0 and ident["ratio_engine_to_floor"] > 0
         assert "target <= 1.5x" in text
+
+
+def test_bench_bits_quick_prints_its_measured_ratio(capsys):
+    import bench_bits
+
+    assert bench_bits.main(["--quick", "--repeats", "1", "--systems", "dc-motor"]) == 0
+    line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("RESULT ")][-1]
+    r = json.loads(line[len("RESULT "):])["results"][0]
+    assert r["ratio_bits_to_sweep"] == r["median_s"]["bits"] / r["median_s"]["sweep"] > 0

@@ -38,6 +38,13 @@ CASES = {
     "tracking with a state box": Values(system="boeing747", x_ref="0.1, 0, 0, 0", x_max="5", compare_bits="2, 8"),
     "one fixed pair": Values(range_mode="fixed", fixed_range="-2.5, 2.5", log_q=(0.0, 1.0, -2.0),
                              log_r=(0.7, 0.7)),
+    "terminal weight Q and box, verdict settings": Values(qf="Q", terminal_box="0.8, 2, 2", verify_steps=1500,
+                                                           target=0.9, cost_gap=0.02, log_q=(0.3, -1.0, 0.0)),
+    "terminal weight numbers": Values(system="boeing747", qf="5", terminal_box="3"),
+    "tracking a sine": Values(system="boeing747", reference="sine:u:1:40"),
+    "offset-free constant reference": Values(tracking="offset-free", x_ref="0.5, 0, 0"),
+    "real loop": Values(disturbance=0.01, disturbance_kind="uniform", feedback_bits=6, feedback_noise=0.002,
+                        loop_seed=4),
 }
 
 
@@ -53,8 +60,13 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
     v = CASES[name]
     system = resolve_system(v).system
     want = sweep_config(v, system)
-    lines = share.command_lines(v)
+    *lines, bits_line = share.command_lines(v)
     assert len(lines) == (2 if v.identification == "LS + BCLS" else 1)
+    argv = shlex.split(bits_line)
+    assert argv[:2] == ["qsid", "bits"]
+    args = build_parser().parse_args(argv[1:])
+    _same_config(config(args, system_from_args(args), mpc=True), want)
+    assert (args.target, args.cost_gap) == (v.target, v.cost_gap)
     for line, est in zip(lines, (("ls", "bcls") if len(lines) == 2 else (want.estimator,))):
         argv = shlex.split(line)
         assert argv[:2] == ["qsid", "sweep"]
@@ -65,7 +77,10 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
 
 def test_command_is_short_at_the_defaults_and_names_changes():
     assert share.command_lines(Values(identification="LS")) == [
-        "qsid sweep --realizations=20 --trajectories=50 --steps=200"]
+        "qsid sweep --realizations=20 --trajectories=50 --steps=200",
+        "qsid bits --realizations=20 --trajectories=50 --steps=200"]
+    line = share.command_lines(Values(identification="LS", target=0.9, cost_gap=0.05, verify_steps=100))[-1]
+    assert line.endswith("--verify-steps=100 --target=0.9 --cost-gap=0.05")
     line = share.command_lines(CASES["boeing, fixed per channel, no guard, BCLS"])[0]
     assert "--system=boeing747" in line and "--no-guard" in line and "--limits=-20.0,20.0;" in line
 
@@ -114,6 +129,10 @@ def test_export_curves_csv_and_json(frame):
     assert float(ls4["err_A_mean"]) == pytest.approx(frame.rows["LS"][4]["err_A"]["mean"])
     a = frame.rows["LS"][4].get("assumptions")  # rows carry them once the dashboard computes them
     assert ls4["theorem1_holds"] == ("" if not a else str(a["theorem1_holds"]))
+    r4 = frame.rows["LS"][4]
+    assert float(ls4["stabilized_fraction"]) == pytest.approx(r4["stabilized_fraction"])
+    assert int(ls4["converged"]) == r4["closed_loop_outcomes"]["converged"]
+    assert float(ls4["steady_state_error_mean"]) == pytest.approx(r4["steady_state_error"]["mean"])
 
     def bad(c):
         raise AssertionError(c)

@@ -21,7 +21,7 @@ from qsid_core import Experiment
 from qsid_core.errors import QsidError
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
-NAMES = ("error", "eigen", "timeseries", "cost", "bound", "norm_time", "quantizer", "datalength", "portraits")
+NAMES = ("error", "eigen", "timeseries", "cost", "bits", "bound", "norm_time", "residual", "quantizer", "datalength", "portraits")
 
 
 def frames(v: Values, cache=None):
@@ -115,7 +115,7 @@ def test_renderer_redraws_only_what_changed():
     v = Values(**SMALL)
     out = [ren.render(f) for f in iter_frames(v, cache)]
     assert out[0].scene is not None and out[0].summary and "eigen" in out[0].figures
-    assert set(out[-1].figures) == {"error", "cost", "bound", "portraits"}
+    assert set(out[-1].figures) == {"error", "cost", "bits", "bound", "residual", "portraits"}
     err = ren.figures["error"]
     # a b change: new scene and eigenvalues, the curves are only re-marked (same figure objects)
     out = [ren.render(f) for f in iter_frames(v.replace(bits=8), cache)]

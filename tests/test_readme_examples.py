@@ -82,3 +82,14 @@ def test_export_example_prints_and_writes_what_the_readme_shows(tmp_path):
     assert len(shown) == 3
     assert csv_lines[0] == shown[0]  # the header exactly
     assert_same_text("\n".join(csv_lines[1:3]), "\n".join(shown[1:]), rtol=1e-6, atol=1e-12)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("system", ["boeing747", "dc-motor"])
+def test_bits_output_is_what_the_readme_shows(system):
+    """The README's ``qsid bits`` tables are this code's output (paper scale)."""
+    proc = subprocess.run([sys.executable, "-m", "app.cli", "bits", "--system", system, "-q"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    shown = block("output", f"bits-{system}").split("\n", 1)[1]  # after the '$ qsid bits ...' line
+    assert_same_text(proc.stdout, shown, rtol=1e-2, atol=1e-9)

@@ -114,3 +114,22 @@ def test_system_from_dict_requires_mapping():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         system_from_dict({"A": [[0.5]], "B": [[1.0]]})
+
+
+def test_new_presets_sources_and_data_rate():
+    import numpy as np
+
+    from qsid_core.stability import data_rate_bits
+    from qsid_core.systems import PRESETS, dc_motor_physical, get_system
+
+    assert {"dc-motor-50ms", "inverted-pendulum", "mass-spring-damper"} <= set(PRESETS)
+    fast = get_system("dc-motor-50ms")
+    np.testing.assert_allclose(fast.A, dc_motor_physical(0.05).A)
+    assert fast.dt == 0.05
+    pend = get_system("inverted-pendulum")
+    lam = np.abs(np.linalg.eigvals(pend.A))
+    assert lam.max() == pytest.approx(np.exp(np.sqrt(2.1 * 9.81 / 1.0) * 0.05), rel=1e-9)  # (M+m)g/(Ml) = 20.6
+    assert data_rate_bits(pend.A) == pytest.approx(np.log2(lam.max()), rel=1e-6) and 0.3 < data_rate_bits(pend.A) < 0.4
+    msd = get_system("mass-spring-damper")
+    assert msd.n == 2 and msd.m == 1 and np.abs(np.linalg.eigvals(msd.A)).max() < 1
+    assert data_rate_bits(msd.A) == 0.0 and data_rate_bits(get_system("dc-motor").A) == pytest.approx(0.0, abs=1e-12)

@@ -13,7 +13,7 @@ import shlex
 
 from .parser import bits_spec, floats_spec, limits_spec
 
-__all__ = ["sweep_argv", "sweep_command", "system_text"]
+__all__ = ["sweep_argv", "sweep_command", "bits_command", "system_text"]
 
 
 def system_text(M) -> str:
@@ -44,11 +44,31 @@ def _mpc_args(cfg, system) -> list:
         out.append(f"--mpc-steps={m.steps}")
     if m.u_max != d.u_max:
         out.append(f"--u-max={floats_spec(m.u_max)}")
-    for flag, v in (("--x0", m.x0), ("--x-ref", m.x_ref), ("--x-max", m.x_max), ("--Q", m.Q), ("--R", m.R)):
+    if m.reference is not None:
+        if not isinstance(m.reference, str):
+            raise ValueError("the command line gives a sampled reference as a CSV file: write it and use "
+                             "--reference FILE.csv")
+        out.append(f"--reference={m.reference}")
+    if m.tracking != d.tracking:
+        out.append(f"--tracking={m.tracking}")
+    if m.disturbance:
+        out.append(f"--disturbance={m.disturbance!r}" + ("" if m.disturbance_kind == "gaussian" else
+                                                         f":{m.disturbance_kind}"))
+    if m.feedback_bits is not None:
+        out.append(f"--feedback-bits={m.feedback_bits}")
+    if m.feedback_noise:
+        out.append(f"--feedback-noise={m.feedback_noise!r}")
+    if m.loop_seed != d.loop_seed:
+        out.append(f"--loop-seed={m.loop_seed}")
+    if m.verify_steps != d.verify_steps:
+        if m.verify_steps is None:
+            raise ValueError("the command line has no flag for switching the closed-loop verdicts off")
+        out.append(f"--verify-steps={m.verify_steps}")
+    for flag, v in (("--x0", m.x0), ("--x-ref", m.x_ref), ("--x-max", m.x_max), ("--terminal-box", m.xf_max),
+                    ("--Qf", m.Qf), ("--Q", m.Q), ("--R", m.R)):
         if v is not None:
             out.append(f"{flag}={floats_spec(v)}")
-    unsupported = [k for k in ("xf_max", "Qf") if getattr(m, k) is not None]
-    unsupported += [k for k in ("eps", "max_iter") if getattr(m, k) != getattr(d, k)]
+    unsupported = [k for k in ("eps", "max_iter") if getattr(m, k) != getattr(d, k)]
     if unsupported:
         raise ValueError(f"the command line has no flag for MPC setting(s) {', '.join(unsupported)}")
     return out
@@ -97,3 +117,10 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
 def sweep_command(cfg, system_source: str | None = None) -> str:
     """The whole shell line ``qsid sweep ...`` (quoted for a POSIX shell)."""
     return shlex.join(["qsid", "sweep", *sweep_argv(cfg, system_source)])
+
+
+def bits_command(cfg, target: float = 0.95, cost_gap: float = 0.01, system_source: str | None = None) -> str:
+    """The shell line ``qsid bits ...`` for ``cfg`` and the answer's thresholds (defaults left out)."""
+    extra = ([] if target == 0.95 else [f"--target={target!r}"]) + \
+            ([] if cost_gap == 0.01 else [f"--cost-gap={cost_gap!r}"])
+    return shlex.join(["qsid", "bits", *sweep_argv(cfg, system_source), *extra])

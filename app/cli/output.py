@@ -127,6 +127,31 @@ def _stabilized(r: dict) -> str:
     return f"{oc['converged']}/{sum(oc.values())}"
 
 
+def real_loop_line(d: dict) -> str:
+    """What the residual of a disturbed / quantized-feedback loop comes from, next to the data-rate floor."""
+    m = d["config"]["mpc"]
+    causes = []
+    if m.get("disturbance"):
+        causes.append(f"disturbance sigma {m['disturbance']:g} ({m.get('disturbance_kind', 'gaussian')})")
+    if m.get("feedback_bits"):
+        causes.append(f"feedback quantized to {m['feedback_bits']} bits per state")
+    if m.get("feedback_noise"):
+        causes.append(f"sensor noise sigma {m['feedback_noise']:g}")
+    if m.get("reference"):
+        causes.append("the time-varying reference " + (m["reference"] if isinstance(m["reference"], str)
+                                                       else "(samples)"))
+    text = (f"steady err = RMS of |x_t - x_ref| over the last half of each loop; causes: {', '.join(causes)}; "
+            f"the true-model loop keeps {g(d.get('steady_state_error_true_model'), '.3e')} (no model error: "
+            "that much comes from these causes); delta covers the model error only")
+    if m.get("reference"):
+        text += (f"; tracking err = RMS of |x_t - r_t| over each whole loop, true model "
+                 f"{g(d.get('tracking_error_true_model'), '.4e')}")
+    if m.get("feedback_bits"):
+        text += (f"; data-rate floor of this plant: {g(d.get('data_rate_bits'), '.3g')} bits per sample "
+                 "(any quantized feedback needs more)")
+    return text
+
+
 def verdict_lines(results: list) -> list:
     """One line per b where some closed loop did not converge: how many stayed bounded, diverged, failed."""
     out = []
@@ -159,6 +184,12 @@ def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = ["b", "eps min..max", "err_A mean +/- std", "Thm1 A", "err_B mean +/- std", "Thm1 B", "overload",
             "MPC cost (failed)", "stabilized", "delta bound", "|x_T| mean", "Thm1/BCLS hold"]
+    m = d["config"].get("mpc") or {}
+    noisy = bool(m.get("disturbance") or m.get("feedback_bits") or m.get("feedback_noise") or m.get("reference"))
+    if noisy:
+        head.insert(10, "steady err")
+    if m.get("reference"):
+        head.insert(10, "tracking err")
     rows = []
     for r in d["results"]:
         eps = list(r["eps_x"]) + list(r["eps_u"])
@@ -179,6 +210,10 @@ def format_table(d: dict) -> str:
             "-" if fsn is None else g(fsn.get("mean"), ".2e"),
             _flags(r),
         ])
+        if noisy:
+            rows[-1].insert(10, g((r.get("steady_state_error") or {}).get("mean"), ".3e"))
+        if m.get("reference"):
+            rows[-1].insert(10, g((r.get("tracking_error") or {}).get("mean"), ".4e"))
     # hand-written rather than rich.Table: this exact plain-text layout is the documented, diff-able stdout
     widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
     left = {1}
@@ -211,6 +246,8 @@ def format_table(d: dict) -> str:
             fails[kind] = fails.get(kind, 0) + k
     if fails:
         lines.append("MPC failures by kind: " + ", ".join(f"{k} {v}" for k, v in sorted(fails.items())))
+    if noisy:
+        lines.append(real_loop_line(d))
     lines.extend(verdict_lines(d["results"]))
     lines.extend(bound_lines(d["results"]))
     lines.extend(assumptions_lines(d["results"]))

@@ -118,6 +118,48 @@ def _float_list(text: str) -> tuple[float, ...]:
     return tuple(_number(p, what) for p in parts)
 
 
+def _nonneg_float(text: str) -> float:
+    v = _number(text, "must be a number >= 0")
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0; got {text!r}")
+    return v
+
+
+def _disturbance_spec(text: str) -> tuple[float, str]:
+    """``SIGMA`` or ``SIGMA:gaussian`` / ``SIGMA:uniform``."""
+    sigma, _, kind = text.partition(":")
+    kind = kind.strip().lower() or "gaussian"
+    if kind not in ("gaussian", "uniform"):
+        raise argparse.ArgumentTypeError(f"must be SIGMA, SIGMA:gaussian or SIGMA:uniform; got {text!r}")
+    return _nonneg_float(sigma), kind
+
+
+def _feedback_bits(text: str) -> int | None:
+    if text.strip().lower() in ("none", "exact"):
+        return None
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a word length 1..32 or 'none'; got {text!r}") from None
+    if not 1 <= v <= 32:
+        raise argparse.ArgumentTypeError(f"must be a word length 1..32 or 'none'; got {text!r}")
+    return v
+
+
+def _qf_spec(text: str):
+    """``dare`` (None: each model's DARE solution), ``Q`` (the stage weight) or a diagonal ``F1,F2,..``."""
+    t = text.strip()
+    if t.lower() == "dare":
+        return None
+    if t == "Q":
+        return "Q"
+    try:
+        return _float_list(t)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"must be 'dare', 'Q' or numbers (one or one per state); got {text!r}") \
+            from None
+
+
 def _limits(text: str) -> tuple[tuple[float, float], ...]:
     """``LO,HI`` (every channel) or ``LO,HI;LO,HI;...`` (one pair per channel: states, then inputs)."""
     what = "must be 'LO,HI' or 'LO,HI;LO,HI;...' (one pair per channel, states then inputs)"
@@ -236,12 +278,38 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
                    help="initial state of the closed loops, one per state (default: the system's x0)")
     m.add_argument("--x-ref", type=_float_list, default=None, metavar="R1,R2,..",
                    help="constant reference the MPC tracks, one value or one per state (default: 0)")
+    m.add_argument("--reference", default=None, metavar="SPEC|FILE.csv",
+                   help="time-varying reference the MPC tracks with preview: step:STATE:AMPLITUDE:TIME, "
+                        "sine:STATE:AMPLITUDE:PERIOD, square:STATE:AMPLITUDE:PERIOD (STATE a name or 1-based "
+                        "index, times in samples) or a CSV file with one row per step and one column per state; "
+                        "excludes --x-ref")
+    m.add_argument("--tracking", choices=("letter", "offset-free"), default="letter",
+                   help="the cost's input term: the letter's u'Ru, or offset-free (u - u_ref)'R(u - u_ref) with "
+                        "u_ref = B^+ (I - A^) r, the input that holds the model at the reference (default: letter)")
     m.add_argument("--x-max", type=_float_list, default=None, metavar="X",
                    help="state box |x_i| <= X on the predicted states, one value or one per state (default: none)")
+    m.add_argument("--Qf", dest="qf", type=_qf_spec, default=None, metavar="dare|Q|F1,F2,..",
+                   help="terminal weight of the MPC: 'dare' (the stabilizing DARE solution of each identified "
+                        "model, the default), 'Q' (the stage weight) or a diagonal, one value or one per state")
+    m.add_argument("--terminal-box", dest="xf_max", type=_float_list, default=None, metavar="X",
+                   help="terminal box |x_N,i| <= X_i on the last predicted state, one value or one per state "
+                        "(default: none)")
     m.add_argument("--Q", dest="q_diag", type=_float_list, default=None, metavar="Q1,Q2,..",
                    help="diagonal of the state weight, one value or one per state (default: the system's Q)")
     m.add_argument("--R", dest="r_diag", type=_float_list, default=None, metavar="R1,R2,..",
                    help="diagonal of the input weight, one value or one per input (default: the system's R)")
+    loop = p.add_argument_group("the real loop (disturbance and measurement)")
+    loop.add_argument("--disturbance", type=_disturbance_spec, default=(0.0, "gaussian"),
+                      metavar="SIGMA[:gaussian|uniform]",
+                      help="process noise of standard deviation SIGMA added to the true plant in the closed loop "
+                           "(the same draws for every b, estimator and the true-model loop; default: 0)")
+    loop.add_argument("--feedback-bits", type=_feedback_bits, default=None, metavar="B|none",
+                      help="the MPC measures the state through a B-bit quantizer with subtractive dither over the "
+                           "training data's range (default: none, exact state)")
+    loop.add_argument("--feedback-noise", type=_nonneg_float, default=0.0, metavar="SIGMA",
+                      help="sensor noise (standard deviation) on that measurement (default: 0)")
+    loop.add_argument("--loop-seed", type=_nonneg_int, default=0, metavar="N",
+                      help="seed of the disturbance, feedback dither and sensor noise (default: 0)")
     m.add_argument("--verify-steps", type=_nonneg_int, default=mpc.verify_steps, metavar="N",
                    help="at most N closed-loop steps beyond --mpc-steps to decide whether a loop converges, stays "
                         f"bounded or diverges on the true plant (default: {mpc.verify_steps}; 0: judge from the "

@@ -54,6 +54,8 @@ class Control:
 
 
 _R = "Dither realizations"
+_V = "How many bits?"
+_L = "Real loop"
 #: Every input of the panel, in display order (tabs appear in order of first use).
 CONTROLS: tuple[Control, ...] = (
     Control("lesson", "dropdown", "lesson", choices=lesson_names(),
@@ -95,8 +97,37 @@ CONTROLS: tuple[Control, ...] = (
     Control("mpc_steps", "slider", "closed-loop steps", "MPC", 5, 300, 5, convert=int),
     Control("x_ref", "text", "reference x_ref", "MPC",
             hint="Constant reference, one number per state (empty = regulate to 0). δ(ε) assumes x_ref = 0."),
+    Control("reference", "text", "reference r(t)", "MPC",
+            hint="Time-varying reference with preview: step:STATE:AMP:TIME, sine:STATE:AMP:PERIOD or "
+                 "square:STATE:AMP:PERIOD (STATE a name or 1-based, times in samples); empty = constant x_ref"),
+    Control("tracking", "dropdown", "tracking form", "MPC", choices=("letter", "offset-free"),
+            hint="letter: cost u'Ru (a reference that is no equilibrium leaves an offset); offset-free: "
+                 "(u - u_ref)'R(u - u_ref) with u_ref = B^+(I - A^) r, the input that holds the model at r"),
     Control("x_max", "text", "state box x_max", "MPC",
             hint="|x_i| <= x_max_i over the horizon: one number for every state or one per state (empty = none)"),
+    Control("qf", "text", "terminal weight Qf", "MPC",
+            hint="'dare' (each model's stabilizing DARE solution, default), 'Q' (the stage weight) or a "
+                 "diagonal: one number for every state or one per state"),
+    Control("terminal_box", "text", "terminal box", "MPC",
+            hint="|x_N,i| <= X_i on the last predicted state: one number for every state or one per state "
+                 "(empty = none)"),
+    Control("disturbance", "number", "disturbance σ", "MPC", 0.0, step=0.005, folder=_L, convert=float,
+            hint="Process noise added to the true plant in the closed loop (standard deviation; the same draws "
+                 "for every b, estimator and the true-model loop)"),
+    Control("disturbance_kind", "dropdown", "disturbance kind", "MPC", choices=("gaussian", "uniform"), folder=_L),
+    Control("feedback_bits", "slider", "feedback bits", "MPC", 0, 16, 1, folder=_L, convert=int,
+            hint="The MPC measures the state through this many bits per state (subtractive dither, the training "
+                 "data's range); 0 = exact state"),
+    Control("feedback_noise", "number", "sensor noise σ", "MPC", 0.0, step=0.005, folder=_L, convert=float,
+            hint="Noise on the state the MPC measures (standard deviation)"),
+    Control("loop_seed", "number", "loop seed", "MPC", 0, step=1, folder=_L, convert=int),
+    Control("verify_steps", "number", "verdict steps", "MPC", 0, step=500, folder=_V, convert=int,
+            hint="At most this many extra closed-loop steps to decide whether a loop converges, stays bounded "
+                 "or diverges on the true plant (where the spectral radius alone does not decide)"),
+    Control("target", "slider", "target stabilized", "MPC", 0.5, 1.0, 0.01, folder=_V, convert=float,
+            hint="b_observed: the smallest b from which on at least this share of the loops converge …"),
+    Control("cost_gap", "number", "cost gap", "MPC", 0.0, step=0.005, folder=_V, convert=float,
+            hint="… and the mean closed-loop cost is within this relative gap of the true model's (0.01 = 1 %)"),
     Control("theta", "slider", "θ", "Theory", 0.05, 0.95, 0.05, convert=float,
             hint="Share of the Lyapunov decrease used against the model error (ultimate bound δ(ε))"),
     Control("rho_auto", "checkbox", "ρ auto", "Theory", convert=bool,

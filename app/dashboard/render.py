@@ -10,6 +10,7 @@ from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.raw import Wire
 from app.figures.traces import move_current_bits
+from app.figures.traces import CURRENT_B
 from app.figures.view import CURRENT, CURVES
 
 from .frames import Frame
@@ -73,6 +74,7 @@ class Renderer:
                         self._current_keys[v.name] = key
             out.update(build_figures(frame, todo))
         rows_key = (frame.labels, frame.true_cost, id(frame.pinned), frame.values.compare_bits, frame.values.axes,
+                    frame.values.target, frame.values.cost_gap,
                     tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())))
         if frame.stage == "curves" and rows_key != self._rows_key:
             out.update(build_figures(frame, curves))
@@ -80,7 +82,7 @@ class Renderer:
         else:
             for name in curves:  # only plots with a current-b marker are touched (and re-sent)
                 fig = self.figures.get(name)
-                if fig is not None and any(sh.x0 == sh.x1 for sh in fig.layout.shapes):
+                if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
                     out[name] = move_current_bits(fig, frame.bits)
         self.figures.update(out)
         # viser's plot handle calls figure.to_json(): Wire's skips plotly's deep copy (raw.to_json)

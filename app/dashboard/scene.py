@@ -54,6 +54,7 @@ class PhasePortrait:
                                            anchor="top-center", font_screen_scale=0.85)
         self.sphere = self._add_circles("bound", _NONE, _SPHERE)
         self.realized = self._add_circles("bound_realized", _NONE, _REALIZED)
+        self.ref_path = self._add_circles("reference", _NONE, rgb("theory"))  # a time-varying reference
         self.marks = scene.add_point_cloud(f"{prefix}/time_marks", np.zeros((1, 3), dtype=np.float32),
                                            np.array(rgb("true"), dtype=np.uint8), point_size=0.035,
                                            point_shape="circle")
@@ -112,6 +113,7 @@ class PhasePortrait:
         self.start_label.position = tuple(float(x) for x in v.start)
         self._set_circles("sphere", "bound", v.bound_circles, _SPHERE)
         self._set_circles("realized", "bound_realized", v.realized_circles, _REALIZED)
+        self._set_circles("ref_path", "reference", v.ref_segments, rgb("theory"))
         self.sphere_label.text = v.bound_text if v.show_bound else ""
         self.sphere_label.visible = v.show_bound
         r = min(v.sphere_radius, 1.6) if v.bound_circles.shape[0] else 0.0
@@ -133,6 +135,8 @@ class PhasePortrait:
         extra = []
         if v.failed:
             extra.append(f"{v.failed} failed loops hidden")
+        if v.not_converged:
+            extra.append(f"{v.not_converged} loops do not converge on the true plant")
         if v.clipped:
             extra.append(f"{v.clipped} loops leave the view (clipped)")
         same = "" if v.polylines == v.realizations else f" ({v.realizations} computed, identical without dither)"

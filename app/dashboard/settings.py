@@ -41,7 +41,7 @@ PAPER_SCALE = {"trajectories": _SWEEP.trajectories, "steps": _SWEEP.steps, "real
 #: Interactive default: every update stays fast (see benchmarks/bench_dashboard.py).
 INTERACTIVE = {"trajectories": 50, "steps": 200, "realizations": 20}
 #: Systems offered in the panel (the engine's presets the panel shows, plus a typed one).
-SYSTEM_CHOICES = ("dc-motor", "boeing747", "custom")
+SYSTEM_CHOICES = (*PRESETS, "custom")
 #: Display label of each engine estimator (also the palette's colour keys).
 LABELS = {e: e.upper() for e in ESTIMATORS}
 #: Identification choices -> engine estimators: each estimator alone, then all side by side.
@@ -98,6 +98,18 @@ class Values:
     x_max: str = ""  # state box |x_i| <= x_max_i: one number for all or one per state ("" = none)
     view_channel: int = 0  # the quantizer view's channel (states, then inputs)
     compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
+    qf: str = "dare"  # terminal weight: "dare", "Q" or a diagonal (one number or one per state)
+    terminal_box: str = ""  # |x_N,i| <= X_i on the last predicted state ("" = none)
+    tracking: str = "letter"  # the cost's input term: the letter's u'Ru or offset-free (u - u_ref)'R(u - u_ref)
+    reference: str = ""  # time-varying reference: step:/sine:/square:STATE:AMP:TIME|PERIOD ("" = constant x_ref)
+    disturbance: float = 0.0  # process noise on the true plant in the loop (standard deviation)
+    disturbance_kind: str = "gaussian"
+    feedback_bits: int = 0  # the MPC measures the state through this many bits per state (0 = exact)
+    feedback_noise: float = 0.0  # sensor noise on that measurement (standard deviation)
+    loop_seed: int = 0  # seed of the loop's disturbance, feedback dither and sensor noise
+    verify_steps: int = _MPC.verify_steps  # extra closed-loop steps allowed to judge each loop
+    target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
+    cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
 
     def replace(self, **kw) -> "Values":
         return dataclasses.replace(self, **kw)
@@ -242,15 +254,15 @@ def estimators(choice: str) -> tuple:
     return IDENT_CHOICES[choice]
 
 
-def _state_box(text: str, n: int, names: str) -> tuple | None:
-    """The state box typed in the panel: one bound for every state or one per state ("" = no box)."""
+def _state_box(text: str, n: int, names: str, what: str = "x_max") -> tuple | None:
+    """A state box typed in the panel: one bound for every state or one per state ("" = no box)."""
     s = (text or "").strip()
     if not s:
         return None
     k = len(s.replace(",", " ").replace(";", " ").split())
-    box = parse_vector(s, "x_max", 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
+    box = parse_vector(s, what, 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
     if not all(np.isfinite(x) and x > 0 for x in box):
-        raise InputError(f"x_max: every bound must be a positive number; got {s!r}")
+        raise InputError(f"{what}: every bound must be a positive number; got {s!r}")
     return box if len(box) == n else box * n
 
 
@@ -263,9 +275,27 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     x0 = parse_vector(v.x0, "x0", n, f" (one per state: {names})")
     x_ref = parse_vector(v.x_ref, "x_ref", n, f" (one per state: {names})")
     x_max = _state_box(v.x_max, n, names)
+    xf_max = _state_box(v.terminal_box, n, names, "terminal box")
+    qf_text = (v.qf or "").strip()
+    if qf_text.lower() in ("", "dare"):
+        Qf = None
+    elif qf_text == "Q":
+        Qf = Q if Q is not None else tuple(float(x) for x in np.diag(system.Q))
+    else:
+        k = len(qf_text.replace(",", " ").replace(";", " ").split())
+        Qf = parse_vector(qf_text, "Qf", 1 if k == 1 else n, f" ('dare', 'Q', one number or one per state: {names})")
+    reference = (v.reference or "").strip() or None
     try:
+        if reference is not None:
+            from qsid_core.reference import parse_reference
+
+            parse_reference(reference, system.state_names)
         return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0,
-                         x_ref=x_ref, x_max=x_max)
+                         x_ref=x_ref, reference=reference, tracking=v.tracking,
+                         x_max=x_max, xf_max=xf_max, Qf=Qf, verify_steps=int(v.verify_steps),
+                         disturbance=float(v.disturbance), disturbance_kind=v.disturbance_kind,
+                         feedback_bits=int(v.feedback_bits) or None, feedback_noise=float(v.feedback_noise),
+                         loop_seed=int(v.loop_seed))
     except QsidError as exc:
         raise InputError(str(exc)) from None
 
@@ -276,6 +306,10 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"word length b must be between {ALL_BITS[0]} and {ALL_BITS[-1]}; got {v.bits}")
     if not v.rho_auto and not (np.isfinite(v.rho) and v.rho > 0):
         raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
+    if not (np.isfinite(v.target) and 0 < v.target <= 1):
+        raise InputError(f"target share of stabilized loops must be in (0, 1]; got {v.target}")
+    if not (np.isfinite(v.cost_gap) and v.cost_gap >= 0):
+        raise InputError(f"cost gap must be >= 0 (relative: 0.01 = 1 %); got {v.cost_gap}")
     if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
         raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
     try:

@@ -16,7 +16,7 @@ import json
 import math
 from pathlib import Path
 
-from app.cli.command import sweep_command
+from app.cli.command import bits_command, sweep_command
 from app.cli.output import dumps
 
 from .controls import CONTROLS, read_values
@@ -110,14 +110,16 @@ def command_lines(v: Values) -> list:
     """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown)."""
     system = resolve_system(v).system
     cfg = sweep_config(v, system)
-    return [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
+    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
+    return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]
 
 
 # ----- exports of the current frame ----------------------------------------------------------------------------
 _COLUMNS = ("estimator", "bits", "err_A_mean", "err_A_std", "err_B_mean", "err_B_std", "err_A_theory",
             "err_B_theory", "overload_fraction", "mpc_cost_mean", "mpc_cost_std", "mpc_failed", "ultimate_bound",
             "ultimate_bound_realized_median", "ultimate_bound_realized_max", "final_state_norm_mean",
-            "theorem1_holds", "bcls_holds")
+            "theorem1_holds", "bcls_holds", "stabilized_fraction", "converged", "bounded", "diverged", "failed",
+            "steady_state_error_mean", "tracking_error_mean")
 
 
 def curves_rows(frame) -> list:
@@ -136,6 +138,11 @@ def curves_rows(frame) -> list:
                 "ultimate_bound": r.get("ultimate_bound"), "ultimate_bound_realized_median": real.get("median"),
                 "ultimate_bound_realized_max": real.get("max"), "final_state_norm_mean": fsn.get("mean"),
                 "theorem1_holds": a.get("theorem1_holds"), "bcls_holds": a.get("bcls_holds"),
+                "stabilized_fraction": r.get("stabilized_fraction"),
+                **{k: (r.get("closed_loop_outcomes") or {}).get(k) for k in ("converged", "bounded", "diverged",
+                                                                          "failed")},
+                "steady_state_error_mean": (r.get("steady_state_error") or {}).get("mean"),
+                "tracking_error_mean": (r.get("tracking_error") or {}).get("mean"),
             })
     return out
 

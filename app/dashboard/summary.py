@@ -36,6 +36,33 @@ def _failures(row: dict, lp) -> str:
     return f"{k}/{total} ({kinds})"
 
 
+def _real_loop(frame: Frame) -> list:
+    """With a disturbance or a quantized/noisy measurement: the residual per estimator and the true model's."""
+    from app.figures.residual import causes_text
+    from qsid_core.stability import data_rate_bits
+
+    mc = frame.ex.config.mpc
+    causes = causes_text(mc)
+    out = []
+    if mc is not None and mc.reference is not None and frame.true_loop is not None:
+        per = " · ".join(f"{lab} {_g((frame.rows[lab][frame.bits].get('tracking_error') or {}).get('mean'))}"
+                         for lab in frame.labels)
+        out += ["", f"**Tracking** {mc.reference if isinstance(mc.reference, str) else 'sampled reference'}: "
+                    f"RMS ‖x_t − r_t‖ {per} · true model {_g(float(frame.true_loop.tracking_error[0]))} "
+                    "(δ(ε) assumes regulation to 0; the verdicts judge the same MPC regulating to 0)"]
+    if not causes or frame.true_loop is None:
+        return out
+    per = " · ".join(f"{lab} {_g((frame.rows[lab][frame.bits].get('steady_state_error') or {}).get('mean'))}"
+                     for lab in frame.labels)
+    true_err = float(frame.true_loop.steady_state_error[0])
+    text = (f"**Real loop** ({causes}): steady-state error {per} · true model {_g(true_err)} — no model error there: "
+            "that much comes from the causes named here; δ(ε) covers the model error only.")
+    if mc.feedback_bits is not None:
+        text += (f" Data-rate floor of this plant: {data_rate_bits(frame.system.A):.3g} bits per sample "
+                 f"(the loop sends {mc.feedback_bits} × {frame.system.n} = {mc.feedback_bits * frame.system.n}).")
+    return out + ["", text]
+
+
 def _bounds(frame: Frame, first: dict) -> str:
     """The two ultimate bounds at the current b, the rho they used, and what they mean."""
     rho = first.get("rho")
@@ -200,6 +227,7 @@ def summary_markdown(frame: Frame) -> str:
     tl = frame.true_loop
     why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
     lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}{why}")
+    lines += _real_loop(frame)
     notes = list(frame.notes)
     for lab in frame.labels:
         k = frame.rows[lab][b].get("ident_failures") or 0

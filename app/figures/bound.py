@@ -51,12 +51,30 @@ def _floored(ys: list, floor: float | None) -> tuple[list, bool]:
     return [max(y, floor) for y in ys], any(y < floor for y in ys)
 
 
+def _no_bound(rows) -> tuple[list, list]:
+    """Shapes and notes shading the b where the letter's delta >= rho (its proof then gives no bound)."""
+    bad = sorted(r["bits"] for r in rows if r.get("bound_self_consistent") is False)
+    runs: list = []
+    for b in bad:
+        if runs and b == runs[-1][1] + 1:
+            runs[-1][1] = b
+        else:
+            runs.append([b, b])
+    shapes = [dict(type="rect", xref="x", yref="paper", x0=lo - 0.5, x1=hi + 0.5, y0=0, y1=1, layer="below",
+                   fillcolor=COLORS["ref"], opacity=0.12, line=dict(width=0)) for lo, hi in runs]
+    notes = [dict(text="δ ≥ ρ: no bound", x=(lo + hi) / 2, xref="x", y=0.02, yref="paper", showarrow=False,
+                  yanchor="bottom", font=dict(size=9, color=COLORS["ref"])) for lo, hi in runs]
+    return shapes, notes
+
+
 def bound_figure(series: Series, current_bits: int | None = None, height: int = 300,
-                 floor: float | None = None, steps: int | None = None) -> go.Figure:
+                 floor: float | None = None, steps: int | None = None, x0_norm: float | None = None) -> go.Figure:
     """Letter's delta(eps) (dashed), a-posteriori delta per series (median, max band), ``|x_T|`` mean and max.
 
     ``floor`` (state units, e.g. ``1e-12 ||x0||``): final norms below it are converged and drawn at it
-    (floating-point noise such as 1e-48 is no distance to the origin).
+    (floating-point noise such as 1e-48 is no distance to the origin). The b where the letter's
+    delta is not below its rho are shaded (the proof assumes the state stays within rho: there it
+    gives no bound); ``x0_norm`` is drawn as a line (a bound above it says less than the start).
     """
     data, conv = [], False
     for i, (label, rows) in enumerate(series.items()):
@@ -77,9 +95,16 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
         data.append(dict(type="scatter", x=xx, y=xy_, mode="markers", name=f"{label} ‖x_T‖ max",
                          marker=dict(color=c, symbol="triangle-up")))
     shapes = mark_bits(current_bits)
+    first_rows = next(iter(series.values()), [])
+    shade, shade_notes = _no_bound(first_rows)
+    shapes += shade
     caption = CAPTION + ("" if steps is None else f" · ‖x_T‖: last state of the drawn loops, T = {steps} steps")
     notes = [dict(text=caption, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
-                  yanchor="bottom", font=dict(size=10, color=COLORS["ref"]))]
+                  yanchor="bottom", font=dict(size=10, color=COLORS["ref"])), *shade_notes]
+    if x0_norm is not None and x0_norm > 0:
+        shapes.append(hline(float(x0_norm), "y", COLORS["true"], "dashdot", 1.0))
+        notes.append(hline_note(x0_norm, f"‖x0‖ = {x0_norm:.3g}", x=0.0, size=9))
+        data.append(dict(type="scatter", x=[None], y=[float(x0_norm)], mode="lines", showlegend=False, hoverinfo="skip"))
     yaxis = dict(type="log", title=dict(text="norm"), exponentformat="power")
     # the bounds always show; final norms off the axis sit on its edge, marked (_off_axis)
     bounds = [v for tr in data if "δ" in tr.get("name", "") for v in tr["y"]]
@@ -122,7 +147,7 @@ def _build(frame) -> go.Figure:
     r0 = float(np.linalg.norm(frame.x0))
     floor = CONVERGED_REL_FLOOR * (r0 if r0 > 0 else 1.0)
     return bound_figure(frame.series(), current_bits=frame.bits, height=300, floor=floor,
-                        steps=int(frame.values.mpc_steps))
+                        steps=int(frame.values.mpc_steps), x0_norm=r0)
 
 
 VIEW = View("bound", aspect=0.75, depends=CURVES, build=_build)

@@ -7,7 +7,7 @@ pushes a SceneView into a tab's scene nodes.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -63,6 +63,10 @@ class SceneView:
     failed, clipped, polylines, realizations : int
         Failed loops (hidden), loops leaving the view, distinct loops drawn, loops computed.
     mark_every : int
+    not_converged : int
+        Drawn loops judged bounded or diverged on the true plant (they never settle).
+    ref_segments : float32 array (T, 2, 3)
+        The path of a time-varying reference (empty for a constant one).
     """
 
     segments: np.ndarray
@@ -85,6 +89,8 @@ class SceneView:
     polylines: int
     realizations: int
     mark_every: int
+    not_converged: int = 0
+    ref_segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3), dtype=np.float32))
 
 
 def axes_options(names) -> list:
@@ -135,6 +141,16 @@ def _interleave(parts: list, per_loop: int) -> np.ndarray:
         loops = [p.reshape((-1, per_loop) + p0.shape[1:]) for p in parts]
         return np.stack(loops, axis=1).reshape((-1,) + p0.shape[1:])
     return np.concatenate(parts)
+
+
+def _reference_path(frame, dims: tuple, scale: float, start: np.ndarray) -> np.ndarray:
+    """Display segments of a time-varying reference over the drawn loop (empty when it is constant)."""
+    mpc = frame.ex.config.mpc if frame.ex is not None else None
+    if mpc is None or mpc.reference is None:
+        return np.zeros((0, 2, 3), dtype=np.float32)
+    ref = mpc.resolve(frame.system).reference[: mpc.steps + 1]
+    seg, _, _ = _to_segments(ref[None], dims, scale, start)
+    return np.clip(seg, -CLIP, CLIP).astype(np.float32)
 
 
 def _to_segments(states: np.ndarray, dims: tuple, scale: float, start: np.ndarray) -> tuple:
@@ -233,7 +249,7 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
     x0 = np.asarray(frame.x0, dtype=float)  # the engine's start state (also if loops failed)
     scale = _display_scale(ts, x0, [d for d in dims if d is not None])
     start = _points(x0[None, None, :], dims, scale)[0, 0]
-    segs, cols, failed, clipped, poly, total = [], [], 0, 0, 0, 0
+    segs, cols, failed, clipped, poly, total, stuck = [], [], 0, 0, 0, 0, 0
     for i, lab in enumerate(frame.labels):
         st = frame.loops[lab].states
         s, f, c = _to_segments(st, dims, scale, start)
@@ -241,6 +257,8 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         cols.append(np.broadcast_to(np.array(vertex_rgb(lab, i), dtype=np.uint8), s.shape))
         failed += f
         clipped += c
+        oc = frame.loops[lab].outcome_counts()
+        stuck += oc.get("bounded", 0) + oc.get("diverged", 0)
         total += st.shape[0]
         poly += min(st.shape[0], int(getattr(frame.idents.get(lab), "effective_realizations", st.shape[0])))
     tseg, _, _ = _to_segments(ts[None], dims, scale, start)
@@ -259,5 +277,6 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         segments=segs.astype(np.float32), colors=np.ascontiguousarray(cols),
         true_segments=tseg.astype(np.float32), time_marks=marks.astype(np.float32), start=start, scale=scale,
         axis_names=tuple(labels), failed=failed, clipped=clipped, polylines=poly, realizations=total,
-        mark_every=every, **_bounds(frame, dims, scale),
+        mark_every=every, not_converged=stuck, ref_segments=_reference_path(frame, dims, scale, start),
+        **_bounds(frame, dims, scale),
     )

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from . import bound, compare, cost, datalength, eigenvalues, error_vs_bits, norm_time, quantizer, time_series
+from . import bits_needed, bound, compare, cost, datalength, residual, eigenvalues, error_vs_bits, norm_time, quantizer, time_series
 from .view import View
 
 __all__ = ["TABS", "VIEWS", "view_names"]
@@ -21,8 +21,10 @@ VIEWS: tuple[View, ...] = (
     eigenvalues.VIEW,
     time_series.VIEW,
     replace(cost.VIEW, tab="Control"),
+    bits_needed.VIEW,
     replace(bound.VIEW, tab="Control"),
     replace(norm_time.VIEW, tab="Control"),
+    residual.VIEW,
     quantizer.VIEW,
     datalength.VIEW,
     compare.VIEW,

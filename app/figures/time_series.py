@@ -62,7 +62,8 @@ def time_series_figure(series: dict, true: TimeSeries | None, state_names, input
     true : TimeSeries or None
         The MPC built on the true model (one loop), drawn black.
     x_ref, x_max : array (n,) or None
-        Reference (dotted, green) and state box (dashed) drawn on the state rows; input bounds
+        Reference (dotted, green; a time-varying one, shape (T+1, n), as a dashed path) and state
+        box (dashed) drawn on the state rows; input bounds
         (``TimeSeries.u_max``) dashed on the input rows.
     """
     n, m = len(state_names), len(input_names)
@@ -84,9 +85,14 @@ def time_series_figure(series: dict, true: TimeSeries | None, state_names, input
     for j in range(m):
         if umax is not None and np.isfinite(umax[j]):
             shapes += [hline(s * float(umax[j]), yax[n + j], COLORS["ref"]) for s in (1, -1)]
+    ref = None if x_ref is None else np.asarray(x_ref, dtype=float)
     for k in range(n):
-        if x_ref is not None and x_ref[k] != 0:
-            shapes.append(hline(float(x_ref[k]), yax[k], COLORS["theory"], dash="dot"))
+        if ref is not None and ref.ndim == 2 and np.any(ref[:, k] != 0):  # time-varying: the path, dashed
+            data.append(dict(type="scatter", x=list(range(ref.shape[0])), y=arr(ref[:, k]), mode="lines",
+                             name="reference", legendgroup="ref", showlegend=k == 0, xaxis="x", yaxis=yax[k],
+                             line=dict(color=COLORS["theory"], dash="dash", width=2)))
+        elif ref is not None and ref.ndim == 1 and ref[k] != 0:
+            shapes.append(hline(float(ref[k]), yax[k], COLORS["theory"], dash="dot"))
         if x_max is not None and np.isfinite(x_max[k]):
             shapes += [hline(s * float(x_max[k]), yax[k], COLORS["ref"]) for s in (1, -1)]
     names = [f"x: {s}" for s in state_names] + [f"u: {u}" for u in input_names]
@@ -105,7 +111,8 @@ def mpc_arrays(frame) -> dict:
     if mpc is None:
         return {}
     w = mpc.resolve(frame.system)  # MPCWeights
-    return {"u_max": w.u_max, "x_ref": w.x_ref, "x_max": w.x_max}
+    ref = w.x_ref if w.reference is None else w.reference[: mpc.steps + 1]
+    return {"u_max": w.u_max, "x_ref": ref, "x_max": w.x_max}
 
 
 def loop_series(frame) -> tuple[dict, TimeSeries | None]:
@@ -123,12 +130,18 @@ def saturation_text(ts: dict) -> str:
 
 
 def failure_text(loops: dict) -> str:
-    """'LS 5/5 failed (infeasible)' for the estimators with failed loops ('' if none): those loops are not drawn."""
+    """'LS 5/5 failed (infeasible; not drawn)' and 'LS 48/50 did not converge (48 bounded)' per estimator
+    ('' if every loop converged): failed loops are not drawn, loops that did not converge are."""
     out = []
     for lab, lp in loops.items():
         kinds = [str(getattr(f, "value", f)) for f in lp.failure if f]
         if kinds:
             out.append(f"{lab} {len(kinds)}/{len(lp.failure)} failed ({', '.join(sorted(set(kinds)))}; not drawn)")
+        oc = lp.outcome_counts()
+        stuck = {k: oc[k] for k in ("bounded", "diverged") if oc.get(k)}
+        if stuck and sum(stuck.values()) > len(kinds):
+            out.append(f"{lab} {len(lp.outcome) - oc['converged']}/{len(lp.outcome)} did not converge on the true "
+                       f"plant ({', '.join(f'{v} {k}' for k, v in stuck.items())})")
     return ", ".join(out)
 
 

@@ -22,6 +22,8 @@ Rows = Sequence[Mapping]
 Series = Mapping[str, Rows]
 #: x axis of every plot against the word length.
 BITS_AXIS = dict(title=dict(text="word length b [bits]"), dtick=2)
+#: name of the current-b marker shapes (the only vertical lines a b change moves)
+CURRENT_B = "current b"
 
 
 def get(row: Mapping, *path):
@@ -73,7 +75,7 @@ def mark_bits(current_bits: int | None, axes=(("x", "y"),)) -> list:
     if current_bits is None:
         return []
     return [dict(type="line", x0=current_bits, x1=current_bits, xref=xa, y0=0, y1=1, yref=f"{ya} domain",
-                 line=dict(color=COLORS["marker"], dash="dot", width=1)) for xa, ya in axes]
+                 line=dict(color=COLORS["marker"], dash="dot", width=1), name=CURRENT_B) for xa, ya in axes]
 
 
 def hline_note(y: float, text: str, yaxis: str = "y", where: str = "top", log: bool = True, size: int = 10,
@@ -93,6 +95,6 @@ def move_current_bits(fig: go.Figure, current_bits: int) -> go.Figure:
     built without ``current_bits`` have no marker and are returned unchanged.
     """
     for shape in fig.layout.shapes:
-        if shape.x0 == shape.x1 and str(shape.yref or "").endswith("domain"):
+        if shape.name == CURRENT_B:
             shape.x0 = shape.x1 = current_bits
     return fig

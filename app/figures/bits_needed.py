@@ -1,0 +1,117 @@
+"""View: how many bits does the MPC need? Stabilized share and cost gap against b, with the three answers.
+
+Top: the share of closed loops that converge on the true plant, per estimator,
+with its 95 % Wilson interval, and the target. Bottom: the gap of the mean
+closed-loop cost to the true-model MPC (log scale, absolute value) and the
+allowed gap. Vertical lines: ``b_observed`` (solid), ``b_robust`` (dashed, the
+small-gain certificate for Theorem 1's predicted model) and ``b_letter``
+(dotted, the letter's bound below rho and below ||x0||); the sentence of
+:class:`qsid_core.bits.BitsAnswer` is the title.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import plotly.graph_objects as go
+
+from qsid_core.bits import BitsAnswer, answer_from_rows, predicted_small_gain
+from qsid_core.stability import data_rate_bits
+
+from .palette import COLORS, color
+from .raw import figure, hline, stacked_axes
+from .traces import BITS_AXIS, Series, mark_bits
+from .view import CURVES, View
+
+__all__ = ["bits_figure", "answers", "VIEW"]
+
+#: line style of each answer's vertical marker
+DASH = {"b_observed": "solid", "b_robust": "dash", "b_letter": "dot"}
+
+
+def bits_figure(answers: dict, current_bits: int | None = None, height: int = 420, partial: str = "") -> go.Figure:
+    """The figure of ``{label: BitsAnswer}`` (the first answer's three word lengths are marked)."""
+    lay, (y1, y2) = stacked_axes(2, gap=0.08, x_title=BITS_AXIS["title"]["text"])
+    data, shapes, notes = [], mark_bits(current_bits, (("x", y1), ("x", y2))), []
+    first: BitsAnswer | None = None
+    for i, (lab, ans) in enumerate(answers.items()):
+        first = first or ans
+        c = color(lab, i)
+        rows = [r for r in ans.rows if r.stabilized_fraction is not None]
+        b = [r.bits for r in rows]
+        f = np.array([100 * r.stabilized_fraction for r in rows])
+        lo = np.array([100 * r.interval[0] for r in rows])
+        hi = np.array([100 * r.interval[1] for r in rows])
+        data.append(dict(type="scatter", x=b, y=f.tolist(), mode="lines+markers", name=f"{lab} stabilized",
+                         legendgroup=lab, line=dict(color=c), yaxis=y1,
+                         error_y=dict(type="data", symmetric=False, array=(hi - f).tolist(),
+                                      arrayminus=(f - lo).tolist(), color=c, thickness=1),
+                         hovertemplate="b = %{x}: %{y:.0f} % converged<extra>" + lab + "</extra>"))
+        gap = [(r.bits, abs(r.cost_gap)) for r in rows if r.cost_gap is not None and abs(r.cost_gap) > 0]
+        if gap:
+            data.append(dict(type="scatter", x=[g[0] for g in gap], y=[100 * g[1] for g in gap],
+                             mode="lines+markers", name=f"{lab} cost gap", legendgroup=lab, showlegend=False,
+                             line=dict(color=c, dash="dash"), yaxis=y2,
+                             hovertemplate="b = %{x}: |gap| %{y:.3g} %<extra>" + lab + "</extra>"))
+    if first is not None:
+        t, g = first.settings["target"], first.settings["cost_gap"]
+        shapes.append(hline(100 * t, y1, COLORS["ref"], "dash"))
+        notes.append(dict(text=f"target {100 * t:g} %", x=0, xref="x domain", y=100 * t, yref=y1, showarrow=False,
+                          xanchor="left", yanchor="bottom", font=dict(size=10, color=COLORS["ref"])))
+        if g > 0:
+            shapes.append(hline(100 * g, y2, COLORS["ref"], "dash"))
+        for key, dash in DASH.items():
+            bk = getattr(first, key)
+            if bk is None:
+                continue
+            for ya in (y1, y2):
+                shapes.append(dict(type="line", x0=bk, x1=bk, xref="x", y0=0, y1=1, yref=f"{ya} domain",
+                                   line=dict(color=COLORS["theory"], dash=dash, width=2)))
+            notes.append(dict(text=key.replace("b_", "") + f" {bk}", x=bk, xref="x", y=1, yref=f"{y1} domain",
+                              showarrow=False, xanchor="left", yanchor="top", textangle=-90,
+                              font=dict(size=10, color=COLORS["theory"])))
+    title = "<br>".join(_wrap(f"{lab}: {a.sentence}") for lab, a in answers.items()) + partial
+    lay[y1.replace("y", "yaxis")] = {**lay[y1.replace("y", "yaxis")], "title": dict(text="stabilized [%]"),
+                                     "range": [-3, 103]}
+    lay["yaxis2"] = {**lay["yaxis2"], "title": dict(text="|cost gap| [%]"), "type": "log"}
+    return figure(data, dict(height=height, margin=dict(l=55, r=10, t=30 + 14 * title.count("<br>") + 14, b=40),
+                             title=dict(text=title, font=dict(size=11), x=0, xanchor="left"),
+                             legend=dict(orientation="h", y=-0.18), shapes=shapes, annotations=notes,
+                             xaxis={**lay.pop("xaxis"), **{k: v for k, v in BITS_AXIS.items() if k != "title"}},
+                             **lay))
+
+
+def _wrap(text: str, width: int = 95) -> str:
+    """``text`` broken at spaces into lines of about ``width`` characters (plotly's ``<br>``)."""
+    out, line = [], ""
+    for w in text.split(" "):
+        if line and len(line) + 1 + len(w) > width:
+            out.append(line)
+            line = w
+        else:
+            line = f"{line} {w}" if line else w
+    return "<br>".join(out + [line])
+
+
+def answers(series: Series, true_cost, ex, target: float, cost_gap: float) -> dict:
+    """``{label: BitsAnswer}`` from the rows computed so far (the predicted small-gain test from ``ex``)."""
+    out = {}
+    robust = None
+    for lab, rows in series.items():
+        rows = [r for r in rows if r.get("closed_loop_outcomes")]
+        if not rows:
+            continue
+        if robust is None and ex is not None:
+            robust = {int(r["bits"]): predicted_small_gain(ex, int(r["bits"])) for r in rows}
+        out[lab] = answer_from_rows(getattr(ex.system, "name", ""), {}, rows, true_cost, robust=robust,
+                                    target=target, cost_gap=cost_gap, data_rate=data_rate_bits(ex.system.A))
+    return out
+
+
+def _build(frame) -> go.Figure:
+    v = frame.values
+    ans = answers(frame.series(), frame.true_cost, frame.ex, float(v.target), float(v.cost_gap))
+    partial = "" if frame.done >= frame.total else f"<br><i>(so far {frame.done} of {frame.total} word lengths)</i>"
+    return bits_figure(ans, current_bits=frame.bits, height=420, partial=partial)
+
+
+VIEW = View("bits", aspect=0.9, depends=CURVES, build=_build, tab="Control")
