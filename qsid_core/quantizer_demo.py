@@ -25,7 +25,7 @@ import numpy as np
 from .errors import ConfigError, check_int
 from .quantize import MAX_BITS, effective_ranges, quantize
 
-__all__ = ["QuantizerDemo", "quantizer_demo", "channel_demo"]
+__all__ = ["QuantizerDemo", "quantizer_demo", "channel_demo", "SCATTER_POINTS", "CELL_BINS"]
 
 
 @dataclass
@@ -60,6 +60,13 @@ class QuantizerDemo:
         ``eps**2 / sqrt(180 N)``: standard error of the measured variance of an ideal error.
     mean_dithered, mean_plain : float
     corr_dithered, corr_plain : float
+        Correlation of the error with the signal.
+    cell_dependence_dithered, cell_dependence_plain : float
+        Share of the error's variance fixed by where ``x`` sits in its cell (correlation
+        ratio of the error over 16 bins of ``frac((x - lo_q) / eps)``): 1 for a deterministic
+        sawtooth of ``x``, about ``16 / N`` for an error independent of ``x``.
+    scatter_x, scatter_dithered, scatter_plain : ndarray, shape (S,)
+        Up to :data:`SCATTER_POINTS` samples spread over all N: ``x`` and both errors.
         Correlation coefficient of error and signal (NaN for a constant signal).
     overload_dithered, overload_plain : float
         Fraction of samples whose quantizer input left the range.
@@ -92,6 +99,11 @@ class QuantizerDemo:
     mean_plain: float
     corr_dithered: float
     corr_plain: float
+    cell_dependence_dithered: float
+    cell_dependence_plain: float
+    scatter_x: np.ndarray
+    scatter_dithered: np.ndarray
+    scatter_plain: np.ndarray
     overload_dithered: float
     overload_plain: float
     outside_dithered: float
@@ -102,6 +114,23 @@ class QuantizerDemo:
     def var_z_dithered(self) -> float:
         """``(var_dithered - eps**2/12) / var_sampling_std``: deviation in standard errors."""
         return float((self.var_dithered - self.var_theory) / self.var_sampling_std)
+
+
+#: Samples of (x, error) the error-vs-signal plot draws.
+SCATTER_POINTS = 1500
+#: Bins of the position in the cell for :attr:`QuantizerDemo.cell_dependence_dithered`.
+CELL_BINS = 16
+
+
+def _cell_dependence(e: np.ndarray, pos: np.ndarray) -> float:
+    """Correlation ratio: between-bin variance of ``e`` over ``CELL_BINS`` bins of ``pos`` in [0, 1), / var(e)."""
+    v = e.var()
+    if v == 0:
+        return float("nan")
+    k = np.clip((pos * CELL_BINS).astype(int), 0, CELL_BINS - 1)
+    cnt = np.bincount(k, minlength=CELL_BINS)
+    mean = np.bincount(k, weights=e, minlength=CELL_BINS) / np.maximum(cnt, 1)
+    return float(np.sum(cnt * (mean - e.mean()) ** 2) / (e.size * v))
 
 
 def _corr(e: np.ndarray, x: np.ndarray) -> float:
@@ -156,6 +185,8 @@ def quantizer_demo(signal, lo: float, hi: float, bits: int, *, guard: bool = Tru
     hp = np.histogram(ep, bins=edges)[0] / (N * np.diff(edges))
     tol = 1e-12 * max(eps, 1.0)
     sl = slice(start, min(start + window, N))
+    pos = np.mod((x - float(lo_q)) / eps, 1.0)
+    pick = np.unique(np.linspace(0, N - 1, min(N, SCATTER_POINTS)).astype(int))
     return QuantizerDemo(
         bits=bits, eps=eps, lo_q=float(lo_q), hi_q=float(lo_q + 2.0**bits * eps), samples=N,
         t=np.arange(N)[sl], signal=x[sl].copy(), dithered=qd.values[sl], plain=qp.values[sl],
@@ -163,7 +194,9 @@ def quantizer_demo(signal, lo: float, hi: float, bits: int, *, guard: bool = Tru
         uniform_density=1.0 / eps, var_dithered=float(ed.var()), var_plain=float(ep.var()),
         var_theory=eps**2 / 12.0, var_sampling_std=eps**2 / np.sqrt(180.0 * N),
         mean_dithered=float(ed.mean()), mean_plain=float(ep.mean()), corr_dithered=_corr(ed, x),
-        corr_plain=_corr(ep, x), overload_dithered=qd.overload_fraction, overload_plain=qp.overload_fraction,
+        corr_plain=_corr(ep, x), cell_dependence_dithered=_cell_dependence(ed, pos),
+        cell_dependence_plain=_cell_dependence(ep, pos), scatter_x=x[pick], scatter_dithered=ed[pick],
+        scatter_plain=ep[pick], overload_dithered=qd.overload_fraction, overload_plain=qp.overload_fraction,
         outside_dithered=float(np.mean(np.abs(ed) > eps / 2 + tol)),
         outside_plain=float(np.mean(np.abs(ep) > eps / 2 + tol)), label=label,
     )

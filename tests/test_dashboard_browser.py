@@ -235,3 +235,52 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             browser.close()
     assert errors == [], f"console errors: {errors}"
     print(f"browser test: {time.time() - t0:.1f} s; ignored console errors: {ignored}")
+
+
+_ACTIVE_PLOT_TAB = """() => {
+  const tabs = [...document.querySelectorAll('[role=tab]')];
+  const strip = tabs.filter(e => e.title === 'Identification').map(e => e.parentElement)[0];
+  const on = strip && [...strip.querySelectorAll('[role=tab]')].find(e => e.getAttribute('aria-selected') === 'true');
+  return on ? on.title : null;
+}"""
+
+
+@pytest.mark.parametrize("size", [(1366, 768), (1920, 1080)])
+def test_lesson_opens_on_its_plot_above_the_fold(size, tmp_path):
+    """--lesson bound opens the plots panel on the Control tab with the bound plot first (its top above the
+    fold); choosing the lesson 'one-cell' then switches to the Quantizer tab, 'fig1' to Identification."""
+    _require_browser()
+    from playwright.sync_api import sync_playwright
+
+    from app.dashboard import DashboardApp
+
+    app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson="bound")
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+            try:
+                page = browser.new_context(viewport={"width": size[0], "height": size[1]}).new_page()
+                page.goto(app.url, timeout=TIMEOUT_MS)
+                session = app.wait_for_sessions(1, timeout=60)[0]
+                page.wait_for_function(f"({_ACTIVE_PLOT_TAB})() === 'Control'", timeout=TIMEOUT_MS)
+                assert session.wait_idle(TIMEOUT_MS / 1000)
+                page.wait_for_function(
+                    """() => [...document.querySelectorAll('.js-plotly-plot')].some(
+                           e => e.offsetParent !== null && e.textContent.includes('δ'))""", timeout=TIMEOUT_MS)
+                tops = page.evaluate("""() => [...document.querySelectorAll('.js-plotly-plot')]
+                    .filter(e => e.offsetParent !== null)
+                    .map(e => [e.getBoundingClientRect().top, e.textContent.includes('a-posteriori δ')])""")
+                bound_top = min(t for t, is_bound in tops if is_bound)
+                assert bound_top == min(t for t, _ in tops) and bound_top < 0.5 * size[1], tops
+                shots = os.environ.get("QSID_SCREENSHOT_DIR")
+                if shots and size == (1920, 1080):  # the lesson screenshot of the README
+                    page.screenshot(path=os.path.join(shots, "lesson.png"))
+                session.controls["lesson"].value = "one-cell"
+                page.wait_for_function(f"({_ACTIVE_PLOT_TAB})() === 'Quantizer'", timeout=TIMEOUT_MS)
+                session.controls["lesson"].value = "fig1"
+                page.wait_for_function(f"({_ACTIVE_PLOT_TAB})() === 'Identification'", timeout=TIMEOUT_MS)
+                assert session.wait_idle(TIMEOUT_MS / 1000)
+            finally:
+                browser.close()
+    finally:
+        app.stop()

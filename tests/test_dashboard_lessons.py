@@ -9,6 +9,7 @@ import pytest
 from app.dashboard.frames import full_row
 from app.dashboard.lessons import LESSONS, get_lesson, lesson_names, lesson_values
 from app.dashboard.settings import LABELS, estimators, resolve_system, sweep_config
+from app.figures import registry
 from qsid_core import Experiment
 from qsid_core.sweep import fit_slope
 from support import HANG_S, ROOT, Tab
@@ -193,3 +194,138 @@ def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
         t.close()
     finally:
         app.stop()
+
+
+# ----- text against marks, the new lessons, guided lessons --------------------------------
+
+def _ls_rows(ex: Experiment, bits) -> list:
+    from app.dashboard.frames import row
+    from qsid_core.sweep import summary_row
+
+    return [row(summary_row(ex.system.n, ex.identification(b, "ls"), ex.theory(b), None,
+                            assumptions=ex.assumptions(b))) for b in bits]
+
+
+def _line(fig, name: str, axis: str) -> set:
+    """The b where the trace ``name`` on x axis ``axis`` is drawn."""
+    return {b for t in fig.data if t.name == name and (t.xaxis or "x") == axis
+            for b, y in zip(t.x, t.y) if y is not None}
+
+
+def test_letters_lessons_use_ls_only():
+    assert get_lesson("fig1").settings["identification"] == "LS"
+    assert get_lesson("fig2").settings["identification"] == "LS"
+
+
+def test_fig2_text_note_and_marks_agree():
+    """fig2 at b = 2..6: the text says Â sits on Theorem 1's dashed line and B̂ does not (clipping); the plot
+    draws the A line dashed there (LS within 5 %), the B line faded, and the note names the clipping."""
+    from app.figures.error_vs_bits import error_figure
+
+    ex = experiment("fig2")
+    rows = _ls_rows(ex, range(1, 9))
+    fig = error_figure({"LS": rows})
+    text = get_lesson("fig2").text
+    assert "on Theorem 1's dashed line" in text and "B̂ is not on its line" in text and "clips" in text
+    assert set(range(2, 7)) <= _line(fig, "Theorem 1", "x")
+    for r in rows:
+        if 2 <= r["bits"] <= 6:
+            assert r["err_A"]["mean"] == pytest.approx(r["err_A_theory"], rel=0.05), r["bits"]
+            assert not r["assumptions"]["theorem1_holds_B"] and not r["assumptions"]["fits_B"]
+    assert not set(range(2, 7)) & _line(fig, "Theorem 1", "x2")
+    assert set(range(2, 7)) <= _line(fig, "Theorem 1 (hypotheses fail)", "x2")
+    note = " ".join(a.text for a in fig.layout.annotations)
+    assert "overload: the per-channel data range (min/max, no guard band) clips" in note and "for B̂" in note
+    # the theory lines are drawn last: above the data, never hidden
+    kinds = [t.name or "" for t in fig.data]
+    assert max(i for i, k in enumerate(kinds) if k == "LS") < min(i for i, k in enumerate(kinds)
+                                                                    if k.startswith("Theorem 1"))
+    # the slope is read out next to the letter's
+    titles = " ".join(a.text for a in fig.layout.annotations)
+    assert "(letter −0.301)" in titles and "(letter −0.322)" in titles
+
+
+def test_dither_lesson_at_b12_names_clipping():
+    from app.figures.error_vs_bits import error_figure
+
+    ex = experiment("dither")
+    rows = _ls_rows(ex, (3, 12))
+    a12 = rows[1]["assumptions"]
+    assert abs(100 * a12["overload_fraction"] - 0.05) < 0.01 and not a12["no_overload"]
+    fig = error_figure({"LS": rows})
+    note = " ".join(a.text for a in fig.layout.annotations)
+    hover = " ".join(a.hovertext or "" for a in fig.layout.annotations)
+    assert "overload: the range ±20 (no guard band) clips 0.053 % of the samples" in note
+    assert "not the data length, sets the error floor" in hover
+    text = get_lesson("dither").text
+    assert "clips 0.05 % of the samples" in text and "not the data length, sets this floor" in text
+    e12 = ex.identification(12, "ls").err_A.mean()
+    assert 1.5e-4 < e12 < 2.5e-4  # "level off near 2e-4"
+
+
+def test_one_cell_lesson_plain_fails_dither_rescues():
+    """Inputs |u| <= 1 in cells 5 wide: without dither LS and BCLS miss A and B by > 60 %; with subtractive
+    dither BCLS is within 5 %; the quantizer view's error is a sawtooth of u without dither, independent with."""
+    from qsid_core.quantizer_demo import channel_demo
+
+    plain = experiment("one-cell")
+    dith = experiment("one-cell", dither="subtractive")
+    assert plain.config.quantizer.dither == "none"
+    for est in ("ls", "bcls"):
+        i = plain.identification(4, est)
+        assert i.err_A.mean() > 0.6 and i.err_B.mean() > 0.6, est
+    bc = dith.identification(4, "bcls")
+    assert bc.err_A.mean() < 0.05 and bc.err_B.mean() < 0.05
+    assert np.abs(plain.data.inputs).max() <= 1.0 and bc.eps[plain.system.n] == pytest.approx(5.0)
+    d = channel_demo(plain, lesson_values("one-cell").view_channel, 4)
+    assert d.label == "u1" and d.cell_dependence_plain > 0.9 and d.cell_dependence_dithered < 0.02
+
+
+def test_choosing_a_lesson_brings_its_plot_forward(tab):
+    views = tab.session.views
+    tab.set(lesson="bound")
+    assert "title==&quot;Control&quot;" in views.tab_switch.content and views.tab_switch.visible
+    control = [v.name for v in registry.VIEWS if v.tab == "Control"]
+    assert min(control, key=lambda n: views.plots[n].order) == "bound"
+    assert "**Bound lesson, b = 8**" in tab.summary and "‖x0‖" in tab.summary
+    tab.set(lesson="one-cell")
+    assert "title==&quot;Quantizer&quot;" in views.tab_switch.content
+    assert views.channel.value == "u: elevator"
+    tab.set(lesson="fig1")
+    assert "title==&quot;Identification&quot;" in views.tab_switch.content
+    assert min(control, key=lambda n: views.plots[n].order) == control[0]  # the Control tab back in order
+
+
+@pytest.mark.parametrize("name, tab_name", [("fig1", "Identification"), ("bound", "Control")])
+def test_lesson_flag_opens_on_its_tab(name, tab_name):
+    from app.dashboard.server import DashboardApp
+    from tests.test_dashboard_server import Tab
+
+    a = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson=name)
+    try:
+        t = Tab(a)
+        assert f"title==&quot;{tab_name}&quot;" in t.session.views.tab_switch.content
+        t.close()
+    finally:
+        a.stop()
+
+
+def test_fig1_and_theorem1_text_agree_with_marks():
+    """fig1 says Theorem 1's line is faded (integrator): no dashed line, the note says why. theorem1 says
+    LS sits on the dashed line where every hypothesis holds: the dashed A line is drawn exactly there or
+    where LS is within 5 % of it, and it is faded at fine b."""
+    from app.figures.error_vs_bits import error_figure
+
+    assert "Theorem 1's line is faded: the motor angle is an integrator" in get_lesson("fig1").text
+    fig = error_figure({"LS": _ls_rows(experiment("fig1"), range(4, 13))})
+    assert not _line(fig, "Theorem 1", "x") and not _line(fig, "Theorem 1", "x2")
+    assert "integrator" in " ".join(a.text for a in fig.layout.annotations)
+    ex = experiment("theorem1")
+    rows = _ls_rows(ex, range(1, 17))
+    fig = error_figure({"LS": rows})
+    drawn = _line(fig, "Theorem 1", "x")
+    holds = {r["bits"] for r in rows if r["assumptions"]["theorem1_holds_A"]}
+    assert holds and holds <= drawn and 16 not in drawn and 16 in _line(fig, "Theorem 1 (hypotheses fail)", "x")
+    for r in rows:
+        if r["bits"] in drawn:
+            assert r["err_A"]["mean"] == pytest.approx(r["err_A_theory"], rel=0.10), r["bits"]

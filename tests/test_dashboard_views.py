@@ -104,7 +104,9 @@ def test_figures_draw_partial_rows_and_move_the_marker():
     move_current_bits(full["cost"], 9)  # the horizontal true-cost line stays
     assert sorted(str(s.x0) for s in full["cost"].layout.shapes) == ["0", "9"]
     eig = figs["eigen"]
-    assert len(eig.data[1].x) == 4 * 3  # 4 realizations x 3 eigenvalues (LS)
+    names = [t.name for t in eig.data]
+    assert len(eig.data[names.index("eig LS")].x) == 4 * 3  # 4 realizations x 3 eigenvalues (LS)
+    assert names.index("eig A (true)") < names.index("eig LS")  # the estimates are drawn over the true markers
 
 
 def test_renderer_redraws_only_what_changed():
@@ -129,7 +131,7 @@ def test_summary_lists_eps_errors_overload_and_failures():
     f = frames(Values(bits=2, **SMALL))[-1]
     text = summary_markdown(f)
     assert "b = **2** bits" in text and "ε states: angle" in text and "ε inputs: voltage" in text
-    assert "overload:" in text and "(up to 0.1 % counts as no overload)" in text and "| LS |" in text and "| BCLS |" in text and "Thm 1" in text
+    assert "overload:" in text and "predicted effect of the clipped samples on Â" in text and "| LS |" in text and "| BCLS |" in text and "Thm 1" in text
     assert "MPC cost with the true model" in text
     lp = f.loops["LS"]
     lp.failure[0], lp.messages[0] = "dare", "DARE has no stabilizing solution for the identified model"
@@ -152,7 +154,7 @@ def test_a_failed_identification_is_reported_and_not_drawn():
     ident.notes = ["identification failed: singular data"]
     f.rows["LS"][3]["ident_failures"] = 1
     eig = build_figures(f, ("eigen",))["eigen"]
-    assert len(eig.data[1].x) == 3 * 3  # 3 good realizations x 3 eigenvalues
+    assert len(next(t for t in eig.data if t.name == "eig LS").x) == 3 * 3  # 3 good realizations x 3 eigenvalues
     assert "LS identification failed in 1 of 4 realizations" in summary_markdown(f)
 
 
@@ -189,7 +191,7 @@ def test_one_palette_for_plots_and_the_3d_scene():
     R, T = 4, 15
     # per-vertex colours go to the screen as linear light: the scene sends the palette colour linearised
     assert tuple(sv.colors[0, 0]) == vertex_rgb("LS") == (3, 47, 116)  # LS blue #1f77b4 on screen ...
-    assert tuple(sv.colors[R * T, 0]) == vertex_rgb("BCLS") == (171, 5, 5)  # ... BCLS red #d62728
+    assert tuple(sv.colors[T, 0]) == vertex_rgb("BCLS") == (171, 5, 5)  # ... BCLS red #d62728 (loops alternate)
     assert rgb("LS") == (0x1F, 0x77, 0xB4) and rgb("BCLS") == (0xD6, 0x27, 0x28)
     figs = build_figures(f)
     lines = {tr.name: tr.line.color for tr in figs["error"].data if tr.mode == "lines+markers"}

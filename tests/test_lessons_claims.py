@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from qsid_core import Experiment, QuantizerSpec, SweepConfig, run_sweep
+from qsid_core import LETTER_QUANTIZER, Experiment, QuantizerSpec, SweepConfig, run_sweep
 
 
 def _errors(system, b, quantizer, estimator, realizations, trajectories=200, steps=1000):
@@ -63,3 +63,75 @@ def test_integrator_makes_theorem1_inapplicable():
     assert not am.stationary and am.spectral_radius == pytest.approx(1.0, abs=1e-9)
     assert ab.stationary and ab.spectral_radius < 1
     assert any("unit circle" in n for n in am.notes)
+
+
+def _boeing_fixed(limits, bits, realizations=3):
+    q = QuantizerSpec(dither="subtractive", range_mode="fixed", fixed_range=limits, guard=False)
+    ex = Experiment(SweepConfig(system="boeing747", bits=bits, realizations=realizations, quantizer=q, mpc=None))
+    ex.moments(bits)
+    return ex
+
+
+def test_overload_judged_by_its_effect_names_clipping_as_the_floor():
+    """Boeing, range ±20, no guard band, 200 x 1000: 0.05 % of the samples overload at every b. At b = 3 that is
+    harmless (effect below a third of the fluctuation); from b = 10 on LS and BCLS level off at the predicted
+    clipping effect (1.86e-4, 7.5e-4) and the engine names clipping, not the data length, as the cause."""
+    ex = _boeing_fixed((-20, 20), (3, 10, 12, 14))
+    a3 = ex.assumptions(3)
+    assert 3e-4 < a3.overload_fraction < 1e-3 and a3.no_overload and a3.bcls_holds
+    for b in (10, 12, 14):
+        a = ex.assumptions(b)
+        assert 3e-4 < a.overload_fraction < 1e-3 and not a.no_overload and not a.bcls_holds
+        assert a.overload_effect_A > 2 * a.fluctuation_A and a.overload_effect_B > 3 * a.fluctuation_B
+    a12 = ex.assumptions(12)
+    note = next(n for n in a12.notes if n.startswith("overload:"))
+    assert "the range ±20 (no guard band) clips 0.053 % of the samples" in note
+    assert "not the data length, sets the error floor" in note
+    for b in (12, 14):
+        for est in ("ls", "bcls"):
+            i = ex.identification(b, est)
+            assert i.err_A.mean() == pytest.approx(ex.assumptions(b).overload_effect_A, rel=0.05), (b, est)
+            assert i.err_B.mean() == pytest.approx(ex.assumptions(b).overload_effect_B, rel=0.05), (b, est)
+
+
+def test_wider_range_removes_the_floor():
+    """The same with --limits=-40,40: no overload, and the LS error keeps falling past the ±20 floor (measured
+    1.2e-4, 2.8e-6 at b = 12, 16 with 3 realizations: 0.41 decades per bit, the O(eps^2) bias giving way to
+    the O(eps) fluctuation)."""
+    ex = _boeing_fixed((-40, 40), (12, 14, 16))
+    assert all(ex.assumptions(b).overload_fraction == 0 and ex.assumptions(b).no_overload for b in (12, 14, 16))
+    e = {b: ex.identification(b, "ls").err_A.mean() for b in (12, 14, 16)}
+    assert e[16] < e[14] < e[12] and e[16] < 1e-5  # far below the ±20 floor of 1.86e-4
+    assert -0.55 < np.log10(e[16] / e[12]) / 4 < -0.25
+
+
+def test_letter_boeing_overload_moves_b_not_a():
+    """The letter's Boeing settings at b = 2: the clipped samples move B^ by ~7x its fluctuation but A^ by 1/20 of
+    it, so Theorem 1 holds for A^ (LS on the line within 1 %) and not for B^."""
+    ex = Experiment(SweepConfig(system="boeing747", bits=(2,), realizations=5, quantizer=LETTER_QUANTIZER, mpc=None))
+    a = ex.assumptions(2)
+    assert a.no_overload_A and not a.no_overload_B and a.theorem1_holds_A and not a.theorem1_holds_B
+    assert a.overload_effect_B > 3 * a.fluctuation_B and a.overload_effect_A < a.fluctuation_A / 3
+    assert ex.identification(2, "ls").err_A.mean() == pytest.approx(a.bias_A, rel=0.01)
+
+
+def test_quantizer_error_against_signal_sawtooth_and_band():
+    """Plain quantization error is a deterministic sawtooth of x (99.6 % of its variance fixed by the cell
+    position, at every b), the dithered one a band independent of x (< 1 %), while the correlation with x
+    alone shrinks to ~0 at fine b for both; the quantizer view draws both against x with that reading."""
+    from app.figures.quantizer import dependence_text, quantizer_figure
+    from qsid_core.quantizer_demo import quantizer_demo
+
+    x = np.random.default_rng(1).uniform(-1, 1, 20000)
+    for b in (2, 8):
+        d = quantizer_demo(x, -1, 1, b)
+        assert d.cell_dependence_plain > 0.99 and d.cell_dependence_dithered < 0.01
+        pos = np.mod((d.scatter_x - d.lo_q) / d.eps, 1.0)
+        np.testing.assert_allclose(d.scatter_plain, d.eps * (pos - 0.5), atol=1e-9 * d.eps)  # the sawtooth
+        assert np.all(np.abs(d.scatter_dithered) <= d.eps / 2 + 1e-12)  # the band
+    assert abs(d.corr_plain) < 0.05  # correlation with x alone misses the sawtooth at b = 8
+    fig = quantizer_figure(d)
+    names = {t.name for t in fig.data}
+    assert {"error vs x, dithered", "error vs x, no dither"} <= names
+    assert dependence_text(d) in " ".join(a.text for a in fig.layout.annotations)
+    assert "plain 100 %" in dependence_text(d)

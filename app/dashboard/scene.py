@@ -92,7 +92,7 @@ class PhasePortrait:
 
     def _add_true(self, pts):
         return self.scene.add_line_segments(f"{self.p}/true_model", pts, np.array(rgb("true"), dtype=np.uint8),
-                                            thickness=3.0, thickness_units="screen")
+                                            thickness=5.0, thickness_units="screen")
 
     # ----- drawing ----------------------------------------------------------------------
     def draw(self, v: SceneView) -> None:

@@ -37,6 +37,7 @@ from qsid_core.systems import PRESETS, get_system
 
 from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
+from .lessons import get_lesson, lesson_names, lesson_values
 from .flow import TabCallbacks, guard_updates
 from .frames import Frame
 from .inputs import check_panel, unusable
@@ -98,6 +99,8 @@ class Session:
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
         self.views = ViewPanel(gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin,
                                self.start_datalength)
+        if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
+            self._show_lesson_view(values.lesson)
         self.plots = self.views.plots
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
         self.renderer = Renderer()
@@ -212,7 +215,13 @@ class Session:
         if apply_lesson(self.controls, name, lambda v: resolve_system(v).system):
             with self._cond:
                 gen = self._gen
+            self._show_lesson_view(name)
         return gen
+
+    def _show_lesson_view(self, name: str) -> None:
+        """The plots panel on the lesson's key view (its tab forward, the view first)."""
+        les, v = get_lesson(name), lesson_values(name)
+        self.views.open_lesson(les.plot, resolve_system(v).system, v.view_channel)
 
     def _run(self, gen: int) -> int:
         """Check, compute and draw generation ``gen``; returns the generation handled."""

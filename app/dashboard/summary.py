@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.figures.hypotheses import CAPTION, bcls_reasons, theorem1_reasons
+from app.figures.hypotheses import CAPTION, bcls_reasons, fits_reasons, line_holds, theorem1_reasons
 from qsid_core.summary import saturated_steps
-from qsid_core.assumptions import OVERLOAD_TOLERANCE
+from qsid_core.assumptions import OVERLOAD_EFFECT_RATIO
 
 from .frames import Frame
 
@@ -83,6 +83,51 @@ def _bounds(frame: Frame, first: dict) -> str:
     return "**Ultimate bound** · " + " · ".join(parts) + f" · {rho_text}.  \n*{CAPTION}.*"
 
 
+def _overload(first: dict) -> str:
+    """The share of overloaded samples and, from the engine, whether its predicted effect on the estimate matters."""
+    a = first.get("assumptions") or {}
+    head = f"overload: {100 * first['overload_fraction']:.2f} % of samples"
+    if "overload_effect_A" not in a:
+        return head
+    eff = (f"predicted effect of the clipped samples on Â {_g(a['overload_effect_A'])}, on B̂ "
+           f"{_g(a['overload_effect_B'])} (finite-data fluctuation {_g(a['fluctuation_A'])}, "
+           f"{_g(a['fluctuation_B'])})")
+    verdict = ("harmless here (below 1/{:g} of the fluctuation)".format(OVERLOAD_EFFECT_RATIO) if a["no_overload"]
+               else "it matters (see Theorem 1 / BCLS below)")
+    return f"{head} clipped by {a.get('overload_range', 'the range')}; {eff}: {verdict}"
+
+
+def _bound_lesson(frame: Frame, first: dict) -> list:
+    """The bound lesson's reading at the current b: how loose each δ is against the measured ‖x_T‖, δ vs ρ and ‖x0‖."""
+    from qsid_core.timeseries import CONVERGED_REL_FLOOR
+
+    if getattr(frame.values, "lesson", "") != "bound":
+        return []
+    x0n = float(np.linalg.norm(frame.x0))
+    xt = (first.get("final_state_norm") or {}).get("max")
+    deltas = [("letter's δ", first.get("ultimate_bound"))]
+    deltas += [(f"a-posteriori δ {lab} (median)",
+                (frame.rows[lab][frame.bits].get("ultimate_bound_realized") or {}).get("median"))
+               for lab in frame.labels]
+    if xt is None:
+        loose = "no closed loops to compare with"
+    elif xt <= CONVERGED_REL_FLOOR * max(x0n, 1e-300):
+        loose = (f"the loops converge (‖x_T‖ ≤ {_g(xt)}, zero up to rounding): without disturbances there is no "
+                 "residual, so each δ is loose by its whole size")
+    else:
+        loose = "; ".join(f"{nm} = {_g(d)} is {d / xt:.3g}× the measured max ‖x_T‖ = {_g(xt)}"
+                          for nm, d in deltas if d is not None)
+    rho = first.get("rho")
+    d0 = first.get("ultimate_bound")
+    checks = []
+    if d0 is not None and rho is not None:
+        checks.append(f"δ {'<' if d0 < rho else '≥'} ρ = {_g(rho)}"
+                      + ("" if d0 < rho else " (the proof gives no bound here)"))
+    if d0 is not None:
+        checks.append(f"δ {'<' if d0 < x0n else '≥'} ‖x0‖ = {x0n:.3g}")
+    return [f"**Bound lesson, b = {frame.bits}**: {loose}. " + "; ".join(checks) + ".", ""]
+
+
 def _hypotheses(frame: Frame) -> list:
     """Which hypotheses of Theorem 1 and BCLS fail at the current b, and why (the engine's flags)."""
     b = frame.bits
@@ -92,11 +137,20 @@ def _hypotheses(frame: Frame) -> list:
         return []
     t1 = theorem1_reasons([first])
     bc = bcls_reasons([first])
-    lines = ["**Theorem 1** (dashed line): " + ("all hypotheses hold." if not t1 else
-                                              "does not apply here (line faded):")]
-    lines += [f"- {w}" for w in t1]
+    fits = fits_reasons([first])
+    on = [k for k in ("A", "B") if line_holds(first, k)]
+    if not t1 and not fits:
+        head = "all hypotheses hold."
+    elif len(on) == 2:
+        head = "the line applies (dashed):"
+    elif on:
+        head = f"the line applies for {'Â' if on == ['A'] else 'B̂'} only (dashed there, faded for the other):"
+    else:
+        head = "does not apply here (line faded):"
+    lines = ["**Theorem 1** (dashed line): " + head]
+    lines += [f"- {w}" for w in t1 + fits]
     lines += ["", "**BCLS** (known noise ε²/12): " + ("its hypotheses hold." if not bc else
-                                                    "its noise model fails (✕ marks):")]
+                                                    "its hypotheses fail (✕ marks):")]
     lines += [f"- {w}" for w in bc]
     return lines
 
@@ -152,11 +206,11 @@ def summary_markdown(frame: Frame) -> str:
         "",
         f"ε states: {eps_x}  ",
         f"ε inputs: {eps_u}  ",
-        f"overload: {100 * first['overload_fraction']:.2f} % of samples "
-        f"(up to {100 * OVERLOAD_TOLERANCE:g} % counts as no overload)",
+        _overload(first),
         "",
         _bounds(frame, first),
         "",
+        *_bound_lesson(frame, first),
         *_hypotheses(frame),
         "",
         "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost | closed loops on the true plant |",

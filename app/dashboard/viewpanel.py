@@ -9,6 +9,7 @@ inputs, a change only marks the tab dirty; :meth:`ViewPanel.values` gives the
 
 from __future__ import annotations
 
+import json
 from typing import Callable
 
 import plotly.graph_objects as go
@@ -18,7 +19,7 @@ from app.figures.quantizer import channel_names
 
 from .plotlyjs import send_basic_bundle
 
-__all__ = ["ViewPanel", "blank_figure", "PANEL_WIDTH", "VIEW_FIELDS"]
+__all__ = ["ViewPanel", "blank_figure", "show_tab_html", "PANEL_WIDTH", "VIEW_FIELDS"]
 
 #: The :class:`~app.dashboard.settings.Values` fields set by the views' own inputs (not :data:`CONTROLS`).
 VIEW_FIELDS = ("view_channel", "compare_bits")
@@ -34,6 +35,19 @@ def blank_figure() -> go.Figure:
                                         yref="paper")],
                       xaxis=dict(visible=False), yaxis=dict(visible=False))
     return fig
+
+
+def show_tab_html(tab: str, nonce: int) -> str:
+    """HTML whose image fails to load at once (an empty data URL) and so runs a script that presses Enter on
+    the plots panel's tab ``tab`` (the tab strip that also holds "Identification"), the keyboard way the
+    dock activates a tab. ``nonce`` makes each call new content, so the browser runs it again."""
+    first = json.dumps(registry.TABS[0])
+    script = ("var t=[].slice.call(document.querySelectorAll('[role=tab]'));"
+              f"var s=t.filter(function(e){{return e.title=={first};}}).map(function(e){{return e.parentElement;}})[0];"
+              f"var g=s&&[].slice.call(s.querySelectorAll('[role=tab]')).filter(function(e){{return e.title=={json.dumps(tab)};}})[0];"
+              "if(g){g.dispatchEvent(new KeyboardEvent('keydown',{key:'Enter',bubbles:true}));}")
+    return (f'<img alt="" data-qsid-tab="{nonce}" src="data:," style="display:none" '
+            f'onerror="{script.replace(chr(34), "&quot;")}">')
 
 
 class ViewPanel:
@@ -82,7 +96,29 @@ class ViewPanel:
                     self.compare_bits.on_update(lambda _e: on_change())
                 for v in (v for v in registry.VIEWS if v.tab == tab):
                     self.plots[v.name] = gui.add_plotly(blank_figure(), aspect=v.aspect)
+        #: runs the one-line script of :func:`show_tab_html` (viser has no server call that activates a tab)
+        self.tab_switch = gui.add_html("", visible=False)
+        self._switches = 0
+        self._orders: dict = {}
         self.set_system(system, int(values.view_channel))
+
+    def open_lesson(self, plot: str, system, channel: int) -> None:
+        """Show a lesson's key view: its tab brought forward, the view first in it (above the fold), and the
+        quantizer view on ``channel``."""
+        tab = next(v.tab for v in registry.VIEWS if v.name == plot)
+        if not self._orders:
+            self._orders = {name: float(h.order) for name, h in self.plots.items()}
+        same = [v.name for v in registry.VIEWS if v.tab == tab]
+        for name, h in self.plots.items():  # the key view just above its tab's first view, the others as built
+            want = (min(self._orders[n] for n in same) - 0.5) if name == plot else self._orders[name]
+            if h.order != want:
+                h.order = want
+        self.set_system(system)
+        names = self.system_names
+        self.channel.value = names[min(max(int(channel), 0), len(names) - 1)]
+        self._switches += 1
+        self.tab_switch.content = show_tab_html(tab, self._switches)
+        self.tab_switch.visible = True
 
     def set_system(self, system, channel: int | None = None) -> None:
         """Offer the channels of ``system`` (keeps the choice when the names did not change)."""

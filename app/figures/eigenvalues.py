@@ -25,13 +25,14 @@ def eigen_figure(eigs: Mapping[str, np.ndarray] | np.ndarray, true_eigs: np.ndar
     th = np.linspace(0, 2 * np.pi, 181)
     data = [dict(type="scatter", x=arr(np.cos(th)), y=arr(np.sin(th)), mode="lines", name="unit circle",
                  line=dict(color=COLORS["unit_circle"], width=1), hoverinfo="skip")]
+    # the true eigenvalues first, as open rings: the estimates are drawn over them and stay visible
+    te = np.asarray(true_eigs).reshape(-1)
+    data.append(dict(type="scatter", x=arr(te.real), y=arr(te.imag), mode="markers", name="eig A (true)",
+                     marker=dict(color=COLORS["true"], symbol="circle-open", size=14, line=dict(width=1.5))))
     for i, (label, ev) in enumerate(eigs.items()):
         ev = np.asarray(ev).reshape(-1)
         data.append(dict(type="scatter", x=arr(ev.real), y=arr(ev.imag), mode="markers", name=f"eig {label}",
-                         marker=dict(color=color(label, i), size=6, opacity=0.5)))
-    te = np.asarray(true_eigs).reshape(-1)
-    data.append(dict(type="scatter", x=arr(te.real), y=arr(te.imag), mode="markers", name="eig A (true)",
-                     marker=dict(color=COLORS["true"], symbol="x", size=11)))
+                         marker=dict(color=color(label, i), size=6, opacity=0.6)))
     return figure(data, dict(
         height=height, margin=dict(l=50, r=10, t=30 if title else 10, b=40), legend=dict(orientation="h", y=-0.25),
         xaxis=dict(title=dict(text="Re"), zeroline=True),

@@ -5,13 +5,15 @@ from __future__ import annotations
 import numpy as np
 import plotly.graph_objects as go
 
-from .hypotheses import bcls_reasons, flags, short, theorem1_reasons
+from qsid_core.sweep import fit_slope
+
+from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, short, theorem1_reasons
 from .palette import COLORS, color
 from .raw import figure
 from .traces import BITS_AXIS, Series, band, get, mark_bits, xy
 from .view import CURVES, View
 
-__all__ = ["error_figure", "VIEW"]
+__all__ = ["error_figure", "slope_text", "LETTER_SLOPES", "VIEW"]
 
 
 def _holds(rows, key: str = "theorem1_holds") -> dict:
@@ -24,9 +26,9 @@ def _axes(col: int) -> dict:
 
 
 def _theorem1(rows, key: str, col: int) -> list:
-    """Theorem 1's line: dashed where its hypotheses hold, faded and dotted where they fail."""
+    """Theorem 1's line for this panel's block: dashed where it applies (or fits), faded and dotted elsewhere."""
     tx, ty = xy(rows, f"{key}_theory")
-    ok = _holds(rows)
+    ok = {r["bits"]: line_holds(r, key[-1]) for r in rows}
     # the faded part also takes the neighbours of a failing b, so the two parts join up
     good = [y if ok[b] else None for b, y in zip(tx, ty)]
     bad = [y if not ok[b] or (i > 0 and not ok[tx[i - 1]]) or (i + 1 < len(tx) and not ok[tx[i + 1]]) else None
@@ -36,7 +38,7 @@ def _theorem1(rows, key: str, col: int) -> list:
         out.append(dict(type="scatter", x=tx, y=good, mode="lines", name="Theorem 1", legendgroup="th",
                         showlegend=(col == 1), connectgaps=False, line=dict(color=COLORS["theory"], dash="dash"),
                         **_axes(col)))
-    if any(v is not None for v in bad) and not all(ok.values()):
+    if any(v is not None for v in bad) and not all(ok[b] for b in tx):
         out.append(dict(type="scatter", x=tx, y=bad, mode="lines", name="Theorem 1 (hypotheses fail)",
                         legendgroup="thx", showlegend=(col == 1), connectgaps=False, opacity=0.35,
                         line=dict(color=COLORS["theory"], dash="dot", width=1.5), **_axes(col)))
@@ -70,6 +72,17 @@ def _theory_and_reference(rows, key: str, col: int, ref_slope: float) -> list:
 
 #: Two panels side by side (as ``make_subplots(1, 2, horizontal_spacing=0.12)`` lays them out).
 _PANELS = (("‖A−Â‖/‖A‖", [0.0, 0.44]), ("‖B−B̂‖/‖B‖", [0.56, 1.0]))
+#: The slopes the letter reads off its Fig. 1 (log10 error per bit) for A and for B.
+LETTER_SLOPES = (-0.301, -0.322)
+
+
+def slope_text(rows, key: str, letter: float) -> str:
+    """'slope −0.30/bit (letter −0.301)': the fitted log10 slope of the mean over the rows' b ('' if < 3 b)."""
+    bx, by = xy(rows, key, "mean")
+    if len(bx) < 3:
+        return ""
+    s = fit_slope(bx, by)
+    return f"slope {s:+.2f}/bit (letter {letter:+.3f})".replace("-", "−")
 
 
 def error_figure(series: Series, current_bits: int | None = None, ref_slope: float = -0.301,
@@ -81,20 +94,24 @@ def error_figure(series: Series, current_bits: int | None = None, ref_slope: flo
     ``ref_slope`` per bit (the letter's -0.301 = -log10 2) passes through the
     first series' mean at the smallest b; the current b is marked.
     """
-    data = []
+    data, lines = [], []
     for i, (label, rows) in enumerate(series.items()):
         for col, key in ((1, "err_A"), (2, "err_B")):
             data += band(rows, key, color(label, i), label, showlegend=(col == 1), **_axes(col))
             if i == 0:
-                data += _theory_and_reference(rows, key, col, ref_slope)
+                lines += _theory_and_reference(rows, key, col, ref_slope)
             if label == "BCLS":
                 data += _bcls_marks(rows, key, col)
+    data += lines  # the theory and reference lines last: drawn above the data, never hidden by them
     first = next(iter(series.values()), [])
     notes = [f"Theorem 1 faded: {w}" for w in theorem1_reasons(first)]
+    notes += [f"Theorem 1 kept: {w}" for w in fits_reasons(first)]
     if "BCLS" in series:
         notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series["BCLS"])]
+    titles = [t + (f"<span style='font-size:12px'>  {s}</span>" if s else "") for (t, _), s in
+              zip(_PANELS, (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), LETTER_SLOPES)))]
     annotations = [dict(text=t, x=sum(dom) / 2, xanchor="center", xref="paper", y=1.0, yanchor="bottom",
-                        yref="paper", showarrow=False, font=dict(size=16)) for t, dom in _PANELS]
+                        yref="paper", showarrow=False, font=dict(size=16)) for t, (_, dom) in zip(titles, _PANELS)]
     shown = ""
     if notes:  # a few words each (the plot keeps its height); the full sentences on hover and in the summary
         shown = _wrap(" · ".join(_short(t) for t in notes) + " (hover: why)")

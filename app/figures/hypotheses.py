@@ -8,7 +8,9 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
-__all__ = ["flags", "theorem1_reasons", "bcls_reasons", "bits_text", "short", "CAPTION"]
+from qsid_core.assumptions import FIT_TOLERANCE
+
+__all__ = ["flags", "theorem1_reasons", "bcls_reasons", "fits_reasons", "line_holds", "bits_text", "short", "CAPTION"]
 
 #: What every view of the ultimate bound says about it.
 CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
@@ -17,8 +19,8 @@ CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
 _WHY = {
     "subtractive_dither": "no subtractive dither: the quantization error is a function of the signal, "
                           "not independent noise of variance ε²/12",
-    "no_overload": "overload: x + w leaves the quantizer range, so the error exceeds ε/2 and depends on the "
-                   "signal (guard band or a wider range fixes it)",
+    "no_overload": "overload: the quantizer range clips samples, and the clipped samples move the estimate by "
+                   "more than a third of its finite-data fluctuation (guard band or a wider range fixes it)",
     "large_data": "finite data: at this data size the predicted O(ε) fluctuation exceeds Theorem 1's O(ε²) "
                   "bias, so the error is expected above the line (a prediction: compare the points with it)",
 }
@@ -51,22 +53,72 @@ def _stationary_words(a: Mapping) -> str:
             "T → ∞ statement does not apply")
 
 
-def _reasons(rows: Sequence[Mapping], keys: Sequence[str]) -> list[str]:
+#: Hypotheses judged per block: the row has ``<key>_A`` and ``<key>_B``.
+_PER_BLOCK = ("no_overload", "large_data")
+_HAT = {"A": "Â", "B": "B̂"}
+
+
+def line_holds(row: Mapping, block: str | None = None) -> bool:
+    """Theorem 1's line is drawn as applying for ``block`` ('A', 'B'; None: both): every hypothesis holds,
+    or one formally fails yet the measured LS error is on the line (True where the row has no flags)."""
+    a = flags(row)
+    if a is None:
+        return True
+    blocks = (block,) if block else ("A", "B")
+    return all(a.get(f"theorem1_holds_{k}", a.get("theorem1_holds", True)) or a.get(f"fits_{k}", False)
+               for k in blocks)
+
+
+def _engine_words(rows: Sequence[Mapping], key: str, bad: Sequence[int]) -> str:
+    """The engine's own sentence for ``key`` at the largest failing b (it names the range and the share clipped)."""
+    if key == "no_overload":
+        a = flags(next(r for r in rows if r["bits"] == bad[-1]))
+        note = next((x for x in a.get("notes", ()) if x.startswith("overload:")), None)
+        if note:
+            return note
+    if key == "stationary":
+        return _stationary_words(flags(next(r for r in rows if r["bits"] == bad[0])))
+    return _WHY[key]
+
+
+def _failing(rows: Sequence[Mapping], key: str, block: str | None) -> list:
+    """The b where ``key`` fails (for ``block``) and the line is not kept by a fitting prediction."""
     out = []
-    for key in keys:
-        bad = [r["bits"] for r in rows if flags(r) is not None and not flags(r).get(key, True)]
-        if not bad:
+    for r in rows:
+        a = flags(r)
+        if a is None:
             continue
-        words = _stationary_words(flags(next(r for r in rows if r["bits"] == bad[0]))) \
-            if key == "stationary" else _WHY[key]
-        every = len(bad) == len([r for r in rows if flags(r) is not None])
-        out.append(words + ("" if every else f" ({bits_text(bad)})"))
+        if block is None:
+            if not a.get(key, True):
+                out.append(r["bits"])
+        elif not a.get(f"{key}_{block}", a.get(key, True)) and not a.get(f"fits_{block}", False):
+            out.append(r["bits"])
+    return out
+
+
+def _reasons(rows: Sequence[Mapping], keys: Sequence[str], per_block: bool = False) -> list[str]:
+    out = []
+    n_rows = len([r for r in rows if flags(r) is not None])
+    for key in keys:
+        if per_block and key in _PER_BLOCK:
+            bad_a, bad_b = _failing(rows, key, "A"), _failing(rows, key, "B")
+            groups = [(bad_a, "")] if bad_a == bad_b else [(bad_a, "A"), (bad_b, "B")]
+        else:
+            groups = [(_failing(rows, key, None), "")]
+        for bad, blk in groups:
+            if not bad:
+                continue
+            words = _engine_words(rows, key, bad)
+            where = [f"for {_HAT[blk]}"] if blk else []
+            if len(bad) != n_rows:
+                where.append(bits_text(bad))
+            out.append(words + (f" ({', '.join(where)})" if where else ""))
     return out
 
 
 def theorem1_reasons(rows: Sequence[Mapping]) -> list[str]:
-    """Why Theorem 1's line does not apply, one sentence per failing hypothesis (with the b where it fails)."""
-    return _reasons(rows, ("subtractive_dither", "no_overload", "stationary", "large_data"))
+    """Why Theorem 1's line does not apply, one sentence per failing hypothesis (with the block and b)."""
+    return _reasons(rows, ("subtractive_dither", "no_overload", "stationary", "large_data"), per_block=True)
 
 
 def bcls_reasons(rows: Sequence[Mapping]) -> list[str]:
@@ -74,9 +126,22 @@ def bcls_reasons(rows: Sequence[Mapping]) -> list[str]:
     return _reasons(rows, ("subtractive_dither", "no_overload"))
 
 
+def fits_reasons(rows: Sequence[Mapping]) -> list[str]:
+    """Where a hypothesis formally fails yet the measured LS error is on Theorem 1's line (per block)."""
+    out = []
+    for k in ("A", "B"):
+        bad = [r["bits"] for r in rows if flags(r) is not None and flags(r).get(f"fits_{k}")
+               and not flags(r).get(f"theorem1_holds_{k}", True)]
+        if bad:
+            out.append(f"a hypothesis formally fails yet the prediction fits for {_HAT[k]}: its mean LS error is "
+                       f"within {100 * FIT_TOLERANCE:g} % of Theorem 1's line ({bits_text(bad)})")
+    return out
+
+
 def short(reason: str) -> str:
     """A reason in a few words for a plot's note: the part before ':' and the word lengths it names
     ("finite data (b = 2–16)"); the full sentence goes to the summary and the note's hover text."""
-    head = reason.split(":")[0]
-    tail = reason[reason.rfind(" (b = "):] if reason.endswith(")") and " (b = " in reason else ""
+    head = reason.split(";")[0] if reason.startswith("overload:") else reason.split(":")[0]
+    group = reason[reason.rfind(" ("):] if reason.endswith(")") and " (" in reason else ""
+    tail = group if ("b = " in group or group.startswith(" (for ")) else ""
     return head + tail

@@ -133,6 +133,16 @@ def _points(states: np.ndarray, dims: tuple, scale: float) -> np.ndarray:
     return P
 
 
+def _interleave(parts: list, per_loop: int) -> np.ndarray:
+    """Concatenate per-estimator segment arrays, alternating loop by loop (``per_loop`` segments each) when
+    they are equally long, so that neither estimator's loops are all drawn over the other's."""
+    p0 = parts[0]
+    if len(parts) > 1 and per_loop > 0 and all(p.shape == p0.shape for p in parts) and p0.shape[0] % per_loop == 0:
+        loops = [p.reshape((-1, per_loop) + p0.shape[1:]) for p in parts]
+        return np.stack(loops, axis=1).reshape((-1,) + p0.shape[1:])
+    return np.concatenate(parts)
+
+
 def _reference_path(frame, dims: tuple, scale: float, start: np.ndarray) -> np.ndarray:
     """Display segments of a time-varying reference over the drawn loop (empty when it is constant)."""
     mpc = frame.ex.config.mpc if frame.ex is not None else None
@@ -262,8 +272,9 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
     labels = [names[d] if d is not None else "" for d in dims]
     if ta is not None:
         labels[ta] = "time"
+    segs, cols = _interleave(segs, ts.shape[0] - 1), _interleave(cols, ts.shape[0] - 1)
     return SceneView(
-        segments=np.concatenate(segs).astype(np.float32), colors=np.ascontiguousarray(np.concatenate(cols)),
+        segments=segs.astype(np.float32), colors=np.ascontiguousarray(cols),
         true_segments=tseg.astype(np.float32), time_marks=marks.astype(np.float32), start=start, scale=scale,
         axis_names=tuple(labels), failed=failed, clipped=clipped, polylines=poly, realizations=total,
         mark_every=every, not_converged=stuck, ref_segments=_reference_path(frame, dims, scale, start),

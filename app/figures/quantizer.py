@@ -1,8 +1,12 @@
 """View: the quantizer on one channel of the training data, with subtractive dither and without.
 
 Top: a short window of the signal, its quantized values with subtractive dither
-(``Q(x + w) - w``) and without (``Q(x)``). Bottom: histograms of the two errors
-(density) against the uniform density ``1/ε`` on ``±ε/2``. The title gives the
+(``Q(x + w) - w``) and without (``Q(x)``). Middle: the two errors against the
+signal value (plain: a deterministic sawtooth of x; dithered: a uniform band
+whatever x is), with a one-line reading of how much of each error is fixed by x.
+Bottom: histograms of the two errors (density) against the uniform density
+``1/ε`` on ``±ε/2`` (alike with and without dither: the histogram cannot show
+the difference, the middle panel does). The title gives the
 measured error variance next to ``ε²/12`` and the overload fraction. The
 numbers are :func:`qsid_core.quantizer_demo.channel_demo`'s; this module draws.
 """
@@ -18,7 +22,7 @@ from .palette import COLORS
 from .raw import arr, figure, stacked_axes
 from .view import CURRENT, View
 
-__all__ = ["quantizer_figure", "demo_text", "VIEW"]
+__all__ = ["quantizer_figure", "demo_text", "dependence_text", "VIEW"]
 
 #: Colours of the two quantizers (dithered = the BCLS/theory story, plain = grey).
 DITHERED, PLAIN = COLORS["LS"], COLORS["ref"]
@@ -41,14 +45,24 @@ def demo_text(d: QuantizerDemo) -> str:
     return text
 
 
-def quantizer_figure(d: QuantizerDemo, height: int = 460) -> go.Figure:
-    """Signal window and quantized values (top); error histograms vs the uniform density (bottom)."""
-    layout, (y1, y2) = stacked_axes(2, gap=0.16)
+def dependence_text(d: QuantizerDemo) -> str:
+    """One-line reading of the error-vs-signal panel: how much of each error the signal value fixes."""
+    return (f"error fixed by x's place in its cell: plain {100 * d.cell_dependence_plain:.0f} % (a sawtooth of x), "
+            f"dithered {100 * d.cell_dependence_dithered:.1f} % (independent of x)<br>correlation with x: plain "
+            f"{d.corr_plain:+.2f}, dithered {d.corr_dithered:+.2f} (it misses the sawtooth at fine b)")
+
+
+def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
+    """Signal window (top); errors against the signal value (middle); error histograms vs uniform (bottom)."""
+    layout, (y1, y2, y3) = stacked_axes(3, gap=0.15)
     layout["xaxis"] = dict(anchor=y1, title=dict(text="sample"))
-    layout["xaxis2"] = dict(anchor=y2, title=dict(text="quantization error (signal units)"))
+    layout["xaxis2"] = dict(anchor=y2, title=dict(text=f"signal value {d.label}"))
+    layout["xaxis3"] = dict(anchor=y3, title=dict(text="quantization error (signal units)"))
     layout["yaxis2"]["anchor"] = "x2"
+    layout["yaxis3"]["anchor"] = "x3"
     layout["yaxis"]["title"] = dict(text=d.label or "signal", font=dict(size=10))
-    layout["yaxis2"]["title"] = dict(text="density", font=dict(size=10))
+    layout["yaxis2"]["title"] = dict(text="error x − x̃", font=dict(size=10))
+    layout["yaxis3"]["title"] = dict(text="density", font=dict(size=10))
     data = [
         dict(type="scatter", x=arr(d.t), y=arr(d.signal), mode="lines", name="signal", xaxis="x", yaxis=y1,
              line=dict(color=COLORS["true"], width=1.5)),
@@ -57,17 +71,25 @@ def quantizer_figure(d: QuantizerDemo, height: int = 460) -> go.Figure:
         dict(type="scatter", x=arr(d.t), y=arr(d.plain), mode="lines", name="Q(x) (no dither)", xaxis="x",
              yaxis=y1, line=dict(color=PLAIN, width=1, shape="hv")),
     ]
+    for name, e, c, sym in (("error vs x, dithered", d.scatter_dithered, DITHERED, "circle"),
+                            ("error vs x, no dither", d.scatter_plain, PLAIN, "diamond")):
+        data.append(dict(type="scatter", x=arr(d.scatter_x), y=arr(e), mode="markers", name=name, xaxis="x2",
+                         yaxis=y2, marker=dict(color=c, size=3, opacity=0.6, symbol=sym)))
     centers = 0.5 * (d.hist_edges[1:] + d.hist_edges[:-1])
     width = float(np.diff(d.hist_edges).mean())
     for name, h, c in (("error, dithered", d.hist_dithered, DITHERED), ("error, no dither", d.hist_plain, PLAIN)):
-        data.append(dict(type="bar", x=arr(centers), y=arr(h), width=width, name=name, xaxis="x2", yaxis=y2,
+        data.append(dict(type="bar", x=arr(centers), y=arr(h), width=width, name=name, xaxis="x3", yaxis=y3,
                          marker=dict(color=c), opacity=0.55))
     e2 = d.eps / 2
     data.append(dict(type="scatter", x=[-e2, -e2, e2, e2], y=[0, d.uniform_density, d.uniform_density, 0],
-                     mode="lines", name="uniform 1/ε on ±ε/2", xaxis="x2", yaxis=y2,
+                     mode="lines", name="uniform 1/ε on ±ε/2", xaxis="x3", yaxis=y3,
                      line=dict(color=COLORS["theory"], dash="dash", width=2)))
+    top2 = layout["yaxis2"]["domain"][1]
+    note = dict(text=dependence_text(d), xref="paper", yref="paper", x=0, y=top2, xanchor="left",
+                yanchor="bottom", showarrow=False, align="left", font=dict(size=10, color="#444444"))
     layout.update(height=height, barmode="overlay", bargap=0, margin=dict(l=60, r=10, t=50, b=40),
-                  title=dict(text=demo_text(d), font=dict(size=11)), legend=dict(orientation="h", y=-0.2))
+                  annotations=[note], title=dict(text=demo_text(d), font=dict(size=11)),
+                  legend=dict(orientation="h", y=-0.12))
     return figure(data, layout)
 
 
@@ -87,4 +109,4 @@ def _key(frame) -> tuple:
     return (frame.bits, frame.values.view_channel, id(frame.ex.prepared) if frame.ex is not None else None)
 
 
-VIEW = View("quantizer", aspect=0.95, depends=CURRENT, build=_build, tab="Quantizer", key=_key)
+VIEW = View("quantizer", aspect=1.0, depends=CURRENT, build=_build, tab="Quantizer", key=_key)
