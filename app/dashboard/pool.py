@@ -29,7 +29,7 @@ import threading
 import time
 import weakref
 from collections import OrderedDict
-from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor
+from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
 
@@ -106,10 +106,41 @@ class Superseded(Exception):
     """The tab has newer settings: its pending pool work was abandoned."""
 
 
-def _worker_init() -> None:
-    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited."""
+def _worker_init(parent: int | None = None) -> None:
+    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited.
+
+    A worker also ends by itself when the server dies, even by SIGKILL (out-of-memory killer), which
+    no handler of the server sees. Two mechanisms, because each misses a case of the other:
+    ``PR_SET_PDEATHSIG`` (Linux) has the kernel send SIGKILL the moment the parent goes, but it fires
+    when the *thread* that started the worker ends (so :class:`Pool` starts workers from one thread that
+    lives as long as the server) and it is not armed if the parent died before this line ran; a
+    daemon thread comparing ``os.getppid()`` with the server's pid every half second covers that race
+    and systems without ``prctl``.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
+    if parent is None:
+        return
+    _arm_parent_death_signal()
+    if os.getppid() != parent:  # the server is gone already
+        os._exit(0)
+    threading.Thread(target=_watch_parent, args=(parent,), name="qsid-parent-watch", daemon=True).start()
+
+
+def _arm_parent_death_signal() -> None:
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # not Linux: the getppid check alone
+        pass
+
+
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(0.5)
+    os._exit(0)
 
 
 def kill_workers(ex) -> None:
@@ -136,6 +167,9 @@ class Pool:
         self._shared: OrderedDict = OrderedDict()  # id(obj) -> (weak ref, what tasks get); see share()
         self._share_dir: str | None = None
         self._slock = threading.Lock()
+        # every worker process is started from this one thread, which lives as long as the pool (see
+        # _worker_init: the parent-death signal fires when the thread that started a worker ends)
+        self._spawner = ThreadPoolExecutor(1, thread_name_prefix="qsid-pool-spawn")
         self.current = self._new()
         self._watch = threading.Thread(target=self._watchdog, name="qsid-pool-watch", daemon=True)
         self._watch.start()
@@ -143,8 +177,11 @@ class Pool:
     def _new(self):
         if self.workers == 0:
             return None
+        return self._spawner.submit(self._start).result()
+
+    def _start(self):
         pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_worker_init)
+                                   initializer=_worker_init, initargs=(os.getpid(),))
         try:
             for f in [pool.submit(abs, 0) for _ in range(self.workers)]:  # start the workers now
                 f.result(timeout=120)
@@ -210,6 +247,7 @@ class Pool:
         if ex is not None:
             kill_workers(ex)
             ex.shutdown(wait=False, cancel_futures=True)
+        self._spawner.shutdown(wait=False)
         with self._slock:
             self._shared.clear()
             if self._share_dir is not None:

@@ -194,22 +194,64 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
 
 
-def _wait_for_stop_signal() -> None:
-    """Block until Ctrl-C or SIGTERM, whatever handler a solver installed meanwhile.
+def _prepare_stop_signals() -> threading.Event:
+    """Route Ctrl-C, SIGTERM (kill, systemd, docker stop) and SIGHUP (terminal closed) to one stop path.
 
-    Both signals are blocked in every thread (the mask is set before any thread
-    starts and threads inherit it), so they stay pending until this ``sigwait``
-    takes them: a library that swaps the SIGINT handler from a worker thread
-    (OSQP does, on every solve) cannot swallow Ctrl-C.
+    Returns the event that is set when one of them arrives. Call before any thread exists.
+
+    The multiprocessing resource tracker is started first: its launch *unblocks* SIGINT and SIGTERM in
+    the thread that starts it, which would undo the mask below. Then the three signals are blocked in
+    this thread, so every thread started afterwards inherits the mask and they stay pending until
+    :func:`_wait_for_stop_signal` takes them with ``sigtimedwait`` (a library that swaps the SIGINT
+    handler from a worker thread, as OSQP does on every solve, cannot swallow them). Python handlers are
+    installed as well: if a thread unblocks them again (a relaunched resource tracker), the signal
+    delivered there still only sets the event instead of killing the process by the default action.
     """
-    signal.sigwait(_STOP_SIGNALS)
+    from multiprocessing import resource_tracker
+
+    stop = threading.Event()
+
+    def handler(signum, frame):
+        stop.set()
+
+    for sig in _STOP_SIGNALS:
+        signal.signal(sig, handler)
+    try:
+        resource_tracker.ensure_running()
+    except Exception:  # no tracker (e.g. no /dev/shm): the pool reports its own problem later
+        pass
+    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    return stop
+
+
+def _wait_for_stop_signal(stop: threading.Event) -> None:
+    """Block until a stop signal is pending (taken here) or was handled by a handler (``stop`` set)."""
+    while not stop.is_set():
+        if signal.sigtimedwait(_STOP_SIGNALS, 0.5) is not None:
+            return
+
+
+def _release_ipc() -> None:
+    """After the pool is gone: unlink its semaphores and stop the resource tracker (nothing left to warn of)."""
+    from multiprocessing import resource_tracker, util
+
+    try:
+        util._run_finalizers(0)  # the semaphores' finalizers unlink and unregister them
+        resource_tracker._resource_tracker._stop()
+    except Exception:
+        pass
+
+
+def _shutdown(app) -> None:
+    app.stop(wait=False)
+    _release_ipc()
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the dashboard until Ctrl-C / SIGTERM; exit status 2 for bad options."""
+    """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
     args = _parser().parse_args(argv)
     if args.workers < 0 or args.workers > 4 * (os.cpu_count() or 1):
         print(f"qsid-dashboard: error: --workers must be between 0 and {4 * (os.cpu_count() or 1)} "
@@ -236,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if warning:
         print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
-    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)  # before any thread exists: all inherit it
+    stop = _prepare_stop_signals()  # before any thread exists: all inherit the mask
     limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
     app = None
     code = 0
@@ -245,16 +287,16 @@ def main(argv: list[str] | None = None) -> int:
                            settings=settings, lesson=args.lesson, task_timeout=args.task_timeout,
                            cache_bytes=args.cache_mb * 2**20)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
-        _wait_for_stop_signal()
+        _wait_for_stop_signal(stop)
         print("\nqsid dashboard: stopping", flush=True)
     except (QsidError, OSError) as exc:
         print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
         code = 2
     finally:
-        if app is not None:  # stop within ~1 s whatever the tabs are computing, then leave at once
-            stopper = threading.Thread(target=app.stop, kwargs={"wait": False}, daemon=True)
+        if app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
+            stopper = threading.Thread(target=_shutdown, args=(app,), daemon=True)
             stopper.start()
-            stopper.join(1.0)
+            stopper.join(2.0)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)
