@@ -33,6 +33,7 @@ from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, T
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
 
+from app.procs import end_with_parent, kill_workers
 from qsid_core.errors import QsidError
 
 from .memory import trim
@@ -107,50 +108,13 @@ class Superseded(Exception):
 
 
 def _worker_init(parent: int | None = None) -> None:
-    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited.
-
-    A worker also ends by itself when the server dies, even by SIGKILL (out-of-memory killer), which
-    no handler of the server sees. Two mechanisms, because each misses a case of the other:
-    ``PR_SET_PDEATHSIG`` (Linux) has the kernel send SIGKILL the moment the parent goes, but it fires
-    when the *thread* that started the worker ends (so :class:`Pool` starts workers from one thread that
-    lives as long as the server) and it is not armed if the parent died before this line ran; a
-    daemon thread comparing ``os.getppid()`` with the server's pid every half second covers that race
-    and systems without ``prctl``.
-    """
+    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited; a worker
+    ends by itself when the server dies, even by SIGKILL (see :func:`app.procs.end_with_parent`: this is
+    why :class:`Pool` starts every worker from one thread that lives as long as the pool)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
-    if parent is None:
-        return
-    _arm_parent_death_signal()
-    if os.getppid() != parent:  # the server is gone already
-        os._exit(0)
-    threading.Thread(target=_watch_parent, args=(parent,), name="qsid-parent-watch", daemon=True).start()
-
-
-def _arm_parent_death_signal() -> None:
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
-    except (OSError, AttributeError):  # not Linux: the getppid check alone
-        pass
-
-
-def _watch_parent(parent: int) -> None:
-    while os.getppid() == parent:
-        time.sleep(0.5)
-    os._exit(0)
-
-
-def kill_workers(ex) -> None:
-    """SIGKILL every process of ``ex`` (works on a stopped, SIGSTOPped one too)."""
-    procs = getattr(ex, "_processes", None) or {}  # ProcessPoolExecutor's own table of its workers
-    for p in list(procs.values()):
-        try:
-            p.kill()
-        except Exception:
-            pass
+    if parent is not None:
+        end_with_parent(parent)
 
 
 class Pool:
