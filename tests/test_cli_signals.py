@@ -20,7 +20,7 @@ ENV = dict(os.environ, PYTHONPATH=str(ROOT))
 LONG = ["sweep", "--bits", "2:16", "--realizations", "200", "--trajectories", "400", "--steps", "2000", "-q"]
 
 
-def start(tmp_path, *extra, workers_expected=2):
+def start(tmp_path, *extra, workers_expected=2, settle=3.0):
     out = tmp_path / "result.json"
     out.write_text("previous result\n")
     p = subprocess.Popen([sys.executable, "-m", "app.cli", *LONG, "--out", str(out), *extra], cwd=ROOT, env=ENV,
@@ -30,7 +30,7 @@ def start(tmp_path, *extra, workers_expected=2):
     while time.monotonic() < end and p.poll() is None:  # workers up and computing
         desc = descendants(p.pid)
         if len(desc) >= workers_expected:
-            time.sleep(3.0)
+            time.sleep(settle)
             desc = descendants(p.pid)
             break
         time.sleep(0.2)
@@ -68,7 +68,7 @@ def test_sweep_workers_signal_leaves_nothing(tmp_path, sig):
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["TERM", "INT"])
 def test_sweep_dask_local_signal_leaves_nothing(tmp_path, sig):
     pytest.importorskip("distributed")
-    p, out, desc = start(tmp_path, "--dask", "local:2", workers_expected=3)
+    p, out, desc = start(tmp_path, "--dask", "local:2", workers_expected=3, settle=20.0)  # past the cluster's start
     assert p.poll() is None and len(desc) >= 2, desc
     p.send_signal(sig)
     err, left = finish(p, desc)

@@ -31,6 +31,9 @@ from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
+from .viserfix import install as _install_viser_fix
+
+_install_viser_fix()  # before any server exists: every message buffer is made thread-safe
 
 __all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
 
