@@ -8,7 +8,8 @@ Threading (see the list in :mod:`app.dashboard.session`):
   installed (that was "cannot schedule new futures after shutdown").
 - one watchdog thread (``qsid-pool-watch``) looks at every pending task a few
   times a second: a task whose tab has newer settings is abandoned at once
-  (:class:`Superseded`; queued work is cancelled), a task running longer than
+  (:class:`Superseded`; queued work is cancelled; a worker still busy with it after ``SUPERSEDED_GRACE``
+  seconds is replaced with its pool), a task running longer than
   ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced
   (the hung worker is killed).
 
@@ -45,6 +46,9 @@ __all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Super
 TRIM_EVERY = 10.0
 #: Seconds one pool task may run before its worker counts as hung (paper-scale tasks take a few seconds).
 DEFAULT_TIMEOUT = 60.0
+#: Seconds a task whose tab has newer settings may keep its worker busy before the pool is replaced, so the
+#: newest settings never wait behind stale (or hung) work; ordinary tasks are chunks far shorter than this.
+SUPERSEDED_GRACE = 3.0
 #: Data every task of a pass needs and larger than this (bytes) goes to the workers once, through a file.
 SHARE_BYTES = 1 << 20
 #: How many shared objects the server keeps on disk, and each worker in memory.
@@ -230,18 +234,20 @@ class Pool:
             if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
                 trim()
                 last_trim = time.monotonic()
-            with self._plock:
-                entries = [e for e in self._pending if not e[0].done()]
+            with self._plock:  # a superseded task still running stays watched until its worker is free
+                entries = [e for e in self._pending if not (e[0].done() and e[1].done())]
                 self._pending = entries
             now = time.monotonic()
             for e in entries:
                 outer, inner, guard = e[0], e[1], e[2]
+                if e[3] is None and inner.running():
+                    e[3] = now
                 if guard.stop():
                     inner.cancel()
                     _settle(outer, exc=Superseded())
+                    if e[3] is not None and now - e[3] > SUPERSEDED_GRACE:  # busy with work nobody wants
+                        self.replace(guard.executor)
                     continue
-                if e[3] is None and inner.running():
-                    e[3] = now
                 if e[3] is not None and now - e[3] > self.timeout:
                     _settle(outer, exc=PoolTimeout(
                         f"a worker process did not finish its task within {self.timeout:g} s (hung?); "
