@@ -32,6 +32,7 @@ from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
 from .viserfix import install as _install_viser_fix
+from .warm import COMPILE_SECONDS, needs_compiling, warm
 
 _install_viser_fix()  # before any server exists: every message buffer is made thread-safe
 
@@ -286,9 +287,12 @@ def main(argv: list[str] | None = None) -> int:
     app = None
     code = 0
     try:
+        if needs_compiling():
+            print(f"qsid dashboard: compiling the kernels once, ~{COMPILE_SECONDS} s", flush=True)
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
                            settings=settings, lesson=args.lesson, task_timeout=args.task_timeout,
                            cache_bytes=args.cache_mb * 2**20)
+        warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         _wait_for_stop_signal(stop)
         print("\nqsid dashboard: stopping", flush=True)
