@@ -57,12 +57,14 @@ class DashboardApp:
         Initial data size of new tabs.
     task_timeout : float
         Seconds one pool task may run before its worker counts as hung and is replaced.
+    max_tabs : int, optional
+        Tabs served at once; a further tab gets a page saying the dashboard is full (None: no limit).
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
                  cache_bytes: int = 256 * 2**20, settings: Values | None = None, lesson: str | None = None,
-                 task_timeout: float = DEFAULT_TIMEOUT):
+                 task_timeout: float = DEFAULT_TIMEOUT, max_tabs: int | None = None):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
@@ -76,6 +78,8 @@ class DashboardApp:
         self._lock = threading.Lock()  # (5) guards `sessions` and `_gone`
         self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog
         self.sessions: dict[int, Session] = {}
+        self.max_tabs = max_tabs
+        self._admitted: set = set()  # client ids holding one of the max_tabs places (built or being built)
         self._gone: OrderedDict = OrderedDict()  # client ids that closed before their tab was built
         self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
@@ -107,15 +111,28 @@ class DashboardApp:
 
     def _connect(self, client) -> None:
         limit_reads(self.server, client.client_id)  # a flooding tab cannot make the event loop's turns long
+        with self._lock:
+            full = self.max_tabs is not None and len(self._admitted) >= self.max_tabs
+            if not full:
+                self._admitted.add(client.client_id)
+        if full:
+            client.gui.add_markdown(f"**This dashboard is full**: it serves at most {self.max_tabs} tab(s) at a "
+                                    "time, so that every open tab stays fast. Close another tab, or reload this "
+                                    "page in a while.")
+            return
         try:
             s = Session(self, client, self.defaults)
         except Exception:  # a broken tab must not take the server down
             traceback.print_exc()
+            with self._lock:
+                self._admitted.discard(client.client_id)
             return
         with self._lock:
             gone = self._gone.pop(client.client_id, None) is not None
             if not gone:
                 self.sessions[client.client_id] = s
+            else:
+                self._admitted.discard(client.client_id)
         if gone:  # the tab closed while it was being built (seconds on a busy server): nobody would close it
             s.close(wait=False)
             trim()
@@ -123,6 +140,7 @@ class DashboardApp:
     def _disconnect(self, client) -> None:
         with self._lock:
             s = self.sessions.pop(client.client_id, None)
+            self._admitted.discard(client.client_id)
             if s is None:  # still being built by _connect (both run in viser's thread pool, in any order)
                 self._gone[client.client_id] = True
                 while len(self._gone) > 4096:  # ids whose _connect never came (bounded)
@@ -189,6 +207,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--task-timeout", type=float, default=DEFAULT_TIMEOUT, metavar="SECONDS",
                    help=f"a pool task running longer counts as hung: its worker is replaced (default "
                         f"{DEFAULT_TIMEOUT:g})")
+    p.add_argument("--max-tabs", type=int, default=None, metavar="N",
+                   help="serve at most N tabs at once; further tabs get a page saying the dashboard is full "
+                        "(default: no limit)")
     p.add_argument("--cache-mb", type=int, default=256, metavar="MB",
                    help="memory budget of the results cache shared by all tabs (default 256)")
     p.add_argument("--settings", metavar="FILE", default=None,
@@ -268,6 +289,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
               file=sys.stderr)
         return 2
+    if args.max_tabs is not None and not 1 <= args.max_tabs <= 10000:
+        print(f"qsid-dashboard: error: --max-tabs must be between 1 and 10000; got {args.max_tabs}", file=sys.stderr)
+        return 2
     if args.lesson is not None:
         try:
             _check_lesson(args.lesson)
@@ -291,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"qsid dashboard: compiling the kernels once, ~{COMPILE_SECONDS} s", flush=True)
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
                            settings=settings, lesson=args.lesson, task_timeout=args.task_timeout,
-                           cache_bytes=args.cache_mb * 2**20)
+                           cache_bytes=args.cache_mb * 2**20, max_tabs=args.max_tabs)
         warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         _wait_for_stop_signal(stop)
