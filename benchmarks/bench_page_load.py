@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import socket
 import statistics
 import subprocess
@@ -57,8 +58,55 @@ def start_server(workers: int, system: str) -> tuple[subprocess.Popen, str, floa
     for line in proc.stdout:
         if "http://" in line:
             return proc, f"http://127.0.0.1:{port}", time.perf_counter() - t
-    proc.kill()
+    stop_server(proc)
     raise RuntimeError("the dashboard did not start")
+
+
+def _descendants(pid: int) -> list[int]:
+    """Every process below ``pid``, from /proc."""
+    kids: dict[int, list[int]] = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    kids.setdefault(int(f.read().rsplit(")", 1)[1].split()[1]), []).append(int(d))
+            except (OSError, ValueError, IndexError):
+                pass
+    stack, out = [pid], []
+    while stack:
+        for c in kids.get(stack.pop(), []):
+            out.append(c)
+            stack.append(c)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def stop_server(proc: subprocess.Popen) -> int:
+    """SIGTERM the server (its graceful stop); returns how many of its processes outlived it by 30 s (killed)."""
+    desc = _descendants(proc.pid)
+    proc.terminate()
+    try:
+        proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(10)
+    end = time.monotonic() + 30
+    while time.monotonic() < end and any(_alive(p) for p in desc):
+        time.sleep(0.2)
+    left = [p for p in desc if _alive(p)]
+    for p in left:
+        try:
+            os.kill(p, signal.SIGKILL)
+        except OSError:
+            pass
+    return len(left)
 
 
 def open_tab(browser, url: str) -> dict:
@@ -115,7 +163,7 @@ def main(argv=None) -> int:
         return 1
     from playwright.sync_api import sync_playwright
 
-    first, second, starts = [], [], []
+    first, second, starts, orphans = [], [], [], 0
     with sync_playwright() as pw:
         browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
         for _ in range(a.runs):
@@ -125,12 +173,12 @@ def main(argv=None) -> int:
                 first.append(open_tab(browser, url))
                 second.append(open_tab(browser, url))
             finally:
-                proc.terminate()
-                proc.wait(timeout=30)
+                orphans += stop_server(proc)
         browser.close()
     print(f"qsid dashboard first page load · headless Chromium (software WebGL) · {a.system} · server --workers "
           f"{a.workers} · {a.runs} server starts · {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}")
     print(f"server start to URL: median {statistics.median(starts):.2f} s")
+    print(f"server processes left running after SIGTERM (killed by this script): {orphans}")
     for name, runs in (("first tab after start", first), ("second tab", second)):
         ready = statistics.median(r["ready"] for r in runs)
         verdict = "MET" if ready <= TARGET_S else "NOT MET"

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import dataclasses
+
 import numpy as np
 import scipy.linalg as sla
 
@@ -91,6 +93,24 @@ def least_squares(PP: np.ndarray, XP: np.ndarray, n: int) -> tuple[np.ndarray, n
     return G[:, :n], G[:, n:]
 
 
+def _check_moments(mom: Moments) -> Moments:
+    """``mom`` with float arrays, after checking shapes and types of ``mom`` (PP p x p, XP n x p with n < p, eps p numbers, T >= 1), else the engine's error."""
+    try:
+        PP, XP, eps = (np.asarray(v, dtype=float) for v in (mom.PP, mom.XP, mom.eps))
+    except (TypeError, ValueError):
+        raise IdentificationError("the moments must hold real numbers (PP, XP, eps)") from None
+    if PP.ndim != 2 or PP.shape[0] != PP.shape[1] or PP.shape[0] == 0:
+        raise IdentificationError(f"moments PP must be a non-empty square matrix; got shape {PP.shape}")
+    p = PP.shape[0]
+    if XP.ndim != 2 or XP.shape[1] != p or not 0 < XP.shape[0] < p:
+        raise IdentificationError(f"moments XP must be n x {p} with 0 < n < {p}; got shape {XP.shape}")
+    if eps.shape != (p,):
+        raise IdentificationError(f"moments eps must have {p} entries (one per regressor); got shape {eps.shape}")
+    if isinstance(mom.T, bool) or not isinstance(mom.T, (int, np.integer)) or mom.T < 1:
+        raise IdentificationError(f"moments T must be a positive integer; got {mom.T!r}")
+    return dataclasses.replace(mom, PP=PP, XP=XP, eps=eps)
+
+
 def identify(mom: Moments, estimator: str = "ls") -> Identified:
     """Identify ``(A^, B^)`` from Gram matrices of (quantized) data.
 
@@ -102,6 +122,7 @@ def identify(mom: Moments, estimator: str = "ls") -> Identified:
         Plain least squares or bias-compensated least squares.
     """
     check_choice("estimator", estimator, ESTIMATORS)
+    mom = _check_moments(mom)
     if not all(np.all(np.isfinite(v)) for v in (mom.PP, mom.XP, mom.eps)):
         raise IdentificationError("the quantized data are not finite numbers (check the quantizer range): "
                                   "no model")

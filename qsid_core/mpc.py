@@ -183,6 +183,9 @@ class MPCConfig:
         check_int("mpc steps", self.steps, 1, 10000)
         check_float("OSQP eps", self.eps, 0.0, 1e-2, lo_open=True)
         check_int("max_iter", self.max_iter, 1)
+        if self.u_max is None:  # the controller always has an input box (the letter's |u| <= 1 by default)
+            raise ConfigError("u_max must be a positive number or one per input (the input box |u_i| <= u_max_i); "
+                              "got None")
         object.__setattr__(self, "u_max", _vec("u_max", self.u_max, None, positive=True))
         object.__setattr__(self, "x_max", _vec("x_max", self.x_max, None, positive=True))
         object.__setattr__(self, "xf_max", _vec("xf_max", self.xf_max, None, positive=True))

@@ -164,3 +164,36 @@ def test_a_tab_closed_while_it_is_being_built_is_not_kept(monkeypatch):
     finally:
         release.set()
         app.stop()
+
+
+def test_newest_settings_win_over_a_hung_task_without_waiting_for_the_timeout():
+    """Workers frozen during heavy work, the task timeout out of reach: the tab's newer (small) settings replace
+    the busy pool instead of queueing behind the stale task."""
+    app = DashboardApp(host="127.0.0.1", port=0, workers=2, task_timeout=100000.0)
+    tab, victims = None, []
+    try:
+        tab = open_tab(app)
+        old = app.executor
+        for k, v in HEAVIER.items():
+            tab.controls[k].value = v
+        tab.controls["bits"].value = 7
+        time.sleep(1.0)  # the heavy work is in the pool
+        victims = _pids(app)
+        for v in victims:
+            os.kill(v, signal.SIGSTOP)
+        for k, v in LIGHTER.items():
+            tab.controls[k].value = v
+        tab.controls["bits"].value = 5
+        tab.wait(240)
+        assert app.executor is not old and app.pool.replacements >= 1
+        assert tab.error is None, tab.error
+        assert tab.frame.bits == 5 and tab.frame.values.realizations == LIGHTER["realizations"]
+    finally:
+        for v in victims:
+            try:
+                os.kill(v, signal.SIGKILL)
+            except OSError:
+                pass
+        if tab is not None:
+            tab.close()
+        app.stop()

@@ -132,3 +132,53 @@ def test_ctrl_c_stops_everything_during_concurrent_mpc_work():
     print(f"stopped {took:.2f} s after SIGINT")
     assert s.p.returncode == 0 and "Traceback" not in err, err
     wait_until(lambda: not any(alive(w) for w in workers), "the pool workers ended with the server", every=0.05)
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (children, their children, ...), read from /proc."""
+    out, todo = [], [pid]
+    while todo:
+        kids = children(todo.pop())
+        out += kids
+        todo += kids
+    return out
+
+
+def gone_within(pids: list[int], seconds: float) -> list[int]:
+    """The pids still alive after waiting up to ``seconds`` (polling; not a speed assertion)."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end and any(alive(p) for p in pids):
+        time.sleep(0.2)
+    return [p for p in pids if alive(p)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL],
+                         ids=["TERM", "HUP", "INT", "KILL"])
+def test_every_signal_leaves_no_descendant(sig):
+    """A tab open, the pool and its resource tracker running: after the signal nothing the server started lives
+    on; TERM/HUP/INT take the graceful path (one 'stopping' line, exit 0), KILL leaves workers that end by
+    themselves (parent-death signal / getppid check)."""
+    s = Server("--workers", "2")
+    tab = None
+    try:
+        tab = WsTab(s.url)
+        tab.wait_ready(120)
+        desc = descendants(s.p.pid)
+        assert len(desc) >= 3, desc  # two pool workers and the resource tracker
+        s.p.send_signal(sig)
+        s.p.wait(timeout=60)
+        out, err = s.p.communicate(timeout=10)
+        left = gone_within(desc, 60)
+    finally:
+        if tab is not None:
+            tab.close()
+        s.kill()
+        for pid in descendants(s.p.pid) if s.p.poll() is None else []:
+            os.kill(pid, signal.SIGKILL)
+    assert left == [], f"still running after {sig.name}: {left}"
+    if sig == signal.SIGKILL:
+        return
+    assert s.p.returncode == 0, (s.p.returncode, err)
+    assert out.count("stopping") == 1, out
+    assert "Traceback" not in err and "leaked" not in err, err

@@ -9,7 +9,9 @@ a traceback. Warnings (e.g. an uncontrollable custom system) are one line
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import warnings
 from concurrent.futures.process import BrokenProcessPool
 from typing import Sequence
@@ -38,6 +40,16 @@ def _dispatch(argv: list, rep: Reporter) -> int:
     return COMMANDS[args.command].run(args, rep)
 
 
+def _stop_signals_interrupt() -> dict:
+    """SIGTERM (kill, a CI runner) and SIGHUP (terminal closed) stop a run as Ctrl-C does: workers stopped,
+    no half-written output, exit 130. Returns the handlers to restore (main thread only; else none)."""
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            old[sig] = signal.signal(sig, signal.default_int_handler)
+    return old
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``qsid`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
 
@@ -49,6 +61,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         rep.line(f"error: {one_line(message)}")
         return code
 
+    old = _stop_signals_interrupt()
+    try:
+        return _main(argv, rep, fail)
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def _main(argv, rep: Reporter, fail) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         warnings.showwarning = rep.warning

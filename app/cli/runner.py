@@ -10,12 +10,16 @@ import contextlib
 import math
 import os
 import shutil
+import signal
 import sys
+import tempfile
 import time
 import warnings
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
 from typing import Sequence, TextIO
+
+from app.procs import end_with_parent, kill_workers
 
 from .parser import PROG, UsageError
 
@@ -96,10 +100,14 @@ class Reporter:
         print(f"{PROG}: warning: {text}", file=self.stream, flush=True)
 
 
-def _worker_init() -> None:
-    """Worker processes print warnings as one line too."""
+def _worker_init(parent: int | None = None) -> None:
+    """Worker processes print warnings as one line too, leave Ctrl-C to the run (which stops them) and
+    end by themselves if the run dies (:func:`app.procs.end_with_parent`)."""
     rep = Reporter(False)
     warnings.showwarning = rep.warning
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent is not None:
+        end_with_parent(parent)
 
 
 def _max_magnitude() -> float:
@@ -249,7 +257,7 @@ def _executor(workers: int, threads: int = 1) -> Executor:
     from qsid_core import InlineExecutor
 
     if workers > 1:
-        return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+        return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init, initargs=(os.getpid(),))
     if threads > 1:  # one process; the numba kernels release the GIL (results equal the inline run's, tested)
         return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="qsid")
     return InlineExecutor()
@@ -273,6 +281,9 @@ def executor(args, rep: "Reporter"):
     pool = _executor(nw, threads)
     try:
         yield pool, max(nw, threads)
+    except BaseException:  # interrupted or failed: running tasks are not waited for
+        kill_workers(pool)
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
@@ -366,5 +377,26 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs=()) ->
     return out
 
 
+def _mode_for(path: Path) -> int:
+    """The permission bits ``path`` has, or a new file would get under the umask."""
+    try:
+        return os.stat(path).st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
 def write_text(path: Path, text: str) -> None:
-    path.write_text(text, encoding="utf-8")
+    """Write ``text`` to ``path`` atomically: a temporary file beside it, renamed over it when complete
+    (an interrupted run never leaves a half-written file, and an existing one stays until then)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(tmp, _mode_for(path))
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise

@@ -8,7 +8,8 @@ Threading (see the list in :mod:`app.dashboard.session`):
   installed (that was "cannot schedule new futures after shutdown").
 - one watchdog thread (``qsid-pool-watch``) looks at every pending task a few
   times a second: a task whose tab has newer settings is abandoned at once
-  (:class:`Superseded`; queued work is cancelled), a task running longer than
+  (:class:`Superseded`; queued work is cancelled; a worker still busy with it after ``SUPERSEDED_GRACE``
+  seconds is replaced with its pool), a task running longer than
   ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced
   (the hung worker is killed).
 
@@ -29,10 +30,11 @@ import threading
 import time
 import weakref
 from collections import OrderedDict
-from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor
+from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
 
+from app.procs import end_with_parent, kill_workers
 from qsid_core.errors import QsidError
 
 from .memory import trim
@@ -44,6 +46,9 @@ __all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Super
 TRIM_EVERY = 10.0
 #: Seconds one pool task may run before its worker counts as hung (paper-scale tasks take a few seconds).
 DEFAULT_TIMEOUT = 60.0
+#: Seconds a task whose tab has newer settings may keep its worker busy before the pool is replaced, so the
+#: newest settings never wait behind stale (or hung) work; ordinary tasks are chunks far shorter than this.
+SUPERSEDED_GRACE = 3.0
 #: Data every task of a pass needs and larger than this (bytes) goes to the workers once, through a file.
 SHARE_BYTES = 1 << 20
 #: How many shared objects the server keeps on disk, and each worker in memory.
@@ -106,20 +111,14 @@ class Superseded(Exception):
     """The tab has newer settings: its pending pool work was abandoned."""
 
 
-def _worker_init() -> None:
-    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited."""
+def _worker_init(parent: int | None = None) -> None:
+    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited; a worker
+    ends by itself when the server dies, even by SIGKILL (see :func:`app.procs.end_with_parent`: this is
+    why :class:`Pool` starts every worker from one thread that lives as long as the pool)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
-
-
-def kill_workers(ex) -> None:
-    """SIGKILL every process of ``ex`` (works on a stopped, SIGSTOPped one too)."""
-    procs = getattr(ex, "_processes", None) or {}  # ProcessPoolExecutor's own table of its workers
-    for p in list(procs.values()):
-        try:
-            p.kill()
-        except Exception:
-            pass
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
+    if parent is not None:
+        end_with_parent(parent)
 
 
 class Pool:
@@ -136,6 +135,9 @@ class Pool:
         self._shared: OrderedDict = OrderedDict()  # id(obj) -> (weak ref, what tasks get); see share()
         self._share_dir: str | None = None
         self._slock = threading.Lock()
+        # every worker process is started from this one thread, which lives as long as the pool (see
+        # _worker_init: the parent-death signal fires when the thread that started a worker ends)
+        self._spawner = ThreadPoolExecutor(1, thread_name_prefix="qsid-pool-spawn")
         self.current = self._new()
         self._watch = threading.Thread(target=self._watchdog, name="qsid-pool-watch", daemon=True)
         self._watch.start()
@@ -143,8 +145,11 @@ class Pool:
     def _new(self):
         if self.workers == 0:
             return None
+        return self._spawner.submit(self._start).result()
+
+    def _start(self):
         pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_worker_init)
+                                   initializer=_worker_init, initargs=(os.getpid(),))
         try:
             for f in [pool.submit(abs, 0) for _ in range(self.workers)]:  # start the workers now
                 f.result(timeout=120)
@@ -210,6 +215,7 @@ class Pool:
         if ex is not None:
             kill_workers(ex)
             ex.shutdown(wait=False, cancel_futures=True)
+        self._spawner.shutdown(wait=False)
         with self._slock:
             self._shared.clear()
             if self._share_dir is not None:
@@ -228,18 +234,20 @@ class Pool:
             if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
                 trim()
                 last_trim = time.monotonic()
-            with self._plock:
-                entries = [e for e in self._pending if not e[0].done()]
+            with self._plock:  # a superseded task still running stays watched until its worker is free
+                entries = [e for e in self._pending if not (e[0].done() and e[1].done())]
                 self._pending = entries
             now = time.monotonic()
             for e in entries:
                 outer, inner, guard = e[0], e[1], e[2]
+                if e[3] is None and inner.running():
+                    e[3] = now
                 if guard.stop():
                     inner.cancel()
                     _settle(outer, exc=Superseded())
+                    if e[3] is not None and now - e[3] > SUPERSEDED_GRACE:  # busy with work nobody wants
+                        self.replace(guard.executor)
                     continue
-                if e[3] is None and inner.running():
-                    e[3] = now
                 if e[3] is not None and now - e[3] > self.timeout:
                     _settle(outer, exc=PoolTimeout(
                         f"a worker process did not finish its task within {self.timeout:g} s (hung?); "

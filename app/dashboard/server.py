@@ -31,6 +31,10 @@ from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
+from .viserfix import install as _install_viser_fix
+from .warm import COMPILE_SECONDS, needs_compiling, warm
+
+_install_viser_fix()  # before any server exists: every message buffer is made thread-safe
 
 __all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
 
@@ -53,12 +57,14 @@ class DashboardApp:
         Initial data size of new tabs.
     task_timeout : float
         Seconds one pool task may run before its worker counts as hung and is replaced.
+    max_tabs : int, optional
+        Tabs served at once; a further tab gets a page saying the dashboard is full (None: no limit).
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
                  slots: int = 2, scale: str = "interactive", verbose: bool = False,
                  cache_bytes: int = 256 * 2**20, settings: Values | None = None, lesson: str | None = None,
-                 task_timeout: float = DEFAULT_TIMEOUT):
+                 task_timeout: float = DEFAULT_TIMEOUT, max_tabs: int | None = None):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
@@ -72,6 +78,8 @@ class DashboardApp:
         self._lock = threading.Lock()  # (5) guards `sessions` and `_gone`
         self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog
         self.sessions: dict[int, Session] = {}
+        self.max_tabs = max_tabs
+        self._admitted: set = set()  # client ids holding one of the max_tabs places (built or being built)
         self._gone: OrderedDict = OrderedDict()  # client ids that closed before their tab was built
         self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
@@ -103,15 +111,28 @@ class DashboardApp:
 
     def _connect(self, client) -> None:
         limit_reads(self.server, client.client_id)  # a flooding tab cannot make the event loop's turns long
+        with self._lock:
+            full = self.max_tabs is not None and len(self._admitted) >= self.max_tabs
+            if not full:
+                self._admitted.add(client.client_id)
+        if full:
+            client.gui.add_markdown(f"**This dashboard is full**: it serves at most {self.max_tabs} tab(s) at a "
+                                    "time, so that every open tab stays fast. Close another tab, or reload this "
+                                    "page in a while.")
+            return
         try:
             s = Session(self, client, self.defaults)
         except Exception:  # a broken tab must not take the server down
             traceback.print_exc()
+            with self._lock:
+                self._admitted.discard(client.client_id)
             return
         with self._lock:
             gone = self._gone.pop(client.client_id, None) is not None
             if not gone:
                 self.sessions[client.client_id] = s
+            else:
+                self._admitted.discard(client.client_id)
         if gone:  # the tab closed while it was being built (seconds on a busy server): nobody would close it
             s.close(wait=False)
             trim()
@@ -119,6 +140,7 @@ class DashboardApp:
     def _disconnect(self, client) -> None:
         with self._lock:
             s = self.sessions.pop(client.client_id, None)
+            self._admitted.discard(client.client_id)
             if s is None:  # still being built by _connect (both run in viser's thread pool, in any order)
                 self._gone[client.client_id] = True
                 while len(self._gone) > 4096:  # ids whose _connect never came (bounded)
@@ -185,6 +207,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--task-timeout", type=float, default=DEFAULT_TIMEOUT, metavar="SECONDS",
                    help=f"a pool task running longer counts as hung: its worker is replaced (default "
                         f"{DEFAULT_TIMEOUT:g})")
+    p.add_argument("--max-tabs", type=int, default=None, metavar="N",
+                   help="serve at most N tabs at once; further tabs get a page saying the dashboard is full "
+                        "(default: no limit)")
     p.add_argument("--cache-mb", type=int, default=256, metavar="MB",
                    help="memory budget of the results cache shared by all tabs (default 256)")
     p.add_argument("--settings", metavar="FILE", default=None,
@@ -194,22 +219,64 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
 
 
-def _wait_for_stop_signal() -> None:
-    """Block until Ctrl-C or SIGTERM, whatever handler a solver installed meanwhile.
+def _prepare_stop_signals() -> threading.Event:
+    """Route Ctrl-C, SIGTERM (kill, systemd, docker stop) and SIGHUP (terminal closed) to one stop path.
 
-    Both signals are blocked in every thread (the mask is set before any thread
-    starts and threads inherit it), so they stay pending until this ``sigwait``
-    takes them: a library that swaps the SIGINT handler from a worker thread
-    (OSQP does, on every solve) cannot swallow Ctrl-C.
+    Returns the event that is set when one of them arrives. Call before any thread exists.
+
+    The multiprocessing resource tracker is started first: its launch *unblocks* SIGINT and SIGTERM in
+    the thread that starts it, which would undo the mask below. Then the three signals are blocked in
+    this thread, so every thread started afterwards inherits the mask and they stay pending until
+    :func:`_wait_for_stop_signal` takes them with ``sigtimedwait`` (a library that swaps the SIGINT
+    handler from a worker thread, as OSQP does on every solve, cannot swallow them). Python handlers are
+    installed as well: if a thread unblocks them again (a relaunched resource tracker), the signal
+    delivered there still only sets the event instead of killing the process by the default action.
     """
-    signal.sigwait(_STOP_SIGNALS)
+    from multiprocessing import resource_tracker
+
+    stop = threading.Event()
+
+    def handler(signum, frame):
+        stop.set()
+
+    for sig in _STOP_SIGNALS:
+        signal.signal(sig, handler)
+    try:
+        resource_tracker.ensure_running()
+    except Exception:  # no tracker (e.g. no /dev/shm): the pool reports its own problem later
+        pass
+    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    return stop
+
+
+def _wait_for_stop_signal(stop: threading.Event) -> None:
+    """Block until a stop signal is pending (taken here) or was handled by a handler (``stop`` set)."""
+    while not stop.is_set():
+        if signal.sigtimedwait(_STOP_SIGNALS, 0.5) is not None:
+            return
+
+
+def _release_ipc() -> None:
+    """After the pool is gone: unlink its semaphores and stop the resource tracker (nothing left to warn of)."""
+    from multiprocessing import resource_tracker, util
+
+    try:
+        util._run_finalizers(0)  # the semaphores' finalizers unlink and unregister them
+        resource_tracker._resource_tracker._stop()
+    except Exception:
+        pass
+
+
+def _shutdown(app) -> None:
+    app.stop(wait=False)
+    _release_ipc()
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the dashboard until Ctrl-C / SIGTERM; exit status 2 for bad options."""
+    """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
     args = _parser().parse_args(argv)
     if args.workers < 0 or args.workers > 4 * (os.cpu_count() or 1):
         print(f"qsid-dashboard: error: --workers must be between 0 and {4 * (os.cpu_count() or 1)} "
@@ -221,6 +288,9 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.task_timeout > 0 and args.task_timeout < 1e6):
         print(f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
               file=sys.stderr)
+        return 2
+    if args.max_tabs is not None and not 1 <= args.max_tabs <= 10000:
+        print(f"qsid-dashboard: error: --max-tabs must be between 1 and 10000; got {args.max_tabs}", file=sys.stderr)
         return 2
     if args.lesson is not None:
         try:
@@ -236,25 +306,28 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if warning:
         print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
-    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)  # before any thread exists: all inherit it
+    stop = _prepare_stop_signals()  # before any thread exists: all inherit the mask
     limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
     app = None
     code = 0
     try:
+        if needs_compiling():
+            print(f"qsid dashboard: compiling the kernels once, ~{COMPILE_SECONDS} s", flush=True)
         app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
                            settings=settings, lesson=args.lesson, task_timeout=args.task_timeout,
-                           cache_bytes=args.cache_mb * 2**20)
+                           cache_bytes=args.cache_mb * 2**20, max_tabs=args.max_tabs)
+        warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
-        _wait_for_stop_signal()
+        _wait_for_stop_signal(stop)
         print("\nqsid dashboard: stopping", flush=True)
     except (QsidError, OSError) as exc:
         print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
         code = 2
     finally:
-        if app is not None:  # stop within ~1 s whatever the tabs are computing, then leave at once
-            stopper = threading.Thread(target=app.stop, kwargs={"wait": False}, daemon=True)
+        if app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
+            stopper = threading.Thread(target=_shutdown, args=(app,), daemon=True)
             stopper.start()
-            stopper.join(1.0)
+            stopper.join(2.0)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)

@@ -58,6 +58,8 @@ MIN_GAP = 0.1
 #: MIN_GAP otherwise: a tab flooding changes cannot take the CPU from the others.
 MAX_GAP = 2.0
 FLOOD_CHANGES, FLOOD_RATE = 20, 200.0
+#: Seconds before a computation that failed with an internal error is tried once more.
+RETRY_AFTER = 0.2
 
 class Session:
     """One browser tab: its controls, scene, plots and the worker thread that redraws them.
@@ -177,17 +179,34 @@ class Session:
                     return
                 gen = self._gen
             self._last_start, drawn, touches = time.monotonic(), self.frames_drawn, self._touches
-            try:
-                gen = self._run(gen)
-            except Exception as exc:  # never let the worker die: show it, keep the last view
-                traceback.print_exc()
-                self._show_error(f"internal error ({type(exc).__name__}): {exc}")
+            gen = self._run_safely(gen)
             n, dt = self._touches - touches, max(1e-3, time.monotonic() - self._last_start)
             flooded = self.frames_drawn == drawn and self._stale(gen) and n >= FLOOD_CHANGES and n / dt >= FLOOD_RATE
             self._gap = min(MAX_GAP, 2.0 * self._gap) if flooded else MIN_GAP
             with self._cond:
                 self._done = gen
                 self._cond.notify_all()
+
+    def _run_safely(self, gen: int) -> int:
+        """:meth:`_run`, never raising: an internal error (viser's included) is logged with its traceback, the
+        same generation is tried once more (a failed draw is retried), and if that fails too the tab shows
+        one error line and keeps working on its next change."""
+        for attempt in (1, 2):
+            try:
+                return self._run(gen)
+            except Exception as exc:
+                if attempt == 1:
+                    traceback.print_exc()
+                    with self._cond:  # a short pause, cut short by a newer change or close
+                        self._cond.wait_for(lambda: self._stale(gen), RETRY_AFTER)
+                    if self._stale(gen):
+                        return gen
+                    continue
+                try:
+                    self._show_error(f"internal error ({type(exc).__name__}): {exc}; change a setting to retry")
+                except Exception:  # the tab cannot even show it (e.g. its connection is gone)
+                    traceback.print_exc()
+        return gen
 
     def _adapt_to_system(self, gen: int, values: Values) -> tuple[int, Values] | None:
         """Fit the panel to the chosen system; returns (generation, values) to compute, None on bad input.

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from qsid_core.errors import QsidError
+from qsid_core.errors import QsidError, SystemDefinitionError
 from qsid_core.experiment import SweepConfig
 from qsid_core.identify import ESTIMATORS
 from qsid_core.mpc import MPCConfig
@@ -144,6 +144,32 @@ def _build_quietly(fn):
     return out, tuple(notes)
 
 
+#: Smallest magnitude of a nonzero typed entry: products of two stay normal floating-point numbers.
+MIN_ENTRY = 1e-150
+
+
+def panel_matrix(text: str, name: str) -> np.ndarray:
+    """A matrix typed in the panel (see :func:`qsid_core.validate.parse_matrix`), stricter than a file:
+    plain ASCII only (no other scripts' digits read as numbers) and no nonzero entry below
+    :data:`MIN_ENTRY` in magnitude (subnormal numbers break the Riccati and least-squares solvers).
+
+    Raises
+    ------
+    QsidError
+        Naming the matrix and the entry.
+    """
+    if isinstance(text, str) and not text.isascii():
+        bad = next(ch for ch in text if not ch.isascii())
+        raise SystemDefinitionError(f"{name}: {bad!r} is not allowed; type numbers with the digits 0-9 "
+                                    "(plain ASCII)")
+    M = parse_matrix(text, name)
+    tiny = (M != 0) & (np.abs(M) < MIN_ENTRY)
+    if np.any(tiny):
+        raise SystemDefinitionError(f"{name}: the entry {M[tiny][0]:g} is too close to zero for the numerics; "
+                                    f"write 0 or a magnitude of at least {MIN_ENTRY:g}")
+    return M
+
+
 def resolve_system(v: Values) -> SystemChoice:
     """The true system for ``v``: a preset, or A and B typed in the panel.
 
@@ -157,8 +183,8 @@ def resolve_system(v: Values) -> SystemChoice:
     if v.system != "custom":
         raise InputError(f"unknown system {v.system!r}; choose one of {', '.join(SYSTEM_CHOICES)}")
     try:
-        A = parse_matrix(v.a_text, "A")
-        B = parse_matrix(v.b_text, "B")
+        A = panel_matrix(v.a_text, "A")
+        B = panel_matrix(v.b_text, "B")
     except QsidError as exc:
         raise InputError(f"Custom system: {exc}") from None
     n = A.shape[0]
@@ -187,7 +213,9 @@ def parse_vector(text: str, name: str, k: int, what: str = "") -> tuple | None:
     if not s:
         return None
     try:
-        arr = parse_matrix(s.replace(";", " ").replace("\n", " "), name).reshape(-1)
+        if s.startswith("[") and not s[1:].lstrip().startswith("["):  # a flat JSON list: one row
+            s = f"[{s}]"
+        arr = panel_matrix(s.replace(";", " ").replace("\n", " "), name).reshape(-1)
     except QsidError as exc:
         raise InputError(str(exc)) from None
     if arr.size != k:
