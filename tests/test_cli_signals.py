@@ -14,7 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_dashboard_process import alive, descendants, gone_within  # noqa: E402
+from support import descendants, gone_within  # noqa: E402
 
 ENV = dict(os.environ, PYTHONPATH=str(ROOT))
 LONG = ["sweep", "--bits", "2:16", "--realizations", "200", "--trajectories", "400", "--steps", "2000", "-q"]

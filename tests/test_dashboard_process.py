@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from support import HANG_S, wait_until
+from support import HANG_S, alive, children, descendants, gone_within, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -27,27 +27,6 @@ ENV = dict(os.environ, PYTHONPATH=str(ROOT))
 def run(*args, timeout=HANG_S):
     return subprocess.run([sys.executable, "-m", "app.dashboard", *args], cwd=ROOT, capture_output=True, text=True,
                           env=ENV, timeout=timeout)
-
-
-def children(pid: int) -> list[int]:
-    out = []
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                with open(f"/proc/{d}/stat") as f:
-                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
-                        out.append(int(d))
-            except (OSError, ValueError, IndexError):
-                pass
-    return out
-
-
-def alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 class Server:
@@ -132,24 +111,6 @@ def test_ctrl_c_stops_everything_during_concurrent_mpc_work():
     print(f"stopped {took:.2f} s after SIGINT")
     assert s.p.returncode == 0 and "Traceback" not in err, err
     wait_until(lambda: not any(alive(w) for w in workers), "the pool workers ended with the server", every=0.05)
-
-
-def descendants(pid: int) -> list[int]:
-    """Every process below ``pid`` (children, their children, ...), read from /proc."""
-    out, todo = [], [pid]
-    while todo:
-        kids = children(todo.pop())
-        out += kids
-        todo += kids
-    return out
-
-
-def gone_within(pids: list[int], seconds: float) -> list[int]:
-    """The pids still alive after waiting up to ``seconds`` (polling; not a speed assertion)."""
-    end = time.monotonic() + seconds
-    while time.monotonic() < end and any(alive(p) for p in pids):
-        time.sleep(0.2)
-    return [p for p in pids if alive(p)]
 
 
 @pytest.mark.slow

@@ -93,7 +93,7 @@ def test_a_tab_whose_draw_raises_recovers(monkeypatch):
     """An exception inside a draw (as viser's race raised it) is retried at once; failing twice it is one error
     line, and the tab follows its next change."""
     from app.dashboard import DashboardApp, session
-    from test_dashboard_server import SMALL, Tab
+    from support import SMALL, Tab
 
     real, fail = session.Session._draw, {"left": 1}
 

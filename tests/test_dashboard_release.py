@@ -7,7 +7,7 @@ import time
 import weakref
 
 from app.dashboard import DashboardApp
-from test_dashboard_server import SMALL, Tab
+from support import SMALL, Tab
 
 
 def test_closed_tabs_leave_nothing_behind():
