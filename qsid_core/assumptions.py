@@ -2,8 +2,11 @@
 
 Theorem 1 (large-data regime) needs
 
-1. **subtractive dither** (``x~ = Q(x + w) - w``): only then is the quantization
-   error uniform with variance ``eps**2/12`` and independent of the signal;
+1. **dither of known noise variance**: subtractive dither (``x~ = Q(x + w) - w``)
+   makes the quantization error uniform with variance ``eps**2/12`` and
+   independent of the signal; non-subtractive TPDF dither makes its mean 0 and its
+   variance ``eps**2/4`` whatever the signal (see :mod:`qsid_core.quantize`); with
+   RPDF dither or none no signal-independent variance exists;
 2. **no overload**: ``x + w`` stays inside the quantizer range. Overloaded entries
    have errors larger than ``eps/2`` that depend on the signal. Criterion: at most
    :data:`OVERLOAD_TOLERANCE` (0.1 %) of the quantized entries (states and inputs,
@@ -32,7 +35,7 @@ Theorem 1 (large-data regime) needs
    is 81 % above the line.
 
 BCLS (``Psi~ Psi~^T - T D``) needs 1 and 2 (the noise variance must be the known
-``eps**2/12``), not 3 or 4: it removes the bias in finite data as well.
+``D``), not 3 or 4: it removes the bias in finite data as well.
 """
 
 from __future__ import annotations
@@ -77,9 +80,11 @@ class Assumptions:
     theorem1_holds : bool
         All four hypotheses hold: the measured LS error should sit on Theorem 1's line.
     bcls_holds : bool
-        Subtractive dither and no overload: BCLS removes the bias.
+        Dither of known noise variance and no overload: BCLS removes the bias.
     notes : tuple of str
         Plain-words reasons for every hypothesis that fails.
+    known_noise : bool
+        The dither gives a signal-independent error variance (subtractive or tpdf).
     """
 
     bits: int
@@ -97,6 +102,7 @@ class Assumptions:
     theorem1_holds: bool
     bcls_holds: bool
     notes: tuple = ()
+    known_noise: bool = True
 
     def to_dict(self) -> dict:
         """Plain JSON-ready data (non-finite numbers become None)."""
@@ -147,14 +153,19 @@ def assess(ex, b: int) -> Assumptions:
     nA, nB = float(np.linalg.norm(sysm.A)), float(np.linalg.norm(sysm.B))
     fA /= nA if nA > 0 else nG
     fB /= nB if nB > 0 else nG
-    dith = c.quantizer.dither == "subtractive"
+    from .quantize import bcls_reason
+
+    why_not = bcls_reason(c.quantizer.dither)
+    dith = not why_not
     no_over = over <= OVERLOAD_TOLERANCE
     stat = rad < 1.0 - STATIONARITY_MARGIN
     large = bool(th.err_A >= LARGE_DATA_RATIO * fA and th.err_B >= LARGE_DATA_RATIO * fB)
     notes = []
-    if not dith:
+    if c.quantizer.dither == "none":
         notes.append("no dither: the quantization error is a deterministic function of the signal, not "
                      "independent noise of variance eps^2/12; every realization is the same")
+    elif not dith:
+        notes.append(f"{c.quantizer.dither} dither: {why_not}")
     if not no_over:
         notes.append(f"overload: {100 * over:.3g} % of quantized entries left the quantizer range "
                      f"(tolerance {100 * OVERLOAD_TOLERANCE:g} %); their error exceeds eps/2 and depends on the "
@@ -167,7 +178,7 @@ def assess(ex, b: int) -> Assumptions:
                      f"{LARGE_DATA_RATIO:g}x the O(eps) fluctuation of {c.trajectories}x{c.steps} samples "
                      f"(A {fA:.3g}, B {fB:.3g}); the measured LS error lies above Theorem 1's line")
     return Assumptions(
-        bits=b, subtractive_dither=dith, overload_fraction=over, overload_tolerance=OVERLOAD_TOLERANCE,
+        bits=b, subtractive_dither=c.quantizer.dither == "subtractive", known_noise=dith, overload_fraction=over, overload_tolerance=OVERLOAD_TOLERANCE,
         no_overload=no_over, spectral_radius=rad, stationary=stat, bias_A=float(th.err_A), bias_B=float(th.err_B),
         fluctuation_A=fA, fluctuation_B=fB, large_data=large,
         theorem1_holds=bool(dith and no_over and stat and large), bcls_holds=bool(dith and no_over),

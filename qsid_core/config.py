@@ -139,4 +139,7 @@ class SweepConfig:
             check_float("rho", self.rho, 0.0, lo_open=True)
         if not isinstance(self.quantizer, QuantizerSpec):
             raise ConfigError("quantizer must be a QuantizerSpec")
+        if self.quantizer.dither == "tpdf" and self.quantizer.guard and min(self.bits) < 2:
+            raise ConfigError("bits: tpdf dither with the guard band needs b >= 2 (its amplitude eps takes one cell "
+                              "on each side of the range); start the bits at 2 or turn the guard band off")
         check_sweep_parts(self.system, self.mpc, self.rho)

@@ -57,7 +57,7 @@ def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: l
     out = []
     with single_threaded_blas():
         for ss in seeds:
-            rng = np.random.default_rng(ss) if spec.dither == "subtractive" else None
+            rng = np.random.default_rng(ss) if spec.dither != "none" else None
             out.append(quantized_moments(prep, list(bits), spec, rng))
     return out
 
@@ -208,16 +208,17 @@ class Experiment:
         """Theorem 1 prediction and the ultimate bound delta(eps) at word length ``b``."""
         c = self.config
         mcfg = c.mpc or MPCConfig()
-        k = ("theory", b, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0) + self._key_prep()
+        k = ("theory", b, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0,
+             c.quantizer.dither) + self._key_prep()
         if k in self._cache:
             return self._cache[k]
         from .quantize import effective_ranges
 
         prep = self.prepared
-        _, eps = effective_ranges(prep.lo, prep.hi, b, c.quantizer.guard)
+        _, eps = effective_ranges(prep.lo, prep.hi, b, c.quantizer.guard, c.quantizer.dither)
         sysm = self.system
         n = sysm.n
-        Gp = theorem1_prediction(sysm.G, self.Sigma, eps)
+        Gp = theorem1_prediction(sysm.G, self.Sigma, eps, c.quantizer.dither)
         eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], sysm.A, sysm.B)
         w = mcfg.resolve(sysm)
         note, ub = "", None

@@ -71,7 +71,7 @@ def _dot_py(x, y, k):
     return acc
 
 
-def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first):
+def _accumulate_chunk_py(y, u, sub, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first):
     """Quantize rows ``y`` at every word length and accumulate (see :func:`accumulate_chunk`)."""
     rows, p = y.shape
     n = C.shape[2]
@@ -88,7 +88,7 @@ def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_
                 uT[a, r] = u[s0 + r, a]
         for j in range(scale.shape[0]):
             s_j, h = scale[j], half[j]
-            # quantize: v = clip(floor(y * scale + u), -half, half - 1) - u (two roundings, as numpy);
+            # quantize: v = clip(floor(y * scale + u), -half, half - 1) - sub * u (two roundings, as numpy);
             # overload where y * scale + u leaves [-half, half]
             cnt = 0
             for a in range(p):
@@ -98,7 +98,7 @@ def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_
                     t = ya[r] * s_j
                     t = t + ua[r]
                     cnt += (t < -h) | (t > h)
-                    va[r] = min(max(np.floor(t), -h), h - 1) - ua[r]
+                    va[r] = min(max(np.floor(t), -h), h - 1) - sub * ua[r]
             over[j] += cnt
             # sums += sum_r v_r;  M += sum_r v_r v_r' (upper triangle)
             for a in range(p):
@@ -224,12 +224,13 @@ else:  # pragma: no cover
     _accumulate_chunk_nb = None
 
 
-def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first) -> None:
+def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first, sub: float = 1.0) -> None:
     """Quantize a chunk of normalised samples at every word length and accumulate, in place.
 
     For word length ``j`` with ``2^b`` cells (``scale[j] = 2^b``, or ``2^b - 1``
     with guard band; ``half[j] = 2^(b-1)``) the quantized sample in cell units is
-    ``v = clip(floor(y * scale + u), -half, half - 1) - u`` (``u`` the unit dither); the real value is ``a + eps * v`` (see
+    ``v = clip(floor(y * scale + u), -half, half - 1) - sub * u`` (``u`` the dither in cell units,
+    ``sub`` 1 for subtractive dither, 0 for non-subtractive); the real value is ``a + eps * v`` (see
     :func:`qsid_core.moments.quantized_moments`).
 
     Parameters
@@ -237,8 +238,8 @@ def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last
     y : ndarray, shape (rows, p)
         Normalised samples ``[x_t, u_t]`` in ``[-1/2, 1/2]``; global rows ``row0 ..``.
     u : ndarray, shape (rows, p)
-        Unit dither draws U[-1/2, 1/2]; zeros without dither (adding and
-        subtracting 0 changes no value).
+        Dither in cell units (U[-1/2, 1/2]; triangular on [-1, 1] for TPDF); zeros
+        without dither (adding and subtracting 0 changes no value).
     scale, half : ndarray, shape (nb,)
     row0 : int
         Global index of the chunk's first row (row ``g`` is step ``g % S1`` of run ``g // S1``).
@@ -255,10 +256,12 @@ def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last
         ``v`` of the previous global row (carried between chunks).
     v_last, v_first : ndarray, shape (nb, runs, p)
         ``v`` at the last and the first row of every run (for the boundary corrections).
+    sub : float
+        1.0: the dither is subtracted after quantization; 0.0: it is not.
     """
     if not AVAILABLE:
         raise RuntimeError(f"compiled kernels unavailable: {REASON}")
-    _accumulate_chunk_nb(y, u, scale, half, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first)
+    _accumulate_chunk_nb(y, u, float(sub), scale, half, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first)
 
 
 def box_qp_pdas(H, g, ub, upper, lower, iters: int = 8, tol: float = 1e-12):

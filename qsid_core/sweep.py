@@ -19,6 +19,7 @@ from .closed_loop import ClosedLoops
 from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, TheoryAtBits, single_threaded_blas
 from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
 from .systems import LTISystem
+from .quantize import ERROR_VARIANCE, NOMINAL_VARIANCE, bcls_reason
 from .theory import RealizedBounds
 from .config_checks import check_run_args
 
@@ -126,6 +127,9 @@ class SweepResult:
                 "theta": c.theta, "rho": c.rho, "input_amplitude": c.input_amplitude,
                 "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
             },
+            "bcls": {"applicable": not bcls_reason(q.dither), "reason": bcls_reason(q.dither),
+                     "D": "eps^2/%d" % round(1 / ERROR_VARIANCE.get(q.dither, NOMINAL_VARIANCE))
+                     + (" (nominal)" if bcls_reason(q.dither) else "")},
             "results": [self.summary(b).to_dict() for b in self.bits],
             "mpc_cost_true_model": None if self.true_loop is None else float(self.true_loop.cost[0]),
             "slope_A": float(self.slope_A),

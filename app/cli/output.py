@@ -58,7 +58,8 @@ def _bits_list(bits: list) -> str:
 
 
 #: Hypothesis flag in the JSON -> how the table names it when it fails.
-_HYPOTHESES = (("subtractive_dither", "subtractive dither"), ("no_overload", "no overload"),
+_HYPOTHESES = (("known_noise", "dither of known noise variance (subtractive or tpdf)"),
+               ("no_overload", "no overload"),
                ("stationary", "Psi Psi^T/T converges (no eigenvalue of A on/outside the unit circle)"),
                ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"))
 
@@ -162,6 +163,10 @@ def format_table(d: dict) -> str:
     if fails:
         lines.append("MPC failures by kind: " + ", ".join(f"{k} {v}" for k, v in sorted(fails.items())))
     lines.extend(assumptions_lines(d["results"]))
+    bc = d.get("bcls") or {}
+    if bc.get("reason"):
+        lines.append(f"BCLS not applicable with {c.get('dither')} dither: {bc['reason']}"
+                     + ("; BCLS used a nominal D = eps^2/12" if c.get("estimator") == "bcls" else ""))
     fb = sum(r.get("bcls_fallbacks", 0) for r in d["results"])
     if fb:
         lines.append(f"BCLS fell back to LS in {fb} realization(s) (corrected Gram matrix not positive definite)")

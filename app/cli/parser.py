@@ -210,10 +210,13 @@ def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -
                    help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
                         "channel, states then inputs")
     q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
-                   help="widen the range by half a cell on each side, so x + w never overloads "
+                   help="widen the range by the dither's amplitude on each side (half a cell; a cell for tpdf), "
+                        "so x + w never overloads "
                         f"(default: {_onoff(q0.guard)})")
     q.add_argument("--dither", choices=e.dithers, default=q0.dither,
-                   help=f"subtractive uniform dither or none (default: {q0.dither})")
+                   help="subtractive uniform dither (the letter's), tpdf (non-subtractive triangular, width 2 eps: "
+                        "BCLS with D = eps^2/4), rpdf (non-subtractive uniform: BCLS not applicable) or none "
+                        f"(default: {q0.dither})")
     q.add_argument("--estimator", choices=e.estimators, default=base.estimator,
                    help=f"least squares or bias-compensated LS (default: {base.estimator})")
 

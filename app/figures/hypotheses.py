@@ -15,8 +15,8 @@ CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
 
 #: Plain words for each failing hypothesis (key: the engine's flag).
 _WHY = {
-    "subtractive_dither": "no subtractive dither: the quantization error is a function of the signal, "
-                          "not independent noise of variance ε²/12",
+    "known_noise": "no dither of known variance (subtractive or tpdf): the quantization error's variance "
+                   "depends on the signal",
     "no_overload": "overload: x + w leaves the quantizer range, so the error exceeds ε/2 and depends on the "
                    "signal (guard band or a wider range fixes it)",
     "large_data": "finite data: at this data size the predicted O(ε) fluctuation exceeds Theorem 1's O(ε²) "
@@ -66,12 +66,12 @@ def _reasons(rows: Sequence[Mapping], keys: Sequence[str]) -> list[str]:
 
 def theorem1_reasons(rows: Sequence[Mapping]) -> list[str]:
     """Why Theorem 1's line does not apply, one sentence per failing hypothesis (with the b where it fails)."""
-    return _reasons(rows, ("subtractive_dither", "no_overload", "stationary", "large_data"))
+    return _reasons(rows, ("known_noise", "no_overload", "stationary", "large_data"))
 
 
 def bcls_reasons(rows: Sequence[Mapping]) -> list[str]:
     """Why BCLS's known-noise model fails (dither, overload), with the b where it fails."""
-    return _reasons(rows, ("subtractive_dither", "no_overload"))
+    return _reasons(rows, ("known_noise", "no_overload"))
 
 
 def short(reason: str) -> str:
