@@ -48,6 +48,8 @@ __all__ = [
     "ERROR_VARIANCE",
     "bcls_reason",
     "guard_cells",
+    "channel_bits",
+    "channel_eps",
     "RANGE_MODES",
     "MAX_BITS",
     "QuantizerSpec",
@@ -143,6 +145,52 @@ def bcls_reason(dither: str) -> str:
     """Why BCLS has no known noise variance with this dither ("" when it has one, see :data:`ERROR_VARIANCE`)."""
     check_choice("dither", dither, DITHERS)
     return _NO_VARIANCE.get(dither, "")
+
+
+def channel_bits(bits: int, n: int, m: int, input_bits=None) -> tuple:
+    """Word length of every channel (n states, then m inputs) when the states have ``bits``.
+
+    Parameters
+    ----------
+    bits : int
+        The swept word length (states).
+    n, m : int
+        Numbers of states and inputs.
+    input_bits : None, "exact", int or tuple of m (int or "exact")
+        None: the inputs have ``bits`` too; "exact": inputs recorded without
+        quantization; an int: every input; a tuple: one entry per input.
+
+    Returns
+    -------
+    tuple of length n + m: int, or None for a channel recorded exactly.
+
+    Raises
+    ------
+    ConfigError
+        If a tuple does not have one entry per input.
+    """
+    if input_bits is None:
+        ins = [bits] * m
+    elif isinstance(input_bits, str):
+        ins = [None] * m
+    elif isinstance(input_bits, (int, np.integer)):
+        ins = [int(input_bits)] * m
+    else:
+        if len(input_bits) != m:
+            raise ConfigError(f"input_bits has {len(input_bits)} entries; the system has {m} input(s): give one "
+                              "word length (or 'exact') for all, or one per input")
+        ins = [None if isinstance(v, str) else int(v) for v in input_bits]
+    return tuple([int(bits)] * n + ins)
+
+
+def channel_eps(lo: np.ndarray, hi: np.ndarray, chan_bits: tuple, guard: bool, dither: str) -> np.ndarray:
+    """Cell width per channel, shape (p,), for word lengths ``chan_bits`` (:func:`channel_bits`); 0 where exact."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    out = np.zeros(len(chan_bits))
+    for a, b in enumerate(chan_bits):
+        if b is not None:
+            out[a] = cell_width(lo[a], hi[a], b, guard, dither)
+    return out
 
 
 def cell_width(lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = _GUARD_DEFAULT,

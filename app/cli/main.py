@@ -30,6 +30,11 @@ def build_parser(only: str | None = "*"):
 
 
 def _dispatch(argv: list, rep: Reporter) -> int:
+    if argv[:1] == ["--version"]:
+        from qsid_core.version import __version__
+
+        print(f"{parser.PROG} {__version__}")
+        return 0
     name = next((a for a in argv if not a.startswith("-")), None)
     args = build_parser(name if name in COMMANDS else None).parse_args(argv)
     if args.command is None:

@@ -107,6 +107,22 @@ def _limits_text(c: dict) -> str:
     return " " + ";".join(f"[{lo:g}, {hi:g}]" for lo, hi in fr)
 
 
+def _what_if_lines(c: dict) -> list:
+    """Word length per channel and sensor noise, when set (one line; nothing for the letter's setting)."""
+    parts = []
+    ib = c.get("input_bits")
+    if ib is not None:
+        which = "exact (inputs not quantized: eps_u = 0)" if ib == "exact" else \
+            ",".join(map(str, ib)) if isinstance(ib, list) else str(ib)
+        parts.append(f"b is swept for the states; input bits {which}")
+    noise = c.get("noise") or []
+    if any(v for v in noise):
+        parts.append(f"sensor noise sigma {','.join(format(v, 'g') for v in noise)} on the states"
+                     + (" (known to BCLS: D + sigma^2)" if c.get("noise_known") else
+                        " (unknown to BCLS: it corrects only the quantization noise)"))
+    return ["; ".join(parts)] if parts else []
+
+
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = ["b", "eps min..max", "err_A mean +/- std", "Thm1 A", "err_B mean +/- std", "Thm1 B", "overload",
@@ -145,6 +161,7 @@ def format_table(d: dict) -> str:
         + ("" if c["mpc"] is None else
            f", MPC horizon {c['mpc']['horizon']}, {c['mpc']['steps']} steps, u_max "
            f"{','.join(format(u, 'g') for u in c['mpc']['u_max'])}"),
+        *_what_if_lines(c),
         fmt(head),
         fmt(["-" * w for w in widths]),
         *(fmt(row) for row in rows),
