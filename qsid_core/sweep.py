@@ -92,6 +92,14 @@ class SweepResult:
         A-posteriori ultimate bounds (each realization's own model error and P).
     assumptions : dict b -> Assumptions
         Hypotheses of Theorem 1 and BCLS per b.
+    rows : dict b -> StoredRow
+        The per-b summaries of a result read back by :func:`load_result` (empty for a fresh sweep).
+    version : str
+        The qsid version that made a loaded result ("" for a fresh one: this version).
+    ranges : dict or None
+        The quantizer's data ranges ``{"lo": [...], "hi": [...]}`` (n + m channels).
+    true_cost : float or None
+        A loaded result's true-model MPC cost.
     """
 
     config: SweepConfig
@@ -110,6 +118,7 @@ class SweepResult:
     rows: dict = field(default_factory=dict)
     version: str = ""
     ranges: dict | None = None
+    true_cost: float | None = None
 
     def _check_bits(self, b) -> int:
         if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in self.bits:
@@ -159,7 +168,7 @@ class SweepResult:
                      + (" (nominal)" if why else "")
                      + (" + sigma^2 (sensor noise)" if c.noise_known and any(v > 0 for v in c.noise) else "")},
             "results": [self.summary(b).to_dict() for b in self.bits],
-            "mpc_cost_true_model": None if self.true_loop is None else float(self.true_loop.cost[0]),
+            "mpc_cost_true_model": self.true_cost if self.true_loop is None else float(self.true_loop.cost[0]),
             "slope_A": float(self.slope_A),
             "slope_B": float(self.slope_B),
             "timing_s": self.timing_s,
@@ -280,7 +289,8 @@ def load_result(path) -> SweepResult:
     return SweepResult(cfg, get_system(cfg.system), tuple(sorted(rows)), {}, {}, {}, None,
                        d.get("slope_A") if d.get("slope_A") is not None else nan,
                        d.get("slope_B") if d.get("slope_B") is not None else nan, d.get("timing_s") or {},
-                       rows=rows, version=str(d.get("qsid_version", "")), ranges=d.get("ranges"))
+                       rows=rows, version=str(d.get("qsid_version", "")), ranges=d.get("ranges"),
+                       true_cost=d.get("mpc_cost_true_model"))
 
 
 def run_sweep(

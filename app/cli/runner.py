@@ -244,7 +244,7 @@ def config_from_file(args, defaults, mpc: bool):
         else:
             data = json.loads(text)
     except ValueError as exc:
-        raise UsageError(f"argument --config: {str(path)!r} is not valid {path.suffix.lstrip('.') or 'JSON'} "
+        raise UsageError(f"argument --config: {str(path)!r} is not valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} "
                          f"({one_line(exc)})") from None
     cfg = SweepConfig.from_dict(data)
     changes = {}
