@@ -304,7 +304,4 @@ class SweepConfig:
         object.__setattr__(self, "input_bits", parse_input_bits(self.input_bits))
         object.__setattr__(self, "noise", parse_noise(self.noise))
         object.__setattr__(self, "noise_known", check_bool("noise_known", self.noise_known))
-        if self.quantizer.dither == "tpdf" and self.quantizer.guard and min(self.bits) < 2:
-            raise ConfigError("bits: tpdf dither with the guard band needs b >= 2 (its amplitude eps takes one cell "
-                              "on each side of the range); start the bits at 2 or turn the guard band off")
         check_sweep_parts(self.system, self.mpc, self.rho)

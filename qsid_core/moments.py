@@ -24,7 +24,7 @@ import numpy as np
 
 from .data import Dataset
 from .errors import ConfigError, check_choice
-from .quantize import (ERROR_VARIANCE, NOMINAL_VARIANCE, QuantizerSpec, bcls_reason, channel_bits, channel_eps,
+from .quantize import (ERROR_VARIANCE, NOMINAL_VARIANCE, QuantizerSpec, bcls_reason, channel_bits,
                        data_ranges, draw_dither_units, guard_cells)
 
 __all__ = ["Moments", "PreparedData", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
@@ -208,7 +208,7 @@ def _gram(prep: PreparedData, chan: tuple, scale: np.ndarray, spec: QuantizerSpe
     n, T = prep.n, prep.T
     quant = np.array([c is not None for c in chan])
     bq = np.array([c if c is not None else 1 for c in chan], dtype=float)
-    g = guard_cells(spec.dither, spec.guard)
+    g = np.array([guard_cells(spec.dither, spec.guard, c) if c is not None else 0.0 for c in chan])
     eps = (prep.hi - prep.lo) / scale  # cell width; the whole range where exact (scale 1)
     a = np.where(quant, prep.lo - g * eps + eps * (2.0**bq + 1) / 2, (prep.lo + prep.hi) / 2)
     VL, VF = acc.v_last[j], acc.v_first[j]
@@ -287,12 +287,10 @@ def quantized_moments(
     N, p = yc.shape
     S1 = prep.steps + 1
     chans = [channel_bits(b, prep.n, prep.m, input_bits) for b in bits]
-    for ch in chans:  # a word length too small for the guard band raises here
-        channel_eps(prep.lo, prep.hi, ch, spec.guard, spec.dither)
-    g = guard_cells(spec.dither, spec.guard)
     quant = np.array([c is not None for c in chans[0]])
     half = np.array([[2.0 ** (c - 1) if c is not None else 1.0 for c in ch] for ch in chans])
-    scale = np.array([[2.0**c - 2.0 * g if c is not None else 1.0 for c in ch] for ch in chans])
+    scale = np.array([[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch]
+                      for ch in chans])
     acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
     for start in range(0, N, CHUNK_ROWS):
         y = yc[start : start + CHUNK_ROWS]

@@ -23,7 +23,8 @@ draw) only the mean is signal-independent; the variance moves between 0 and
 Guard band: the range is widened by the dither's amplitude on each side, ``[lo - eps/2,
 hi + eps/2]`` with ``eps = (hi - lo) / (2**b - 1)`` (``[lo - eps, hi + eps]`` with
 ``eps = (hi - lo) / (2**b - 2)`` for ``tpdf``), so ``x + w`` can never leave it for
-``x`` in ``[lo, hi]``: no overload, at the price of a slightly wider cell.
+``x`` in ``[lo, hi]``: no overload, at the price of a slightly wider cell (at b = 1
+``tpdf`` gets half a cell only, see :func:`guard_cells`).
 
 The guard band is **on by default** (:class:`QuantizerSpec`): "no overload" is a
 hypothesis of Theorem 1 and of bias-compensated LS. Without it, a range taken
@@ -134,11 +135,15 @@ _GUARD_DEFAULT: bool = QuantizerSpec.guard  # one source of truth for the defaul
 LETTER_QUANTIZER = QuantizerSpec(dither="subtractive", range_mode="per-channel", guard=False)
 
 
-def guard_cells(dither: str, guard: bool) -> float:
-    """Guard band on each side, in cells: the dither's amplitude (1/2; 1 for ``tpdf``), or 0 without guard."""
+def guard_cells(dither: str, guard: bool, bits: int | None = None) -> float:
+    """Guard band on each side, in cells: the dither's amplitude (1/2; 1 for ``tpdf``), or 0 without guard.
+
+    At b = 1 two levels leave no room for one cell on each side: ``tpdf`` then gets half a
+    cell, like the other kinds, and may overload (the overload is measured and reported).
+    """
     if not guard:
         return 0.0
-    return 1.0 if dither == "tpdf" else 0.5
+    return 1.0 if dither == "tpdf" and (bits is None or bits >= 2) else 0.5
 
 
 def bcls_reason(dither: str) -> str:
@@ -195,18 +200,9 @@ def channel_eps(lo: np.ndarray, hi: np.ndarray, chan_bits: tuple, guard: bool, d
 
 def cell_width(lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = _GUARD_DEFAULT,
                dither: str = "subtractive") -> np.ndarray:
-    """Cell width eps for ``bits`` bits over ``[lo, hi]``: ``(hi-lo)/(2**b - 2 g)``, ``g`` = :func:`guard_cells`.
-
-    Raises
-    ------
-    ConfigError
-        For ``tpdf`` with guard band at b = 1 (two levels leave no room for a guard of one cell each side).
-    """
+    """Cell width eps for ``bits`` bits over ``[lo, hi]``: ``(hi-lo)/(2**b - 2 g)``, ``g`` = :func:`guard_cells`."""
     bits = check_int("bits", bits, 1, MAX_BITS)
-    cells = 2.0**bits - 2.0 * guard_cells(dither, guard)
-    if cells <= 0:
-        raise ConfigError(f"bits: tpdf dither with the guard band needs b >= 2 (its amplitude eps takes one cell "
-                          f"on each side); got b = {bits}")
+    cells = 2.0**bits - 2.0 * guard_cells(dither, guard, bits)
     return (np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)) / cells
 
 
@@ -218,7 +214,7 @@ def effective_ranges(lo: np.ndarray, hi: np.ndarray, bits: int, guard: bool,
     The quantizer covers ``[lo_q, lo_q + 2**b * eps]``, symmetric about ``(lo + hi)/2``.
     """
     eps = cell_width(lo, hi, bits, guard, dither)
-    lo_q = np.asarray(lo, dtype=float) - guard_cells(dither, guard) * eps
+    lo_q = np.asarray(lo, dtype=float) - guard_cells(dither, guard, bits) * eps
     return lo_q, eps
 
 

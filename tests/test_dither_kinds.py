@@ -51,12 +51,12 @@ def test_guard_band_covers_each_dithers_amplitude(dither):
     assert q.overload.any()  # without the guard band the dither pushes the extremes out
 
 
-def test_tpdf_with_guard_needs_two_bits_one_clear_error():
-    with pytest.raises(ConfigError, match="b >= 2"):
-        effective_ranges(-1.0, 1.0, 1, True, "tpdf")
-    with pytest.raises(ConfigError, match="tpdf dither with the guard band needs b >= 2"):
-        SweepConfig(bits=(1, 2), quantizer=QuantizerSpec(dither="tpdf"))
-    SweepConfig(bits=(1, 2), quantizer=QuantizerSpec(dither="tpdf", guard=False))  # no guard: fine
+def test_tpdf_at_one_bit_gets_half_a_cell_of_guard_and_bad_kinds_are_refused():
+    lo_q, eps = effective_ranges(-1.0, 1.0, 1, True, "tpdf")  # two levels: no room for a cell each side
+    assert eps == pytest.approx(2.0) and lo_q == pytest.approx(-2.0)
+    lo_q, eps = effective_ranges(-1.0, 1.0, 3, True, "tpdf")
+    assert eps == pytest.approx(2 / 6) and lo_q == pytest.approx(-1 - 2 / 6)
+    SweepConfig(bits=(1, 2), quantizer=QuantizerSpec(dither="tpdf"))  # accepted; overload measured
     with pytest.raises(ConfigError, match="dither"):
         QuantizerSpec(dither="triangular")
 
@@ -84,7 +84,7 @@ def _explicit(data, prep, bits, spec, seed):
 def test_fused_moments_equal_explicit_quantization_for_non_subtractive_dither(spec, engine):
     data = simulate(dc_motor(), 23, 1500, seed=4)  # > one chunk, runs split across chunks
     prep = prepare(data, spec)
-    bits = [2, 3, 7, 12]
+    bits = [1, 2, 3, 7, 12]
     fast = quantized_moments(prep, bits, spec, np.random.default_rng(9), engine=engine)
     for b, mo in zip(bits, fast):
         PP, XP, over = _explicit(data, prep, b, spec, 9)

@@ -137,6 +137,12 @@ def test_a_saved_json_reruns_to_identical_numbers_with_config(capsys, tmp_path):
     assert code == 0, err
     c = json.loads(out)
     assert c["config"]["bits"] == [4] and c["config"]["dither"] == "tpdf" and c["config"]["mpc"] is None
+    code, out, err = _run(capsys, "sweep", "--config", str(saved), "--horizon", "3", "--json", "-q")
+    assert code == 0, err
+    c = json.loads(out)["config"]
+    assert c["mpc"]["horizon"] == 3 and c["mpc"]["steps"] == 5 and c["noise"] == [0.01]
+    code, _, err = _run(capsys, "sweep", "--config", str(saved), "--system", "boeing747", "-q")
+    assert code == 2 and "the system comes from the file" in err
 
 
 def test_config_from_toml_and_bad_files(capsys, tmp_path):

@@ -86,6 +86,13 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
         out.append(f"--limits={limits_spec(q.fixed_range)}")
     if q.guard != dq.guard:
         out.append("--guard" if q.guard else "--no-guard")
+    if cfg.input_bits is not None:
+        ib = cfg.input_bits
+        out.append(f"--input-bits={','.join(map(str, ib)) if isinstance(ib, tuple) else ib}")
+    if any(v > 0 for v in cfg.noise):
+        out.append(f"--noise={floats_spec(cfg.noise)}")
+    if cfg.noise_known:
+        out.append("--noise-known")
     out += _mpc_args(cfg, system)
     if cfg.theta != d.theta:
         out.append(f"--theta={cfg.theta!r}")

@@ -199,11 +199,11 @@ def config(args, system, mpc: bool):
         mpc=_mpc_config(args, system) if mpc else None, theta=args.theta, rho=args.rho,
         input_amplitude=args.input_amplitude, **seeds, **extra,
     )
-    _check_channels(cfg, system)
+    check_channels(cfg, system)
     return cfg
 
 
-def _check_channels(cfg, system) -> None:
+def check_channels(cfg, system) -> None:
     """Per-channel settings against the system's shape (one line, before any work)."""
     from qsid_core.quantize import channel_bits
 
@@ -211,65 +211,6 @@ def _check_channels(cfg, system) -> None:
     if len(cfg.noise) not in (1, system.n):
         raise UsageError(f"argument --noise: give 1 or {system.n} values for system {system.name!r}; "
                          f"got {len(cfg.noise)}")
-
-
-#: flags whose non-default value overrides a --config file, and the SweepConfig field each sets
-_OVERRIDES = {"bits": "bits", "realizations": "realizations", "trajectories": "trajectories", "steps": "steps",
-              "data_seed": "data_seed", "dither_seed": "dither_seed", "estimator": "estimator",
-              "input_bits": "input_bits", "noise": "noise", "noise_known": "noise_known", "theta": "theta",
-              "rho": "rho", "input_amplitude": "input_amplitude"}
-
-
-def config_from_file(args, defaults, mpc: bool):
-    """The SweepConfig of ``--config FILE`` (JSON result or TOML), with flags that differ from ``defaults``.
-
-    ``defaults`` is the parsed namespace of the bare command. ``--dither``, ``--range``, ``--limits`` and
-    ``--guard`` given with non-default values override the file's quantizer; ``--no-mpc`` switches MPC off.
-    """
-    import dataclasses
-    import json
-
-    from qsid_core import SweepConfig
-
-    path = Path(args.config)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise UsageError(f"argument --config: cannot read {str(path)!r}: {exc.strerror or exc}") from None
-    try:
-        if path.suffix.lower() == ".toml":
-            import tomllib
-
-            data = tomllib.loads(text)
-        else:
-            data = json.loads(text)
-    except ValueError as exc:
-        raise UsageError(f"argument --config: {str(path)!r} is not valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} "
-                         f"({one_line(exc)})") from None
-    cfg = SweepConfig.from_dict(data)
-    changes = {}
-    for flag, fieldname in _OVERRIDES.items():
-        v = getattr(args, flag, None)
-        if v != getattr(defaults, flag, None):
-            changes[fieldname] = v
-    seed = getattr(args, "seed", None)
-    if seed is not None:
-        changes.setdefault("data_seed", seed)
-        changes.setdefault("dither_seed", seed)
-    q = cfg.quantizer
-    qchanges = {k: getattr(args, a) for a, k in (("dither", "dither"), ("range_mode", "range_mode"),
-                                                ("guard", "guard")) if getattr(args, a) != getattr(defaults, a)}
-    if args.limits is not None:
-        qchanges["fixed_range"] = args.limits[0] if len(args.limits) == 1 else args.limits
-    if qchanges:
-        changes["quantizer"] = dataclasses.replace(q, **qchanges)
-    if not mpc:
-        changes["mpc"] = None
-    cfg = dataclasses.replace(cfg, **changes) if changes else cfg
-    from qsid_core import get_system
-
-    _check_channels(cfg, get_system(cfg.system))
-    return cfg
 
 
 def workers(args, rep: "Reporter") -> int:

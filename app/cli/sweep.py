@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
-from .runner import (UsageError, config_from_file, input_files, out_file, run as run_sweep, system_from_args,
-                     write_text)
+from .runner import UsageError, input_files, out_file, run as run_sweep, system_from_args, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -33,14 +32,16 @@ def run(args, rep) -> int:
     cfg = None
     inputs = input_files(args)
     if args.config is not None:
+        import argparse
         from pathlib import Path
 
         from qsid_core import get_system
 
-        from .main import build_parser
+        from .study import config_from_file
 
-        defaults = build_parser("sweep").parse_args(["sweep"])
-        cfg = config_from_file(args, defaults, not args.no_mpc)
+        bare = argparse.ArgumentParser(add_help=False)
+        add_arguments(bare)
+        cfg = config_from_file(args, bare.parse_args([]), not args.no_mpc)
         system = get_system(cfg.system)
         inputs = inputs + [Path(args.config)]
     else:

@@ -98,6 +98,9 @@ class Values:
     x_max: str = ""  # state box |x_i| <= x_max_i: one number for all or one per state ("" = none)
     view_channel: int = 0  # the quantizer view's channel (states, then inputs)
     compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
+    input_bits: str = "same"  # inputs' word length: "same" (= b), "exact", one number, or one per input
+    noise: str = ""  # sensor noise sigma on the recorded states: one for all or one per state ("" = none)
+    noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
 
     def replace(self, **kw) -> "Values":
         return dataclasses.replace(self, **kw)
@@ -270,6 +273,23 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
         raise InputError(str(exc)) from None
 
 
+def _what_ifs(v: Values, system: LTISystem) -> tuple:
+    """The panel's input word length and sensor noise as engine values (InputError in plain words)."""
+    from qsid_core.config import parse_input_bits, parse_noise
+    from qsid_core.quantize import channel_bits
+
+    try:
+        ib = parse_input_bits(v.input_bits)
+        channel_bits(ALL_BITS[0], system.n, system.m, ib)
+        noise = parse_noise(v.noise) if (v.noise or "").strip() else (0.0,)
+    except QsidError as exc:
+        raise InputError(str(exc)) from None
+    if len(noise) not in (1, system.n):
+        raise InputError(f"sensor noise: give one σ for every state or one per state "
+                         f"({', '.join(system.state_names)}); got {len(noise)}")
+    return ib, noise
+
+
 def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
     """The whole engine configuration for ``v`` (all word lengths :data:`ALL_BITS`; b is the one drawn in 3-D)."""
     if not ALL_BITS[0] <= int(v.bits) <= ALL_BITS[-1]:
@@ -278,9 +298,10 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
     if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
         raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
+    input_bits, noise = _what_ifs(v, system)
     try:
         return SweepConfig(
-            system=system, bits=ALL_BITS, realizations=int(v.realizations), trajectories=int(v.trajectories),
+            system=system, bits=ALL_BITS, input_bits=input_bits, noise=noise, noise_known=bool(v.noise_known), realizations=int(v.realizations), trajectories=int(v.trajectories),
             steps=int(v.steps), input_amplitude=float(v.input_amplitude), data_seed=int(v.data_seed),
             dither_seed=int(v.dither_seed),
             quantizer=quantizer_spec(v, system.n, system.m), estimator=estimators(v.identification)[0],
