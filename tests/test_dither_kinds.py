@@ -123,3 +123,18 @@ def test_tpdf_bcls_removes_the_bias_through_the_cli_and_rpdf_is_flagged(capsys):
     assert r_rp["assumptions"]["bcls_holds"] is False
     assert rp["bcls"]["D"] == "eps^2/12 (nominal)" and bc["bcls"]["D"] == "eps^2/4"
     assert r_rp["err_A"]["mean"] > 0.5  # the nominal correction does not remove the bias
+
+
+def test_bench_dither_quick_engines_agree(capsys):
+    import sys
+    from pathlib import Path
+
+    bench = str(Path(__file__).resolve().parents[1] / "benchmarks")
+    if bench not in sys.path:
+        sys.path.insert(0, bench)
+    import bench_dither
+
+    out = bench_dither.main(["--quick"])
+    assert set(out["rows"]) == {label for label, _, _ in bench_dither.ROWS}
+    assert all(r["max_rel_diff_PP"] < 1e-10 for r in out["rows"].values())
+    assert "RESULT " in capsys.readouterr().out
