@@ -35,7 +35,8 @@ Theorem 1 (large-data regime) needs
    is 81 % above the line.
 
 BCLS (``Psi~ Psi~^T - T D``) needs 1 and 2 (the noise variance must be the known
-``D``), not 3 or 4: it removes the bias in finite data as well.
+``D``) and, with sensor noise on the states, that noise's variance in ``D`` too
+(``noise_known``); not 3 or 4: it removes the bias in finite data as well.
 """
 
 from __future__ import annotations
@@ -85,6 +86,8 @@ class Assumptions:
         Plain-words reasons for every hypothesis that fails.
     known_noise : bool
         The dither gives a signal-independent error variance (subtractive or tpdf).
+    sensor_noise_known : bool
+        No sensor noise, or its variance is in BCLS's ``D`` (``noise_known``).
     """
 
     bits: int
@@ -103,6 +106,7 @@ class Assumptions:
     bcls_holds: bool
     notes: tuple = ()
     known_noise: bool = True
+    sensor_noise_known: bool = True
 
     def to_dict(self) -> dict:
         """Plain JSON-ready data (non-finite numbers become None)."""
@@ -170,6 +174,11 @@ def assess(ex, b: int) -> Assumptions:
         notes.append(f"overload: {100 * over:.3g} % of quantized entries left the quantizer range "
                      f"(tolerance {100 * OVERLOAD_TOLERANCE:g} %); their error exceeds eps/2 and depends on the "
                      "signal (use the guard band or a wider range)")
+    noisy = any(v > 0 for v in c.noise)
+    unknown_noise = noisy and not c.noise_known
+    if unknown_noise:
+        notes.append("sensor noise on the states is not known to BCLS (noise_known off): BCLS removes only the "
+                     "quantization noise's bias, the noise's own bias stays")
     if not stat:
         notes.append(f"A has an eigenvalue on or outside the unit circle (spectral radius {rad:.6g}): "
                      "Psi Psi^T / T has no finite limit, so Theorem 1's T -> inf statement does not apply")
@@ -181,6 +190,7 @@ def assess(ex, b: int) -> Assumptions:
         bits=b, subtractive_dither=c.quantizer.dither == "subtractive", known_noise=dith, overload_fraction=over, overload_tolerance=OVERLOAD_TOLERANCE,
         no_overload=no_over, spectral_radius=rad, stationary=stat, bias_A=float(th.err_A), bias_B=float(th.err_B),
         fluctuation_A=fA, fluctuation_B=fB, large_data=large,
-        theorem1_holds=bool(dith and no_over and stat and large), bcls_holds=bool(dith and no_over),
+        theorem1_holds=bool(dith and no_over and stat and large),
+        bcls_holds=bool(dith and no_over and not unknown_noise), sensor_noise_known=not unknown_noise,
         notes=tuple(notes),
     )

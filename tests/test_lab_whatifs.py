@@ -83,6 +83,8 @@ def test_sensor_noise_biases_ls_and_bcls_removes_it_only_when_known():
     assert e(unknown) > 3 * e(known) and e(unknown) > 3 * e(clean)
     d = known.to_dict()
     assert d["config"]["noise"] == [0.05] and d["config"]["noise_known"] is True and "sigma^2" in d["bcls"]["D"]
+    assert unknown.assumptions[8].bcls_holds is False and unknown.assumptions[8].sensor_noise_known is False
+    assert known.assumptions[8].sensor_noise_known is True and clean.assumptions[8].sensor_noise_known is True
     # Theorem 1's line includes the noise (the LS limit), whatever BCLS knows
     assert unknown.theory[8].err_A > 3 * clean.theory[8].err_A
 

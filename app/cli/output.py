@@ -61,7 +61,8 @@ def _bits_list(bits: list) -> str:
 _HYPOTHESES = (("known_noise", "dither of known noise variance (subtractive or tpdf)"),
                ("no_overload", "no overload"),
                ("stationary", "Psi Psi^T/T converges (no eigenvalue of A on/outside the unit circle)"),
-               ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"))
+               ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"),
+               ("sensor_noise_known", "sensor noise known to BCLS (--noise-known; BCLS only)"))
 
 
 def assumptions_lines(results: list) -> list:

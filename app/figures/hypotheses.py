@@ -15,6 +15,7 @@ CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
 
 #: Plain words for each failing hypothesis (key: the engine's flag).
 _WHY = {
+    "sensor_noise_known": "sensor noise not known to BCLS: it removes only the quantization noise's bias",
     "known_noise": "no dither of known variance (subtractive or tpdf): the quantization error's variance "
                    "depends on the signal",
     "no_overload": "overload: x + w leaves the quantizer range, so the error exceeds ε/2 and depends on the "
@@ -71,7 +72,7 @@ def theorem1_reasons(rows: Sequence[Mapping]) -> list[str]:
 
 def bcls_reasons(rows: Sequence[Mapping]) -> list[str]:
     """Why BCLS's known-noise model fails (dither, overload), with the b where it fails."""
-    return _reasons(rows, ("known_noise", "no_overload"))
+    return _reasons(rows, ("known_noise", "no_overload", "sensor_noise_known"))
 
 
 def short(reason: str) -> str:
