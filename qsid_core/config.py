@@ -20,7 +20,7 @@ from .mpc import MPCConfig
 from .quantize import LETTER_QUANTIZER, MAX_BITS, QuantizerSpec
 from .systems import LTISystem
 
-__all__ = ["SweepConfig", "parse_bits", "parse_input_bits", "parse_noise"]
+__all__ = ["SweepConfig", "parse_bits", "parse_input_bits", "parse_noise", "parse_state_bits"]
 
 
 def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
@@ -103,8 +103,8 @@ def parse_input_bits(spec) -> None | str | tuple:
     if isinstance(spec, (list, tuple)) and 0 < len(spec) <= 1000:
         out = []
         for v in spec:
-            if isinstance(v, str) and v.strip().lower() == "exact":
-                out.append("exact")
+            if isinstance(v, str) and v.strip().lower() in ("exact", "b", "same"):
+                out.append("exact" if v.strip().lower() == "exact" else "b")
                 continue
             try:
                 out.append(check_int("input bits", int(v) if isinstance(v, (str, np.integer)) else v, 1, MAX_BITS))
@@ -112,6 +112,33 @@ def parse_input_bits(spec) -> None | str | tuple:
                 raise ConfigError(f"{form}; got {short_repr(v)} in {short_repr(spec)}") from None
         return tuple(out)
     raise ConfigError(f"{form}; got {short_repr(spec)}")
+
+
+def parse_state_bits(spec) -> None | tuple:
+    """Word length of each state: None or ``""``/``"b"`` (every state has the swept b), else one entry for all
+    states or one per state.
+
+    Entries: ``"b"`` (the swept word length), a word length 1..32, or ``"exact"``; e.g. ``"b,b,12,exact"``.
+
+    Raises
+    ------
+    ConfigError
+        For anything else.
+    """
+    form = "state bits must be one entry per state, each 'b' (the swept b), a word length 1..32 or 'exact'"
+    if spec is None or (isinstance(spec, str) and spec.strip().lower() in ("", "b", "same")):
+        return None
+    if isinstance(spec, str):
+        if len(spec) > 2000:
+            raise ConfigError(f"{form}; got {short_repr(spec)}")
+        spec = [v.strip() for v in spec.split(",")]
+    if not isinstance(spec, (list, tuple)) or not spec or any(isinstance(v, str) and not v for v in spec):
+        raise ConfigError(f"{form}; got {short_repr(spec)}")
+    try:
+        out = parse_input_bits(list(spec)) if len(spec) > 1 else parse_input_bits([spec[0], "b"])[:1]
+    except ConfigError:
+        raise ConfigError(f"{form}; got {short_repr(spec)}") from None
+    return tuple(out)
 
 
 def parse_noise(spec) -> tuple:
@@ -166,6 +193,9 @@ class SweepConfig:
         Word length of the inputs (:func:`parse_input_bits`): None = the swept b,
         ``"exact"`` = inputs recorded without quantization, one int for all
         inputs or one entry per input; the swept ``bits`` are the states'.
+    state_bits : None or tuple
+        Word length of each state (:func:`parse_state_bits`): None = every state has
+        the swept b; else one entry per state, ``"b"`` (swept), an int or ``"exact"``.
     noise : float or tuple of float, >= 0
         Standard deviation of Gaussian sensor noise added to the recorded states
         before quantization (one for all states or one per state; default 0).
@@ -190,6 +220,7 @@ class SweepConfig:
     input_amplitude: float = 1.0
     input_bits: object = None
     noise: object = 0.0
+    state_bits: object = None
     noise_known: bool = False
 
     def to_dict(self, system: LTISystem | None = None) -> dict:
@@ -212,6 +243,7 @@ class SweepConfig:
             "estimator": self.estimator, "theta": self.theta, "rho": self.rho,
             "input_amplitude": self.input_amplitude, "input_bits": list(ib) if isinstance(ib, tuple) else ib,
             "noise": list(self.noise), "noise_known": self.noise_known,
+            "state_bits": None if self.state_bits is None else list(self.state_bits),
             "system_definition": sysm.to_dict(),
             "mpc_settings": None if self.mpc is None else {
                 f.name: (list(v) if isinstance(v, tuple) else v)
@@ -239,7 +271,7 @@ class SweepConfig:
         d = dict(d)
         allowed = {"bits", "realizations", "trajectories", "steps", "data_seed", "dither_seed", "dither", "range",
                    "guard", "fixed_range", "estimator", "theta", "rho", "input_amplitude", "input_bits", "noise",
-                   "noise_known", "system", "system_definition", "mpc", "mpc_settings"}
+                   "noise_known", "state_bits", "system", "system_definition", "mpc", "mpc_settings"}
         unknown = sorted(set(d) - allowed)
         if unknown:
             raise ConfigError(f"unknown setting(s) {unknown}; allowed: {', '.join(sorted(allowed))}")
@@ -267,7 +299,7 @@ class SweepConfig:
         qargs = {qkeys[k]: d.pop(k) for k in list(d) if k in qkeys}
         if isinstance(qargs.get("fixed_range"), list):
             qargs["fixed_range"] = tuple(tuple(p) if isinstance(p, list) else p for p in qargs["fixed_range"])
-        for k in ("input_bits", "noise", "bits"):
+        for k in ("input_bits", "noise", "bits", "state_bits"):
             if isinstance(d.get(k), list):
                 d[k] = tuple(d[k])
         return cls(system=system, quantizer=QuantizerSpec(**qargs), mpc=mpc, **d)
@@ -303,5 +335,6 @@ class SweepConfig:
             raise ConfigError("quantizer must be a QuantizerSpec")
         object.__setattr__(self, "input_bits", parse_input_bits(self.input_bits))
         object.__setattr__(self, "noise", parse_noise(self.noise))
+        object.__setattr__(self, "state_bits", parse_state_bits(self.state_bits))
         object.__setattr__(self, "noise_known", check_bool("noise_known", self.noise_known))
         check_sweep_parts(self.system, self.mpc, self.rho)

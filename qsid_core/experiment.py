@@ -55,13 +55,13 @@ Progress = Callable[[int, int, str], None]
 
 
 def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list,
-                  input_bits=None) -> list[list[Moments]]:
+                  input_bits=None, state_bits=None) -> list[list[Moments]]:
     """Quantized moments for a chunk of realizations (module level: picklable for process pools)."""
     out = []
     with single_threaded_blas():
         for ss in seeds:
             rng = np.random.default_rng(ss) if spec.dither != "none" else None
-            out.append(quantized_moments(prep, list(bits), spec, rng, input_bits=input_bits))
+            out.append(quantized_moments(prep, list(bits), spec, rng, input_bits=input_bits, state_bits=state_bits))
     return out
 
 
@@ -126,7 +126,8 @@ class Experiment:
 
     def _key_mom(self, b):
         c, q = self.config, self.config.quantizer
-        return self._key_prep() + (b, q.dither, c.dither_seed, c.realizations, c.input_bits, c.noise_known)
+        return self._key_prep() + (b, q.dither, c.dither_seed, c.realizations, c.input_bits, c.noise_known,
+                                  c.state_bits)
 
     def _noise_variance(self) -> np.ndarray:
         """Sensor noise variance per channel of ``Psi``, shape (n + m,) (0 for the inputs)."""
@@ -184,7 +185,7 @@ class Experiment:
             # an executor with a ``share`` hook (e.g. app.distributed.DaskExecutor) sends the data once per worker
             share = getattr(self.executor, "share", None)
             prep_arg = share(prep) if callable(share) else prep
-            futs = [self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch, c.input_bits)
+            futs = [self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch, c.input_bits, c.state_bits)
                     for ch in chunks]
             per_real: list[list[Moments]] = []
             for i, f in enumerate(futs):
@@ -234,7 +235,7 @@ class Experiment:
         c = self.config
         mcfg = c.mpc or MPCConfig()
         k = ("theory", b, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0,
-             c.quantizer.dither, c.input_bits) + self._key_prep()
+             c.quantizer.dither, c.input_bits, c.state_bits) + self._key_prep()
         if k in self._cache:
             return self._cache[k]
         from .quantize import channel_bits, channel_eps
@@ -243,7 +244,8 @@ class Experiment:
         sysm = self.system
         n = sysm.n
         q = c.quantizer
-        eps = channel_eps(prep.lo, prep.hi, channel_bits(b, n, sysm.m, c.input_bits), q.guard, q.dither)
+        chan = channel_bits(b, n, sysm.m, c.input_bits, c.state_bits)
+        eps = channel_eps(prep.lo, prep.hi, chan, q.guard, q.dither)
         # the LS limit with white sensor noise on the states: Sigma (noise-free) + D + sigma^2
         Gp = theorem1_prediction(sysm.G, self.Sigma, eps, q.dither, self._noise_variance())
         eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], sysm.A, sysm.B)

@@ -235,6 +235,7 @@ def quantized_moments(
     rng: np.random.Generator | None,
     engine: str = "auto",
     input_bits=None,
+    state_bits=None,
 ) -> list[Moments]:
     """Gram matrices of the data quantized at each word length in ``bits``.
 
@@ -259,6 +260,8 @@ def quantized_moments(
         Word length of the inputs (:func:`~qsid_core.quantize.channel_bits`); None: the
         same as the states. The dither draws do not depend on it (exact channels
         draw and ignore theirs), so the states' quantization is the same number.
+    state_bits : None or tuple of n entries
+        Word length of each state (``"b"``: the swept one; an int; ``"exact"``).
 
     Returns
     -------
@@ -286,7 +289,7 @@ def quantized_moments(
     yc = prep.yc
     N, p = yc.shape
     S1 = prep.steps + 1
-    chans = [channel_bits(b, prep.n, prep.m, input_bits) for b in bits]
+    chans = [channel_bits(b, prep.n, prep.m, input_bits, state_bits) for b in bits]
     quant = np.array([c is not None for c in chans[0]])
     half = np.array([[2.0 ** (c - 1) if c is not None else 1.0 for c in ch] for ch in chans])
     scale = np.array([[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch]

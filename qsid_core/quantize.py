@@ -152,18 +152,28 @@ def bcls_reason(dither: str) -> str:
     return _NO_VARIANCE.get(dither, "")
 
 
-def channel_bits(bits: int, n: int, m: int, input_bits=None) -> tuple:
-    """Word length of every channel (n states, then m inputs) when the states have ``bits``.
+def _entry(v, bits: int):
+    """One per-channel entry: ``"b"`` (the swept word length), ``"exact"`` (None: not quantized) or an int."""
+    if isinstance(v, str):
+        return int(bits) if v == "b" else None
+    return int(v)
+
+
+def channel_bits(bits: int, n: int, m: int, input_bits=None, state_bits=None) -> tuple:
+    """Word length of every channel (n states, then m inputs) at the swept word length ``bits``.
 
     Parameters
     ----------
     bits : int
-        The swept word length (states).
+        The swept word length.
     n, m : int
         Numbers of states and inputs.
-    input_bits : None, "exact", int or tuple of m (int or "exact")
+    input_bits : None, "exact", int or tuple of m entries
         None: the inputs have ``bits`` too; "exact": inputs recorded without
-        quantization; an int: every input; a tuple: one entry per input.
+        quantization; an int: every input; a tuple: one entry per input, each an
+        int, ``"exact"`` or ``"b"`` (the swept word length).
+    state_bits : None or tuple of 1 or n entries
+        None: every state has ``bits``; else one entry for every state or one per state, as for the inputs.
 
     Returns
     -------
@@ -172,10 +182,10 @@ def channel_bits(bits: int, n: int, m: int, input_bits=None) -> tuple:
     Raises
     ------
     ConfigError
-        If a tuple does not have one entry per input.
+        If a tuple does not have one entry per input (state).
     """
     if input_bits is None:
-        ins = [bits] * m
+        ins = [int(bits)] * m
     elif isinstance(input_bits, str):
         ins = [None] * m
     elif isinstance(input_bits, (int, np.integer)):
@@ -184,8 +194,17 @@ def channel_bits(bits: int, n: int, m: int, input_bits=None) -> tuple:
         if len(input_bits) != m:
             raise ConfigError(f"input_bits has {len(input_bits)} entries; the system has {m} input(s): give one "
                               "word length (or 'exact') for all, or one per input")
-        ins = [None if isinstance(v, str) else int(v) for v in input_bits]
-    return tuple([int(bits)] * n + ins)
+        ins = [_entry(v, bits) for v in input_bits]
+    if state_bits is None:
+        sts = [int(bits)] * n
+    elif len(state_bits) == 1:
+        sts = [_entry(state_bits[0], bits)] * n
+    else:
+        if len(state_bits) != n:
+            raise ConfigError(f"state_bits has {len(state_bits)} entries; the system has {n} state(s): give one "
+                              "entry for all or one per state ('b' = the swept b, a word length, or 'exact')")
+        sts = [_entry(v, bits) for v in state_bits]
+    return tuple(sts + ins)
 
 
 def channel_eps(lo: np.ndarray, hi: np.ndarray, chan_bits: tuple, guard: bool, dither: str) -> np.ndarray:

@@ -189,6 +189,7 @@ class SweepResult:
     def _title(self) -> str:
         c, q = self.config, self.config.quantizer
         ib = "" if c.input_bits is None else f", input bits {c.input_bits}"
+        ib += "" if c.state_bits is None else f", state bits {','.join(map(str, c.state_bits))}"
         return (f"SweepResult: {self.system.name} ({self.system.n} states, {self.system.m} inputs), "
                 f"b = {_bits_text(self.bits)}{ib}, {c.realizations} realizations, {c.trajectories} x {c.steps}, "
                 f"dither {q.dither}, estimator {c.estimator}" + (", MPC off" if c.mpc is None else "")

@@ -73,6 +73,21 @@ def test_exact_input_channel_in_the_fused_moments_equals_the_unquantized_columns
         np.testing.assert_array_equal(mo.PP[:4, :4], full.PP[:4, :4])  # states: the same draws, same numbers
 
 
+def test_state_bits_fix_or_exempt_single_states_and_reach_the_json(capsys):
+    res = run_sweep(SweepConfig(bits=(3, 6), state_bits="b,b,12,exact", mpc=None, **SMALL))
+    for b in (3, 6):
+        eps, lo, hi = res.identification[b].eps, res.ranges["lo"], res.ranges["hi"]
+        assert eps[0] == pytest.approx((hi[0] - lo[0]) / (2**b - 1))
+        assert eps[2] == pytest.approx((hi[2] - lo[2]) / (2**12 - 1)) and eps[3] == 0.0
+    assert res.to_dict()["config"]["state_bits"] == ["b", "b", 12, "exact"]
+    assert SweepConfig(state_bits="exact").state_bits == ("exact",)
+    exact = run_sweep(SweepConfig(bits=(3,), state_bits="exact", input_bits="exact", mpc=None, **SMALL))
+    assert exact.identification[3].err_A.max() < 1e-9  # nothing quantized, noise-free data: the exact model
+    code, out, err = _run(capsys, "sweep", "--system", "boeing747", "--bits", "3", "--realizations", "1",
+                          "--trajectories", "3", "--steps", "50", "--no-mpc", "--state-bits", "b,b")
+    assert code == 2 and "state_bits has 2 entries; the system has 4" in err
+
+
 # ----- sensor noise ------------------------------------------------------------------------------
 def test_sensor_noise_biases_ls_and_bcls_removes_it_only_when_known():
     kw = dict(bits=(8,), noise=0.05, mpc=None, estimator="bcls", **SMALL)

@@ -89,6 +89,8 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
     if cfg.input_bits is not None:
         ib = cfg.input_bits
         out.append(f"--input-bits={','.join(map(str, ib)) if isinstance(ib, tuple) else ib}")
+    if cfg.state_bits is not None:
+        out.append(f"--state-bits={','.join(map(str, cfg.state_bits))}")
     if any(v > 0 for v in cfg.noise):
         out.append(f"--noise={floats_spec(cfg.noise)}")
     if cfg.noise_known:

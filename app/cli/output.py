@@ -116,6 +116,9 @@ def _what_if_lines(c: dict) -> list:
         which = "exact (inputs not quantized: eps_u = 0)" if ib == "exact" else \
             ",".join(map(str, ib)) if isinstance(ib, list) else str(ib)
         parts.append(f"b is swept for the states; input bits {which}")
+    sb = c.get("state_bits")
+    if sb is not None:
+        parts.append(f"state bits {','.join(map(str, sb))} (b = the swept word length)")
     noise = c.get("noise") or []
     if any(v for v in noise):
         parts.append(f"sensor noise sigma {','.join(format(v, 'g') for v in noise)} on the states"

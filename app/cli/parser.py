@@ -231,6 +231,9 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
     x.add_argument("--input-bits", default=None, metavar="B|exact|B1,B2,..",
                    help="word length of the inputs: one for all, one per input ('8,exact'), or 'exact' (inputs "
                         "recorded without quantization); --bits then sweeps the states (default: same as --bits)")
+    x.add_argument("--state-bits", default=None, metavar="E|E1,E2,..",
+                   help="word length of the states, one entry for all or one per state: 'b' (the swept --bits), "
+                        "a fixed word length, or 'exact' (not quantized), e.g. 'b,b,12,exact' (default: all b)")
     x.add_argument("--noise", default=None, metavar="SIGMA|S1,S2,..",
                    help="standard deviation of Gaussian sensor noise added to the recorded states before "
                         "quantization, one for all or one per state (seeded by the data seed; default: 0)")

@@ -189,6 +189,8 @@ def config(args, system, mpc: bool):
     extra = {}
     if getattr(args, "input_bits", None) is not None:
         extra["input_bits"] = args.input_bits
+    if getattr(args, "state_bits", None) is not None:
+        extra["state_bits"] = args.state_bits
     if getattr(args, "noise", None) is not None:
         extra["noise"] = args.noise
     if getattr(args, "noise_known", False):
@@ -207,7 +209,7 @@ def check_channels(cfg, system) -> None:
     """Per-channel settings against the system's shape (one line, before any work)."""
     from qsid_core.quantize import channel_bits
 
-    channel_bits(cfg.bits[0], system.n, system.m, cfg.input_bits)
+    channel_bits(cfg.bits[0], system.n, system.m, cfg.input_bits, cfg.state_bits)
     if len(cfg.noise) not in (1, system.n):
         raise UsageError(f"argument --noise: give 1 or {system.n} values for system {system.name!r}; "
                          f"got {len(cfg.noise)}")

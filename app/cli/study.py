@@ -12,7 +12,7 @@ __all__ = ["config_from_file"]
 #: flags whose non-default value overrides a --config file, and the SweepConfig field each sets
 _OVERRIDES = {"bits": "bits", "realizations": "realizations", "trajectories": "trajectories", "steps": "steps",
               "data_seed": "data_seed", "dither_seed": "dither_seed", "estimator": "estimator",
-              "input_bits": "input_bits", "noise": "noise", "noise_known": "noise_known", "theta": "theta",
+              "input_bits": "input_bits", "state_bits": "state_bits", "noise": "noise", "noise_known": "noise_known", "theta": "theta",
               "rho": "rho", "input_amplitude": "input_amplitude"}
 
 

@@ -76,6 +76,9 @@ CONTROLS: tuple[Control, ...] = (
             hint="'lo, hi' for every channel, or one 'lo hi' row per channel (states, then inputs)"),
     Control("guard", "checkbox", "guard band", "Quantizer", convert=bool,
             hint="Widen the range by the dither's amplitude each side (ε/2; ε for tpdf): no overload"),
+    Control("state_bits", "text", "state bits", "Quantizer",
+            hint="Word length of the states: 'b' (the slider's b, as the letter), or one entry for all or one "
+                 "per state, each 'b', a number or 'exact', like 'b, b, 12, exact'"),
     Control("input_bits", "text", "input bits", "Quantizer",
             hint="Word length of the inputs: 'same' (= b, as the letter), 'exact' (inputs not quantized), "
                  "one number for all inputs, or one per input like '8, exact'; b then sweeps the states"),

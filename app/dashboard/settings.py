@@ -99,6 +99,7 @@ class Values:
     view_channel: int = 0  # the quantizer view's channel (states, then inputs)
     compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
     input_bits: str = "same"  # inputs' word length: "same" (= b), "exact", one number, or one per input
+    state_bits: str = "b"  # states' word length: "b" (the slider's), or one entry per state (b, a number, exact)
     noise: str = ""  # sensor noise sigma on the recorded states: one for all or one per state ("" = none)
     noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
 
@@ -275,19 +276,19 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
 
 def _what_ifs(v: Values, system: LTISystem) -> tuple:
     """The panel's input word length and sensor noise as engine values (InputError in plain words)."""
-    from qsid_core.config import parse_input_bits, parse_noise
+    from qsid_core.config import parse_input_bits, parse_noise, parse_state_bits
     from qsid_core.quantize import channel_bits
 
     try:
-        ib = parse_input_bits(v.input_bits)
-        channel_bits(ALL_BITS[0], system.n, system.m, ib)
+        ib, sb = parse_input_bits(v.input_bits), parse_state_bits(v.state_bits)
+        channel_bits(ALL_BITS[0], system.n, system.m, ib, sb)
         noise = parse_noise(v.noise) if (v.noise or "").strip() else (0.0,)
     except QsidError as exc:
         raise InputError(str(exc)) from None
     if len(noise) not in (1, system.n):
         raise InputError(f"sensor noise: give one σ for every state or one per state "
                          f"({', '.join(system.state_names)}); got {len(noise)}")
-    return ib, noise
+    return ib, sb, noise
 
 
 def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
@@ -298,14 +299,15 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
     if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
         raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
-    input_bits, noise = _what_ifs(v, system)
+    input_bits, state_bits, noise = _what_ifs(v, system)
     try:
         return SweepConfig(
-            system=system, bits=ALL_BITS, input_bits=input_bits, noise=noise, noise_known=bool(v.noise_known), realizations=int(v.realizations), trajectories=int(v.trajectories),
+            system=system, bits=ALL_BITS, realizations=int(v.realizations), trajectories=int(v.trajectories),
             steps=int(v.steps), input_amplitude=float(v.input_amplitude), data_seed=int(v.data_seed),
             dither_seed=int(v.dither_seed),
             quantizer=quantizer_spec(v, system.n, system.m), estimator=estimators(v.identification)[0],
             mpc=mpc_config(v, system), theta=float(v.theta), rho=None if v.rho_auto else float(v.rho),
+            input_bits=input_bits, state_bits=state_bits, noise=noise, noise_known=bool(v.noise_known),
         )
     except InputError:
         raise
