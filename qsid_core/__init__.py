@@ -33,6 +33,7 @@ from .systems import PRESETS, LTISystem, UncontrollableWarning, boeing747, dc_mo
 from .records import COLUMNS as RECORD_COLUMNS
 from .records import RealizationRecord, experiment_records, realization_records, to_columns, to_pandas, write_csv
 from .interop import identified_statespaces, model_to_statespace, system_from_statespace, system_to_statespace
+from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded
 from .theory import RealizedBounds, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
 
 from .version import __version__
@@ -51,4 +52,5 @@ __all__ = [
 __all__ += ["FailureKind", "LQParts", "MPCWeights"]
 __all__ += ["RECORD_COLUMNS", "RealizationRecord", "experiment_records", "realization_records", "to_columns",
             "to_pandas", "write_csv"]
+__all__ += ["RecordedResult", "dataset_from_arrays", "identify_recorded", "load_recorded", "__version__"]
 __all__ += ["identified_statespaces", "model_to_statespace", "system_from_statespace", "system_to_statespace"]

@@ -14,13 +14,14 @@ import warnings
 from concurrent.futures.process import BrokenProcessPool
 from typing import Sequence
 
-from . import datalength, parser, reproduce, sweep, systems
+from . import datalength, identify, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 #: name -> command module, in the order ``qsid --help`` lists them.
-COMMANDS = {"systems": systems, "sweep": sweep, "reproduce": reproduce, "datalength": datalength}
+COMMANDS = {"systems": systems, "sweep": sweep, "reproduce": reproduce, "datalength": datalength,
+            "identify": identify}
 
 
 def build_parser(only: str | None = "*"):
