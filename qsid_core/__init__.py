@@ -17,7 +17,7 @@ from .errors import ConfigError, DataOverflowError, IdentificationError, QsidErr
 from .config import SweepConfig, parse_bits
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
-from .sweep import SummaryRow, SweepResult, fit_slope, run_sweep, summarize, summary_row
+from .sweep import SummaryRow, SweepResult, fit_slope, load_result, run_sweep, summarize, summary_row
 from .assumptions import Assumptions
 from .datalength import DataLengthConfig, DataLengthResult, run_datalength
 from .quantizer_demo import QuantizerDemo, channel_demo, quantizer_demo
@@ -33,9 +33,10 @@ from .systems import PRESETS, LTISystem, UncontrollableWarning, boeing747, dc_mo
 from .records import COLUMNS as RECORD_COLUMNS
 from .records import RealizationRecord, experiment_records, realization_records, to_columns, to_pandas, write_csv
 from .interop import identified_statespaces, model_to_statespace, system_from_statespace, system_to_statespace
+from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded
 from .theory import RealizedBounds, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
 
-__version__ = "0.1.0"
+from .version import __version__
 
 __all__ = [
     "Assumptions", "ClosedLoops", "ConfigError", "DataLengthConfig", "DataLengthResult", "DataOverflowError",
@@ -43,7 +44,7 @@ __all__ = [
     "MPCController", "MPCFailure", "Moments", "PRESETS", "QsidError", "QuantizerDemo", "QuantizerSpec",
     "RealizedBounds", "SummaryRow", "SweepConfig", "SweepResult", "SystemDefinitionError", "TimeSeries",
     "UncontrollableWarning", "boeing747", "channel_demo", "dc_motor", "dc_motor_physical", "fit_slope", "get_system",
-    "identify", "load_system", "parse_bits", "prepare", "quantize", "quantized_moments", "quantizer_demo",
+    "identify", "load_result", "load_system", "parse_bits", "prepare", "quantize", "quantized_moments", "quantizer_demo",
     "realized_bounds", "relative_errors", "riccati_finite", "run_closed_loops", "run_datalength", "run_sweep",
     "simulate", "single_threaded_blas", "summarize", "summary_row", "theorem1_prediction", "time_series",
     "ultimate_bound",
@@ -51,4 +52,5 @@ __all__ = [
 __all__ += ["FailureKind", "LQParts", "MPCWeights"]
 __all__ += ["RECORD_COLUMNS", "RealizationRecord", "experiment_records", "realization_records", "to_columns",
             "to_pandas", "write_csv"]
+__all__ += ["RecordedResult", "dataset_from_arrays", "identify_recorded", "load_recorded", "__version__"]
 __all__ += ["identified_statespaces", "model_to_statespace", "system_from_statespace", "system_to_statespace"]

@@ -2,8 +2,11 @@
 
 Theorem 1 (large-data regime) needs
 
-1. **subtractive dither** (``x~ = Q(x + w) - w``): only then is the quantization
-   error uniform with variance ``eps**2/12`` and independent of the signal;
+1. **dither of known noise variance**: subtractive dither (``x~ = Q(x + w) - w``)
+   makes the quantization error uniform with variance ``eps**2/12`` and
+   independent of the signal; non-subtractive TPDF dither makes its mean 0 and its
+   variance ``eps**2/4`` whatever the signal (see :mod:`qsid_core.quantize`); with
+   RPDF dither or none no signal-independent variance exists;
 2. **no overload in effect**: entries whose ``x`` lies beyond the outermost
    quantizer levels ``[L_lo, L_hi]`` are clipped. With subtractive dither the
    error of such an entry is still ``-w`` (uniform, variance ``eps**2/12``) plus a
@@ -55,7 +58,8 @@ Where a hypothesis formally fails yet the measured mean LS error is within
 ``fits_B``): the plots keep the line and say exactly that.
 
 BCLS (``Psi~ Psi~^T - T D``) needs 1 and 2 (the noise variance must be the known
-``eps**2/12``), not 3 or 4: it removes the bias in finite data as well.
+``D``) and, with sensor noise on the states, that noise's variance in ``D`` too
+(``noise_known``); not 3 or 4: it removes the bias in finite data as well.
 """
 
 from __future__ import annotations
@@ -110,9 +114,13 @@ class Assumptions:
     fits_A, fits_B : bool
         ``|ls_err - bias| <= FIT_TOLERANCE * bias``: the prediction fits the data.
     bcls_holds : bool
-        Subtractive dither and no overload in effect: BCLS removes the bias.
+        Dither of known noise variance and no overload in effect: BCLS removes the bias.
     notes : tuple of str
         Plain-words reasons for every hypothesis that fails.
+    known_noise : bool
+        The dither gives a signal-independent error variance (subtractive or tpdf).
+    sensor_noise_known : bool
+        No sensor noise, or its variance is in BCLS's ``D`` (``noise_known``).
     """
 
     bits: int
@@ -142,6 +150,8 @@ class Assumptions:
     fits_B: bool
     bcls_holds: bool
     notes: tuple = ()
+    known_noise: bool = True
+    sensor_noise_known: bool = True
 
     def to_dict(self) -> dict:
         """Plain JSON-ready data (non-finite numbers become None)."""
@@ -178,7 +188,7 @@ def finite_data_fluctuation(G: np.ndarray, PP: np.ndarray, eps: np.ndarray) -> t
 
 
 def clipping_effect(G: np.ndarray, Psi: np.ndarray, Xp: np.ndarray, lo_q: np.ndarray, eps: np.ndarray,
-                    bits: int) -> np.ndarray:
+                    bits, variance: float = 1.0 / 12.0) -> np.ndarray:
     """Predicted absolute change of ``[A^, B^]`` caused by the quantizer clipping the data.
 
     Parameters
@@ -188,8 +198,12 @@ def clipping_effect(G: np.ndarray, Psi: np.ndarray, Xp: np.ndarray, lo_q: np.nda
     Psi, Xp : ndarray, shapes (n+m, T) and (n, T)
         Unquantized regressors and next states.
     lo_q, eps : ndarray, shape (n+m,)
-        The quantizer's lower edge and cell width per channel (:func:`~qsid_core.quantize.effective_ranges`).
-    bits : int
+        The quantizer's lower edge and cell width per channel (:func:`~qsid_core.quantize.effective_ranges`);
+        a channel recorded exactly has ``eps = 0`` and is never clipped.
+    bits : int or ndarray, shape (n+m,)
+        Word length (per channel).
+    variance : float
+        The dither's error variance in units of ``eps**2`` (1/12 subtractive, 1/4 tpdf).
 
     Returns
     -------
@@ -198,14 +212,16 @@ def clipping_effect(G: np.ndarray, Psi: np.ndarray, Xp: np.ndarray, lo_q: np.nda
         signal) and the shift of the noise-free clipped LS from ``[A, B]`` (what BCLS recovers).
     """
     n = G.shape[0]
-    lo_l = lo_q + eps / 2
-    hi_l = lo_q + eps * (2.0**bits - 0.5)
+    exact = np.asarray(eps, dtype=float) <= 0
+    levels = 2.0 ** np.asarray(bits, dtype=float)
+    lo_l = np.where(exact, -np.inf, lo_q + eps / 2)
+    hi_l = np.where(exact, np.inf, lo_q + eps * (levels - 0.5))
     Pc = np.clip(Psi, lo_l[:, None], hi_l[:, None])
     Xc = np.clip(Xp, lo_l[:n, None], hi_l[:n, None])
     if np.array_equal(Pc, Psi) and np.array_equal(Xc, Xp):
         return np.zeros_like(G)
     T = Psi.shape[1]
-    D = np.diag(np.asarray(eps, dtype=float) ** 2 / 12.0) * T
+    D = np.diag(np.asarray(eps, dtype=float) ** 2 * variance) * T
     PPc, XPc = Pc @ Pc.T, Xc @ Pc.T
     try:
         ls_shift = np.linalg.solve(PPc + D, XPc.T).T - np.linalg.solve(Psi @ Psi.T + D, Psi @ Xp.T).T
@@ -249,10 +265,17 @@ def _overload_note(a: dict) -> str:
 
 
 def _notes(a: dict, c) -> list:
+    from .quantize import bcls_reason
+
     notes = []
-    if not a["subtractive_dither"]:
+    if c.quantizer.dither == "none":
         notes.append("no dither: the quantization error is a deterministic function of the signal, not "
                      "independent noise of variance eps^2/12; every realization is the same")
+    elif not a["known_noise"]:
+        notes.append(f"{c.quantizer.dither} dither: {bcls_reason(c.quantizer.dither)}")
+    if not a["sensor_noise_known"]:
+        notes.append("sensor noise on the states is not known to BCLS (noise_known off): BCLS removes only the "
+                     "quantization noise's bias, the noise's own bias stays")
     if not a["no_overload"]:
         notes.append(_overload_note(a))
     if not a["stationary"]:
@@ -274,20 +297,27 @@ def _notes(a: dict, c) -> list:
 
 def assess(ex, b: int) -> Assumptions:
     """The hypotheses at word length ``b`` for an :class:`~qsid_core.experiment.Experiment`."""
-    from .quantize import effective_ranges
+    from .quantize import ERROR_VARIANCE, bcls_reason, channel_bits, guard_cells
 
     c, sysm = ex.config, ex.system
     n = sysm.n
+    q = c.quantizer
     moms = ex.moments([b])[b]
     th = ex.theory(b)
     prep = ex.prepared
-    lo_q, eps = effective_ranges(prep.lo, prep.hi, b, c.quantizer.guard)
+    eps = np.asarray(moms[0].eps, dtype=float)  # per channel (0 where a channel is recorded exactly)
+    chan = channel_bits(b, n, sysm.m, c.input_bits, c.state_bits)
+    cb = np.array([bb if bb is not None else 1 for bb in chan], dtype=float)
+    lo_q = np.asarray(prep.lo, dtype=float) - np.array([guard_cells(q.dither, q.guard, int(bb)) for bb in cb]) * eps
     nA, nB = _block_norms(sysm)
-    fA, fB = finite_data_fluctuation(sysm.G, prep.exact.PP, moms[0].eps)
+    fA, fB = finite_data_fluctuation(sysm.G, prep.exact.PP, eps)
     Psi, Xp = ex.data.matrices()
-    clip = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, b)
+    clip = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, ERROR_VARIANCE.get(q.dither, 1.0 / 12.0))
     ls = ex.identification(b, "ls")
-    a = dict(bits=b, subtractive_dither=c.quantizer.dither == "subtractive",
+    known = not bcls_reason(q.dither)
+    unknown_sensor_noise = any(v > 0 for v in c.noise) and not c.noise_known
+    a = dict(bits=b, subtractive_dither=q.dither == "subtractive", known_noise=known,
+             sensor_noise_known=not unknown_sensor_noise,
              overload_fraction=float(np.mean([mo.overload_fraction for mo in moms])),
              overload_range=range_words(c.quantizer, prep.lo, prep.hi),
              overload_effect_A=float(np.linalg.norm(clip[:, :n])) / nA,
@@ -299,12 +329,12 @@ def assess(ex, b: int) -> Assumptions:
     for k in "AB":
         a[f"no_overload_{k}"] = bool(a[f"overload_effect_{k}"] * OVERLOAD_EFFECT_RATIO <= a[f"fluctuation_{k}"])
         a[f"large_data_{k}"] = bool(a[f"bias_{k}"] >= LARGE_DATA_RATIO * a[f"fluctuation_{k}"])
-        a[f"theorem1_holds_{k}"] = bool(a["subtractive_dither"] and a["stationary"] and a[f"no_overload_{k}"]
+        a[f"theorem1_holds_{k}"] = bool(a["known_noise"] and a["stationary"] and a[f"no_overload_{k}"]
                                         and a[f"large_data_{k}"])
         bias, err = a[f"bias_{k}"], a[f"ls_err_{k}"]
         a[f"fits_{k}"] = bool(np.isfinite(err) and abs(err - bias) <= FIT_TOLERANCE * bias)
     a["no_overload"] = a["no_overload_A"] and a["no_overload_B"]
     a["large_data"] = a["large_data_A"] and a["large_data_B"]
     a["theorem1_holds"] = a["theorem1_holds_A"] and a["theorem1_holds_B"]
-    a["bcls_holds"] = bool(a["subtractive_dither"] and a["no_overload"])
+    a["bcls_holds"] = bool(a["known_noise"] and a["no_overload"] and a["sensor_noise_known"])
     return Assumptions(**a, notes=tuple(_notes(a, c)))

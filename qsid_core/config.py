@@ -7,18 +7,20 @@ defaults differ from them only in the quantizer's guard band (on by default, see
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Mapping
 
 import numpy as np
 
 from .errors import ConfigError, check_choice, check_float, check_int, short_repr
+from .validate import check_bool
 from .config_checks import check_sweep_parts
 from .identify import ESTIMATORS
 from .mpc import MPCConfig
 from .quantize import LETTER_QUANTIZER, MAX_BITS, QuantizerSpec
 from .systems import LTISystem
 
-__all__ = ["SweepConfig", "parse_bits"]
+__all__ = ["SweepConfig", "parse_bits", "parse_input_bits", "parse_noise", "parse_state_bits"]
 
 
 def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
@@ -68,6 +70,99 @@ def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
     return out
 
 
+def parse_input_bits(spec) -> None | str | tuple:
+    """Word length of the inputs: None or ``"same"`` (as the states), ``"exact"``, one int, or one per input.
+
+    Accepts ``12``, ``"12"``, ``"exact"``, ``"8,12"``, ``"exact,8"`` or a sequence of ints / ``"exact"``.
+
+    Raises
+    ------
+    ConfigError
+        For anything else, or a word length outside 1..32.
+    """
+    form = "input bits must be 'same', 'exact', a word length 1..32, or one per input like '8,12' or 'exact,8'"
+    if spec is None:
+        return None
+    if isinstance(spec, str):
+        s = spec.strip().lower()
+        if s in ("", "same"):
+            return None
+        if s == "exact":
+            return "exact"
+        items = [v.strip() for v in s.split(",")]
+        if len(s) > 200 or not all(items):
+            raise ConfigError(f"{form}; got {short_repr(spec)}")
+        if len(items) == 1:
+            try:
+                return check_int("input bits", int(items[0]), 1, MAX_BITS)
+            except ValueError:
+                raise ConfigError(f"{form}; got {short_repr(spec)}") from None
+        spec = items
+    if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
+        return check_int("input bits", int(spec), 1, MAX_BITS)
+    if isinstance(spec, (list, tuple)) and 0 < len(spec) <= 1000:
+        out = []
+        for v in spec:
+            if isinstance(v, str) and v.strip().lower() in ("exact", "b", "same"):
+                out.append("exact" if v.strip().lower() == "exact" else "b")
+                continue
+            try:
+                out.append(check_int("input bits", int(v) if isinstance(v, (str, np.integer)) else v, 1, MAX_BITS))
+            except (TypeError, ValueError):
+                raise ConfigError(f"{form}; got {short_repr(v)} in {short_repr(spec)}") from None
+        return tuple(out)
+    raise ConfigError(f"{form}; got {short_repr(spec)}")
+
+
+def parse_state_bits(spec) -> None | tuple:
+    """Word length of each state: None or ``""``/``"b"`` (every state has the swept b), else one entry for all
+    states or one per state.
+
+    Entries: ``"b"`` (the swept word length), a word length 1..32, or ``"exact"``; e.g. ``"b,b,12,exact"``.
+
+    Raises
+    ------
+    ConfigError
+        For anything else.
+    """
+    form = "state bits must be one entry per state, each 'b' (the swept b), a word length 1..32 or 'exact'"
+    if spec is None or (isinstance(spec, str) and spec.strip().lower() in ("", "b", "same")):
+        return None
+    if isinstance(spec, str):
+        if len(spec) > 2000:
+            raise ConfigError(f"{form}; got {short_repr(spec)}")
+        spec = [v.strip() for v in spec.split(",")]
+    if not isinstance(spec, (list, tuple)) or not spec or any(isinstance(v, str) and not v for v in spec):
+        raise ConfigError(f"{form}; got {short_repr(spec)}")
+    try:
+        out = parse_input_bits(list(spec)) if len(spec) > 1 else parse_input_bits([spec[0], "b"])[:1]
+    except ConfigError:
+        raise ConfigError(f"{form}; got {short_repr(spec)}") from None
+    return tuple(out)
+
+
+def parse_noise(spec) -> tuple:
+    """Sensor noise standard deviations: one for every state, or one per state (``0.01`` or ``"0.01,0.02"``).
+
+    Raises
+    ------
+    ConfigError
+        If a value is negative or not a finite number.
+    """
+    if isinstance(spec, str):
+        try:
+            spec = [float(v) for v in spec.split(",") if v.strip()] if len(spec) <= 2000 else None
+        except ValueError:
+            spec = None
+        if not spec:
+            raise ConfigError("noise must be one standard deviation >= 0 or one per state, like '0.01' or "
+                              "'0.01,0,0.02'")
+    vals = list(spec) if isinstance(spec, (list, tuple, np.ndarray)) else [spec]
+    if not 0 < len(vals) <= 1000:
+        raise ConfigError("noise must be one standard deviation >= 0 or one per state")
+    return tuple(check_float("noise", v, 0.0, 1e12) for v in vals)
+
+
 @dataclass(frozen=True)
 class SweepConfig:
     """Everything a sweep depends on.
@@ -94,6 +189,20 @@ class SweepConfig:
     theta, rho : float
         Parameters of the ultimate bound (see :func:`qsid_core.theory.ultimate_bound`);
         ``rho=None`` picks the documented default.
+    input_bits : None, "exact", int or tuple
+        Word length of the inputs (:func:`parse_input_bits`): None = the swept b,
+        ``"exact"`` = inputs recorded without quantization, one int for all
+        inputs or one entry per input; the swept ``bits`` are the states'.
+    state_bits : None or tuple
+        Word length of each state (:func:`parse_state_bits`): None = every state has
+        the swept b; else one entry per state, ``"b"`` (swept), an int or ``"exact"``.
+    noise : float or tuple of float, >= 0
+        Standard deviation of Gaussian sensor noise added to the recorded states
+        before quantization (one for all states or one per state; default 0).
+        Drawn from its own stream seeded by ``data_seed``.
+    noise_known : bool
+        BCLS (and nothing else) adds the noise variance ``sigma**2`` to ``D``;
+        without it BCLS corrects only the quantization noise it knows of.
     """
 
     system: str | LTISystem = "dc-motor"
@@ -109,6 +218,91 @@ class SweepConfig:
     theta: float = 0.5
     rho: float | None = None
     input_amplitude: float = 1.0
+    input_bits: object = None
+    noise: object = 0.0
+    state_bits: object = None
+    noise_known: bool = False
+
+    def to_dict(self, system: LTISystem | None = None) -> dict:
+        """Every setting as plain JSON data; :meth:`from_dict` reads it back to an equal config.
+
+        ``system`` (the resolved :class:`LTISystem`, default ``get_system(self.system)``) is
+        written in full (A, B, x0, Q, R, dt) under ``system_definition``; ``mpc_settings`` holds
+        every :class:`MPCConfig` field as given (None = its documented default).
+        """
+        from .systems import get_system
+
+        q = self.quantizer
+        sysm = system if system is not None else get_system(self.system)
+        ib = self.input_bits
+        return {
+            "bits": list(self.bits), "realizations": self.realizations, "trajectories": self.trajectories,
+            "steps": self.steps, "data_seed": self.data_seed, "dither_seed": self.dither_seed,
+            "dither": q.dither, "range": q.range_mode, "guard": q.guard,
+            "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
+            "estimator": self.estimator, "theta": self.theta, "rho": self.rho,
+            "input_amplitude": self.input_amplitude, "input_bits": list(ib) if isinstance(ib, tuple) else ib,
+            "noise": list(self.noise), "noise_known": self.noise_known,
+            "state_bits": None if self.state_bits is None else list(self.state_bits),
+            "system_definition": sysm.to_dict(),
+            "mpc_settings": None if self.mpc is None else {
+                f.name: (list(v) if isinstance(v, tuple) else v)
+                for f in fields(self.mpc) for v in [getattr(self.mpc, f.name)]
+            },
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "SweepConfig":
+        """A config from :meth:`to_dict`'s data, a whole JSON result (its ``config``) or a TOML table.
+
+        Keys are :meth:`to_dict`'s; ``system`` may be a preset name or file path, or a table with
+        A, B [, x0, Q, R, dt] (``system_definition`` wins when both are present); ``mpc`` (or
+        ``mpc_settings``) is a table of :class:`MPCConfig` fields, or null/false for no MPC.
+
+        Raises
+        ------
+        ConfigError
+            For unknown keys (listed with the allowed ones) or bad values.
+        """
+        if not isinstance(d, Mapping):
+            raise ConfigError("a sweep configuration must be a table/object of settings")
+        if isinstance(d.get("config"), Mapping):  # a whole result
+            d = d["config"]
+        d = dict(d)
+        allowed = {"bits", "realizations", "trajectories", "steps", "data_seed", "dither_seed", "dither", "range",
+                   "guard", "fixed_range", "estimator", "theta", "rho", "input_amplitude", "input_bits", "noise",
+                   "noise_known", "state_bits", "system", "system_definition", "mpc", "mpc_settings"}
+        unknown = sorted(set(d) - allowed)
+        if unknown:
+            raise ConfigError(f"unknown setting(s) {unknown}; allowed: {', '.join(sorted(allowed))}")
+        from .systems import get_system, system_from_dict
+
+        sysd = d.pop("system_definition", None)
+        sysv = d.pop("system", None)
+        if sysd is None and isinstance(sysv, Mapping):
+            sysd = sysv
+        system = system_from_dict(sysd, str(sysd.get("name", "custom"))) if sysd is not None else \
+            get_system(sysv if sysv is not None else cls.system)
+        mset = d.pop("mpc_settings", None) if "mpc_settings" in d else d.get("mpc", {})
+        d.pop("mpc", None)
+        if mset is None or mset is False:
+            mpc = None
+        elif isinstance(mset, Mapping):
+            names = {f.name for f in fields(MPCConfig)}
+            bad = sorted(set(mset) - names)
+            if bad:
+                raise ConfigError(f"unknown MPC setting(s) {bad}; allowed: {', '.join(sorted(names))}")
+            mpc = MPCConfig(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in mset.items()})
+        else:
+            raise ConfigError("mpc must be a table of MPC settings, or null/false for no MPC")
+        qkeys = {"dither": "dither", "range": "range_mode", "guard": "guard", "fixed_range": "fixed_range"}
+        qargs = {qkeys[k]: d.pop(k) for k in list(d) if k in qkeys}
+        if isinstance(qargs.get("fixed_range"), list):
+            qargs["fixed_range"] = tuple(tuple(p) if isinstance(p, list) else p for p in qargs["fixed_range"])
+        for k in ("input_bits", "noise", "bits", "state_bits"):
+            if isinstance(d.get(k), list):
+                d[k] = tuple(d[k])
+        return cls(system=system, quantizer=QuantizerSpec(**qargs), mpc=mpc, **d)
 
     @classmethod
     def letter(cls, system: str | LTISystem = "dc-motor", **overrides) -> "SweepConfig":
@@ -139,4 +333,8 @@ class SweepConfig:
             check_float("rho", self.rho, 0.0, lo_open=True)
         if not isinstance(self.quantizer, QuantizerSpec):
             raise ConfigError("quantizer must be a QuantizerSpec")
+        object.__setattr__(self, "input_bits", parse_input_bits(self.input_bits))
+        object.__setattr__(self, "noise", parse_noise(self.noise))
+        object.__setattr__(self, "state_bits", parse_state_bits(self.state_bits))
+        object.__setattr__(self, "noise_known", check_bool("noise_known", self.noise_known))
         check_sweep_parts(self.system, self.mpc, self.rho)

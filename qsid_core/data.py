@@ -137,3 +137,38 @@ def simulate(
                         f"(spectral radius of A is {rho:.3g} > 1); use fewer steps or a stable A"
                     )
     return Dataset(states, inputs, seed, input_amplitude)
+
+
+def with_sensor_noise(data: Dataset, sigma, seed: int) -> Dataset:
+    """The data as a sensor records them: Gaussian noise of standard deviation ``sigma`` on every state.
+
+    Parameters
+    ----------
+    data : Dataset
+        Noise-free states (trajectories, steps + 1, n) and inputs (trajectories, steps, m).
+    sigma : float or sequence of float, length 1 or n
+        Standard deviation per state (one value: every state). Inputs are commanded, not measured:
+        they stay exact.
+    seed : int
+        Seeds the noise stream, ``SeedSequence(seed).spawn(2)[1]`` (independent of the data's own stream).
+
+    Returns
+    -------
+    Dataset
+        The same inputs, states plus noise (a new array; ``data`` is untouched).
+
+    Raises
+    ------
+    ConfigError
+        If ``sigma`` has neither 1 nor n entries.
+    """
+    from .errors import ConfigError
+
+    s = np.asarray(sigma, dtype=float).reshape(-1)
+    if s.size not in (1, data.n):
+        raise ConfigError(f"noise has {s.size} values; give one for every state or one per state ({data.n})")
+    if not np.any(s > 0):
+        return data
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
+    noisy = data.states + rng.standard_normal(data.states.shape) * np.broadcast_to(s, (data.n,))
+    return Dataset(noisy, data.inputs, data.seed, data.input_amplitude)

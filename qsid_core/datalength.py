@@ -157,7 +157,7 @@ def _task(prep, b: int, spec: QuantizerSpec, seeds: list, G: np.ndarray, n: int)
     out = []
     with single_threaded_blas():
         for ss in seeds:
-            rng = np.random.default_rng(ss) if spec.dither == "subtractive" else None
+            rng = np.random.default_rng(ss) if spec.dither != "none" else None
             mo = quantized_moments(prep, [b], spec, rng)[0]
             row, fb = [], False
             for est in ("ls", "bcls"):
@@ -205,7 +205,7 @@ def run_datalength(config: DataLengthConfig, executor: Executor | None = None,
     lo, hi = data_ranges(master.states, master.inputs, q)
     spec = QuantizerSpec(dither=q.dither, range_mode="fixed", guard=q.guard,
                          fixed_range=tuple(zip(lo.tolist(), hi.tolist())))
-    eps = effective_ranges(lo, hi, config.bits, q.guard)[1]
+    eps = effective_ranges(lo, hi, config.bits, q.guard, q.dither)[1]
     R = 1 if q.dither == "none" else config.realizations
     seeds = np.random.SeedSequence(config.dither_seed).spawn(R)
     size = math.ceil(R / max(1, min(tasks, R)))
@@ -230,7 +230,7 @@ def run_datalength(config: DataLengthConfig, executor: Executor | None = None,
             break
         res = np.vstack(parts)
         Sig = prep.exact.PP / prep.exact.T
-        Gp = theorem1_prediction(system.G, Sig, eps)
+        Gp = theorem1_prediction(system.G, Sig, eps, q.dither)
         tA, tB = relative_errors(Gp[:, :n], Gp[:, n:], system.A, system.B)
         rows.append(DataLengthRow(runs * steps, runs, steps, Stats.of(res[:, 0]), Stats.of(res[:, 1]),
                                   Stats.of(res[:, 2]), Stats.of(res[:, 3]), tA, tB, float(res[:, 5].mean()),

@@ -24,7 +24,9 @@ from typing import Callable, MutableMapping
 import numpy as np
 
 from .config import SweepConfig, parse_bits
-from .data import Dataset, simulate
+from dataclasses import replace
+
+from .data import Dataset, simulate, with_sensor_noise
 from .errors import ConfigError, check_choice, check_int
 from .executors import InlineExecutor, single_threaded_blas
 from .config_checks import check_run_args
@@ -52,13 +54,14 @@ __all__ = [
 Progress = Callable[[int, int, str], None]
 
 
-def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list) -> list[list[Moments]]:
+def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list,
+                  input_bits=None, state_bits=None) -> list[list[Moments]]:
     """Quantized moments for a chunk of realizations (module level: picklable for process pools)."""
     out = []
     with single_threaded_blas():
         for ss in seeds:
-            rng = np.random.default_rng(ss) if spec.dither == "subtractive" else None
-            out.append(quantized_moments(prep, list(bits), spec, rng))
+            rng = np.random.default_rng(ss) if spec.dither != "none" else None
+            out.append(quantized_moments(prep, list(bits), spec, rng, input_bits=input_bits, state_bits=state_bits))
     return out
 
 
@@ -119,11 +122,20 @@ class Experiment:
 
     def _key_prep(self):
         q = self.config.quantizer
-        return self._key_data() + (q.range_mode, q.guard, q.fixed_range)
+        return self._key_data() + (q.range_mode, q.guard, q.fixed_range, self.config.noise)
 
     def _key_mom(self, b):
         c, q = self.config, self.config.quantizer
-        return self._key_prep() + (b, q.dither, c.dither_seed, c.realizations)
+        return self._key_prep() + (b, q.dither, c.dither_seed, c.realizations, c.input_bits, c.noise_known,
+                                  c.state_bits)
+
+    def _noise_variance(self) -> np.ndarray:
+        """Sensor noise variance per channel of ``Psi``, shape (n + m,) (0 for the inputs)."""
+        n, m = self.system.n, self.system.m
+        s = np.asarray(self.config.noise, dtype=float)
+        if s.size not in (1, n):
+            raise ConfigError(f"noise has {s.size} values; give one for every state or one per state ({n})")
+        return np.concatenate([np.broadcast_to(s**2, (n,)), np.zeros(m)])
 
     @property
     def data(self) -> Dataset:
@@ -136,10 +148,20 @@ class Experiment:
 
     @property
     def prepared(self) -> PreparedData:
-        """The data normalised to the quantizer ranges."""
+        """The recorded data (with sensor noise, if any) normalised to the quantizer ranges.
+
+        Its ``exact`` moments are those of the noise-free data (Theorem 1's ``Sigma``).
+        """
         k = ("prep",) + self._key_prep()
         if k not in self._cache:
-            self._cache[k] = prepare(self.data, self.config.quantizer)
+            c = self.config
+            if any(v > 0 for v in c.noise):
+                self._noise_variance()  # wrong number of values: one clear error
+                rec = with_sensor_noise(self.data, c.noise, c.data_seed)
+                prep = replace(prepare(rec, c.quantizer), exact=prepare(self.data, c.quantizer).exact)
+            else:
+                prep = prepare(self.data, c.quantizer)
+            self._cache[k] = prep
         return self._cache[k]
 
     @property
@@ -163,7 +185,8 @@ class Experiment:
             # an executor with a ``share`` hook (e.g. app.distributed.DaskExecutor) sends the data once per worker
             share = getattr(self.executor, "share", None)
             prep_arg = share(prep) if callable(share) else prep
-            futs = [self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch) for ch in chunks]
+            futs = [self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch, c.input_bits, c.state_bits)
+                    for ch in chunks]
             per_real: list[list[Moments]] = []
             for i, f in enumerate(futs):
                 per_real.extend(f.result())
@@ -180,6 +203,9 @@ class Experiment:
         k = ("ident", est) + self._key_mom(b)
         if k not in self._cache:
             moms = self.moments([b])[b]
+            if self.config.noise_known and any(v > 0 for v in self.config.noise):
+                extra = self._noise_variance()
+                moms = [replace(mo, D=mo.noise_variance + extra) for mo in moms]
             sysA, sysB = self.system.A, self.system.B
             n, m = sysB.shape
             ids: list = []
@@ -208,16 +234,20 @@ class Experiment:
         """Theorem 1 prediction and the ultimate bound delta(eps) at word length ``b``."""
         c = self.config
         mcfg = c.mpc or MPCConfig()
-        k = ("theory", b, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0) + self._key_prep()
+        k = ("theory", b, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0,
+             c.quantizer.dither, c.input_bits, c.state_bits) + self._key_prep()
         if k in self._cache:
             return self._cache[k]
-        from .quantize import effective_ranges
+        from .quantize import channel_bits, channel_eps
 
         prep = self.prepared
-        _, eps = effective_ranges(prep.lo, prep.hi, b, c.quantizer.guard)
         sysm = self.system
         n = sysm.n
-        Gp = theorem1_prediction(sysm.G, self.Sigma, eps)
+        q = c.quantizer
+        chan = channel_bits(b, n, sysm.m, c.input_bits, c.state_bits)
+        eps = channel_eps(prep.lo, prep.hi, chan, q.guard, q.dither)
+        # the LS limit with white sensor noise on the states: Sigma (noise-free) + D + sigma^2
+        Gp = theorem1_prediction(sysm.G, self.Sigma, eps, q.dither, self._noise_variance())
         eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], sysm.A, sysm.B)
         w = mcfg.resolve(sysm)
         note, ub = "", None

@@ -7,7 +7,11 @@ Least squares (letter, eq. (3); closed form eq. (7) in the proof of Theorem 2)::
 Bias-compensated least squares (BCLS): Theorem 1 shows the LS bias comes from
 ``E[Psi~ Psi~^T] = Psi Psi^T + T D`` with ``D = diag(eps_i**2 / 12)``, which the
 subtractive dither makes *known*. BCLS uses ``Psi~ Psi~^T - T D`` in place of
-``Psi~ Psi~^T``. The noise of ``X~+`` is independent of that of ``Psi~`` (other
+``Psi~ Psi~^T``. Non-subtractive triangular (TPDF) dither also gives a known,
+signal-independent error variance, ``eps**2 / 4`` (see :mod:`qsid_core.quantize`);
+:attr:`Moments.D <qsid_core.moments.Moments>` carries the ``D`` of the dither used, and
+:attr:`Moments.bcls_note` says when none is known (RPDF dither, no dither): BCLS then
+uses a nominal ``eps**2 / 12`` and its note says it does not apply. The noise of ``X~+`` is independent of that of ``Psi~`` (other
 samples, other dither draws), so ``X~+ Psi~^T`` needs no correction. When the
 corrected matrix is not positive definite (quantization noise comparable to the
 signal) BCLS is meaningless; :func:`identify` then falls back to plain LS and
@@ -128,14 +132,16 @@ def identify(mom: Moments, estimator: str = "ls") -> Identified:
                                   "no model")
     n = mom.XP.shape[0]
     if estimator == "bcls":
-        D = mom.T * np.asarray(mom.eps, dtype=float) ** 2 / 12.0
+        D = mom.T * mom.noise_variance
+        not_applicable = f"BCLS not applicable: {mom.bcls_note}; a nominal D = eps^2/12 was used" \
+            if mom.bcls_note else ""
         G = _solve_spd(mom.PP - np.diag(D), mom.XP)
         if G is not None and np.all(np.abs(G) <= MAX_MODEL_MAGNITUDE):
-            return Identified(G[:, :n], G[:, n:], "bcls")
+            return Identified(G[:, :n], G[:, n:], "bcls", note=not_applicable)
         A, B = least_squares(mom.PP, mom.XP, n)
         return Identified(
             A, B, "ls", fallback=True,
-            note="bias compensation impossible: Psi Psi^T - T*diag(eps^2/12) is not positive definite "
+            note="bias compensation impossible: Psi Psi^T - T*D is not positive definite "
             "(quantization noise comparable to the signal); plain LS used",
         )
     A, B = least_squares(mom.PP, mom.XP, n)

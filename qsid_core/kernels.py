@@ -71,7 +71,7 @@ def _dot_py(x, y, k):
     return acc
 
 
-def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first):
+def _accumulate_chunk_py(y, u, sub, quant, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first):
     """Quantize rows ``y`` at every word length and accumulate (see :func:`accumulate_chunk`)."""
     rows, p = y.shape
     n = C.shape[2]
@@ -87,18 +87,22 @@ def _accumulate_chunk_py(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_
                 yT[a, r] = y[s0 + r, a]
                 uT[a, r] = u[s0 + r, a]
         for j in range(scale.shape[0]):
-            s_j, h = scale[j], half[j]
-            # quantize: v = clip(floor(y * scale + u), -half, half - 1) - u (two roundings, as numpy);
-            # overload where y * scale + u leaves [-half, half]
+            # quantize: v = clip(floor(y * scale + u), -half, half - 1) - sub * u (two roundings, as numpy);
+            # overload where y * scale + u leaves [-half, half]; an unquantized channel keeps v = y * scale
             cnt = 0
             for a in range(p):
+                s_j, h = scale[j, a], half[j, a]
                 V[a, 0] = prev[j, a]
                 ya, ua, va = yT[a], uT[a], V[a, 1:]
-                for r in range(nr):
-                    t = ya[r] * s_j
-                    t = t + ua[r]
-                    cnt += (t < -h) | (t > h)
-                    va[r] = min(max(np.floor(t), -h), h - 1) - ua[r]
+                if quant[a]:
+                    for r in range(nr):
+                        t = ya[r] * s_j
+                        t = t + ua[r]
+                        cnt += (t < -h) | (t > h)
+                        va[r] = min(max(np.floor(t), -h), h - 1) - sub * ua[r]
+                else:
+                    for r in range(nr):
+                        va[r] = ya[r] * s_j
             over[j] += cnt
             # sums += sum_r v_r;  M += sum_r v_r v_r' (upper triangle)
             for a in range(p):
@@ -224,12 +228,14 @@ else:  # pragma: no cover
     _accumulate_chunk_nb = None
 
 
-def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first) -> None:
+def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first, sub: float = 1.0,
+                     quant=None) -> None:
     """Quantize a chunk of normalised samples at every word length and accumulate, in place.
 
-    For word length ``j`` with ``2^b`` cells (``scale[j] = 2^b``, or ``2^b - 1``
-    with guard band; ``half[j] = 2^(b-1)``) the quantized sample in cell units is
-    ``v = clip(floor(y * scale + u), -half, half - 1) - u`` (``u`` the unit dither); the real value is ``a + eps * v`` (see
+    For word length ``j`` and channel ``a`` with ``2^b`` cells (``scale[j, a] = 2^b``, less twice the
+    guard band in cells; ``half[j, a] = 2^(b-1)``) the quantized sample in cell units is
+    ``v = clip(floor(y * scale + u), -half, half - 1) - sub * u`` (``u`` the dither in cell units,
+    ``sub`` 1 for subtractive dither, 0 for non-subtractive); the real value is ``a + eps * v`` (see
     :func:`qsid_core.moments.quantized_moments`).
 
     Parameters
@@ -237,9 +243,10 @@ def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last
     y : ndarray, shape (rows, p)
         Normalised samples ``[x_t, u_t]`` in ``[-1/2, 1/2]``; global rows ``row0 ..``.
     u : ndarray, shape (rows, p)
-        Unit dither draws U[-1/2, 1/2]; zeros without dither (adding and
-        subtracting 0 changes no value).
-    scale, half : ndarray, shape (nb,)
+        Dither in cell units (U[-1/2, 1/2]; triangular on [-1, 1] for TPDF); zeros
+        without dither (adding and subtracting 0 changes no value).
+    scale, half : ndarray, shape (nb,) or (nb, p)
+        Per word length, or per word length and channel (channels of other word lengths).
     row0 : int
         Global index of the chunk's first row (row ``g`` is step ``g % S1`` of run ``g // S1``).
     S1 : int
@@ -255,10 +262,21 @@ def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last
         ``v`` of the previous global row (carried between chunks).
     v_last, v_first : ndarray, shape (nb, runs, p)
         ``v`` at the last and the first row of every run (for the boundary corrections).
+    sub : float
+        1.0: the dither is subtracted after quantization; 0.0: it is not.
+    quant : ndarray of bool, shape (p,), optional
+        False for a channel recorded exactly (no quantization: ``v = y * scale``); default all True.
     """
     if not AVAILABLE:
         raise RuntimeError(f"compiled kernels unavailable: {REASON}")
-    _accumulate_chunk_nb(y, u, scale, half, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first)
+    p = y.shape[1]
+    scale2 = np.ascontiguousarray(np.broadcast_to(np.asarray(scale, dtype=float).reshape(len(scale), -1),
+                                                  (len(scale), p)))
+    half2 = np.ascontiguousarray(np.broadcast_to(np.asarray(half, dtype=float).reshape(len(half), -1),
+                                                 (len(half), p)))
+    q = np.ones(p, dtype=np.bool_) if quant is None else np.asarray(quant, dtype=np.bool_)
+    _accumulate_chunk_nb(y, u, float(sub), q, scale2, half2, int(row0), int(S1), M, C, sums, over, prev, v_last,
+                         v_first)
 
 
 def box_qp_pdas(H, g, ub, upper, lower, iters: int = 8, tol: float = 1e-12):

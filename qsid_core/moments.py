@@ -24,7 +24,8 @@ import numpy as np
 
 from .data import Dataset
 from .errors import ConfigError, check_choice
-from .quantize import QuantizerSpec, data_ranges, effective_ranges, draw_unit_dither
+from .quantize import (ERROR_VARIANCE, NOMINAL_VARIANCE, QuantizerSpec, bcls_reason, channel_bits,
+                       data_ranges, draw_dither_units, guard_cells)
 
 __all__ = ["Moments", "PreparedData", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
 
@@ -48,6 +49,11 @@ class Moments:
         Cell width per channel (zeros for unquantized data).
     overload_fraction : float
         Fraction of quantized entries whose ``x + w`` left the quantizer range.
+    D : ndarray, shape (p,), or None
+        Known variance of the error of each channel of ``Psi`` (what BCLS subtracts,
+        ``T diag(D)``); None means the subtractive-dither ``eps**2 / 12``.
+    bcls_note : str
+        Why no known variance exists (then ``D`` is only nominal); "" when it does.
     """
 
     PP: np.ndarray
@@ -55,6 +61,15 @@ class Moments:
     T: int
     eps: np.ndarray
     overload_fraction: float = 0.0
+    D: np.ndarray | None = None
+    bcls_note: str = ""
+
+    @property
+    def noise_variance(self) -> np.ndarray:
+        """``D`` per channel, shape (p,): the stored one, else ``eps**2 / 12``."""
+        if self.D is not None:
+            return np.asarray(self.D, dtype=float)
+        return np.asarray(self.eps, dtype=float) ** 2 / 12.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,26 +152,33 @@ class _Sums:
                    np.zeros((nb, p)), np.zeros((nb, runs, p)), np.zeros((nb, runs, p)))
 
 
-def _chunk_numpy(y, u, scale, half, start: int, S1: int, acc: _Sums) -> None:
-    """numpy version of :func:`qsid_core.kernels.accumulate_chunk` (the reference; BLAS for the sums)."""
+def _chunk_numpy(y, u, sub: float, scale, half, quant, start: int, S1: int, acc: _Sums) -> None:
+    """numpy version of :func:`qsid_core.kernels.accumulate_chunk` (the reference; BLAS for the sums).
+
+    ``scale`` and ``half`` have shape (nb, p); ``quant`` (p,) is False for channels recorded exactly.
+    """
     rows, p = y.shape
     n = acc.C.shape[2]
     bb = np.empty_like(y)
     ones = np.ones(rows)
+    exact = ~quant
     # rows of this chunk that end / start a run, and the runs they belong to
     lsel = np.arange((S1 - 1 - start) % S1, rows, S1)
     fsel = np.arange((-start) % S1, rows, S1)
     lk, fk = (start + lsel) // S1, (start + fsel) // S1
-    for j in range(scale.size):
+    for j in range(scale.shape[0]):
         np.multiply(y, scale[j], out=bb)
+        keep = bb[:, exact].copy() if exact.any() else None
         if u is not None:
             np.add(bb, u, out=bb)
         h = half[j]
-        acc.over[j] += int(np.count_nonzero(bb < -h)) + int(np.count_nonzero(bb > h))
+        acc.over[j] += int(np.count_nonzero((bb < -h)[:, quant])) + int(np.count_nonzero((bb > h)[:, quant]))
         np.floor(bb, out=bb)
         np.clip(bb, -h, h - 1, out=bb)
-        if u is not None:
+        if u is not None and sub:
             np.subtract(bb, u, out=bb)
+        if keep is not None:
+            bb[:, exact] = keep
         acc.M[j] += bb.T @ bb
         acc.sums[j] += ones @ bb
         acc.C[j] += (bb[:-1].T @ bb[1:])[:, :n]
@@ -167,11 +189,14 @@ def _chunk_numpy(y, u, scale, half, start: int, S1: int, acc: _Sums) -> None:
         acc.v_first[j, fk] = bb[fsel]
 
 
-def _gram(prep: PreparedData, b: int, guard: bool, acc: _Sums, j: int, upper_only: bool) -> Moments:
+def _gram(prep: PreparedData, chan: tuple, scale: np.ndarray, spec: QuantizerSpec, acc: _Sums, j: int,
+          upper_only: bool) -> Moments:
     """Gram matrices of the quantized data at word length ``b`` from the sums over ``v``.
 
     Every quantized sample is ``x~ = a + eps * v`` per channel, with
-    ``a = lo_q + eps (2^b + 1) / 2`` the quantizer's mid level. The regression
+    ``a = lo_q + eps (2^b + 1) / 2 = mid + eps / 2`` (the quantizer's range is symmetric
+    about the data range's middle ``mid``); a channel recorded exactly (``chan`` entry
+    None) has ``v = y`` in units of ``hi - lo`` and ``a = mid``. The regression
     pairs exclude the last row of every run (no successor) from ``Psi`` and the
     first row of every run from ``X+``; the pairs (last row of run k, first row
     of run k+1) are not transitions. With those corrections (``Mv``, ``sv``,
@@ -181,8 +206,11 @@ def _gram(prep: PreparedData, b: int, guard: bool, acc: _Sums, j: int, upper_onl
         XP = sum_t (a + E v_{t+1})[:n] (a + E v_t)' = E_n Cv E + (E_n snext) a' + a_n (E sv)' + T a_n a'
     """
     n, T = prep.n, prep.T
-    lo_q, eps = effective_ranges(prep.lo, prep.hi, b, guard)
-    a = lo_q + eps * (2.0**b + 1) / 2
+    quant = np.array([c is not None for c in chan])
+    bq = np.array([c if c is not None else 1 for c in chan], dtype=float)
+    g = np.array([guard_cells(spec.dither, spec.guard, c) if c is not None else 0.0 for c in chan])
+    eps = (prep.hi - prep.lo) / scale  # cell width; the whole range where exact (scale 1)
+    a = np.where(quant, prep.lo - g * eps + eps * (2.0**bq + 1) / 2, (prep.lo + prep.hi) / 2)
     VL, VF = acc.v_last[j], acc.v_first[j]
     M = np.triu(acc.M[j]) + np.triu(acc.M[j], 1).T if upper_only else acc.M[j]  # the kernel fills one triangle
     Mv = M - VL.T @ VL
@@ -193,8 +221,11 @@ def _gram(prep: PreparedData, b: int, guard: bool, acc: _Sums, j: int, upper_onl
     PP = (E[:, None] * Mv * E[None, :]) + np.outer(E * sv, a) + np.outer(a, E * sv) + T * np.outer(a, a)
     En, an = E[:n], a[:n]
     XP = (En[:, None] * Cv * E[None, :]) + np.outer(En * snext, a) + np.outer(an, E * sv) + T * np.outer(an, a)
-    total_entries = prep.yc.shape[0] * n + T * prep.m
-    return Moments(PP=PP, XP=XP, T=T, eps=eps, overload_fraction=acc.over[j] / total_entries)
+    total_entries = prep.yc.shape[0] * int(quant[:n].sum()) + T * int(quant[n:].sum())
+    eps_q = np.where(quant, eps, 0.0)
+    D = eps_q**2 * ERROR_VARIANCE.get(spec.dither, NOMINAL_VARIANCE)
+    return Moments(PP=PP, XP=XP, T=T, eps=eps_q, overload_fraction=acc.over[j] / max(total_entries, 1), D=D,
+                   bcls_note=bcls_reason(spec.dither))
 
 
 def quantized_moments(
@@ -203,6 +234,8 @@ def quantized_moments(
     spec: QuantizerSpec,
     rng: np.random.Generator | None,
     engine: str = "auto",
+    input_bits=None,
+    state_bits=None,
 ) -> list[Moments]:
     """Gram matrices of the data quantized at each word length in ``bits``.
 
@@ -216,13 +249,19 @@ def quantized_moments(
     spec : QuantizerSpec
         Dither and guard band.
     rng : numpy Generator or None
-        Source of the unit dither U[-1/2, 1/2], one draw per data entry, drawn
-        chunk by chunk (:data:`CHUNK_ROWS` rows) in a fixed order (so results do
-        not depend on ``bits`` or ``engine``). Ignored (may be None) when
-        ``spec.dither == "none"``.
+        Source of the dither (:func:`~qsid_core.quantize.draw_dither_units`: one
+        U[-1/2, 1/2] draw per data entry, two for ``tpdf``), drawn chunk by chunk
+        (:data:`CHUNK_ROWS` rows) in a fixed order (so results do not depend on
+        ``bits`` or ``engine``). Ignored (may be None) when ``spec.dither == "none"``.
     engine : {"auto", "numba", "numpy"}
         ``numba``: the fused compiled kernel (:mod:`qsid_core.kernels`);
         ``numpy``: the vectorised reference; ``auto``: numba when available.
+    input_bits : None, "exact", int or tuple
+        Word length of the inputs (:func:`~qsid_core.quantize.channel_bits`); None: the
+        same as the states. The dither draws do not depend on it (exact channels
+        draw and ignore theirs), so the states' quantization is the same number.
+    state_bits : None or tuple of n entries
+        Word length of each state (``"b"``: the swept one; an int; ``"exact"``).
 
     Returns
     -------
@@ -232,8 +271,9 @@ def quantized_moments(
     -----
     In normalised units ``y = (x - mid) / (hi - lo)`` the quantizer with ``2^b``
     cells and unit dither ``u`` gives the sample in cell units
-    ``v = clip(floor(y * 2^b + u), -2^(b-1), 2^(b-1) - 1) - u`` (``2^b - 1``
-    in place of the first ``2^b`` with guard band); the quantized value is
+    ``v = clip(floor(y * 2^b + u), -2^(b-1), 2^(b-1) - 1) - u`` (``- u`` only for
+    subtractive dither; ``2^b - 2 g`` in place of the first ``2^b`` with a guard band
+    of ``g`` cells, :func:`~qsid_core.quantize.guard_cells`); the quantized value is
     ``a + eps * v`` (see :func:`_gram`). Only sums over ``v`` are accumulated.
     """
     from . import kernels
@@ -242,21 +282,26 @@ def quantized_moments(
     if engine == "numba" and not kernels.AVAILABLE:
         raise ConfigError(f"engine 'numba' unavailable: {kernels.REASON}")
     compiled = engine == "numba" or (engine == "auto" and kernels.AVAILABLE)
-    dithered = spec.dither == "subtractive"
+    dithered = spec.dither != "none"
     if dithered and rng is None:
-        raise ValueError("subtractive dither needs a random generator")
+        raise ValueError(f"{spec.dither} dither needs a random generator")
+    sub = 1.0 if spec.dither == "subtractive" else 0.0
     yc = prep.yc
     N, p = yc.shape
     S1 = prep.steps + 1
-    half = np.array([2.0 ** (b - 1) for b in bits])
-    scale = np.array([2.0**b - (1.0 if spec.guard else 0.0) for b in bits])
+    chans = [channel_bits(b, prep.n, prep.m, input_bits, state_bits) for b in bits]
+    quant = np.array([c is not None for c in chans[0]])
+    half = np.array([[2.0 ** (c - 1) if c is not None else 1.0 for c in ch] for ch in chans])
+    scale = np.array([[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch]
+                      for ch in chans])
     acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
     for start in range(0, N, CHUNK_ROWS):
         y = yc[start : start + CHUNK_ROWS]
-        u = draw_unit_dither(rng, y.shape) if dithered else None
+        u = draw_dither_units(rng, y.shape, spec.dither) if dithered else None
         if compiled:
             kernels.accumulate_chunk(y, np.zeros_like(y) if u is None else u, scale, half, start, S1, acc.M,
-                                     acc.C, acc.sums, acc.over, acc.prev, acc.v_last, acc.v_first)
+                                     acc.C, acc.sums, acc.over, acc.prev, acc.v_last, acc.v_first, sub=sub,
+                                     quant=quant)
         else:
-            _chunk_numpy(y, u, scale, half, start, S1, acc)
-    return [_gram(prep, b, spec.guard, acc, j, compiled) for j, b in enumerate(bits)]
+            _chunk_numpy(y, u, sub, scale, half, quant, start, S1, acc)
+    return [_gram(prep, ch, scale[j], spec, acc, j, compiled) for j, ch in enumerate(chans)]

@@ -11,9 +11,20 @@ Subtractive dither: ``x~ = Q(x + w) - w`` with ``w ~ U[-eps/2, eps/2]``. While
 ``x + w`` stays inside ``[lo, hi]`` the error ``x - x~`` is exactly uniform on
 ``[-eps/2, eps/2]`` (variance ``eps**2/12``) and independent of ``x``.
 
-Guard band: the range is widened by half a cell on each side, ``[lo - eps/2,
-hi + eps/2]`` with ``eps = (hi - lo) / (2**b - 1)``, so ``x + w`` can never leave
-it for ``x`` in ``[lo, hi]``: no overload, at the price of a slightly wider cell.
+Non-subtractive dither (``x~ = Q(x + w)``, the receiver needs no copy of ``w``):
+with ``tpdf`` (``w`` the sum of two independent U[-eps/2, eps/2], triangular on
+``[-eps, eps]``) the total error ``x~ - x`` has mean 0 and variance ``eps**2/4``
+whatever ``x`` is, and is uncorrelated between samples (Gray & Stockham 1993;
+Wannamaker, Lipshitz & Vanderkooy 2000): its first two moments are known, which
+is all least squares and its bias compensation use. With ``rpdf`` (one uniform
+draw) only the mean is signal-independent; the variance moves between 0 and
+``eps**2/4`` with the signal's position in its cell (:data:`ERROR_VARIANCE`).
+
+Guard band: the range is widened by the dither's amplitude on each side, ``[lo - eps/2,
+hi + eps/2]`` with ``eps = (hi - lo) / (2**b - 1)`` (``[lo - eps, hi + eps]`` with
+``eps = (hi - lo) / (2**b - 2)`` for ``tpdf``), so ``x + w`` can never leave it for
+``x`` in ``[lo, hi]``: no overload, at the price of a slightly wider cell (at b = 1
+``tpdf`` gets half a cell only, see :func:`guard_cells`).
 
 The guard band is **on by default** (:class:`QuantizerSpec`): "no overload" is a
 hypothesis of Theorem 1 and of bias-compensated LS. Without it, a range taken
@@ -33,7 +44,13 @@ from .validate import as_float_array, check_bool, check_quantizer_range, checked
 
 __all__ = [
     "draw_unit_dither",
+    "draw_dither_units",
     "DITHERS",
+    "ERROR_VARIANCE",
+    "bcls_reason",
+    "guard_cells",
+    "channel_bits",
+    "channel_eps",
     "RANGE_MODES",
     "MAX_BITS",
     "QuantizerSpec",
@@ -45,7 +62,20 @@ __all__ = [
     "effective_ranges",
 ]
 
-DITHERS = ("subtractive", "none")
+DITHERS = ("subtractive", "tpdf", "rpdf", "none")
+#: Variance of the total error ``x~ - x`` in units of ``eps**2`` where the theory gives one that does not
+#: depend on the signal: subtractive uniform dither (error U[-eps/2, eps/2]) and non-subtractive triangular
+#: (TPDF) dither of width 2 eps (error mean 0, variance eps**2/4: Gray & Stockham, "Dithered quantizers",
+#: IEEE Trans. Inf. Theory 39(3), 1993; Wannamaker, Lipshitz & Vanderkooy, "A theory of nonsubtractive
+#: dither", IEEE Trans. Signal Process. 48(2), 2000).
+ERROR_VARIANCE = {"subtractive": 1.0 / 12.0, "tpdf": 1.0 / 4.0}
+_NO_VARIANCE = {
+    "rpdf": "non-subtractive uniform (RPDF) dither makes the error's mean signal-independent but not its "
+            "variance (between 0 and eps^2/4 depending on where the signal sits in its cell), so no known D exists",
+    "none": "without dither the error is a deterministic function of the signal, not noise of known variance",
+}
+#: Nominal eps-units variance used where no known one exists (the plain quantizer's eps^2/12)
+NOMINAL_VARIANCE = 1.0 / 12.0
 RANGE_MODES = ("per-channel", "shared", "fixed")
 MAX_BITS = 32
 
@@ -56,15 +86,18 @@ class QuantizerSpec:
 
     Parameters
     ----------
-    dither : {"subtractive", "none"}
-        Subtractive uniform dither, or plain quantization.
+    dither : {"subtractive", "tpdf", "rpdf", "none"}
+        ``subtractive``: ``Q(x + w) - w`` with ``w ~ U[-eps/2, eps/2]`` (the letter's);
+        ``tpdf``: ``Q(x + w)`` with ``w`` the sum of two independent U[-eps/2, eps/2]
+        (triangular on [-eps, eps]), not subtracted; ``rpdf``: ``Q(x + w)`` with
+        ``w ~ U[-eps/2, eps/2]``, not subtracted; ``none``: ``Q(x)``.
     range_mode : {"per-channel", "shared", "fixed"}
         ``per-channel``: min/max of each state and input channel over the data;
         ``shared``: one range over all channels (Theorem 1's single-eps setting);
         ``fixed``: the given ``fixed_range``.
     guard : bool, default True
-        Widen the range by eps/2 on each side so that ``x + w`` never overloads
-        (for data inside the range). On by default because Theorem 1 and BCLS
+        Widen the range by the dither's amplitude on each side (eps/2; eps for
+        ``tpdf``) so that ``x + w`` never overloads (for data inside the range). On by default because Theorem 1 and BCLS
         assume no overload; :data:`LETTER_QUANTIZER` has it off, as the letter.
     fixed_range : tuple of (lo, hi), or sequence of per-channel (lo, hi)
         Needed when ``range_mode == "fixed"``; a single pair applies to every
@@ -102,21 +135,105 @@ _GUARD_DEFAULT: bool = QuantizerSpec.guard  # one source of truth for the defaul
 LETTER_QUANTIZER = QuantizerSpec(dither="subtractive", range_mode="per-channel", guard=False)
 
 
-def cell_width(lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = _GUARD_DEFAULT) -> np.ndarray:
-    """Cell width eps for ``bits`` bits over ``[lo, hi]``: ``(hi-lo)/2**b``, or ``(hi-lo)/(2**b-1)`` with guard."""
+def guard_cells(dither: str, guard: bool, bits: int | None = None) -> float:
+    """Guard band on each side, in cells: the dither's amplitude (1/2; 1 for ``tpdf``), or 0 without guard.
+
+    At b = 1 two levels leave no room for one cell on each side: ``tpdf`` then gets half a
+    cell, like the other kinds, and may overload (the overload is measured and reported).
+    """
+    if not guard:
+        return 0.0
+    return 1.0 if dither == "tpdf" and (bits is None or bits >= 2) else 0.5
+
+
+def bcls_reason(dither: str) -> str:
+    """Why BCLS has no known noise variance with this dither ("" when it has one, see :data:`ERROR_VARIANCE`)."""
+    check_choice("dither", dither, DITHERS)
+    return _NO_VARIANCE.get(dither, "")
+
+
+def _entry(v, bits: int):
+    """One per-channel entry: ``"b"`` (the swept word length), ``"exact"`` (None: not quantized) or an int."""
+    if isinstance(v, str):
+        return int(bits) if v == "b" else None
+    return int(v)
+
+
+def channel_bits(bits: int, n: int, m: int, input_bits=None, state_bits=None) -> tuple:
+    """Word length of every channel (n states, then m inputs) at the swept word length ``bits``.
+
+    Parameters
+    ----------
+    bits : int
+        The swept word length.
+    n, m : int
+        Numbers of states and inputs.
+    input_bits : None, "exact", int or tuple of m entries
+        None: the inputs have ``bits`` too; "exact": inputs recorded without
+        quantization; an int: every input; a tuple: one entry per input, each an
+        int, ``"exact"`` or ``"b"`` (the swept word length).
+    state_bits : None or tuple of 1 or n entries
+        None: every state has ``bits``; else one entry for every state or one per state, as for the inputs.
+
+    Returns
+    -------
+    tuple of length n + m: int, or None for a channel recorded exactly.
+
+    Raises
+    ------
+    ConfigError
+        If a tuple does not have one entry per input (state).
+    """
+    if input_bits is None:
+        ins = [int(bits)] * m
+    elif isinstance(input_bits, str):
+        ins = [None] * m
+    elif isinstance(input_bits, (int, np.integer)):
+        ins = [int(input_bits)] * m
+    else:
+        if len(input_bits) != m:
+            raise ConfigError(f"input_bits has {len(input_bits)} entries; the system has {m} input(s): give one "
+                              "word length (or 'exact') for all, or one per input")
+        ins = [_entry(v, bits) for v in input_bits]
+    if state_bits is None:
+        sts = [int(bits)] * n
+    elif len(state_bits) == 1:
+        sts = [_entry(state_bits[0], bits)] * n
+    else:
+        if len(state_bits) != n:
+            raise ConfigError(f"state_bits has {len(state_bits)} entries; the system has {n} state(s): give one "
+                              "entry for all or one per state ('b' = the swept b, a word length, or 'exact')")
+        sts = [_entry(v, bits) for v in state_bits]
+    return tuple(sts + ins)
+
+
+def channel_eps(lo: np.ndarray, hi: np.ndarray, chan_bits: tuple, guard: bool, dither: str) -> np.ndarray:
+    """Cell width per channel, shape (p,), for word lengths ``chan_bits`` (:func:`channel_bits`); 0 where exact."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    out = np.zeros(len(chan_bits))
+    for a, b in enumerate(chan_bits):
+        if b is not None:
+            out[a] = cell_width(lo[a], hi[a], b, guard, dither)
+    return out
+
+
+def cell_width(lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = _GUARD_DEFAULT,
+               dither: str = "subtractive") -> np.ndarray:
+    """Cell width eps for ``bits`` bits over ``[lo, hi]``: ``(hi-lo)/(2**b - 2 g)``, ``g`` = :func:`guard_cells`."""
     bits = check_int("bits", bits, 1, MAX_BITS)
-    cells = 2.0**bits - (1.0 if guard else 0.0)
+    cells = 2.0**bits - 2.0 * guard_cells(dither, guard, bits)
     return (np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)) / cells
 
 
-def effective_ranges(lo: np.ndarray, hi: np.ndarray, bits: int, guard: bool) -> tuple[np.ndarray, np.ndarray]:
+def effective_ranges(lo: np.ndarray, hi: np.ndarray, bits: int, guard: bool,
+                     dither: str = "subtractive") -> tuple[np.ndarray, np.ndarray]:
     """The quantizer's actual lower bound and cell width per channel, ``(lo_q, eps)``.
 
-    Without guard band ``lo_q = lo``; with it ``lo_q = lo - eps/2``. In both cases
-    the quantizer covers ``[lo_q, lo_q + 2**b * eps]``.
+    ``lo_q = lo - g eps`` with ``g`` = :func:`guard_cells` (0 without guard band).
+    The quantizer covers ``[lo_q, lo_q + 2**b * eps]``, symmetric about ``(lo + hi)/2``.
     """
-    eps = cell_width(lo, hi, bits, guard)
-    lo_q = np.asarray(lo, dtype=float) - (eps / 2 if guard else 0.0)
+    eps = cell_width(lo, hi, bits, guard, dither)
+    lo_q = np.asarray(lo, dtype=float) - guard_cells(dither, guard, bits) * eps
     return lo_q, eps
 
 
@@ -154,6 +271,20 @@ def draw_unit_dither(rng: np.random.Generator, shape: tuple) -> np.ndarray:
     return u
 
 
+def draw_dither_units(rng: np.random.Generator, shape: tuple, dither: str) -> np.ndarray | None:
+    """The dither in cell units for one block of entries (None for ``none``).
+
+    ``subtractive``/``rpdf``: one U[-1/2, 1/2) draw per entry; ``tpdf``: the sum of two
+    (triangular on [-1, 1]), the second block drawn after the first.
+    """
+    if dither == "none":
+        return None
+    u = draw_unit_dither(rng, shape)
+    if dither == "tpdf":
+        u += draw_unit_dither(rng, shape)
+    return u
+
+
 def quantize(
     x: np.ndarray,
     lo: np.ndarray | float,
@@ -175,14 +306,16 @@ def quantize(
         Data range; ``hi > lo``.
     bits : int, 1..32
         Word length b; the quantizer has exactly ``2**b`` levels.
-    dither : {"subtractive", "none"}
+    dither : {"subtractive", "tpdf", "rpdf", "none"}
+        See :class:`QuantizerSpec`.
     guard : bool, default True (as :class:`QuantizerSpec`)
-        Widen the range by eps/2 on each side (see module docstring).
+        Widen the range by the dither's amplitude on each side (see module docstring).
     rng : numpy Generator, optional
-        Source of the dither when ``unit_dither`` is not given.
+        Source of the dither when ``unit_dither`` is not given (:func:`draw_dither_units`).
     unit_dither : ndarray, same shape as x, optional
-        Draws from U[-1/2, 1/2]; the dither is ``eps * unit_dither`` (lets a
-        caller reuse the same draws across word lengths).
+        The dither in cell units (U[-1/2, 1/2]; triangular on [-1, 1] for ``tpdf``);
+        the dither is ``eps * unit_dither`` (lets a caller reuse the same draws across
+        word lengths).
 
     Returns
     -------
@@ -192,10 +325,10 @@ def quantize(
     bits = check_int("bits", bits, 1, MAX_BITS)
     guard = check_bool("guard", guard)
     x, lo_a, hi_a = checked_signal(x, lo, hi, unit_dither, rng)
-    lo_q, eps = effective_ranges(lo_a, hi_a, bits, guard)
-    if dither == "subtractive":
+    lo_q, eps = effective_ranges(lo_a, hi_a, bits, guard, dither)
+    if dither != "none":
         if unit_dither is None:
-            unit_dither = draw_unit_dither(rng if rng is not None else np.random.default_rng(), x.shape)
+            unit_dither = draw_dither_units(rng if rng is not None else np.random.default_rng(), x.shape, dither)
         w = eps * np.asarray(unit_dither, dtype=float)
     else:
         w = np.zeros_like(x)
@@ -203,7 +336,7 @@ def quantize(
     s = (x + w - lo_q) / eps
     overload = (s < 0) | (s > levels)
     k = np.clip(np.floor(s), 0, levels - 1)
-    values = lo_q + eps * (k + 0.5) - w
+    values = lo_q + eps * (k + 0.5) - (w if dither == "subtractive" else 0.0)
     return Quantized(values=values, eps=np.asarray(eps), overload=overload)
 
 

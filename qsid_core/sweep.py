@@ -20,10 +20,14 @@ from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, T
 from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
 from .stability import data_rate_bits
 from .systems import LTISystem
+from .quantize import ERROR_VARIANCE, NOMINAL_VARIANCE, bcls_reason
 from .theory import RealizedBounds
 from .config_checks import check_run_args
+from .errors import ConfigError
+from .version import __version__
 
-__all__ = ["SweepResult", "SummaryRow", "run_sweep", "summary_row", "summarize", "fit_slope"]
+__all__ = ["SweepResult", "SummaryRow", "StoredRow", "run_sweep", "summary_row", "summarize", "fit_slope",
+           "load_result"]
 
 
 def fit_slope(bits, values) -> float:
@@ -89,6 +93,14 @@ class SweepResult:
         A-posteriori ultimate bounds (each realization's own model error and P).
     assumptions : dict b -> Assumptions
         Hypotheses of Theorem 1 and BCLS per b.
+    rows : dict b -> StoredRow
+        The per-b summaries of a result read back by :func:`load_result` (empty for a fresh sweep).
+    version : str
+        The qsid version that made a loaded result ("" for a fresh one: this version).
+    ranges : dict or None
+        The quantizer's data ranges ``{"lo": [...], "hi": [...]}`` (n + m channels).
+    true_cost : float or None
+        A loaded result's true-model MPC cost.
     """
 
     config: SweepConfig
@@ -104,36 +116,65 @@ class SweepResult:
     realized: dict = field(default_factory=dict)
     assumptions: dict = field(default_factory=dict)
 
+    rows: dict = field(default_factory=dict)
+    version: str = ""
+    ranges: dict | None = None
+    true_cost: float | None = None
+
+    def _check_bits(self, b) -> int:
+        if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in self.bits:
+            swept = ", ".join(map(str, self.bits))
+            raise ConfigError(f"b = {b!r} was not swept; this result has b = {swept}")
+        return int(b)
+
     def summary(self, b: int) -> SummaryRow:
-        """The typed summary at word length ``b``; ``.to_dict()`` is the CLI's ``results`` entry."""
+        """The typed summary at word length ``b``; ``.to_dict()`` is the CLI's ``results`` entry.
+
+        A result read back by :func:`load_result` returns its stored row (a :class:`StoredRow`).
+
+        Raises
+        ------
+        ConfigError
+            If ``b`` was not swept (the message lists the swept b).
+        """
+        b = self._check_bits(b)
+        if b not in self.identification:
+            return self.rows[b]
         lp = self.loops.get(b)
         u_max = self.config.mpc.resolve(self.system).u_max if (lp is not None and self.config.mpc) else _UNKNOWN
         return summary_row(self.system.n, self.identification[b], self.theory[b], lp, u_max=u_max,
                            realized=self.realized.get(b), assumptions=self.assumptions.get(b))
 
     def to_dict(self) -> dict:
-        """The whole sweep as strict JSON data (NaN and inf become None)."""
+        """The whole sweep as strict JSON data (NaN and inf become None).
+
+        ``config`` holds every setting (:meth:`SweepConfig.to_dict`: the full system, the MPC
+        settings, seeds) so that ``SweepConfig.from_dict`` / ``qsid sweep --config`` re-run it;
+        ``qsid_version`` says which qsid made it and ``ranges`` the quantizer's data ranges.
+        """
         c = self.config
         q = c.quantizer
+        cfg = c.to_dict(self.system)
+        cfg["mpc"] = None if c.mpc is None else {
+            "horizon": c.mpc.horizon, "steps": c.mpc.steps, "u_max": list(c.mpc.u_max),
+            "disturbance": c.mpc.disturbance, "disturbance_kind": c.mpc.disturbance_kind,
+            "feedback_bits": c.mpc.feedback_bits, "feedback_noise": c.mpc.feedback_noise,
+            "loop_seed": c.mpc.loop_seed, "tracking": c.mpc.tracking,
+            "reference": c.mpc.reference if isinstance(c.mpc.reference, (str, type(None)))
+            else [list(r) for r in c.mpc.reference],
+        }
+        why = bcls_reason(q.dither)
         return json_clean({
+            "qsid_version": self.version or __version__,
             "system": self.system.name,
-            "config": {
-                "bits": list(self.bits), "realizations": c.realizations, "trajectories": c.trajectories,
-                "steps": c.steps, "data_seed": c.data_seed, "dither_seed": c.dither_seed, "dither": q.dither,
-                "range": q.range_mode, "guard": q.guard, "estimator": c.estimator,
-                "mpc": None if c.mpc is None else {
-                    "horizon": c.mpc.horizon, "steps": c.mpc.steps, "u_max": list(c.mpc.u_max),
-                    "disturbance": c.mpc.disturbance, "disturbance_kind": c.mpc.disturbance_kind,
-                    "feedback_bits": c.mpc.feedback_bits, "feedback_noise": c.mpc.feedback_noise,
-                    "loop_seed": c.mpc.loop_seed, "tracking": c.mpc.tracking,
-                    "reference": c.mpc.reference if isinstance(c.mpc.reference, (str, type(None)))
-                    else [list(r) for r in c.mpc.reference],
-                },
-                "theta": c.theta, "rho": c.rho, "input_amplitude": c.input_amplitude,
-                "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
-            },
+            "config": cfg,
+            "ranges": self.ranges,
+            "bcls": {"applicable": not why, "reason": why,
+                     "D": "eps^2/%d" % round(1 / ERROR_VARIANCE.get(q.dither, NOMINAL_VARIANCE))
+                     + (" (nominal)" if why else "")
+                     + (" + sigma^2 (sensor noise)" if c.noise_known and any(v > 0 for v in c.noise) else "")},
             "results": [self.summary(b).to_dict() for b in self.bits],
-            "mpc_cost_true_model": None if self.true_loop is None else float(self.true_loop.cost[0]),
+            "mpc_cost_true_model": self.true_cost if self.true_loop is None else float(self.true_loop.cost[0]),
             "steady_state_error_true_model": None if self.true_loop is None else
             float(self.true_loop.steady_state_error[0]),
             "tracking_error_true_model": None if self.true_loop is None else float(self.true_loop.tracking_error[0]),
@@ -142,6 +183,125 @@ class SweepResult:
             "slope_B": float(self.slope_B),
             "timing_s": self.timing_s,
         })
+
+    # ----- notebooks ---------------------------------------------------------------------------
+    def _table(self) -> tuple[list, list]:
+        head = ["b", "estimator", "err_A mean", "err_A std", "err_B mean", "err_B std", "Thm1 A", "Thm1 B",
+                "overload", "delta"]
+        out = []
+        for b in self.bits:
+            r = self.summary(b).to_dict()
+            out.append([b, self.config.estimator, r["err_A"]["mean"], r["err_A"]["std"], r["err_B"]["mean"],
+                        r["err_B"]["std"], r["err_A_theory"], r["err_B_theory"], r["overload_fraction"],
+                        r["ultimate_bound"]])
+        return head, out
+
+    def _title(self) -> str:
+        c, q = self.config, self.config.quantizer
+        ib = "" if c.input_bits is None else f", input bits {c.input_bits}"
+        ib += "" if c.state_bits is None else f", state bits {','.join(map(str, c.state_bits))}"
+        return (f"SweepResult: {self.system.name} ({self.system.n} states, {self.system.m} inputs), "
+                f"b = {_bits_text(self.bits)}{ib}, {c.realizations} realizations, {c.trajectories} x {c.steps}, "
+                f"dither {q.dither}, estimator {c.estimator}" + (", MPC off" if c.mpc is None else "")
+                + (" (loaded: summaries only)" if self.rows and not self.identification else ""))
+
+    def __repr__(self) -> str:
+        """A few lines: the settings and one row per b (at most 12 rows; never the arrays)."""
+        head, rows = self._table()
+        fmt = lambda v: "-" if v is None else (f"{v:.3g}" if isinstance(v, float) else str(v))  # noqa: E731
+        shown = rows if len(rows) <= 12 else rows[:6] + [["..."] * len(head)] + rows[-5:]
+        lines = [self._title(), "  " + "  ".join(head)]
+        lines += ["  " + "  ".join(fmt(v) for v in r) for r in shown]
+        lines.append(f"  slope per bit: A {self.slope_A:+.3f}, B {self.slope_B:+.3f}; .to_frame(), .summary(b), "
+                     ".to_dict()")
+        return "\n".join(lines)[:2000]
+
+    def _repr_html_(self) -> str:
+        """An HTML table for notebooks (one row per b)."""
+        import html
+
+        head, rows = self._table()
+        fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
+        th = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+        body = "".join("<tr>" + "".join(f"<td>{html.escape(fmt(v))}</td>" for v in r) + "</tr>" for r in rows)
+        return (f"<div><p>{html.escape(self._title())}</p><table><thead><tr>{th}</tr></thead>"
+                f"<tbody>{body}</tbody></table></div>")
+
+    def to_frame(self, pandas: bool = True):
+        """One row per b and estimator: errors (mean, std), Theorem 1, overload, bound, MPC cost.
+
+        Parameters
+        ----------
+        pandas : bool
+            True: a ``pandas.DataFrame`` (raises ImportError with advice when pandas is missing);
+            False: a dict of equal-length column lists.
+        """
+        head, rows = self._table()
+        cols = {h.replace(" ", "_"): [r[i] for r in rows] for i, h in enumerate(head)}
+        cols["mpc_cost_mean"] = [(self.summary(b).to_dict().get("mpc_cost") or {}).get("mean") for b in self.bits]
+        if not pandas:
+            return cols
+        try:
+            import pandas as pd
+        except ImportError as exc:
+            raise ImportError("to_frame() needs pandas (pip install pandas); to_frame(pandas=False) gives "
+                              "plain column lists") from exc
+        return pd.DataFrame(cols)
+
+
+class StoredRow(dict):
+    """A per-b summary read back from JSON (:func:`load_result`): a mapping with ``to_dict()``."""
+
+    def to_dict(self) -> dict:
+        return dict(self)
+
+
+def _bits_text(bits) -> str:
+    b = list(bits)
+    if len(b) > 2 and b == list(range(b[0], b[-1] + 1)):
+        return f"{b[0]}..{b[-1]}"
+    return ",".join(map(str, b))
+
+
+def load_result(path) -> SweepResult:
+    """Read a saved sweep (``qsid sweep --out FILE`` or ``json.dump(res.to_dict())``) back into a SweepResult.
+
+    The result has the full config and system (so ``run_sweep(res.config)`` re-runs it to the
+    same numbers), the per-b summaries (:meth:`SweepResult.summary`, ``to_frame``, ``to_dict``),
+    slopes and timing; per-realization arrays are not in the JSON (``identification`` etc. are
+    empty).
+
+    Raises
+    ------
+    ConfigError
+        If the file is missing, not JSON, or not a sweep result with a full config (files
+        written before the config carried the system are refused with that reason).
+    """
+    import json
+    from pathlib import Path
+
+    from .systems import get_system
+
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read {p}: {exc.strerror or exc}") from None
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p} is not JSON ({exc})") from None
+    if not isinstance(d, dict) or not isinstance(d.get("config"), dict) or not isinstance(d.get("results"), list):
+        raise ConfigError(f"{p} is not a qsid sweep result (needs 'config' and 'results')")
+    if "system_definition" not in d["config"]:
+        raise ConfigError(f"{p} was written without the full configuration (no system_definition): "
+                          "re-run that sweep with this qsid to get a file that can be loaded")
+    cfg = SweepConfig.from_dict(d["config"])
+    rows = {int(r["bits"]): StoredRow(r) for r in d["results"]}
+    nan = float("nan")
+    return SweepResult(cfg, get_system(cfg.system), tuple(sorted(rows)), {}, {}, {}, None,
+                       d.get("slope_A") if d.get("slope_A") is not None else nan,
+                       d.get("slope_B") if d.get("slope_B") is not None else nan, d.get("timing_s") or {},
+                       rows=rows, version=str(d.get("qsid_version", "")), ranges=d.get("ranges"),
+                       true_cost=d.get("mpc_cost_true_model"))
 
 
 def run_sweep(
@@ -201,5 +361,7 @@ def run_sweep(
         "data": round(t1 - t0, 4), "identify": round(t2 - t1, 4), "theory": round(t3 - t2, 4),
         "mpc": round(t4 - t3, 4), "total": round(time.perf_counter() - t0, 4),
     }
+    prep = ex.prepared
+    ranges = {"lo": prep.lo.tolist(), "hi": prep.hi.tolist()}
     return SweepResult(config, ex.system, config.bits, idents, theory, loops, true_loop, sA, sB, timing,
-                       realized, assumptions)
+                       realized, assumptions, ranges=ranges)

@@ -40,18 +40,29 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError, check_float
+from .errors import ConfigError, check_choice, check_float
 
 __all__ = ["theorem1_prediction", "riccati_finite", "UltimateBound", "ultimate_bound", "noise_covariance",
            "RealizedBounds", "realized_bounds"]
 
 
-def noise_covariance(eps: np.ndarray) -> np.ndarray:
-    """``D = diag(eps_i**2 / 12)``: covariance of the subtractive-dither error per channel."""
-    return np.diag(np.asarray(eps, dtype=float) ** 2 / 12.0)
+def noise_covariance(eps: np.ndarray, dither: str = "subtractive", extra: np.ndarray | float = 0.0) -> np.ndarray:
+    """``D = diag(c eps_i**2 + extra_i)``: covariance of the error per channel, shape (p, p).
+
+    ``c`` is 1/12 for subtractive dither and 1/4 for non-subtractive TPDF dither
+    (:data:`qsid_core.quantize.ERROR_VARIANCE`); for ``rpdf`` and ``none`` no
+    signal-independent variance exists and the nominal 1/12 is used. ``extra``
+    (scalar or shape (p,)) adds a known variance such as sensor noise ``sigma**2``.
+    """
+    from .quantize import DITHERS, ERROR_VARIANCE, NOMINAL_VARIANCE
+
+    check_choice("dither", dither, DITHERS)
+    e = np.asarray(eps, dtype=float)
+    return np.diag(e**2 * ERROR_VARIANCE.get(dither, NOMINAL_VARIANCE) + np.asarray(extra, dtype=float))
 
 
-def theorem1_prediction(G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray) -> np.ndarray:
+def theorem1_prediction(G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray, dither: str = "subtractive",
+                        extra: np.ndarray | float = 0.0) -> np.ndarray:
     """Large-data LS limit ``G Sigma (Sigma + D)^-1`` (letter, Theorem 1, per-channel form).
 
     Parameters
@@ -62,6 +73,10 @@ def theorem1_prediction(G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray) -> np
         ``Psi_uqz Psi_uqz^T / T`` of the unquantized data.
     eps : ndarray, shape (n+m,) or scalar
         Cell width per channel (states first, then inputs).
+    dither : str
+        Sets ``D`` (see :func:`noise_covariance`).
+    extra : float or ndarray, shape (n+m,)
+        Further white noise variance per channel (sensor noise), added to ``D``.
 
     Returns
     -------
@@ -69,7 +84,7 @@ def theorem1_prediction(G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray) -> np
     """
     p = Sigma.shape[0]
     eps = np.broadcast_to(np.asarray(eps, dtype=float), (p,))
-    M = Sigma + noise_covariance(eps)
+    M = Sigma + noise_covariance(eps, dither, np.broadcast_to(np.asarray(extra, dtype=float), (p,)))
     # G Sigma M^-1 = (M^-1 Sigma G^T)^T (M, Sigma symmetric)
     return np.linalg.solve(M, Sigma @ G.T).T
 

@@ -106,6 +106,15 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
         out.append(f"--limits={limits_spec(q.fixed_range)}")
     if q.guard != dq.guard:
         out.append("--guard" if q.guard else "--no-guard")
+    if cfg.input_bits is not None:
+        ib = cfg.input_bits
+        out.append(f"--input-bits={','.join(map(str, ib)) if isinstance(ib, tuple) else ib}")
+    if cfg.state_bits is not None:
+        out.append(f"--state-bits={','.join(map(str, cfg.state_bits))}")
+    if any(v > 0 for v in cfg.noise):
+        out.append(f"--noise={floats_spec(cfg.noise)}")
+    if cfg.noise_known:
+        out.append("--noise-known")
     out += _mpc_args(cfg, system)
     if cfg.theta != d.theta:
         out.append(f"--theta={cfg.theta!r}")

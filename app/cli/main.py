@@ -16,13 +16,14 @@ import warnings
 from concurrent.futures.process import BrokenProcessPool
 from typing import Sequence
 
-from . import bits, datalength, parser, reproduce, sweep, systems
+from . import bits, datalength, identify, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 #: name -> command module, in the order ``qsid --help`` lists them.
-COMMANDS = {"systems": systems, "sweep": sweep, "bits": bits, "reproduce": reproduce, "datalength": datalength}
+COMMANDS = {"systems": systems, "sweep": sweep, "bits": bits, "reproduce": reproduce, "datalength": datalength,
+            "identify": identify}
 
 
 def build_parser(only: str | None = "*"):
@@ -32,6 +33,11 @@ def build_parser(only: str | None = "*"):
 
 
 def _dispatch(argv: list, rep: Reporter) -> int:
+    if argv[:1] == ["--version"]:
+        from qsid_core.version import __version__
+
+        print(f"{parser.PROG} {__version__}")
+        return 0
     name = next((a for a in argv if not a.startswith("-")), None)
     args = build_parser(name if name in COMMANDS else None).parse_args(argv)
     if args.command is None:

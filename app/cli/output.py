@@ -58,10 +58,11 @@ def _bits_list(bits: list) -> str:
 
 
 #: Hypothesis flag in the JSON -> how the table names it when it fails.
-_HYPOTHESES = (("subtractive_dither", "subtractive dither"),
+_HYPOTHESES = (("known_noise", "dither of known noise variance (subtractive or tpdf)"),
                ("no_overload", "no overload in effect (clipped samples move the estimate by > 1/3 of its fluctuation)"),
                ("stationary", "Psi Psi^T/T converges (no eigenvalue of A on/outside the unit circle)"),
-               ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"))
+               ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"),
+               ("sensor_noise_known", "sensor noise known to BCLS (--noise-known; BCLS only)"))
 
 
 def assumptions_lines(results: list) -> list:
@@ -180,6 +181,25 @@ def bound_lines(results: list) -> list:
     return out
 
 
+def _what_if_lines(c: dict) -> list:
+    """Word length per channel and sensor noise, when set (one line; nothing for the letter's setting)."""
+    parts = []
+    ib = c.get("input_bits")
+    if ib is not None:
+        which = "exact (inputs not quantized: eps_u = 0)" if ib == "exact" else \
+            ",".join(map(str, ib)) if isinstance(ib, list) else str(ib)
+        parts.append(f"b is swept for the states; input bits {which}")
+    sb = c.get("state_bits")
+    if sb is not None:
+        parts.append(f"state bits {','.join(map(str, sb))} (b = the swept word length)")
+    noise = c.get("noise") or []
+    if any(v for v in noise):
+        parts.append(f"sensor noise sigma {','.join(format(v, 'g') for v in noise)} on the states"
+                     + (" (known to BCLS: D + sigma^2)" if c.get("noise_known") else
+                        " (unknown to BCLS: it corrects only the quantization noise)"))
+    return ["; ".join(parts)] if parts else []
+
+
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = ["b", "eps min..max", "err_A mean +/- std", "Thm1 A", "err_B mean +/- std", "Thm1 B", "overload",
@@ -229,6 +249,7 @@ def format_table(d: dict) -> str:
         + ("" if c["mpc"] is None else
            f", MPC horizon {c['mpc']['horizon']}, {c['mpc']['steps']} steps, u_max "
            f"{','.join(format(u, 'g') for u in c['mpc']['u_max'])}"),
+        *_what_if_lines(c),
         fmt(head),
         fmt(["-" * w for w in widths]),
         *(fmt(row) for row in rows),
@@ -251,6 +272,10 @@ def format_table(d: dict) -> str:
     lines.extend(verdict_lines(d["results"]))
     lines.extend(bound_lines(d["results"]))
     lines.extend(assumptions_lines(d["results"]))
+    bc = d.get("bcls") or {}
+    if bc.get("reason"):
+        lines.append(f"BCLS not applicable with {c.get('dither')} dither: {bc['reason']}"
+                     + ("; BCLS used a nominal D = eps^2/12" if c.get("estimator") == "bcls" else ""))
     fb = sum(r.get("bcls_fallbacks", 0) for r in d["results"])
     if fb:
         lines.append(f"BCLS fell back to LS in {fb} realization(s) (corrected Gram matrix not positive definite)")

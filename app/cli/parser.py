@@ -252,10 +252,13 @@ def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -
                    help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
                         "channel, states then inputs")
     q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
-                   help="widen the range by half a cell on each side, so x + w never overloads "
+                   help="widen the range by the dither's amplitude on each side (half a cell; a cell for tpdf), "
+                        "so x + w never overloads "
                         f"(default: {_onoff(q0.guard)})")
     q.add_argument("--dither", choices=e.dithers, default=q0.dither,
-                   help=f"subtractive uniform dither or none (default: {q0.dither})")
+                   help="subtractive uniform dither (the letter's), tpdf (non-subtractive triangular, width 2 eps: "
+                        "BCLS with D = eps^2/4), rpdf (non-subtractive uniform: BCLS not applicable) or none "
+                        f"(default: {q0.dither})")
     q.add_argument("--estimator", choices=e.estimators, default=base.estimator,
                    help=f"least squares or bias-compensated LS (default: {base.estimator})")
 
@@ -266,6 +269,19 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
     base = e.sweep if base is None else base
     mpc = e.mpc
     add_data_options(p, base)
+    x = p.add_argument_group("what-ifs: word length per channel, sensor noise, a saved study")
+    x.add_argument("--input-bits", default=None, metavar="B|exact|B1,B2,..",
+                   help="word length of the inputs: one for all, one per input ('8,exact'), or 'exact' (inputs "
+                        "recorded without quantization); --bits then sweeps the states (default: same as --bits)")
+    x.add_argument("--state-bits", default=None, metavar="E|E1,E2,..",
+                   help="word length of the states, one entry for all or one per state: 'b' (the swept --bits), "
+                        "a fixed word length, or 'exact' (not quantized), e.g. 'b,b,12,exact' (default: all b)")
+    x.add_argument("--noise", default=None, metavar="SIGMA|S1,S2,..",
+                   help="standard deviation of Gaussian sensor noise added to the recorded states before "
+                        "quantization, one for all or one per state (seeded by the data seed; default: 0)")
+    x.add_argument("--noise-known", action="store_true",
+                   help="BCLS adds the noise variance sigma^2 to D (without it BCLS corrects only the "
+                        "quantization noise it knows of)")
     m = p.add_argument_group("MPC and ultimate bound")
     m.add_argument("--horizon", type=pos_int, default=mpc.horizon, metavar="N",
                    help=f"MPC horizon (default: {mpc.horizon})")
@@ -347,6 +363,7 @@ def build_parser(commands: Mapping[str, ModuleType], only: str | None = "*") -> 
         prog=PROG,
         description="Quantized system identification and the MPC built on it (the QSID-MPC letter).",
     )
+    parser.add_argument("--version", action="store_true", help="print the qsid version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, mod in commands.items():
         sp = sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION)

@@ -236,12 +236,33 @@ def config(args, system, mpc: bool):
     seed = getattr(args, "seed", None)
     seeds = {"data_seed": next(v for v in (args.data_seed, seed, defaults.data_seed) if v is not None),
              "dither_seed": next(v for v in (args.dither_seed, seed, defaults.dither_seed) if v is not None)}
-    return SweepConfig(
+    extra = {}
+    if getattr(args, "input_bits", None) is not None:
+        extra["input_bits"] = args.input_bits
+    if getattr(args, "state_bits", None) is not None:
+        extra["state_bits"] = args.state_bits
+    if getattr(args, "noise", None) is not None:
+        extra["noise"] = args.noise
+    if getattr(args, "noise_known", False):
+        extra["noise_known"] = True
+    cfg = SweepConfig(
         system=system, bits=bits, realizations=args.realizations, trajectories=args.trajectories,
         steps=args.steps, quantizer=_quantizer(args, system), estimator=args.estimator,
         mpc=_mpc_config(args, system) if mpc else None, theta=args.theta, rho=args.rho,
-        input_amplitude=args.input_amplitude, **seeds,
+        input_amplitude=args.input_amplitude, **seeds, **extra,
     )
+    check_channels(cfg, system)
+    return cfg
+
+
+def check_channels(cfg, system) -> None:
+    """Per-channel settings against the system's shape (one line, before any work)."""
+    from qsid_core.quantize import channel_bits
+
+    channel_bits(cfg.bits[0], system.n, system.m, cfg.input_bits, cfg.state_bits)
+    if len(cfg.noise) not in (1, system.n):
+        raise UsageError(f"argument --noise: give 1 or {system.n} values for system {system.name!r}; "
+                         f"got {len(cfg.noise)}")
 
 
 def workers(args, rep: "Reporter") -> int:
@@ -299,11 +320,14 @@ def bits_text(bits: Sequence[int]) -> str:
     return ",".join(map(str, bits))
 
 
-def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = ()):
-    """Run the sweep (and the closed loops at ``extra_bits``); returns (SweepResult, Experiment)."""
+def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = (), cfg=None):
+    """Run the sweep (and the closed loops at ``extra_bits``); returns (SweepResult, Experiment).
+
+    ``cfg`` (e.g. from :func:`config_from_file`) replaces the settings built from ``args``.
+    """
     from qsid_core import Experiment, run_sweep
 
-    cfg = config(args, system, mpc)
+    cfg = config(args, system, mpc) if cfg is None else cfg
     with executor(args, rep) as (pool, nw):
         ex = Experiment(cfg, pool, tasks=max(4, 2 * nw))
         rep.stage(f"system {system.name!r} ({_plural(system.n, 'state')}, {_plural(system.m, 'input')}); "

@@ -15,6 +15,9 @@ DESCRIPTION = ("Sweep the word length b: identification errors (mean +- std over
 
 def add_arguments(p) -> None:
     add_run_options(p)
+    p.add_argument("--config", metavar="FILE", default=None,
+                   help="take every setting from FILE: a previous JSON result (--out) or a TOML file with the "
+                        "same keys (system, bits, dither, ...); flags given with non-default values override it")
     p.add_argument("--no-mpc", action="store_true", help="skip the MPC closed loops (identification and theory)")
     p.add_argument("--json", action="store_true", help="print one JSON object to stdout instead of a table")
     p.add_argument("--csv", metavar="FILE", default=None,
@@ -26,12 +29,28 @@ def add_arguments(p) -> None:
 
 
 def run(args, rep) -> int:
-    system = system_from_args(args)
-    out = out_file(args.out, rep, inputs=input_files(args))
-    csv_out = out_file(args.csv, rep, flag="--csv", inputs=input_files(args))
+    cfg = None
+    inputs = input_files(args)
+    if args.config is not None:
+        import argparse
+        from pathlib import Path
+
+        from qsid_core import get_system
+
+        from .study import config_from_file
+
+        bare = argparse.ArgumentParser(add_help=False)
+        add_arguments(bare)
+        cfg = config_from_file(args, bare.parse_args([]), not args.no_mpc)
+        system = get_system(cfg.system)
+        inputs = inputs + [Path(args.config)]
+    else:
+        system = system_from_args(args)
+    out = out_file(args.out, rep, inputs=inputs)
+    csv_out = out_file(args.csv, rep, flag="--csv", inputs=inputs)
     if out is not None and csv_out is not None and out.resolve() == csv_out.resolve():
         raise UsageError("arguments --out and --csv name the same file; give two names")
-    res, _ = run_sweep(args, system, not args.no_mpc, rep)
+    res, _ = run_sweep(args, system, not args.no_mpc, rep, cfg=cfg)
     d = sweep_dict(res)
     if csv_out is not None:
         from qsid_core.records import write_csv

@@ -69,13 +69,21 @@ CONTROLS: tuple[Control, ...] = (
     Control("b_text", "text", "B", "System", hint=MATRIX_HINT),
     Control("axes", "dropdown", "3-D axes", "System", hint="Which three states the phase portrait draws."),
     Control("dither", "dropdown", "dither", "Quantizer", choices=DITHERS,
-            hint="subtractive: x~ = Q(x + w) - w, w ~ U[-ε/2, ε/2]"),
+            hint="subtractive: x~ = Q(x + w) - w, w ~ U[-ε/2, ε/2]. tpdf: Q(x + w), w triangular on [-ε, ε], "
+                 "not subtracted (error variance ε²/4, known). rpdf: Q(x + w), w uniform, not subtracted "
+                 "(variance depends on the signal: BCLS does not apply). none: Q(x)"),
     Control("range_mode", "dropdown", "range", "Quantizer", choices=RANGE_MODES,
             hint="per-channel min/max, one shared range, or a fixed range typed below"),
     Control("fixed_range", "text", "fixed range", "Quantizer",
             hint="'lo, hi' for every channel, or one 'lo hi' row per channel (states, then inputs)"),
     Control("guard", "checkbox", "guard band", "Quantizer", convert=bool,
-            hint="Widen the range by ε/2 each side: no overload"),
+            hint="Widen the range by the dither's amplitude each side (ε/2; ε for tpdf): no overload"),
+    Control("state_bits", "text", "state bits", "Quantizer",
+            hint="Word length of the states: 'b' (the slider's b, as the letter), or one entry for all or one "
+                 "per state, each 'b', a number or 'exact', like 'b, b, 12, exact'"),
+    Control("input_bits", "text", "input bits", "Quantizer",
+            hint="Word length of the inputs: 'same' (= b, as the letter), 'exact' (inputs not quantized), "
+                 "one number for all inputs, or one per input like '8, exact'; b then sweeps the states"),
     Control("realizations", "slider", "realizations", "Quantizer", 1, 100, 1, folder=_R, convert=int,
             hint=f"Independent dither draws per b (paper: {PAPER_SCALE['realizations']}, "
                  f"interactive default: {INTERACTIVE['realizations']})"),
@@ -88,9 +96,14 @@ CONTROLS: tuple[Control, ...] = (
     Control("input_amplitude", "number", "input amplitude", "Data", 1e-6, step=0.1, convert=float,
             hint="Training inputs u ~ U[-A, A] (the letter: A = 1). Small A: a small signal against the "
                  "quantizer range"),
+    Control("noise", "text", "sensor noise σ", "Data",
+            hint="Gaussian noise added to the recorded states before quantization: one σ for every state or "
+                 "one per state (empty = none; seeded by the data seed)"),
     Control("identification", "dropdown", "estimator", "Identify", choices=tuple(IDENT_CHOICES),
             hint="LS: least squares on quantized data. BCLS: bias-compensated LS "
-                 "(subtracts the known dither noise T·diag(ε²/12))."),
+                 "(subtracts the known noise T·diag(D): ε²/12 subtractive, ε²/4 tpdf dither)."),
+    Control("noise_known", "checkbox", "sensor noise known to BCLS", "Identify", convert=bool,
+            hint="BCLS adds σ² to D; unticked, BCLS corrects only the quantization noise it knows of"),
     Control("horizon", "slider", "horizon", "MPC", 1, 50, 1, convert=int),
     Control("u_max", "slider", "input bound", "MPC", 0.05, 10.0, 0.05, convert=float, hint="|u_i| <= this bound"),
     Control("x0", "text", "x0", "MPC", hint="Initial state of the closed loop, one number per state"),

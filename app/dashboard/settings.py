@@ -110,6 +110,10 @@ class Values:
     verify_steps: int = _MPC.verify_steps  # extra closed-loop steps allowed to judge each loop
     target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
     cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
+    input_bits: str = "same"  # inputs' word length: "same" (= b), "exact", one number, or one per input
+    state_bits: str = "b"  # states' word length: "b" (the slider's), or one entry per state (b, a number, exact)
+    noise: str = ""  # sensor noise sigma on the recorded states: one for all or one per state ("" = none)
+    noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
 
     def replace(self, **kw) -> "Values":
         return dataclasses.replace(self, **kw)
@@ -328,6 +332,23 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
         raise InputError(str(exc)) from None
 
 
+def _what_ifs(v: Values, system: LTISystem) -> tuple:
+    """The panel's input word length and sensor noise as engine values (InputError in plain words)."""
+    from qsid_core.config import parse_input_bits, parse_noise, parse_state_bits
+    from qsid_core.quantize import channel_bits
+
+    try:
+        ib, sb = parse_input_bits(v.input_bits), parse_state_bits(v.state_bits)
+        channel_bits(ALL_BITS[0], system.n, system.m, ib, sb)
+        noise = parse_noise(v.noise) if (v.noise or "").strip() else (0.0,)
+    except QsidError as exc:
+        raise InputError(str(exc)) from None
+    if len(noise) not in (1, system.n):
+        raise InputError(f"sensor noise: give one σ for every state or one per state "
+                         f"({', '.join(system.state_names)}); got {len(noise)}")
+    return ib, sb, noise
+
+
 def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
     """The whole engine configuration for ``v`` (all word lengths :data:`ALL_BITS`; b is the one drawn in 3-D)."""
     if not ALL_BITS[0] <= int(v.bits) <= ALL_BITS[-1]:
@@ -340,6 +361,7 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"cost gap must be >= 0 (relative: 0.01 = 1 %); got {v.cost_gap}")
     if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
         raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
+    input_bits, state_bits, noise = _what_ifs(v, system)
     try:
         return SweepConfig(
             system=system, bits=ALL_BITS, realizations=int(v.realizations), trajectories=int(v.trajectories),
@@ -347,6 +369,7 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
             dither_seed=int(v.dither_seed),
             quantizer=quantizer_spec(v, system.n, system.m), estimator=estimators(v.identification)[0],
             mpc=mpc_config(v, system), theta=float(v.theta), rho=None if v.rho_auto else float(v.rho),
+            input_bits=input_bits, state_bits=state_bits, noise=noise, noise_known=bool(v.noise_known),
         )
     except InputError:
         raise

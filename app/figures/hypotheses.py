@@ -17,8 +17,9 @@ CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
 
 #: Plain words for each failing hypothesis (key: the engine's flag).
 _WHY = {
-    "subtractive_dither": "no subtractive dither: the quantization error is a function of the signal, "
-                          "not independent noise of variance ε²/12",
+    "sensor_noise_known": "sensor noise not known to BCLS: it removes only the quantization noise's bias",
+    "known_noise": "no dither of known variance (subtractive or tpdf): the quantization error's variance "
+                   "depends on the signal",
     "no_overload": "overload: the quantizer range clips samples, and the clipped samples move the estimate by "
                    "more than a third of its finite-data fluctuation (guard band or a wider range fixes it)",
     "large_data": "finite data: at this data size the predicted O(ε) fluctuation exceeds Theorem 1's O(ε²) "
@@ -118,12 +119,12 @@ def _reasons(rows: Sequence[Mapping], keys: Sequence[str], per_block: bool = Fal
 
 def theorem1_reasons(rows: Sequence[Mapping]) -> list[str]:
     """Why Theorem 1's line does not apply, one sentence per failing hypothesis (with the block and b)."""
-    return _reasons(rows, ("subtractive_dither", "no_overload", "stationary", "large_data"), per_block=True)
+    return _reasons(rows, ("known_noise", "no_overload", "stationary", "large_data"), per_block=True)
 
 
 def bcls_reasons(rows: Sequence[Mapping]) -> list[str]:
     """Why BCLS's known-noise model fails (dither, overload), with the b where it fails."""
-    return _reasons(rows, ("subtractive_dither", "no_overload"))
+    return _reasons(rows, ("known_noise", "no_overload", "sensor_noise_known"))
 
 
 def fits_reasons(rows: Sequence[Mapping]) -> list[str]:

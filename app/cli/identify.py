@@ -1,0 +1,89 @@
+"""``qsid identify --data FILE``: your own recorded data, quantized at each b, identified by LS and BCLS.
+
+The errors are against the LS estimate from the unquantized data (or ``--system``'s A and B);
+the numbers are :func:`qsid_core.recorded.identify_recorded`'s.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from .output import dumps
+from .parser import _limits, _nonneg_int, _onoff, engine, pos_int
+from .runner import UsageError, _quantizer, out_file, resolve_system, write_text
+
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+
+HELP = "identify your own recorded data (.npz or .csv) at each word length by LS and BCLS"
+DESCRIPTION = ("Quantize recorded data (a .npz with x: runs x (steps+1) x n and u: runs x steps x m, or a .csv "
+               "with columns run, t, x1..xn, u1..um) at each word length, identify A and B by LS and BCLS, and "
+               "report their relative errors against the LS model of the unquantized data (or --system's).")
+
+
+def add_arguments(p) -> None:
+    q0 = engine().quant
+    g = p.add_argument_group("data")
+    g.add_argument("--data", required=True, metavar="FILE", help="the recorded data, .npz or .csv")
+    g.add_argument("--system", default=None, metavar="NAME|FILE",
+                   help="a true model to compare with (default: LS on the unquantized data)")
+    g.add_argument("--bits", default="2:12", metavar="SPEC", help="word lengths (default: 2:12)")
+    g.add_argument("--realizations", type=pos_int, default=5, metavar="N",
+                   help="dither realizations per word length (default: 5)")
+    g.add_argument("--dither-seed", type=_nonneg_int, default=1, metavar="N", help="seed of the dither (default: 1)")
+    q = p.add_argument_group("quantizer")
+    q.add_argument("--range", dest="range_mode", choices=engine().range_modes, default=q0.range_mode,
+                   help=f"quantizer range (default: {q0.range_mode})")
+    q.add_argument("--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]",
+                   help="the fixed range (with --range fixed)")
+    q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
+                   help=f"guard band of the dither's amplitude (default: {_onoff(q0.guard)})")
+    q.add_argument("--dither", choices=engine().dithers, default=q0.dither, help=f"(default: {q0.dither})")
+    r = p.add_argument_group("output")
+    r.add_argument("--json", action="store_true", help="print one JSON object to stdout")
+    r.add_argument("--out", metavar="FILE", default=None, help="also write the JSON to FILE")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+
+
+def _pm(s: dict) -> str:
+    return "-" if s["mean"] != s["mean"] else f"{s['mean']:.3e} +/- {s['std']:.1e}"
+
+
+def format_table(d: dict) -> str:
+    """The readable table of :meth:`RecordedResult.to_dict`."""
+    head = ["b", "eps min..max", "LS err_A", "BCLS err_A", "LS err_B", "BCLS err_B", "overload"]
+    rows = [[str(r["bits"]), f"{min(r['eps']):.2e}..{max(r['eps']):.2e}", _pm(r["ls"]["err_A"]),
+             _pm(r["bcls"]["err_A"]), _pm(r["ls"]["err_B"]), _pm(r["bcls"]["err_B"]),
+             f"{100 * r['overload_fraction']:.2f}%"] for r in d["results"]]
+    w = [max(len(x) for x in col) for col in zip(head, *rows)]
+    fmt = lambda cells: "  ".join(c.rjust(k) for c, k in zip(cells, w))  # noqa: E731
+    lines = [f"recorded data: {d['runs']} runs x {d['steps']} steps; errors against {d['reference']}",
+             fmt(head), fmt(["-" * k for k in w]), *map(fmt, rows)]
+    lines += [f"note: {n}" for n in d["notes"]]
+    return "\n".join(lines)
+
+
+def run(args, rep) -> int:
+    from qsid_core.recorded import identify_recorded, load_recorded
+
+    rep.enabled = not args.quiet
+    out = out_file(args.out, rep, inputs=[args.data])
+    data = load_recorded(args.data)
+    system = resolve_system(args.system) if args.system is not None else None
+    if args.range_mode == "fixed" and args.limits is None:
+        raise UsageError("argument --range fixed needs --limits LO,HI")
+    spec = _quantizer(args, _Shape(data.n, data.m))
+    rep.stage(f"{args.data}: {data.trajectories} runs x {data.steps} steps, {data.n} states, {data.m} inputs")
+    res = identify_recorded(data, args.bits, spec, args.realizations, args.dither_seed, system)
+    d = res.to_dict()
+    text = dumps(d)
+    if out is not None:
+        write_text(out, text + "\n")
+    print(text if args.json else format_table(d))
+    return 0
+
+
+class _Shape:
+    """What :func:`app.cli.runner._quantizer` reads of a system: its name and channel counts."""
+
+    def __init__(self, n: int, m: int):
+        self.name, self.n, self.m = "recorded data", n, m

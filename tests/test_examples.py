@@ -1,0 +1,25 @@
+"""Every script in examples/ runs (this tree's qsid_core first on the path) and prints what it promises."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = sorted((ROOT / "examples").glob("[0-9][0-9]_*.py"))
+
+
+def test_there_are_examples_and_the_index_lists_them():
+    assert len(SCRIPTS) >= 5
+    index = (ROOT / "examples" / "README.md").read_text()
+    assert all(p.name in index for p in SCRIPTS)
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=[p.stem for p in SCRIPTS])
+def test_example_runs(script):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, str(script)], cwd=ROOT, env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() and "Traceback" not in out.stderr
