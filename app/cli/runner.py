@@ -21,6 +21,7 @@ from typing import Sequence, TextIO
 
 from app.procs import end_with_parent, kill_workers
 
+from .mpc_args import mpc_config
 from .parser import PROG, UsageError
 
 __all__ = ["UsageError", "Reporter", "one_line", "resolve_system", "system_from_args", "config", "workers", "run",
@@ -169,61 +170,6 @@ def _quantizer(args, system):
                          fixed_range=None if fixed is None else (fixed[0] if len(fixed) == 1 else fixed))
 
 
-def _reference(text: str | None, system):
-    """``--reference``: a text form (checked against the system's states) or the samples of a CSV file."""
-    if text is None:
-        return None
-    from qsid_core.reference import KINDS, parse_reference
-
-    if text.split(":", 1)[0].strip().lower() in KINDS:
-        parse_reference(text, system.state_names)  # one clear error now, before any work
-        return text
-    p = Path(text)
-    if not p.is_file():
-        raise UsageError(f"argument --reference: {text!r} is neither step:/sine:/square:... nor a CSV file")
-    import numpy as np
-
-    try:
-        rows = [ln for ln in p.read_text(encoding="utf-8").splitlines() if ln.strip()]
-        if rows and any(c.isalpha() for c in rows[0].replace("e", "").replace("E", "")):
-            rows = rows[1:]  # a header row
-        data = np.array([[float(v) for v in ln.split(",")] for ln in rows], dtype=float)
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise UsageError(f"argument --reference: cannot read {text!r} as CSV numbers ({one_line(exc)})") from None
-    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != system.n:
-        raise UsageError(f"argument --reference: {text!r} needs one row per step and {system.n} columns (one per "
-                         f"state: {', '.join(system.state_names)})")
-    return tuple(tuple(r) for r in data.tolist())
-
-
-def _mpc_config(args, system):
-    from qsid_core import MPCConfig
-
-    if len(args.u_max) not in (1, system.m):
-        raise UsageError(f"argument --u-max: give 1 or {system.m} values for system {system.name!r}; "
-                         f"got {len(args.u_max)}")
-    u_max = args.u_max[0] if len(args.u_max) == 1 else args.u_max
-    qf = getattr(args, "qf", None)
-    if qf == "Q":  # the stage weight as the terminal weight
-        Q = system.Q
-        if args.q_diag is None and abs(Q).sum() != abs(Q.diagonal()).sum():
-            raise UsageError(f"argument --Qf: Q of system {system.name!r} is not diagonal; give Qf as numbers")
-        qf = args.q_diag if args.q_diag is not None else tuple(float(x) for x in Q.diagonal())
-    reference = _reference(getattr(args, "reference", None), system)
-    if reference is not None and args.x_ref is not None:
-        raise UsageError("arguments --reference and --x-ref exclude each other (a reference is constant or not)")
-    mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
-                     reference=reference, tracking=getattr(args, "tracking", "letter"),
-                     x_max=args.x_max, xf_max=getattr(args, "xf_max", None), Qf=qf, Q=args.q_diag, R=args.r_diag,
-                     verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps),
-                     disturbance=getattr(args, "disturbance", (0.0, "gaussian"))[0],
-                     disturbance_kind=getattr(args, "disturbance", (0.0, "gaussian"))[1],
-                     feedback_bits=getattr(args, "feedback_bits", None),
-                     feedback_noise=getattr(args, "feedback_noise", 0.0), loop_seed=getattr(args, "loop_seed", 0))
-    mcfg.resolve(system)  # shape checks now, before any work
-    return mcfg
-
-
 def config(args, system, mpc: bool):
     """The engine's :class:`~qsid_core.SweepConfig` for parsed arguments (shapes checked before any work)."""
     from qsid_core import SweepConfig, parse_bits
@@ -248,7 +194,7 @@ def config(args, system, mpc: bool):
     cfg = SweepConfig(
         system=system, bits=bits, realizations=args.realizations, trajectories=args.trajectories,
         steps=args.steps, quantizer=_quantizer(args, system), estimator=args.estimator,
-        mpc=_mpc_config(args, system) if mpc else None, theta=args.theta, rho=args.rho,
+        mpc=mpc_config(args, system) if mpc else None, theta=args.theta, rho=args.rho,
         input_amplitude=args.input_amplitude, **seeds, **extra,
     )
     check_channels(cfg, system)
