@@ -101,6 +101,8 @@ class SweepResult:
         The quantizer's data ranges ``{"lo": [...], "hi": [...]}`` (n + m channels).
     true_cost : float or None
         A loaded result's true-model MPC cost.
+    true_errors : dict
+        A loaded result's true-model ``steady_state_error`` and ``tracking_error``.
     """
 
     config: SweepConfig
@@ -120,6 +122,7 @@ class SweepResult:
     version: str = ""
     ranges: dict | None = None
     true_cost: float | None = None
+    true_errors: dict = field(default_factory=dict)
 
     def _check_bits(self, b) -> int:
         if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or int(b) not in self.bits:
@@ -175,9 +178,10 @@ class SweepResult:
                      + (" + sigma^2 (sensor noise)" if c.noise_known and any(v > 0 for v in c.noise) else "")},
             "results": [self.summary(b).to_dict() for b in self.bits],
             "mpc_cost_true_model": self.true_cost if self.true_loop is None else float(self.true_loop.cost[0]),
-            "steady_state_error_true_model": None if self.true_loop is None else
-            float(self.true_loop.steady_state_error[0]),
-            "tracking_error_true_model": None if self.true_loop is None else float(self.true_loop.tracking_error[0]),
+            "steady_state_error_true_model": self.true_errors.get("steady_state_error") if self.true_loop is None
+            else float(self.true_loop.steady_state_error[0]),
+            "tracking_error_true_model": self.true_errors.get("tracking_error") if self.true_loop is None
+            else float(self.true_loop.tracking_error[0]),
             "data_rate_bits": data_rate_bits(self.system.A),
             "slope_A": float(self.slope_A),
             "slope_B": float(self.slope_B),
@@ -301,7 +305,8 @@ def load_result(path) -> SweepResult:
                        d.get("slope_A") if d.get("slope_A") is not None else nan,
                        d.get("slope_B") if d.get("slope_B") is not None else nan, d.get("timing_s") or {},
                        rows=rows, version=str(d.get("qsid_version", "")), ranges=d.get("ranges"),
-                       true_cost=d.get("mpc_cost_true_model"))
+                       true_cost=d.get("mpc_cost_true_model"),
+                       true_errors={k: d.get(f"{k}_true_model") for k in ("steady_state_error", "tracking_error")})
 
 
 def run_sweep(

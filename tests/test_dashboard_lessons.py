@@ -299,7 +299,7 @@ def test_choosing_a_lesson_brings_its_plot_forward(tab):
 @pytest.mark.parametrize("name, tab_name", [("fig1", "Identification"), ("bound", "Control")])
 def test_lesson_flag_opens_on_its_tab(name, tab_name):
     from app.dashboard.server import DashboardApp
-    from tests.test_dashboard_server import Tab
+    from support import Tab
 
     a = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson=name)
     try:
