@@ -148,7 +148,7 @@ def inverted_pendulum() -> LTISystem:
     sample through any quantized feedback channel (data-rate theorem). Open loop the data
     grow as 1.255^t: use many short training runs (``--trajectories 1000 --steps 15``: the
     MPC then works from b = 8 on). x0 = 0.02 rad tilt (with
-    the default |u| <= 1 N the upright can be caught from there), Q = diag(10, 1, 1, 1), R = 1.
+    the default ``|u| <= 1`` N the upright can be caught from there), Q = diag(10, 1, 1, 1), R = 1.
     """
     M, m, l, g = 2.0, 0.1, 0.5, 9.81
     Ac = [[0, 1, 0, 0], [(M + m) * g / (M * l), 0, 0, 0], [0, 0, 0, 1], [-m * g / M, 0, 0, 0]]
