@@ -1,4 +1,4 @@
-"""The quantizer seen on one signal: with subtractive dither and without (issue 8, "the quantizer").
+"""The quantizer seen on one signal: with subtractive dither and without.
 
 :func:`quantizer_demo` quantizes one channel twice at word length b, once with
 subtractive dither (``Q(x + w) - w``) and once plainly (``Q(x)``), and returns a

@@ -1,4 +1,4 @@
-"""``qsid datalength``: LS and BCLS model errors against data length at one word length (issue 8, item 3).
+"""``qsid datalength``: LS and BCLS model errors against data length at one word length.
 
 Finite data give an O(eps) error that falls with T; large data meet Theorem 1's
 O(eps^2) bias floor (LS), which BCLS removes where its hypotheses hold. The

@@ -1,4 +1,4 @@
-"""Keep and share a view (issue 8, item 6): settings as JSON (download / upload / ``--settings FILE``), the
+"""Keep and share a view: settings as JSON (download / upload / ``--settings FILE``), the
 ``qsid sweep`` line that reproduces the numbers, and exports of the current curves (CSV, JSON) and figures
 (one standalone offline HTML page).
 
