@@ -14,7 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from support import descendants, gone_within  # noqa: E402
+from support import HANG_S, descendants, gone_within  # noqa: E402
 
 ENV = dict(os.environ, PYTHONPATH=str(ROOT))
 LONG = ["sweep", "--bits", "2:16", "--realizations", "200", "--trajectories", "400", "--steps", "2000", "-q"]
@@ -25,7 +25,7 @@ def start(tmp_path, *extra, workers_expected=2, settle=3.0):
     out.write_text("previous result\n")
     p = subprocess.Popen([sys.executable, "-m", "app.cli", *LONG, "--out", str(out), *extra], cwd=ROOT, env=ENV,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    end = time.monotonic() + 120
+    end = time.monotonic() + HANG_S  # only a hang guard: a cold machine can take minutes to start a cluster
     desc: list[int] = []
     while time.monotonic() < end and p.poll() is None:  # workers up and computing
         desc = descendants(p.pid)
