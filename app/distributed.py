@@ -44,8 +44,8 @@ import re
 import time
 import uuid
 import warnings
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Callable, Iterator
 
 from qsid_core.errors import ConfigError, QsidError
 
@@ -81,8 +81,9 @@ def parse_dask_spec(spec: str) -> DaskSpec:
     """
     s = str(spec).strip()
     if s == "local":
-        return DaskSpec(workers=max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                                    else (os.cpu_count() or 1)))
+        return DaskSpec(
+            workers=max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+        )
     m = re.fullmatch(r"local:(\S+)", s)
     if m:
         try:
@@ -105,8 +106,10 @@ def _import_distributed():
     try:
         import distributed
     except ImportError:
-        raise ConfigError("dask: the 'distributed' package is not installed; "
-                          'install the extra from the checkout: pip install ".[distributed]"') from None
+        raise ConfigError(
+            "dask: the 'distributed' package is not installed; "
+            'install the extra from the checkout: pip install ".[distributed]"'
+        ) from None
     return distributed
 
 
@@ -156,8 +159,9 @@ class DaskExecutor(cf.Executor):
             return hit[1]
         with warnings.catch_warnings():  # the object rides in the graph once, on purpose
             warnings.filterwarnings("ignore", message="Sending large graph")
-            fut = self.client.submit(_identity, obj, pure=False,
-                                     key=f"qsid-shared-{type(obj).__name__}-{uuid.uuid4().hex}")
+            fut = self.client.submit(
+                _identity, obj, pure=False, key=f"qsid-shared-{type(obj).__name__}-{uuid.uuid4().hex}"
+            )
         try:
             end = time.monotonic() + self.stall_timeout
             while not fut.done():  # (distributed.wait needs a default client; this one is private)
@@ -170,11 +174,12 @@ class DaskExecutor(cf.Executor):
             # the worker that holds it (measured: 3 of 4 tasks on one of 2 workers)
             self.client.replicate([fut])
         except (TimeoutError, OSError) as exc:
-            raise ClusterError(f"dask: cannot place the shared data on a worker of {self.address} "
-                               f"({self._problem() or type(exc).__name__})") from None
+            raise ClusterError(
+                f"dask: cannot place the shared data on a worker of {self.address} "
+                f"({self._problem() or type(exc).__name__})"
+            ) from None
         except Exception as exc:  # noqa: BLE001 -- e.g. a worker that cannot unpickle it
-            raise ClusterError(f"dask: a worker could not take the shared data: {type(exc).__name__}: {exc}") \
-                from None
+            raise ClusterError(f"dask: a worker could not take the shared data: {type(exc).__name__}: {exc}") from None
         self._shared[key] = (obj, fut)
         return fut
 
@@ -188,8 +193,9 @@ class DaskExecutor(cf.Executor):
         def copy(d, out=out):  # runs in a client thread when the dask future is done
             try:
                 if d.status == "cancelled":
-                    raise ClusterError(f"dask cancelled a task: {self._problem() or 'its inputs were lost'} "
-                                       f"(scheduler {self.address})")
+                    raise ClusterError(
+                        f"dask cancelled a task: {self._problem() or 'its inputs were lost'} (scheduler {self.address})"
+                    )
                 res = d.result()
             except BaseException as exc:  # delivered through the future, as a pool would
                 with contextlib.suppress(cf.InvalidStateError):
@@ -279,6 +285,7 @@ def _check_workers(client) -> None:
 
     def probe():  # nested: cloudpickle ships it by value
         import numpy
+
         try:
             import app.distributed  # noqa: F401 -- holds the share() task
             import qsid_core
@@ -287,19 +294,27 @@ def _check_workers(client) -> None:
         return ("ok", qsid_core.__version__, numpy.__version__)
 
     import numpy
+
     import qsid_core
 
     for worker, (status, ver, npver) in sorted(client.run(probe).items()):
         if status != "ok":
-            raise ClusterError(f"dask worker {worker} cannot import qsid ({ver}); install qsid on every "
-                               'worker (pip install ".[distributed]" from the checkout) or put it on the '
-                               "workers' PYTHONPATH")
+            raise ClusterError(
+                f"dask worker {worker} cannot import qsid ({ver}); install qsid on every "
+                'worker (pip install ".[distributed]" from the checkout) or put it on the '
+                "workers' PYTHONPATH"
+            )
         if ver != qsid_core.__version__:
-            raise ClusterError(f"dask worker {worker} has qsid {ver}, this client {qsid_core.__version__}; "
-                               "install the same version everywhere")
+            raise ClusterError(
+                f"dask worker {worker} has qsid {ver}, this client {qsid_core.__version__}; "
+                "install the same version everywhere"
+            )
         if npver != numpy.__version__:
-            warnings.warn(f"dask worker {worker} has numpy {npver}, this client {numpy.__version__}: "
-                          "results may differ from an in-process run in the last bits", stacklevel=2)
+            warnings.warn(
+                f"dask worker {worker} has numpy {npver}, this client {numpy.__version__}: "
+                "results may differ from an in-process run in the last bits",
+                stacklevel=2,
+            )
 
 
 @contextlib.contextmanager
@@ -347,29 +362,38 @@ def make_executor(
             say(f"dask: starting a local cluster of {parsed.workers} worker process(es) on 127.0.0.1")
             with warnings.catch_warnings():  # its small HTTP server moves off a busy port 8787: not news
                 warnings.filterwarnings("ignore", message=r"Port \d+ is already in use")
-                cluster = stack.enter_context(LocalCluster(
-                    n_workers=parsed.workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                    dashboard_address=None, silence_logs=logging.ERROR))
+                cluster = stack.enter_context(
+                    LocalCluster(
+                        n_workers=parsed.workers,
+                        threads_per_worker=1,
+                        processes=True,
+                        host="127.0.0.1",
+                        dashboard_address=None,
+                        silence_logs=logging.ERROR,
+                    )
+                )
             address = cluster.scheduler_address
         else:
             address = parsed.address
         try:
-            client = Client(cluster if cluster is not None else address, timeout=connect_timeout,
-                            set_as_default=False)
+            client = Client(cluster if cluster is not None else address, timeout=connect_timeout, set_as_default=False)
         except (OSError, TimeoutError) as exc:
-            raise ConfigError(f"dask: cannot reach a scheduler at {address} within {connect_timeout:g} s "
-                              f"({type(exc).__name__}); check the address and that 'dask scheduler' runs "
-                              "there") from None
+            raise ConfigError(
+                f"dask: cannot reach a scheduler at {address} within {connect_timeout:g} s "
+                f"({type(exc).__name__}); check the address and that 'dask scheduler' runs "
+                "there"
+            ) from None
         stack.callback(client.close)
         try:
             client.wait_for_workers(1, timeout=worker_timeout)
         except (TimeoutError, OSError):
-            raise ClusterError(f"dask: the scheduler at {address} has no workers after {worker_timeout:g} s; "
-                               f"start some with 'dask worker {address}'") from None
+            raise ClusterError(
+                f"dask: the scheduler at {address} has no workers after {worker_timeout:g} s; "
+                f"start some with 'dask worker {address}'"
+            ) from None
         _check_workers(client)
         nw = len(client.scheduler_info().get("workers", {}))
         say(f"dask: connected to {address} ({nw} worker(s))")
-        executor = DaskExecutor(client, retries=retries, stall_timeout=stall_timeout,
-                                share_data=share_data)
+        executor = DaskExecutor(client, retries=retries, stall_timeout=stall_timeout, share_data=share_data)
         stack.callback(executor.shutdown, wait=False, cancel_futures=True)
         yield executor

@@ -19,9 +19,18 @@ from websockets.sync.client import connect
 
 __all__ = ["WsTab", "rss_mb"]
 
-_CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0], "fov": 1.0,
-           "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400, "look_at": [0.0, 0.0, 0.0],
-           "up_direction": [0.0, 0.0, 1.0]}
+_CAMERA = {
+    "type": "ViewerCameraMessage",
+    "wxyz": [1.0, 0.0, 0.0, 0.0],
+    "position": [3.0, 0.0, 0.0],
+    "fov": 1.0,
+    "near": 0.01,
+    "far": 1000.0,
+    "image_height": 900,
+    "image_width": 1400,
+    "look_at": [0.0, 0.0, 0.0],
+    "up_direction": [0.0, 0.0, 1.0],
+}
 
 
 #: The keys a markdown's text arrives under (viser >= 1.0: "_markdown"; older: "content").
@@ -41,8 +50,13 @@ class WsTab:
     """One tab over the websocket: ``send(label, value)`` as a browser would; ``ready`` when it says so."""
 
     def __init__(self, url: str, timeout: float = 30.0):
-        self.ws = connect(url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"],
-                          max_size=None, open_timeout=timeout, close_timeout=2)
+        self.ws = connect(
+            url.replace("http://", "ws://"),
+            subprotocols=[f"viser-v{viser.__version__}"],
+            max_size=None,
+            open_timeout=timeout,
+            close_timeout=2,
+        )
         self.uuids: dict[str, str] = {}  # input label -> uuid
         self.markdown: dict[str, str] = {}  # markdown uuid -> content
         self.received = 0
@@ -60,7 +74,7 @@ class WsTab:
                 self.received += len(raw)
                 if isinstance(raw, bytes) and len(raw) >= 16:
                     size = int.from_bytes(raw[8:16], "little")
-                    payload = msgspec.msgpack.decode(self._dz.decompress(raw[16:16 + size]))
+                    payload = msgspec.msgpack.decode(self._dz.decompress(raw[16 : 16 + size]))
                     for m in payload.get("messages", ()):
                         self._note(m)
         except Exception:
@@ -114,8 +128,7 @@ class WsTab:
     def send(self, label: str, value) -> None:
         """Set input ``label`` to ``value`` exactly as a browser does (no range check on this side)."""
         uuid = self.uuids.get(label) or self.wait_for(label)
-        self.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": uuid,
-                                             "updates": {"value": value}}))
+        self.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}}))
 
     def close(self) -> None:
         try:

@@ -31,8 +31,13 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _run(argv: list) -> float:
     t = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "app.cli", *argv, "-q", "--json"], cwd=ROOT, check=True,
-                   stdout=subprocess.DEVNULL, timeout=900)
+    subprocess.run(
+        [sys.executable, "-m", "app.cli", *argv, "-q", "--json"],
+        cwd=ROOT,
+        check=True,
+        stdout=subprocess.DEVNULL,
+        timeout=900,
+    )
     return time.perf_counter() - t
 
 
@@ -41,8 +46,16 @@ def measure(system: str, size: list, repeats: int) -> dict:
         "sweep": ["sweep", "--system", system, *size],
         "sweep --verify-steps 0": ["sweep", "--system", system, *size, "--verify-steps", "0"],
         "bits": ["bits", "--system", system, *size],
-        "sweep tracking+disturbance": ["sweep", "--system", system, *size, "--reference", "sine:1:1:40",
-                                       "--disturbance", "0.01"],
+        "sweep tracking+disturbance": [
+            "sweep",
+            "--system",
+            system,
+            *size,
+            "--reference",
+            "sine:1:1:40",
+            "--disturbance",
+            "0.01",
+        ],
     }
     for argv in cmds.values():  # warm the numba cache and the page cache, untimed
         _run(argv)
@@ -51,10 +64,15 @@ def measure(system: str, size: list, repeats: int) -> dict:
         for k, argv in cmds.items():
             times[k].append(_run(argv))
     med = {k: statistics.median(v) for k, v in times.items()}
-    return {"system": system, "best_s": {k: min(v) for k, v in times.items()}, "median_s": med,
-            "all_s": times, "ratio_bits_to_sweep": med["bits"] / med["sweep"],
-            "ratio_sweep_to_unjudged": med["sweep"] / med["sweep --verify-steps 0"],
-            "ratio_tracking_disturbance_to_sweep": med["sweep tracking+disturbance"] / med["sweep"]}
+    return {
+        "system": system,
+        "best_s": {k: min(v) for k, v in times.items()},
+        "median_s": med,
+        "all_s": times,
+        "ratio_bits_to_sweep": med["bits"] / med["sweep"],
+        "ratio_sweep_to_unjudged": med["sweep"] / med["sweep --verify-steps 0"],
+        "ratio_tracking_disturbance_to_sweep": med["sweep tracking+disturbance"] / med["sweep"],
+    }
 
 
 def main(argv=None) -> int:
@@ -71,9 +89,11 @@ def main(argv=None) -> int:
         out.append(r)
         for k in r["median_s"]:
             print(f"{s:10s} {k:28s} {r['best_s'][k]:8.2f} {r['median_s'][k]:9.2f}")
-        print(f"{s:10s} bits / sweep = {r['ratio_bits_to_sweep']:.2f} (target <= 2); "
-              f"sweep / sweep without extra verdict steps = {r['ratio_sweep_to_unjudged']:.2f}; "
-              f"tracking + disturbance sweep / plain sweep = {r['ratio_tracking_disturbance_to_sweep']:.2f}")
+        print(
+            f"{s:10s} bits / sweep = {r['ratio_bits_to_sweep']:.2f} (target <= 2); "
+            f"sweep / sweep without extra verdict steps = {r['ratio_sweep_to_unjudged']:.2f}; "
+            f"tracking + disturbance sweep / plain sweep = {r['ratio_tracking_disturbance_to_sweep']:.2f}"
+        )
     print("RESULT " + json.dumps({"benchmark": "bench_bits", "quick": a.quick, "repeats": a.repeats, "results": out}))
     return 0
 

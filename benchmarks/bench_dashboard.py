@@ -47,13 +47,17 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from app.dashboard.render import Renderer  # noqa: E402
-from app.dashboard.session import iter_frames  # noqa: E402
 import numpy as np  # noqa: E402
 
 from app.dashboard.cache import SharedCache  # noqa: E402
+from app.dashboard.render import Renderer  # noqa: E402
+from app.dashboard.session import iter_frames  # noqa: E402
 from app.dashboard.settings import (  # noqa: E402
-    INTERACTIVE, PAPER_SCALE, Values, log_from_weights, resolve_system,
+    INTERACTIVE,
+    PAPER_SCALE,
+    Values,
+    log_from_weights,
+    resolve_system,
 )
 
 
@@ -107,9 +111,12 @@ def _row(name: str, runs: list, target: str, limit_ms: float | None = None) -> N
     cur = [r["current"] * 1000 for r in runs]
     tot = [r["all"] * 1000 for r in runs]
     verdict = "" if limit_ms is None else ("  MET" if statistics.median(tot) <= limit_ms else "  NOT MET")
-    print(f"{name:<42} {statistics.median(cur):8.0f} {min(cur):8.0f} {max(cur):8.0f}   "
-          f"{statistics.median(tot):8.0f} {min(tot):8.0f} {max(tot):8.0f}   "
-          f"{statistics.median(r['cpu'] * 1000 for r in runs):6.0f}   {target}{verdict}", flush=True)
+    print(
+        f"{name:<42} {statistics.median(cur):8.0f} {min(cur):8.0f} {max(cur):8.0f}   "
+        f"{statistics.median(tot):8.0f} {min(tot):8.0f} {max(tot):8.0f}   "
+        f"{statistics.median(r['cpu'] * 1000 for r in runs):6.0f}   {target}{verdict}",
+        flush=True,
+    )
 
 
 #: The saturated-MPC what-if of issue 9 (the Boeing's input bound made active).
@@ -147,32 +154,39 @@ def main(argv=None) -> int:
         for f in [ex.submit(abs, 0) for _ in range(a.workers)]:
             f.result()
     tasks = max(1, a.workers)
-    print(f"qsid dashboard update latency · system {a.system} · {a.identification} · "
-          f"{a.pool + ' pool of ' + str(a.workers) if a.workers else 'in-process'} · "
-          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}")
-    print(f"{'change':<42} {'current b [ms]: median':>24} {'min':>4} {'max':>8}   "
-          f"{'all curves [ms]: median':>8} {'min':>4} {'max':>8}   {'CPU ms':>6}   target")
+    print(
+        f"qsid dashboard update latency · system {a.system} · {a.identification} · "
+        f"{a.pool + ' pool of ' + str(a.workers) if a.workers else 'in-process'} · "
+        f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}"
+    )
+    print(
+        f"{'change':<42} {'current b [ms]: median':>24} {'min':>4} {'max':>8}   "
+        f"{'all curves [ms]: median':>8} {'min':>4} {'max':>8}   {'CPU ms':>6}   target"
+    )
     cache = SharedCache()
     ren = Renderer()
     base = Values(system=a.system, identification=a.identification, **INTERACTIVE)
     cold = [update(base, cache, ren, ex, tasks)]
-    _row(f"interactive: first view (cold cache)", cold, "-")
+    _row("interactive: first view (cold cache)", cold, "-")
     bits = [5, 6, 3, 7, 4, 8, 2, 9, 10, 11]
     runs = [update(base.replace(bits=b), cache, ren, ex, tasks) for b in bits[: a.repeat]]
     _row("interactive: b change", runs, "<= 100 ms (all, dashboard issue); issue 9: <= 500 ms", 100)
     pinned = list(iter_frames(base.replace(dither="none"), cache, ex, tasks))[-1]
     for label, pin in (("", None), (" + pinned overlay", pinned)):
         views = per_view(base, cache, bits[: a.repeat], ex, tasks, pin)
-        print(f"  per view, build + JSON{label} [CPU ms] (median min max over {a.repeat} b): " + " · ".join(
-            f"{k} {statistics.median(x):.0f} {min(x):.0f} {max(x):.0f}" for k, x in views.items()))
+        print(
+            f"  per view, build + JSON{label} [CPU ms] (median min max over {a.repeat} b): "
+            + " · ".join(f"{k} {statistics.median(x):.0f} {min(x):.0f} {max(x):.0f}" for k, x in views.items())
+        )
     v = base.replace(bits=bits[a.repeat - 1] if a.repeat <= len(bits) else 4)
     sysm = resolve_system(v).system
     lq, lr = log_from_weights(np.diag(sysm.Q)), log_from_weights(np.diag(sysm.R))
     runs = []
     for i in range(a.repeat):  # move the first Q and the last R slider, as a person would
         d = 0.1 * (i + 1)
-        runs.append(update(v.replace(log_q=(lq[0] + d,) + lq[1:], log_r=lr[:-1] + (lr[-1] - d,)),
-                           cache, ren, ex, tasks))
+        runs.append(
+            update(v.replace(log_q=(lq[0] + d,) + lq[1:], log_r=lr[:-1] + (lr[-1] - d,)), cache, ren, ex, tasks)
+        )
     _row("interactive: Q/R change", runs, "<= 500 ms (all)", 500)
     runs = [update(v.replace(data_seed=100 + i), cache, ren, ex, tasks) for i in range(a.repeat)]
     _row("interactive: data change (seed)", runs, "<= 500 ms (all)", 500)
@@ -193,8 +207,10 @@ def main(argv=None) -> int:
         cfg = datalength_config(base)
         t = time.perf_counter()
         res = run_datalength(cfg, None, None, tasks=cfg.realizations)
-        print(f"data-length study (dashboard button, in-process, {cfg.realizations} realizations, "
-              f"{len(res.rows)} lengths up to {res.rows[-1].samples} samples): {time.perf_counter() - t:.1f} s")
+        print(
+            f"data-length study (dashboard button, in-process, {cfg.realizations} realizations, "
+            f"{len(res.rows)} lengths up to {res.rows[-1].samples} samples): {time.perf_counter() - t:.1f} s"
+        )
     if ex is not None:
         (pool if a.pool == "process" else ex).shutdown()
     return 0

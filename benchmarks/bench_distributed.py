@@ -35,14 +35,15 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from qsid_core import Experiment, InlineExecutor, SweepConfig, run_sweep  # noqa: E402
-
 from threadpoolctl import threadpool_limits  # noqa: E402
+
+from qsid_core import Experiment, InlineExecutor, SweepConfig, run_sweep  # noqa: E402
 
 
 def set_blas_threads(n: int = 1) -> None:
     """Limit BLAS to ``n`` threads in this process (pool initializer; threadpoolctl does the work)."""
     threadpool_limits(limits=int(n), user_api="blas")
+
 
 QUICK = dict(bits=(1, 4, 8, 12), realizations=8, trajectories=20, steps=300)
 STAGES = ("data", "identify", "theory", "mpc", "total")
@@ -69,8 +70,14 @@ def run_mode(name, open_executor, cfg, repeats, tasks, reference):
             same &= reference is None or _json(res) == reference
             out_json = _json(res)
     best = min(runs, key=lambda r: r["total"])
-    return {"mode": name, "startup_s": round(startup, 3), "cold": runs[0], "best": best, "identical": same,
-            "json": out_json}
+    return {
+        "mode": name,
+        "startup_s": round(startup, 3),
+        "cold": runs[0],
+        "best": best,
+        "identical": same,
+        "json": out_json,
+    }
 
 
 def transport_probe(prep, workers: int, k: int) -> dict:
@@ -127,15 +134,19 @@ def main(argv=None) -> dict:
     prep = Experiment(cfg).prepared
     prep_bytes = len(pickle.dumps(prep, protocol=5))
     n_tasks = math.ceil(cfg.realizations / math.ceil(cfg.realizations / min(a.tasks, cfg.realizations)))
-    print(f"sweep: {cfg.trajectories} x {cfg.steps} samples, b = {cfg.bits[0]}..{cfg.bits[-1]}, "
-          f"{cfg.realizations} realizations, MPC on; prepared data {prep_bytes / 1e6:.2f} MB pickled, "
-          f"{n_tasks} moment tasks, {a.workers} workers")
+    print(
+        f"sweep: {cfg.trajectories} x {cfg.steps} samples, b = {cfg.bits[0]}..{cfg.bits[-1]}, "
+        f"{cfg.realizations} realizations, MPC on; prepared data {prep_bytes / 1e6:.2f} MB pickled, "
+        f"{n_tasks} moment tasks, {a.workers} workers"
+    )
 
     w = a.workers
     modes = [
         ("in-process", lambda: _Closing(InlineExecutor())),
-        (f"ProcessPoolExecutor({w})",
-         lambda: _Closing(ProcessPoolExecutor(w, initializer=set_blas_threads, initargs=(1,)))),
+        (
+            f"ProcessPoolExecutor({w})",
+            lambda: _Closing(ProcessPoolExecutor(w, initializer=set_blas_threads, initargs=(1,))),
+        ),
         (f"dask LocalCluster({w}) + share", lambda: make_executor(f"local:{w}")),
         (f"dask LocalCluster({w}), no share", lambda: make_executor(f"local:{w}", share_data=False)),
     ]
@@ -152,23 +163,41 @@ def main(argv=None) -> dict:
     base = results[0]["best"]["total"]
     for r in results:
         b = r["best"]
-        print(f"{r['mode']:34s} {r['startup_s']:8.2f}s " + " ".join(f"{b[s]:8.2f}s" for s in STAGES)
-              + f"  cold {r['cold']['total']:.2f}s, x{b['total'] / base:.2f} of in-process, "
-              + ("identical" if r["identical"] else "DIFFERENT"))
+        print(
+            f"{r['mode']:34s} {r['startup_s']:8.2f}s "
+            + " ".join(f"{b[s]:8.2f}s" for s in STAGES)
+            + f"  cold {r['cold']['total']:.2f}s, x{b['total'] / base:.2f} of in-process, "
+            + ("identical" if r["identical"] else "DIFFERENT")
+        )
     # share: client -> scheduler once, scheduler -> one worker, then one copy per other worker;
     # no share: every task's graph carries it client -> scheduler -> worker
     shipped = {"share": (1 + w) * prep_bytes, "no_share": 2 * n_tasks * prep_bytes}
-    print(f"prepared data moved for the moments stage: {shipped['share'] / 1e6:.1f} MB with share "
-          f"(to the scheduler once, then once per worker) vs {shipped['no_share'] / 1e6:.1f} MB without "
-          f"(client -> scheduler -> worker for each of {n_tasks} tasks)")
+    print(
+        f"prepared data moved for the moments stage: {shipped['share'] / 1e6:.1f} MB with share "
+        f"(to the scheduler once, then once per worker) vs {shipped['no_share'] / 1e6:.1f} MB without "
+        f"(client -> scheduler -> worker for each of {n_tasks} tasks)"
+    )
     probe = transport_probe(prep, w, a.probe_tasks)
-    print(f"transport probe ({a.probe_tasks} do-nothing tasks taking the prepared data, dask LocalCluster({w})): "
-          f"{probe['per_task_shipped_s'] * 1e3:.1f} ms per task shipped with it, "
-          f"{probe['per_task_shared_s'] * 1e3:.1f} ms per task after one share() of "
-          f"{probe['share_once_s'] * 1e3:.1f} ms; pickle round trip {probe['pickle_roundtrip_s'] * 1e3:.1f} ms")
-    result = {"probe": probe, "config": {"trajectories": cfg.trajectories, "steps": cfg.steps, "bits": list(cfg.bits),
-                         "realizations": cfg.realizations}, "workers": w, "tasks": n_tasks,
-              "prep_bytes": prep_bytes, "bytes_shipped": shipped, "runs": results}
+    print(
+        f"transport probe ({a.probe_tasks} do-nothing tasks taking the prepared data, dask LocalCluster({w})): "
+        f"{probe['per_task_shipped_s'] * 1e3:.1f} ms per task shipped with it, "
+        f"{probe['per_task_shared_s'] * 1e3:.1f} ms per task after one share() of "
+        f"{probe['share_once_s'] * 1e3:.1f} ms; pickle round trip {probe['pickle_roundtrip_s'] * 1e3:.1f} ms"
+    )
+    result = {
+        "probe": probe,
+        "config": {
+            "trajectories": cfg.trajectories,
+            "steps": cfg.steps,
+            "bits": list(cfg.bits),
+            "realizations": cfg.realizations,
+        },
+        "workers": w,
+        "tasks": n_tasks,
+        "prep_bytes": prep_bytes,
+        "bytes_shipped": shipped,
+        "runs": results,
+    }
     print("RESULT " + json.dumps(result))
     return result
 

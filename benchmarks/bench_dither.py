@@ -31,8 +31,13 @@ from qsid_core.moments import quantized_moments  # noqa: E402
 
 PAPER = dict(trajectories=200, steps=1000, bits=tuple(range(1, 17)))
 QUICK = dict(trajectories=10, steps=200, bits=(2, 6, 10))
-ROWS = (("subtractive", "subtractive", None), ("tpdf", "tpdf", None), ("rpdf", "rpdf", None),
-        ("none", "none", None), ("subtractive, inputs exact", "subtractive", "exact"))
+ROWS = (
+    ("subtractive", "subtractive", None),
+    ("tpdf", "tpdf", None),
+    ("rpdf", "rpdf", None),
+    ("none", "none", None),
+    ("subtractive, inputs exact", "subtractive", "exact"),
+)
 
 
 def _time(prep, bits, spec, seeds, engine, input_bits) -> tuple[float, list]:
@@ -59,16 +64,34 @@ def main(argv=None) -> dict:
     seeds = np.random.SeedSequence(1).spawn(nr)
     per = len(bits) * nr
     engines = ("numba", "numpy") if kernels.AVAILABLE else ("numpy",)
-    out: dict = dict(benchmark="bench_dither", quick=bool(args.quick), cores=os.cpu_count(),
-                     numba=kernels.AVAILABLE, trajectories=scale["trajectories"], steps=scale["steps"],
-                     bits=bits, realizations=nr, rows={})
-    print(f"dither kinds in the fused moments kernel: dc-motor {scale['trajectories']} x {scale['steps']}, "
-          f"{len(bits)} word lengths x {nr} realizations, ms per (b, realization); {os.cpu_count()} shared cores")
+    out: dict = dict(
+        benchmark="bench_dither",
+        quick=bool(args.quick),
+        cores=os.cpu_count(),
+        numba=kernels.AVAILABLE,
+        trajectories=scale["trajectories"],
+        steps=scale["steps"],
+        bits=bits,
+        realizations=nr,
+        rows={},
+    )
+    print(
+        f"dither kinds in the fused moments kernel: dc-motor {scale['trajectories']} x {scale['steps']}, "
+        f"{len(bits)} word lengths x {nr} realizations, ms per (b, realization); {os.cpu_count()} shared cores"
+    )
     print(f"  {'':<28}" + "".join(f"{e + ' best':>13}{'median':>9}" for e in engines) + f"{'engines agree':>15}")
     for label, dither, ib in ROWS:
         spec = QuantizerSpec(dither=dither)
-        prep = Experiment(SweepConfig(system="dc-motor", mpc=None, quantizer=spec, realizations=1,
-                                      trajectories=scale["trajectories"], steps=scale["steps"])).prepared
+        prep = Experiment(
+            SweepConfig(
+                system="dc-motor",
+                mpc=None,
+                quantizer=spec,
+                realizations=1,
+                trajectories=scale["trajectories"],
+                steps=scale["steps"],
+            )
+        ).prepared
         row, moms = {}, {}
         for e in engines:
             _time(prep, bits[:1], spec, seeds[:1], e, ib)  # warm up (compile or cache load)
@@ -77,17 +100,25 @@ def main(argv=None) -> dict:
                 t, moms[e] = _time(prep, bits, spec, seeds, e, ib)
                 ts.append(t / per)
             row[e] = dict(best=min(ts), median=statistics.median(ts))
-        diff = max(float(np.abs(a.PP - b.PP).max() / np.abs(b.PP).max())
-                   for a, b in zip(moms[engines[0]], moms[engines[-1]]))
+        diff = max(
+            float(np.abs(a.PP - b.PP).max() / np.abs(b.PP).max()) for a, b in zip(moms[engines[0]], moms[engines[-1]])
+        )
         row["max_rel_diff_PP"] = diff
         out["rows"][label] = row
-        print(f"  {label:<28}" + "".join(f"{row[e]['best'] * 1e3:13.2f}{row[e]['median'] * 1e3:9.2f}"
-                                         for e in engines) + f"{diff:15.1e}")
+        print(
+            f"  {label:<28}"
+            + "".join(f"{row[e]['best'] * 1e3:13.2f}{row[e]['median'] * 1e3:9.2f}" for e in engines)
+            + f"{diff:15.1e}"
+        )
     base = out["rows"]["subtractive"][engines[0]]["best"]
     for label in out["rows"]:
         out["rows"][label]["ratio_to_subtractive"] = out["rows"][label][engines[0]]["best"] / base
-    print("  cost relative to subtractive (" + engines[0] + "): "
-          + ", ".join(f"{k} {v['ratio_to_subtractive']:.2f}x" for k, v in out["rows"].items()))
+    print(
+        "  cost relative to subtractive ("
+        + engines[0]
+        + "): "
+        + ", ".join(f"{k} {v['ratio_to_subtractive']:.2f}x" for k, v in out["rows"].items())
+    )
     print("RESULT " + json.dumps(out))
     return out
 

@@ -27,8 +27,14 @@ from bench_page_load import stop_server  # noqa: E402
 def one(cache: str) -> tuple[float, float, int]:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(ROOT))
     t0 = time.perf_counter()
-    p = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "2"], cwd=ROOT, env=env,
-                         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "2"],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     url = None
     for line in p.stdout:
         if line.startswith("qsid dashboard: http://"):
@@ -63,8 +69,10 @@ def main(argv=None) -> None:
     print(f"first tab, new server, {a.runs} run(s), {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}")
     print(f"empty numba cache: start -> URL {med(cold, 0):.2f} s, tab open -> ready {med(cold, 1):.2f} s")
     print(f"warm numba cache:  start -> URL {med(warm, 0):.2f} s, tab open -> ready {med(warm, 1):.2f} s")
-    print(f"first tab empty/warm ratio {med(cold, 1) / med(warm, 1):.2f} (target <= 1.3); "
-          f"server processes left after SIGTERM: {left}")
+    print(
+        f"first tab empty/warm ratio {med(cold, 1) / med(warm, 1):.2f} (target <= 1.3); "
+        f"server processes left after SIGTERM: {left}"
+    )
 
 
 if __name__ == "__main__":

@@ -47,26 +47,28 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
-
 from dataclasses import replace  # noqa: E402
+
+import numpy as np  # noqa: E402
+from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
 from qsid_core.closed_loop import run_closed_loops  # noqa: E402
 from qsid_core.mpc import MPCConfig, MPCController  # noqa: E402
 from qsid_core.riccati import dare_stabilizing  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402
 
-from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
-
 
 def blas_threads() -> dict:
     """Threads of each BLAS library loaded in this process (file name -> threads), by threadpoolctl."""
-    return {i["filepath"].rsplit("/", 1)[-1]: int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"}
+    return {
+        i["filepath"].rsplit("/", 1)[-1]: int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"
+    }
 
 
 def set_blas_threads(n: int = 1) -> None:
     """Limit every loaded BLAS to ``n`` threads for the rest of this process (also a pool initializer)."""
     threadpool_limits(limits=int(n), user_api="blas")
+
 
 TOL = 1e-6  # required agreement of the applied inputs
 TIGHT_EPS = 1e-9  # the engine's OSQP tolerance (MPCConfig.eps)
@@ -100,8 +102,10 @@ class Problem:
         self.Qf = dare_stabilizing(self.A, self.B, self.Q, self.R)  # handed to the peers (the engine computes its own)
 
     def describe(self) -> str:
-        return (f"{self.name}: x0 = {np.array2string(self.x0, precision=3)}, |u| <= {self.u_max[0]:g}, "
-                f"horizon {self.N}, {self.steps} steps")
+        return (
+            f"{self.name}: x0 = {np.array2string(self.x0, precision=3)}, |u| <= {self.u_max[0]:g}, "
+            f"horizon {self.N}, {self.steps} steps"
+        )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -200,10 +204,13 @@ def do_mpc_ipopt(pb: Problem, tight: bool = True):
         mpc.settings.supress_ipopt_output()
         if tight:
             # IPOPT's defaults (tol 1e-8, bound_relax_factor 1e-8) leave u up to ~1e-8 outside an active bound
-            mpc.settings.nlpsol_opts.update({"ipopt.tol": 1e-12, "ipopt.bound_relax_factor": 0.0,
-                                             "ipopt.mu_target": 1e-12})
-        mpc.set_objective(lterm=ca.mtimes([x.T, ca.DM(pb.Q), x]) + ca.mtimes([u.T, ca.DM(pb.R), u]),
-                          mterm=ca.mtimes([x.T, ca.DM(pb.Qf), x]))
+            mpc.settings.nlpsol_opts.update(
+                {"ipopt.tol": 1e-12, "ipopt.bound_relax_factor": 0.0, "ipopt.mu_target": 1e-12}
+            )
+        mpc.set_objective(
+            lterm=ca.mtimes([x.T, ca.DM(pb.Q), x]) + ca.mtimes([u.T, ca.DM(pb.R), u]),
+            mterm=ca.mtimes([x.T, ca.DM(pb.Qf), x]),
+        )
         mpc.bounds["lower", "_u", "u"] = -pb.u_max.reshape(-1, 1)
         mpc.bounds["upper", "_u", "u"] = pb.u_max.reshape(-1, 1)
         mpc.setup()
@@ -237,8 +244,12 @@ SOLVERS = {
     "do-mpc+IPOPT defaults": lambda pb: do_mpc_ipopt(pb, tight=False),
 }
 ENGINE = ("engine run_closed_loops", "engine MPCController.solve", "engine run_closed_loops, solver=osqp")
-PEER_FAMILY = {"cvxpy+OSQP tight (eps 1e-9)": "cvxpy", "cvxpy+OSQP cvxpy defaults": "cvxpy",
-               "do-mpc+IPOPT tight (tol 1e-12)": "do-mpc", "do-mpc+IPOPT defaults": "do-mpc"}
+PEER_FAMILY = {
+    "cvxpy+OSQP tight (eps 1e-9)": "cvxpy",
+    "cvxpy+OSQP cvxpy defaults": "cvxpy",
+    "do-mpc+IPOPT tight (tol 1e-12)": "do-mpc",
+    "do-mpc+IPOPT defaults": "do-mpc",
+}
 
 
 def available(name: str) -> bool:
@@ -271,7 +282,7 @@ def benchmark_problem(pb: Problem, solvers, repeats_engine: int, repeats_peer: i
         times, us, info = _time(run, repeats_engine if name in ENGINE else repeats_peer)
         out[name] = dict(times=times, best=min(times), median=statistics.median(times), setup=setup, inputs=us, **info)
     ref = out[ENGINE[0]]["inputs"]
-    for name, r in out.items():
+    for r in out.values():
         r["max_abs_du"] = float(np.abs(r["inputs"] - ref).max())
     return out
 
@@ -291,11 +302,16 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="dc-motor only, horizon 5, 12 steps, 1 repeat")
     ap.add_argument("--repeats", type=int, default=None, help="timed closed loops per peer (default 5; quick 1)")
-    ap.add_argument("--engine-repeats", type=int, default=None, help="timed closed loops per engine variant "
-                    "(default 50; quick 3)")
+    ap.add_argument(
+        "--engine-repeats", type=int, default=None, help="timed closed loops per engine variant (default 50; quick 3)"
+    )
     ap.add_argument("--skip", default="", help="comma-separated peer families to skip: cvxpy, do-mpc")
-    ap.add_argument("--blas-threads", type=int, default=None,
-                    help="set OpenBLAS threads of this process first (default: leave the environment's setting)")
+    ap.add_argument(
+        "--blas-threads",
+        type=int,
+        default=None,
+        help="set OpenBLAS threads of this process first (default: leave the environment's setting)",
+    )
     args = ap.parse_args(argv)
     rp = args.repeats if args.repeats is not None else (1 if args.quick else 5)
     re_ = args.engine_repeats if args.engine_repeats is not None else (3 if args.quick else 50)
@@ -305,10 +321,14 @@ def main(argv=None) -> dict:
     if args.blas_threads is not None:  # after the peers' imports, which may load their own OpenBLAS
         set_blas_threads(args.blas_threads)
 
-    print(f"QSID MPC closed-loop benchmark ({'quick' if args.quick else 'full'}); {os.cpu_count()} shared cores, "
-          f"best/median of {re_} (engine) / {rp} (peers) closed loops")
-    print("engine times include building the controller (DARE, gains, QP setup); peer times exclude their setup "
-          "(shown separately)")
+    print(
+        f"QSID MPC closed-loop benchmark ({'quick' if args.quick else 'full'}); {os.cpu_count()} shared cores, "
+        f"best/median of {re_} (engine) / {rp} (peers) closed loops"
+    )
+    print(
+        "engine times include building the controller (DARE, gains, QP setup); peer times exclude their setup "
+        "(shown separately)"
+    )
     print(f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}")
     if missing:
         print("not installed, skipped:", ", ".join(missing))
@@ -320,25 +340,45 @@ def main(argv=None) -> dict:
         eng_best = r[ENGINE[0]]["best"]
         print()
         print(pb.describe())
-        print(f"  {'solver':<38}{'best [ms]':>11}{'median [ms]':>13}{'setup [ms]':>12}{'fast/QP':>11}"
-              f"{'max|du| vs engine':>19}{'time / engine':>15}")
+        print(
+            f"  {'solver':<38}{'best [ms]':>11}{'median [ms]':>13}{'setup [ms]':>12}{'fast/QP':>11}"
+            f"{'max|du| vs engine':>19}{'time / engine':>15}"
+        )
         for name, v in r.items():
             steps = f"{v['fast_steps']}/{v['osqp_steps']}" if "osqp_steps" in v else "-"
             ratio = v["best"] / eng_best
             agree = v["max_abs_du"] <= TOL
             if "defaults" not in name:  # the defaults rows are for reference: tight rows must agree
                 ok_all &= agree
-            print(f"  {name:<38}{v['best'] * 1e3:>11.3f}{v['median'] * 1e3:>13.3f}"
-                  f"{(v['setup'] * 1e3 if v['setup'] else 0):>12.1f}{steps:>11}{v['max_abs_du']:>19.2e}"
-                  f"{ratio:>14.1f}x{'' if agree else '  (> 1e-6: defaults too loose)'}")
-        results.append(dict(
-            problem=pb.name, system=pb.sys.name, case=pb.case, x0=pb.x0.tolist(), u_max=float(pb.u_max[0]),
-            horizon=pb.N, steps=pb.steps,
-            solvers={k: dict(best_s=v["best"], median_s=v["median"], times_s=v["times"], setup_s=v["setup"],
-                             max_abs_du=v["max_abs_du"], osqp_steps=v.get("osqp_steps"),
-                             fast_steps=v.get("fast_steps"), speedup_vs_engine=v["best"] / eng_best)
-                     for k, v in r.items()},
-        ))
+            print(
+                f"  {name:<38}{v['best'] * 1e3:>11.3f}{v['median'] * 1e3:>13.3f}"
+                f"{(v['setup'] * 1e3 if v['setup'] else 0):>12.1f}{steps:>11}{v['max_abs_du']:>19.2e}"
+                f"{ratio:>14.1f}x{'' if agree else '  (> 1e-6: defaults too loose)'}"
+            )
+        results.append(
+            dict(
+                problem=pb.name,
+                system=pb.sys.name,
+                case=pb.case,
+                x0=pb.x0.tolist(),
+                u_max=float(pb.u_max[0]),
+                horizon=pb.N,
+                steps=pb.steps,
+                solvers={
+                    k: dict(
+                        best_s=v["best"],
+                        median_s=v["median"],
+                        times_s=v["times"],
+                        setup_s=v["setup"],
+                        max_abs_du=v["max_abs_du"],
+                        osqp_steps=v.get("osqp_steps"),
+                        fast_steps=v.get("fast_steps"),
+                        speedup_vs_engine=v["best"] / eng_best,
+                    )
+                    for k, v in r.items()
+                },
+            )
+        )
 
     print()
     print("summary: peer time / engine time (target: engine >= 30x faster than cvxpy+OSQP on the constrained rows)")
@@ -350,20 +390,40 @@ def main(argv=None) -> dict:
                 continue
             r = {e: sv[peer]["best_s"] / sv[e]["best_s"] for e in ENGINE}
             best = max(r[ENGINE[0]], r[ENGINE[1]])
-            targets[f"{res['problem']} / {peer}"] = dict(vs_run_closed_loops=r[ENGINE[0]],
-                                                         vs_controller_solve=r[ENGINE[1]],
-                                                         vs_old_osqp_engine=r[ENGINE[2]], met=best >= 30)
-            print(f"  {res['problem']:<24} {peer:<32}: {r[ENGINE[0]]:6.1f}x (run_closed_loops)  "
-                  f"{r[ENGINE[1]]:6.1f}x (MPCController.solve)  [old OSQP engine {r[ENGINE[2]]:5.1f}x]  "
-                  f"{'MET' if best >= 30 else 'NOT met'}")
+            targets[f"{res['problem']} / {peer}"] = dict(
+                vs_run_closed_loops=r[ENGINE[0]],
+                vs_controller_solve=r[ENGINE[1]],
+                vs_old_osqp_engine=r[ENGINE[2]],
+                met=best >= 30,
+            )
+            print(
+                f"  {res['problem']:<24} {peer:<32}: {r[ENGINE[0]]:6.1f}x (run_closed_loops)  "
+                f"{r[ENGINE[1]]:6.1f}x (MPCController.solve)  [old OSQP engine {r[ENGINE[2]]:5.1f}x]  "
+                f"{'MET' if best >= 30 else 'NOT met'}"
+            )
     print(f"engine and tight-tolerance peers agree on the applied inputs to {TOL:g}: {'yes' if ok_all else 'NO'}")
-    loose = sorted({f"{k} ({res['problem']}: {v['max_abs_du']:.1e})" for res in results
-                    for k, v in res["solvers"].items() if "defaults" in k and v["max_abs_du"] > TOL})
+    loose = sorted(
+        {
+            f"{k} ({res['problem']}: {v['max_abs_du']:.1e})"
+            for res in results
+            for k, v in res["solvers"].items()
+            if "defaults" in k and v["max_abs_du"] > TOL
+        }
+    )
     if loose:
         print("with their default tolerances these peers miss 1e-6 (hence the tightened rows): " + "; ".join(loose))
-    out = dict(benchmark="bench_mpc", quick=bool(args.quick), cores=os.cpu_count(), blas_threads=blas_threads(),
-               tolerance=TOL,
-               repeats_engine=re_, repeats_peer=rp, problems=results, all_agree=ok_all, targets_30x=targets)
+    out = dict(
+        benchmark="bench_mpc",
+        quick=bool(args.quick),
+        cores=os.cpu_count(),
+        blas_threads=blas_threads(),
+        tolerance=TOL,
+        repeats_engine=re_,
+        repeats_peer=rp,
+        problems=results,
+        all_agree=ok_all,
+        targets_30x=targets,
+    )
     print("RESULT " + json.dumps(out))
     return out
 

@@ -36,8 +36,15 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-        "--no-first-run", "--disable-quic", "--disable-sync"]
+ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+    "--disable-quic",
+    "--disable-sync",
+]
 TARGET_S = 3.0
 TIMEOUT_MS = 120_000
 
@@ -52,9 +59,13 @@ def start_server(workers: int, system: str) -> tuple[subprocess.Popen, str, floa
     """``python -m app.dashboard`` on a free port; returns (process, url, seconds until it printed its URL)."""
     port = _free_port()
     t = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", str(port), "--workers", str(workers),
-                             "--system", system], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard", "--port", str(port), "--workers", str(workers), "--system", system],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     for line in proc.stdout:
         if "http://" in line:
             return proc, f"http://127.0.0.1:{port}", time.perf_counter() - t
@@ -118,15 +129,15 @@ def open_tab(browser, url: str) -> dict:
     ctx = browser.new_context(viewport={"width": 1400, "height": 900})
     page = ctx.new_page()
     log: list = []
-    page.on("websocket", lambda ws: ws.on("framereceived",
-                                          lambda p: log.append((time.perf_counter() - t0, len(p)))))
+    page.on("websocket", lambda ws: ws.on("framereceived", lambda p: log.append((time.perf_counter() - t0, len(p)))))
     t0 = time.perf_counter()
     page.goto(url, timeout=TIMEOUT_MS)
     out = {"html": time.perf_counter() - t0}
     page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
     out["canvas"] = time.perf_counter() - t0
-    page.wait_for_function("document.querySelectorAll('.js-plotly-plot .main-svg').length >= 1", timeout=TIMEOUT_MS,
-                           polling=50)
+    page.wait_for_function(
+        "document.querySelectorAll('.js-plotly-plot .main-svg').length >= 1", timeout=TIMEOUT_MS, polling=50
+    )
     out["first plot"] = time.perf_counter() - t0
     page.wait_for_function("document.body.innerText.includes('ready ·')", timeout=TIMEOUT_MS, polling=50)
     out["ready"] = time.perf_counter() - t0
@@ -175,19 +186,34 @@ def main(argv=None) -> int:
             finally:
                 orphans += stop_server(proc)
         browser.close()
-    print(f"qsid dashboard first page load · headless Chromium (software WebGL) · {a.system} · server --workers "
-          f"{a.workers} · {a.runs} server starts · {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}")
+    print(
+        f"qsid dashboard first page load · headless Chromium (software WebGL) · {a.system} · server --workers "
+        f"{a.workers} · {a.runs} server starts · {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}"
+    )
     print(f"server start to URL: median {statistics.median(starts):.2f} s")
     print(f"server processes left running after SIGTERM (killed by this script): {orphans}")
     for name, runs in (("first tab after start", first), ("second tab", second)):
         ready = statistics.median(r["ready"] for r in runs)
         verdict = "MET" if ready <= TARGET_S else "NOT MET"
-        print(f"{name}: page open -> ready median {ready:.2f} s (target <= {TARGET_S:.0f} s: {verdict}) · "
-              + " · ".join(_fmt(runs, k) for k in ("html", "canvas", "first ws msg", "plotly.js msg", "first plot",
-                                                   "last ws msg", "ready", "server"))
-              + f" · websocket {_fmt(runs, 'MB', 'MB')}, {_fmt(runs, 'largest MB', 'MB')}, "
-              f"{statistics.median(r['messages'] for r in runs):.0f} messages · "
-              f"{statistics.median(r['plots'] for r in runs):.0f} plotly plots")
+        print(
+            f"{name}: page open -> ready median {ready:.2f} s (target <= {TARGET_S:.0f} s: {verdict}) · "
+            + " · ".join(
+                _fmt(runs, k)
+                for k in (
+                    "html",
+                    "canvas",
+                    "first ws msg",
+                    "plotly.js msg",
+                    "first plot",
+                    "last ws msg",
+                    "ready",
+                    "server",
+                )
+            )
+            + f" · websocket {_fmt(runs, 'MB', 'MB')}, {_fmt(runs, 'largest MB', 'MB')}, "
+            f"{statistics.median(r['messages'] for r in runs):.0f} messages · "
+            f"{statistics.median(r['plots'] for r in runs):.0f} plotly plots"
+        )
     return 0
 
 

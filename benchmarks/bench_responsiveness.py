@@ -74,7 +74,9 @@ def newer_settings_win(workers: int, delays=(0.5, 4.0)) -> dict:
                 _send_all(tab, LIGHT, 5 + i)
                 time.sleep(0.05)  # the status says "computing" once the light settings arrived
                 waited = _ready_after(tab)
-                out[f"light_after_{delay:g}s_heavy_s"] = waited if math.isnan(waited) else round(time.monotonic() - t0, 2)
+                out[f"light_after_{delay:g}s_heavy_s"] = (
+                    waited if math.isnan(waited) else round(time.monotonic() - t0, 2)
+                )
                 out[f"heavy_still_running_at_{delay:g}s"] = still_heavy
         finally:
             tab.close()
@@ -134,10 +136,16 @@ def main(argv=None) -> dict:
         row = {**newer_settings_win(args.workers), **ctrl_c_during_work(args.workers), **abandon_pool_task()}
         print(f"run {r + 1}: {json.dumps(row)}", flush=True)
         runs.append(row)
-    medians = {k: statistics.median(run[k] for run in runs) for k in runs[0]
-               if isinstance(runs[0][k], float) and not isinstance(runs[0][k], bool)}
-    out = {"runs": runs, "median": medians, "targets_s": {"light_after_*": 4.0, "ctrl_c_stop_s": 2.0,
-                                                          "abandon_released_s": 1.0}}
+    medians = {
+        k: statistics.median(run[k] for run in runs)
+        for k in runs[0]
+        if isinstance(runs[0][k], float) and not isinstance(runs[0][k], bool)
+    }
+    out = {
+        "runs": runs,
+        "median": medians,
+        "targets_s": {"light_after_*": 4.0, "ctrl_c_stop_s": 2.0, "abandon_released_s": 1.0},
+    }
     print(json.dumps({"median": medians, "targets_s": out["targets_s"]}, indent=1))
     if args.json:
         args.json.write_text(json.dumps(out, indent=1))

@@ -47,8 +47,14 @@ class Server:
 
     def __init__(self, *args: str):
         env = dict(os.environ, PYTHONPATH=str(ROOT))
-        self.p = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", "0", *args], cwd=ROOT, env=env,
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.p = subprocess.Popen(
+            [sys.executable, "-m", "app.dashboard", "--port", "0", *args],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         line, end = "", time.time() + 120
         while not line.startswith("qsid dashboard:") and time.time() < end and self.p.poll() is None:
             line = self.p.stdout.readline()
@@ -85,8 +91,9 @@ class Clients:
         self.url, self.rate, self.sent, self.failed, self.timeout = url, rate, 0, 0, timeout
         self._stop = threading.Event()
         self.tabs = [WsTab(url, timeout) for _ in range(n)]
-        self.threads = [threading.Thread(target=self._run, args=(t, seed + i), daemon=True)
-                        for i, t in enumerate(self.tabs)]
+        self.threads = [
+            threading.Thread(target=self._run, args=(t, seed + i), daemon=True) for i, t in enumerate(self.tabs)
+        ]
         for th in self.threads:
             th.start()
 
@@ -123,8 +130,11 @@ def phase(server: Server, name: str, seconds: float, every: float, t0: float, sa
         if clients is not None:
             row["sent"] = clients.sent
         samples.append(row)
-        print(f"{row['t']:8.1f} s  {name:8s} RSS {row['rss_mb']:7.1f} MB" +
-              (f"  changes sent {clients.sent}" if clients is not None else ""), flush=True)
+        print(
+            f"{row['t']:8.1f} s  {name:8s} RSS {row['rss_mb']:7.1f} MB"
+            + (f"  changes sent {clients.sent}" if clients is not None else ""),
+            flush=True,
+        )
         if now >= end:
             return
         time.sleep(min(every, max(0.0, end - now)))
@@ -164,8 +174,12 @@ def flood(url: str, clients: int, seconds: float, settle: float = 2.0) -> dict:
         proc.join(30)
         if proc.is_alive():
             proc.kill()
-    return {"new_tab_ready_s": round(ready, 2), "flood_changes_per_s": round(r["sent"] / r["seconds"]),
-            "flooders_still_connected": r["connected"], "flooders": clients}
+    return {
+        "new_tab_ready_s": round(ready, 2),
+        "flood_changes_per_s": round(r["sent"] / r["seconds"]),
+        "flooders_still_connected": r["connected"],
+        "flooders": clients,
+    }
 
 
 def main(argv=None) -> dict:
@@ -203,8 +217,13 @@ def main(argv=None) -> dict:
             out["flood"] = flood(server.url, args.flood_clients, args.flood)
             print(f"flood: {out['flood']}", flush=True)
         soak = [s["rss_mb"] for s in samples if s["phase"] == "soak"]
-        out.update(samples=samples, end_rss_mb=samples[-1]["rss_mb"], peak_rss_mb=max(s["rss_mb"] for s in samples),
-                   soak_first_mb=soak[0], soak_last_mb=soak[-1])
+        out.update(
+            samples=samples,
+            end_rss_mb=samples[-1]["rss_mb"],
+            peak_rss_mb=max(s["rss_mb"] for s in samples),
+            soak_first_mb=soak[0],
+            soak_last_mb=soak[-1],
+        )
     finally:
         out["stop_seconds"] = round(server.stop(), 2)
         out["server_tracebacks"] = sum("Traceback" in line for line in server.errors)

@@ -67,11 +67,18 @@ def saturated_mpc(scale: dict, repeats: int, osqp_repeats: int) -> dict:
             b = run_closed_loops(models, s.A, s.B, old, s)
             to.append(time.perf_counter() - t0)
     ok = ~(a.failed | b.failed)
-    return dict(loops=len(models), qp_steps=a.qp_steps, qp_steps_osqp=b.qp_steps, failed=int(a.failed.sum()),
-                failure_mismatches=int((a.failed != b.failed).sum()),
-                max_abs_du=float(np.abs(a.inputs[ok] - b.inputs[ok]).max()),
-                max_rel_dcost=float(np.abs(a.cost[ok] - b.cost[ok]).max() / np.abs(b.cost[ok]).max()),
-                new=_stats(tn), old=_stats(to), speedup=min(to) / min(tn))
+    return dict(
+        loops=len(models),
+        qp_steps=a.qp_steps,
+        qp_steps_osqp=b.qp_steps,
+        failed=int(a.failed.sum()),
+        failure_mismatches=int((a.failed != b.failed).sum()),
+        max_abs_du=float(np.abs(a.inputs[ok] - b.inputs[ok]).max()),
+        max_rel_dcost=float(np.abs(a.cost[ok] - b.cost[ok]).max() / np.abs(b.cost[ok]).max()),
+        new=_stats(tn),
+        old=_stats(to),
+        speedup=min(to) / min(tn),
+    )
 
 
 def _kernel_floor(prep, bits, spec, seeds) -> float:
@@ -84,15 +91,16 @@ def _kernel_floor(prep, bits, spec, seeds) -> float:
     total = 0.0
     for ss in seeds:
         rng = np.random.default_rng(ss)
-        draws = [rng.uniform(-0.5, 0.5, size=yc[s:s + CHUNK_ROWS].shape) for s in range(0, N, CHUNK_ROWS)]
+        draws = [rng.uniform(-0.5, 0.5, size=yc[s : s + CHUNK_ROWS].shape) for s in range(0, N, CHUNK_ROWS)]
         nb = len(bits)
         M, C, sums = np.zeros((nb, p, p)), np.zeros((nb, p, prep.n)), np.zeros((nb, p))
         over, prev = np.zeros(nb, dtype=np.int64), np.zeros((nb, p))
         vl, vf = np.zeros((nb, prep.trajectories, p)), np.zeros((nb, prep.trajectories, p))
         t0 = time.perf_counter()
         for k, s in enumerate(range(0, N, CHUNK_ROWS)):
-            kernels.accumulate_chunk(yc[s:s + CHUNK_ROWS], draws[k], scale, half, s, S1, M, C, sums, over, prev,
-                                     vl, vf)
+            kernels.accumulate_chunk(
+                yc[s : s + CHUNK_ROWS], draws[k], scale, half, s, S1, M, C, sums, over, prev, vl, vf
+            )
         total += time.perf_counter() - t0
     return total
 
@@ -125,12 +133,14 @@ def identification(scale: dict, repeats: int, realizations: int) -> dict:
     return out
 
 
-_PROBE = ("import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
-          "import numpy as np; from qsid_core import kernels, QuantizerSpec, prepare, quantized_moments, simulate; "
-          "from qsid_core.systems import dc_motor; d = simulate(dc_motor(), 2, 50, seed=0); s = QuantizerSpec(); "
-          "p = prepare(d, s); t2 = time.perf_counter(); quantized_moments(p, [4], s, np.random.default_rng(0)); "
-          "kernels.box_qp_pdas(np.eye(2)[None], np.ones((1, 2)), np.ones(2), np.zeros((1, 2), bool), "
-          "np.zeros((1, 2), bool)); t3 = time.perf_counter(); print(t1 - t0, t3 - t2)")
+_PROBE = (
+    "import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
+    "import numpy as np; from qsid_core import kernels, QuantizerSpec, prepare, quantized_moments, simulate; "
+    "from qsid_core.systems import dc_motor; d = simulate(dc_motor(), 2, 50, seed=0); s = QuantizerSpec(); "
+    "p = prepare(d, s); t2 = time.perf_counter(); quantized_moments(p, [4], s, np.random.default_rng(0)); "
+    "kernels.box_qp_pdas(np.eye(2)[None], np.ones((1, 2)), np.ones(2), np.zeros((1, 2), bool), "
+    "np.zeros((1, 2), bool)); t3 = time.perf_counter(); print(t1 - t0, t3 - t2)"
+)
 
 
 def numba_costs() -> dict:
@@ -139,8 +149,15 @@ def numba_costs() -> dict:
         env = {**os.environ, "NUMBA_CACHE_DIR": d}
         runs = []
         for _ in range(2):  # first: compile into the empty cache; second: load from it
-            out = subprocess.run([sys.executable, "-c", _PROBE], cwd=ROOT, env=env, capture_output=True, text=True,
-                                 timeout=300, check=True)
+            out = subprocess.run(
+                [sys.executable, "-c", _PROBE],
+                cwd=ROOT,
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=300,
+                check=True,
+            )
             runs.append([float(v) for v in out.stdout.split()])
     return dict(import_numba_s=runs[1][0], first_call_compile_s=runs[0][1], first_call_cached_s=runs[1][1])
 
@@ -177,36 +194,53 @@ def main(argv=None) -> dict:
     rp = args.repeats or (1 if args.quick else 3)
     orp = args.osqp_repeats or (1 if args.quick else 2)
     skip = {s.strip() for s in args.skip.split(",") if s.strip()}
-    out: dict = dict(benchmark="bench_speed", quick=bool(args.quick), cores=os.cpu_count(),
-                     numba=kernels.AVAILABLE, numba_reason=kernels.REASON)
-    print(f"QSID speed targets ({'quick' if args.quick else 'paper scale'}); {os.cpu_count()} shared cores; "
-          f"compiled kernels: {'yes' if kernels.AVAILABLE else 'no (' + kernels.REASON + ')'}")
+    out: dict = dict(
+        benchmark="bench_speed",
+        quick=bool(args.quick),
+        cores=os.cpu_count(),
+        numba=kernels.AVAILABLE,
+        numba_reason=kernels.REASON,
+    )
+    print(
+        f"QSID speed targets ({'quick' if args.quick else 'paper scale'}); {os.cpu_count()} shared cores; "
+        f"compiled kernels: {'yes' if kernels.AVAILABLE else 'no (' + kernels.REASON + ')'}"
+    )
     if "mpc" not in skip:
         r = out["saturated_mpc"] = saturated_mpc(scale, rp, orp)
-        print(f"\n1. saturated Boeing MPC stage: {r['loops']} loops x {SATURATED['steps']} steps, |u| <= 0.3, "
-              f"x0 = 20*[1,1,0,0]; {r['qp_steps']} constrained steps")
+        print(
+            f"\n1. saturated Boeing MPC stage: {r['loops']} loops x {SATURATED['steps']} steps, |u| <= 0.3, "
+            f"x0 = 20*[1,1,0,0]; {r['qp_steps']} constrained steps"
+        )
         print(f"  {'':<34}{'best [s]':>9}{'median':>9}")
         print(_row("previous engine (OSQP, sparse)", r["old"], 1, "{:9.3f}"))
         print(_row("new engine (active set / DAQP)", r["new"], 1, "{:9.3f}"))
-        print(f"  speed-up {r['speedup']:.1f}x (target >= 25x: {'MET' if r['speedup'] >= 25 else 'NOT met'}); "
-              f"max |du| {r['max_abs_du']:.1e}, max rel. d cost {r['max_rel_dcost']:.1e}, "
-              f"failure mismatches {r['failure_mismatches']}")
+        print(
+            f"  speed-up {r['speedup']:.1f}x (target >= 25x: {'MET' if r['speedup'] >= 25 else 'NOT met'}); "
+            f"max |du| {r['max_abs_du']:.1e}, max rel. d cost {r['max_rel_dcost']:.1e}, "
+            f"failure mismatches {r['failure_mismatches']}"
+        )
     if "ident" not in skip and kernels.AVAILABLE:
         nr = args.ident_realizations or (2 if args.quick else 10)
         r = out["identification"] = identification(scale, rp, nr)
-        print(f"\n2. identification per (b, realization), dc-motor {scale['trajectories']} x {scale['steps']}, "
-              f"{nr} realizations x {len(scale['bits'])} word lengths")
+        print(
+            f"\n2. identification per (b, realization), dc-motor {scale['trajectories']} x {scale['steps']}, "
+            f"{nr} realizations x {len(scale['bits'])} word lengths"
+        )
         print(f"  {'':<34}{'best [ms]':>9}{'median':>9}")
         for k in ("engine (numba)", "fused kernel floor", "numpy reference"):
             print(_row(k, r[k]))
-        print(f"  engine / floor {r['ratio_engine_to_floor']:.2f}x (target <= 1.5x: "
-              f"{'MET' if r['ratio_engine_to_floor'] <= 1.5 else 'NOT met'}); numpy / engine "
-              f"{r['ratio_numpy_to_engine']:.2f}x")
+        print(
+            f"  engine / floor {r['ratio_engine_to_floor']:.2f}x (target <= 1.5x: "
+            f"{'MET' if r['ratio_engine_to_floor'] <= 1.5 else 'NOT met'}); numpy / engine "
+            f"{r['ratio_numpy_to_engine']:.2f}x"
+        )
     if "numba" not in skip and kernels.AVAILABLE:
         r = out["numba_costs"] = numba_costs()
-        print(f"\n3. numba (fresh processes): import {r['import_numba_s']:.2f} s, first call with an empty cache "
-              f"(compile) {r['first_call_compile_s']:.2f} s, first call with the cache filled "
-              f"{r['first_call_cached_s']:.2f} s")
+        print(
+            f"\n3. numba (fresh processes): import {r['import_numba_s']:.2f} s, first call with an empty cache "
+            f"(compile) {r['first_call_compile_s']:.2f} s, first call with the cache filled "
+            f"{r['first_call_cached_s']:.2f} s"
+        )
     if "sweep" not in skip:
         r = out["sweep_wall"] = sweep_wall(rp, args.quick)
         print(f"\n4. `qsid sweep` ({'small' if args.quick else 'paper scale'}, dc-motor, MPC on), one process, wall")

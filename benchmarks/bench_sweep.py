@@ -49,37 +49,52 @@ if str(ROOT) not in sys.path:
 import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
+from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
 from qsid_core.data import simulate  # noqa: E402
 from qsid_core.experiment import SweepConfig  # noqa: E402
-from qsid_core.sweep import run_sweep  # noqa: E402
 from qsid_core.mpc import MPCConfig, MPCWeights  # noqa: E402
 from qsid_core.quantize import quantize  # noqa: E402
+from qsid_core.sweep import run_sweep  # noqa: E402
 from qsid_core.systems import get_system  # noqa: E402
-
-from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
 
 def blas_threads() -> dict:
     """Threads of each BLAS library loaded in this process (file name -> threads), by threadpoolctl."""
-    return {i["filepath"].rsplit("/", 1)[-1]: int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"}
+    return {
+        i["filepath"].rsplit("/", 1)[-1]: int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"
+    }
 
 
 def set_blas_threads(n: int = 1) -> None:
     """Limit every loaded BLAS to ``n`` threads for the rest of this process (also a pool initializer)."""
     threadpool_limits(limits=int(n), user_api="blas")
 
-PAPER = dict(system="dc-motor", bits=tuple(range(1, 17)), realizations=50, trajectories=200, steps=1000,
-             horizon=10, mpc_steps=50, u_max=1.0)
-QUICK = dict(system="dc-motor", bits=(1, 3, 6, 10), realizations=4, trajectories=8, steps=150,
-             horizon=5, mpc_steps=10, u_max=1.0)
+
+PAPER = dict(
+    system="dc-motor",
+    bits=tuple(range(1, 17)),
+    realizations=50,
+    trajectories=200,
+    steps=1000,
+    horizon=10,
+    mpc_steps=50,
+    u_max=1.0,
+)
+QUICK = dict(
+    system="dc-motor", bits=(1, 3, 6, 10), realizations=4, trajectories=8, steps=150, horizon=5, mpc_steps=10, u_max=1.0
+)
 
 
 def make_config(scale: dict, system: str | None = None) -> SweepConfig:
     """The sweep's :class:`SweepConfig` (LS, default quantizer: subtractive dither, per-channel range)."""
     return SweepConfig(
-        system=system or scale["system"], bits=scale["bits"], realizations=scale["realizations"],
-        trajectories=scale["trajectories"], steps=scale["steps"], estimator="ls",
+        system=system or scale["system"],
+        bits=scale["bits"],
+        realizations=scale["realizations"],
+        trajectories=scale["trajectories"],
+        steps=scale["steps"],
+        estimator="ls",
         mpc=MPCConfig(horizon=scale["horizon"], steps=scale["mpc_steps"], u_max=scale["u_max"]),
     )
 
@@ -92,17 +107,25 @@ def fast_numbers(res) -> dict:
     out = {}
     for b in res.bits:
         idn, lp = res.identification[b], res.loops.get(b)
-        out[b] = dict(A=idn.A_hat, B=idn.B_hat, err_A=idn.err_A, err_B=idn.err_B,
-                      cost=None if lp is None else lp.cost,
-                      failed=None if lp is None else lp.failed,
-                      osqp_steps=None if lp is None else lp.osqp_steps)
+        out[b] = dict(
+            A=idn.A_hat,
+            B=idn.B_hat,
+            err_A=idn.err_A,
+            err_B=idn.err_B,
+            cost=None if lp is None else lp.cost,
+            failed=None if lp is None else lp.failed,
+            osqp_steps=None if lp is None else lp.osqp_steps,
+        )
     return out
 
 
 EXECUTORS = ("inline", "thread", "process", "process-1blas")
-LABELS = {"inline": "run_sweep in-process", "thread": "run_sweep + ThreadPoolExecutor(2)",
-          "process": "run_sweep + ProcessPoolExecutor(2)",
-          "process-1blas": "  same, workers with 1 BLAS thread"}
+LABELS = {
+    "inline": "run_sweep in-process",
+    "thread": "run_sweep + ThreadPoolExecutor(2)",
+    "process": "run_sweep + ProcessPoolExecutor(2)",
+    "process-1blas": "  same, workers with 1 BLAS thread",
+}
 
 
 def make_executor(kind: str):
@@ -135,8 +158,15 @@ def time_fast(cfg: SweepConfig, kind: str, repeats: int) -> dict:
         if pool is not None:
             pool.shutdown()
     ib = int(np.argmin(times))
-    return dict(kind=kind, times=times, best=min(times), median=statistics.median(times), cold=times[0],
-                stages_best=stages[ib], result=res)
+    return dict(
+        kind=kind,
+        times=times,
+        best=min(times),
+        median=statistics.median(times),
+        cold=times[0],
+        stages_best=stages[ib],
+        result=res,
+    )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -174,12 +204,16 @@ def naive_closed_loop(A_hat, B_hat, A, B, w: MPCWeights, mcfg: MPCConfig, osqp_s
         return np.nan, nan_inputs, "dare"
     Qf = (Qf + Qf.T) / 2
     K = np.linalg.solve(R + B_hat.T @ Qf @ B_hat, B_hat.T @ Qf @ A_hat)
-    if (not np.all(np.isfinite(Qf)) or np.abs(np.linalg.eigvals(A_hat - B_hat @ K)).max() >= 1.0
-            or np.linalg.eigvalsh(Qf).min() < -1e-9):
+    if (
+        not np.all(np.isfinite(Qf))
+        or np.abs(np.linalg.eigvals(A_hat - B_hat @ K)).max() >= 1.0
+        or np.linalg.eigvalsh(Qf).min() < -1e-9
+    ):
         return np.nan, nan_inputs, "dare"
     P, q, Acon, lo, hi = naive_qp(A_hat, B_hat, Q, R, Qf, N, u_max)
-    settings = dict(verbose=False, polishing=True, warm_starting=True, eps_abs=mcfg.eps, eps_rel=mcfg.eps,
-                    max_iter=mcfg.max_iter)
+    settings = dict(
+        verbose=False, polishing=True, warm_starting=True, eps_abs=mcfg.eps, eps_rel=mcfg.eps, max_iter=mcfg.max_iter
+    )
     solver = None
     x = np.array(w.x0, dtype=float)
     cost = 0.0
@@ -197,8 +231,13 @@ def naive_closed_loop(A_hat, B_hat, A, B, w: MPCWeights, mcfg: MPCConfig, osqp_s
         res = solver.solve(raise_error=False)
         st = res.info.status_val
         if st not in (S.OSQP_SOLVED, S.OSQP_SOLVED_INACCURATE):
-            kind = ("infeasible" if st in (S.OSQP_PRIMAL_INFEASIBLE, S.OSQP_PRIMAL_INFEASIBLE_INACCURATE)
-                    else "max_iter" if st == S.OSQP_MAX_ITER_REACHED else "solver")
+            kind = (
+                "infeasible"
+                if st in (S.OSQP_PRIMAL_INFEASIBLE, S.OSQP_PRIMAL_INFEASIBLE_INACCURATE)
+                else "max_iter"
+                if st == S.OSQP_MAX_ITER_REACHED
+                else "solver"
+            )
             return np.nan, nan_inputs, kind
         u = np.clip(res.x[i0 : i0 + m], -u_max, u_max)
         cost += float(x @ Q @ x + u @ R @ u)
@@ -256,9 +295,16 @@ def naive_sweep(cfg: SweepConfig, realizations, osqp_setup: str = "model") -> di
             t_mpc += tc - tb
         out[b] = dict(A=Ah, B=Bh, err_A=eA, err_B=eB, cost=cost, failed=np.array([bool(f) for f in fails]))
     t_loop = time.perf_counter() - t1
-    return dict(per_b=out, realizations=realizations, t_fixed=t_fixed, t_loop=t_loop, t_ident=t_ident, t_mpc=t_mpc,
-                true_cost=true_cost,
-                osqp_setup=osqp_setup)
+    return dict(
+        per_b=out,
+        realizations=realizations,
+        t_fixed=t_fixed,
+        t_loop=t_loop,
+        t_ident=t_ident,
+        t_mpc=t_mpc,
+        true_cost=true_cost,
+        osqp_setup=osqp_setup,
+    )
 
 
 def extrapolate(naive: dict, total_realizations: int) -> float:
@@ -277,8 +323,11 @@ def compare(fast: dict, naive: dict) -> dict:
     for b, nv in naive["per_b"].items():
         fv = fast[b]
         dG = max(dG, float(np.abs(fv["A"][idx] - nv["A"]).max()), float(np.abs(fv["B"][idx] - nv["B"]).max()))
-        dmean_err = max(dmean_err, abs(float(fv["err_A"][idx].mean() - nv["err_A"].mean())),
-                        abs(float(fv["err_B"][idx].mean() - nv["err_B"].mean())))
+        dmean_err = max(
+            dmean_err,
+            abs(float(fv["err_A"][idx].mean() - nv["err_A"].mean())),
+            abs(float(fv["err_B"][idx].mean() - nv["err_B"].mean())),
+        )
         if fv["cost"] is not None:
             fc, nc = fv["cost"][idx], nv["cost"]
             fail_mismatch += int(np.sum(fv["failed"][idx] != nv["failed"]))
@@ -286,8 +335,13 @@ def compare(fast: dict, naive: dict) -> dict:
             compared += int(ok.sum())
             if ok.any():
                 dcost = max(dcost, float(np.max(np.abs(fc[ok] - nc[ok]) / np.maximum(np.abs(fc[ok]), 1e-300))))
-    return dict(max_abs_diff_AB=dG, max_rel_diff_cost=dcost, max_diff_mean_err=dmean_err,
-                failure_mismatches=fail_mismatch, loops_compared=compared)
+    return dict(
+        max_abs_diff_AB=dG,
+        max_rel_diff_cost=dcost,
+        max_diff_mean_err=dmean_err,
+        failure_mismatches=fail_mismatch,
+        loops_compared=compared,
+    )
 
 
 def correctness_check(scale: dict | None = None, realizations=None, osqp_setup: str = "model") -> dict:
@@ -306,7 +360,9 @@ def executor_agreement(results: dict) -> float:
     for k in kinds[1:]:
         other = fast_numbers(results[k])
         for b in ref:
-            d = max(d, float(np.abs(ref[b]["A"] - other[b]["A"]).max()), float(np.abs(ref[b]["B"] - other[b]["B"]).max()))
+            d = max(
+                d, float(np.abs(ref[b]["A"] - other[b]["A"]).max()), float(np.abs(ref[b]["B"] - other[b]["B"]).max())
+            )
     return d
 
 
@@ -319,15 +375,26 @@ def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small problem (seconds; used by the smoke test)")
     ap.add_argument("--system", default=None, help="system preset (default dc-motor)")
-    ap.add_argument("--naive-realizations", type=int, default=None,
-                    help="realizations the naive loop is timed on before linear extrapolation (default 5; quick: all)")
-    ap.add_argument("--naive-osqp", choices=("model", "step", "both"), default="both",
-                    help="naive MPC: OSQP set up once per model (the stronger baseline), once per step, or both "
-                    "(default; the ratio target is judged against the per-model one)")
+    ap.add_argument(
+        "--naive-realizations",
+        type=int,
+        default=None,
+        help="realizations the naive loop is timed on before linear extrapolation (default 5; quick: all)",
+    )
+    ap.add_argument(
+        "--naive-osqp",
+        choices=("model", "step", "both"),
+        default="both",
+        help="naive MPC: OSQP set up once per model (the stronger baseline), once per step, or both "
+        "(default; the ratio target is judged against the per-model one)",
+    )
     ap.add_argument("--naive-repeats", type=int, default=None, help="runs of each naive variant (default 2; quick 1)")
     ap.add_argument("--repeats", type=int, default=None, help="runs of each fast variant (default 5; quick: 1)")
-    ap.add_argument("--executors", default=",".join(EXECUTORS),
-                    help="comma-separated subset of " + ",".join(EXECUTORS) + " (default: all)")
+    ap.add_argument(
+        "--executors",
+        default=",".join(EXECUTORS),
+        help="comma-separated subset of " + ",".join(EXECUTORS) + " (default: all)",
+    )
     args = ap.parse_args(argv)
 
     scale = QUICK if args.quick else PAPER
@@ -344,11 +411,15 @@ def main(argv=None) -> dict:
             ap.error(f"unknown executor {k!r}")
 
     bits = cfg.bits
-    print(f"QSID sweep benchmark ({'quick' if args.quick else 'paper scale'}): {get_system(cfg.system).name}, "
-          f"{cfg.trajectories} trajectories x {cfg.steps} steps, b = {bits[0]}..{bits[-1]} ({len(bits)} values), "
-          f"{R} realizations, LS, MPC {cfg.mpc.steps} steps, horizon {cfg.mpc.horizon}, |u| <= {scale['u_max']:g}")
-    print(f"machine: {os.cpu_count()} cores (shared: timings are noisy; ratios are measured in the same run); "
-          f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}")
+    print(
+        f"QSID sweep benchmark ({'quick' if args.quick else 'paper scale'}): {get_system(cfg.system).name}, "
+        f"{cfg.trajectories} trajectories x {cfg.steps} steps, b = {bits[0]}..{bits[-1]} ({len(bits)} values), "
+        f"{R} realizations, LS, MPC {cfg.mpc.steps} steps, horizon {cfg.mpc.horizon}, |u| <= {scale['u_max']:g}"
+    )
+    print(
+        f"machine: {os.cpu_count()} cores (shared: timings are noisy; ratios are measured in the same run); "
+        f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}"
+    )
 
     # warm-up (imports, OSQP/scipy first calls): a tiny sweep and a tiny naive loop, not timed
     warm = make_config(QUICK, args.system)
@@ -379,18 +450,24 @@ def main(argv=None) -> dict:
     for k in kinds:
         f = fast[k]
         st = f["stages_best"]
-        print(f"{label[k]:<46}{f['best']:>10.3f}{f['median']:>12.3f}{len(f['times']):>6}   "
-              f"data {st['data']:.2f}  identify {st['identify']:.2f}  theory {st['theory']:.2f}  mpc {st['mpc']:.2f}")
+        print(
+            f"{label[k]:<46}{f['best']:>10.3f}{f['median']:>12.3f}{len(f['times']):>6}   "
+            f"data {st['data']:.2f}  identify {st['identify']:.2f}  theory {st['theory']:.2f}  mpc {st['mpc']:.2f}"
+        )
     for k in ("process", "process-1blas"):
         if k in fast:
             print(f"{'  (' + k + ' cold first run, incl. start)':<46}{fast[k]['cold']:>10.3f}")
     extra = "measured in full" if K == R else f"EXTRAPOLATED linearly from {K} measured realizations to {R}"
     for mode in modes:
         nv = naive[mode]
-        print(f"{'naive loop, OSQP set up per ' + mode:<46}{t_naive[mode]:>10.3f}"
-              f"{statistics.median(naive_times[mode]):>12.3f}{nrep:>6}   {extra}")
-        print(f"{'':<46}   best run: fixed {nv['t_fixed']:.3f} s + {nv['t_loop']:.3f} s for {K} realization(s) x "
-              f"{len(bits)} b = {nv['t_loop'] / (K * len(bits)) * 1e3:.1f} ms per (b, realization):")
+        print(
+            f"{'naive loop, OSQP set up per ' + mode:<46}{t_naive[mode]:>10.3f}"
+            f"{statistics.median(naive_times[mode]):>12.3f}{nrep:>6}   {extra}"
+        )
+        print(
+            f"{'':<46}   best run: fixed {nv['t_fixed']:.3f} s + {nv['t_loop']:.3f} s for {K} realization(s) x "
+            f"{len(bits)} b = {nv['t_loop'] / (K * len(bits)) * 1e3:.1f} ms per (b, realization):"
+        )
         print(f"{'':<46}   quantize + LS {nv['t_ident']:.3f} s, MPC closed loops {nv['t_mpc']:.3f} s")
     print()
     best_fast = min(f["best"] for f in fast.values())
@@ -401,64 +478,114 @@ def main(argv=None) -> dict:
     print(f"fastest engine variant: {best_fast:.3f} s  (target <= 3 s: {'MET' if best_fast <= 3.0 else 'NOT met'})")
     for mode in modes:
         r = t_naive[mode] / best_fast
-        print(f"naive (OSQP per {mode}) / fastest engine variant: {r:.1f}x  (target >= 20x: "
-              f"{'MET' if r >= 20 else 'NOT met'})")
+        print(
+            f"naive (OSQP per {mode}) / fastest engine variant: {r:.1f}x  (target >= 20x: "
+            f"{'MET' if r >= 20 else 'NOT met'})"
+        )
 
     # ----- science table
     res = fast[ref_kind]["result"]
     print()
     print(f"per-b results (engine: all {R} realizations; naive vs engine: the {K} realization(s) the naive loop ran)")
-    print(f"{'b':>3}{'errA eng':>11}{'errB eng':>11}{'cost eng':>11}{'fail':>5}{'osqp':>6}"
-          f"{'errA naive':>12}{'errA eng@K':>12}{'cost naive':>12}{'cost eng@K':>12}")
+    print(
+        f"{'b':>3}{'errA eng':>11}{'errB eng':>11}{'cost eng':>11}{'fail':>5}{'osqp':>6}"
+        f"{'errA naive':>12}{'errA eng@K':>12}{'cost naive':>12}{'cost eng@K':>12}"
+    )
     rows = []
     for b in bits:
         fv, nv = fnum[b], naive[main_mode]["per_b"][b]
         fc = fv["cost"]
-        row = dict(bits=b, err_A=float(fv["err_A"].mean()), err_B=float(fv["err_B"].mean()),
-                   cost=float(np.nanmean(fc)) if np.isfinite(fc).any() else None,
-                   failed=int(fv["failed"].sum()), osqp_steps=int(fv["osqp_steps"]),
-                   naive_err_A=float(nv["err_A"].mean()), engine_err_A_at_K=float(fv["err_A"][:K].mean()),
-                   naive_cost=float(np.nanmean(nv["cost"])) if np.isfinite(nv["cost"]).any() else None,
-                   engine_cost_at_K=float(np.nanmean(fc[:K])) if np.isfinite(fc[:K]).any() else None,
-                   naive_failed=int(nv["failed"].sum()))
+        row = dict(
+            bits=b,
+            err_A=float(fv["err_A"].mean()),
+            err_B=float(fv["err_B"].mean()),
+            cost=float(np.nanmean(fc)) if np.isfinite(fc).any() else None,
+            failed=int(fv["failed"].sum()),
+            osqp_steps=int(fv["osqp_steps"]),
+            naive_err_A=float(nv["err_A"].mean()),
+            engine_err_A_at_K=float(fv["err_A"][:K].mean()),
+            naive_cost=float(np.nanmean(nv["cost"])) if np.isfinite(nv["cost"]).any() else None,
+            engine_cost_at_K=float(np.nanmean(fc[:K])) if np.isfinite(fc[:K]).any() else None,
+            naive_failed=int(nv["failed"].sum()),
+        )
         rows.append(row)
-        print(f"{b:>3}{row['err_A']:>11.3e}{row['err_B']:>11.3e}{_fmt(row['cost'], '>11.4f')}{row['failed']:>5}"
-              f"{row['osqp_steps']:>6}{row['naive_err_A']:>12.3e}{row['engine_err_A_at_K']:>12.3e}"
-              f"{_fmt(row['naive_cost'], '>12.4f')}{_fmt(row['engine_cost_at_K'], '>12.4f')}")
+        print(
+            f"{b:>3}{row['err_A']:>11.3e}{row['err_B']:>11.3e}{_fmt(row['cost'], '>11.4f')}{row['failed']:>5}"
+            f"{row['osqp_steps']:>6}{row['naive_err_A']:>12.3e}{row['engine_err_A_at_K']:>12.3e}"
+            f"{_fmt(row['naive_cost'], '>12.4f')}{_fmt(row['engine_cost_at_K'], '>12.4f')}"
+        )
     tc = res.true_loop.cost[0] if res.true_loop is not None else float("nan")
     print(f"true-model MPC cost: engine {tc:.10f}, naive {naive[main_mode]['true_cost']:.10f}")
-    print(f"slopes of log10(mean error) vs b: A {res.slope_A:.4f}, B {res.slope_B:.4f}  (letter: about -0.30 = log10(1/2))")
+    print(
+        f"slopes of log10(mean error) vs b: A {res.slope_A:.4f}, B {res.slope_B:.4f}  (letter: about -0.30 = log10(1/2))"
+    )
 
     print()
-    print("correctness (engine vs naive, same dither streams, realizations 0..%d):" % (K - 1))
+    print(f"correctness (engine vs naive, same dither streams, realizations 0..{K - 1}):")
     print(f"  max |[A^,B^]_engine - [A^,B^]_naive|      = {diffs['max_abs_diff_AB']:.3e}")
-    print(f"  max relative diff of closed-loop cost     = {diffs['max_rel_diff_cost']:.3e}  "
-          f"({diffs['loops_compared']} loops compared)")
+    print(
+        f"  max relative diff of closed-loop cost     = {diffs['max_rel_diff_cost']:.3e}  "
+        f"({diffs['loops_compared']} loops compared)"
+    )
     print(f"  max diff of mean relative errors          = {diffs['max_diff_mean_err']:.3e}")
     print(f"  MPC failure mismatches                    = {diffs['failure_mismatches']}")
     if len(modes) > 1:
         o = diffs_modes[modes[1]]
-        print(f"  (naive with OSQP per {modes[1]}: max |d[A^,B^]| {o['max_abs_diff_AB']:.3e}, "
-              f"max rel. d cost {o['max_rel_diff_cost']:.3e}, failure mismatches {o['failure_mismatches']})")
+        print(
+            f"  (naive with OSQP per {modes[1]}: max |d[A^,B^]| {o['max_abs_diff_AB']:.3e}, "
+            f"max rel. d cost {o['max_rel_diff_cost']:.3e}, failure mismatches {o['failure_mismatches']})"
+        )
     if len(kinds) > 1:
         print(f"  max |[A^,B^]| difference between executors = {exec_diff:.3e}")
 
     result = dict(
-        benchmark="bench_sweep", quick=bool(args.quick), system=get_system(cfg.system).name,
-        config=dict(trajectories=cfg.trajectories, steps=cfg.steps, bits=list(bits), realizations=R,
-                    horizon=cfg.mpc.horizon, mpc_steps=cfg.mpc.steps, u_max=scale["u_max"], estimator="ls"),
-        cores=os.cpu_count(), blas_threads=blas_threads(),
-        fast={k: dict(best_s=f["best"], median_s=f["median"], times_s=f["times"], cold_s=f["cold"],
-                      stages_best_s=f["stages_best"]) for k, f in fast.items()},
-        naive={mode: dict(measured_realizations=K, extrapolated_to=R, extrapolated=K != R,
-                          total_s=t_naive[mode], runs_total_s=naive_times[mode],
-                          fixed_s=nv["t_fixed"], loop_s=nv["t_loop"], loop_identify_s=nv["t_ident"],
-                          loop_mpc_s=nv["t_mpc"]) for mode, nv in naive.items()},
-        speedup=ratios, best_fast_s=best_fast,
-        targets=dict(fast_le_3s=best_fast <= 3.0,
-                     naive_ge_20x={mode: t_naive[mode] / best_fast >= 20 for mode in modes}),
-        correctness=dict(**diffs, executor_max_abs_diff_AB=exec_diff,
-                         by_naive_mode={m: d for m, d in diffs_modes.items()}),
+        benchmark="bench_sweep",
+        quick=bool(args.quick),
+        system=get_system(cfg.system).name,
+        config=dict(
+            trajectories=cfg.trajectories,
+            steps=cfg.steps,
+            bits=list(bits),
+            realizations=R,
+            horizon=cfg.mpc.horizon,
+            mpc_steps=cfg.mpc.steps,
+            u_max=scale["u_max"],
+            estimator="ls",
+        ),
+        cores=os.cpu_count(),
+        blas_threads=blas_threads(),
+        fast={
+            k: dict(
+                best_s=f["best"],
+                median_s=f["median"],
+                times_s=f["times"],
+                cold_s=f["cold"],
+                stages_best_s=f["stages_best"],
+            )
+            for k, f in fast.items()
+        },
+        naive={
+            mode: dict(
+                measured_realizations=K,
+                extrapolated_to=R,
+                extrapolated=K != R,
+                total_s=t_naive[mode],
+                runs_total_s=naive_times[mode],
+                fixed_s=nv["t_fixed"],
+                loop_s=nv["t_loop"],
+                loop_identify_s=nv["t_ident"],
+                loop_mpc_s=nv["t_mpc"],
+            )
+            for mode, nv in naive.items()
+        },
+        speedup=ratios,
+        best_fast_s=best_fast,
+        targets=dict(
+            fast_le_3s=best_fast <= 3.0, naive_ge_20x={mode: t_naive[mode] / best_fast >= 20 for mode in modes}
+        ),
+        correctness=dict(
+            **diffs, executor_max_abs_diff_AB=exec_diff, by_naive_mode={m: d for m, d in diffs_modes.items()}
+        ),
         per_b=rows,
     )
     print("RESULT " + json.dumps(result))

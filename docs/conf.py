@@ -32,8 +32,7 @@ napoleon_use_rtype = False
 napoleon_use_param = False  # "shape (n, m)" is text, not a cross-reference to every attribute named n
 napoleon_use_ivar = True  # a dataclass's "Attributes" section as fields, not a second copy of its members
 # each object once, where it is defined (modules re-export through __all__)
-autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True,
-                           "ignore-module-all": True}
+autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True, "ignore-module-all": True}
 autodoc_member_order = "bysource"
 autodoc_inherit_docstrings = False  # the standard library's docstrings are not ours to render
 autodoc_typehints = "description"

@@ -15,5 +15,7 @@ with tempfile.TemporaryDirectory() as d:
     data = load_recorded(path)
 res = identify_recorded(data, "3,6,9", QuantizerSpec(dither="tpdf"), realizations=3)
 for r in res.to_dict()["results"]:
-    print(f"b={r['bits']}: LS err_A {r['ls']['err_A']['mean']:.3e}, BCLS err_A {r['bcls']['err_A']['mean']:.3e} "
-          f"(against {res.reference})")
+    print(
+        f"b={r['bits']}: LS err_A {r['ls']['err_A']['mean']:.3e}, BCLS err_A {r['bcls']['err_A']['mean']:.3e} "
+        f"(against {res.reference})"
+    )

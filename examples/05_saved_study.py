@@ -8,8 +8,9 @@ import numpy as np
 
 from qsid_core import SweepConfig, load_result, run_sweep
 
-res = run_sweep(SweepConfig(system="dc-motor", bits="2:5", realizations=3, trajectories=20, steps=200, mpc=None,
-                            noise=0.01))
+res = run_sweep(
+    SweepConfig(system="dc-motor", bits="2:5", realizations=3, trajectories=20, steps=200, mpc=None, noise=0.01)
+)
 with tempfile.TemporaryDirectory() as d:
     path = Path(d) / "study.json"
     path.write_text(json.dumps(res.to_dict()))

@@ -68,8 +68,17 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["Assumptions", "assess", "OVERLOAD_EFFECT_RATIO", "STATIONARITY_MARGIN", "LARGE_DATA_RATIO",
-           "FIT_TOLERANCE", "finite_data_fluctuation", "clipping_effect", "range_words"]
+__all__ = [
+    "Assumptions",
+    "assess",
+    "OVERLOAD_EFFECT_RATIO",
+    "STATIONARITY_MARGIN",
+    "LARGE_DATA_RATIO",
+    "FIT_TOLERANCE",
+    "finite_data_fluctuation",
+    "clipping_effect",
+    "range_words",
+]
 
 #: Overload is harmless when its predicted effect is at most 1/this of the finite-data fluctuation.
 OVERLOAD_EFFECT_RATIO = 3.0
@@ -187,8 +196,15 @@ def finite_data_fluctuation(G: np.ndarray, PP: np.ndarray, eps: np.ndarray) -> t
     return float(np.sqrt(s2 * max(np.trace(Pi[:n, :n]), 0.0))), float(np.sqrt(s2 * max(np.trace(Pi[n:, n:]), 0.0)))
 
 
-def clipping_effect(G: np.ndarray, Psi: np.ndarray, Xp: np.ndarray, lo_q: np.ndarray, eps: np.ndarray,
-                    bits, variance: float = 1.0 / 12.0) -> np.ndarray:
+def clipping_effect(
+    G: np.ndarray,
+    Psi: np.ndarray,
+    Xp: np.ndarray,
+    lo_q: np.ndarray,
+    eps: np.ndarray,
+    bits,
+    variance: float = 1.0 / 12.0,
+) -> np.ndarray:
     """Predicted absolute change of ``[A^, B^]`` caused by the quantizer clipping the data.
 
     Parameters
@@ -256,11 +272,16 @@ def _overload_note(a: dict) -> str:
     head = f"overload: {a['overload_range']} clips {100 * a['overload_fraction']:.2g} % of the samples"
     eff = max(a[f"overload_effect_{k}"] for k in bad)
     if eff >= max(max(a[f"bias_{k}"], a[f"fluctuation_{k}"]) for k in bad):
-        return (f"{head}; that, not the data length, sets the error floor of {' and '.join(hat[k] for k in bad)} "
-                "(predicted " + ", ".join(f"{k} {a[f'overload_effect_{k}']:.3g}" for k in bad) + ")")
-    moves = ", ".join(f"{hat[k]} by {a[f'overload_effect_{k}']:.2g} "
-                      f"({a[f'overload_effect_{k}'] / max(a[f'fluctuation_{k}'], 1e-300):.2g}x its finite-data "
-                      "fluctuation)" for k in bad)
+        return (
+            f"{head}; that, not the data length, sets the error floor of {' and '.join(hat[k] for k in bad)} "
+            "(predicted " + ", ".join(f"{k} {a[f'overload_effect_{k}']:.3g}" for k in bad) + ")"
+        )
+    moves = ", ".join(
+        f"{hat[k]} by {a[f'overload_effect_{k}']:.2g} "
+        f"({a[f'overload_effect_{k}'] / max(a[f'fluctuation_{k}'], 1e-300):.2g}x its finite-data "
+        "fluctuation)"
+        for k in bad
+    )
     return f"{head}; that moves {moves} (harmless below 1/{OVERLOAD_EFFECT_RATIO:g})"
 
 
@@ -269,29 +290,39 @@ def _notes(a: dict, c) -> list:
 
     notes = []
     if c.quantizer.dither == "none":
-        notes.append("no dither: the quantization error is a deterministic function of the signal, not "
-                     "independent noise of variance eps^2/12; every realization is the same")
+        notes.append(
+            "no dither: the quantization error is a deterministic function of the signal, not "
+            "independent noise of variance eps^2/12; every realization is the same"
+        )
     elif not a["known_noise"]:
         notes.append(f"{c.quantizer.dither} dither: {bcls_reason(c.quantizer.dither)}")
     if not a["sensor_noise_known"]:
-        notes.append("sensor noise on the states is not known to BCLS (noise_known off): BCLS removes only the "
-                     "quantization noise's bias, the noise's own bias stays")
+        notes.append(
+            "sensor noise on the states is not known to BCLS (noise_known off): BCLS removes only the "
+            "quantization noise's bias, the noise's own bias stays"
+        )
     if not a["no_overload"]:
         notes.append(_overload_note(a))
     if not a["stationary"]:
-        notes.append(f"A has an eigenvalue on or outside the unit circle (spectral radius {a['spectral_radius']:.6g}): "
-                     "Psi Psi^T / T has no finite limit, so Theorem 1's T -> inf statement does not apply")
+        notes.append(
+            f"A has an eigenvalue on or outside the unit circle (spectral radius {a['spectral_radius']:.6g}): "
+            "Psi Psi^T / T has no finite limit, so Theorem 1's T -> inf statement does not apply"
+        )
     small = [k for k in "AB" if not a[f"large_data_{k}"]]
     if small:
         parts = ", ".join(f"{k} {a[f'bias_{k}']:.3g} vs {a[f'fluctuation_{k}']:.3g}" for k in small)
-        notes.append(f"finite-data regime for {' and '.join(small)}: Theorem 1's O(eps^2) bias is not "
-                     f"{LARGE_DATA_RATIO:g}x the O(eps) fluctuation of {c.trajectories}x{c.steps} samples "
-                     f"({parts}); the measured LS error lies above Theorem 1's line")
+        notes.append(
+            f"finite-data regime for {' and '.join(small)}: Theorem 1's O(eps^2) bias is not "
+            f"{LARGE_DATA_RATIO:g}x the O(eps) fluctuation of {c.trajectories}x{c.steps} samples "
+            f"({parts}); the measured LS error lies above Theorem 1's line"
+        )
     for k in "AB":
         if a[f"fits_{k}"] and not a[f"theorem1_holds_{k}"]:
-            notes.append(f"Theorem 1 for {k}: a hypothesis formally fails yet the prediction fits: the mean LS "
-                         f"error {a[f'ls_err_{k}']:.4g} is within {100 * FIT_TOLERANCE:g} % of the line "
-                         f"{a[f'bias_{k}']:.4g}")
+            notes.append(
+                f"Theorem 1 for {k}: a hypothesis formally fails yet the prediction fits: the mean LS "
+                f"error {a[f'ls_err_{k}']:.4g} is within {100 * FIT_TOLERANCE:g} % of the line "
+                f"{a[f'bias_{k}']:.4g}"
+            )
     return notes
 
 
@@ -316,21 +347,30 @@ def assess(ex, b: int) -> Assumptions:
     ls = ex.identification(b, "ls")
     known = not bcls_reason(q.dither)
     unknown_sensor_noise = any(v > 0 for v in c.noise) and not c.noise_known
-    a = dict(bits=b, subtractive_dither=q.dither == "subtractive", known_noise=known,
-             sensor_noise_known=not unknown_sensor_noise,
-             overload_fraction=float(np.mean([mo.overload_fraction for mo in moms])),
-             overload_range=range_words(c.quantizer, prep.lo, prep.hi),
-             overload_effect_A=float(np.linalg.norm(clip[:, :n])) / nA,
-             overload_effect_B=float(np.linalg.norm(clip[:, n:])) / nB,
-             spectral_radius=float(np.abs(np.linalg.eigvals(sysm.A)).max()),
-             bias_A=float(th.err_A), bias_B=float(th.err_B), fluctuation_A=fA / nA, fluctuation_B=fB / nB,
-             ls_err_A=float(np.nanmean(ls.err_A)), ls_err_B=float(np.nanmean(ls.err_B)))
+    a = dict(
+        bits=b,
+        subtractive_dither=q.dither == "subtractive",
+        known_noise=known,
+        sensor_noise_known=not unknown_sensor_noise,
+        overload_fraction=float(np.mean([mo.overload_fraction for mo in moms])),
+        overload_range=range_words(c.quantizer, prep.lo, prep.hi),
+        overload_effect_A=float(np.linalg.norm(clip[:, :n])) / nA,
+        overload_effect_B=float(np.linalg.norm(clip[:, n:])) / nB,
+        spectral_radius=float(np.abs(np.linalg.eigvals(sysm.A)).max()),
+        bias_A=float(th.err_A),
+        bias_B=float(th.err_B),
+        fluctuation_A=fA / nA,
+        fluctuation_B=fB / nB,
+        ls_err_A=float(np.nanmean(ls.err_A)),
+        ls_err_B=float(np.nanmean(ls.err_B)),
+    )
     a["stationary"] = a["spectral_radius"] < 1.0 - STATIONARITY_MARGIN
     for k in "AB":
         a[f"no_overload_{k}"] = bool(a[f"overload_effect_{k}"] * OVERLOAD_EFFECT_RATIO <= a[f"fluctuation_{k}"])
         a[f"large_data_{k}"] = bool(a[f"bias_{k}"] >= LARGE_DATA_RATIO * a[f"fluctuation_{k}"])
-        a[f"theorem1_holds_{k}"] = bool(a["known_noise"] and a["stationary"] and a[f"no_overload_{k}"]
-                                        and a[f"large_data_{k}"])
+        a[f"theorem1_holds_{k}"] = bool(
+            a["known_noise"] and a["stationary"] and a[f"no_overload_{k}"] and a[f"large_data_{k}"]
+        )
         bias, err = a[f"bias_{k}"], a[f"ls_err_{k}"]
         a[f"fits_{k}"] = bool(np.isfinite(err) and abs(err - bias) <= FIT_TOLERANCE * bias)
     a["no_overload"] = a["no_overload_A"] and a["no_overload_B"]

@@ -40,8 +40,16 @@ from .stability import data_rate_bits
 from .summary import json_clean
 from .sweep import SweepResult, run_sweep
 
-__all__ = ["BitsRow", "BitsAnswer", "wilson_interval", "from_on", "predicted_small_gain", "realized_small_gain",
-           "bits_needed", "answer_from_rows"]
+__all__ = [
+    "BitsRow",
+    "BitsAnswer",
+    "wilson_interval",
+    "from_on",
+    "predicted_small_gain",
+    "realized_small_gain",
+    "bits_needed",
+    "answer_from_rows",
+]
 
 
 def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -107,14 +115,23 @@ class BitsRow:
     bound_informative: bool | None = None
 
     def to_dict(self) -> dict:
-        return json_clean({
-            "bits": self.bits, "stabilized_fraction": self.stabilized_fraction,
-            "stabilized_interval": list(self.interval), "cost_gap": self.cost_gap,
-            "closed_loop_outcomes": self.outcomes, "robust_certified": self.robust,
-            "robust_perturbation": self.robust_perturbation, "robust_radius": self.robust_radius,
-            "robust_certified_realized": self.robust_realized, "ultimate_bound": self.delta, "rho": self.rho,
-            "bound_self_consistent": self.bound_self_consistent, "bound_informative": self.bound_informative,
-        })
+        return json_clean(
+            {
+                "bits": self.bits,
+                "stabilized_fraction": self.stabilized_fraction,
+                "stabilized_interval": list(self.interval),
+                "cost_gap": self.cost_gap,
+                "closed_loop_outcomes": self.outcomes,
+                "robust_certified": self.robust,
+                "robust_perturbation": self.robust_perturbation,
+                "robust_radius": self.robust_radius,
+                "robust_certified_realized": self.robust_realized,
+                "ultimate_bound": self.delta,
+                "rho": self.rho,
+                "bound_self_consistent": self.bound_self_consistent,
+                "bound_informative": self.bound_informative,
+            }
+        )
 
 
 @dataclass(frozen=True)
@@ -153,28 +170,47 @@ class BitsAnswer:
         bits = [r.bits for r in self.rows]
         span = f"b = {bits[0]}..{bits[-1]}" if len(bits) > 1 else f"b = {bits[0]}"
         if self.b_observed is None:
-            obs = (f"in {span} the MPC does not stabilize {100 * t:g} % of the loops with a cost within "
-                   f"{100 * g:g} % of the true model's up to the last b")
+            obs = (
+                f"in {span} the MPC does not stabilize {100 * t:g} % of the loops with a cost within "
+                f"{100 * g:g} % of the true model's up to the last b"
+            )
         else:
-            obs = (f"the MPC stabilizes at least {100 * t:g} % of the loops, with a cost within {100 * g:g} % of "
-                   f"the true model's, from b = {self.b_observed} on")
-        rob = ("the small-gain certificate holds nowhere up to the last b" if self.b_robust is None
-               else f"the small-gain certificate needs b >= {self.b_robust}")
-        let = ("the letter's bound says nothing up to the last b" if self.b_letter is None
-               else f"the letter's bound says something from b = {self.b_letter}")
+            obs = (
+                f"the MPC stabilizes at least {100 * t:g} % of the loops, with a cost within {100 * g:g} % of "
+                f"the true model's, from b = {self.b_observed} on"
+            )
+        rob = (
+            "the small-gain certificate holds nowhere up to the last b"
+            if self.b_robust is None
+            else f"the small-gain certificate needs b >= {self.b_robust}"
+        )
+        let = (
+            "the letter's bound says nothing up to the last b"
+            if self.b_letter is None
+            else f"the letter's bound says something from b = {self.b_letter}"
+        )
         dr = ""
         if self.data_rate_bits:
-            dr = (f" (Quantized feedback of this plant would need more than {self.data_rate_bits:.2f} bits per "
-                  "sample: the data-rate theorem.)")
+            dr = (
+                f" (Quantized feedback of this plant would need more than {self.data_rate_bits:.2f} bits per "
+                "sample: the data-rate theorem.)"
+            )
         return f"{obs}; {rob}; {let}.{dr}"
 
     def to_dict(self) -> dict:
-        return json_clean({
-            "system": self.system, "settings": self.settings, "b_observed": self.b_observed,
-            "b_robust": self.b_robust, "b_letter": self.b_letter, "true_model_cost": self.true_cost,
-            "data_rate_bits": self.data_rate_bits,
-            "sentence": self.sentence, "rows": [r.to_dict() for r in self.rows],
-        })
+        return json_clean(
+            {
+                "system": self.system,
+                "settings": self.settings,
+                "b_observed": self.b_observed,
+                "b_robust": self.b_robust,
+                "b_letter": self.b_letter,
+                "true_model_cost": self.true_cost,
+                "data_rate_bits": self.data_rate_bits,
+                "sentence": self.sentence,
+                "rows": [r.to_dict() for r in self.rows],
+            }
+        )
 
 
 def _check_targets(target: float, cost_gap: float) -> tuple[float, float]:
@@ -190,9 +226,9 @@ def predicted_small_gain(ex: Experiment, b: int) -> tuple[float, float]:
     (its terminal weight: the configured ``Qf`` or the model's DARE solution).
     ``(inf, 0)`` when no MPC can be built on that model. Cached in ``ex``.
     """
+    from .errors import MPCFailure
     from .mpc import MPCConfig
     from .riccati import dare_stabilizing, lq_parts
-    from .errors import MPCFailure
     from .stability import small_gain_margin
 
     mcfg = ex.config.mpc or MPCConfig()
@@ -207,8 +243,9 @@ def predicted_small_gain(ex: Experiment, b: int) -> tuple[float, float]:
     try:
         Qf = w.Qf if w.Qf is not None else dare_stabilizing(Ah, Bh, w.Q, w.R)
         with np.errstate(all="ignore"):
-            parts = lq_parts(Ah[None], Bh[None], w.Q, w.R, np.asarray(Qf)[None], np.zeros(n), mcfg.horizon,
-                             w.u_max, None, None)
+            parts = lq_parts(
+                Ah[None], Bh[None], w.Q, w.R, np.asarray(Qf)[None], np.zeros(n), mcfg.horizon, w.u_max, None, None
+            )
         K = parts.K[0, 0]
         res = small_gain_margin(sysm.A, sysm.B, Ah, Bh, K) if np.all(np.isfinite(K)) else (math.inf, 0.0)
     except (MPCFailure, np.linalg.LinAlgError):
@@ -237,9 +274,18 @@ def realized_small_gain(ident, loops, A: np.ndarray, B: np.ndarray) -> np.ndarra
     return out
 
 
-def answer_from_rows(system: str, settings: dict, rows: list, true_cost: float | None, *,
-                     robust: dict | None = None, robust_realized: dict | None = None,
-                     target: float = 0.95, cost_gap: float = 0.01, data_rate: float | None = None) -> BitsAnswer:
+def answer_from_rows(
+    system: str,
+    settings: dict,
+    rows: list,
+    true_cost: float | None,
+    *,
+    robust: dict | None = None,
+    robust_realized: dict | None = None,
+    target: float = 0.95,
+    cost_gap: float = 0.01,
+    data_rate: float | None = None,
+) -> BitsAnswer:
     """The answer from a sweep's summary rows (``SummaryRow`` or their dicts), as the dashboard has them.
 
     Parameters
@@ -265,25 +311,58 @@ def answer_from_rows(system: str, settings: dict, rows: list, true_cost: float |
         cost = (r.get("mpc_cost") or {}).get("mean")
         gap = (cost / true_cost - 1.0) if (cost is not None and true_cost) else None
         pert, rad = (robust or {}).get(b, (None, None))
-        out.append(BitsRow(
-            bits=b, stabilized_fraction=frac, interval=wilson_interval(oc.get("converged", 0), total),
-            cost_gap=gap, outcomes=dict(oc), robust=None if pert is None else bool(pert < rad),
-            robust_perturbation=pert, robust_radius=rad,
-            robust_realized=(robust_realized or {}).get(b), delta=r.get("ultimate_bound"), rho=r.get("rho"),
-            bound_self_consistent=r.get("bound_self_consistent"), bound_informative=r.get("bound_informative"),
-        ))
+        out.append(
+            BitsRow(
+                bits=b,
+                stabilized_fraction=frac,
+                interval=wilson_interval(oc.get("converged", 0), total),
+                cost_gap=gap,
+                outcomes=dict(oc),
+                robust=None if pert is None else bool(pert < rad),
+                robust_perturbation=pert,
+                robust_radius=rad,
+                robust_realized=(robust_realized or {}).get(b),
+                delta=r.get("ultimate_bound"),
+                rho=r.get("rho"),
+                bound_self_consistent=r.get("bound_self_consistent"),
+                bound_informative=r.get("bound_informative"),
+            )
+        )
     bits = [r.bits for r in out]
-    b_obs = from_on(bits, [r.stabilized_fraction is not None and r.stabilized_fraction >= target - 1e-12
-                           and r.cost_gap is not None and r.cost_gap <= cost_gap for r in out])
+    b_obs = from_on(
+        bits,
+        [
+            r.stabilized_fraction is not None
+            and r.stabilized_fraction >= target - 1e-12
+            and r.cost_gap is not None
+            and r.cost_gap <= cost_gap
+            for r in out
+        ],
+    )
     b_rob = from_on(bits, [bool(r.robust) for r in out]) if robust else None
     b_let = from_on(bits, [bool(r.bound_self_consistent) and bool(r.bound_informative) for r in out])
-    return BitsAnswer(system, {**settings, "target": target, "cost_gap": cost_gap}, b_obs, b_rob, b_let, tuple(out),
-                      true_cost, data_rate)
+    return BitsAnswer(
+        system,
+        {**settings, "target": target, "cost_gap": cost_gap},
+        b_obs,
+        b_rob,
+        b_let,
+        tuple(out),
+        true_cost,
+        data_rate,
+    )
 
 
-def bits_needed(config: SweepConfig, *, target: float = 0.95, cost_gap: float = 0.01,
-                executor: Executor | None = None, progress: Progress | None = None,
-                experiment: Experiment | None = None, realized: bool = True) -> BitsAnswer:
+def bits_needed(
+    config: SweepConfig,
+    *,
+    target: float = 0.95,
+    cost_gap: float = 0.01,
+    executor: Executor | None = None,
+    progress: Progress | None = None,
+    experiment: Experiment | None = None,
+    realized: bool = True,
+) -> BitsAnswer:
     """Run the sweep of ``config`` and answer "how many bits?" (see the module docstring).
 
     Parameters
@@ -316,11 +395,21 @@ def bits_needed(config: SweepConfig, *, target: float = 0.95, cost_gap: float = 
     robust = {b: predicted_small_gain(ex, b) for b in res.bits}
     rr = None
     if realized:
-        rr = {b: int(realized_small_gain(res.identification[b], res.loops[b], res.system.A, res.system.B).sum())
-              for b in res.bits}
+        rr = {
+            b: int(realized_small_gain(res.identification[b], res.loops[b], res.system.A, res.system.B).sum())
+            for b in res.bits
+        }
     true_cost = float(res.true_loop.cost[0]) if res.true_loop is not None else None
     settings = res.to_dict()["config"]
-    ans = answer_from_rows(res.system.name, settings, [res.summary(b) for b in res.bits], true_cost,
-                           robust=robust, robust_realized=rr, target=target, cost_gap=cost_gap,
-                           data_rate=data_rate_bits(res.system.A))
+    ans = answer_from_rows(
+        res.system.name,
+        settings,
+        [res.summary(b) for b in res.bits],
+        true_cost,
+        robust=robust,
+        robust_realized=rr,
+        target=target,
+        cost_gap=cost_gap,
+        data_rate=data_rate_bits(res.system.A),
+    )
     return dataclasses.replace(ans, result=res)

@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from .condensed_qp import box_qp_batch, condense
+from .controllers import build_controllers
 from .errors import FailureKind, MPCFailure
 from .loop_noise import LoopNoise, loop_noise
-from .tracking import Preview
-from .controllers import build_controllers
 from .mpc import MPCConfig, MPCWeights
 from .stage_results import ClosedLoops
+from .tracking import Preview
 from .verdicts import judge
 
 __all__ = ["ClosedLoops", "run_closed_loops"]
@@ -34,8 +34,18 @@ SMALL = 4
 class _Loops:
     """State of the batched closed loops (arrays indexed by realisation ``i``)."""
 
-    def __init__(self, ctrls: list, w: MPCWeights, A: np.ndarray, B: np.ndarray, steps: int, out: ClosedLoops,
-                 x_start: np.ndarray | None = None, cq=None, noise: LoopNoise | None = None):
+    def __init__(
+        self,
+        ctrls: list,
+        w: MPCWeights,
+        A: np.ndarray,
+        B: np.ndarray,
+        steps: int,
+        out: ClosedLoops,
+        x_start: np.ndarray | None = None,
+        cq=None,
+        noise: LoopNoise | None = None,
+    ):
         self.ctrls, self.w, self.A, self.B, self.steps, self.out = ctrls, w, A, B, steps, out
         self.noise = noise  # disturbance and measurement draws (None: exact state feedback, no disturbance)
         self.preview: Preview | None = None  # a time-varying reference (None: the constant x_ref)
@@ -160,8 +170,15 @@ class _Loops:
             return
         cs = [self.ctrls[i] for i in self.live]
         c0 = cs[0]
-        self.cq = condense(np.stack([c.A for c in cs]), np.stack([c.B for c in cs]), c0.Q, c0.R,
-                           np.stack([c.Qf for c in cs]), c0.x_ref, c0.N)
+        self.cq = condense(
+            np.stack([c.A for c in cs]),
+            np.stack([c.B for c in cs]),
+            c0.Q,
+            c0.R,
+            np.stack([c.Qf for c in cs]),
+            c0.x_ref,
+            c0.N,
+        )
         for k, c in enumerate(cs):
             c.use_condensed(self.cq, k)
 
@@ -286,14 +303,18 @@ class _Loops:
         sel = active[keep]
         self.out.states[sel, t + 1] = xn[keep]
         self.out.inputs[sel, t] = u[keep]
-        self.acc[sel] += self.stage_cost(xi[keep], u[keep], t) if self.preview is None else \
-            self.stage_cost(xi[keep][:, None], u[keep][:, None], t)[:, 0]
+        self.acc[sel] += (
+            self.stage_cost(xi[keep], u[keep], t)
+            if self.preview is None
+            else self.stage_cost(xi[keep][:, None], u[keep][:, None], t)[:, 0]
+        )
         self.x[sel] = xn[keep]
         return sel, bool(fast_ok[keep].all())
 
 
-def run_closed_loops(models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system,
-                     feedback_range: tuple | None = None) -> ClosedLoops:
+def run_closed_loops(
+    models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system, feedback_range: tuple | None = None
+) -> ClosedLoops:
     """Run the MPC built on each model ``(A^, B^)`` in closed loop on the true system.
 
     Exact and fast: while the unconstrained LQ optimum is feasible, the MPC law

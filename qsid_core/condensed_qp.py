@@ -93,17 +93,17 @@ def condense(A, B, Q, R, Qf, r, N: int) -> CondensedQP:
     AkB = [B]  # A^0 B, A^1 B, ...
     for k in range(N):
         Ak = A @ Ak
-        Sx[:, k * n:(k + 1) * n] = Ak
+        Sx[:, k * n : (k + 1) * n] = Ak
         if k:
             AkB.append(A @ AkB[-1])
     for k in range(N):
         for j in range(k + 1):
-            Su[:, k * n:(k + 1) * n, j * m:(j + 1) * m] = AkB[k - j]
+            Su[:, k * n : (k + 1) * n, j * m : (j + 1) * m] = AkB[k - j]
     # Qbar per model (the last block is that model's Qf)
     Qbars = np.zeros((L, N * n, N * n))
     for k in range(N - 1):
-        Qbars[:, k * n:(k + 1) * n, k * n:(k + 1) * n] = Q
-    Qbars[:, (N - 1) * n:, (N - 1) * n:] = Qf
+        Qbars[:, k * n : (k + 1) * n, k * n : (k + 1) * n] = Q
+    Qbars[:, (N - 1) * n :, (N - 1) * n :] = Qf
     SuT_Qbar = np.swapaxes(Su, 1, 2) @ Qbars
     H = SuT_Qbar @ Su + np.kron(np.eye(N), R)
     H = (H + np.swapaxes(H, 1, 2)) / 2

@@ -7,18 +7,19 @@ defaults differ from them only in the quantizer's guard band (on by default, see
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, check_choice, check_float, check_int, short_repr
-from .validate import check_bool
 from .config_checks import check_sweep_parts
+from .errors import ConfigError, check_choice, check_float, check_int, short_repr
 from .identify import ESTIMATORS
 from .mpc import MPCConfig
 from .quantize import LETTER_QUANTIZER, MAX_BITS, QuantizerSpec
 from .systems import LTISystem
+from .validate import check_bool
 
 __all__ = ["SweepConfig", "parse_bits", "parse_input_bits", "parse_noise", "parse_state_bits"]
 
@@ -57,7 +58,9 @@ def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
             if step < 1:
                 raise ConfigError(f"bits step must be >= 1; got {short_repr(step)} in {short_repr(s)}")
             if hi < lo:
-                raise ConfigError(f"bits range {short_repr(s)} is empty (end {short_repr(hi)} < start {short_repr(lo)})")
+                raise ConfigError(
+                    f"bits range {short_repr(s)} is empty (end {short_repr(hi)} < start {short_repr(lo)})"
+                )
             check_int("bits range start", lo, 1, MAX_BITS)  # bounds before building the range
             check_int("bits range end", hi, 1, MAX_BITS)
             vals = list(range(lo, hi + 1, step))
@@ -155,8 +158,9 @@ def parse_noise(spec) -> tuple:
         except ValueError:
             spec = None
         if not spec:
-            raise ConfigError("noise must be one standard deviation >= 0 or one per state, like '0.01' or "
-                              "'0.01,0,0.02'")
+            raise ConfigError(
+                "noise must be one standard deviation >= 0 or one per state, like '0.01' or '0.01,0,0.02'"
+            )
     vals = list(spec) if isinstance(spec, (list, tuple, np.ndarray)) else [spec]
     if not 0 < len(vals) <= 1000:
         raise ConfigError("noise must be one standard deviation >= 0 or one per state")
@@ -236,23 +240,36 @@ class SweepConfig:
         sysm = system if system is not None else get_system(self.system)
         ib = self.input_bits
         return {
-            "bits": list(self.bits), "realizations": self.realizations, "trajectories": self.trajectories,
-            "steps": self.steps, "data_seed": self.data_seed, "dither_seed": self.dither_seed,
-            "dither": q.dither, "range": q.range_mode, "guard": q.guard,
+            "bits": list(self.bits),
+            "realizations": self.realizations,
+            "trajectories": self.trajectories,
+            "steps": self.steps,
+            "data_seed": self.data_seed,
+            "dither_seed": self.dither_seed,
+            "dither": q.dither,
+            "range": q.range_mode,
+            "guard": q.guard,
             "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
-            "estimator": self.estimator, "theta": self.theta, "rho": self.rho,
-            "input_amplitude": self.input_amplitude, "input_bits": list(ib) if isinstance(ib, tuple) else ib,
-            "noise": list(self.noise), "noise_known": self.noise_known,
+            "estimator": self.estimator,
+            "theta": self.theta,
+            "rho": self.rho,
+            "input_amplitude": self.input_amplitude,
+            "input_bits": list(ib) if isinstance(ib, tuple) else ib,
+            "noise": list(self.noise),
+            "noise_known": self.noise_known,
             "state_bits": None if self.state_bits is None else list(self.state_bits),
             "system_definition": sysm.to_dict(),
-            "mpc_settings": None if self.mpc is None else {
+            "mpc_settings": None
+            if self.mpc is None
+            else {
                 f.name: (list(v) if isinstance(v, tuple) else v)
-                for f in fields(self.mpc) for v in [getattr(self.mpc, f.name)]
+                for f in fields(self.mpc)
+                for v in [getattr(self.mpc, f.name)]
             },
         }
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "SweepConfig":
+    def from_dict(cls, d: Mapping[str, Any]) -> SweepConfig:
         """A config from :meth:`to_dict`'s data, a whole JSON result (its ``config``) or a TOML table.
 
         Keys are :meth:`to_dict`'s; ``system`` may be a preset name or file path, or a table with
@@ -269,9 +286,30 @@ class SweepConfig:
         if isinstance(d.get("config"), Mapping):  # a whole result
             d = d["config"]
         d = dict(d)
-        allowed = {"bits", "realizations", "trajectories", "steps", "data_seed", "dither_seed", "dither", "range",
-                   "guard", "fixed_range", "estimator", "theta", "rho", "input_amplitude", "input_bits", "noise",
-                   "noise_known", "state_bits", "system", "system_definition", "mpc", "mpc_settings"}
+        allowed = {
+            "bits",
+            "realizations",
+            "trajectories",
+            "steps",
+            "data_seed",
+            "dither_seed",
+            "dither",
+            "range",
+            "guard",
+            "fixed_range",
+            "estimator",
+            "theta",
+            "rho",
+            "input_amplitude",
+            "input_bits",
+            "noise",
+            "noise_known",
+            "state_bits",
+            "system",
+            "system_definition",
+            "mpc",
+            "mpc_settings",
+        }
         unknown = sorted(set(d) - allowed)
         if unknown:
             raise ConfigError(f"unknown setting(s) {unknown}; allowed: {', '.join(sorted(allowed))}")
@@ -281,8 +319,11 @@ class SweepConfig:
         sysv = d.pop("system", None)
         if sysd is None and isinstance(sysv, Mapping):
             sysd = sysv
-        system = system_from_dict(sysd, str(sysd.get("name", "custom"))) if sysd is not None else \
-            get_system(sysv if sysv is not None else cls.system)
+        system = (
+            system_from_dict(sysd, str(sysd.get("name", "custom")))
+            if sysd is not None
+            else get_system(sysv if sysv is not None else cls.system)
+        )
         mset = d.pop("mpc_settings", None) if "mpc_settings" in d else d.get("mpc", {})
         d.pop("mpc", None)
         if mset is None or mset is False:
@@ -305,7 +346,7 @@ class SweepConfig:
         return cls(system=system, quantizer=QuantizerSpec(**qargs), mpc=mpc, **d)
 
     @classmethod
-    def letter(cls, system: str | LTISystem = "dc-motor", **overrides) -> "SweepConfig":
+    def letter(cls, system: str | LTISystem = "dc-motor", **overrides) -> SweepConfig:
         """The letter's settings (Section V), which ``qsid reproduce`` uses.
 
         b = 1..16, 50 dither realizations, 200 runs x 1000 steps, x0 ~ U[-1, 1]^n,
@@ -314,8 +355,16 @@ class SweepConfig:
         guard band). It differs from ``SweepConfig()`` only in ``guard=False``.
         ``overrides`` replace any field (e.g. ``bits``, ``mpc``).
         """
-        base = cls(system=system, bits=tuple(range(1, 17)), realizations=50, trajectories=200, steps=1000,
-                   quantizer=LETTER_QUANTIZER, estimator="ls", input_amplitude=1.0)
+        base = cls(
+            system=system,
+            bits=tuple(range(1, 17)),
+            realizations=50,
+            trajectories=200,
+            steps=1000,
+            quantizer=LETTER_QUANTIZER,
+            estimator="ls",
+            input_amplitude=1.0,
+        )
         return replace(base, **overrides) if overrides else base
 
     def __post_init__(self) -> None:
@@ -326,8 +375,9 @@ class SweepConfig:
         check_int("data seed", self.data_seed, 0)
         check_int("dither seed", self.dither_seed, 0)
         check_choice("estimator", self.estimator, ESTIMATORS)
-        object.__setattr__(self, "input_amplitude",
-                           check_float("input amplitude", self.input_amplitude, 0.0, 1e12, lo_open=True))
+        object.__setattr__(
+            self, "input_amplitude", check_float("input amplitude", self.input_amplitude, 0.0, 1e12, lo_open=True)
+        )
         check_float("theta", self.theta, 0.0, 1.0, lo_open=True, hi_open=True)
         if self.rho is not None:
             check_float("rho", self.rho, 0.0, lo_open=True)

@@ -21,11 +21,14 @@ __all__ = ["check_sweep_parts", "check_run_args"]
 def check_sweep_parts(system: Any, mpc: Any, rho: Any) -> None:
     """Types of :class:`~qsid_core.experiment.SweepConfig`'s ``system`` and ``mpc``, and the range of ``rho``."""
     if not isinstance(system, (str, Path, LTISystem)):
-        raise ConfigError(f"system must be a preset name, a path to a .toml/.json file or an LTISystem; "
-                          f"got {short_repr(system)} ({type(system).__name__})")
+        raise ConfigError(
+            f"system must be a preset name, a path to a .toml/.json file or an LTISystem; "
+            f"got {short_repr(system)} ({type(system).__name__})"
+        )
     if mpc is not None and not isinstance(mpc, MPCConfig):
-        raise ConfigError(f"mpc must be an MPCConfig, or None to skip the closed loops; got {short_repr(mpc)} "
-                          f"({type(mpc).__name__})")
+        raise ConfigError(
+            f"mpc must be an MPCConfig, or None to skip the closed loops; got {short_repr(mpc)} ({type(mpc).__name__})"
+        )
     if rho is not None:
         check_float("rho", rho, 0.0, MAX_MAGNITUDE, lo_open=True)
 
@@ -40,5 +43,6 @@ def check_run_args(config: Any, config_type: type, executor: Any, progress: Any)
     if executor is not None and not isinstance(executor, Executor) and not callable(getattr(executor, "submit", None)):
         raise ConfigError(f"executor must be a concurrent.futures.Executor (or None); got {type(executor).__name__}")
     if progress is not None and not callable(progress):
-        raise ConfigError(f"progress must be a function progress(done, total, stage) or None; got "
-                          f"{type(progress).__name__}")
+        raise ConfigError(
+            f"progress must be a function progress(done, total, stage) or None; got {type(progress).__name__}"
+        )

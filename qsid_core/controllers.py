@@ -31,17 +31,41 @@ def build_controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, mess
     parts: dict = {}
     if ready:
         with np.errstate(all="ignore"):
-            bp = lq_parts(np.stack([np.asarray(models[i][0], float) for i in ready]),
-                          np.stack([np.asarray(models[i][1], float) for i in ready]), w.Q, w.R,
-                          np.stack([np.asarray(Qfs[i], float) for i in ready]), w.x_ref, cfg.horizon,
-                          w.u_max, w.x_max, w.xf_max)
+            bp = lq_parts(
+                np.stack([np.asarray(models[i][0], float) for i in ready]),
+                np.stack([np.asarray(models[i][1], float) for i in ready]),
+                w.Q,
+                w.R,
+                np.stack([np.asarray(Qfs[i], float) for i in ready]),
+                w.x_ref,
+                cfg.horizon,
+                w.u_max,
+                w.x_max,
+                w.xf_max,
+            )
         fin = bp.finite()
         parts = {i: bp.model(k) for k, i in enumerate(ready) if fin[k]}
     ctrls: list = []
     for i, (Ah, Bh) in enumerate(models):
         try:
-            ctrls.append(MPCController(Ah, Bh, w.Q, w.R, cfg.horizon, w.u_max, w.x_max, w.xf_max, w.x_ref, Qfs[i],
-                                       cfg.eps, cfg.max_iter, parts=parts.get(i), solver=cfg.solver))
+            ctrls.append(
+                MPCController(
+                    Ah,
+                    Bh,
+                    w.Q,
+                    w.R,
+                    cfg.horizon,
+                    w.u_max,
+                    w.x_max,
+                    w.xf_max,
+                    w.x_ref,
+                    Qfs[i],
+                    cfg.eps,
+                    cfg.max_iter,
+                    parts=parts.get(i),
+                    solver=cfg.solver,
+                )
+            )
         except MPCFailure as exc:
             ctrls.append(None)
             failure[i], messages[i] = exc.kind, str(exc)

@@ -17,9 +17,9 @@ set, or the fixed range) so eps is the same at every length: only T changes.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -33,8 +33,14 @@ from .summary import Stats, json_clean
 from .systems import LTISystem, get_system
 from .theory import theorem1_prediction
 
-__all__ = ["DataLengthConfig", "DataLengthRow", "DataLengthResult", "run_datalength", "runs_and_steps",
-           "DEFAULT_SAMPLES"]
+__all__ = [
+    "DataLengthConfig",
+    "DataLengthRow",
+    "DataLengthResult",
+    "run_datalength",
+    "runs_and_steps",
+    "DEFAULT_SAMPLES",
+]
 
 #: Ten lengths, log-spaced from 1e3 to 1e6 samples.
 DEFAULT_SAMPLES = tuple(int(round(v, -2)) if v < 1e5 else int(round(v, -4)) for v in np.logspace(3, 6, 10))
@@ -86,8 +92,17 @@ class DataLengthConfig:
     def __post_init__(self) -> None:
         check_int("bits", self.bits, 1, MAX_BITS)
         try:
-            vals = sorted({check_int("samples", int(v) if isinstance(v, (np.integer, float)) and float(v) == int(v)
-                                     else v, 20, 10_000_000) for v in self.samples})
+            vals = sorted(
+                {
+                    check_int(
+                        "samples",
+                        int(v) if isinstance(v, (np.integer, float)) and float(v) == int(v) else v,
+                        20,
+                        10_000_000,
+                    )
+                    for v in self.samples
+                }
+            )
         except TypeError:
             raise ConfigError(f"samples must be a list of integers; got {self.samples!r}") from None
         if not vals:
@@ -120,13 +135,19 @@ class DataLengthRow:
     bcls_fallbacks: int
 
     def to_dict(self) -> dict:
-        return json_clean({
-            "samples": self.samples, "trajectories": self.trajectories, "steps": self.steps,
-            "ls": {"err_A": self.ls_A.to_dict(), "err_B": self.ls_B.to_dict()},
-            "bcls": {"err_A": self.bcls_A.to_dict(), "err_B": self.bcls_B.to_dict()},
-            "err_A_theory": self.err_A_theory, "err_B_theory": self.err_B_theory,
-            "overload_fraction": self.overload_fraction, "bcls_fallbacks": self.bcls_fallbacks,
-        })
+        return json_clean(
+            {
+                "samples": self.samples,
+                "trajectories": self.trajectories,
+                "steps": self.steps,
+                "ls": {"err_A": self.ls_A.to_dict(), "err_B": self.ls_B.to_dict()},
+                "bcls": {"err_A": self.bcls_A.to_dict(), "err_B": self.bcls_B.to_dict()},
+                "err_A_theory": self.err_A_theory,
+                "err_B_theory": self.err_B_theory,
+                "overload_fraction": self.overload_fraction,
+                "bcls_fallbacks": self.bcls_fallbacks,
+            }
+        )
 
 
 @dataclass
@@ -141,14 +162,27 @@ class DataLengthResult:
 
     def to_dict(self) -> dict:
         c, q = self.config, self.config.quantizer
-        return json_clean({
-            "system": self.system.name, "bits": c.bits,
-            "config": {"realizations": c.realizations, "dither": q.dither, "range": q.range_mode, "guard": q.guard,
-                       "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
-                       "steps_per_run": c.steps_per_run, "min_runs": c.min_runs,
-                       "input_amplitude": c.input_amplitude, "data_seed": c.data_seed, "dither_seed": c.dither_seed},
-            "eps": self.eps, "cancelled": self.cancelled, "rows": [r.to_dict() for r in self.rows],
-        })
+        return json_clean(
+            {
+                "system": self.system.name,
+                "bits": c.bits,
+                "config": {
+                    "realizations": c.realizations,
+                    "dither": q.dither,
+                    "range": q.range_mode,
+                    "guard": q.guard,
+                    "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
+                    "steps_per_run": c.steps_per_run,
+                    "min_runs": c.min_runs,
+                    "input_amplitude": c.input_amplitude,
+                    "data_seed": c.data_seed,
+                    "dither_seed": c.dither_seed,
+                },
+                "eps": self.eps,
+                "cancelled": self.cancelled,
+                "rows": [r.to_dict() for r in self.rows],
+            }
+        )
 
 
 def _task(prep, b: int, spec: QuantizerSpec, seeds: list, G: np.ndarray, n: int) -> np.ndarray:
@@ -175,9 +209,13 @@ def _prefix(data: Dataset, runs: int, steps: int) -> Dataset:
     return Dataset(data.states[:runs, : steps + 1], data.inputs[:runs, :steps], data.seed, data.input_amplitude)
 
 
-def run_datalength(config: DataLengthConfig, executor: Executor | None = None,
-                   progress: Callable[[int, int, str], None] | None = None,
-                   should_stop=None, tasks: int = 4) -> DataLengthResult:
+def run_datalength(
+    config: DataLengthConfig,
+    executor: Executor | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    should_stop=None,
+    tasks: int = 4,
+) -> DataLengthResult:
     """Run the study: LS and BCLS errors against data length at ``config.bits``.
 
     Parameters
@@ -203,20 +241,21 @@ def run_datalength(config: DataLengthConfig, executor: Executor | None = None,
     master = simulate(system, J, S, config.data_seed, config.input_amplitude)
     q = config.quantizer
     lo, hi = data_ranges(master.states, master.inputs, q)
-    spec = QuantizerSpec(dither=q.dither, range_mode="fixed", guard=q.guard,
-                         fixed_range=tuple(zip(lo.tolist(), hi.tolist())))
+    spec = QuantizerSpec(
+        dither=q.dither, range_mode="fixed", guard=q.guard, fixed_range=tuple(zip(lo.tolist(), hi.tolist()))
+    )
     eps = effective_ranges(lo, hi, config.bits, q.guard, q.dither)[1]
     R = 1 if q.dither == "none" else config.realizations
     seeds = np.random.SeedSequence(config.dither_seed).spawn(R)
     size = math.ceil(R / max(1, min(tasks, R)))
-    chunks = [seeds[i: i + size] for i in range(0, R, size)]
+    chunks = [seeds[i : i + size] for i in range(0, R, size)]
     futs, preps = [], []
-    for T, runs, steps in plan:
+    for _T, runs, steps in plan:
         prep = prepare(_prefix(master, runs, steps), spec)
         preps.append(prep)
         futs.append([ex.submit(_task, prep, config.bits, spec, ch, system.G, n) for ch in chunks])
     rows, done, total, cancelled = [], 0, len(plan) * len(chunks), False
-    for (T, runs, steps), prep, fl in zip(plan, preps, futs):
+    for (_T, runs, steps), prep, fl in zip(plan, preps, futs):
         parts = []
         for f in fl:
             if stop():
@@ -232,9 +271,21 @@ def run_datalength(config: DataLengthConfig, executor: Executor | None = None,
         Sig = prep.exact.PP / prep.exact.T
         Gp = theorem1_prediction(system.G, Sig, eps, q.dither)
         tA, tB = relative_errors(Gp[:, :n], Gp[:, n:], system.A, system.B)
-        rows.append(DataLengthRow(runs * steps, runs, steps, Stats.of(res[:, 0]), Stats.of(res[:, 1]),
-                                  Stats.of(res[:, 2]), Stats.of(res[:, 3]), tA, tB, float(res[:, 5].mean()),
-                                  int(res[:, 4].sum())))
+        rows.append(
+            DataLengthRow(
+                runs * steps,
+                runs,
+                steps,
+                Stats.of(res[:, 0]),
+                Stats.of(res[:, 1]),
+                Stats.of(res[:, 2]),
+                Stats.of(res[:, 3]),
+                tA,
+                tB,
+                float(res[:, 5].mean()),
+                int(res[:, 4].sum()),
+            )
+        )
     if cancelled:
         for fl in futs:
             for f in fl:

@@ -10,7 +10,19 @@ import operator
 import reprlib
 from enum import Enum
 
-__all__ = ["QsidError", "ConfigError", "SystemDefinitionError", "DataOverflowError", "MPCFailure", "FailureKind", "IdentificationError", "short_repr", "check_choice", "check_int", "check_float"]
+__all__ = [
+    "QsidError",
+    "ConfigError",
+    "SystemDefinitionError",
+    "DataOverflowError",
+    "MPCFailure",
+    "FailureKind",
+    "IdentificationError",
+    "short_repr",
+    "check_choice",
+    "check_int",
+    "check_float",
+]
 
 
 class QsidError(ValueError):
@@ -138,9 +150,8 @@ def check_float(
         raise ConfigError(f"{name} must be a number; got {short_repr(value)}") from None
     if v != v or v in (float("inf"), float("-inf")):
         raise ConfigError(f"{name} must be finite; got {short_repr(value)}")
-    bad = (
-        (lo is not None and (v < lo or (lo_open and v == lo)))
-        or (hi is not None and (v > hi or (hi_open and v == hi)))
+    bad = (lo is not None and (v < lo or (lo_open and v == lo))) or (
+        hi is not None and (v > hi or (hi_open and v == hi))
     )
     if bad:
         left = "(" if lo_open else "["

@@ -18,28 +18,30 @@ a change of settings touches.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, MutableMapping
 from concurrent.futures import Executor
-from typing import Callable, MutableMapping
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .closed_loop import ClosedLoops, run_closed_loops
 from .config import SweepConfig, parse_bits
-from dataclasses import replace
-
-from .data import Dataset, simulate, with_sensor_noise
-from .errors import ConfigError, check_choice, check_int
-from .executors import InlineExecutor, single_threaded_blas
 from .config_checks import check_run_args
+from .data import Dataset, simulate, with_sensor_noise
+from .errors import ConfigError, MPCFailure, check_choice, check_int
+from .executors import InlineExecutor, single_threaded_blas
 from .identify import ESTIMATORS, identify, relative_errors
 from .moments import Moments, PreparedData, prepare, quantized_moments
-from .closed_loop import ClosedLoops, run_closed_loops
-from .errors import MPCFailure
 from .mpc import MPCConfig
-from .riccati import dare_stabilizing
 from .quantize import QuantizerSpec
-from .systems import LTISystem, get_system
+from .riccati import dare_stabilizing
 from .stage_results import BitsIdentification, TheoryAtBits
+from .systems import LTISystem, get_system
 from .theory import RealizedBounds, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
+
+if TYPE_CHECKING:
+    from .assumptions import Assumptions
 
 __all__ = [
     "SweepConfig",
@@ -54,8 +56,9 @@ __all__ = [
 Progress = Callable[[int, int, str], None]
 
 
-def _moments_task(prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list,
-                  input_bits=None, state_bits=None) -> list[list[Moments]]:
+def _moments_task(
+    prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list, input_bits=None, state_bits=None
+) -> list[list[Moments]]:
     """Quantized moments for a chunk of realizations (module level: picklable for process pools)."""
     out = []
     with single_threaded_blas():
@@ -111,7 +114,7 @@ class Experiment:
         self._cache: MutableMapping = {} if cache is None else cache
 
     # ----- caching ----------------------------------------------------------------------
-    def with_config(self, config: SweepConfig) -> "Experiment":
+    def with_config(self, config: SweepConfig) -> Experiment:
         """An experiment for ``config`` that reuses this one's still-valid cache entries."""
         return Experiment(config, self.executor, self.tasks, self._cache)
 
@@ -126,8 +129,15 @@ class Experiment:
 
     def _key_mom(self, b):
         c, q = self.config, self.config.quantizer
-        return self._key_prep() + (b, q.dither, c.dither_seed, c.realizations, c.input_bits, c.noise_known,
-                                  c.state_bits)
+        return self._key_prep() + (
+            b,
+            q.dither,
+            c.dither_seed,
+            c.realizations,
+            c.input_bits,
+            c.noise_known,
+            c.state_bits,
+        )
 
     def _noise_variance(self) -> np.ndarray:
         """Sensor noise variance per channel of ``Psi``, shape (n + m,) (0 for the inputs)."""
@@ -185,8 +195,10 @@ class Experiment:
             # an executor with a ``share`` hook (e.g. app.distributed.DaskExecutor) sends the data once per worker
             share = getattr(self.executor, "share", None)
             prep_arg = share(prep) if callable(share) else prep
-            futs = [self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch, c.input_bits, c.state_bits)
-                    for ch in chunks]
+            futs = [
+                self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch, c.input_bits, c.state_bits)
+                for ch in chunks
+            ]
             per_real: list[list[Moments]] = []
             for i, f in enumerate(futs):
                 per_real.extend(f.result())
@@ -222,10 +234,17 @@ class Experiment:
             errs = np.array([relative_errors(a, bm, sysA, sysB) for a, bm in zip(A_hat, B_hat)])
             notes |= {i.note for i in ids if i is not None and i.note}
             self._cache[k] = BitsIdentification(
-                bits=b, eps=moms[0].eps, A_hat=A_hat, B_hat=B_hat, err_A=errs[:, 0], err_B=errs[:, 1],
+                bits=b,
+                eps=moms[0].eps,
+                A_hat=A_hat,
+                B_hat=B_hat,
+                err_A=errs[:, 0],
+                err_B=errs[:, 1],
                 overload=np.array([mo.overload_fraction for mo in moms]),
-                fallback=np.array([i is not None and i.fallback for i in ids]), notes=sorted(notes),
-                failed=np.array([i is None for i in ids]), dither=self.config.quantizer.dither,
+                fallback=np.array([i is not None and i.fallback for i in ids]),
+                notes=sorted(notes),
+                failed=np.array([i is None for i in ids]),
+                dither=self.config.quantizer.dither,
             )
         return self._cache[k]
 
@@ -234,8 +253,20 @@ class Experiment:
         """Theorem 1 prediction and the ultimate bound delta(eps) at word length ``b``."""
         c = self.config
         mcfg = c.mpc or MPCConfig()
-        k = ("theory", b, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0,
-             c.quantizer.dither, c.input_bits, c.state_bits) + self._key_prep()
+        k = (
+            "theory",
+            b,
+            c.theta,
+            c.rho,
+            mcfg.horizon,
+            mcfg.Q,
+            mcfg.R,
+            mcfg.Qf,
+            mcfg.x0,
+            c.quantizer.dither,
+            c.input_bits,
+            c.state_bits,
+        ) + self._key_prep()
         if k in self._cache:
             return self._cache[k]
         from .quantize import channel_bits, channel_eps
@@ -254,8 +285,7 @@ class Experiment:
         try:
             Qf = w.Qf if w.Qf is not None else dare_stabilizing(Gp[:, :n], Gp[:, n:], w.Q, w.R)
             P = riccati_finite(Gp[:, :n], Gp[:, n:], w.Q, w.R, Qf, mcfg.horizon)
-            ub = ultimate_bound(P, w.Q, w.R, sysm.A - Gp[:, :n], sysm.B - Gp[:, n:],
-                                theta=c.theta, rho=c.rho, x0=w.x0)
+            ub = ultimate_bound(P, w.Q, w.R, sysm.A - Gp[:, :n], sysm.B - Gp[:, n:], theta=c.theta, rho=c.rho, x0=w.x0)
             delta = ub.delta
             note = ub.note
         except MPCFailure as exc:
@@ -281,12 +311,21 @@ class Experiment:
         if k not in self._cache:
             w = mcfg.resolve(self.system)
             with single_threaded_blas():
-                self._cache[k] = realized_bounds(self.identification(b, est).models, self.system.A, self.system.B,
-                                                 w.Q, w.R, w.Qf, mcfg.horizon, theta=c.theta, rho=c.rho,
-                                                 x0=w.x0)
+                self._cache[k] = realized_bounds(
+                    self.identification(b, est).models,
+                    self.system.A,
+                    self.system.B,
+                    w.Q,
+                    w.R,
+                    w.Qf,
+                    mcfg.horizon,
+                    theta=c.theta,
+                    rho=c.rho,
+                    x0=w.x0,
+                )
         return self._cache[k]
 
-    def assumptions(self, b: int) -> "Assumptions":
+    def assumptions(self, b: int) -> Assumptions:
         """Which hypotheses of Theorem 1 and of BCLS hold at ``b`` (see :mod:`qsid_core.assumptions`)."""
         from .assumptions import assess
 
@@ -313,8 +352,9 @@ class Experiment:
         k = ("loops", est, cfg) + self._key_mom(b)
         if k not in self._cache:
             ident = self.identification(b, est)
-            self._cache[k] = run_closed_loops(ident.models, self.system.A, self.system.B, cfg, self.system,
-                                              self.feedback_range())
+            self._cache[k] = run_closed_loops(
+                ident.models, self.system.A, self.system.B, cfg, self.system, self.feedback_range()
+            )
         return self._cache[k]
 
     def closed_loops_many(self, bits, estimator: str | None = None, progress: Progress | None = None) -> dict:
@@ -327,8 +367,15 @@ class Experiment:
         keys = {b: ("loops", est, cfg) + self._key_mom(b) for b in bits}
         todo = [b for b in bits if keys[b] not in self._cache]
         futs = {
-            b: self.executor.submit(_loops_task, self.identification(b, est).models, self.system.A, self.system.B,
-                                    cfg, self.system, self.feedback_range())
+            b: self.executor.submit(
+                _loops_task,
+                self.identification(b, est).models,
+                self.system.A,
+                self.system.B,
+                cfg,
+                self.system,
+                self.feedback_range(),
+            )
             for b in todo
         }
         for i, (b, f) in enumerate(futs.items()):
@@ -344,6 +391,7 @@ class Experiment:
             raise ConfigError("this experiment has MPC switched off (mpc=None)")
         k = ("true-loop", cfg) + (self._key_prep() if cfg.feedback_bits is not None else self._key_data()[:7])
         if k not in self._cache:
-            self._cache[k] = run_closed_loops([(self.system.A, self.system.B)], self.system.A, self.system.B, cfg,
-                                              self.system, self.feedback_range())
+            self._cache[k] = run_closed_loops(
+                [(self.system.A, self.system.B)], self.system.A, self.system.B, cfg, self.system, self.feedback_range()
+            )
         return self._cache[k]

@@ -20,9 +20,8 @@ says so in :attr:`Identified.note`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
@@ -92,8 +91,10 @@ def least_squares(PP: np.ndarray, XP: np.ndarray, n: int) -> tuple[np.ndarray, n
     if G is None:
         raise IdentificationError("Psi Psi^T is singular: the data are not rich enough to identify A and B")
     if not np.all(np.abs(G) <= MAX_MODEL_MAGNITUDE):  # also catches nan/inf
-        raise IdentificationError("least squares gave entries beyond 1e150 or non-finite numbers (Psi Psi^T is "
-                                  "too badly conditioned): no model")
+        raise IdentificationError(
+            "least squares gave entries beyond 1e150 or non-finite numbers (Psi Psi^T is "
+            "too badly conditioned): no model"
+        )
     return G[:, :n], G[:, n:]
 
 
@@ -128,19 +129,22 @@ def identify(mom: Moments, estimator: str = "ls") -> Identified:
     check_choice("estimator", estimator, ESTIMATORS)
     mom = _check_moments(mom)
     if not all(np.all(np.isfinite(v)) for v in (mom.PP, mom.XP, mom.eps)):
-        raise IdentificationError("the quantized data are not finite numbers (check the quantizer range): "
-                                  "no model")
+        raise IdentificationError("the quantized data are not finite numbers (check the quantizer range): no model")
     n = mom.XP.shape[0]
     if estimator == "bcls":
         D = mom.T * mom.noise_variance
-        not_applicable = f"BCLS not applicable: {mom.bcls_note}; a nominal D = eps^2/12 was used" \
-            if mom.bcls_note else ""
+        not_applicable = (
+            f"BCLS not applicable: {mom.bcls_note}; a nominal D = eps^2/12 was used" if mom.bcls_note else ""
+        )
         G = _solve_spd(mom.PP - np.diag(D), mom.XP)
         if G is not None and np.all(np.abs(G) <= MAX_MODEL_MAGNITUDE):
             return Identified(G[:, :n], G[:, n:], "bcls", note=not_applicable)
         A, B = least_squares(mom.PP, mom.XP, n)
         return Identified(
-            A, B, "ls", fallback=True,
+            A,
+            B,
+            "ls",
+            fallback=True,
             note="bias compensation impossible: Psi Psi^T - T*D is not positive definite "
             "(quantization noise comparable to the signal); plain LS used",
         )

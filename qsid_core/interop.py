@@ -28,8 +28,13 @@ import numpy as np
 from .errors import SystemDefinitionError, check_choice
 from .systems import LTISystem
 
-__all__ = ["OUTPUT_RULES", "system_from_statespace", "system_to_statespace", "model_to_statespace",
-           "identified_statespaces"]
+__all__ = [
+    "OUTPUT_RULES",
+    "system_from_statespace",
+    "system_to_statespace",
+    "model_to_statespace",
+    "identified_statespaces",
+]
 
 OUTPUT_RULES = ("full-state", "ignore")
 _TOL = 1e-12
@@ -48,19 +53,24 @@ def _discrete(sys, dt, method: str):
     import control
 
     if sys.dt is None:
-        raise SystemDefinitionError("the StateSpace has an unspecified timebase (dt=None); build it with dt=0 "
-                                    "(continuous, then give dt= to discretise) or dt>0 (discrete)")
+        raise SystemDefinitionError(
+            "the StateSpace has an unspecified timebase (dt=None); build it with dt=0 "
+            "(continuous, then give dt= to discretise) or dt>0 (discrete)"
+        )
     if sys.dt is True:  # discrete, sample time not given
         return sys, 1.0 if dt is None else _positive_dt(dt)
     if sys.dt == 0:
         if dt is None:
-            raise SystemDefinitionError("the StateSpace is continuous-time (dt=0): give the sample time dt= "
-                                        "to discretise it with control.c2d")
+            raise SystemDefinitionError(
+                "the StateSpace is continuous-time (dt=0): give the sample time dt= to discretise it with control.c2d"
+            )
         dt = _positive_dt(dt)
         return control.c2d(sys, dt, method=method), dt
     if dt is not None and not np.isclose(float(dt), float(sys.dt), rtol=1e-12, atol=0.0):
-        raise SystemDefinitionError(f"the StateSpace is discrete with dt={sys.dt:g}; dt={dt!r} disagrees "
-                                    "(leave dt out, or resample with control.sample_system first)")
+        raise SystemDefinitionError(
+            f"the StateSpace is discrete with dt={sys.dt:g}; dt={dt!r} disagrees "
+            "(leave dt out, or resample with control.sample_system first)"
+        )
     return sys, float(sys.dt)
 
 
@@ -119,26 +129,38 @@ def system_from_statespace(
 
     check_choice("outputs", outputs, OUTPUT_RULES)
     if not isinstance(sys, control.StateSpace):
-        raise SystemDefinitionError(f"expected a control.StateSpace; got {type(sys).__name__} "
-                                    "(convert a transfer function with control.ss(...) first)")
+        raise SystemDefinitionError(
+            f"expected a control.StateSpace; got {type(sys).__name__} "
+            "(convert a transfer function with control.ss(...) first)"
+        )
     dsys, dt = _discrete(sys, dt, method)
     A, B, C, D = (np.asarray(M, dtype=float) for M in (dsys.A, dsys.B, dsys.C, dsys.D))
     n = A.shape[0]
     if n == 0 or B.shape[1] == 0:
-        raise SystemDefinitionError(f"the StateSpace needs at least one state and one input; got {n} and "
-                                    f"{B.shape[1]}")
+        raise SystemDefinitionError(f"the StateSpace needs at least one state and one input; got {n} and {B.shape[1]}")
     if outputs == "full-state":
-        full = C.shape == (n, n) and np.allclose(C, np.eye(n), rtol=0, atol=_TOL) and \
-            np.allclose(D, 0.0, rtol=0, atol=_TOL)
+        full = (
+            C.shape == (n, n)
+            and np.allclose(C, np.eye(n), rtol=0, atol=_TOL)
+            and np.allclose(D, 0.0, rtol=0, atol=_TOL)
+        )
         if not full:
             raise SystemDefinitionError(
                 f"qsid identifies full-state systems: C must be the {n} x {n} identity and D zero; got C of shape "
-                f"{C.shape}{'' if C.shape != (n, n) else ' (not I)'} -- pass outputs='ignore' to use A and B only")
+                f"{C.shape}{'' if C.shape != (n, n) else ' (not I)'} -- pass outputs='ignore' to use A and B only"
+            )
     auto = re.fullmatch(r"sys\[\d+\]", str(sys.name or ""))
     return LTISystem(
-        name or ("statespace" if auto or not sys.name else str(sys.name)), A, B, x0=x0, Q=Q, R=R, dt=dt,
+        name or ("statespace" if auto or not sys.name else str(sys.name)),
+        A,
+        B,
+        x0=x0,
+        Q=Q,
+        R=R,
+        dt=dt,
         description=description or f"from control.StateSpace ({'c2d ' + method if sys.dt == 0 else 'discrete'})",
-        state_names=_labels(sys.state_labels, "x"), input_names=_labels(sys.input_labels, "u"),
+        state_names=_labels(sys.state_labels, "x"),
+        input_names=_labels(sys.input_labels, "u"),
     )
 
 
@@ -171,8 +193,9 @@ def model_to_statespace(A, B, dt: float, *, name: str = "model", states=None, in
 
 def system_to_statespace(system: LTISystem):
     """The true plant of an :class:`LTISystem` as ``control.StateSpace`` (``C = I``, ``D = 0``, its ``dt``)."""
-    return model_to_statespace(system.A, system.B, system.dt, name=system.name, states=system.state_names,
-                               inputs=system.input_names)
+    return model_to_statespace(
+        system.A, system.B, system.dt, name=system.name, states=system.state_names, inputs=system.input_names
+    )
 
 
 def identified_statespaces(ident, system: LTISystem) -> list:
@@ -195,6 +218,14 @@ def identified_statespaces(ident, system: LTISystem) -> list:
         if ident.failed[r] or not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
             out.append(None)
             continue
-        out.append(model_to_statespace(A, B, system.dt, name=f"{system.name} b={ident.bits} r={r}",
-                                       states=system.state_names, inputs=system.input_names))
+        out.append(
+            model_to_statespace(
+                A,
+                B,
+                system.dt,
+                name=f"{system.name} b={ident.bits} r={r}",
+                states=system.state_names,
+                inputs=system.input_names,
+            )
+        )
     return out

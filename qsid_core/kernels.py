@@ -228,8 +228,9 @@ else:  # pragma: no cover
     _accumulate_chunk_nb = None
 
 
-def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first, sub: float = 1.0,
-                     quant=None) -> None:
+def accumulate_chunk(
+    y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first, sub: float = 1.0, quant=None
+) -> None:
     """Quantize a chunk of normalised samples at every word length and accumulate, in place.
 
     For word length ``j`` and channel ``a`` with ``2^b`` cells (``scale[j, a] = 2^b``, less twice the
@@ -270,13 +271,14 @@ def accumulate_chunk(y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last
     if not AVAILABLE:
         raise RuntimeError(f"compiled kernels unavailable: {REASON}")
     p = y.shape[1]
-    scale2 = np.ascontiguousarray(np.broadcast_to(np.asarray(scale, dtype=float).reshape(len(scale), -1),
-                                                  (len(scale), p)))
-    half2 = np.ascontiguousarray(np.broadcast_to(np.asarray(half, dtype=float).reshape(len(half), -1),
-                                                 (len(half), p)))
+    scale2 = np.ascontiguousarray(
+        np.broadcast_to(np.asarray(scale, dtype=float).reshape(len(scale), -1), (len(scale), p))
+    )
+    half2 = np.ascontiguousarray(np.broadcast_to(np.asarray(half, dtype=float).reshape(len(half), -1), (len(half), p)))
     q = np.ones(p, dtype=np.bool_) if quant is None else np.asarray(quant, dtype=np.bool_)
-    _accumulate_chunk_nb(y, u, float(sub), q, scale2, half2, int(row0), int(S1), M, C, sums, over, prev, v_last,
-                         v_first)
+    _accumulate_chunk_nb(
+        y, u, float(sub), q, scale2, half2, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first
+    )
 
 
 def box_qp_pdas(H, g, ub, upper, lower, iters: int = 8, tol: float = 1e-12):
@@ -294,6 +296,15 @@ def box_qp_pdas(H, g, ub, upper, lower, iters: int = 8, tol: float = 1e-12):
     S, nU = g.shape
     U = np.full((S, nU), np.nan)
     ok = np.zeros(S, dtype=np.bool_)
-    _box_qp_pdas_nb(np.ascontiguousarray(H), np.ascontiguousarray(g), np.ascontiguousarray(ub, dtype=float),
-                    upper, lower & ~upper, int(iters), float(tol), U, ok)
+    _box_qp_pdas_nb(
+        np.ascontiguousarray(H),
+        np.ascontiguousarray(g),
+        np.ascontiguousarray(ub, dtype=float),
+        upper,
+        lower & ~upper,
+        int(iters),
+        float(tol),
+        U,
+        ok,
+    )
     return U, ok

@@ -99,5 +99,5 @@ def loop_noise(cfg, n: int, steps: int, feedback_range: tuple | None = None) -> 
             raise ValueError("feedback quantization needs the training data's range")
         lo, hi, guard = feedback_range
         lo_q, eps = effective_ranges(np.asarray(lo, float)[:n], np.asarray(hi, float)[:n], cfg.feedback_bits, guard)
-        kw = dict(dither=unit, lo=lo_q, eps=eps, levels=2 ** cfg.feedback_bits)
+        kw = dict(dither=unit, lo=lo_q, eps=eps, levels=2**cfg.feedback_bits)
     return LoopNoise(w=w, v=cfg.feedback_noise * noise if cfg.feedback_noise else None, **kw)

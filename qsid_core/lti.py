@@ -100,8 +100,9 @@ class LTISystem:
         if self.x0 is None:
             x0 = np.eye(n)[0]
         else:
-            x0 = as_float_array("x0", self.x0, ndim_max=2, error=SystemDefinitionError,
-                                what=f"a list of {n} numbers").reshape(-1)
+            x0 = as_float_array(
+                "x0", self.x0, ndim_max=2, error=SystemDefinitionError, what=f"a list of {n} numbers"
+            ).reshape(-1)
         if x0.shape != (n,):
             raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {short_repr(self.x0)}")
         Q = np.eye(n) if self.Q is None else weight_matrix("Q", self.Q, n)

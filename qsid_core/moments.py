@@ -24,8 +24,16 @@ import numpy as np
 
 from .data import Dataset
 from .errors import ConfigError, check_choice
-from .quantize import (ERROR_VARIANCE, NOMINAL_VARIANCE, QuantizerSpec, bcls_reason, channel_bits,
-                       data_ranges, draw_dither_units, guard_cells)
+from .quantize import (
+    ERROR_VARIANCE,
+    NOMINAL_VARIANCE,
+    QuantizerSpec,
+    bcls_reason,
+    channel_bits,
+    data_ranges,
+    draw_dither_units,
+    guard_cells,
+)
 
 __all__ = ["Moments", "PreparedData", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
 
@@ -147,9 +155,16 @@ class _Sums:
     v_first: np.ndarray
 
     @classmethod
-    def zeros(cls, nb: int, p: int, n: int, runs: int) -> "_Sums":
-        return cls(np.zeros((nb, p, p)), np.zeros((nb, p, n)), np.zeros((nb, p)), np.zeros(nb, dtype=np.int64),
-                   np.zeros((nb, p)), np.zeros((nb, runs, p)), np.zeros((nb, runs, p)))
+    def zeros(cls, nb: int, p: int, n: int, runs: int) -> _Sums:
+        return cls(
+            np.zeros((nb, p, p)),
+            np.zeros((nb, p, n)),
+            np.zeros((nb, p)),
+            np.zeros(nb, dtype=np.int64),
+            np.zeros((nb, p)),
+            np.zeros((nb, runs, p)),
+            np.zeros((nb, runs, p)),
+        )
 
 
 def _chunk_numpy(y, u, sub: float, scale, half, quant, start: int, S1: int, acc: _Sums) -> None:
@@ -189,8 +204,9 @@ def _chunk_numpy(y, u, sub: float, scale, half, quant, start: int, S1: int, acc:
         acc.v_first[j, fk] = bb[fsel]
 
 
-def _gram(prep: PreparedData, chan: tuple, scale: np.ndarray, spec: QuantizerSpec, acc: _Sums, j: int,
-          upper_only: bool) -> Moments:
+def _gram(
+    prep: PreparedData, chan: tuple, scale: np.ndarray, spec: QuantizerSpec, acc: _Sums, j: int, upper_only: bool
+) -> Moments:
     """Gram matrices of the quantized data at word length ``b`` from the sums over ``v``.
 
     Every quantized sample is ``x~ = a + eps * v`` per channel, with
@@ -224,8 +240,15 @@ def _gram(prep: PreparedData, chan: tuple, scale: np.ndarray, spec: QuantizerSpe
     total_entries = prep.yc.shape[0] * int(quant[:n].sum()) + T * int(quant[n:].sum())
     eps_q = np.where(quant, eps, 0.0)
     D = eps_q**2 * ERROR_VARIANCE.get(spec.dither, NOMINAL_VARIANCE)
-    return Moments(PP=PP, XP=XP, T=T, eps=eps_q, overload_fraction=acc.over[j] / max(total_entries, 1), D=D,
-                   bcls_note=bcls_reason(spec.dither))
+    return Moments(
+        PP=PP,
+        XP=XP,
+        T=T,
+        eps=eps_q,
+        overload_fraction=acc.over[j] / max(total_entries, 1),
+        D=D,
+        bcls_note=bcls_reason(spec.dither),
+    )
 
 
 def quantized_moments(
@@ -292,16 +315,31 @@ def quantized_moments(
     chans = [channel_bits(b, prep.n, prep.m, input_bits, state_bits) for b in bits]
     quant = np.array([c is not None for c in chans[0]])
     half = np.array([[2.0 ** (c - 1) if c is not None else 1.0 for c in ch] for ch in chans])
-    scale = np.array([[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch]
-                      for ch in chans])
+    scale = np.array(
+        [[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch] for ch in chans]
+    )
     acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
     for start in range(0, N, CHUNK_ROWS):
         y = yc[start : start + CHUNK_ROWS]
         u = draw_dither_units(rng, y.shape, spec.dither) if dithered else None
         if compiled:
-            kernels.accumulate_chunk(y, np.zeros_like(y) if u is None else u, scale, half, start, S1, acc.M,
-                                     acc.C, acc.sums, acc.over, acc.prev, acc.v_last, acc.v_first, sub=sub,
-                                     quant=quant)
+            kernels.accumulate_chunk(
+                y,
+                np.zeros_like(y) if u is None else u,
+                scale,
+                half,
+                start,
+                S1,
+                acc.M,
+                acc.C,
+                acc.sums,
+                acc.over,
+                acc.prev,
+                acc.v_last,
+                acc.v_first,
+                sub=sub,
+                quant=quant,
+            )
         else:
             _chunk_numpy(y, u, sub, scale, half, quant, start, S1, acc)
     return [_gram(prep, ch, scale[j], spec, acc, j, compiled) for j, ch in enumerate(chans)]

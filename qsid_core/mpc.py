@@ -35,13 +35,24 @@ import numpy as np
 
 from .condensed_qp import CondensedQP, DaqpMPC, condense
 from .errors import ConfigError, FailureKind, MPCFailure, check_choice, check_float, check_int
-from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
 from .mpc_weights import MPCWeights
 from .reference import reference_samples
+from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
 from .validate import as_float_array
 
-__all__ = ["MPCConfig", "MPCWeights", "MPCFailure", "MPCController", "FailureKind", "FAILURE_KINDS", "SOLVERS",
-           "dare_batch", "dare_stabilizing", "lq_parts", "TRACKING"]
+__all__ = [
+    "MPCConfig",
+    "MPCWeights",
+    "MPCFailure",
+    "MPCController",
+    "FailureKind",
+    "FAILURE_KINDS",
+    "SOLVERS",
+    "dare_batch",
+    "dare_stabilizing",
+    "lq_parts",
+    "TRACKING",
+]
 
 #: every failure kind's value, in :class:`FailureKind` order
 FAILURE_KINDS = tuple(k.value for k in FailureKind)
@@ -50,8 +61,13 @@ SOLVERS = ("daqp", "osqp")
 #: cost forms of reference tracking: the letter's, or offset-free with a steady-state input target
 TRACKING = ("letter", "offset-free")
 #: OSQP's setup error codes in words.
-OSQP_SETUP_ERRORS = {1: "invalid problem data", 2: "invalid settings", 3: "linear system solver failed",
-                     4: "the cost is not convex: a weight is not positive semidefinite", 5: "out of memory"}
+OSQP_SETUP_ERRORS = {
+    1: "invalid problem data",
+    2: "invalid settings",
+    3: "linear system solver failed",
+    4: "the cost is not convex: a weight is not positive semidefinite",
+    5: "out of memory",
+}
 
 
 def _vec(name: str, v, k: int | None, positive: bool = False) -> tuple[float, ...] | None:
@@ -146,11 +162,10 @@ class MPCConfig:
     reference: str | tuple | None = None
     tracking: str = "letter"
 
-    def nominal(self) -> "MPCConfig":
+    def nominal(self) -> MPCConfig:
         """The same MPC law regulating to the constant ``x_ref`` in the letter's form, with exact state
         feedback and no disturbance (both forms share the law's linear part, hence its stability)."""
-        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0, reference=None,
-                       tracking="letter")
+        return replace(self, disturbance=0.0, feedback_bits=None, feedback_noise=0.0, reference=None, tracking="letter")
 
     @property
     def noisy(self) -> bool:
@@ -184,8 +199,9 @@ class MPCConfig:
         check_float("OSQP eps", self.eps, 0.0, 1e-2, lo_open=True)
         check_int("max_iter", self.max_iter, 1)
         if self.u_max is None:  # the controller always has an input box (the letter's |u| <= 1 by default)
-            raise ConfigError("u_max must be a positive number or one per input (the input box |u_i| <= u_max_i); "
-                              "got None")
+            raise ConfigError(
+                "u_max must be a positive number or one per input (the input box |u_i| <= u_max_i); got None"
+            )
         object.__setattr__(self, "u_max", _vec("u_max", self.u_max, None, positive=True))
         object.__setattr__(self, "x_max", _vec("x_max", self.x_max, None, positive=True))
         object.__setattr__(self, "xf_max", _vec("xf_max", self.xf_max, None, positive=True))
@@ -198,7 +214,7 @@ class MPCConfig:
         if self.R is not None and min(self.R) <= 0:
             raise ConfigError(f"R diagonal must be > 0; got {self.R}")
 
-    def resolve(self, system) -> "MPCWeights":
+    def resolve(self, system) -> MPCWeights:
         """Weights, bounds and x0 as arrays for ``system`` (shapes checked).
 
         Raises
@@ -273,8 +289,23 @@ class MPCController:
         the DARE has no stabilizing solution.
     """
 
-    def __init__(self, A_hat, B_hat, Q, R, horizon, u_max, x_max=None, xf_max=None, x_ref=None, Qf=None,
-                 eps: float = 1e-9, max_iter: int = 20000, parts: LQParts | None = None, solver: str = "daqp"):
+    def __init__(
+        self,
+        A_hat,
+        B_hat,
+        Q,
+        R,
+        horizon,
+        u_max,
+        x_max=None,
+        xf_max=None,
+        x_ref=None,
+        Qf=None,
+        eps: float = 1e-9,
+        max_iter: int = 20000,
+        parts: LQParts | None = None,
+        solver: str = "daqp",
+    ):
         self.A = np.asarray(A_hat, dtype=float)
         self.B = np.asarray(B_hat, dtype=float)
         self.n, self.m = self.B.shape
@@ -293,11 +324,24 @@ class MPCController:
         self.Qf = dare_stabilizing(self.A, self.B, self.Q, self.R) if Qf is None else np.asarray(Qf, dtype=float)
         if parts is None:
             with np.errstate(all="ignore"):
-                batch = lq_parts(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N,
-                                 self.u_max, self.x_max, self.xf_max)
+                batch = lq_parts(
+                    self.A[None],
+                    self.B[None],
+                    self.Q,
+                    self.R,
+                    self.Qf[None],
+                    self.x_ref,
+                    self.N,
+                    self.u_max,
+                    self.x_max,
+                    self.xf_max,
+                )
             if not batch.finite()[0]:
-                raise MPCFailure(FailureKind.DARE, "the finite-horizon Riccati recursion of the identified model is "
-                                 "singular or overflows: no MPC for this model")
+                raise MPCFailure(
+                    FailureKind.DARE,
+                    "the finite-horizon Riccati recursion of the identified model is "
+                    "singular or overflows: no MPC for this model",
+                )
             parts = batch.model(0)
         self.parts = parts
         self.F, self.f, self.bound = parts.F, parts.f, parts.bound
@@ -322,8 +366,9 @@ class MPCController:
     def use_condensed(self, cq: CondensedQP, k: int) -> None:
         """Use model ``k`` of a batch-condensed problem for the DAQP solves (saves condensing it alone)."""
         if self.solver == "daqp" and self._qp is None:
-            self._qp = DaqpMPC(cq, k, self.Q, self.x_ref, self.u_max,
-                               state_box(self.n, self.N, self.x_max, self.xf_max), self.max_iter)
+            self._qp = DaqpMPC(
+                cq, k, self.Q, self.x_ref, self.u_max, state_box(self.n, self.N, self.x_max, self.xf_max), self.max_iter
+            )
 
     def solve_qp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
         """Solve the constrained QP from state ``x`` with the configured solver; returns ``(u_0, J*)``.
@@ -342,15 +387,17 @@ class MPCController:
     def solve_daqp(self, x: np.ndarray) -> np.ndarray:
         """The optimal input sequence ``U = [u_0; ...; u_{N-1}]``, shape (N*m,), by DAQP (no clipping)."""
         if self._qp is None:
-            self.use_condensed(condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref,
-                                        self.N), 0)
+            self.use_condensed(
+                condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N), 0
+            )
         return self._qp.solve(x)
 
     def qp_cost(self, x: np.ndarray, U: np.ndarray) -> float:
         """MPC cost ``J(U; x)`` of the input sequence ``U`` (shape (N*m,)) from state ``x`` (condensed form)."""
         if self._qp is None:
-            self.use_condensed(condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref,
-                                        self.N), 0)
+            self.use_condensed(
+                condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N), 0
+            )
         return self._qp.cost(np.asarray(x, dtype=float), U)
 
     def solve_osqp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
@@ -361,11 +408,26 @@ class MPCController:
             from .sparse_qp import OsqpMPC
 
             try:
-                self._osqp = OsqpMPC(self.A, self.B, self.Q, self.R, self.Qf, self.x_ref, self.N, self.u_max,
-                                     self.x_max, self.xf_max, self.eps, self.max_iter)
+                self._osqp = OsqpMPC(
+                    self.A,
+                    self.B,
+                    self.Q,
+                    self.R,
+                    self.Qf,
+                    self.x_ref,
+                    self.N,
+                    self.u_max,
+                    self.x_max,
+                    self.xf_max,
+                    self.eps,
+                    self.max_iter,
+                )
             except (ValueError, osqp.OSQPException) as exc:  # OSQP rejects the data (e.g. Qf numerically not PSD)
-                raise MPCFailure(FailureKind.SOLVER, f"OSQP cannot set up the MPC problem for this model "
-                                 f"({OSQP_SETUP_ERRORS.get(exc.args[0] if exc.args else 0, exc)})") from None
+                raise MPCFailure(
+                    FailureKind.SOLVER,
+                    f"OSQP cannot set up the MPC problem for this model "
+                    f"({OSQP_SETUP_ERRORS.get(exc.args[0] if exc.args else 0, exc)})",
+                ) from None
         return self._osqp.solve(x)
 
     def solve(self, x: np.ndarray) -> tuple[np.ndarray, float, bool]:

@@ -37,6 +37,7 @@ guard band) are :data:`LETTER_QUANTIZER`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 
 from .errors import ConfigError, check_choice, check_int
@@ -71,7 +72,7 @@ DITHERS = ("subtractive", "tpdf", "rpdf", "none")
 ERROR_VARIANCE = {"subtractive": 1.0 / 12.0, "tpdf": 1.0 / 4.0}
 _NO_VARIANCE = {
     "rpdf": "non-subtractive uniform (RPDF) dither makes the error's mean signal-independent but not its "
-            "variance (between 0 and eps^2/4 depending on where the signal sits in its cell), so no known D exists",
+    "variance (between 0 and eps^2/4 depending on where the signal sits in its cell), so no known D exists",
     "none": "without dither the error is a deterministic function of the signal, not noise of known variance",
 }
 #: Nominal eps-units variance used where no known one exists (the plain quantizer's eps^2/12)
@@ -192,8 +193,10 @@ def channel_bits(bits: int, n: int, m: int, input_bits=None, state_bits=None) ->
         ins = [int(input_bits)] * m
     else:
         if len(input_bits) != m:
-            raise ConfigError(f"input_bits has {len(input_bits)} entries; the system has {m} input(s): give one "
-                              "word length (or 'exact') for all, or one per input")
+            raise ConfigError(
+                f"input_bits has {len(input_bits)} entries; the system has {m} input(s): give one "
+                "word length (or 'exact') for all, or one per input"
+            )
         ins = [_entry(v, bits) for v in input_bits]
     if state_bits is None:
         sts = [int(bits)] * n
@@ -201,8 +204,10 @@ def channel_bits(bits: int, n: int, m: int, input_bits=None, state_bits=None) ->
         sts = [_entry(state_bits[0], bits)] * n
     else:
         if len(state_bits) != n:
-            raise ConfigError(f"state_bits has {len(state_bits)} entries; the system has {n} state(s): give one "
-                              "entry for all or one per state ('b' = the swept b, a word length, or 'exact')")
+            raise ConfigError(
+                f"state_bits has {len(state_bits)} entries; the system has {n} state(s): give one "
+                "entry for all or one per state ('b' = the swept b, a word length, or 'exact')"
+            )
         sts = [_entry(v, bits) for v in state_bits]
     return tuple(sts + ins)
 
@@ -217,16 +222,18 @@ def channel_eps(lo: np.ndarray, hi: np.ndarray, chan_bits: tuple, guard: bool, d
     return out
 
 
-def cell_width(lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = _GUARD_DEFAULT,
-               dither: str = "subtractive") -> np.ndarray:
+def cell_width(
+    lo: np.ndarray | float, hi: np.ndarray | float, bits: int, guard: bool = _GUARD_DEFAULT, dither: str = "subtractive"
+) -> np.ndarray:
     """Cell width eps for ``bits`` bits over ``[lo, hi]``: ``(hi-lo)/(2**b - 2 g)``, ``g`` = :func:`guard_cells`."""
     bits = check_int("bits", bits, 1, MAX_BITS)
     cells = 2.0**bits - 2.0 * guard_cells(dither, guard, bits)
     return (np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)) / cells
 
 
-def effective_ranges(lo: np.ndarray, hi: np.ndarray, bits: int, guard: bool,
-                     dither: str = "subtractive") -> tuple[np.ndarray, np.ndarray]:
+def effective_ranges(
+    lo: np.ndarray, hi: np.ndarray, bits: int, guard: bool, dither: str = "subtractive"
+) -> tuple[np.ndarray, np.ndarray]:
     """The quantizer's actual lower bound and cell width per channel, ``(lo_q, eps)``.
 
     ``lo_q = lo - g eps`` with ``g`` = :func:`guard_cells` (0 without guard band).
@@ -340,9 +347,7 @@ def quantize(
     return Quantized(values=values, eps=np.asarray(eps), overload=overload)
 
 
-def data_ranges(
-    states: np.ndarray, inputs: np.ndarray, spec: QuantizerSpec
-) -> tuple[np.ndarray, np.ndarray]:
+def data_ranges(states: np.ndarray, inputs: np.ndarray, spec: QuantizerSpec) -> tuple[np.ndarray, np.ndarray]:
     """Per-channel data range ``(lo, hi)``, each of shape (n + m,), for the given spec.
 
     ``states`` has shape (..., n) and ``inputs`` (..., m). A channel whose data are

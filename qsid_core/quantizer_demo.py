@@ -140,8 +140,19 @@ def _corr(e: np.ndarray, x: np.ndarray) -> float:
     return float(np.mean((e - e.mean()) * (x - x.mean())) / (se * sx))
 
 
-def quantizer_demo(signal, lo: float, hi: float, bits: int, *, guard: bool = True, window: int = 200,
-                   start: int = 0, bins: int = 30, seed: int | None = 0, label: str = "") -> QuantizerDemo:
+def quantizer_demo(
+    signal,
+    lo: float,
+    hi: float,
+    bits: int,
+    *,
+    guard: bool = True,
+    window: int = 200,
+    start: int = 0,
+    bins: int = 30,
+    seed: int | None = 0,
+    label: str = "",
+) -> QuantizerDemo:
     """Quantize a 1-D signal with and without subtractive dither and compare the errors.
 
     Parameters
@@ -188,22 +199,45 @@ def quantizer_demo(signal, lo: float, hi: float, bits: int, *, guard: bool = Tru
     pos = np.mod((x - float(lo_q)) / eps, 1.0)
     pick = np.unique(np.linspace(0, N - 1, min(N, SCATTER_POINTS)).astype(int))
     return QuantizerDemo(
-        bits=bits, eps=eps, lo_q=float(lo_q), hi_q=float(lo_q + 2.0**bits * eps), samples=N,
-        t=np.arange(N)[sl], signal=x[sl].copy(), dithered=qd.values[sl], plain=qp.values[sl],
-        error_dithered=ed[sl], error_plain=ep[sl], hist_edges=edges, hist_dithered=hd, hist_plain=hp,
-        uniform_density=1.0 / eps, var_dithered=float(ed.var()), var_plain=float(ep.var()),
-        var_theory=eps**2 / 12.0, var_sampling_std=eps**2 / np.sqrt(180.0 * N),
-        mean_dithered=float(ed.mean()), mean_plain=float(ep.mean()), corr_dithered=_corr(ed, x),
-        corr_plain=_corr(ep, x), cell_dependence_dithered=_cell_dependence(ed, pos),
-        cell_dependence_plain=_cell_dependence(ep, pos), scatter_x=x[pick], scatter_dithered=ed[pick],
-        scatter_plain=ep[pick], overload_dithered=qd.overload_fraction, overload_plain=qp.overload_fraction,
+        bits=bits,
+        eps=eps,
+        lo_q=float(lo_q),
+        hi_q=float(lo_q + 2.0**bits * eps),
+        samples=N,
+        t=np.arange(N)[sl],
+        signal=x[sl].copy(),
+        dithered=qd.values[sl],
+        plain=qp.values[sl],
+        error_dithered=ed[sl],
+        error_plain=ep[sl],
+        hist_edges=edges,
+        hist_dithered=hd,
+        hist_plain=hp,
+        uniform_density=1.0 / eps,
+        var_dithered=float(ed.var()),
+        var_plain=float(ep.var()),
+        var_theory=eps**2 / 12.0,
+        var_sampling_std=eps**2 / np.sqrt(180.0 * N),
+        mean_dithered=float(ed.mean()),
+        mean_plain=float(ep.mean()),
+        corr_dithered=_corr(ed, x),
+        corr_plain=_corr(ep, x),
+        cell_dependence_dithered=_cell_dependence(ed, pos),
+        cell_dependence_plain=_cell_dependence(ep, pos),
+        scatter_x=x[pick],
+        scatter_dithered=ed[pick],
+        scatter_plain=ep[pick],
+        overload_dithered=qd.overload_fraction,
+        overload_plain=qp.overload_fraction,
         outside_dithered=float(np.mean(np.abs(ed) > eps / 2 + tol)),
-        outside_plain=float(np.mean(np.abs(ep) > eps / 2 + tol)), label=label,
+        outside_plain=float(np.mean(np.abs(ep) > eps / 2 + tol)),
+        label=label,
     )
 
 
-def channel_demo(ex, channel: int, bits: int, *, window: int = 200, max_samples: int = 100_000, bins: int = 30,
-                 seed: int | None = 0) -> QuantizerDemo:
+def channel_demo(
+    ex, channel: int, bits: int, *, window: int = 200, max_samples: int = 100_000, bins: int = 30, seed: int | None = 0
+) -> QuantizerDemo:
     """:func:`quantizer_demo` for one channel of an experiment's training data, with its quantizer range.
 
     Parameters
@@ -225,5 +259,14 @@ def channel_demo(ex, channel: int, bits: int, *, window: int = 200, max_samples:
         sig, label = data.states[:, :-1, channel].ravel(), f"x{channel + 1}"
     else:
         sig, label = data.inputs[:, :, channel - n].ravel(), f"u{channel - n + 1}"
-    return quantizer_demo(sig[:max_samples], float(prep.lo[channel]), float(prep.hi[channel]), bits,
-                          guard=ex.config.quantizer.guard, window=window, bins=bins, seed=seed, label=label)
+    return quantizer_demo(
+        sig[:max_samples],
+        float(prep.lo[channel]),
+        float(prep.hi[channel]),
+        bits,
+        guard=ex.config.quantizer.guard,
+        window=window,
+        bins=bins,
+        seed=seed,
+        label=label,
+    )

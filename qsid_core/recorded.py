@@ -46,25 +46,32 @@ def dataset_from_arrays(x, u) -> Dataset:
         try:
             arr = np.asarray(a, dtype=float)
         except (ValueError, TypeError):
-            raise ConfigError(f"{name}: runs of different lengths or entries that are not numbers; every run "
-                              "needs the same number of steps") from None
+            raise ConfigError(
+                f"{name}: runs of different lengths or entries that are not numbers; every run "
+                "needs the same number of steps"
+            ) from None
         if arr.ndim == 2:
             arr = arr[None]
         if arr.ndim != 3 or 0 in arr.shape:
-            raise ConfigError(f"{name} must have shape (runs, {'steps + 1, n' if name == 'x' else 'steps, m'}); "
-                              f"got {arr.shape}")
+            raise ConfigError(
+                f"{name} must have shape (runs, {'steps + 1, n' if name == 'x' else 'steps, m'}); got {arr.shape}"
+            )
         bad = np.argwhere(~np.isfinite(arr))
         if bad.size:
             r, t, c = (int(v) for v in bad[0])
-            raise ConfigError(f"{name} has {len(bad)} entries that are NaN or infinite (first: run {r + 1}, "
-                              f"step {t}, channel {c + 1})")
+            raise ConfigError(
+                f"{name} has {len(bad)} entries that are NaN or infinite (first: run {r + 1}, "
+                f"step {t}, channel {c + 1})"
+            )
         arrs.append(arr)
     xa, ua = arrs
     if xa.shape[0] != ua.shape[0]:
         raise ConfigError(f"x has {xa.shape[0]} runs but u has {ua.shape[0]}")
     if xa.shape[1] != ua.shape[1] + 1:
-        raise ConfigError(f"each run needs steps + 1 states and steps inputs; got {xa.shape[1]} states and "
-                          f"{ua.shape[1]} inputs per run")
+        raise ConfigError(
+            f"each run needs steps + 1 states and steps inputs; got {xa.shape[1]} states and "
+            f"{ua.shape[1]} inputs per run"
+        )
     return Dataset(xa, ua, None, float("nan"))
 
 
@@ -102,8 +109,10 @@ def _read_csv(p: Path) -> Dataset:
         ul.append(v[:-1, n:])
     if len({len(a) for a in xl}) > 1:
         lens = sorted({len(a) - 1 for a in xl})
-        raise ConfigError(f"{p.name}: runs of different lengths ({', '.join(map(str, lens))} steps); every run "
-                          "needs the same number of steps")
+        raise ConfigError(
+            f"{p.name}: runs of different lengths ({', '.join(map(str, lens))} steps); every run "
+            "needs the same number of steps"
+        )
     return dataset_from_arrays(np.stack(xl), np.stack(ul))
 
 
@@ -127,8 +136,10 @@ def load_recorded(path) -> Dataset:
         with np.load(p, allow_pickle=False) as z:
             missing = [k for k in ("x", "u") if k not in z.files]
             if missing:
-                raise ConfigError(f"{p.name} needs arrays 'x' (runs x (steps+1) x n) and 'u' (runs x steps x m); "
-                                  f"missing {', '.join(missing)} (has {', '.join(z.files) or 'none'})")
+                raise ConfigError(
+                    f"{p.name} needs arrays 'x' (runs x (steps+1) x n) and 'u' (runs x steps x m); "
+                    f"missing {', '.join(missing)} (has {', '.join(z.files) or 'none'})"
+                )
             x, u = z["x"], z["u"]
     except (OSError, ValueError) as exc:
         if isinstance(exc, ConfigError):
@@ -172,15 +183,30 @@ class RecordedResult:
             r = {"bits": b, "eps": self.eps[b].tolist(), "overload_fraction": self.overload[b]}
             for est in ("ls", "bcls"):
                 e = self.err[(est, b)]
-                r[est] = {"err_A": {"mean": float(np.nanmean(e[:, 0])), "std": float(np.nanstd(e[:, 0]))},
-                          "err_B": {"mean": float(np.nanmean(e[:, 1])), "std": float(np.nanstd(e[:, 1]))}}
+                r[est] = {
+                    "err_A": {"mean": float(np.nanmean(e[:, 0])), "std": float(np.nanstd(e[:, 0]))},
+                    "err_B": {"mean": float(np.nanmean(e[:, 1])), "std": float(np.nanstd(e[:, 1]))},
+                }
             rows.append(r)
-        return {"reference": self.reference, "A_ref": self.A_ref.tolist(), "B_ref": self.B_ref.tolist(),
-                "runs": self.runs, "steps": self.steps, "results": rows, "notes": list(self.notes)}
+        return {
+            "reference": self.reference,
+            "A_ref": self.A_ref.tolist(),
+            "B_ref": self.B_ref.tolist(),
+            "runs": self.runs,
+            "steps": self.steps,
+            "results": rows,
+            "notes": list(self.notes),
+        }
 
 
-def identify_recorded(data: Dataset, bits="2:12", quantizer: QuantizerSpec | None = None, realizations: int = 5,
-                      dither_seed: int = 1, system: LTISystem | None = None) -> RecordedResult:
+def identify_recorded(
+    data: Dataset,
+    bits="2:12",
+    quantizer: QuantizerSpec | None = None,
+    realizations: int = 5,
+    dither_seed: int = 1,
+    system: LTISystem | None = None,
+) -> RecordedResult:
     """Quantize recorded data at each b, identify by LS and BCLS, and compare with a reference model.
 
     Parameters
@@ -212,8 +238,10 @@ def identify_recorded(data: Dataset, bits="2:12", quantizer: QuantizerSpec | Non
     prep = prepare(data, spec)
     if system is not None:
         if system.A.shape[0] != data.n or system.B.shape[1] != data.m:
-            raise ConfigError(f"system {system.name!r} has {system.n} states and {system.m} inputs; the data have "
-                              f"{data.n} and {data.m}")
+            raise ConfigError(
+                f"system {system.name!r} has {system.n} states and {system.m} inputs; the data have "
+                f"{data.n} and {data.m}"
+            )
         A_ref, B_ref, ref = system.A, system.B, system.name
     else:
         try:
@@ -222,8 +250,10 @@ def identify_recorded(data: Dataset, bits="2:12", quantizer: QuantizerSpec | Non
             raise ConfigError(f"the unquantized data do not identify a model: {exc}") from None
         ref = "LS on the unquantized data"
     seeds = np.random.SeedSequence(dither_seed).spawn(R)
-    moms = [quantized_moments(prep, list(bits), spec, np.random.default_rng(s) if spec.dither != "none" else None)
-            for s in seeds]
+    moms = [
+        quantized_moments(prep, list(bits), spec, np.random.default_rng(s) if spec.dither != "none" else None)
+        for s in seeds
+    ]
     err, notes = {}, set()
     for j, b in enumerate(bits):
         for est in ("ls", "bcls"):
@@ -237,6 +267,15 @@ def identify_recorded(data: Dataset, bits="2:12", quantizer: QuantizerSpec | Non
                     notes.add(f"b = {b}: {exc}")
                     rows.append((float("nan"), float("nan")))
             err[(est, b)] = np.array(rows)
-    return RecordedResult(bits, ref, A_ref, B_ref, {b: moms[0][j].eps for j, b in enumerate(bits)}, err,
-                          {b: float(np.mean([m[j].overload_fraction for m in moms])) for j, b in enumerate(bits)},
-                          data.trajectories, data.steps, sorted(notes))
+    return RecordedResult(
+        bits,
+        ref,
+        A_ref,
+        B_ref,
+        {b: moms[0][j].eps for j, b in enumerate(bits)},
+        err,
+        {b: float(np.mean([m[j].overload_fraction for m in moms])) for j, b in enumerate(bits)},
+        data.trajectories,
+        data.steps,
+        sorted(notes),
+    )

@@ -17,17 +17,24 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Iterable
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
 from .errors import ConfigError, check_choice
 from .identify import ESTIMATORS
 
-__all__ = ["RealizationRecord", "COLUMNS", "realization_records", "experiment_records", "to_columns",
-           "to_pandas", "write_csv"]
+__all__ = [
+    "RealizationRecord",
+    "COLUMNS",
+    "realization_records",
+    "experiment_records",
+    "to_columns",
+    "to_pandas",
+    "write_csv",
+]
 
 
 @dataclass(frozen=True)
@@ -108,11 +115,26 @@ def _rows(system: str, estimator: str, ident, loops) -> list[RealizationRecord]:
             cost, j0, norm = float(loops.cost[r]), float(loops.J0[r]), float(fsn[r])
             if loops.outcome:
                 outcome, radius = loops.outcome[r], float(loops.spectral_radius[r])
-        out.append(RealizationRecord(
-            system, int(ident.bits), estimator, r, float(ident.err_A[r]), float(ident.err_B[r]),
-            float(ident.overload[r]), bool(ident.failed[r]), bool(ident.fallback[r]), status, cost, j0, norm,
-            outcome, radius, float(ctrb[r]),
-        ))
+        out.append(
+            RealizationRecord(
+                system,
+                int(ident.bits),
+                estimator,
+                r,
+                float(ident.err_A[r]),
+                float(ident.err_B[r]),
+                float(ident.overload[r]),
+                bool(ident.failed[r]),
+                bool(ident.fallback[r]),
+                status,
+                cost,
+                j0,
+                norm,
+                outcome,
+                radius,
+                float(ctrb[r]),
+            )
+        )
     return out
 
 
@@ -191,8 +213,9 @@ def to_pandas(records_or_result):
     try:
         import pandas as pd
     except ImportError:
-        raise ImportError("to_pandas needs pandas (pip install pandas); without it use "
-                          "qsid_core.records.to_columns or write_csv") from None
+        raise ImportError(
+            "to_pandas needs pandas (pip install pandas); without it use qsid_core.records.to_columns or write_csv"
+        ) from None
     return pd.DataFrame(to_columns(records_or_result), columns=list(COLUMNS))
 
 

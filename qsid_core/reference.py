@@ -39,8 +39,9 @@ def parse_reference(spec: str, state_names) -> tuple[str, int, float, float]:
         try:
             idx = int(state) - 1
         except ValueError:
-            raise ConfigError(f"reference state must be a state name ({', '.join(names)}) or 1..{len(names)}; "
-                              f"got {short_repr(state)}") from None
+            raise ConfigError(
+                f"reference state must be a state name ({', '.join(names)}) or 1..{len(names)}; got {short_repr(state)}"
+            ) from None
         if not 0 <= idx < len(names):
             raise ConfigError(f"reference state must be 1..{len(names)} (or a name: {', '.join(names)}); got {idx + 1}")
     try:
@@ -81,8 +82,9 @@ def reference_samples(spec, state_names, length: int) -> np.ndarray:
         return r
     arr = np.asarray(spec, dtype=float)
     if arr.ndim != 2 or arr.shape[1] != n or arr.shape[0] < 1:
-        raise ConfigError(f"reference samples must have one row per step and {n} columns (one per state); "
-                          f"got shape {arr.shape}")
+        raise ConfigError(
+            f"reference samples must have one row per step and {n} columns (one per state); got shape {arr.shape}"
+        )
     if not np.all(np.isfinite(arr)) or np.abs(arr).max() > 1e12:
         raise ConfigError("reference samples must be finite numbers (at most 1e12 in size)")
     idx = np.minimum(np.arange(length), arr.shape[0] - 1)

@@ -32,7 +32,9 @@ def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray)
         with np.errstate(all="ignore"):
             X = sla.solve_discrete_are(A, B, Q, R)
     except (np.linalg.LinAlgError, ValueError) as exc:
-        raise MPCFailure(FailureKind.DARE, f"DARE has no stabilizing solution for the identified model ({exc})") from None
+        raise MPCFailure(
+            FailureKind.DARE, f"DARE has no stabilizing solution for the identified model ({exc})"
+        ) from None
     if not np.all(np.isfinite(X)):
         raise MPCFailure(FailureKind.DARE, "DARE has no stabilizing solution for the identified model")
     X = (X + X.T) / 2
@@ -47,8 +49,9 @@ def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray)
     return X
 
 
-def dare_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, tol: float = 1e-13,
-               max_iter: int = 80) -> tuple[np.ndarray, np.ndarray]:
+def dare_batch(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, tol: float = 1e-13, max_iter: int = 80
+) -> tuple[np.ndarray, np.ndarray]:
     """Stabilizing DARE solutions for a batch of models, by structure-preserving doubling.
 
     Parameters
@@ -174,7 +177,7 @@ class LQParts:
     f: np.ndarray
     bound: np.ndarray
 
-    def model(self, k: int) -> "LQParts":
+    def model(self, k: int) -> LQParts:
         """The parts of model ``k`` alone (leading axis dropped; ``bound`` is shared)."""
         return LQParts(self.K[k], self.kf[k], self.P0[k], self.p0[k], self.c0[k], self.F[k], self.f[k], self.bound)
 
@@ -244,5 +247,13 @@ def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> LQParts:
         F += Fx
         f += fx
         bound.append(xb)
-    return LQParts(K=K, kf=kf, P0=P, p0=p, c0=c, F=np.concatenate(F, axis=1), f=np.concatenate(f, axis=1),
-                   bound=np.concatenate(bound))
+    return LQParts(
+        K=K,
+        kf=kf,
+        P0=P,
+        p0=p,
+        c0=c,
+        F=np.concatenate(F, axis=1),
+        f=np.concatenate(f, axis=1),
+        bound=np.concatenate(bound),
+    )

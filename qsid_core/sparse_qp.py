@@ -74,8 +74,17 @@ class OsqpMPC:
         Aall = sp.vstack(rows, format="csc")
         prob = osqp.OSQP()
         prob.setup(
-            sp.triu(P, format="csc"), q, Aall, self._l, self._u, verbose=False, polishing=True, warm_starting=True,
-            eps_abs=self._coarse or self.eps, eps_rel=self._coarse or self.eps, max_iter=self.max_iter,
+            sp.triu(P, format="csc"),
+            q,
+            Aall,
+            self._l,
+            self._u,
+            verbose=False,
+            polishing=True,
+            warm_starting=True,
+            eps_abs=self._coarse or self.eps,
+            eps_rel=self._coarse or self.eps,
+            max_iter=self.max_iter,
         )
         self._osqp = prob
         self._nz = nz

@@ -23,9 +23,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["spectral_radius", "lyapunov_batch", "lyapunov_gains", "certify", "certify_batch", "complex_stability_radius", "small_gain_margin",
-           "small_gain_holds", "data_rate_bits",
-           "controllability_margin"]
+__all__ = [
+    "spectral_radius",
+    "lyapunov_batch",
+    "lyapunov_gains",
+    "certify",
+    "certify_batch",
+    "complex_stability_radius",
+    "small_gain_margin",
+    "small_gain_holds",
+    "data_rate_bits",
+    "controllability_margin",
+]
 
 
 def spectral_radius(M: np.ndarray) -> np.ndarray:
@@ -79,7 +88,7 @@ def lyapunov_batch(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 sol = np.linalg.solve(lhs, rhs[..., None])[..., 0]
                 S[fin] = sol.reshape(-1, n, n)
             except np.linalg.LinAlgError:
-                for k, i in enumerate(np.flatnonzero(fin)):
+                for i in np.flatnonzero(fin):
                     d = _dlyap(M[i])
                     if d is not None:
                         S[i] = d
@@ -141,8 +150,16 @@ def lyapunov_gains(M: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return S, g
 
 
-def certify_batch(M: np.ndarray, c: np.ndarray, F: np.ndarray, f: np.ndarray, bound: np.ndarray,
-                  x: np.ndarray, S: np.ndarray | None = None, margin: float = 1e-9) -> np.ndarray:
+def certify_batch(
+    M: np.ndarray,
+    c: np.ndarray,
+    F: np.ndarray,
+    f: np.ndarray,
+    bound: np.ndarray,
+    x: np.ndarray,
+    S: np.ndarray | None = None,
+    margin: float = 1e-9,
+) -> np.ndarray:
     """:func:`certify` for a batch of loops (``S`` from :func:`lyapunov_batch` if already known).
 
     Parameters
@@ -179,8 +196,9 @@ def certify_batch(M: np.ndarray, c: np.ndarray, F: np.ndarray, f: np.ndarray, bo
     return res
 
 
-def certify(M: np.ndarray, c: np.ndarray, F: np.ndarray, f: np.ndarray, bound: np.ndarray,
-            x: np.ndarray, margin: float = 1e-9) -> tuple[bool, np.ndarray | None]:
+def certify(
+    M: np.ndarray, c: np.ndarray, F: np.ndarray, f: np.ndarray, bound: np.ndarray, x: np.ndarray, margin: float = 1e-9
+) -> tuple[bool, np.ndarray | None]:
     """Whether the affine loop ``x+ = M x + c`` from ``x`` keeps ``|F x_t + f| <= bound`` forever.
 
     If it does, the loop never leaves the law ``x+ = M x + c`` and converges to
@@ -258,8 +276,9 @@ def complex_stability_radius(M: np.ndarray, grid: int = 720) -> float:
     return best
 
 
-def small_gain_holds(A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray,
-                     grid: int = 720) -> np.ndarray:
+def small_gain_holds(
+    A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray, grid: int = 720
+) -> np.ndarray:
     """Whether :func:`small_gain_margin`'s test certifies each loop of a batch, decided cheaply where it can be.
 
     ``sigma_min(zI - M)`` is 1-Lipschitz along the unit circle, so on a grid of
@@ -307,8 +326,9 @@ def small_gain_holds(A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.
     return out
 
 
-def small_gain_margin(A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray,
-                      K: np.ndarray) -> tuple[float, float]:
+def small_gain_margin(
+    A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray
+) -> tuple[float, float]:
     """The robust-stability test of the gain ``K`` designed on ``(A^, B^)`` and applied to ``(A, B)``.
 
     The true closed loop is ``A - B K = (A^ - B^ K) + (dA - dB K)`` with

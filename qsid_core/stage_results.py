@@ -191,15 +191,22 @@ class ClosedLoops:
         T = st.shape[1]
         ref = 0.0 if self.x_ref is None else np.asarray(self.x_ref)
         if np.ndim(ref) == 2:  # a time-varying reference, r_0 .. r_steps
-            ref = ref[T // 2:]
+            ref = ref[T // 2 :]
         with np.errstate(invalid="ignore"):
-            return np.sqrt(np.mean(np.sum((st[:, T // 2:] - ref) ** 2, axis=2), axis=1))
+            return np.sqrt(np.mean(np.sum((st[:, T // 2 :] - ref) ** 2, axis=2), axis=1))
 
     @classmethod
-    def empty(cls, loops: int, steps: int, n: int, m: int) -> "ClosedLoops":
+    def empty(cls, loops: int, steps: int, n: int, m: int) -> ClosedLoops:
         """``loops`` loops of ``steps`` steps not run yet (NaN arrays, no failures)."""
-        return cls(np.full((loops, steps + 1, n), np.nan), np.full((loops, steps, m), np.nan),
-                   np.full(loops, np.nan), np.full(loops, np.nan), [""] * loops, [""] * loops, 0)
+        return cls(
+            np.full((loops, steps + 1, n), np.nan),
+            np.full((loops, steps, m), np.nan),
+            np.full(loops, np.nan),
+            np.full(loops, np.nan),
+            [""] * loops,
+            [""] * loops,
+            0,
+        )
 
     def outcome_counts(self) -> dict:
         """``{"converged", "bounded", "diverged", "failed"}`` -> number of loops (empty if not judged)."""

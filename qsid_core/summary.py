@@ -47,7 +47,7 @@ class Stats:
     std: float | None
 
     @classmethod
-    def of(cls, x) -> "Stats":
+    def of(cls, x) -> Stats:
         x = np.asarray(x, dtype=float)
         ok = x[np.isfinite(x)]
         return cls(float(ok.mean()) if ok.size else None, float(ok.std()) if ok.size else None)
@@ -161,30 +161,41 @@ class SummaryRow(Mapping):
         """Plain strict-JSON data (earlier keys unchanged, new keys added)."""
         if self._dict is None:
             d = {
-                "bits": self.bits, "eps_x": list(self.eps_x), "eps_u": list(self.eps_u),
-                "err_A": self.err_A.to_dict(), "err_B": self.err_B.to_dict(),
-                "err_A_theory": self.err_A_theory, "err_B_theory": self.err_B_theory,
-                "overload_fraction": self.overload_fraction, "bcls_fallbacks": self.bcls_fallbacks,
-                "ultimate_bound": self.ultimate_bound, "ultimate_bound_note": self.ultimate_bound_note,
-                "ident_failures": self.ident_failures, "mpc_cost": self.mpc_cost,
+                "bits": self.bits,
+                "eps_x": list(self.eps_x),
+                "eps_u": list(self.eps_u),
+                "err_A": self.err_A.to_dict(),
+                "err_B": self.err_B.to_dict(),
+                "err_A_theory": self.err_A_theory,
+                "err_B_theory": self.err_B_theory,
+                "overload_fraction": self.overload_fraction,
+                "bcls_fallbacks": self.bcls_fallbacks,
+                "ultimate_bound": self.ultimate_bound,
+                "ultimate_bound_note": self.ultimate_bound_note,
+                "ident_failures": self.ident_failures,
+                "mpc_cost": self.mpc_cost,
                 "final_state_norm": self.final_state_norm,
             }
             if self.osqp_steps is not None:
                 d["osqp_steps"] = self.osqp_steps
-            d.update({
-                "realizations": self.realizations, "effective_realizations": self.effective_realizations,
-                "rho": self.rho, "ultimate_bound_realized": self.ultimate_bound_realized,
-                "assumptions": None if self.assumptions is None else self.assumptions.to_dict(),
-                "saturated_steps": self.saturated_steps,
-                "stabilized_fraction": self.stabilized_fraction,
-                "closed_loop_outcomes": self.closed_loop_outcomes,
-                "closed_loop_spectral_radius": self.closed_loop_spectral_radius,
-                "bound_self_consistent": self.bound_self_consistent,
-                "bound_informative": self.bound_informative,
-                "controllability": self.controllability,
-                "steady_state_error": self.steady_state_error,
-                "tracking_error": self.tracking_error,
-            })
+            d.update(
+                {
+                    "realizations": self.realizations,
+                    "effective_realizations": self.effective_realizations,
+                    "rho": self.rho,
+                    "ultimate_bound_realized": self.ultimate_bound_realized,
+                    "assumptions": None if self.assumptions is None else self.assumptions.to_dict(),
+                    "saturated_steps": self.saturated_steps,
+                    "stabilized_fraction": self.stabilized_fraction,
+                    "closed_loop_outcomes": self.closed_loop_outcomes,
+                    "closed_loop_spectral_radius": self.closed_loop_spectral_radius,
+                    "bound_self_consistent": self.bound_self_consistent,
+                    "bound_informative": self.bound_informative,
+                    "controllability": self.controllability,
+                    "steady_state_error": self.steady_state_error,
+                    "tracking_error": self.tracking_error,
+                }
+            )
             object.__setattr__(self, "_dict", json_clean(d))
         return self._dict
 
@@ -215,8 +226,10 @@ def _loop_verdicts(lp) -> dict:
     return {
         "stabilized_fraction": counts["converged"] / max(len(lp.outcome), 1),
         "closed_loop_outcomes": counts,
-        "closed_loop_spectral_radius": {"median": float(np.median(rad)) if rad.size else None,
-                                        "max": float(rad.max()) if rad.size else None},
+        "closed_loop_spectral_radius": {
+            "median": float(np.median(rad)) if rad.size else None,
+            "max": float(rad.max()) if rad.size else None,
+        },
     }
 
 
@@ -259,33 +272,54 @@ def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assu
             if f:
                 kinds[f] = kinds.get(f, 0) + 1
         kw["mpc_cost"] = {**Stats.of(lp.cost).to_dict(), "failed": int(failed.sum()), "failures": kinds}
-        kw["final_state_norm"] = {"mean": float(fsn.mean()) if fsn.size else None,
-                                  "max": float(fsn.max()) if fsn.size else None}
+        kw["final_state_norm"] = {
+            "mean": float(fsn.mean()) if fsn.size else None,
+            "max": float(fsn.max()) if fsn.size else None,
+        }
         kw["osqp_steps"] = lp.osqp_steps
         for key, vals in (("steady_state_error", lp.steady_state_error), ("tracking_error", lp.tracking_error)):
             ok = vals[np.isfinite(vals)]
             kw[key] = {"mean": float(ok.mean()) if ok.size else None, "max": float(ok.max()) if ok.size else None}
         if u_max is not _UNKNOWN:
             k, loops = saturated_steps(lp.inputs, u_max)
-            kw["saturated_steps"] = {"steps": k, "loops": loops, "of_steps": int(lp.inputs.shape[0] * lp.inputs.shape[1])}
+            kw["saturated_steps"] = {
+                "steps": k,
+                "loops": loops,
+                "of_steps": int(lp.inputs.shape[0] * lp.inputs.shape[1]),
+            }
         kw.update(_loop_verdicts(lp))
     kw.update(_bound_flags(th, realized))
     cm = ident.controllability
     cm_ok = cm[np.isfinite(cm)]
-    kw["controllability"] = {"min_margin": float(cm_ok.min()) if cm_ok.size else None,
-                             "uncontrollable": int(np.sum(cm_ok < UNCONTROLLABLE))}
+    kw["controllability"] = {
+        "min_margin": float(cm_ok.min()) if cm_ok.size else None,
+        "uncontrollable": int(np.sum(cm_ok < UNCONTROLLABLE)),
+    }
     realized_d = None
     if realized is not None:
-        realized_d = {"median": _num(realized.median), "max": _num(realized.max),
-                      "self_consistent": realized.self_consistent, "informative": realized.informative}
+        realized_d = {
+            "median": _num(realized.median),
+            "max": _num(realized.max),
+            "self_consistent": realized.self_consistent,
+            "informative": realized.informative,
+        }
     return SummaryRow(
-        bits=ident.bits, eps_x=tuple(ident.eps[:n].tolist()), eps_u=tuple(ident.eps[n:].tolist()),
-        err_A=Stats.of(ident.err_A), err_B=Stats.of(ident.err_B),
-        err_A_theory=_num(th.err_A), err_B_theory=_num(th.err_B),
-        overload_fraction=float(ident.overload.mean()), bcls_fallbacks=int(ident.fallback.sum()),
-        ultimate_bound=_num(th.delta), ultimate_bound_note=th.bound_note, ident_failures=int(ident.failed.sum()),
-        realizations=ident.realizations, effective_realizations=ident.effective_realizations,
+        bits=ident.bits,
+        eps_x=tuple(ident.eps[:n].tolist()),
+        eps_u=tuple(ident.eps[n:].tolist()),
+        err_A=Stats.of(ident.err_A),
+        err_B=Stats.of(ident.err_B),
+        err_A_theory=_num(th.err_A),
+        err_B_theory=_num(th.err_B),
+        overload_fraction=float(ident.overload.mean()),
+        bcls_fallbacks=int(ident.fallback.sum()),
+        ultimate_bound=_num(th.delta),
+        ultimate_bound_note=th.bound_note,
+        ident_failures=int(ident.failed.sum()),
+        realizations=ident.realizations,
+        effective_realizations=ident.effective_realizations,
         rho=_num(getattr(th, "rho", float("nan"))),
         ultimate_bound_realized=realized_d,
-        assumptions=assumptions, **kw,
+        assumptions=assumptions,
+        **kw,
     )

@@ -16,18 +16,26 @@ import numpy as np
 
 from .assumptions import Assumptions
 from .closed_loop import ClosedLoops
-from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, TheoryAtBits, single_threaded_blas
-from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
-from .stability import data_rate_bits
-from .systems import LTISystem
-from .quantize import ERROR_VARIANCE, NOMINAL_VARIANCE, bcls_reason
-from .theory import RealizedBounds
 from .config_checks import check_run_args
 from .errors import ConfigError
+from .experiment import BitsIdentification, Experiment, Progress, SweepConfig, TheoryAtBits, single_threaded_blas
+from .quantize import ERROR_VARIANCE, NOMINAL_VARIANCE, bcls_reason
+from .stability import data_rate_bits
+from .summary import _UNKNOWN, SummaryRow, build_row, json_clean
+from .systems import LTISystem
+from .theory import RealizedBounds
 from .version import __version__
 
-__all__ = ["SweepResult", "SummaryRow", "StoredRow", "run_sweep", "summary_row", "summarize", "fit_slope",
-           "load_result"]
+__all__ = [
+    "SweepResult",
+    "SummaryRow",
+    "StoredRow",
+    "run_sweep",
+    "summary_row",
+    "summarize",
+    "fit_slope",
+    "load_result",
+]
 
 
 def fit_slope(bits, values) -> float:
@@ -40,9 +48,16 @@ def fit_slope(bits, values) -> float:
     return float(np.polyfit(b[ok], np.log10(v[ok]), 1)[0])
 
 
-def summary_row(n: int, ident: "BitsIdentification", th: "TheoryAtBits", lp: ClosedLoops | None, *,
-                u_max=_UNKNOWN, realized: RealizedBounds | None = None,
-                assumptions: Assumptions | None = None) -> SummaryRow:
+def summary_row(
+    n: int,
+    ident: BitsIdentification,
+    th: TheoryAtBits,
+    lp: ClosedLoops | None,
+    *,
+    u_max=_UNKNOWN,
+    realized: RealizedBounds | None = None,
+    assumptions: Assumptions | None = None,
+) -> SummaryRow:
     """Typed summary of one word length (:class:`~qsid_core.summary.SummaryRow`; ``.to_dict()`` is its JSON).
 
     Parameters
@@ -69,8 +84,15 @@ def summarize(ex: Experiment, b: int, estimator: str | None = None) -> SummaryRo
     cfg = ex.config.mpc
     lp = ex.closed_loops(b, est) if cfg is not None else None
     u_max = cfg.resolve(ex.system).u_max if cfg is not None else _UNKNOWN
-    return summary_row(ex.system.n, ex.identification(b, est), ex.theory(b), lp, u_max=u_max,
-                       realized=ex.realized_bound(b, est), assumptions=ex.assumptions(b))
+    return summary_row(
+        ex.system.n,
+        ex.identification(b, est),
+        ex.theory(b),
+        lp,
+        u_max=u_max,
+        realized=ex.realized_bound(b, est),
+        assumptions=ex.assumptions(b),
+    )
 
 
 @dataclass
@@ -145,8 +167,15 @@ class SweepResult:
             return self.rows[b]
         lp = self.loops.get(b)
         u_max = self.config.mpc.resolve(self.system).u_max if (lp is not None and self.config.mpc) else _UNKNOWN
-        return summary_row(self.system.n, self.identification[b], self.theory[b], lp, u_max=u_max,
-                           realized=self.realized.get(b), assumptions=self.assumptions.get(b))
+        return summary_row(
+            self.system.n,
+            self.identification[b],
+            self.theory[b],
+            lp,
+            u_max=u_max,
+            realized=self.realized.get(b),
+            assumptions=self.assumptions.get(b),
+        )
 
     def to_dict(self) -> dict:
         """The whole sweep as strict JSON data (NaN and inf become None).
@@ -158,56 +187,97 @@ class SweepResult:
         c = self.config
         q = c.quantizer
         cfg = c.to_dict(self.system)
-        cfg["mpc"] = None if c.mpc is None else {
-            "horizon": c.mpc.horizon, "steps": c.mpc.steps, "u_max": list(c.mpc.u_max),
-            "disturbance": c.mpc.disturbance, "disturbance_kind": c.mpc.disturbance_kind,
-            "feedback_bits": c.mpc.feedback_bits, "feedback_noise": c.mpc.feedback_noise,
-            "loop_seed": c.mpc.loop_seed, "tracking": c.mpc.tracking,
-            "reference": c.mpc.reference if isinstance(c.mpc.reference, (str, type(None)))
-            else [list(r) for r in c.mpc.reference],
-        }
+        cfg["mpc"] = (
+            None
+            if c.mpc is None
+            else {
+                "horizon": c.mpc.horizon,
+                "steps": c.mpc.steps,
+                "u_max": list(c.mpc.u_max),
+                "disturbance": c.mpc.disturbance,
+                "disturbance_kind": c.mpc.disturbance_kind,
+                "feedback_bits": c.mpc.feedback_bits,
+                "feedback_noise": c.mpc.feedback_noise,
+                "loop_seed": c.mpc.loop_seed,
+                "tracking": c.mpc.tracking,
+                "reference": c.mpc.reference
+                if isinstance(c.mpc.reference, (str, type(None)))
+                else [list(r) for r in c.mpc.reference],
+            }
+        )
         why = bcls_reason(q.dither)
-        return json_clean({
-            "qsid_version": self.version or __version__,
-            "system": self.system.name,
-            "config": cfg,
-            "ranges": self.ranges,
-            "bcls": {"applicable": not why, "reason": why,
-                     "D": "eps^2/%d" % round(1 / ERROR_VARIANCE.get(q.dither, NOMINAL_VARIANCE))
-                     + (" (nominal)" if why else "")
-                     + (" + sigma^2 (sensor noise)" if c.noise_known and any(v > 0 for v in c.noise) else "")},
-            "results": [self.summary(b).to_dict() for b in self.bits],
-            "mpc_cost_true_model": self.true_cost if self.true_loop is None else float(self.true_loop.cost[0]),
-            "steady_state_error_true_model": self.true_errors.get("steady_state_error") if self.true_loop is None
-            else float(self.true_loop.steady_state_error[0]),
-            "tracking_error_true_model": self.true_errors.get("tracking_error") if self.true_loop is None
-            else float(self.true_loop.tracking_error[0]),
-            "data_rate_bits": data_rate_bits(self.system.A),
-            "slope_A": float(self.slope_A),
-            "slope_B": float(self.slope_B),
-            "timing_s": self.timing_s,
-        })
+        return json_clean(
+            {
+                "qsid_version": self.version or __version__,
+                "system": self.system.name,
+                "config": cfg,
+                "ranges": self.ranges,
+                "bcls": {
+                    "applicable": not why,
+                    "reason": why,
+                    "D": f"eps^2/{round(1 / ERROR_VARIANCE.get(q.dither, NOMINAL_VARIANCE))}"
+                    + (" (nominal)" if why else "")
+                    + (" + sigma^2 (sensor noise)" if c.noise_known and any(v > 0 for v in c.noise) else ""),
+                },
+                "results": [self.summary(b).to_dict() for b in self.bits],
+                "mpc_cost_true_model": self.true_cost if self.true_loop is None else float(self.true_loop.cost[0]),
+                "steady_state_error_true_model": self.true_errors.get("steady_state_error")
+                if self.true_loop is None
+                else float(self.true_loop.steady_state_error[0]),
+                "tracking_error_true_model": self.true_errors.get("tracking_error")
+                if self.true_loop is None
+                else float(self.true_loop.tracking_error[0]),
+                "data_rate_bits": data_rate_bits(self.system.A),
+                "slope_A": float(self.slope_A),
+                "slope_B": float(self.slope_B),
+                "timing_s": self.timing_s,
+            }
+        )
 
     # ----- notebooks ---------------------------------------------------------------------------
     def _table(self) -> tuple[list, list]:
-        head = ["b", "estimator", "err_A mean", "err_A std", "err_B mean", "err_B std", "Thm1 A", "Thm1 B",
-                "overload", "delta"]
+        head = [
+            "b",
+            "estimator",
+            "err_A mean",
+            "err_A std",
+            "err_B mean",
+            "err_B std",
+            "Thm1 A",
+            "Thm1 B",
+            "overload",
+            "delta",
+        ]
         out = []
         for b in self.bits:
             r = self.summary(b).to_dict()
-            out.append([b, self.config.estimator, r["err_A"]["mean"], r["err_A"]["std"], r["err_B"]["mean"],
-                        r["err_B"]["std"], r["err_A_theory"], r["err_B_theory"], r["overload_fraction"],
-                        r["ultimate_bound"]])
+            out.append(
+                [
+                    b,
+                    self.config.estimator,
+                    r["err_A"]["mean"],
+                    r["err_A"]["std"],
+                    r["err_B"]["mean"],
+                    r["err_B"]["std"],
+                    r["err_A_theory"],
+                    r["err_B_theory"],
+                    r["overload_fraction"],
+                    r["ultimate_bound"],
+                ]
+            )
         return head, out
 
     def _title(self) -> str:
         c, q = self.config, self.config.quantizer
         ib = "" if c.input_bits is None else f", input bits {c.input_bits}"
         ib += "" if c.state_bits is None else f", state bits {','.join(map(str, c.state_bits))}"
-        return (f"SweepResult: {self.system.name} ({self.system.n} states, {self.system.m} inputs), "
-                f"b = {_bits_text(self.bits)}{ib}, {c.realizations} realizations, {c.trajectories} x {c.steps}, "
-                f"dither {q.dither}, estimator {c.estimator}" + (", MPC off" if c.mpc is None else "")
-                + (" (loaded: summaries only)" if self.rows and not self.identification else ""))
+        return (
+            f"SweepResult: {self.system.name} ({self.system.n} states, {self.system.m} inputs), "
+            f"b = {_bits_text(self.bits)}{ib}, {c.realizations} realizations, {c.trajectories} x {c.steps}, "
+            f"dither {q.dither}, estimator {c.estimator}"
+            + (", MPC off" if c.mpc is None else "")
+            + (" (loaded: summaries only)" if self.rows and not self.identification else "")
+        )
 
     def __repr__(self) -> str:
         """A few lines: the settings and one row per b (at most 12 rows; never the arrays)."""
@@ -216,8 +286,9 @@ class SweepResult:
         shown = rows if len(rows) <= 12 else rows[:6] + [["..."] * len(head)] + rows[-5:]
         lines = [self._title(), "  " + "  ".join(head)]
         lines += ["  " + "  ".join(fmt(v) for v in r) for r in shown]
-        lines.append(f"  slope per bit: A {self.slope_A:+.3f}, B {self.slope_B:+.3f}; .to_frame(), .summary(b), "
-                     ".to_dict()")
+        lines.append(
+            f"  slope per bit: A {self.slope_A:+.3f}, B {self.slope_B:+.3f}; .to_frame(), .summary(b), .to_dict()"
+        )
         return "\n".join(lines)[:2000]
 
     def _repr_html_(self) -> str:
@@ -228,8 +299,10 @@ class SweepResult:
         fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
         th = "".join(f"<th>{html.escape(h)}</th>" for h in head)
         body = "".join("<tr>" + "".join(f"<td>{html.escape(fmt(v))}</td>" for v in r) + "</tr>" for r in rows)
-        return (f"<div><p>{html.escape(self._title())}</p><table><thead><tr>{th}</tr></thead>"
-                f"<tbody>{body}</tbody></table></div>")
+        return (
+            f"<div><p>{html.escape(self._title())}</p><table><thead><tr>{th}</tr></thead>"
+            f"<tbody>{body}</tbody></table></div>"
+        )
 
     def to_frame(self, pandas: bool = True):
         """One row per b and estimator: errors (mean, std), Theorem 1, overload, bound, MPC cost.
@@ -248,8 +321,9 @@ class SweepResult:
         try:
             import pandas as pd
         except ImportError as exc:
-            raise ImportError("to_frame() needs pandas (pip install pandas); to_frame(pandas=False) gives "
-                              "plain column lists") from exc
+            raise ImportError(
+                "to_frame() needs pandas (pip install pandas); to_frame(pandas=False) gives plain column lists"
+            ) from exc
         return pd.DataFrame(cols)
 
 
@@ -296,17 +370,30 @@ def load_result(path) -> SweepResult:
     if not isinstance(d, dict) or not isinstance(d.get("config"), dict) or not isinstance(d.get("results"), list):
         raise ConfigError(f"{p} is not a qsid sweep result (needs 'config' and 'results')")
     if "system_definition" not in d["config"]:
-        raise ConfigError(f"{p} was written without the full configuration (no system_definition): "
-                          "re-run that sweep with this qsid to get a file that can be loaded")
+        raise ConfigError(
+            f"{p} was written without the full configuration (no system_definition): "
+            "re-run that sweep with this qsid to get a file that can be loaded"
+        )
     cfg = SweepConfig.from_dict(d["config"])
     rows = {int(r["bits"]): StoredRow(r) for r in d["results"]}
     nan = float("nan")
-    return SweepResult(cfg, get_system(cfg.system), tuple(sorted(rows)), {}, {}, {}, None,
-                       d.get("slope_A") if d.get("slope_A") is not None else nan,
-                       d.get("slope_B") if d.get("slope_B") is not None else nan, d.get("timing_s") or {},
-                       rows=rows, version=str(d.get("qsid_version", "")), ranges=d.get("ranges"),
-                       true_cost=d.get("mpc_cost_true_model"),
-                       true_errors={k: d.get(f"{k}_true_model") for k in ("steady_state_error", "tracking_error")})
+    return SweepResult(
+        cfg,
+        get_system(cfg.system),
+        tuple(sorted(rows)),
+        {},
+        {},
+        {},
+        None,
+        d.get("slope_A") if d.get("slope_A") is not None else nan,
+        d.get("slope_B") if d.get("slope_B") is not None else nan,
+        d.get("timing_s") or {},
+        rows=rows,
+        version=str(d.get("qsid_version", "")),
+        ranges=d.get("ranges"),
+        true_cost=d.get("mpc_cost_true_model"),
+        true_errors={k: d.get(f"{k}_true_model") for k in ("steady_state_error", "tracking_error")},
+    )
 
 
 def run_sweep(
@@ -363,10 +450,26 @@ def run_sweep(
     sA = fit_slope(config.bits, [np.mean(idents[b].err_A) for b in config.bits])
     sB = fit_slope(config.bits, [np.mean(idents[b].err_B) for b in config.bits])
     timing = {
-        "data": round(t1 - t0, 4), "identify": round(t2 - t1, 4), "theory": round(t3 - t2, 4),
-        "mpc": round(t4 - t3, 4), "total": round(time.perf_counter() - t0, 4),
+        "data": round(t1 - t0, 4),
+        "identify": round(t2 - t1, 4),
+        "theory": round(t3 - t2, 4),
+        "mpc": round(t4 - t3, 4),
+        "total": round(time.perf_counter() - t0, 4),
     }
     prep = ex.prepared
     ranges = {"lo": prep.lo.tolist(), "hi": prep.hi.tolist()}
-    return SweepResult(config, ex.system, config.bits, idents, theory, loops, true_loop, sA, sB, timing,
-                       realized, assumptions, ranges=ranges)
+    return SweepResult(
+        config,
+        ex.system,
+        config.bits,
+        idents,
+        theory,
+        loops,
+        true_loop,
+        sA,
+        sB,
+        timing,
+        realized,
+        assumptions,
+        ranges=ranges,
+    )

@@ -23,8 +23,9 @@ Presets
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -59,9 +60,16 @@ def dc_motor() -> LTISystem:
     A = [[1.000, 0.099, 0.041], [0.0, 0.0, 0.016], [0.0, 0.0, 0.135]]
     B = [[0.048, 8.996], [0.083, 9.991], [0.864, -0.083]]
     return LTISystem(
-        "dc-motor", A, B, x0=[1.0, 0.0, 0.0], Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=1.0,
+        "dc-motor",
+        A,
+        B,
+        x0=[1.0, 0.0, 0.0],
+        Q=[1.0, 0.1, 0.1],
+        R=[1.0, 1.0],
+        dt=1.0,
         description="DC motor with load, 3 states, 2 inputs (letter's printed A, B at 1 s)",
-        state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),
+        state_names=("angle", "speed", "current"),
+        input_names=("voltage", "torque"),
     )
 
 
@@ -91,10 +99,16 @@ def dc_motor_physical(
     Bc = np.array([[0.0, 0.0], [0.0, 1.0 / J], [1.0 / L, 0.0]])
     Ad, Bd = _zoh(Ac, Bc, dt)  # python-control's c2d(..., method="zoh")
     return LTISystem(
-        "dc-motor-physical", Ad, Bd, x0=[1.0, 0.0, 0.0],
-        Q=[1.0, 0.1, 0.1], R=[1.0, 1.0], dt=dt,
+        "dc-motor-physical",
+        Ad,
+        Bd,
+        x0=[1.0, 0.0, 0.0],
+        Q=[1.0, 0.1, 0.1],
+        R=[1.0, 1.0],
+        dt=dt,
         description=f"DC motor with load from physical parameters, ZOH at {dt:g} s",
-        state_names=("angle", "speed", "current"), input_names=("voltage", "torque"),
+        state_names=("angle", "speed", "current"),
+        input_names=("voltage", "torque"),
     )
 
 
@@ -111,9 +125,16 @@ def boeing747() -> LTISystem:
     ]
     B = [[0.01, 0.99], [-3.44, 1.66], [-0.83, 0.44], [-0.47, 0.25]]
     return LTISystem(
-        "boeing747", A, B, x0=[1.0, 1.0, 0.0, 0.0], Q=[1.0, 0.1, 0.1, 0.1], R=[1.0, 1.0], dt=1.0,
+        "boeing747",
+        A,
+        B,
+        x0=[1.0, 1.0, 0.0, 0.0],
+        Q=[1.0, 0.1, 0.1, 0.1],
+        R=[1.0, 1.0],
+        dt=1.0,
         description="Boeing 747 longitudinal flight, 4 states, 2 inputs (letter, 1 s)",
-        state_names=("u", "w", "q", "theta"), input_names=("elevator", "thrust"),
+        state_names=("u", "w", "q", "theta"),
+        input_names=("elevator", "thrust"),
     )
 
 
@@ -132,9 +153,18 @@ def _zoh(Ac, Bc, dt: float) -> tuple[np.ndarray, np.ndarray]:
 def dc_motor_fast() -> LTISystem:
     """:func:`dc_motor_physical` sampled at 0.05 s: the same motor, transients over many samples."""
     s = dc_motor_physical(0.05)
-    return LTISystem("dc-motor-50ms", s.A, s.B, x0=s.x0, Q=s.Q, R=s.R, dt=0.05,
-                     description="DC motor with load from physical parameters, ZOH at 0.05 s (many-step transients)",
-                     state_names=s.state_names, input_names=s.input_names)
+    return LTISystem(
+        "dc-motor-50ms",
+        s.A,
+        s.B,
+        x0=s.x0,
+        Q=s.Q,
+        R=s.R,
+        dt=0.05,
+        description="DC motor with load from physical parameters, ZOH at 0.05 s (many-step transients)",
+        state_names=s.state_names,
+        input_names=s.input_names,
+    )
 
 
 def inverted_pendulum() -> LTISystem:
@@ -154,9 +184,18 @@ def inverted_pendulum() -> LTISystem:
     Ac = [[0, 1, 0, 0], [(M + m) * g / (M * l), 0, 0, 0], [0, 0, 0, 1], [-m * g / M, 0, 0, 0]]
     Bc = [[0], [-1 / (M * l)], [0], [1 / M]]
     A, B = _zoh(Ac, Bc, 0.05)
-    return LTISystem("inverted-pendulum", A, B, x0=[0.02, 0.0, 0.0, 0.0], Q=[10.0, 1.0, 1.0, 1.0], R=[1.0], dt=0.05,
-                     description="inverted pendulum on a cart (Ogata Ex. 12-5), ZOH at 0.05 s, open-loop unstable",
-                     state_names=("angle", "rate", "position", "velocity"), input_names=("force",))
+    return LTISystem(
+        "inverted-pendulum",
+        A,
+        B,
+        x0=[0.02, 0.0, 0.0, 0.0],
+        Q=[10.0, 1.0, 1.0, 1.0],
+        R=[1.0],
+        dt=0.05,
+        description="inverted pendulum on a cart (Ogata Ex. 12-5), ZOH at 0.05 s, open-loop unstable",
+        state_names=("angle", "rate", "position", "velocity"),
+        input_names=("force",),
+    )
 
 
 def mass_spring_damper() -> LTISystem:
@@ -167,14 +206,28 @@ def mass_spring_damper() -> LTISystem:
     velocity; input: force [N]. x0 = [1, 0], Q = I, R = 1.
     """
     A, B = _zoh([[0, 1], [-1.0, -0.2]], [[0], [1.0]], 0.1)
-    return LTISystem("mass-spring-damper", A, B, x0=[1.0, 0.0], Q=[1.0, 1.0], R=[1.0], dt=0.1,
-                     description="mass-spring-damper, damping ratio 0.1, ZOH at 0.1 s",
-                     state_names=("position", "velocity"), input_names=("force",))
+    return LTISystem(
+        "mass-spring-damper",
+        A,
+        B,
+        x0=[1.0, 0.0],
+        Q=[1.0, 1.0],
+        R=[1.0],
+        dt=0.1,
+        description="mass-spring-damper, damping ratio 0.1, ZOH at 0.1 s",
+        state_names=("position", "velocity"),
+        input_names=("force",),
+    )
 
 
-PRESETS = {"dc-motor": dc_motor, "boeing747": boeing747, "dc-motor-physical": dc_motor_physical,
-           "dc-motor-50ms": dc_motor_fast, "inverted-pendulum": inverted_pendulum,
-           "mass-spring-damper": mass_spring_damper}
+PRESETS = {
+    "dc-motor": dc_motor,
+    "boeing747": boeing747,
+    "dc-motor-physical": dc_motor_physical,
+    "dc-motor-50ms": dc_motor_fast,
+    "inverted-pendulum": inverted_pendulum,
+    "mass-spring-damper": mass_spring_damper,
+}
 
 
 def system_from_dict(d: Mapping[str, Any], name: str = "custom") -> LTISystem:
@@ -196,7 +249,13 @@ def system_from_dict(d: Mapping[str, Any], name: str = "custom") -> LTISystem:
         if key in d and d[key] is None:
             raise SystemDefinitionError(f"{key} is empty (null); leave it out to use the default")
     return LTISystem(
-        d.get("name", name), d["A"], d["B"], x0=d.get("x0"), Q=d.get("Q"), R=d.get("R"), dt=d.get("dt", 1.0),
+        d.get("name", name),
+        d["A"],
+        d["B"],
+        x0=d.get("x0"),
+        Q=d.get("Q"),
+        R=d.get("R"),
+        dt=d.get("dt", 1.0),
         description=d.get("description", "custom system"),
     )
 
@@ -260,8 +319,7 @@ def get_system(name_or_path: str | Path | LTISystem) -> LTISystem:
     if key.lower().endswith((".toml", ".json")) or _exists(key):
         return load_system(key)
     raise SystemDefinitionError(
-        f"unknown system {short_repr(key)}: not a preset ({', '.join(PRESETS)}) and not an existing "
-        ".toml/.json file"
+        f"unknown system {short_repr(key)}: not a preset ({', '.join(PRESETS)}) and not an existing .toml/.json file"
     )
 
 

@@ -42,8 +42,15 @@ import numpy as np
 
 from .errors import ConfigError, check_choice, check_float
 
-__all__ = ["theorem1_prediction", "riccati_finite", "UltimateBound", "ultimate_bound", "noise_covariance",
-           "RealizedBounds", "realized_bounds"]
+__all__ = [
+    "theorem1_prediction",
+    "riccati_finite",
+    "UltimateBound",
+    "ultimate_bound",
+    "noise_covariance",
+    "RealizedBounds",
+    "realized_bounds",
+]
 
 
 def noise_covariance(eps: np.ndarray, dither: str = "subtractive", extra: np.ndarray | float = 0.0) -> np.ndarray:
@@ -61,8 +68,9 @@ def noise_covariance(eps: np.ndarray, dither: str = "subtractive", extra: np.nda
     return np.diag(e**2 * ERROR_VARIANCE.get(dither, NOMINAL_VARIANCE) + np.asarray(extra, dtype=float))
 
 
-def theorem1_prediction(G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray, dither: str = "subtractive",
-                        extra: np.ndarray | float = 0.0) -> np.ndarray:
+def theorem1_prediction(
+    G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray, dither: str = "subtractive", extra: np.ndarray | float = 0.0
+) -> np.ndarray:
     """Large-data LS limit ``G Sigma (Sigma + D)^-1`` (letter, Theorem 1, per-channel form).
 
     Parameters
@@ -89,7 +97,9 @@ def theorem1_prediction(G: np.ndarray, Sigma: np.ndarray, eps: np.ndarray, dithe
     return np.linalg.solve(M, Sigma @ G.T).T
 
 
-def riccati_finite(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray, horizon: int) -> np.ndarray:
+def riccati_finite(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray, horizon: int
+) -> np.ndarray:
     """``P_0`` of ``P_{k-1} = A'P_kA - A'P_kB(R + B'P_kB)^-1 B'P_kA + Q``, ``P_Th = Qf`` (letter, proof of Thm. 3)."""
     P = np.array(Qf, dtype=float)
     for _ in range(horizon):
@@ -197,11 +207,22 @@ def ultimate_bound(
     pmin, pmax = float(ep.min()), float(ep.max())
     x0_norm = float(np.linalg.norm(x0)) if x0 is not None else float("nan")
     if not (pmin > 0 and np.isfinite(pmax)):
-        return UltimateBound(float("inf"), pmin, pmax, alpha1, alpha2, float("inf"), float("nan"), theta,
-                             float(np.linalg.norm(dA)), float(np.linalg.norm(dB)), float("inf"),
-                             note=f"no bound: the Riccati matrix P is not positive definite "
-                                  f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function",
-                             x0_norm=x0_norm)
+        return UltimateBound(
+            float("inf"),
+            pmin,
+            pmax,
+            alpha1,
+            alpha2,
+            float("inf"),
+            float("nan"),
+            theta,
+            float(np.linalg.norm(dA)),
+            float(np.linalg.norm(dB)),
+            float("inf"),
+            note=f"no bound: the Riccati matrix P is not positive definite "
+            f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function",
+            x0_norm=x0_norm,
+        )
     rho = check_float("rho", _auto_rho(P, pmin, pmax, x0) if rho is None else rho, 0.0, lo_open=True)
     # numpy scalars: an overflow gives inf (explained in the note), never OverflowError/ZeroDivisionError
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
@@ -212,14 +233,30 @@ def ultimate_bound(
     note = ""
     if not np.isfinite(delta):
         delta = np.float64(np.inf)
-        note = (f"no bound: delta overflows the floating-point range (rho = {rho:.3g}, lambda_max(P) = {pmax:.3g}, "
-                f"theta = {theta:.3g}, alpha1 = {alpha1:.3g})")
-    return UltimateBound(float(delta), pmin, pmax, alpha1, alpha2, float(omega_v), float(rho), theta, float(na),
-                         float(nb), float(C), note=note, x0_norm=x0_norm)
+        note = (
+            f"no bound: delta overflows the floating-point range (rho = {rho:.3g}, lambda_max(P) = {pmax:.3g}, "
+            f"theta = {theta:.3g}, alpha1 = {alpha1:.3g})"
+        )
+    return UltimateBound(
+        float(delta),
+        pmin,
+        pmax,
+        alpha1,
+        alpha2,
+        float(omega_v),
+        float(rho),
+        theta,
+        float(na),
+        float(nb),
+        float(C),
+        note=note,
+        x0_norm=x0_norm,
+    )
 
 
-def _riccati_finite_batch(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray,
-                          horizon: int) -> np.ndarray:
+def _riccati_finite_batch(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray, horizon: int
+) -> np.ndarray:
     """:func:`riccati_finite` for a batch: A (L, n, n), B (L, n, m), Qf (L, n, n) -> P_0 (L, n, n)."""
     P = np.array(Qf, dtype=float)
     At = np.swapaxes(A, 1, 2)
@@ -285,9 +322,19 @@ class RealizedBounds:
         return int(np.isinf(np.asarray(self.delta, dtype=float)).sum())
 
 
-def realized_bounds(models, A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray | None,
-                    horizon: int, *, theta: float = 0.5, rho: float | None = None,
-                    x0: np.ndarray | None = None) -> RealizedBounds:
+def realized_bounds(
+    models,
+    A: np.ndarray,
+    B: np.ndarray,
+    Q: np.ndarray,
+    R: np.ndarray,
+    Qf: np.ndarray | None,
+    horizon: int,
+    *,
+    theta: float = 0.5,
+    rho: float | None = None,
+    x0: np.ndarray | None = None,
+) -> RealizedBounds:
     """A-posteriori ultimate bound of each realization: its own model error and its own ``P``.
 
     Parameters
@@ -326,8 +373,14 @@ def realized_bounds(models, A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.n
     todo = [i for i in ok if Qfs[i] is not None]
     delta[[i for i in ok if Qfs[i] is None]] = np.inf
     if todo:
-        P = _riccati_finite_batch(np.stack([models[i][0] for i in todo]), np.stack([models[i][1] for i in todo]),
-                                  Q, R, np.stack([Qfs[i] for i in todo]), horizon)
+        P = _riccati_finite_batch(
+            np.stack([models[i][0] for i in todo]),
+            np.stack([models[i][1] for i in todo]),
+            Q,
+            R,
+            np.stack([Qfs[i] for i in todo]),
+            horizon,
+        )
         for k, i in enumerate(todo):
             Ah, Bh = models[i]
             ub = ultimate_bound(P[k], Q, R, A - Ah, B - Bh, theta=theta, rho=rho, x0=x0)

@@ -98,8 +98,7 @@ def time_series(loops, x0, u_max=None, rel_floor: float = CONVERGED_REL_FLOOR) -
     um, us = _mean_std(U[ok], U.shape[1:])
     umx = None if u_max is None else np.broadcast_to(np.asarray(u_max, dtype=float), U.shape[-1:]).copy()
     with np.errstate(invalid="ignore"):
-        sat = (np.any(np.abs(U) >= umx * (1 - 1e-9), axis=-1) if umx is not None
-               else np.zeros(U.shape[:2], dtype=bool))
+        sat = np.any(np.abs(U) >= umx * (1 - 1e-9), axis=-1) if umx is not None else np.zeros(U.shape[:2], dtype=bool)
     k, loops_sat = saturated_steps(U, umx)
     norms = np.linalg.norm(X, axis=-1)
     r0 = float(np.linalg.norm(np.asarray(x0, dtype=float)))
@@ -107,5 +106,4 @@ def time_series(loops, x0, u_max=None, rel_floor: float = CONVERGED_REL_FLOOR) -
     with np.errstate(invalid="ignore"):
         conv = norms <= floor
         disp = np.where(np.isfinite(norms), np.maximum(norms, floor), np.nan)
-    return TimeSeries(np.arange(X.shape[1]), X, U, ok, sm, ss, um, us, umx, sat, k, loops_sat, norms, floor,
-                      conv, disp)
+    return TimeSeries(np.arange(X.shape[1]), X, U, ok, sm, ss, um, us, umx, sat, k, loops_sat, norms, floor, conv, disp)

@@ -47,7 +47,7 @@ class Preview:
             self.R = np.asarray(R, dtype=float)
             RK = self.R @ self.Ku
             for k in range(self.N):
-                G[:, k * m:(k + 1) * m, k * self.n:(k + 1) * self.n] -= RK
+                G[:, k * m : (k + 1) * m, k * self.n : (k + 1) * self.n] -= RK
         self.G = G
         Fu = -np.linalg.solve(cq.H, G)  # (L, N m, (N+1) n)
         self.Fr = Fu if rows == nU else np.concatenate([Fu, cq.Su @ Fu], axis=1)
@@ -69,7 +69,7 @@ class Preview:
         """Point one model's :class:`~qsid_core.condensed_qp.DaqpMPC` at the reference window of step ``t``."""
         w = self.window(t)
         qp.g_ref = self.G[k] @ w
-        qp.rbar, qp.r = w[self.n:], w[: self.n]
+        qp.rbar, qp.r = w[self.n :], w[: self.n]
         if self.Ku is not None:  # the constant of (u - u_ref)'R(u - u_ref)
             ub = self.r[t : t + self.N] @ self.Ku[k].T
             qp.c_ref = float(np.einsum("ki,ij,kj->", ub, self.R, ub))

@@ -9,23 +9,34 @@ never convert huge integers blindly (``OverflowError``) and keep quoted values s
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import numbers
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-import json
-
 from .errors import ConfigError, SystemDefinitionError, short_repr
 
-__all__ = ["MAX_MAGNITUDE", "MAX_ENTRIES", "short_repr", "as_float_array", "check_bool", "check_text",
-           "check_quantizer_range", "checked_signal", "as_matrix", "weight_matrix", "parse_matrix"]
+__all__ = [
+    "MAX_MAGNITUDE",
+    "MAX_ENTRIES",
+    "short_repr",
+    "as_float_array",
+    "check_bool",
+    "check_text",
+    "check_quantizer_range",
+    "checked_signal",
+    "as_matrix",
+    "weight_matrix",
+    "parse_matrix",
+]
 
 #: Largest magnitude accepted for a model entry, weight, bound or state (squared costs must not overflow).
 MAX_MAGNITUDE = 1e12
 #: Largest number of entries accepted in one array-valued setting.
 MAX_ENTRIES = 1_000_000
+
 
 def _kind(value: Any) -> str:
     """Plain words for what a bad entry is."""
@@ -59,7 +70,8 @@ def _where(path: tuple) -> str:
 def _walk(name: str, value: Any, ndim_max: int, error: type, what: str | None = None) -> None:
     """Check the nesting and the leaf types of a list-of-lists without recursion."""
     what = what or {0: "a number", 1: "a list of numbers", 2: "a matrix of numbers (a list of rows)"}.get(
-        ndim_max, f"an array of numbers with at most {ndim_max} dimensions")
+        ndim_max, f"an array of numbers with at most {ndim_max} dimensions"
+    )
     stack = [(value, ())]
     count = 0
     while stack:
@@ -78,8 +90,10 @@ def _walk(name: str, value: Any, ndim_max: int, error: type, what: str | None = 
                 float(v)
             except OverflowError:
                 digits = int(int(v).bit_length() * 0.30103) + 1
-                raise error(f"{name}: {_where(path)} an integer with about {digits} digits, too large "
-                            "for a floating-point number") from None
+                raise error(
+                    f"{name}: {_where(path)} an integer with about {digits} digits, too large "
+                    "for a floating-point number"
+                ) from None
             count += 1
         if count > MAX_ENTRIES:
             raise error(f"{name} has more than {MAX_ENTRIES} entries")
@@ -127,8 +141,10 @@ def as_float_array(
         raise error(f"{name} must contain only finite numbers (no nan or inf); {_where(idx)} {v}{why}")
     if max_abs is not None and arr.size and np.abs(arr).max() > max_abs:
         idx = tuple(int(i) for i in np.argwhere(np.abs(arr) > max_abs)[0])
-        raise error(f"{name}: entries must be at most {max_abs:g} in magnitude; {_where(idx)} "
-                    f"{(arr[idx] if idx else arr.item()):g}")
+        raise error(
+            f"{name}: entries must be at most {max_abs:g} in magnitude; {_where(idx)} "
+            f"{(arr[idx] if idx else arr.item()):g}"
+        )
     return arr
 
 
@@ -163,17 +179,22 @@ def check_quantizer_range(name: str, lo: np.ndarray, hi: np.ndarray) -> None:
     if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
         raise ConfigError(f"{name}: lo and hi must be finite numbers")
     if np.any(hi <= lo):
-        raise ConfigError(f"{name}: every range needs hi > lo; got lo = {short_repr(lo.tolist())}, "
-                          f"hi = {short_repr(hi.tolist())}")
+        raise ConfigError(
+            f"{name}: every range needs hi > lo; got lo = {short_repr(lo.tolist())}, hi = {short_repr(hi.tolist())}"
+        )
     with np.errstate(over="ignore"):
         width = hi - lo
     if not np.all(np.isfinite(width)):
-        raise ConfigError(f"{name}: hi - lo overflows the floating-point range; use |lo|, |hi| below 8e307 "
-                          f"(a range of {np.max(width):g} would make the cell width eps infinite)")
+        raise ConfigError(
+            f"{name}: hi - lo overflows the floating-point range; use |lo|, |hi| below 8e307 "
+            f"(a range of {np.max(width):g} would make the cell width eps infinite)"
+        )
     tiny = np.finfo(float).tiny * 2.0**_MAX_BITS
     if np.any(width < tiny):
-        raise ConfigError(f"{name}: hi - lo = {np.min(width):g} is too small; it must be at least {tiny:.3g} "
-                          f"so that the cell width eps = (hi - lo) / 2**b stays a positive number")
+        raise ConfigError(
+            f"{name}: hi - lo = {np.min(width):g} is too small; it must be at least {tiny:.3g} "
+            f"so that the cell width eps = (hi - lo) / 2**b stays a positive number"
+        )
 
 
 def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -190,21 +211,25 @@ def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tupl
         if np.broadcast_shapes(xa.shape, lo_a.shape, hi_a.shape) != xa.shape:
             raise ValueError
     except ValueError:
-        raise ConfigError(f"lo and hi must be one number or one per channel (last axis of x, {xa.shape[-1:]}); "
-                          f"got shapes {lo_a.shape} and {hi_a.shape}") from None
+        raise ConfigError(
+            f"lo and hi must be one number or one per channel (last axis of x, {xa.shape[-1:]}); "
+            f"got shapes {lo_a.shape} and {hi_a.shape}"
+        ) from None
     check_quantizer_range("quantizer range", lo_a, hi_a)
     if unit_dither is not None:
         ud = as_float_array("unit_dither", unit_dither, ndim_max=32, max_abs=None, allow_empty=True)
         if ud.shape != xa.shape:
             raise ConfigError(f"unit_dither must have the shape of x {xa.shape}; got {ud.shape}")
     if rng is not None and not isinstance(rng, np.random.Generator):
-        raise ConfigError(f"rng must be a numpy Generator (numpy.random.default_rng(seed)) or None; "
-                          f"got {type(rng).__name__}")
+        raise ConfigError(
+            f"rng must be a numpy Generator (numpy.random.default_rng(seed)) or None; got {type(rng).__name__}"
+        )
     return xa, lo_a, hi_a
 
 
-def as_matrix(name: str, value: Any, shape: tuple[int | None, int | None],
-              max_abs: float | None = MAX_MAGNITUDE) -> np.ndarray:
+def as_matrix(
+    name: str, value: Any, shape: tuple[int | None, int | None], max_abs: float | None = MAX_MAGNITUDE
+) -> np.ndarray:
     """``value`` as a 2-D finite float matrix of ``shape`` (None: any size), else :class:`SystemDefinitionError`."""
     arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError, max_abs=max_abs)
     if arr.ndim == 1 and shape[1] == 1:
@@ -221,8 +246,13 @@ def as_matrix(name: str, value: Any, shape: tuple[int | None, int | None],
 
 def weight_matrix(name: str, value: Any, k: int) -> np.ndarray:
     """A weight matrix: a k x k matrix, or a length-k vector meaning its diagonal."""
-    arr = as_float_array(name, value, ndim_max=2, error=SystemDefinitionError,
-                         what=f"a {k} x {k} matrix of numbers (a list of rows) or a list of {k} diagonal entries")
+    arr = as_float_array(
+        name,
+        value,
+        ndim_max=2,
+        error=SystemDefinitionError,
+        what=f"a {k} x {k} matrix of numbers (a list of rows) or a list of {k} diagonal entries",
+    )
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim == 1:
@@ -258,7 +288,9 @@ def parse_matrix(text: str, name: str = "matrix") -> np.ndarray:
         try:
             out.append([float(v) for v in parts])
         except ValueError:
-            raise SystemDefinitionError(f"{name} row {i}: {short_repr(row.strip())} has an entry that is not a number") from None
+            raise SystemDefinitionError(
+                f"{name} row {i}: {short_repr(row.strip())} has an entry that is not a number"
+            ) from None
     widths = {len(r) for r in out}
     if len(widths) != 1:
         raise SystemDefinitionError(f"{name}: rows have different lengths {short_repr([len(r) for r in out])}")

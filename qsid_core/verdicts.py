@@ -34,7 +34,7 @@ run itself; only their verdicts are kept, not the extra trajectories.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -109,8 +109,7 @@ class _Judge:
                 pending.append(i)
         return pending
 
-    def window(self, i: int, states: np.ndarray, x_ref: np.ndarray, done_steps: int, last: bool,
-               cert: bool) -> None:
+    def window(self, i: int, states: np.ndarray, x_ref: np.ndarray, done_steps: int, last: bool, cert: bool) -> None:
         """Update loop ``i`` after one window of extra steps (``states``: its trajectory over the window;
         ``cert``: whether its last state is certified to converge)."""
         peaks = self.peaks[i]

@@ -33,9 +33,18 @@ HANG_S = 300.0
 SMALL = dict(trajectories=10, steps=60, realizations=4)
 
 #: What a browser sends first; viser counts a client as connected once it reports its camera.
-CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0],
-          "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
-          "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}
+CAMERA = {
+    "type": "ViewerCameraMessage",
+    "wxyz": [1.0, 0.0, 0.0, 0.0],
+    "position": [3.0, 0.0, 0.0],
+    "fov": 1.0,
+    "near": 0.01,
+    "far": 1000.0,
+    "image_height": 900,
+    "image_width": 1400,
+    "look_at": [0.0, 0.0, 0.0],
+    "up_direction": [0.0, 0.0, 1.0],
+}
 
 
 def connect_ws(app, **kwargs):
@@ -43,8 +52,13 @@ def connect_ws(app, **kwargs):
     import viser
     from websockets.sync.client import connect
 
-    return connect(app.url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"],
-                   max_size=None, open_timeout=kwargs.pop("open_timeout", 120), **kwargs)
+    return connect(
+        app.url.replace("http://", "ws://"),
+        subprotocols=[f"viser-v{viser.__version__}"],
+        max_size=None,
+        open_timeout=kwargs.pop("open_timeout", 120),
+        **kwargs,
+    )
 
 
 class Tab:
@@ -76,13 +90,13 @@ class Tab:
         except Exception:
             pass
 
-    def set(self, **values) -> "Tab":
+    def set(self, **values) -> Tab:
         """Set inputs as a person would (each runs the input's callbacks), then wait until redrawn."""
         for name, value in values.items():
             self.controls[name].value = value
         return self.wait()
 
-    def wait(self, timeout: float = HANG_S) -> "Tab":
+    def wait(self, timeout: float = HANG_S) -> Tab:
         """Wait until the tab has drawn its newest settings; ``timeout`` only guards against a hang."""
         assert self.session.wait_idle(timeout), f"the tab was not redrawn within {timeout:g} s (hung?)"
         return self
@@ -162,25 +176,51 @@ def dask_cluster(tmp: Path, workers: int = 2):
 
     def start(args, log):
         fh = open(tmp / log, "wb")
-        p = subprocess.Popen([sys.executable, "-m", "dask", *args], cwd=ROOT, env=env, stdout=fh,
-                             stderr=subprocess.STDOUT, start_new_session=True)
+        p = subprocess.Popen(
+            [sys.executable, "-m", "dask", *args],
+            cwd=ROOT,
+            env=env,
+            stdout=fh,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
         fh.close()
         procs.append(p)
         return p
 
     try:
         sfile = tmp / "scheduler.json"
-        sched = start(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                       "--scheduler-file", str(sfile)], "scheduler.log")
+        sched = start(
+            ["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(sfile)],
+            "scheduler.log",
+        )
         end = time.monotonic() + HANG_S
         while (address := _scheduler_address(sfile)) is None:  # the file may be half written at first
             assert sched.poll() is None, (tmp / "scheduler.log").read_text()
             assert time.monotonic() < end, "dask scheduler did not start (hung?)"
             time.sleep(0.1)
         assert address.startswith("tcp://127.0.0.1:")
-        wprocs = [start(["worker", address, "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
-                         "--no-dashboard", "--name", f"w{i}", "--local-directory", str(tmp / f"w{i}")],
-                        f"worker{i}.log") for i in range(workers)]
+        wprocs = [
+            start(
+                [
+                    "worker",
+                    address,
+                    "--nthreads",
+                    "1",
+                    "--nworkers",
+                    "1",
+                    "--host",
+                    "127.0.0.1",
+                    "--no-dashboard",
+                    "--name",
+                    f"w{i}",
+                    "--local-directory",
+                    str(tmp / f"w{i}"),
+                ],
+                f"worker{i}.log",
+            )
+            for i in range(workers)
+        ]
         from distributed import Client
 
         with Client(address, timeout=HANG_S, set_as_default=False) as c:

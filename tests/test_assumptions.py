@@ -14,8 +14,10 @@ def test_letter_quantizer_overload_judged_by_its_effect_and_guard_band_has_none(
     letter = Experiment(SweepConfig(system="dc-motor", bits=(2,), quantizer=LETTER_QUANTIZER, **SMALL)).assumptions(2)
     guard = Experiment(SweepConfig(system="dc-motor", bits=(2,), **SMALL)).assumptions(2)
     assert letter.overload_fraction > 0.01 and letter.overload_effect_A > 0
-    assert letter.no_overload == (OVERLOAD_EFFECT_RATIO * letter.overload_effect_A <= letter.fluctuation_A and
-                                  OVERLOAD_EFFECT_RATIO * letter.overload_effect_B <= letter.fluctuation_B)
+    assert letter.no_overload == (
+        OVERLOAD_EFFECT_RATIO * letter.overload_effect_A <= letter.fluctuation_A
+        and OVERLOAD_EFFECT_RATIO * letter.overload_effect_B <= letter.fluctuation_B
+    )
     assert letter.no_overload and letter.bcls_holds and not any(n.startswith("overload") for n in letter.notes)
     assert guard.overload_fraction == 0.0 and guard.overload_effect_A < 1e-12 and guard.no_overload
 
@@ -29,8 +31,9 @@ def test_fixed_range_too_small_overloads():
 
 def test_large_data_flag_follows_data_length():
     """Boeing, shared range: b = 4 bias (0.75) dwarfs the fluctuation even for little data; b = 12 needs more."""
-    few = Experiment(SweepConfig(system="boeing747", bits=(4, 12), quantizer=QuantizerSpec(range_mode="shared"),
-                                 **SMALL))
+    few = Experiment(
+        SweepConfig(system="boeing747", bits=(4, 12), quantizer=QuantizerSpec(range_mode="shared"), **SMALL)
+    )
     assert few.assumptions(4).large_data and few.assumptions(4).theorem1_holds
     a12 = few.assumptions(12)
     assert not a12.large_data and a12.fluctuation_A > a12.bias_A / 3

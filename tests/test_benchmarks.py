@@ -18,8 +18,9 @@ if str(BENCH) not in sys.path:
 import bench_mpc  # noqa: E402
 import bench_sweep  # noqa: E402
 
-TINY = dict(system="dc-motor", bits=(1, 4, 9), realizations=3, trajectories=4, steps=60, horizon=4, mpc_steps=6,
-            u_max=1.0)
+TINY = dict(
+    system="dc-motor", bits=(1, 4, 9), realizations=3, trajectories=4, steps=60, horizon=4, mpc_steps=6, u_max=1.0
+)
 
 
 @pytest.mark.parametrize("osqp_setup", ["model", "step"])
@@ -48,7 +49,7 @@ def test_bench_sweep_quick_main_prints_result(capsys):
     out = bench_sweep.main(["--quick", "--executors", "inline,thread", "--naive-osqp", "model"])
     text = capsys.readouterr().out
     line = [ln for ln in text.splitlines() if ln.startswith("RESULT ")][-1]
-    data = json.loads(line[len("RESULT "):])
+    data = json.loads(line[len("RESULT ") :])
     assert data["benchmark"] == "bench_sweep" and data["quick"]
     assert data["correctness"]["max_abs_diff_AB"] < 1e-9
     assert set(data["fast"]) == {"inline", "thread"}
@@ -88,7 +89,7 @@ def test_bench_mpc_quick_main_prints_result(capsys):
     bench_mpc.main(["--quick", "--skip", "do-mpc", "--engine-repeats", "1"])
     text = capsys.readouterr().out
     line = [ln for ln in text.splitlines() if ln.startswith("RESULT ")][-1]
-    data = json.loads(line[len("RESULT "):])
+    data = json.loads(line[len("RESULT ") :])
     assert data["benchmark"] == "bench_mpc"
     assert {p["case"] for p in data["problems"]} == {"letter", "constrained"}
     for p in data["problems"]:
@@ -126,5 +127,5 @@ def test_bench_bits_quick_prints_its_measured_ratio(capsys):
 
     assert bench_bits.main(["--quick", "--repeats", "1", "--systems", "dc-motor"]) == 0
     line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("RESULT ")][-1]
-    r = json.loads(line[len("RESULT "):])["results"][0]
+    r = json.loads(line[len("RESULT ") :])["results"][0]
     assert r["ratio_bits_to_sweep"] == r["median_s"]["bits"] / r["median_s"]["sweep"] > 0

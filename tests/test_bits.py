@@ -37,8 +37,11 @@ def _rows_agree(ans):
     t, g = ans.settings["target"], ans.settings["cost_gap"]
     rows = ans.rows
     obs = [r.stabilized_fraction >= t and r.cost_gap <= g for r in rows]
-    for name, ok in (("b_observed", obs), ("b_robust", [r.robust for r in rows]),
-                     ("b_letter", [r.bound_self_consistent and r.bound_informative for r in rows])):
+    for name, ok in (
+        ("b_observed", obs),
+        ("b_robust", [r.robust for r in rows]),
+        ("b_letter", [r.bound_self_consistent and r.bound_informative for r in rows]),
+    ):
         got = getattr(ans, name)
         if got is None:
             assert not ok[-1], name
@@ -49,8 +52,9 @@ def _rows_agree(ans):
 
 @pytest.mark.parametrize("system", ["dc-motor", "boeing747"])
 def test_answer_is_consistent_with_its_rows(system):
-    ans = bits_needed(SweepConfig(system=system, bits=(1, 2, 3, 4, 6, 8, 10), realizations=12, trajectories=60,
-                                  steps=300))
+    ans = bits_needed(
+        SweepConfig(system=system, bits=(1, 2, 3, 4, 6, 8, 10), realizations=12, trajectories=60, steps=300)
+    )
     _rows_agree(ans)
     d = ans.to_dict()
     assert set(d) >= {"system", "settings", "b_observed", "b_robust", "b_letter", "rows", "sentence"}
@@ -70,8 +74,15 @@ def test_small_gain_certificate_is_sound(name):
     """No realization whose own model error passes the small-gain test has an unstable true closed loop."""
     system = OTHER_SYSTEMS.get(name, name)
     big = name in ("dc-motor", "boeing747")
-    res = run_sweep(SweepConfig(system=system, bits=(1, 2, 3, 4, 5, 6), realizations=30,
-                                trajectories=200 if big else 20, steps=300 if big else 40))
+    res = run_sweep(
+        SweepConfig(
+            system=system,
+            bits=(1, 2, 3, 4, 5, 6),
+            realizations=30,
+            trajectories=200 if big else 20,
+            steps=300 if big else 40,
+        )
+    )
     certified = 0
     for b in res.bits:
         lp = res.loops[b]
@@ -83,17 +94,29 @@ def test_small_gain_certificate_is_sound(name):
 
 
 def test_answer_from_rows_and_bad_targets():
-    rows = [{"bits": b, "closed_loop_outcomes": {"converged": c, "bounded": 10 - c, "diverged": 0, "failed": 0},
-             "mpc_cost": {"mean": cost}, "ultimate_bound": 1.0, "rho": 2.0, "bound_self_consistent": b > 2,
-             "bound_informative": b > 3}
-            for b, c, cost in ((1, 2, 5.0), (2, 10, 1.05), (3, 10, 1.001), (4, 10, 1.0))]
+    rows = [
+        {
+            "bits": b,
+            "closed_loop_outcomes": {"converged": c, "bounded": 10 - c, "diverged": 0, "failed": 0},
+            "mpc_cost": {"mean": cost},
+            "ultimate_bound": 1.0,
+            "rho": 2.0,
+            "bound_self_consistent": b > 2,
+            "bound_informative": b > 3,
+        }
+        for b, c, cost in ((1, 2, 5.0), (2, 10, 1.05), (3, 10, 1.001), (4, 10, 1.0))
+    ]
     ans = answer_from_rows("toy", {}, rows, 1.0, robust={1: (2.0, 1.0), 2: (0.5, 1.0), 3: (0.1, 1.0), 4: (0.1, 1.0)})
     assert (ans.b_observed, ans.b_robust, ans.b_letter) == (3, 2, 4)
     assert "from b = 3 on" in ans.sentence and "needs b >= 2" in ans.sentence and "from b = 4" in ans.sentence
     loose = answer_from_rows("toy", {}, rows, 1.0, target=0.2, cost_gap=10)
     assert loose.b_observed == 1 and loose.b_robust is None
-    for kw, field in ((dict(target=0), "target"), (dict(target=1.5), "target"), (dict(cost_gap=-0.1), "cost gap"),
-                      (dict(target=float("nan")), "target")):
+    for kw, field in (
+        (dict(target=0), "target"),
+        (dict(target=1.5), "target"),
+        (dict(cost_gap=-0.1), "cost gap"),
+        (dict(target=float("nan")), "target"),
+    ):
         with pytest.raises(ConfigError, match=field):
             answer_from_rows("toy", {}, rows, 1.0, **kw)
     with pytest.raises(ConfigError, match="MPC"):
@@ -113,14 +136,17 @@ def test_cli_bits_table_and_json(capsys):
     assert [r["bits"] for r in d["rows"]] == [1, 2, 3, 4]
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--target", "0"], "argument --target: must be in (0, 1]"),
-    (["--target", "1.2"], "argument --target: must be in (0, 1]"),
-    (["--target", "lots"], "argument --target: must be a number like 0.95 or 95%"),
-    (["--cost-gap=-0.5"], "argument --cost-gap: must be >= 0"),
-    (["--cost-gap", "inf"], "argument --cost-gap: must be finite"),
-    (["--verify-steps=-3"], "argument --verify-steps"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--target", "0"], "argument --target: must be in (0, 1]"),
+        (["--target", "1.2"], "argument --target: must be in (0, 1]"),
+        (["--target", "lots"], "argument --target: must be a number like 0.95 or 95%"),
+        (["--cost-gap=-0.5"], "argument --cost-gap: must be >= 0"),
+        (["--cost-gap", "inf"], "argument --cost-gap: must be finite"),
+        (["--verify-steps=-3"], "argument --verify-steps"),
+    ],
+)
 def test_cli_bits_bad_input_is_one_line(capsys, args, message):
     assert main(["bits", *TINY, "-q", *args]) == 2
     err = capsys.readouterr().err.strip()

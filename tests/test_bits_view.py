@@ -37,8 +37,16 @@ def test_bits_view_marks_the_three_answers_and_keeps_them_when_b_moves():
 
 
 def test_bound_view_shades_where_the_proof_gives_nothing_and_marks_x0():
-    rows = [{"bits": b, "ultimate_bound": d, "rho": 4.3, "bound_self_consistent": d < 4.3,
-             "final_state_norm": {"mean": 1e-3, "max": 2e-3}} for b, d in ((1, 100.0), (2, 50.0), (3, 2.0), (4, 0.5))]
+    rows = [
+        {
+            "bits": b,
+            "ultimate_bound": d,
+            "rho": 4.3,
+            "bound_self_consistent": d < 4.3,
+            "final_state_norm": {"mean": 1e-3, "max": 2e-3},
+        }
+        for b, d in ((1, 100.0), (2, 50.0), (3, 2.0), (4, 0.5))
+    ]
     fig = bound_figure({"LS": rows}, current_bits=3, x0_norm=1.41)
     rects = [sh for sh in fig.layout.shapes if sh.type == "rect"]
     assert [(r.x0, r.x1) for r in rects] == [(0.5, 2.5)]
@@ -78,11 +86,21 @@ def test_dashboard_summary_counts_the_boeing_loops_that_do_not_converge():
 def test_cost_view_says_where_loops_did_not_converge():
     from app.figures.cost import cost_figure
 
-    rows = [{"bits": 1, "mpc_cost": {"mean": 3.0, "std": 0.1},
-             "closed_loop_outcomes": {"converged": 2, "bounded": 48, "diverged": 0, "failed": 0}},
-            {"bits": 2, "mpc_cost": {"mean": 2.0, "std": 0.1},
-             "closed_loop_outcomes": {"converged": 50, "bounded": 0, "diverged": 0, "failed": 0}}]
+    rows = [
+        {
+            "bits": 1,
+            "mpc_cost": {"mean": 3.0, "std": 0.1},
+            "closed_loop_outcomes": {"converged": 2, "bounded": 48, "diverged": 0, "failed": 0},
+        },
+        {
+            "bits": 2,
+            "mpc_cost": {"mean": 2.0, "std": 0.1},
+            "closed_loop_outcomes": {"converged": 50, "bounded": 0, "diverged": 0, "failed": 0},
+        },
+    ]
     texts = [a.text for a in cost_figure({"LS": rows}, true_cost=1.9).layout.annotations]
     assert "did not converge: LS: b=1 48/50" in texts
-    assert not any("did not converge" in t for t in
-                   (a.text for a in cost_figure({"LS": rows[1:]}, true_cost=1.9).layout.annotations))
+    assert not any(
+        "did not converge" in t
+        for t in (a.text for a in cost_figure({"LS": rows[1:]}, true_cost=1.9).layout.annotations)
+    )

@@ -16,6 +16,7 @@ TINY = ["--trajectories", "5", "--steps", "100", "--realizations", "3", "--bits"
 
 def _strict_json(text: str):
     """json.loads that rejects NaN/Infinity (they are not JSON)."""
+
     def bad(c):
         raise AssertionError(f"non-JSON constant {c} in output")
 
@@ -78,7 +79,7 @@ def test_sweep_table_mode(capsys):
     lines = out.splitlines()
     head = next(i for i, ln in enumerate(lines) if ln.lstrip().startswith("b "))
     assert "err_A" in lines[head] and "MPC cost" in lines[head] and "overload" in lines[head]
-    body = lines[head + 2: head + 5]
+    body = lines[head + 2 : head + 5]
     assert [ln.split()[0] for ln in body] == ["2", "3", "4"]
     assert all("+/-" in ln and "%" in ln and "(0)" in ln for ln in body)
     assert "slope" in lines[head + 5] and "true-model MPC cost" in lines[head + 5] and "total" in lines[head + 5]
@@ -94,9 +95,32 @@ def test_no_mpc_gives_null_cost(capsys):
 
 
 def test_options_reach_the_config(capsys):
-    code, out, _ = _run(capsys, "sweep", *TINY[:-2], "--bits", "2:6:2", "--guard", "--dither", "none",
-                        "--estimator", "bcls", "--horizon", "5", "--mpc-steps", "7", "--u-max", "2,3",
-                        "--seed", "4", "--theta", "0.3", "--rho", "2", "--json", "-q")
+    code, out, _ = _run(
+        capsys,
+        "sweep",
+        *TINY[:-2],
+        "--bits",
+        "2:6:2",
+        "--guard",
+        "--dither",
+        "none",
+        "--estimator",
+        "bcls",
+        "--horizon",
+        "5",
+        "--mpc-steps",
+        "7",
+        "--u-max",
+        "2,3",
+        "--seed",
+        "4",
+        "--theta",
+        "0.3",
+        "--rho",
+        "2",
+        "--json",
+        "-q",
+    )
     assert code == 0
     c = _strict_json(out)["config"]
     assert c["bits"] == [2, 4, 6] and c["range"] == "per-channel" and c["guard"] is True and c["dither"] == "none"
@@ -114,16 +138,31 @@ def test_engine_error_is_one_line(capsys, tmp_path):
     # an unstable custom system overflows while simulating: a DataOverflowError from the engine
     f = tmp_path / "unstable.toml"
     f.write_text("A = [[3.0, 0.0], [0.0, 0.5]]\nB = [[1.0], [1.0]]\n")
-    code, out, err = _run(capsys, "sweep", "--system", str(f), "--trajectories", "2", "--steps", "200",
-                          "--realizations", "2", "--bits", "4", "--no-mpc", "-q")
+    code, out, err = _run(
+        capsys,
+        "sweep",
+        "--system",
+        str(f),
+        "--trajectories",
+        "2",
+        "--steps",
+        "200",
+        "--realizations",
+        "2",
+        "--bits",
+        "4",
+        "--no-mpc",
+        "-q",
+    )
     assert code == 2 and out == "" and err.count("\n") == 1
     assert err.startswith("qsid: error: ") and "spectral radius" in err
 
 
 def test_singular_identification_is_counted_not_fatal(capsys):
     # no dither + one shared range + 2 bits: every input sample lands in the same cell -> singular Gram matrix
-    code, out, err = _run(capsys, "sweep", *TINY[:-2], "--bits", "2", "--range", "shared", "--dither", "none",
-                          "--json", "-q")
+    code, out, err = _run(
+        capsys, "sweep", *TINY[:-2], "--bits", "2", "--range", "shared", "--dither", "none", "--json", "-q"
+    )
     assert code == 0
     row = _strict_json(out)["results"][0]
     # every one of the 3 realizations fails to identify; each is a failed closed loop of kind "ident", no cost
@@ -152,8 +191,9 @@ def test_bits_step_form(capsys):
 def test_reproduce_writes_offline_panels(capsys, tmp_path):
     out_dir = tmp_path / "fig"
     # bits 2:3 leave b = 4 and 6 of the phase portraits to compute separately
-    code, out, err = _run(capsys, "reproduce", "--system", "boeing747", "--out", str(out_dir), *TINY[:-2],
-                          "--bits", "2:3")
+    code, out, err = _run(
+        capsys, "reproduce", "--system", "boeing747", "--out", str(out_dir), *TINY[:-2], "--bits", "2:3"
+    )
     assert code == 0, err
     panels = ["a_error_A", "b_error_B", "c_mpc_cost", "d_phase_b2", "e_phase_b4", "f_phase_b6"]
     for name in panels + ["index"]:
@@ -221,7 +261,7 @@ def test_bad_inputs_one_line_exit_2(capsys, tmp_path, argv, needle):
 
 def test_toml_custom_system(capsys, tmp_path):
     f = tmp_path / "plant.toml"
-    f.write_text('A = [[0.9, 0.1], [0.0, 0.8]]\nB = [[0.0], [1.0]]\nx0 = [1.0, -1.0]\nQ = [1.0, 2.0]\nR = [[0.5]]\n')
+    f.write_text("A = [[0.9, 0.1], [0.0, 0.8]]\nB = [[0.0], [1.0]]\nx0 = [1.0, -1.0]\nQ = [1.0, 2.0]\nR = [[0.5]]\n")
     code, out, err = _run(capsys, "sweep", "--system", str(f), *TINY, "--json", "-q")
     d = _strict_json(out)
     assert code == 0 and err == ""
@@ -247,12 +287,22 @@ def test_uncontrollable_system_warns_once_and_runs(capsys, tmp_path):
 
 
 def test_subprocess_exit_codes(tmp_path):
-    bad = subprocess.run([sys.executable, "-m", "app.cli", "sweep", "--bits", "5:2"], cwd=ROOT,
-                         capture_output=True, text=True, timeout=600)
+    bad = subprocess.run(
+        [sys.executable, "-m", "app.cli", "sweep", "--bits", "5:2"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert bad.returncode == 2 and bad.stdout == ""
     assert bad.stderr.count("\n") == 1 and bad.stderr.startswith("qsid: error: ")
-    good = subprocess.run([sys.executable, "-m", "app.cli", "sweep", *TINY, "--no-mpc", "--json"], cwd=ROOT,
-                          capture_output=True, text=True, timeout=600)
+    good = subprocess.run(
+        [sys.executable, "-m", "app.cli", "sweep", *TINY, "--no-mpc", "--json"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert good.returncode == 0, good.stderr
     assert _strict_json(good.stdout)["config"]["realizations"] == 3
     assert "Traceback" not in good.stderr and "quantize + identify" in good.stderr
@@ -268,8 +318,12 @@ def test_defaults_and_choices_are_the_engines():
     a = build_parser().parse_args(["sweep"])
     eng, mpc, quant = SweepConfig(), MPCConfig(), QuantizerSpec()
     assert parse_bits(a.bits) == eng.bits
-    assert (a.realizations, a.trajectories, a.steps, a.theta) == (eng.realizations, eng.trajectories, eng.steps,
-                                                                  eng.theta)
+    assert (a.realizations, a.trajectories, a.steps, a.theta) == (
+        eng.realizations,
+        eng.trajectories,
+        eng.steps,
+        eng.theta,
+    )
     assert (a.horizon, a.mpc_steps, a.u_max) == (mpc.horizon, mpc.steps, mpc.u_max)
     assert (a.dither, a.range_mode, a.estimator) == (quant.dither, quant.range_mode, eng.estimator)
     for d in DITHERS:
@@ -288,6 +342,7 @@ def test_json_is_strict_for_numpy_nonfinite_and_enums():
     class Kind(enum.Enum):
         DIVERGED = "diverged"
 
-    text = dumps({"a": np.array([1.0, np.nan]), "b": np.float64(np.inf), "k": [Kind.DIVERGED], Kind.DIVERGED: 2},
-                 indent=None)
+    text = dumps(
+        {"a": np.array([1.0, np.nan]), "b": np.float64(np.inf), "k": [Kind.DIVERGED], Kind.DIVERGED: 2}, indent=None
+    )
     assert text == '{"a": [1.0, null], "b": null, "k": ["diverged"], "diverged": 2}'

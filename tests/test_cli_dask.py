@@ -7,10 +7,10 @@ import csv
 import json
 
 import pytest
-
-from app.cli import main
 from support import dask_cluster
 from support import need_distributed as _need_distributed
+
+from app.cli import main
 
 TINY = ["--trajectories", "12", "--steps", "150", "--realizations", "4", "--bits", "2,5"]
 
@@ -39,17 +39,19 @@ def test_sweep_csv_one_row_per_b_and_realization(capsys, tmp_path):
 
 
 def test_csv_is_checked_before_the_run(capsys, tmp_path):
-    code, out, err = _run(capsys, "sweep", *TINY, "--csv", str(tmp_path / "a.json"), "--out",
-                          str(tmp_path / "a.json"))
+    code, out, err = _run(capsys, "sweep", *TINY, "--csv", str(tmp_path / "a.json"), "--out", str(tmp_path / "a.json"))
     assert code == 2 and "same file" in err and "quantize" not in err
     code, out, err = _run(capsys, "sweep", *TINY, "--csv", "")
     assert code == 2 and "--csv" in err and len(err.splitlines()) == 1
 
 
-@pytest.mark.parametrize("extra, needle", [
-    (["--dask", "foo"], "local:N"),
-    (["--dask", "local:2", "--workers", "2"], "either --dask or --workers"),
-])
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--dask", "foo"], "local:N"),
+        (["--dask", "local:2", "--workers", "2"], "either --dask or --workers"),
+    ],
+)
 def test_bad_dask_is_one_line(capsys, extra, needle):
     _need_distributed()
     code, out, err = _run(capsys, "sweep", *TINY, "-q", *extra)
@@ -84,7 +86,8 @@ def test_real_scheduler_and_two_workers(capsys, tmp_path):
         code, out, err = _run(capsys, "sweep", *TINY, "--json", "--dask", address)
         assert code == 0, err
         assert _results(out) == _results(ref) and f"dask: connected to {address} (2 worker(s))" in err
-        code, _, err = _run(capsys, "reproduce", "--system", "boeing747", "--out", str(tmp_path / "fig"), *TINY,
-                            "--dask", address, "-q")
+        code, _, err = _run(
+            capsys, "reproduce", "--system", "boeing747", "--out", str(tmp_path / "fig"), *TINY, "--dask", address, "-q"
+        )
         assert code == 0, err
         assert (tmp_path / "fig" / "index.html").is_file()

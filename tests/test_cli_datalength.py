@@ -47,14 +47,17 @@ def test_table_on_stdout(capsys, tmp_path):
     assert json.loads(target.read_text())["config"]["dither"] == "none"
 
 
-@pytest.mark.parametrize("extra, needle", [
-    (["--samples", "abc"], "sample counts"),
-    (["--samples", "1.5"], "whole numbers"),
-    (["--samples", "5"], "samples"),
-    (["--bits", "0"], "--bits"),
-    (["--range", "fixed"], "--limits"),
-    (["--system", "nope"], "unknown system"),
-])
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--samples", "abc"], "sample counts"),
+        (["--samples", "1.5"], "whole numbers"),
+        (["--samples", "5"], "samples"),
+        (["--bits", "0"], "--bits"),
+        (["--range", "fixed"], "--limits"),
+        (["--system", "nope"], "unknown system"),
+    ],
+)
 def test_bad_input_one_line(capsys, extra, needle):
     code, out, err = _run(capsys, *ARGS, *extra)
     assert code == 2 and out == ""

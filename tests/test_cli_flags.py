@@ -40,8 +40,9 @@ def test_fixed_range_one_pair_and_per_channel():
 
 
 def test_fixed_range_reaches_the_quantizer(capsys):
-    code, out, err = _run(capsys, "sweep", *TINY, "--range", "fixed", "--limits=-20,20", "--no-guard",
-                          "--no-mpc", "--json", "-q")
+    code, out, err = _run(
+        capsys, "sweep", *TINY, "--range", "fixed", "--limits=-20,20", "--no-guard", "--no-mpc", "--json", "-q"
+    )
     assert code == 0, err
     d = json.loads(out)
     assert d["config"]["fixed_range"] == [[-20.0, 20.0]] and d["config"]["guard"] is False
@@ -50,8 +51,23 @@ def test_fixed_range_reaches_the_quantizer(capsys):
 
 
 def test_input_amplitude_x0_xref_xmax_q_r_seeds():
-    c = _cfg("--input-amplitude", "0.25", "--x0=-1,0.5,2", "--x-ref", "0.1", "--x-max", "3,4,5",
-             "--Q", "1,0,2", "--R", "0.5", "--data-seed", "7", "--dither-seed", "9")
+    c = _cfg(
+        "--input-amplitude",
+        "0.25",
+        "--x0=-1,0.5,2",
+        "--x-ref",
+        "0.1",
+        "--x-max",
+        "3,4,5",
+        "--Q",
+        "1,0,2",
+        "--R",
+        "0.5",
+        "--data-seed",
+        "7",
+        "--dither-seed",
+        "9",
+    )
     assert c.input_amplitude == 0.25 and (c.data_seed, c.dither_seed) == (7, 9)
     m = c.mpc
     assert m.x0 == (-1.0, 0.5, 2.0) and m.x_ref == (0.1,) and m.x_max == (3.0, 4.0, 5.0)
@@ -64,8 +80,24 @@ def test_input_amplitude_x0_xref_xmax_q_r_seeds():
 
 
 def test_mpc_settings_in_the_json(capsys):
-    code, out, err = _run(capsys, "sweep", *TINY, "--x0=0.5,0,0", "--x-ref", "0.1", "--x-max", "5", "--Q", "2",
-                          "--R", "0.5", "--input-amplitude", "0.5", "--json", "-q")
+    code, out, err = _run(
+        capsys,
+        "sweep",
+        *TINY,
+        "--x0=0.5,0,0",
+        "--x-ref",
+        "0.1",
+        "--x-max",
+        "5",
+        "--Q",
+        "2",
+        "--R",
+        "0.5",
+        "--input-amplitude",
+        "0.5",
+        "--json",
+        "-q",
+    )
     assert code == 0, err
     c = json.loads(out)["config"]
     assert c["input_amplitude"] == 0.5
@@ -80,21 +112,24 @@ def test_inline_system_like_the_dashboard(capsys):
     assert code == 2 and "both --A and --B" in err and len(err.splitlines()) == 1
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["--range", "fixed"], "needs --limits"),
-    (["--limits=-1,1"], "only used with --range fixed"),
-    (["--range", "fixed", "--limits=-1,1;-2,2"], "1 pair or 5 pairs"),
-    (["--range", "fixed", "--limits", "2,1"], "LO < HI"),
-    (["--range", "fixed", "--limits", "a,b"], "not a number"),
-    (["--range", "fixed", "--limits", "-1,1"], "needs '='"),
-    (["--x0", "1,,2"], "--x0"),
-    (["--x0", "1,2"], "x0"),
-    (["--Q", "nan"], "not finite"),
-    (["--R=-1"], "R"),
-    (["--x-max", "0"], "x_max"),
-    (["--input-amplitude", "0"], "input amplitude"),
-    (["--data-seed", "-1"], "--data-seed"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--range", "fixed"], "needs --limits"),
+        (["--limits=-1,1"], "only used with --range fixed"),
+        (["--range", "fixed", "--limits=-1,1;-2,2"], "1 pair or 5 pairs"),
+        (["--range", "fixed", "--limits", "2,1"], "LO < HI"),
+        (["--range", "fixed", "--limits", "a,b"], "not a number"),
+        (["--range", "fixed", "--limits", "-1,1"], "needs '='"),
+        (["--x0", "1,,2"], "--x0"),
+        (["--x0", "1,2"], "x0"),
+        (["--Q", "nan"], "not finite"),
+        (["--R=-1"], "R"),
+        (["--x-max", "0"], "x_max"),
+        (["--input-amplitude", "0"], "input amplitude"),
+        (["--data-seed", "-1"], "--data-seed"),
+    ],
+)
 def test_bad_new_flags_one_line_exit_2(capsys, argv, needle):
     code, out, err = _run(capsys, "sweep", *TINY, *argv, "-q")
     assert code == 2 and out == ""
@@ -107,10 +142,25 @@ def test_reproduce_defaults_are_the_letters_and_it_says_so(capsys, tmp_path):
     c = config(args, system_from_args(args), True)
     assert c.quantizer == LETTER_QUANTIZER and c.quantizer.guard is False
     assert (c.bits, c.realizations, c.trajectories, c.steps, c.estimator, c.input_amplitude) == (
-        letter.bits, letter.realizations, letter.trajectories, letter.steps, letter.estimator,
-        letter.input_amplitude)
-    code, out, err = _run(capsys, "reproduce", "--out", str(tmp_path / "fig"), "--system", "boeing747",
-                          *TINY[:-2], "--bits", "2:3", "--guard")
+        letter.bits,
+        letter.realizations,
+        letter.trajectories,
+        letter.steps,
+        letter.estimator,
+        letter.input_amplitude,
+    )
+    code, out, err = _run(
+        capsys,
+        "reproduce",
+        "--out",
+        str(tmp_path / "fig"),
+        "--system",
+        "boeing747",
+        *TINY[:-2],
+        "--bits",
+        "2:3",
+        "--guard",
+    )
     assert code == 0, err
     line = next(ln for ln in err.splitlines() if "the letter's settings" in ln)
     assert "no guard band" in line and "subtractive dither" in line and "per-channel range" in line
@@ -134,8 +184,7 @@ def test_table_carries_the_assumption_flags(capsys):
 
 
 def test_threads_give_the_same_numbers_as_one_thread_and_bad_counts_are_usage_errors(capsys):
-    small = ("sweep", "--trajectories", "20", "--steps", "100", "--realizations", "5", "--bits", "2:8",
-             "--json", "-q")
+    small = ("sweep", "--trajectories", "20", "--steps", "100", "--realizations", "5", "--bits", "2:8", "--json", "-q")
     one = json.loads(_run(capsys, *small, "--threads", "1")[1])
     two = json.loads(_run(capsys, *small, "--threads", "2")[1])
     assert one["results"] == two["results"] and one["results"]

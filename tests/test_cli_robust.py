@@ -28,8 +28,8 @@ def _one_line(code, out, err, needle=""):
 
 
 SYSTEM_FILES = {
-    "bigA.json": '{"A": [[%s]], "B": [[1]]}' % BIG,
-    "bigx0.json": '{"A": [[0.5]], "B": [[1]], "x0": [%s]}' % BIG,
+    "bigA.json": '{"A": [[' + BIG + ']], "B": [[1]]}',
+    "bigx0.json": '{"A": [[0.5]], "B": [[1]], "x0": [' + BIG + "]}",
     "dateQ.toml": "A = [[0.5]]\nB = [[1.0]]\nQ = 1979-05-27\n",
     "objQ.json": json.dumps({"A": [[0.5]], "B": [[1.0]], "Q": {"a": 1}}),
     "objx0.json": json.dumps({"A": [[0.5]], "B": [[1.0]], "x0": {"a": 1}}),
@@ -45,8 +45,10 @@ def test_bad_system_file_is_one_line(capsys, tmp_path, name):
     _one_line(*_run(capsys, "sweep", "--system", str(f), *TINY, "-q"))
 
 
-@pytest.mark.skipif(importlib.util.find_spec("qsid_core.validate") is None,
-                    reason="needs the engine's input validation (qsid_core.validate, branch 'inputs')")
+@pytest.mark.skipif(
+    importlib.util.find_spec("qsid_core.validate") is None,
+    reason="needs the engine's input validation (qsid_core.validate, branch 'inputs')",
+)
 def test_boolean_matrix_entry_is_refused(capsys, tmp_path):
     f = tmp_path / "true.json"
     f.write_text(json.dumps({"A": [[True]], "B": [[1.0]]}))

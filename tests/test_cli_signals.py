@@ -23,8 +23,14 @@ LONG = ["sweep", "--bits", "2:16", "--realizations", "200", "--trajectories", "4
 def start(tmp_path, *extra, workers_expected=2, settle=3.0):
     out = tmp_path / "result.json"
     out.write_text("previous result\n")
-    p = subprocess.Popen([sys.executable, "-m", "app.cli", *LONG, "--out", str(out), *extra], cwd=ROOT, env=ENV,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", *LONG, "--out", str(out), *extra],
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     end = time.monotonic() + HANG_S  # only a hang guard: a cold machine can take minutes to start a cluster
     desc: list[int] = []
     while time.monotonic() < end and p.poll() is None:  # workers up and computing
@@ -51,8 +57,9 @@ def finish(p, desc):
     return err, left
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL],
-                         ids=["TERM", "HUP", "INT", "KILL"])
+@pytest.mark.parametrize(
+    "sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL], ids=["TERM", "HUP", "INT", "KILL"]
+)
 def test_sweep_workers_signal_leaves_nothing(tmp_path, sig):
     p, out, desc = start(tmp_path, "--workers", "2")
     assert p.poll() is None and len(desc) >= 2, desc
@@ -65,9 +72,11 @@ def test_sweep_workers_signal_leaves_nothing(tmp_path, sig):
         assert p.returncode == 130 and "interrupted" in err and "Traceback" not in err, (p.returncode, err)
 
 
-@pytest.mark.xfail(reason="timing-dependent: on a cold or busy machine the local cluster's workers may not be up "
-                          "when the signal is sent (seen failing in a fresh-clone CI run); to be made deterministic",
-                   strict=False)
+@pytest.mark.xfail(
+    reason="timing-dependent: on a cold or busy machine the local cluster's workers may not be up "
+    "when the signal is sent (seen failing in a fresh-clone CI run); to be made deterministic",
+    strict=False,
+)
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["TERM", "INT"])
 def test_sweep_dask_local_signal_leaves_nothing(tmp_path, sig):
     pytest.importorskip("distributed")
@@ -82,9 +91,31 @@ def test_sweep_dask_local_signal_leaves_nothing(tmp_path, sig):
 
 def test_out_is_written_whole_with_the_usual_permissions(tmp_path):
     out = tmp_path / "r.json"
-    r = subprocess.run([sys.executable, "-m", "app.cli", "sweep", "--bits", "4", "--realizations", "2",
-                        "--trajectories", "5", "--steps", "50", "--no-mpc", "-q", "--out", str(out)], cwd=ROOT,
-                       env=ENV, capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "app.cli",
+            "sweep",
+            "--bits",
+            "4",
+            "--realizations",
+            "2",
+            "--trajectories",
+            "5",
+            "--steps",
+            "50",
+            "--no-mpc",
+            "-q",
+            "--out",
+            str(out),
+        ],
+        cwd=ROOT,
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     assert out.read_text().strip().startswith("{") and [f.name for f in tmp_path.iterdir()] == ["r.json"]
     mask = os.umask(0)

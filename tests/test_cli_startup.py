@@ -18,8 +18,9 @@ print(sorted(m for m in ("numpy", "scipy", "qsid_core", "plotly", "tqdm", "contr
 
 
 def _loaded(argv):
-    r = subprocess.run([sys.executable, "-c", PROBE.format(argv=argv)], cwd=ROOT, capture_output=True, text=True,
-                       timeout=600)
+    r = subprocess.run(
+        [sys.executable, "-c", PROBE.format(argv=argv)], cwd=ROOT, capture_output=True, text=True, timeout=600
+    )
     assert r.returncode == 0, r.stderr
     return r.stdout.strip().splitlines()[-1]
 

@@ -15,8 +15,9 @@ SATURATED = dict(x0=(20.0, 20.0, 0.0, 0.0), u_max=0.3, steps=50)  # the issue's 
 def _boeing_models(k, seed=0):
     s = boeing747()
     rng = np.random.default_rng(seed)
-    return s, [(s.A, s.B)] + [(s.A + 0.01 * rng.normal(size=s.A.shape), s.B + 0.05 * rng.normal(size=s.B.shape))
-                              for _ in range(k)]
+    return s, [(s.A, s.B)] + [
+        (s.A + 0.01 * rng.normal(size=s.A.shape), s.B + 0.05 * rng.normal(size=s.B.shape)) for _ in range(k)
+    ]
 
 
 def _reference(model, s, cfg):
@@ -29,7 +30,7 @@ def _reference(model, s, cfg):
     Su = np.zeros((N * n, N * m))
     for k in range(N):
         for j in range(k + 1):
-            Su[k * n:(k + 1) * n, j * m:(j + 1) * m] = np.linalg.matrix_power(A, k - j) @ B
+            Su[k * n : (k + 1) * n, j * m : (j + 1) * m] = np.linalg.matrix_power(A, k - j) @ B
     Qb = np.kron(np.eye(N), w.Q)
     Qb[-n:, -n:] = Qf
     H = Su.T @ Qb @ Su + np.kron(np.eye(N), w.R)
@@ -63,8 +64,9 @@ def test_saturated_loops_equal_an_exact_reference(compiled, monkeypatch):
 
 def test_daqp_alone_equals_the_exact_reference(monkeypatch):
     # switch off the batched active-set step: every constrained step goes to DAQP
-    monkeypatch.setattr(closed_loop, "box_qp_batch",
-                        lambda H, g, ub, hi, lo: (np.full(g.shape, np.nan), np.zeros(len(g), dtype=bool)))
+    monkeypatch.setattr(
+        closed_loop, "box_qp_batch", lambda H, g, ub, hi, lo: (np.full(g.shape, np.nan), np.zeros(len(g), dtype=bool))
+    )
     s, models = _boeing_models(2, seed=1)
     cfg = MPCConfig(**SATURATED)
     loops = run_closed_loops(models, s.A, s.B, cfg, s)
@@ -123,8 +125,9 @@ def test_diverging_loop_is_a_diverged_failure():
 
 def test_iteration_limit_is_a_max_iter_failure():
     s = dc_motor()
-    loops = run_closed_loops([(s.A, s.B)], s.A, s.B,
-                             MPCConfig(x0=(1.0, 0.0, 0.0), x_max=(10.0, 0.1, 10.0), steps=30, max_iter=1), s)
+    loops = run_closed_loops(
+        [(s.A, s.B)], s.A, s.B, MPCConfig(x0=(1.0, 0.0, 0.0), x_max=(10.0, 0.1, 10.0), steps=30, max_iter=1), s
+    )
     assert loops.failure == [FailureKind.MAX_ITER]
 
 

@@ -19,8 +19,15 @@ from pathlib import Path
 import pytest
 
 CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-        "--no-first-run", "--disable-quic", "--disable-sync"]
+ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+    "--disable-quic",
+    "--disable-sync",
+]
 TIMEOUT_MS = 300_000  # a hang guard for every wait, not a speed target
 
 # Console messages that are not errors of the dashboard: headless Chromium renders WebGL in software
@@ -99,8 +106,7 @@ def _set_bits(page, b: int) -> None:
     box = _bits_input(page)
     box.fill(str(b))
     box.press("Tab")
-    page.wait_for_function(f"JSON.stringify(({ERROR_PLOT_MARKS})()) === JSON.stringify([{b}, {b}])",
-                           timeout=TIMEOUT_MS)
+    page.wait_for_function(f"JSON.stringify(({ERROR_PLOT_MARKS})()) === JSON.stringify([{b}, {b}])", timeout=TIMEOUT_MS)
 
 
 def _scene_pixels_near(png: Path, rgb: tuple, tol: int = 24) -> int:
@@ -110,13 +116,22 @@ def _scene_pixels_near(png: Path, rgb: tuple, tol: int = 24) -> int:
     img = Image.open(png).convert("RGB")
     w, h = img.size
     px = img.load()
-    return sum(1 for x in range(int(0.3 * w), int(0.66 * w)) for y in range(h)
-               if all(abs(a - b) <= tol for a, b in zip(px[x, y], rgb)))
+    return sum(
+        1
+        for x in range(int(0.3 * w), int(0.66 * w))
+        for y in range(h)
+        if all(abs(a - b) <= tol for a, b in zip(px[x, y], rgb))
+    )
 
 
 #: Text each plots-panel tab shows once its views are drawn (titles of the views in that tab).
-TAB_TEXTS = {"Identification": "‖A−Â‖/‖A‖", "Control": "closed loops at b", "Quantizer": "error variance",
-             "Data length": "error vs data length", "Compare": "phase portraits at b"}
+TAB_TEXTS = {
+    "Identification": "‖A−Â‖/‖A‖",
+    "Control": "closed loops at b",
+    "Quantizer": "error variance",
+    "Data length": "error vs data length",
+    "Compare": "phase portraits at b",
+}
 
 
 def _open_plot_tab(page, label: str) -> int:
@@ -126,9 +141,13 @@ def _open_plot_tab(page, label: str) -> int:
     text = TAB_TEXTS[label]
     page.wait_for_function(
         """(t) => [...document.querySelectorAll('.js-plotly-plot')].some(
-               e => e.offsetParent !== null && e.textContent.includes(t))""", arg=text, timeout=TIMEOUT_MS)
-    return page.evaluate("[...document.querySelectorAll('.js-plotly-plot')].filter(e => e.offsetParent !== null)"
-                         ".length")
+               e => e.offsetParent !== null && e.textContent.includes(t))""",
+        arg=text,
+        timeout=TIMEOUT_MS,
+    )
+    return page.evaluate(
+        "[...document.querySelectorAll('.js-plotly-plot')].filter(e => e.offsetParent !== null).length"
+    )
 
 
 def test_dashboard_in_a_real_browser(dash, tmp_path):
@@ -156,19 +175,23 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
                     page1.wait_for_function(
                         """() => [...document.querySelectorAll('.js-plotly-plot')].some(e => e.offsetParent !== null
                                && e.textContent.includes('realizations') && e.textContent.includes('Theorem 1'))""",
-                        timeout=TIMEOUT_MS)
+                        timeout=TIMEOUT_MS,
+                    )
                     assert s1.datalength.lookup(s1.last_frame.values) is not None
                 if label == "Compare":  # pin the current result: the note says so, the error plot gets dashed lines
                     page1.get_by_role("button", name="Pin current result").click()
-                    page1.wait_for_function("() => document.body.textContent.includes('Pinned (dashed)')",
-                                            timeout=TIMEOUT_MS)
+                    page1.wait_for_function(
+                        "() => document.body.textContent.includes('Pinned (dashed)')", timeout=TIMEOUT_MS
+                    )
                     assert s1.wait_idle(TIMEOUT_MS / 1000) and s1.pinned is not None
                     assert any("(pinned" in (tr.name or "") for tr in s1.plots["error"].figure.data)
                 if shots:  # the README's per-tab pictures: the plots panel only
                     page1.wait_for_timeout(800)
                     box = page1.locator(".js-plotly-plot").locator("visible=true").first.bounding_box()
-                    page1.screenshot(path=os.path.join(shots, f"view-{label.lower().replace(' ', '-')}.png"),
-                                     clip=dict(x=box["x"] - 10, y=0, width=box["width"] + 30, height=900))
+                    page1.screenshot(
+                        path=os.path.join(shots, f"view-{label.lower().replace(' ', '-')}.png"),
+                        clip=dict(x=box["x"] - 10, y=0, width=box["width"] + 30, height=900),
+                    )
             sphere0 = s1.portrait.view.sphere_radius
             pts0 = s1.portrait.traj.points.copy()
 
@@ -192,8 +215,9 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
             with page1.expect_file_chooser(timeout=TIMEOUT_MS) as chooser:
                 page1.get_by_role("button", name="Load settings (JSON)", exact=True).click()
             chooser.value.set_files(str(saved))
-            page1.wait_for_function("() => document.body.textContent.includes('Loaded settings from')",
-                                    timeout=TIMEOUT_MS)
+            page1.wait_for_function(
+                "() => document.body.textContent.includes('Loaded settings from')", timeout=TIMEOUT_MS
+            )
             assert s1.wait_idle(TIMEOUT_MS / 1000) and s1.last_frame.bits == 12 and s1.controls["bits"].value == 12
             page1.wait_for_function("() => document.body.textContent.includes('b = 12 bits')", timeout=TIMEOUT_MS)
             assert page1.evaluate(ERROR_PLOT_MARKS) == [12, 12]
@@ -266,7 +290,9 @@ def test_lesson_opens_on_its_plot_above_the_fold(size, tmp_path):
                 assert session.wait_idle(TIMEOUT_MS / 1000)
                 page.wait_for_function(
                     """() => [...document.querySelectorAll('.js-plotly-plot')].some(
-                           e => e.offsetParent !== null && e.textContent.includes('δ'))""", timeout=TIMEOUT_MS)
+                           e => e.offsetParent !== null && e.textContent.includes('δ'))""",
+                    timeout=TIMEOUT_MS,
+                )
                 tops = page.evaluate("""() => [...document.querySelectorAll('.js-plotly-plot')]
                     .filter(e => e.offsetParent !== null)
                     .map(e => [e.getBoundingClientRect().top, e.textContent.includes('a-posteriori δ')])""")

@@ -12,10 +12,10 @@ import signal
 import time
 
 import pytest
+from support import CAMERA, HANG_S, SMALL, connect_ws, open_tab, wait_until
 
 from app.dashboard import DashboardApp
 from app.dashboard.pool import Pool, PoolTimeout, Superseded
-from support import CAMERA, HANG_S, SMALL, connect_ws, open_tab, wait_until
 
 HEAVIER = dict(trajectories=200, steps=1000, realizations=50)  # the letter's size: seconds of pool work
 LIGHTER = dict(trajectories=20, steps=100, realizations=6)  # milliseconds of work: only a hang times out
@@ -166,9 +166,12 @@ def test_a_tab_closed_while_it_is_being_built_is_not_kept(monkeypatch):
         app.stop()
 
 
-@pytest.mark.xfail(reason="timing-dependent: if the workers are stopped before the heavy task reaches them no stale "
-                          "task holds a worker and the pool is not replaced (seen in a fresh-clone CI run); a worker "
-                          "stopped while idle is an open edge case", strict=False)
+@pytest.mark.xfail(
+    reason="timing-dependent: if the workers are stopped before the heavy task reaches them no stale "
+    "task holds a worker and the pool is not replaced (seen in a fresh-clone CI run); a worker "
+    "stopped while idle is an open edge case",
+    strict=False,
+)
 def test_newest_settings_win_over_a_hung_task_without_waiting_for_the_timeout():
     """Workers frozen during heavy work, the task timeout out of reach: the tab's newer (small) settings replace
     the busy pool instead of queueing behind the stale task."""

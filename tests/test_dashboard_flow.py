@@ -6,10 +6,10 @@ import threading
 import time
 
 import numpy as np
+from support import HANG_S, wait_until
 
 from app.dashboard.flow import FairSlots, TabCallbacks, inline, pool_tasks
 from app.dashboard.pool import SHARE_BYTES, Pool, _Shared
-from support import HANG_S, wait_until
 
 
 def test_inline_callbacks_run_at_once_in_the_callers_thread():
@@ -83,10 +83,10 @@ def test_fair_slots_are_handed_out_in_order_nobody_barges_in():
 
 
 def test_pool_tasks_last_a_fraction_of_a_second_and_use_every_worker():
-    assert pool_tasks(50 * 200, 20, 1, 2) == 2            # small data: one task per worker
-    assert pool_tasks(400 * 2000, 100, 1, 2) >= 8          # the panel's largest data: short tasks
+    assert pool_tasks(50 * 200, 20, 1, 2) == 2  # small data: one task per worker
+    assert pool_tasks(400 * 2000, 100, 1, 2) >= 8  # the panel's largest data: short tasks
     assert pool_tasks(400 * 2000, 100, 15, 2) > pool_tasks(400 * 2000, 100, 1, 2)  # a pass over more b
-    assert pool_tasks(10**8, 3, 15, 2) == 3                # never more tasks than realizations
+    assert pool_tasks(10**8, 3, 15, 2) == 3  # never more tasks than realizations
     assert pool_tasks(10, 1, 1, 4) == 1
 
 

@@ -8,21 +8,21 @@ that the tab explains it in plain words and keeps its last good view.
 
 from __future__ import annotations
 
-
 import msgspec
 import pytest
+from support import HANG_S, wait_until
 
 from app.dashboard.controls import CONTROLS
 from app.dashboard.inputs import MAX_TEXT, check_value
 from app.dashboard.settings import InputError
-from support import HANG_S, wait_until
 
 
 def send(tab, handle, value, timeout: float = HANG_S):
     """Send ``value`` for ``handle`` over the tab's websocket, as a browser does; wait until handled."""
     g0 = tab.session.generation
-    tab.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid,
-                                        "updates": {"value": value}}))
+    tab.ws.send(
+        msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid, "updates": {"value": value}})
+    )
     wait_until(lambda: tab.session.generation > g0, "the server took the value", timeout, every=0.01)
     return tab.wait()
 
@@ -70,8 +70,8 @@ def test_absurd_fixed_ranges_are_refused(tab):
     tab.set(range_mode="fixed")
     view = tab.session.portrait.view
     for text, words in [
-        ("0, 5e-324", "narrow"),                  # was: every realization fails, then a reshape error
-        ("-1e308, 1e308", "between -1e+12"),      # was: 'ready' with eps = inf and 20/20 failures
+        ("0, 5e-324", "narrow"),  # was: every realization fails, then a reshape error
+        ("-1e308, 1e308", "between -1e+12"),  # was: 'ready' with eps = inf and 20/20 failures
         ("nan, 1", "finite"),
     ]:
         send(tab, tab.controls["fixed_range"], text)
@@ -116,11 +116,14 @@ def _send_raw(tab, handle, updates: dict) -> None:
     tab.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid, "updates": updates}))
 
 
-@pytest.mark.parametrize("updates, words", [
-    ({"value": "abc"}, "ValueError"),        # text for a slider: viser's own int() refuses it
-    ({"value": [1, 2]}, "TypeError"),
-    ({"no_such_prop": 1}, "AssertionError"),  # a property the input does not have
-])
+@pytest.mark.parametrize(
+    "updates, words",
+    [
+        ({"value": "abc"}, "ValueError"),  # text for a slider: viser's own int() refuses it
+        ({"value": [1, 2]}, "TypeError"),
+        ({"no_such_prop": 1}, "AssertionError"),  # a property the input does not have
+    ],
+)
 def test_values_viser_itself_refuses_are_explained_not_dropped(tab, updates, words):
     """These never reach our callbacks (viser converts first): the tab says so, the view and the value stay."""
     handle, before = tab.controls["bits"], tab.controls["bits"].value

@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from support import HANG_S, ROOT, Tab
 
 from app.dashboard.frames import full_row
 from app.dashboard.lessons import LESSONS, get_lesson, lesson_names, lesson_values
-from app.dashboard.settings import LABELS, estimators, resolve_system, sweep_config
+from app.dashboard.settings import resolve_system, sweep_config
 from app.figures import registry
 from qsid_core import Experiment
 from qsid_core.sweep import fit_slope
-from support import HANG_S, ROOT, Tab
 
 _EX: dict = {}
 
@@ -123,6 +123,7 @@ def test_ultimate_bound_realized_above_letters_and_loops_end_below_both():
 
 # ----- the selector in a served tab ---------------------------------------------------------
 
+
 def test_selecting_a_lesson_sets_the_controls_and_shows_its_text(tab):
     c = tab.controls
     assert not c.lesson_text.visible and c["lesson"].options[0] == "(none)"
@@ -149,8 +150,11 @@ def test_a_lesson_does_not_depend_on_the_lessons_opened_before(tab):
     tab.set(u_max=0.3, realizations=7)  # and the teacher changed more by hand
     tab.set(lesson="fig2")
     after = tab.frame.values
-    assert after == fresh, {k: (getattr(fresh, k), getattr(after, k)) for k in fresh.__dataclass_fields__
-                            if getattr(fresh, k) != getattr(after, k)}
+    assert after == fresh, {
+        k: (getattr(fresh, k), getattr(after, k))
+        for k in fresh.__dataclass_fields__
+        if getattr(fresh, k) != getattr(after, k)
+    }
 
 
 def test_each_controls_folder_is_built_once(tab):
@@ -159,8 +163,11 @@ def test_each_controls_folder_is_built_once(tab):
 
     names = [c.folder for c in CONTROLS if c.folder]
     gui = tab.session.client.gui
-    labels = [getattr(h, "label", None) for h in gui._container_handle_from_uuid.values()] \
-        if hasattr(gui, "_container_handle_from_uuid") else None
+    labels = (
+        [getattr(h, "label", None) for h in gui._container_handle_from_uuid.values()]
+        if hasattr(gui, "_container_handle_from_uuid")
+        else None
+    )
     if labels is None:
         pytest.skip("this viser keeps no container registry to count folders in")
     for name in set(names):
@@ -182,8 +189,13 @@ def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
 
     from app.dashboard import DashboardApp
 
-    out = subprocess.run([sys.executable, "-m", "app.dashboard", "--lesson", "nope"], cwd=ROOT,
-                         capture_output=True, text=True, timeout=HANG_S)
+    out = subprocess.run(
+        [sys.executable, "-m", "app.dashboard", "--lesson", "nope"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=HANG_S,
+    )
     assert out.returncode == 2 and out.stderr.strip().count("\n") == 0
     assert "unknown lesson 'nope'; choose one of fig1" in out.stderr
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson="bound")
@@ -198,18 +210,22 @@ def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
 
 # ----- text against marks, the new lessons, guided lessons --------------------------------
 
+
 def _ls_rows(ex: Experiment, bits) -> list:
     from app.dashboard.frames import row
     from qsid_core.sweep import summary_row
 
-    return [row(summary_row(ex.system.n, ex.identification(b, "ls"), ex.theory(b), None,
-                            assumptions=ex.assumptions(b))) for b in bits]
+    return [
+        row(summary_row(ex.system.n, ex.identification(b, "ls"), ex.theory(b), None, assumptions=ex.assumptions(b)))
+        for b in bits
+    ]
 
 
 def _line(fig, name: str, axis: str) -> set:
     """The b where the trace ``name`` on x axis ``axis`` is drawn."""
-    return {b for t in fig.data if t.name == name and (t.xaxis or "x") == axis
-            for b, y in zip(t.x, t.y) if y is not None}
+    return {
+        b for t in fig.data if t.name == name and (t.xaxis or "x") == axis for b, y in zip(t.x, t.y) if y is not None
+    }
 
 
 def test_letters_lessons_use_ls_only():
@@ -238,8 +254,9 @@ def test_fig2_text_note_and_marks_agree():
     assert "overload: the per-channel data range (min/max, no guard band) clips" in note and "for B̂" in note
     # the theory lines are drawn last: above the data, never hidden
     kinds = [t.name or "" for t in fig.data]
-    assert max(i for i, k in enumerate(kinds) if k == "LS") < min(i for i, k in enumerate(kinds)
-                                                                    if k.startswith("Theorem 1"))
+    assert max(i for i, k in enumerate(kinds) if k == "LS") < min(
+        i for i, k in enumerate(kinds) if k.startswith("Theorem 1")
+    )
     # the slope is read out next to the letter's
     titles = " ".join(a.text for a in fig.layout.annotations)
     assert "(letter −0.301)" in titles and "(letter −0.322)" in titles
@@ -298,8 +315,9 @@ def test_choosing_a_lesson_brings_its_plot_forward(tab):
 
 @pytest.mark.parametrize("name, tab_name", [("fig1", "Identification"), ("bound", "Control")])
 def test_lesson_flag_opens_on_its_tab(name, tab_name):
-    from app.dashboard.server import DashboardApp
     from support import Tab
+
+    from app.dashboard.server import DashboardApp
 
     a = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson=name)
     try:

@@ -15,7 +15,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from support import HANG_S, open_tab, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,8 +70,7 @@ def test_a_new_tab_is_drawn_while_three_clients_flood():
             try:
                 waited = tab.wait_ready(HANG_S)
                 during = c.sent
-                wait_until(lambda: c.sent >= during + 100, "the flood went on after the tab was drawn",
-                           every=0.05)
+                wait_until(lambda: c.sent >= during + 100, "the flood went on after the tab was drawn", every=0.05)
             finally:
                 tab.close()
             assert c.connected == 3 and c.failed == 0, (c.connected, c.failed)
@@ -83,8 +81,9 @@ def test_a_new_tab_is_drawn_while_three_clients_flood():
         _stop(s)
 
 
-HEAVY = dict(trajectories=400, steps=2000, realizations=100, horizon=50, mpc_steps=300,
-             identification="LS + BCLS")  # the largest the panel allows: seconds of work per stage
+HEAVY = dict(
+    trajectories=400, steps=2000, realizations=100, horizon=50, mpc_steps=300, identification="LS + BCLS"
+)  # the largest the panel allows: seconds of work per stage
 LIGHT = dict(trajectories=10, steps=60, realizations=4, horizon=10, mpc_steps=15, identification="LS")
 
 

@@ -5,9 +5,9 @@ inputs as a person would and asserts what the views then show."""
 from __future__ import annotations
 
 import numpy as np
+from support import HANG_S, open_tab
 
 from app.figures.registry import TABS, VIEWS
-from support import HANG_S, open_tab
 
 
 def fig(tab, name):
@@ -72,8 +72,10 @@ def test_pin_overlays_dashed_curves_until_unpinned(tab):
         assert pinned and all(tr.line.dash == "dash" for tr in pinned), name
         # measured curves only: no pinned copies of reference lines (slope, Theorem 1) or of marks
         assert not [tr for tr in pinned if tr.mode == "markers" or "Theorem 1" in tr.name or "/bit" in tr.name]
-    assert {tr.name for tr in fig(tab, "error").data if "(pinned" in (tr.name or "")} == \
-        {"LS (pinned b=4)", "BCLS (pinned b=4)"}
+    assert {tr.name for tr in fig(tab, "error").data if "(pinned" in (tr.name or "")} == {
+        "LS (pinned b=4)",
+        "BCLS (pinned b=4)",
+    }
     assert len(fig(tab, "error").data) > n_err
     tab.session.unpin()
     tab.wait()
@@ -128,9 +130,11 @@ def test_bench_dashboard_times_every_view():
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     import bench_dashboard
+
     from app.dashboard.cache import SharedCache
     from app.dashboard.settings import Values
 
-    out = bench_dashboard.per_view(Values(trajectories=10, steps=60, realizations=4, mpc_steps=15), SharedCache(),
-                                   [3, 5], None, 1)
+    out = bench_dashboard.per_view(
+        Values(trajectories=10, steps=60, realizations=4, mpc_steps=15), SharedCache(), [3, 5], None, 1
+    )
     assert list(out) == [v.name for v in VIEWS] and all(len(x) == 2 and min(x) >= 0 for x in out.values())

@@ -7,7 +7,6 @@ import time
 
 import msgspec
 import plotly.offline
-import pytest
 import viser
 import zstandard
 from websockets.sync.client import connect
@@ -28,7 +27,7 @@ def _messages(chunks: list) -> list:
     for raw in chunks:
         if isinstance(raw, bytes) and len(raw) >= 16:
             size = int.from_bytes(raw[8:16], "little")
-            out += msgspec.msgpack.decode(dz.decompress(raw[16:16 + size])).get("messages", [])
+            out += msgspec.msgpack.decode(dz.decompress(raw[16 : 16 + size])).get("messages", [])
     return out
 
 
@@ -36,7 +35,8 @@ def test_shipped_bundle_is_the_plotly_js_version_plotly_draws_for():
     version, source = plotlyjs._bundle()
     assert version == plotly.offline.get_plotlyjs_version(), (
         "update app/dashboard/assets/plotly-basic.min.js: npm pack plotly.js-basic-dist-min@"
-        f"{plotly.offline.get_plotlyjs_version()}")
+        f"{plotly.offline.get_plotlyjs_version()}"
+    )
     assert 0.5e6 < len(source) < 2e6  # the basic bundle, not the 4.8 MB full one
     assert plotlyjs.bundle_version("/**\n* plotly.js (basic - minified) v4.1.1\n*/") == "4.1.1"
     assert plotlyjs.bundle_version("no banner") == ""
@@ -77,9 +77,14 @@ def test_sent_once_and_viser_told_or_a_reason_when_versions_differ(monkeypatch):
 def test_a_tab_receives_the_basic_bundle_and_never_the_full_one():
     app = DashboardApp(host="127.0.0.1", port=0, workers=0)
     chunks: list[bytes] = []
-    ws = connect(app.url.replace("http://", "ws://"), subprotocols=[f"viser-v{viser.__version__}"], max_size=None,
-                 open_timeout=120)
+    ws = connect(
+        app.url.replace("http://", "ws://"),
+        subprotocols=[f"viser-v{viser.__version__}"],
+        max_size=None,
+        open_timeout=120,
+    )
     try:
+
         def read():
             try:
                 while True:
@@ -88,10 +93,22 @@ def test_a_tab_receives_the_basic_bundle_and_never_the_full_one():
                 pass
 
         threading.Thread(target=read, daemon=True).start()
-        ws.send(msgspec.msgpack.encode({
-            "type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [3.0, 0.0, 0.0],
-            "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
-            "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}))
+        ws.send(
+            msgspec.msgpack.encode(
+                {
+                    "type": "ViewerCameraMessage",
+                    "wxyz": [1.0, 0.0, 0.0, 0.0],
+                    "position": [3.0, 0.0, 0.0],
+                    "fov": 1.0,
+                    "near": 0.01,
+                    "far": 1000.0,
+                    "image_height": 900,
+                    "image_width": 1400,
+                    "look_at": [0.0, 0.0, 0.0],
+                    "up_direction": [0.0, 0.0, 1.0],
+                }
+            )
+        )
         (session,) = app.wait_for_sessions(1, timeout=300)
         assert session.views.plotly_js_note is None
         assert session.wait_idle(300)

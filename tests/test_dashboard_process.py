@@ -14,7 +14,6 @@ import time
 from pathlib import Path
 
 import pytest
-
 from support import HANG_S, alive, children, descendants, gone_within, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,16 +24,28 @@ ENV = dict(os.environ, PYTHONPATH=str(ROOT))
 
 
 def run(*args, timeout=HANG_S):
-    return subprocess.run([sys.executable, "-m", "app.dashboard", *args], cwd=ROOT, capture_output=True, text=True,
-                          env=ENV, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "app.dashboard", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=ENV,
+        timeout=timeout,
+    )
 
 
 class Server:
     """``python -m app.dashboard`` on a free loopback port; ``url`` once it printed it."""
 
     def __init__(self, *args):
-        self.p = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", "0", *args], cwd=ROOT, env=ENV,
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.p = subprocess.Popen(
+            [sys.executable, "-m", "app.dashboard", "--port", "0", *args],
+            cwd=ROOT,
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         line, end = "", time.time() + HANG_S
         while not line.startswith("qsid dashboard:") and time.time() < end and self.p.poll() is None:
             line = self.p.stdout.readline()
@@ -114,8 +125,9 @@ def test_ctrl_c_stops_everything_during_concurrent_mpc_work():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL],
-                         ids=["TERM", "HUP", "INT", "KILL"])
+@pytest.mark.parametrize(
+    "sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL], ids=["TERM", "HUP", "INT", "KILL"]
+)
 def test_every_signal_leaves_no_descendant(sig):
     """A tab open, the pool and its resource tracker running: after the signal nothing the server started lives
     on; TERM/HUP/INT take the graceful path (one 'stopping' line, exit 0), KILL leaves workers that end by

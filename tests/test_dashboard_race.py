@@ -92,8 +92,9 @@ async def _make_event(loop):
 def test_a_tab_whose_draw_raises_recovers(monkeypatch):
     """An exception inside a draw (as viser's race raised it) is retried at once; failing twice it is one error
     line, and the tab follows its next change."""
-    from app.dashboard import DashboardApp, session
     from support import SMALL, Tab
+
+    from app.dashboard import DashboardApp, session
 
     real, fail = session.Session._draw, {"left": 1}
 

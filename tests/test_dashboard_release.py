@@ -6,8 +6,9 @@ import gc
 import time
 import weakref
 
-from app.dashboard import DashboardApp
 from support import SMALL, Tab
+
+from app.dashboard import DashboardApp
 
 
 def test_closed_tabs_leave_nothing_behind():

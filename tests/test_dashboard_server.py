@@ -19,12 +19,12 @@ import time
 
 import numpy as np
 import pytest
+from support import HANG_S, ROOT, SMALL, marks, open_tab, wait_until
 
 from app.dashboard import DashboardApp
 from app.dashboard.cache import SharedCache
 from app.dashboard.session import iter_frames
 from app.figures.registry import view_names
-from support import HANG_S, ROOT, SMALL, marks, open_tab, wait_until
 
 
 def test_binds_localhost_and_serves_the_client(dashboard):
@@ -189,8 +189,14 @@ def test_worker_survives_unexpected_errors(tab, monkeypatch):
 
 def test_command_line_prints_url_and_stops_cleanly_on_ctrl_c():
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "0"], cwd=ROOT,
-                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "0"],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         line = ""
         deadline = time.time() + HANG_S
@@ -208,8 +214,14 @@ def test_command_line_prints_url_and_stops_cleanly_on_ctrl_c():
 
 
 def test_command_line_rejects_unknown_system():
-    r = subprocess.run([sys.executable, "-m", "app.dashboard", "--system", "nope"], cwd=ROOT, capture_output=True,
-                       text=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=HANG_S)
+    r = subprocess.run(
+        [sys.executable, "-m", "app.dashboard", "--system", "nope"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        timeout=HANG_S,
+    )
     assert r.returncode == 2 and "invalid choice: 'nope'" in r.stderr and "Traceback" not in r.stderr
 
 
@@ -233,5 +245,6 @@ def test_default_process_pool_gives_the_same_results():
     for lab in ("LS", "BCLS"):
         for b in range(1, 17):
             assert frame.rows[lab][b]["err_A"] == inline[lab][b]["err_A"]
-            assert frame.rows[lab][b]["mpc_cost"]["mean"] == pytest.approx(inline[lab][b]["mpc_cost"]["mean"],
-                                                                           rel=1e-12)
+            assert frame.rows[lab][b]["mpc_cost"]["mean"] == pytest.approx(
+                inline[lab][b]["mpc_cost"]["mean"], rel=1e-12
+            )

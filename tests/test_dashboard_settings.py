@@ -5,13 +5,24 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.dashboard.viewpanel import VIEW_FIELDS
-
 from app.dashboard.controls import CONTROLS
 from app.dashboard.settings import (
-    ALL_BITS, IDENT_CHOICES, INTERACTIVE, PAPER_SCALE, InputError, Values, estimators, format_weights,
-    log_from_weights, matrix_text, mpc_config, resolve_system, sweep_config, weights_from_log,
+    ALL_BITS,
+    IDENT_CHOICES,
+    INTERACTIVE,
+    PAPER_SCALE,
+    InputError,
+    Values,
+    estimators,
+    format_weights,
+    log_from_weights,
+    matrix_text,
+    mpc_config,
+    resolve_system,
+    sweep_config,
+    weights_from_log,
 )
+from app.dashboard.viewpanel import VIEW_FIELDS
 from app.figures.phase_scene import axes_indices, axes_options
 from qsid_core import MPCConfig, SweepConfig
 from qsid_core.errors import QsidError
@@ -34,10 +45,28 @@ def test_defaults_map_to_the_interactive_sweep():
 
 
 def test_every_control_reaches_the_config():
-    v = Values(system="boeing747", bits=7, dither="none", range_mode="shared", guard=True, realizations=3,
-               dither_seed=9, trajectories=12, steps=40, data_seed=5, identification="BCLS", horizon=7,
-               log_q=(0.0, -1.0, 1.0, 0.5), log_r=(0.3, -0.3), u_max=2.5, x0="1, 0.5, 0, 0", mpc_steps=30,
-               theta=0.3, rho_auto=False, rho=2.0)
+    v = Values(
+        system="boeing747",
+        bits=7,
+        dither="none",
+        range_mode="shared",
+        guard=True,
+        realizations=3,
+        dither_seed=9,
+        trajectories=12,
+        steps=40,
+        data_seed=5,
+        identification="BCLS",
+        horizon=7,
+        log_q=(0.0, -1.0, 1.0, 0.5),
+        log_r=(0.3, -0.3),
+        u_max=2.5,
+        x0="1, 0.5, 0, 0",
+        mpc_steps=30,
+        theta=0.3,
+        rho_auto=False,
+        rho=2.0,
+    )
     sysm = resolve_system(v).system
     cfg = sweep_config(v, sysm)
     assert sysm.name == "boeing747"
@@ -80,16 +109,19 @@ def test_custom_system_from_typed_matrices():
     assert matrix_text(np.array([[1.0, 0.099], [0.0, -2.5]])) == "1 0.099\n0 -2.5"
 
 
-@pytest.mark.parametrize("a, b, words", [
-    ("1 2\n3 x", "1; 0", "A row 2: '3 x' has an entry that is not a number"),
-    ("1 2\n3", "1; 0", "A: rows have different lengths"),
-    ("", "1", "A is empty"),
-    ("1 2 3\n4 5 6", "1; 0", "A must be square"),
-    ("0.9 0.2\n0 0.8", "1; 0; 2", "B must have one row per state (2 rows, like A); it has 3"),
-    ("0.9 0.2\n0 0.8", "1 0", "did you type B transposed?"),
-    ("0.9 0.2\n0 0.8", "[[1], [0]", "B: not valid JSON"),
-    ("0.9 inf\n0 0.8", "1; 0", "only finite numbers"),
-])
+@pytest.mark.parametrize(
+    "a, b, words",
+    [
+        ("1 2\n3 x", "1; 0", "A row 2: '3 x' has an entry that is not a number"),
+        ("1 2\n3", "1; 0", "A: rows have different lengths"),
+        ("", "1", "A is empty"),
+        ("1 2 3\n4 5 6", "1; 0", "A must be square"),
+        ("0.9 0.2\n0 0.8", "1; 0; 2", "B must have one row per state (2 rows, like A); it has 3"),
+        ("0.9 0.2\n0 0.8", "1 0", "did you type B transposed?"),
+        ("0.9 0.2\n0 0.8", "[[1], [0]", "B: not valid JSON"),
+        ("0.9 inf\n0 0.8", "1; 0", "only finite numbers"),
+    ],
+)
 def test_bad_custom_matrices_say_what_is_wrong(a, b, words):
     with pytest.raises(InputError) as exc:
         resolve_system(Values(system="custom", a_text=a, b_text=b))
@@ -104,16 +136,19 @@ def test_uncontrollable_custom_system_gives_a_note_not_an_error():
     assert len(ch.notes) == 1 and "not controllable" in ch.notes[0] and "MPC may fail" in ch.notes[0]
 
 
-@pytest.mark.parametrize("field, value, words", [
-    ("x0", "1, 2", "x0 needs 3 numbers (one per state: angle, speed, current); got 2"),
-    ("x0", "1, a, 0", "not a number"),
-    ("fixed_range", "2, 1", "every range needs lo < hi"),
-    ("fixed_range", "1 2 3", "fixed range: give one 'lo, hi' pair"),
-    ("u_max", -1.0, "u_max must be positive"),
-    ("bits", 17, "word length b must be between 1 and 16"),
-    ("rho", -2.0, "rho must be a positive number"),
-    ("theta", 1.0, "theta must be in (0, 1)"),
-])
+@pytest.mark.parametrize(
+    "field, value, words",
+    [
+        ("x0", "1, 2", "x0 needs 3 numbers (one per state: angle, speed, current); got 2"),
+        ("x0", "1, a, 0", "not a number"),
+        ("fixed_range", "2, 1", "every range needs lo < hi"),
+        ("fixed_range", "1 2 3", "fixed range: give one 'lo, hi' pair"),
+        ("u_max", -1.0, "u_max must be positive"),
+        ("bits", 17, "word length b must be between 1 and 16"),
+        ("rho", -2.0, "rho must be a positive number"),
+        ("theta", 1.0, "theta must be in (0, 1)"),
+    ],
+)
 def test_bad_panel_values_raise_plain_words(field, value, words):
     kw = {field: value}
     if field == "fixed_range":

@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import HANG_S, Tab
 
 from app.cli import build_parser
 from app.cli.runner import config, system_from_args
 from app.dashboard import share
 from app.dashboard.session import iter_frames
 from app.dashboard.settings import InputError, Values, resolve_system, sweep_config
-from support import HANG_S, Tab
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
@@ -30,22 +30,42 @@ SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
 CASES = {
     "defaults": Values(),
     "boeing, fixed per channel, no guard, BCLS": Values(
-        system="boeing747", range_mode="fixed", fixed_range="-20 20\n-20 20\n-5 5\n-3 3\n-1 1\n-1 1",
-        guard=False, identification="BCLS", dither="none", data_seed=5, dither_seed=9, bits=7),
+        system="boeing747",
+        range_mode="fixed",
+        fixed_range="-20 20\n-20 20\n-5 5\n-3 3\n-1 1\n-1 1",
+        guard=False,
+        identification="BCLS",
+        dither="none",
+        data_seed=5,
+        dither_seed=9,
+        bits=7,
+    ),
     "custom, weights, x0, rho": Values(
-        system="custom", a_text="0.9 0.1\n0 0.8", b_text="0; 1", log_q=(0.5, -1.0), log_r=(0.3,),
-        x0="1, -0.5", rho_auto=False, rho=2.5, theta=0.35, horizon=17, u_max=0.35, mpc_steps=40),
+        system="custom",
+        a_text="0.9 0.1\n0 0.8",
+        b_text="0; 1",
+        log_q=(0.5, -1.0),
+        log_r=(0.3,),
+        x0="1, -0.5",
+        rho_auto=False,
+        rho=2.5,
+        theta=0.35,
+        horizon=17,
+        u_max=0.35,
+        mpc_steps=40,
+    ),
     "shared range, paper scale": Values(range_mode="shared", trajectories=200, steps=1000, realizations=50),
     "tracking with a state box": Values(system="boeing747", x_ref="0.1, 0, 0, 0", x_max="5", compare_bits="2, 8"),
-    "one fixed pair": Values(range_mode="fixed", fixed_range="-2.5, 2.5", log_q=(0.0, 1.0, -2.0),
-                             log_r=(0.7, 0.7)),
-    "terminal weight Q and box, verdict settings": Values(qf="Q", terminal_box="0.8, 2, 2", verify_steps=1500,
-                                                           target=0.9, cost_gap=0.02, log_q=(0.3, -1.0, 0.0)),
+    "one fixed pair": Values(range_mode="fixed", fixed_range="-2.5, 2.5", log_q=(0.0, 1.0, -2.0), log_r=(0.7, 0.7)),
+    "terminal weight Q and box, verdict settings": Values(
+        qf="Q", terminal_box="0.8, 2, 2", verify_steps=1500, target=0.9, cost_gap=0.02, log_q=(0.3, -1.0, 0.0)
+    ),
     "terminal weight numbers": Values(system="boeing747", qf="5", terminal_box="3"),
     "tracking a sine": Values(system="boeing747", reference="sine:u:1:40"),
     "offset-free constant reference": Values(tracking="offset-free", x_ref="0.5, 0, 0"),
-    "real loop": Values(disturbance=0.01, disturbance_kind="uniform", feedback_bits=6, feedback_noise=0.002,
-                        loop_seed=4),
+    "real loop": Values(
+        disturbance=0.01, disturbance_kind="uniform", feedback_bits=6, feedback_noise=0.002, loop_seed=4
+    ),
 }
 
 
@@ -79,7 +99,8 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
 def test_command_is_short_at_the_defaults_and_names_changes():
     assert share.command_lines(Values(identification="LS")) == [
         "qsid sweep --realizations=20 --trajectories=50 --steps=200",
-        "qsid bits --realizations=20 --trajectories=50 --steps=200"]
+        "qsid bits --realizations=20 --trajectories=50 --steps=200",
+    ]
     line = share.command_lines(Values(identification="LS", target=0.9, cost_gap=0.05, verify_steps=100))[-1]
     assert line.endswith("--verify-steps=100 --target=0.9 --cost-gap=0.05")
     line = share.command_lines(CASES["boeing, fixed per channel, no guard, BCLS"])[0]
@@ -95,19 +116,22 @@ def test_settings_json_round_trip(name):
     assert share.values_from_json(text.encode()) == v
 
 
-@pytest.mark.parametrize("doc, needle", [
-    ("{not json", "not a JSON file"),
-    ('{"values": {}}', "not a qsid settings file"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"colour": 1}}', "unknown field(s) colour"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"bits": "four"}}', "bits must be a finite number"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"bits": 99}}', "between 1 and 16"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"realizations": 2.5}}', "whole number"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"guard": 1}}', "true or false"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"dither": "pink"}}', "dither must be one of"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"system": "custom", "a_text": "1 x"}}', "A row 1"),
-    ('{"kind": "qsid-dashboard-settings", "values": {"log_q": [1e400]}}', "finite numbers"),
-    ("[" * 100000, "not a JSON file"),
-])
+@pytest.mark.parametrize(
+    "doc, needle",
+    [
+        ("{not json", "not a JSON file"),
+        ('{"values": {}}', "not a qsid settings file"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"colour": 1}}', "unknown field(s) colour"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"bits": "four"}}', "bits must be a finite number"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"bits": 99}}', "between 1 and 16"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"realizations": 2.5}}', "whole number"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"guard": 1}}', "true or false"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"dither": "pink"}}', "dither must be one of"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"system": "custom", "a_text": "1 x"}}', "A row 1"),
+        ('{"kind": "qsid-dashboard-settings", "values": {"log_q": [1e400]}}', "finite numbers"),
+        ("[" * 100000, "not a JSON file"),
+    ],
+)
 def test_bad_settings_are_one_plain_line(doc, needle):
     with pytest.raises(InputError) as info:
         share.values_from_json(doc)
@@ -168,10 +192,12 @@ def test_download_then_upload_gives_the_same_view(monkeypatch):
         one.session.controls.q_sliders[1].value = 1.5
         one.wait()
         sent = {}
-        monkeypatch.setattr(one.session.client, "send_file_download",
-                            lambda name, content, **kw: sent.update({name: content}))
-        share._download(one.session, "qsid-settings.json",
-                        lambda _f: share.settings_json(share.panel_values(one.session)), False)
+        monkeypatch.setattr(
+            one.session.client, "send_file_download", lambda name, content, **kw: sent.update({name: content})
+        )
+        share._download(
+            one.session, "qsid-settings.json", lambda _f: share.settings_json(share.panel_values(one.session)), False
+        )
         assert set(sent) == {"qsid-settings.json"}
         two = Tab(app).wait()
         assert two.frame.values != one.frame.values
@@ -193,8 +219,14 @@ def test_dashboard_settings_flag(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text('{"kind": "qsid-dashboard-settings", "values": {"bits": 99}}')
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    r = subprocess.run([sys.executable, "-m", "app.dashboard", "--settings", str(bad), "--port", "0",
-                        "--workers", "0"], cwd=ROOT, capture_output=True, text=True, env=env, timeout=HANG_S)
+    r = subprocess.run(
+        [sys.executable, "-m", "app.dashboard", "--settings", str(bad), "--port", "0", "--workers", "0"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=HANG_S,
+    )
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith("qsid-dashboard: error: bad.json: settings: bits"), r.stderr
 

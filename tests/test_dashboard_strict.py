@@ -9,8 +9,11 @@ from app.dashboard.settings import InputError
 BY_NAME = {c.name: c for c in CONTROLS}
 
 
-@pytest.mark.parametrize("name,value", [("bits", 3.7), ("bits", "4"), ("bits", True)]
-                         + [(c.name, v) for c in CONTROLS if c.kind == "checkbox" for v in ("yes", 1)])
+@pytest.mark.parametrize(
+    "name,value",
+    [("bits", 3.7), ("bits", "4"), ("bits", True)]
+    + [(c.name, v) for c in CONTROLS if c.kind == "checkbox" for v in ("yes", 1)],
+)
 def test_a_non_integer_word_length_and_a_non_boolean_checkbox_are_refused(name, value):
     with pytest.raises(InputError, match=BY_NAME[name].label.split()[0]):
         check_value(BY_NAME[name], value)
@@ -27,8 +30,15 @@ def _custom(a):
     return resolve_system(Values(system="custom", a_text=a, b_text="0; 1"))
 
 
-@pytest.mark.parametrize("a,why", [("\u0661 0; 0 0.5", "plain ASCII"), ("\u0967 0; 0 0.5", "plain ASCII"),
-                                   ("1e-320 0; 0 0.5", "too close to zero"), ("1e-200 0; 0 0.5", "too close")])
+@pytest.mark.parametrize(
+    "a,why",
+    [
+        ("\u0661 0; 0 0.5", "plain ASCII"),
+        ("\u0967 0; 0 0.5", "plain ASCII"),
+        ("1e-320 0; 0 0.5", "too close to zero"),
+        ("1e-200 0; 0 0.5", "too close"),
+    ],
+)
 def test_other_scripts_digits_and_tiny_entries_are_refused_with_one_clear_line(a, why):
     with pytest.raises(InputError, match=why) as exc:
         _custom(a)

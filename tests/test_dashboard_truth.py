@@ -34,8 +34,17 @@ def check_axes(figs: dict) -> None:
 
 def test_issue_repro_boeing_mpc_axes_are_finite_and_at_most_12_decades():
     """Boeing, Q u = 10^2, Q w = 10, R elevator = 0.1, horizon 30, input bound 0.2 (issue 7, defect 5)."""
-    v = Values(system="boeing747", log_q=(2, 1, -1, -1), log_r=(-1, 0), horizon=30, u_max=0.2,
-               trajectories=10, steps=60, realizations=3, mpc_steps=30)
+    v = Values(
+        system="boeing747",
+        log_q=(2, 1, -1, -1),
+        log_r=(-1, 0),
+        horizon=30,
+        u_max=0.2,
+        trajectories=10,
+        steps=60,
+        realizations=3,
+        mpc_steps=30,
+    )
     f = last(v)
     figs = build_figures(f)
     check_axes(figs)
@@ -47,12 +56,22 @@ def test_issue_repro_boeing_mpc_axes_are_finite_and_at_most_12_decades():
 @pytest.mark.parametrize("seed", range(6))
 def test_random_settings_give_finite_axes(seed):
     rng = np.random.default_rng(seed)
-    v = Values(system=str(rng.choice(["dc-motor", "boeing747"])), bits=int(rng.integers(1, 17)),
-               dither=str(rng.choice(["subtractive", "none"])), guard=bool(rng.integers(2)),
-               range_mode=str(rng.choice(["per-channel", "shared", "fixed"])), fixed_range="-20, 20",
-               horizon=int(rng.integers(1, 31)), u_max=float(rng.choice([0.05, 0.2, 1.0, 10.0])),
-               input_amplitude=float(rng.choice([0.01, 1.0, 5.0])), theta=float(rng.choice([0.1, 0.5, 0.9])),
-               trajectories=5, steps=40, realizations=2, mpc_steps=20)
+    v = Values(
+        system=str(rng.choice(["dc-motor", "boeing747"])),
+        bits=int(rng.integers(1, 17)),
+        dither=str(rng.choice(["subtractive", "none"])),
+        guard=bool(rng.integers(2)),
+        range_mode=str(rng.choice(["per-channel", "shared", "fixed"])),
+        fixed_range="-20, 20",
+        horizon=int(rng.integers(1, 31)),
+        u_max=float(rng.choice([0.05, 0.2, 1.0, 10.0])),
+        input_amplitude=float(rng.choice([0.01, 1.0, 5.0])),
+        theta=float(rng.choice([0.1, 0.5, 0.9])),
+        trajectories=5,
+        steps=40,
+        realizations=2,
+        mpc_steps=20,
+    )
     check_axes(build_figures(last(v)))
 
 
@@ -120,7 +139,9 @@ def test_bound_plot_shows_both_bounds_with_the_caption():
     assert med.y[3] == pytest.approx(f.rows["LS"][4]["ultimate_bound_realized"]["median"])
     assert fig.layout.annotations[0].text.startswith(CAPTION)
     assert f"T = {f.values.mpc_steps} steps" in fig.layout.annotations[0].text  # ‖x_T‖ is at a finite T
-    ls_d, bcls_d = (next(t for t in fig.data if (t.name or "").startswith(f"a-posteriori δ, {k}")) for k in ("LS", "BCLS"))
+    ls_d, bcls_d = (
+        next(t for t in fig.data if (t.name or "").startswith(f"a-posteriori δ, {k}")) for k in ("LS", "BCLS")
+    )
     assert ls_d.line.color == bcls_d.line.color and bcls_d.line.dash == "dot"  # the bound's colour, not BCLS red
     s = summary_markdown(f)
     assert f"ρ = {f.rows['LS'][4]['rho']:.3g} (automatic)" in s and "a-posteriori δ LS" in s
@@ -140,6 +161,7 @@ def test_guard_band_is_on_by_default():
 
 
 # ----- 3-D view: outlines, off-scale label, toggle, time axis, time markers -------------------
+
 
 def test_bounds_are_outlines_to_scale_or_an_off_scale_label_and_can_be_hidden():
     from app.figures.phase_scene import SPHERE_CAP, scene_view
@@ -205,7 +227,7 @@ def test_bound_view_keeps_the_bounds_on_the_axis_and_shows_converged_norms_on_it
             assert y is None or not np.isfinite(y) or y <= 0 or lo <= np.log10(y) <= hi, (b, y, lo, hi)
     below = [t for t in fig.data if (t.name or "").startswith("‖x_T‖ below the axis")]
     finals = [r["final_state_norm"]["mean"] for r in f.rows["LS"].values()]
-    n_below = sum(1 for y in finals if y is not None and 0 < y < 10 ** lo)
+    n_below = sum(1 for y in finals if y is not None and 0 < y < 10**lo)
     assert n_below > 0  # the converged loops of this setting
     mean_below = [t for t in below if t.meta == "LS ‖x_T‖ mean"]
     assert sum(bool(t.showlegend) for t in below) == 1  # one legend entry for the edge

@@ -21,7 +21,19 @@ from qsid_core import Experiment
 from qsid_core.errors import QsidError
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
-NAMES = ("error", "eigen", "timeseries", "cost", "bits", "bound", "norm_time", "residual", "quantizer", "datalength", "portraits")
+NAMES = (
+    "error",
+    "eigen",
+    "timeseries",
+    "cost",
+    "bits",
+    "bound",
+    "norm_time",
+    "residual",
+    "quantizer",
+    "datalength",
+    "portraits",
+)
 
 
 def frames(v: Values, cache=None):
@@ -29,6 +41,7 @@ def frames(v: Values, cache=None):
 
 
 # ----- frames, scene, figures, summary ------------------------------------------------------
+
 
 def test_frames_current_b_first_then_all_curves():
     fr = list(iter_frames(Values(bits=6, **SMALL), SharedCache(), chunk=5, min_interval=0.0))
@@ -131,7 +144,13 @@ def test_summary_lists_eps_errors_overload_and_failures():
     f = frames(Values(bits=2, **SMALL))[-1]
     text = summary_markdown(f)
     assert "b = **2** bits" in text and "ε states: angle" in text and "ε inputs: voltage" in text
-    assert "overload:" in text and "predicted effect of the clipped samples on Â" in text and "| LS |" in text and "| BCLS |" in text and "Thm 1" in text
+    assert (
+        "overload:" in text
+        and "predicted effect of the clipped samples on Â" in text
+        and "| LS |" in text
+        and "| BCLS |" in text
+        and "Thm 1" in text
+    )
     assert "MPC cost with the true model" in text
     lp = f.loops["LS"]
     lp.failure[0], lp.messages[0] = "dare", "DARE has no stabilizing solution for the identified model"
@@ -159,6 +178,7 @@ def test_a_failed_identification_is_reported_and_not_drawn():
 
 
 # ----- registry and palette ------------------------------------------------------------------
+
 
 def test_every_registered_view_is_built():
     fr = frames(Values(bits=5, **SMALL))
@@ -188,7 +208,7 @@ def test_a_new_view_is_one_registry_entry(monkeypatch):
 def test_one_palette_for_plots_and_the_3d_scene():
     f = frames(Values(bits=6, **SMALL))[-1]
     sv = scene_view(f)
-    R, T = 4, 15
+    T = 15
     # per-vertex colours go to the screen as linear light: the scene sends the palette colour linearised
     assert tuple(sv.colors[0, 0]) == vertex_rgb("LS") == (3, 47, 116)  # LS blue #1f77b4 on screen ...
     assert tuple(sv.colors[T, 0]) == vertex_rgb("BCLS") == (171, 5, 5)  # ... BCLS red #d62728 (loops alternate)

@@ -13,8 +13,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def start_and_stop(cache: str) -> list[str]:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen([sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "1"], cwd=ROOT, env=env,
-                         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "1"],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     lines = []
     try:
         for line in p.stdout:

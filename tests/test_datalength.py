@@ -24,8 +24,11 @@ def test_runs_and_steps_rule():
 def test_ls_levels_off_on_theorem1_floor_while_bcls_keeps_falling():
     """Boeing, shared range, guard band, b = 10 (measured: LS 1.9e-3 -> 8.2e-4 on the 8.0e-4 floor,
     BCLS 1.2e-3 -> 6.7e-5)."""
-    res = run_datalength(DataLengthConfig(system="boeing747", bits=10, samples=(1000, 10_000, 100_000, 300_000),
-                                          realizations=3, quantizer=SHARED))
+    res = run_datalength(
+        DataLengthConfig(
+            system="boeing747", bits=10, samples=(1000, 10_000, 100_000, 300_000), realizations=3, quantizer=SHARED
+        )
+    )
     r = {row.samples: row for row in res.rows}
     big, mid, small = r[300_000], r[100_000], r[1000]
     assert big.ls_A.mean == pytest.approx(big.err_A_theory, rel=0.1)
@@ -76,14 +79,24 @@ def test_cancellation_between_lengths(kind):
 
 
 def test_no_dither_runs_one_realization():
-    cfg = DataLengthConfig(system="boeing747", bits=4, samples=(1000,), realizations=5,
-                           quantizer=QuantizerSpec(dither="none"))
+    cfg = DataLengthConfig(
+        system="boeing747", bits=4, samples=(1000,), realizations=5, quantizer=QuantizerSpec(dither="none")
+    )
     res = run_datalength(cfg)
     assert res.rows[0].ls_A.std == 0.0
 
 
-@pytest.mark.parametrize("kw", [dict(samples=()), dict(samples=(10,)), dict(samples=("x",)), dict(bits=0),
-                                dict(realizations=0), dict(input_amplitude=-1.0)])
+@pytest.mark.parametrize(
+    "kw",
+    [
+        dict(samples=()),
+        dict(samples=(10,)),
+        dict(samples=("x",)),
+        dict(bits=0),
+        dict(realizations=0),
+        dict(input_amplitude=-1.0),
+    ],
+)
 def test_bad_config(kw):
     with pytest.raises(ConfigError):
         DataLengthConfig(**kw)

@@ -17,12 +17,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from support import HANG_S, dask_cluster, wait_until
+from support import need_distributed as _need_distributed
 
 from app.distributed import ClusterError, DaskExecutor, make_executor, parse_dask_spec
 from qsid_core import SweepConfig, run_sweep
 from qsid_core.errors import ConfigError
-from support import HANG_S, dask_cluster, wait_until
-from support import need_distributed as _need_distributed
 
 TINY = dict(bits=(2, 5, 9), realizations=8, trajectories=12, steps=150)
 #: How long a broken cluster may stall before the executor gives up; it also bounds how long sharing
@@ -50,10 +50,14 @@ def reference():
 
 
 # ----- parsing (no dask needed) -------------------------------------------------------------
-@pytest.mark.parametrize("spec, workers, address", [
-    ("local:3", 3, None), ("tcp://127.0.0.1:8786", None, "tcp://127.0.0.1:8786"),
-    (" tcp://node-7.cluster:9000 ", None, "tcp://node-7.cluster:9000"),
-])
+@pytest.mark.parametrize(
+    "spec, workers, address",
+    [
+        ("local:3", 3, None),
+        ("tcp://127.0.0.1:8786", None, "tcp://127.0.0.1:8786"),
+        (" tcp://node-7.cluster:9000 ", None, "tcp://node-7.cluster:9000"),
+    ],
+)
 def test_parse_dask_spec(spec, workers, address):
     p = parse_dask_spec(spec)
     assert (p.workers, p.address) == (workers, address)
@@ -63,10 +67,17 @@ def test_parse_local_uses_the_cores():
     assert parse_dask_spec("local").workers >= 1
 
 
-@pytest.mark.parametrize("spec, match", [
-    ("local:0", "between 1 and"), ("local:x", "integer"), ("udp://1.2.3.4:5", "cannot read"),
-    ("tcp://127.0.0.1", "cannot read"), ("tcp://127.0.0.1:70000", "port"), ("", "cannot read"),
-])
+@pytest.mark.parametrize(
+    "spec, match",
+    [
+        ("local:0", "between 1 and"),
+        ("local:x", "integer"),
+        ("udp://1.2.3.4:5", "cannot read"),
+        ("tcp://127.0.0.1", "cannot read"),
+        ("tcp://127.0.0.1:70000", "port"),
+        ("", "cannot read"),
+    ],
+)
 def test_parse_dask_spec_rejects(spec, match):
     with pytest.raises(ConfigError, match=match) as ei:
         parse_dask_spec(spec)
@@ -126,6 +137,7 @@ def test_lost_worker_is_rerun_and_losing_all_is_reported(tmp_path, reference):
     expect = _json(run_sweep(SweepConfig(**big)))
     with dask_cluster(tmp_path) as (address, wprocs, _):
         with make_executor(address, stall_timeout=STALL_S, connect_timeout=HANG_S) as ex:
+
             def kill_one(i, n, stage):
                 if wprocs[1].poll() is None:
                     os.killpg(wprocs[1].pid, signal.SIGKILL)
@@ -147,6 +159,7 @@ def test_lost_scheduler_is_one_clear_line(tmp_path):
     _need_distributed()
     with dask_cluster(tmp_path, workers=1) as (address, _, sched):
         with make_executor(address, stall_timeout=STALL_S) as ex:
+
             def kill_scheduler(i, n, stage):
                 if sched.poll() is None:
                     os.killpg(sched.pid, signal.SIGKILL)

@@ -13,7 +13,7 @@ from app.cli import main
 from qsid_core import ConfigError, QuantizerSpec, SweepConfig, prepare, quantize, quantized_moments, simulate
 from qsid_core.moments import CHUNK_ROWS
 from qsid_core.quantize import ERROR_VARIANCE, bcls_reason, draw_dither_units, effective_ranges
-from qsid_core.systems import boeing747, dc_motor
+from qsid_core.systems import dc_motor
 from qsid_core.theory import noise_covariance
 
 
@@ -66,12 +66,15 @@ def _explicit(data, prep, bits, spec, seed):
     n, m, J, S = data.n, data.m, data.trajectories, data.steps
     rng = np.random.default_rng(seed)
     N = J * (S + 1)
-    U = np.concatenate([draw_dither_units(rng, (min(CHUNK_ROWS, N - s), n + m), spec.dither)
-                        for s in range(0, N, CHUNK_ROWS)]).reshape(J, S + 1, n + m)
-    qs = quantize(data.states, prep.lo[:n], prep.hi[:n], bits, dither=spec.dither, guard=spec.guard,
-                  unit_dither=U[:, :, :n])
-    qu = quantize(data.inputs, prep.lo[n:], prep.hi[n:], bits, dither=spec.dither, guard=spec.guard,
-                  unit_dither=U[:, :S, n:])
+    U = np.concatenate(
+        [draw_dither_units(rng, (min(CHUNK_ROWS, N - s), n + m), spec.dither) for s in range(0, N, CHUNK_ROWS)]
+    ).reshape(J, S + 1, n + m)
+    qs = quantize(
+        data.states, prep.lo[:n], prep.hi[:n], bits, dither=spec.dither, guard=spec.guard, unit_dither=U[:, :, :n]
+    )
+    qu = quantize(
+        data.inputs, prep.lo[n:], prep.hi[n:], bits, dither=spec.dither, guard=spec.guard, unit_dither=U[:, :S, n:]
+    )
     Psi = np.hstack([qs.values[:, :-1].reshape(-1, n), qu.values.reshape(-1, m)]).T
     Xp = qs.values[:, 1:].reshape(-1, n).T
     over = (qs.overload.sum() + qu.overload.sum()) / (qs.overload.size + qu.overload.size)
@@ -79,8 +82,14 @@ def _explicit(data, prep, bits, spec, seed):
 
 
 @pytest.mark.parametrize("engine", ["numpy", "auto"])
-@pytest.mark.parametrize("spec", [QuantizerSpec(dither="tpdf"), QuantizerSpec(dither="rpdf"),
-                                  QuantizerSpec(dither="tpdf", range_mode="fixed", fixed_range=(-0.4, 0.4))])
+@pytest.mark.parametrize(
+    "spec",
+    [
+        QuantizerSpec(dither="tpdf"),
+        QuantizerSpec(dither="rpdf"),
+        QuantizerSpec(dither="tpdf", range_mode="fixed", fixed_range=(-0.4, 0.4)),
+    ],
+)
 def test_fused_moments_equal_explicit_quantization_for_non_subtractive_dither(spec, engine):
     data = simulate(dc_motor(), 23, 1500, seed=4)  # > one chunk, runs split across chunks
     prep = prepare(data, spec)
@@ -105,8 +114,26 @@ def test_noise_covariance_per_dither_and_reasons():
 
 
 def _sweep_json(capsys, dither, estimator):
-    code = main(["sweep", "--system", "boeing747", "--bits", "3", "--range", "fixed", "--limits=-20,20",
-                 "--realizations", "1", "--no-mpc", "--dither", dither, "--estimator", estimator, "--json"])
+    code = main(
+        [
+            "sweep",
+            "--system",
+            "boeing747",
+            "--bits",
+            "3",
+            "--range",
+            "fixed",
+            "--limits=-20,20",
+            "--realizations",
+            "1",
+            "--no-mpc",
+            "--dither",
+            dither,
+            "--estimator",
+            estimator,
+            "--json",
+        ]
+    )
     out, err = capsys.readouterr()
     assert code == 0, err
     return json.loads(out)

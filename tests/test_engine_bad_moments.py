@@ -17,13 +17,17 @@ def test_mpc_without_an_input_box_is_a_config_error():
 
 
 @pytest.mark.parametrize("estimator", ["ls", "bcls"])
-@pytest.mark.parametrize("bad", [
-    dict(PP=np.array([["a", "b", "c"]] * 3, dtype=object)),
-    dict(eps=np.array([])),
-    dict(XP=np.ones((3, 3))),
-    dict(PP=np.ones((3, 2))),
-    dict(T=0),
-], ids=["object-strings", "eps-empty", "XP-square", "PP-not-square", "T-zero"])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(PP=np.array([["a", "b", "c"]] * 3, dtype=object)),
+        dict(eps=np.array([])),
+        dict(XP=np.ones((3, 3))),
+        dict(PP=np.ones((3, 2))),
+        dict(T=0),
+    ],
+    ids=["object-strings", "eps-empty", "XP-square", "PP-not-square", "T-zero"],
+)
 def test_malformed_moments_raise_identification_error(bad, estimator):
     good = dict(PP=np.eye(3) * 100.0, XP=np.ones((2, 3)), T=10, eps=np.full(3, 0.1))
     with pytest.raises(IdentificationError):

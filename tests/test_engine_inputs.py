@@ -24,14 +24,24 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from qsid_core import (
-    ConfigError, LTISystem, MPCConfig, QsidError, QuantizerSpec, SweepConfig, SystemDefinitionError, get_system,
-    load_system, parse_bits, quantize, run_sweep,
+    ConfigError,
+    LTISystem,
+    MPCConfig,
+    QsidError,
+    QuantizerSpec,
+    SweepConfig,
+    SystemDefinitionError,
+    get_system,
+    load_system,
+    parse_bits,
+    quantize,
+    run_sweep,
 )
+from qsid_core.data import simulate
 from qsid_core.errors import check_float, check_int
 from qsid_core.experiment import Experiment
 from qsid_core.identify import relative_errors
 from qsid_core.riccati import dare_stabilizing
-from qsid_core.data import simulate
 from qsid_core.systems import dc_motor, dc_motor_physical, parse_matrix, system_from_dict
 from qsid_core.theory import ultimate_bound
 
@@ -112,8 +122,12 @@ FILE_CASES = [
     ("json-1e400-int-in-A", "s.json", '{"A": [[' + BIG + ']], "B": [[1.0]]}', "A: row 1, column 1 is an .*401 digits"),
     ("json-1e400-int-in-x0", "s.json", '{"A": [[0.5]], "B": [[1.0]], "x0": [' + BIG + "]}", "x0: entry .*401 digits"),
     ("json-dt-minus-5", "s.json", '{"A": [[0.5]], "B": [[1.0]], "dt": -5}', "dt .* got -5"),
-    ("json-5000-nested", "s.json", '{"A": ' + "[" * 5000 + "1" + "]" * 5000 + ', "B": [[1]]}',
-     "nested too deeply|nested deeper"),
+    (
+        "json-5000-nested",
+        "s.json",
+        '{"A": ' + "[" * 5000 + "1" + "]" * 5000 + ', "B": [[1]]}',
+        "nested too deeply|nested deeper",
+    ),
     ("json-name-object", "s.json", '{"A": [[0.5]], "B": [[1.0]], "name": {"x": 1}}', "system name must be text"),
     ("json-top-level-list", "s.json", "[1, 2]", "table/object with keys A and B"),
     ("bad-suffix", "s.yaml", "A: 1", "must end in .toml or .json"),
@@ -143,20 +157,28 @@ CONFIG_CASES = [
     ("parse_bits-huge-range", lambda: parse_bits(range(1, 10**30)), "at most a few dozen"),
     ("parse_bits-None", lambda: parse_bits(None), "bits must look like"),
     ("parse_bits-empty", lambda: parse_bits([]), "at least one word length"),
-    ("QuantizerSpec-range-1e308", lambda: QuantizerSpec(range_mode="fixed", fixed_range=(-1e308, 1e308)),
-     "hi - lo overflows"),
-    ("QuantizerSpec-range-5e-324", lambda: QuantizerSpec(range_mode="fixed", fixed_range=(0, 5e-324)),
-     "hi - lo = .* is too small"),
+    (
+        "QuantizerSpec-range-1e308",
+        lambda: QuantizerSpec(range_mode="fixed", fixed_range=(-1e308, 1e308)),
+        "hi - lo overflows",
+    ),
+    (
+        "QuantizerSpec-range-5e-324",
+        lambda: QuantizerSpec(range_mode="fixed", fixed_range=(0, 5e-324)),
+        "hi - lo = .* is too small",
+    ),
     ("QuantizerSpec-range-dict", lambda: QuantizerSpec(range_mode="fixed", fixed_range={"a": 1}), "table/object"),
-    ("QuantizerSpec-range-huge-int", lambda: QuantizerSpec(range_mode="fixed", fixed_range=(0, 10**400)),
-     "too large"),
+    ("QuantizerSpec-range-huge-int", lambda: QuantizerSpec(range_mode="fixed", fixed_range=(0, 10**400)), "too large"),
     ("QuantizerSpec-guard-text", lambda: QuantizerSpec(guard="yes"), "guard must be True or False"),
     ("quantize-range-1e308", lambda: quantize(np.zeros(3), -1e308, 1e308, 4), "hi - lo overflows"),
     ("quantize-range-5e-324", lambda: quantize(np.zeros(3), 0.0, 5e-324, 4), "too small"),
     ("quantize-x-nan", lambda: quantize(np.array([np.nan]), 0.0, 1.0, 4), "x .* only finite numbers"),
     ("quantize-x-text", lambda: quantize("abc", 0.0, 1.0, 4), "x .* text"),
-    ("quantize-dither-shape", lambda: quantize(np.zeros(3), 0.0, 1.0, 2, unit_dither=np.zeros(5)),
-     "unit_dither must have the shape of x"),
+    (
+        "quantize-dither-shape",
+        lambda: quantize(np.zeros(3), 0.0, 1.0, 2, unit_dither=np.zeros(5)),
+        "unit_dither must have the shape of x",
+    ),
     ("quantize-rng-int", lambda: quantize(np.zeros(3), 0.0, 1.0, 2, rng=3), "rng must be a numpy Generator"),
     ("quantize-lo-shape", lambda: quantize(np.zeros((4, 3)), np.zeros(2), np.ones(2), 2), "one per channel"),
     ("quantize-hi-widens-x", lambda: quantize([0.0], 0.0, np.array([1.0, 2.0]), 1), "one per channel"),
@@ -229,8 +251,17 @@ def test_dare_singular_in_a_batch_does_not_escape_run_sweep():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         s = LTISystem("f", [[0.0]], [[0.0, -1e11]])
-    res = run_sweep(SweepConfig(system=s, bits=(2,), trajectories=1, steps=3, realizations=1, theta=1e-300,
-                                mpc=MPCConfig(horizon=1, steps=1, u_max=1e-6)))
+    res = run_sweep(
+        SweepConfig(
+            system=s,
+            bits=(2,),
+            trajectories=1,
+            steps=3,
+            realizations=1,
+            theta=1e-300,
+            mpc=MPCConfig(horizon=1, steps=1, u_max=1e-6),
+        )
+    )
     _check_sweep(res)
 
 
@@ -239,8 +270,18 @@ def test_singular_lq_recursion_is_a_recorded_mpc_failure():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         s = LTISystem("f", [[1e6]], [[0.0, 0.0]])
-    res = run_sweep(SweepConfig(system=s, bits=(9,), trajectories=3, steps=2, realizations=1, theta=1e-300,
-                                quantizer=QuantizerSpec(dither="none"), mpc=MPCConfig(horizon=2, steps=1, u_max=1e-6)))
+    res = run_sweep(
+        SweepConfig(
+            system=s,
+            bits=(9,),
+            trajectories=3,
+            steps=2,
+            realizations=1,
+            theta=1e-300,
+            quantizer=QuantizerSpec(dither="none"),
+            mpc=MPCConfig(horizon=2, steps=1, u_max=1e-6),
+        )
+    )
     _check_sweep(res)
     # the batched recursion solves per model (riccati._solve_each), so this nearly singular model now gets a
     # finite MPC instead of an exception; a truly singular one is recorded as kind 'dare' (test_riccati)
@@ -252,8 +293,17 @@ def test_osqp_setup_rejection_is_a_recorded_mpc_failure():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         s = LTISystem("f", [[0.0, 1.1875, 1.0], [1e6, 0.0, 1e6], [0.0, 0.0, 0.0]], [[0.0, 1.0], [0.0, 0.0], [1.0, 1.0]])
-    res = run_sweep(SweepConfig(system=s, bits=(1,), trajectories=3, steps=2, realizations=1, theta=1e-300,
-                                mpc=MPCConfig(horizon=1, steps=1, u_max=1e-6)))
+    res = run_sweep(
+        SweepConfig(
+            system=s,
+            bits=(1,),
+            trajectories=3,
+            steps=2,
+            realizations=1,
+            theta=1e-300,
+            mpc=MPCConfig(horizon=1, steps=1, u_max=1e-6),
+        )
+    )
     _check_sweep(res)
 
 
@@ -271,9 +321,16 @@ def test_theory_singular_riccati_is_recorded_not_raised(monkeypatch):
 
 def test_failed_identifications_are_flagged_never_silent_nan():
     # constant data at one realization cannot be identified: failed=True with a note, not NaN with failed=False
-    res = run_sweep(SweepConfig(bits=(1,), trajectories=1, steps=10, realizations=2, mpc=MPCConfig(steps=2),
-                                quantizer=QuantizerSpec(range_mode="fixed", fixed_range=(1e6, 1e6 + 1),
-                                                        dither="none")))
+    res = run_sweep(
+        SweepConfig(
+            bits=(1,),
+            trajectories=1,
+            steps=10,
+            realizations=2,
+            mpc=MPCConfig(steps=2),
+            quantizer=QuantizerSpec(range_mode="fixed", fixed_range=(1e6, 1e6 + 1), dither="none"),
+        )
+    )
     _check_sweep(res)
     ident = res.identification[1]
     assert ident.failed.all() and ident.notes
@@ -285,18 +342,33 @@ def test_failed_identifications_are_flagged_never_silent_nan():
 # ------------------------------------------------------------------------------------------------
 
 #: QSID_FUZZ_EXAMPLES=2000 QSID_FUZZ_RANDOM=1 runs a longer, randomized hunt (the suite stays fixed and fast).
-FUZZ = settings(max_examples=int(os.environ.get("QSID_FUZZ_EXAMPLES", "60")), deadline=None,
-                derandomize=os.environ.get("QSID_FUZZ_RANDOM") != "1", database=None,
-                suppress_health_check=list(HealthCheck))
+FUZZ = settings(
+    max_examples=int(os.environ.get("QSID_FUZZ_EXAMPLES", "60")),
+    deadline=None,
+    derandomize=os.environ.get("QSID_FUZZ_RANDOM") != "1",
+    database=None,
+    suppress_health_check=list(HealthCheck),
+)
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)
 weird_number = st.one_of(
-    st.floats(allow_nan=True, allow_infinity=True), st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(-(10**6), 10**6),
     st.sampled_from([10**400, -(10**400), 2**1024, 0.0, -0.0, 5e-324, 1e-300, 1e11, 1e13, 1e300, -1e308]),
 )
-junk = st.one_of(st.booleans(), st.none(), st.text(max_size=5), st.dictionaries(st.text(max_size=2), finite, max_size=2),
-                 st.dates(), st.just(nested(300)), st.just([]), st.complex_numbers(max_magnitude=2),
-                 st.just(np.array([1.0, 2.0])), st.just(np.float64("nan")), st.just(np.int64(3)))
+junk = st.one_of(
+    st.booleans(),
+    st.none(),
+    st.text(max_size=5),
+    st.dictionaries(st.text(max_size=2), finite, max_size=2),
+    st.dates(),
+    st.just(nested(300)),
+    st.just([]),
+    st.complex_numbers(max_magnitude=2),
+    st.just(np.array([1.0, 2.0])),
+    st.just(np.float64("nan")),
+    st.just(np.int64(3)),
+)
 number = st.one_of(finite, finite, finite, weird_number)
 value = st.one_of(number, junk)
 
@@ -319,13 +391,19 @@ def mostly_valid(draw, valid: dict, bad=value):
 def system_kwargs(draw, elements=st.one_of(finite, st.sampled_from([0.0, 1e-12, 1e12, -1e12]))):
     n, m = draw(st.integers(1, 3)), draw(st.integers(1, 2))
     diag = st.lists(st.floats(0.01, 100), min_size=n, max_size=n)
-    return draw(mostly_valid({
-        "A": rows(n, n, elements), "B": rows(n, m, elements),
-        "x0": st.one_of(st.none(), st.lists(finite, min_size=n, max_size=n)),
-        "Q": st.one_of(st.none(), diag), "R": st.one_of(st.none(), st.lists(st.floats(0.01, 100), min_size=m,
-                                                                             max_size=m)),
-        "dt": st.one_of(st.just(1.0), st.floats(1e-9, 1e6)), "name": st.text(max_size=300),
-    }))
+    return draw(
+        mostly_valid(
+            {
+                "A": rows(n, n, elements),
+                "B": rows(n, m, elements),
+                "x0": st.one_of(st.none(), st.lists(finite, min_size=n, max_size=n)),
+                "Q": st.one_of(st.none(), diag),
+                "R": st.one_of(st.none(), st.lists(st.floats(0.01, 100), min_size=m, max_size=m)),
+                "dt": st.one_of(st.just(1.0), st.floats(1e-9, 1e6)),
+                "name": st.text(max_size=300),
+            }
+        )
+    )
 
 
 def _finite(*arrs) -> bool:
@@ -354,10 +432,12 @@ def test_fuzz_ltisystem(kw):
 
 
 @FUZZ
-@given(kw=system_kwargs(elements=st.one_of(finite, finite, st.integers(-9, 9), st.sampled_from([10**400, 0.0]))),
-       fmt=st.sampled_from(["json", "json", "toml", "toml", "garbage"]),
-       extra=st.one_of(st.none(), st.none(), st.none(), value),
-       date=st.booleans())
+@given(
+    kw=system_kwargs(elements=st.one_of(finite, finite, st.integers(-9, 9), st.sampled_from([10**400, 0.0]))),
+    fmt=st.sampled_from(["json", "json", "toml", "toml", "garbage"]),
+    extra=st.one_of(st.none(), st.none(), st.none(), value),
+    date=st.booleans(),
+)
 def test_fuzz_load_system(kw, fmt, extra, date):
     doc = {k: v for k, v in kw.items() if v is not None}
     if extra is not None:
@@ -365,8 +445,10 @@ def test_fuzz_load_system(kw, fmt, extra, date):
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / f"s.{fmt}"
         if fmt == "toml":
-            text = "\n".join(f"{k} = {v.isoformat() if isinstance(v, datetime.date) else json.dumps(v, default=str)}"
-                             for k, v in doc.items())
+            text = "\n".join(
+                f"{k} = {v.isoformat() if isinstance(v, datetime.date) else json.dumps(v, default=str)}"
+                for k, v in doc.items()
+            )
         else:
             try:
                 text = json.dumps(doc, default=str)
@@ -380,8 +462,15 @@ def test_fuzz_load_system(kw, fmt, extra, date):
 
 
 @FUZZ
-@given(spec=st.one_of(st.text(alphabet="0123456789:,- ", max_size=40), value, st.lists(value, max_size=4),
-                      st.lists(st.integers(-3, 40), max_size=6), st.builds(range, st.integers(-5, 40), st.integers(-5, 40))))
+@given(
+    spec=st.one_of(
+        st.text(alphabet="0123456789:,- ", max_size=40),
+        value,
+        st.lists(value, max_size=4),
+        st.lists(st.integers(-3, 40), max_size=6),
+        st.builds(range, st.integers(-5, 40), st.integers(-5, 40)),
+    )
+)
 def test_fuzz_parse_bits(spec):
     out = _call(parse_bits, spec)
     if out is not None:
@@ -392,9 +481,16 @@ pair = st.tuples(st.one_of(finite, weird_number), st.one_of(finite, weird_number
 
 
 @FUZZ
-@given(kw=mostly_valid({"dither": st.sampled_from(["subtractive", "none"]),
-                        "range_mode": st.sampled_from(["per-channel", "shared", "fixed"]), "guard": st.booleans(),
-                        "fixed_range": st.one_of(st.none(), pair, st.lists(pair, min_size=1, max_size=4))}))
+@given(
+    kw=mostly_valid(
+        {
+            "dither": st.sampled_from(["subtractive", "none"]),
+            "range_mode": st.sampled_from(["per-channel", "shared", "fixed"]),
+            "guard": st.booleans(),
+            "fixed_range": st.one_of(st.none(), pair, st.lists(pair, min_size=1, max_size=4)),
+        }
+    )
+)
 def test_fuzz_quantizer_spec(kw):
     q = _call(QuantizerSpec, **kw)
     if q is not None and q.fixed_range is not None:
@@ -403,11 +499,19 @@ def test_fuzz_quantizer_spec(kw):
 
 
 @FUZZ
-@given(kw=mostly_valid({"x": st.lists(st.one_of(finite, finite, finite, weird_number), min_size=1, max_size=6),
-                        "lo": st.one_of(st.floats(-1e3, 0.0), weird_number), "hi": st.one_of(st.floats(1e-3, 1e3),
-                                                                                            weird_number),
-                        "bits": st.integers(1, 32), "dither": st.sampled_from(["subtractive", "none"]),
-                        "guard": st.booleans(), "seed": st.integers(0, 3)}))
+@given(
+    kw=mostly_valid(
+        {
+            "x": st.lists(st.one_of(finite, finite, finite, weird_number), min_size=1, max_size=6),
+            "lo": st.one_of(st.floats(-1e3, 0.0), weird_number),
+            "hi": st.one_of(st.floats(1e-3, 1e3), weird_number),
+            "bits": st.integers(1, 32),
+            "dither": st.sampled_from(["subtractive", "none"]),
+            "guard": st.booleans(),
+            "seed": st.integers(0, 3),
+        }
+    )
+)
 def test_fuzz_quantize(kw):
     seed = kw.pop("seed")
     rng = np.random.default_rng(seed) if isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0 else seed
@@ -418,12 +522,22 @@ def test_fuzz_quantize(kw):
 
 
 vec3 = st.one_of(st.none(), st.floats(1e-6, 1e12), st.lists(st.floats(1e-6, 1e12), min_size=1, max_size=3))
-mpc_kwargs = mostly_valid({
-    "horizon": st.integers(1, 200), "steps": st.integers(1, 10000), "u_max": st.floats(1e-6, 1e12),
-    "x_max": vec3, "xf_max": vec3, "Q": vec3, "R": vec3, "Qf": vec3, "x0": st.one_of(st.none(), st.lists(finite, min_size=1, max_size=3)),
-    "x_ref": st.one_of(st.none(), st.lists(finite, min_size=1, max_size=3)), "eps": st.floats(1e-12, 1e-2),
-    "max_iter": st.integers(1, 10**6),
-})
+mpc_kwargs = mostly_valid(
+    {
+        "horizon": st.integers(1, 200),
+        "steps": st.integers(1, 10000),
+        "u_max": st.floats(1e-6, 1e12),
+        "x_max": vec3,
+        "xf_max": vec3,
+        "Q": vec3,
+        "R": vec3,
+        "Qf": vec3,
+        "x0": st.one_of(st.none(), st.lists(finite, min_size=1, max_size=3)),
+        "x_ref": st.one_of(st.none(), st.lists(finite, min_size=1, max_size=3)),
+        "eps": st.floats(1e-12, 1e-2),
+        "max_iter": st.integers(1, 10**6),
+    }
+)
 
 
 @FUZZ
@@ -436,14 +550,24 @@ def test_fuzz_mpc_config(kw):
 
 
 @FUZZ
-@given(kw=mostly_valid({
-    "system": st.sampled_from(["dc-motor", "boeing747", "nope", "/tmp", "x.toml", "a" * 300]),
-    "bits": st.one_of(st.text(alphabet="0123456789:,", max_size=8), st.lists(st.integers(1, 32), min_size=1)),
-    "realizations": st.integers(1, 10000), "trajectories": st.integers(1, 100_000), "steps": st.integers(1, 10**6),
-    "data_seed": st.integers(0, 10**30), "dither_seed": st.integers(0, 5), "quantizer": st.just(QuantizerSpec()),
-    "estimator": st.sampled_from(["ls", "bcls"]), "mpc": st.one_of(st.none(), st.just(MPCConfig())),
-    "theta": st.floats(1e-300, 0.999), "rho": st.one_of(st.none(), st.floats(1e-300, 1e12)),
-}))
+@given(
+    kw=mostly_valid(
+        {
+            "system": st.sampled_from(["dc-motor", "boeing747", "nope", "/tmp", "x.toml", "a" * 300]),
+            "bits": st.one_of(st.text(alphabet="0123456789:,", max_size=8), st.lists(st.integers(1, 32), min_size=1)),
+            "realizations": st.integers(1, 10000),
+            "trajectories": st.integers(1, 100_000),
+            "steps": st.integers(1, 10**6),
+            "data_seed": st.integers(0, 10**30),
+            "dither_seed": st.integers(0, 5),
+            "quantizer": st.just(QuantizerSpec()),
+            "estimator": st.sampled_from(["ls", "bcls"]),
+            "mpc": st.one_of(st.none(), st.just(MPCConfig())),
+            "theta": st.floats(1e-300, 0.999),
+            "rho": st.one_of(st.none(), st.floats(1e-300, 1e12)),
+        }
+    )
+)
 def test_fuzz_sweep_config(kw):
     c = _call(SweepConfig, **kw)
     if c is not None:
@@ -469,8 +593,11 @@ def _check_sweep(res) -> None:
     json.dumps(res.to_dict(), allow_nan=False)
 
 
-small_entry = st.one_of(st.floats(-1.2, 1.2, allow_nan=False), st.floats(-1.2, 1.2, allow_nan=False),
-                        st.sampled_from([0.0, 1e-300, 1e-8, 3.0, 1e6, -1e11]))
+small_entry = st.one_of(
+    st.floats(-1.2, 1.2, allow_nan=False),
+    st.floats(-1.2, 1.2, allow_nan=False),
+    st.sampled_from([0.0, 1e-300, 1e-8, 3.0, 1e6, -1e11]),
+)
 
 
 @st.composite
@@ -481,30 +608,61 @@ def tiny_system(draw):
 
 
 @FUZZ
-@given(sysAB=tiny_system(), bits=st.lists(st.integers(1, 32), min_size=1, max_size=3),
-       trajectories=st.integers(1, 3), steps=st.integers(1, 25), realizations=st.integers(1, 3),
-       dither=st.sampled_from(["subtractive", "none"]), range_mode=st.sampled_from(["per-channel", "shared", "fixed"]),
-       guard=st.booleans(), fixed=st.tuples(st.sampled_from([-1e300, -10.0, -1.0, 0.0, 1e-300]),
-                                            st.sampled_from([1e-290, 1e-3, 1.0, 1e300])),
-       estimator=st.sampled_from(["ls", "bcls"]),
-       mpc=st.one_of(st.none(), st.builds(MPCConfig, horizon=st.integers(1, 4), steps=st.integers(1, 6),
-                                          u_max=st.sampled_from([1e-6, 0.5, 1.0, 1e6]),
-                                          x_max=st.sampled_from([None, 1e-3, 2.0]),
-                                          Q=st.sampled_from([None, 0.0, 1e-12, 1e12]))),
-       rho=st.sampled_from([None, 1e-12, 1.0, 1e12]), theta=st.sampled_from([1e-300, 0.5, 0.999]))
-def test_fuzz_run_sweep_tiny(sysAB, bits, trajectories, steps, realizations, dither, range_mode, guard, fixed,
-                             estimator, mpc, rho, theta):
+@given(
+    sysAB=tiny_system(),
+    bits=st.lists(st.integers(1, 32), min_size=1, max_size=3),
+    trajectories=st.integers(1, 3),
+    steps=st.integers(1, 25),
+    realizations=st.integers(1, 3),
+    dither=st.sampled_from(["subtractive", "none"]),
+    range_mode=st.sampled_from(["per-channel", "shared", "fixed"]),
+    guard=st.booleans(),
+    fixed=st.tuples(st.sampled_from([-1e300, -10.0, -1.0, 0.0, 1e-300]), st.sampled_from([1e-290, 1e-3, 1.0, 1e300])),
+    estimator=st.sampled_from(["ls", "bcls"]),
+    mpc=st.one_of(
+        st.none(),
+        st.builds(
+            MPCConfig,
+            horizon=st.integers(1, 4),
+            steps=st.integers(1, 6),
+            u_max=st.sampled_from([1e-6, 0.5, 1.0, 1e6]),
+            x_max=st.sampled_from([None, 1e-3, 2.0]),
+            Q=st.sampled_from([None, 0.0, 1e-12, 1e12]),
+        ),
+    ),
+    rho=st.sampled_from([None, 1e-12, 1.0, 1e12]),
+    theta=st.sampled_from([1e-300, 0.5, 0.999]),
+)
+def test_fuzz_run_sweep_tiny(
+    sysAB, bits, trajectories, steps, realizations, dither, range_mode, guard, fixed, estimator, mpc, rho, theta
+):
     A, B = sysAB
     s = _call(LTISystem, "fuzz", A, B)
     if s is None:
         return
     steps = max(steps, -(-(s.n + s.m) // trajectories))  # enough samples for n + m unknowns per row
-    q = _call(QuantizerSpec, dither=dither, range_mode=range_mode, guard=guard,
-              fixed_range=fixed if range_mode == "fixed" else None)
+    q = _call(
+        QuantizerSpec,
+        dither=dither,
+        range_mode=range_mode,
+        guard=guard,
+        fixed_range=fixed if range_mode == "fixed" else None,
+    )
     if q is None:
         return
-    cfg = _call(SweepConfig, system=s, bits=tuple(bits), realizations=realizations, trajectories=trajectories,
-                steps=steps, quantizer=q, estimator=estimator, mpc=mpc, rho=rho, theta=theta)
+    cfg = _call(
+        SweepConfig,
+        system=s,
+        bits=tuple(bits),
+        realizations=realizations,
+        trajectories=trajectories,
+        steps=steps,
+        quantizer=q,
+        estimator=estimator,
+        mpc=mpc,
+        rho=rho,
+        theta=theta,
+    )
     if cfg is None:
         return
     res = _call(run_sweep, cfg)
@@ -516,15 +674,29 @@ wide = st.one_of(st.floats(-1e3, 1e3), st.sampled_from([0.0, 1e-300, -1e-300, 1e
 
 
 @FUZZ
-@given(P=rows(2, 2, wide), q=st.lists(st.one_of(st.floats(1e-300, 1e12), st.just(0.0)), min_size=2, max_size=2),
-       r=st.floats(1e-300, 1e12), dA=rows(2, 2, wide), dB=rows(2, 1, wide),
-       theta=st.one_of(st.floats(5e-324, 0.999999), st.sampled_from([0.0, 1.0, 5e-324])),
-       rho=st.one_of(st.none(), st.floats(5e-324, 1e12), st.just(1e300)),
-       x0=st.one_of(st.none(), st.lists(wide, min_size=2, max_size=2)))
+@given(
+    P=rows(2, 2, wide),
+    q=st.lists(st.one_of(st.floats(1e-300, 1e12), st.just(0.0)), min_size=2, max_size=2),
+    r=st.floats(1e-300, 1e12),
+    dA=rows(2, 2, wide),
+    dB=rows(2, 1, wide),
+    theta=st.one_of(st.floats(5e-324, 0.999999), st.sampled_from([0.0, 1.0, 5e-324])),
+    rho=st.one_of(st.none(), st.floats(5e-324, 1e12), st.just(1e300)),
+    x0=st.one_of(st.none(), st.lists(wide, min_size=2, max_size=2)),
+)
 def test_fuzz_ultimate_bound(P, q, r, dA, dB, theta, rho, x0):
     P = np.asarray(P)
-    ub = _call(ultimate_bound, (P + P.T) / 2, np.diag(q), np.array([[r]]), np.asarray(dA), np.asarray(dB),
-               theta=theta, rho=rho, x0=None if x0 is None else np.asarray(x0))
+    ub = _call(
+        ultimate_bound,
+        (P + P.T) / 2,
+        np.diag(q),
+        np.array([[r]]),
+        np.asarray(dA),
+        np.asarray(dB),
+        theta=theta,
+        rho=rho,
+        x0=None if x0 is None else np.asarray(x0),
+    )
     if ub is not None:
         assert math.isfinite(ub.delta) or ub.note, f"delta = {ub.delta} without a note"
         assert not math.isnan(ub.delta) and ub.delta >= 0

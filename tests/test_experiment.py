@@ -41,8 +41,18 @@ def test_sweep_result_is_json_ready_and_complete():
     d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     assert [r["bits"] for r in d["results"]] == [2, 3, 4, 5, 6]
     for r in d["results"]:
-        for k in ("eps_x", "eps_u", "err_A", "err_B", "err_A_theory", "err_B_theory", "overload_fraction",
-                  "mpc_cost", "ultimate_bound", "final_state_norm"):
+        for k in (
+            "eps_x",
+            "eps_u",
+            "err_A",
+            "err_B",
+            "err_A_theory",
+            "err_B_theory",
+            "overload_fraction",
+            "mpc_cost",
+            "ultimate_bound",
+            "final_state_norm",
+        ):
             assert k in r
         assert set(r["err_A"]) == {"mean", "std"} and len(r["eps_x"]) == 3 and len(r["eps_u"]) == 2
         assert {"mean", "std", "failed"} <= set(r["mpc_cost"]) and {"mean", "max"} <= set(r["final_state_norm"])
@@ -116,8 +126,15 @@ def test_no_mpc_sweep():
 
 def test_failures_counted_in_sweep_never_crash():
     # b = 1 shared range on the Boeing with a tiny input bound and a state box: some realizations fail
-    res = run_sweep(SweepConfig(system="boeing747", bits="1:2", quantizer=QuantizerSpec(range_mode="shared"),
-                                mpc=MPCConfig(x_max=0.5, steps=10), **SMALL))
+    res = run_sweep(
+        SweepConfig(
+            system="boeing747",
+            bits="1:2",
+            quantizer=QuantizerSpec(range_mode="shared"),
+            mpc=MPCConfig(x_max=0.5, steps=10),
+            **SMALL,
+        )
+    )
     for r in res.to_dict()["results"]:
         assert r["mpc_cost"]["failed"] == sum(r["mpc_cost"]["failures"].values())
     assert any(r["mpc_cost"]["failed"] > 0 for r in res.to_dict()["results"])
@@ -153,8 +170,11 @@ def test_inline_executor_runs_lazily_so_progress_is_live():
 
 def test_singular_realization_is_recorded_not_fatal():
     # no dither, 1 bit, shared range: quantized data collapse and Psi Psi^T is singular
-    res = run_sweep(SweepConfig(bits="1", quantizer=QuantizerSpec(dither="none", range_mode="shared"),
-                                mpc=MPCConfig(steps=5), **SMALL))
+    res = run_sweep(
+        SweepConfig(
+            bits="1", quantizer=QuantizerSpec(dither="none", range_mode="shared"), mpc=MPCConfig(steps=5), **SMALL
+        )
+    )
     ident = res.identification[1]
     row = res.to_dict()["results"][0]
     assert row["ident_failures"] == int(ident.failed.sum())

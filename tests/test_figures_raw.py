@@ -60,6 +60,7 @@ def test_wire_is_what_viser_needs_and_reads_like_the_figure(frame):
     w = Wire(fig)
     assert w.to_json() == to_json(fig)
     assert w.layout is fig.layout and len(w.data) == len(fig.data)
-    out = Renderer().render(next(iter_frames(Values(trajectories=10, steps=100, realizations=4, mpc_steps=20),
-                                             SharedCache())))
+    out = Renderer().render(
+        next(iter_frames(Values(trajectories=10, steps=100, realizations=4, mpc_steps=20), SharedCache()))
+    )
     assert out.figures and all(isinstance(f, Wire) for f in out.figures.values())

@@ -39,8 +39,17 @@ def test_bias_compensation_ten_times_better_boeing_shared_b4():
 
 
 def test_bcls_falls_back_visibly_when_noise_swamps_signal():
-    ex = Experiment(SweepConfig(system="boeing747", bits=(1,), realizations=3, trajectories=10, steps=100,
-                                quantizer=QuantizerSpec(range_mode="shared"), mpc=None))
+    ex = Experiment(
+        SweepConfig(
+            system="boeing747",
+            bits=(1,),
+            realizations=3,
+            trajectories=10,
+            steps=100,
+            quantizer=QuantizerSpec(range_mode="shared"),
+            mpc=None,
+        )
+    )
     bc = ex.identification(1, "bcls")
     assert bc.fallback.all()
     assert bc.notes and "not positive definite" in bc.notes[0]

@@ -8,7 +8,10 @@ control = pytest.importorskip("control")
 from qsid_core import SweepConfig, dc_motor, dc_motor_physical, run_sweep  # noqa: E402
 from qsid_core.errors import SystemDefinitionError  # noqa: E402
 from qsid_core.interop import (  # noqa: E402
-    identified_statespaces, model_to_statespace, system_from_statespace, system_to_statespace,
+    identified_statespaces,
+    model_to_statespace,
+    system_from_statespace,
+    system_to_statespace,
 )
 
 
@@ -77,8 +80,16 @@ def test_refuses_what_is_not_a_statespace_or_has_no_timebase():
 
 
 def test_identified_models_come_back_as_statespace_and_run_in_python_control():
-    ss_true = control.ss([[0.9, 0.1], [0.0, 0.7]], [[0.0], [1.0]], np.eye(2), [[0.0], [0.0]], 0.1,
-                         states=["pos", "vel"], inputs=["force"], name="cart")
+    ss_true = control.ss(
+        [[0.9, 0.1], [0.0, 0.7]],
+        [[0.0], [1.0]],
+        np.eye(2),
+        [[0.0], [0.0]],
+        0.1,
+        states=["pos", "vel"],
+        inputs=["force"],
+        name="cart",
+    )
     true = system_from_statespace(ss_true)
     res = run_sweep(SweepConfig(system=true, bits=(4, 12), realizations=3, trajectories=8, steps=200, mpc=None))
     for b in (4, 12):
@@ -91,8 +102,13 @@ def test_identified_models_come_back_as_statespace_and_run_in_python_control():
             back = system_from_statespace(m)  # and back into the engine
             np.testing.assert_array_equal(back.A, m.A)
     # finer quantization -> the identified poles approach the true ones (a python-control computation)
-    err = {b: max(np.max(np.abs(np.sort(m.poles().real) - np.sort(ss_true.poles().real)))
-                  for m in identified_statespaces(res.identification[b], true)) for b in (4, 12)}
+    err = {
+        b: max(
+            np.max(np.abs(np.sort(m.poles().real) - np.sort(ss_true.poles().real)))
+            for m in identified_statespaces(res.identification[b], true)
+        )
+        for b in (4, 12)
+    }
     assert err[12] < err[4]
 
 

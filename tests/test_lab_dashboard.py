@@ -16,8 +16,17 @@ from app.dashboard.controls import CONTROLS
 from app.dashboard.settings import InputError, Values, resolve_system, sweep_config
 from qsid_core.quantize import DITHERS
 
-WHAT_IF = Values(system="boeing747", dither="tpdf", input_bits="8, exact", state_bits="b, b, 12, exact", noise="0.01, 0, 0.02, 0",
-                 noise_known=True, identification="BCLS", range_mode="fixed", fixed_range="-20, 20")
+WHAT_IF = Values(
+    system="boeing747",
+    dither="tpdf",
+    input_bits="8, exact",
+    state_bits="b, b, 12, exact",
+    noise="0.01, 0, 0.02, 0",
+    noise_known=True,
+    identification="BCLS",
+    range_mode="fixed",
+    fixed_range="-20, 20",
+)
 
 
 def test_the_panel_has_every_what_if_control_and_dither_kind():
@@ -50,14 +59,17 @@ def test_what_ifs_survive_the_settings_file_and_the_command_line():
     assert dataclasses.replace(got, system="x") == dataclasses.replace(want, system="x")
 
 
-@pytest.mark.parametrize("kw, needle", [
-    (dict(input_bits="8, 9, 10"), "input_bits has 3 entries; the system has 2"),
-    (dict(input_bits="lots"), "input bits must be"),
-    (dict(state_bits="b, 3"), "state_bits has 2 entries; the system has 4"),
-    (dict(state_bits="b, b, b, 40"), "state bits must be"),
-    (dict(noise="0.1, 0.2"), "sensor noise: give one σ for every state or one per state"),
-    (dict(noise="-0.1"), "noise must be in"),
-])
+@pytest.mark.parametrize(
+    "kw, needle",
+    [
+        (dict(input_bits="8, 9, 10"), "input_bits has 3 entries; the system has 2"),
+        (dict(input_bits="lots"), "input bits must be"),
+        (dict(state_bits="b, 3"), "state_bits has 2 entries; the system has 4"),
+        (dict(state_bits="b, b, b, 40"), "state bits must be"),
+        (dict(noise="0.1, 0.2"), "sensor noise: give one σ for every state or one per state"),
+        (dict(noise="-0.1"), "noise must be in"),
+    ],
+)
 def test_bad_what_if_entries_are_one_plain_line(kw, needle):
     v = Values(system="boeing747", **kw)
     with pytest.raises(InputError, match=needle):

@@ -8,8 +8,18 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from qsid_core import ConfigError, MPCConfig, QuantizerSpec, SweepConfig, load_result, run_sweep
-from qsid_core import __version__, prepare, quantized_moments, simulate
+from qsid_core import (
+    ConfigError,
+    MPCConfig,
+    QuantizerSpec,
+    SweepConfig,
+    __version__,
+    load_result,
+    prepare,
+    quantized_moments,
+    run_sweep,
+    simulate,
+)
 from qsid_core.systems import boeing747
 
 SMALL = dict(system="boeing747", trajectories=20, steps=300, realizations=2)
@@ -47,17 +57,34 @@ def test_input_bits_forms_and_per_channel_eps():
     assert SweepConfig(input_bits="12").input_bits == 12 and SweepConfig(input_bits="same").input_bits is None
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["--input-bits", "3,4,5"], "input_bits has 3 entries; the system has 2"),
-    (["--input-bits", "0"], "input bits must be"),
-    (["--input-bits", "many"], "input bits must be"),
-    (["--noise", "1,2"], "give 1 or 4 values"),
-    (["--noise=-1"], "noise must be in"),
-    (["--noise", "abc"], "noise must be one standard deviation"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--input-bits", "3,4,5"], "input_bits has 3 entries; the system has 2"),
+        (["--input-bits", "0"], "input bits must be"),
+        (["--input-bits", "many"], "input bits must be"),
+        (["--noise", "1,2"], "give 1 or 4 values"),
+        (["--noise=-1"], "noise must be in"),
+        (["--noise", "abc"], "noise must be one standard deviation"),
+    ],
+)
 def test_bad_what_if_flags_are_one_line_errors(capsys, argv, needle):
-    code, out, err = _run(capsys, "sweep", "--system", "boeing747", "--bits", "4", "--realizations", "1",
-                          "--trajectories", "3", "--steps", "50", "--no-mpc", *argv)
+    code, out, err = _run(
+        capsys,
+        "sweep",
+        "--system",
+        "boeing747",
+        "--bits",
+        "4",
+        "--realizations",
+        "1",
+        "--trajectories",
+        "3",
+        "--steps",
+        "50",
+        "--no-mpc",
+        *argv,
+    )
     assert code == 2 and needle in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
@@ -83,8 +110,23 @@ def test_state_bits_fix_or_exempt_single_states_and_reach_the_json(capsys):
     assert SweepConfig(state_bits="exact").state_bits == ("exact",)
     exact = run_sweep(SweepConfig(bits=(3,), state_bits="exact", input_bits="exact", mpc=None, **SMALL))
     assert exact.identification[3].err_A.max() < 1e-9  # nothing quantized, noise-free data: the exact model
-    code, out, err = _run(capsys, "sweep", "--system", "boeing747", "--bits", "3", "--realizations", "1",
-                          "--trajectories", "3", "--steps", "50", "--no-mpc", "--state-bits", "b,b")
+    code, out, err = _run(
+        capsys,
+        "sweep",
+        "--system",
+        "boeing747",
+        "--bits",
+        "3",
+        "--realizations",
+        "1",
+        "--trajectories",
+        "3",
+        "--steps",
+        "50",
+        "--no-mpc",
+        "--state-bits",
+        "b,b",
+    )
     assert code == 2 and "state_bits has 2 entries; the system has 4" in err
 
 
@@ -115,8 +157,9 @@ def test_noise_is_seeded_by_the_data_seed():
 # ----- studies that last -------------------------------------------------------------------------
 def test_json_carries_the_full_config_and_the_version():
     q = QuantizerSpec(dither="tpdf", range_mode="fixed", fixed_range=(-20, 20))
-    res = run_sweep(SweepConfig(bits=(3, 4), quantizer=q, input_bits=10, mpc=MPCConfig(steps=5, Qf=(1.0,) * 4),
-                                **SMALL))
+    res = run_sweep(
+        SweepConfig(bits=(3, 4), quantizer=q, input_bits=10, mpc=MPCConfig(steps=5, Qf=(1.0,) * 4), **SMALL)
+    )
     d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     c = d["config"]
     s = boeing747()
@@ -139,9 +182,32 @@ def test_version_is_pyprojects_and_qsid_version_prints_it(capsys):
 
 def test_a_saved_json_reruns_to_identical_numbers_with_config(capsys, tmp_path):
     saved = tmp_path / "study.json"
-    argv = ["sweep", "--system", "boeing747", "--bits", "3,5", "--realizations", "2", "--trajectories", "10",
-            "--steps", "200", "--dither", "tpdf", "--input-bits", "exact", "--noise", "0.01", "--mpc-steps", "5",
-            "--seed", "4", "-q", "--out", str(saved)]
+    argv = [
+        "sweep",
+        "--system",
+        "boeing747",
+        "--bits",
+        "3,5",
+        "--realizations",
+        "2",
+        "--trajectories",
+        "10",
+        "--steps",
+        "200",
+        "--dither",
+        "tpdf",
+        "--input-bits",
+        "exact",
+        "--noise",
+        "0.01",
+        "--mpc-steps",
+        "5",
+        "--seed",
+        "4",
+        "-q",
+        "--out",
+        str(saved),
+    ]
     code, _, err = _run(capsys, *argv)
     assert code == 0, err
     code, out, err = _run(capsys, "sweep", "--config", str(saved), "--json", "-q")
@@ -164,8 +230,10 @@ def test_a_saved_json_reruns_to_identical_numbers_with_config(capsys, tmp_path):
 
 def test_config_from_toml_and_bad_files(capsys, tmp_path):
     t = tmp_path / "s.toml"
-    t.write_text('system = "dc-motor"\nbits = "2:3"\nrealizations = 2\ntrajectories = 5\nsteps = 100\n'
-                 'dither = "rpdf"\nestimator = "bcls"\n[mpc]\nsteps = 3\nhorizon = 4\n')
+    t.write_text(
+        'system = "dc-motor"\nbits = "2:3"\nrealizations = 2\ntrajectories = 5\nsteps = 100\n'
+        'dither = "rpdf"\nestimator = "bcls"\n[mpc]\nsteps = 3\nhorizon = 4\n'
+    )
     code, out, err = _run(capsys, "sweep", "--config", str(t), "--json", "-q")
     assert code == 0, err
     d = json.loads(out)
@@ -201,8 +269,7 @@ def test_load_result_reads_back_a_sweep_result(tmp_path):
 
 # ----- notebooks ---------------------------------------------------------------------------------
 def test_repr_is_short_html_is_a_table_and_to_frame_has_one_row_per_b():
-    res = run_sweep(SweepConfig(bits="1:16", mpc=None, system="dc-motor", trajectories=10, steps=100,
-                                realizations=2))
+    res = run_sweep(SweepConfig(bits="1:16", mpc=None, system="dc-motor", trajectories=10, steps=100, realizations=2))
     r = repr(res)
     assert len(r) <= 2000 and "dc-motor" in r and "..." in r
     h = res._repr_html_()
@@ -215,7 +282,6 @@ def test_repr_is_short_html_is_a_table_and_to_frame_has_one_row_per_b():
 
 
 def test_unswept_b_is_a_clear_error():
-    res = run_sweep(SweepConfig(bits=(2, 3), mpc=None, system="dc-motor", trajectories=5, steps=50,
-                                realizations=1))
+    res = run_sweep(SweepConfig(bits=(2, 3), mpc=None, system="dc-motor", trajectories=5, steps=50, realizations=1))
     with pytest.raises(ConfigError, match=r"b = 7 was not swept; this result has b = 2, 3"):
         res.summary(7)

@@ -7,8 +7,17 @@ from qsid_core import LETTER_QUANTIZER, Experiment, QuantizerSpec, SweepConfig, 
 
 
 def _errors(system, b, quantizer, estimator, realizations, trajectories=200, steps=1000):
-    ex = Experiment(SweepConfig(system=system, bits=(b,), realizations=realizations, trajectories=trajectories,
-                                steps=steps, quantizer=quantizer, mpc=None))
+    ex = Experiment(
+        SweepConfig(
+            system=system,
+            bits=(b,),
+            realizations=realizations,
+            trajectories=trajectories,
+            steps=steps,
+            quantizer=quantizer,
+            mpc=None,
+        )
+    )
     return ex, ex.identification(b, estimator)
 
 
@@ -32,8 +41,9 @@ def test_why_dither_bcls_needs_known_noise(guard):
 def test_theorem1_matches_long_simulation_with_guard_band():
     """Boeing (stationary), per-channel range with guard band, T = 10^6: mean LS error on Theorem 1's line
     where the engine says the hypotheses hold; above it where it flags the finite-data regime."""
-    ex = Experiment(SweepConfig(system="boeing747", bits=(2, 4, 6), realizations=3, trajectories=1000, steps=1000,
-                                mpc=None))
+    ex = Experiment(
+        SweepConfig(system="boeing747", bits=(2, 4, 6), realizations=3, trajectories=1000, steps=1000, mpc=None)
+    )
     ex.moments((2, 4, 6))
     for b in (2, 4):
         i, th, a = ex.identification(b), ex.theory(b), ex.assumptions(b)

@@ -11,10 +11,24 @@ def _explicit(data, prep, bits, spec, seed):
     J, S = data.trajectories, data.steps
     U = np.random.default_rng(seed).uniform(-0.5, 0.5, size=(J * (S + 1), n + m)).reshape(J, S + 1, n + m)
     sub = spec.dither == "subtractive"
-    qs = quantize(data.states, prep.lo[:n], prep.hi[:n], bits, dither=spec.dither, guard=spec.guard,
-                  unit_dither=U[:, :, :n] if sub else None)
-    qu = quantize(data.inputs, prep.lo[n:], prep.hi[n:], bits, dither=spec.dither, guard=spec.guard,
-                  unit_dither=U[:, :S, n:] if sub else None)
+    qs = quantize(
+        data.states,
+        prep.lo[:n],
+        prep.hi[:n],
+        bits,
+        dither=spec.dither,
+        guard=spec.guard,
+        unit_dither=U[:, :, :n] if sub else None,
+    )
+    qu = quantize(
+        data.inputs,
+        prep.lo[n:],
+        prep.hi[n:],
+        bits,
+        dither=spec.dither,
+        guard=spec.guard,
+        unit_dither=U[:, :S, n:] if sub else None,
+    )
     Psi = np.hstack([qs.values[:, :-1].reshape(-1, n), qu.values.reshape(-1, m)]).T
     Xp = qs.values[:, 1:].reshape(-1, n).T
     over = (qs.overload.sum() + qu.overload.sum()) / (qs.overload.size + qu.overload.size)
@@ -24,8 +38,12 @@ def _explicit(data, prep, bits, spec, seed):
 @pytest.mark.parametrize("system", [dc_motor, boeing747])
 @pytest.mark.parametrize(
     "spec",
-    [QuantizerSpec(), QuantizerSpec(range_mode="shared", guard=True), QuantizerSpec(dither="none"),
-     QuantizerSpec(range_mode="fixed", fixed_range=(-3, 3))],
+    [
+        QuantizerSpec(),
+        QuantizerSpec(range_mode="shared", guard=True),
+        QuantizerSpec(dither="none"),
+        QuantizerSpec(range_mode="fixed", fixed_range=(-3, 3)),
+    ],
 )
 def test_fast_moments_equal_explicit_quantization(system, spec):
     data = simulate(system(), 23, 1500, seed=4)  # > one chunk, runs split across chunks
@@ -70,8 +88,13 @@ needs_numba = pytest.mark.skipif(not kernels.AVAILABLE, reason=f"numba kernels u
 
 @needs_numba
 @pytest.mark.parametrize(
-    "spec", [QuantizerSpec(), QuantizerSpec(range_mode="shared", guard=True), QuantizerSpec(dither="none"),
-             QuantizerSpec(range_mode="fixed", fixed_range=(-0.5, 0.5))],  # the last one overloads
+    "spec",
+    [
+        QuantizerSpec(),
+        QuantizerSpec(range_mode="shared", guard=True),
+        QuantizerSpec(dither="none"),
+        QuantizerSpec(range_mode="fixed", fixed_range=(-0.5, 0.5)),
+    ],  # the last one overloads
 )
 @pytest.mark.parametrize("chunk", [None, 777])  # 777 rows: chunk and kernel-block edges inside runs
 def test_numba_kernel_equals_numpy_reference(spec, chunk, monkeypatch):
@@ -125,8 +148,14 @@ def test_numba_can_be_switched_off_with_a_reason():
     from conftest import ROOT
 
     env = {**__import__("os").environ, "QSID_NO_NUMBA": "1"}
-    out = subprocess.run([sys.executable, "-c", "from qsid_core import kernels; print(kernels.AVAILABLE, kernels.REASON)"],
-                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", "from qsid_core import kernels; print(kernels.AVAILABLE, kernels.REASON)"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert out.stdout.strip() == "False numba disabled by QSID_NO_NUMBA"
 
 

@@ -143,8 +143,9 @@ def _reference_loop(model, s, cfg):
 def test_batched_speculative_loop_equals_per_step_mpc(u_max):
     s = boeing747()
     rng = np.random.default_rng(0)
-    models = [(s.A, s.B)] + [(s.A + 0.01 * rng.normal(size=s.A.shape), s.B + 0.05 * rng.normal(size=s.B.shape))
-                             for _ in range(5)]
+    models = [(s.A, s.B)] + [
+        (s.A + 0.01 * rng.normal(size=s.A.shape), s.B + 0.05 * rng.normal(size=s.B.shape)) for _ in range(5)
+    ]
     cfg = MPCConfig(x0=(8.0, 8.0, 0.0, 0.0), u_max=u_max, steps=40)
     loops = run_closed_loops(models, s.A, s.B, cfg, s)
     if u_max < 1:

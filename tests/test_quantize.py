@@ -24,7 +24,9 @@ def test_exactly_2_to_the_b_levels(bits):
         np.testing.assert_allclose(k, np.round(k), atol=1e-6)
         assert k.min() >= 0 and k.max() <= 2**bits - 1
     # x = hi maps to the top level, not to a 2^b+1-th one
-    assert quantize(np.array([hi]), lo, hi, bits, dither="none", guard=False).values[0] == pytest.approx(expected_all[-1])
+    assert quantize(np.array([hi]), lo, hi, bits, dither="none", guard=False).values[0] == pytest.approx(
+        expected_all[-1]
+    )
 
 
 @pytest.mark.parametrize("dither", ["none", "subtractive"])
@@ -86,8 +88,12 @@ def test_subtractive_dither_error_is_uniform_and_signal_independent(bits, lo, wi
     rng = np.random.default_rng(seed)
     N = 40_000
     t = np.linspace(0, 1, N)
-    u = {"ramp": t, "sine": 0.5 + 0.5 * np.sin(40 * t), "square": (np.sin(30 * t) > 0) * 1.0,
-         "uniform": rng.uniform(0, 1, N)}[shape]
+    u = {
+        "ramp": t,
+        "sine": 0.5 + 0.5 * np.sin(40 * t),
+        "square": (np.sin(30 * t) > 0) * 1.0,
+        "uniform": rng.uniform(0, 1, N),
+    }[shape]
     x = lo + width * (0.02 + 0.96 * u)
     q = quantize(x, lo, hi, bits, dither="subtractive", guard=True, rng=rng)
     e = (x - q.values) / q.eps  # normalised error, should be U[-1/2, 1/2]

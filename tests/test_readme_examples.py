@@ -38,8 +38,7 @@ def run_example(name: str, cwd: Path) -> str:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     script = cwd / f"{name}.py"
     script.write_text(block("example", name), encoding="utf-8")
-    proc = subprocess.run([sys.executable, str(script)], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run([sys.executable, str(script)], cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, f"README example {name!r} failed:\n{proc.stderr[-3000:]}"
     return proc.stdout
 
@@ -52,8 +51,9 @@ def assert_same_text(got: str, want: str, rtol: float, atol: float) -> None:
         skel_g, skel_w = (" ".join(NUMBER.sub("#", s).split()) for s in (g, w))
         assert skel_g == skel_w, f"line differs from the README:\n  got  {g!r}\n  want {w!r}"
         for a, b in zip(NUMBER.findall(g), NUMBER.findall(w)):
-            assert math.isclose(float(a), float(b), rel_tol=rtol, abs_tol=atol), \
+            assert math.isclose(float(a), float(b), rel_tol=rtol, abs_tol=atol), (
                 f"number {a} != README's {b} in line\n  got  {g!r}\n  want {w!r}"
+            )
 
 
 def test_number_comparison_catches_a_changed_result():
@@ -89,8 +89,13 @@ def test_export_example_prints_and_writes_what_the_readme_shows(tmp_path):
 @pytest.mark.parametrize("system", ["boeing747", "dc-motor"])
 def test_bits_output_is_what_the_readme_shows(system):
     """The README's ``qsid bits`` tables are this code's output (paper scale)."""
-    proc = subprocess.run([sys.executable, "-m", "app.cli", "bits", "--system", system, "-q"], cwd=ROOT,
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-m", "app.cli", "bits", "--system", system, "-q"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     shown = block("output", f"bits-{system}").split("\n", 1)[1]  # after the '$ qsid bits ...' line
     assert_same_text(proc.stdout, shown, rtol=1e-2, atol=1e-9)

@@ -35,8 +35,9 @@ def test_feedback_bits_set_a_floor_that_falls_with_the_word_length(capsys):
 
 def test_disturbance_leaves_a_residual_for_every_model_and_the_true_model(capsys):
     d = _sweep(capsys, "--bits", "4,8", "--disturbance", "0.01")
-    ex = Experiment(SweepConfig(bits=(4, 8), realizations=6, trajectories=50, steps=300,
-                                mpc=MPCConfig(disturbance=0.01)))
+    ex = Experiment(
+        SweepConfig(bits=(4, 8), realizations=6, trajectories=50, steps=300, mpc=MPCConfig(disturbance=0.01))
+    )
     for b in (4, 8):
         sse = ex.closed_loops(b).steady_state_error
         assert np.all(sse > 1e-4)
@@ -69,21 +70,30 @@ def test_quantized_measurement_is_the_letters_quantizer():
     np.testing.assert_allclose(nz.measure(x, 3), want, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("kw, field", [(dict(disturbance=-0.1), "disturbance"), (dict(feedback_bits=0), "feedback bits"),
-                                       (dict(feedback_noise=float("nan")), "feedback noise"),
-                                       (dict(disturbance_kind="cauchy"), "disturbance kind"),
-                                       (dict(loop_seed=-1), "loop seed")])
+@pytest.mark.parametrize(
+    "kw, field",
+    [
+        (dict(disturbance=-0.1), "disturbance"),
+        (dict(feedback_bits=0), "feedback bits"),
+        (dict(feedback_noise=float("nan")), "feedback noise"),
+        (dict(disturbance_kind="cauchy"), "disturbance kind"),
+        (dict(loop_seed=-1), "loop seed"),
+    ],
+)
 def test_bad_real_loop_settings(kw, field):
     with pytest.raises(ConfigError, match=field):
         MPCConfig(**kw)
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--feedback-bits", "0"], "argument --feedback-bits: must be a word length 1..32 or 'none'"),
-    (["--disturbance", "0.1:cauchy"], "argument --disturbance: must be SIGMA"),
-    (["--disturbance=-1"], "argument --disturbance: must be >= 0"),
-    (["--feedback-noise", "x"], "argument --feedback-noise"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--feedback-bits", "0"], "argument --feedback-bits: must be a word length 1..32 or 'none'"),
+        (["--disturbance", "0.1:cauchy"], "argument --disturbance: must be SIGMA"),
+        (["--disturbance=-1"], "argument --disturbance: must be >= 0"),
+        (["--feedback-noise", "x"], "argument --feedback-noise"),
+    ],
+)
 def test_cli_real_loop_bad_input_is_one_line(capsys, args, message):
     assert main(["sweep", *DATA, *args]) == 2
     err = capsys.readouterr().err.strip()
@@ -91,8 +101,27 @@ def test_cli_real_loop_bad_input_is_one_line(capsys, args, message):
 
 
 def test_table_names_the_causes_and_the_data_rate_floor(capsys):
-    assert main(["sweep", "--bits", "8", "--realizations", "3", "--trajectories", "20", "--steps", "100", "-q",
-                 "--feedback-bits", "6", "--system", "boeing747"]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "--bits",
+                "8",
+                "--realizations",
+                "3",
+                "--trajectories",
+                "20",
+                "--steps",
+                "100",
+                "-q",
+                "--feedback-bits",
+                "6",
+                "--system",
+                "boeing747",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "steady err" in out and "feedback quantized to 6 bits per state" in out
     assert "delta covers the model error only" in out and "data-rate floor of this plant: 0 bits" in out

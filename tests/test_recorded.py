@@ -76,8 +76,7 @@ def test_bad_data_are_one_clear_error(data, tmp_path):
 
 def test_qsid_identify_data_file(data, tmp_path, capsys):
     np.savez(tmp_path / "d.npz", x=data.states, u=data.inputs)
-    code = main(["identify", "--data", str(tmp_path / "d.npz"), "--bits", "3,6", "--realizations", "2", "--json",
-                 "-q"])
+    code = main(["identify", "--data", str(tmp_path / "d.npz"), "--bits", "3,6", "--realizations", "2", "--json", "-q"])
     out, err = capsys.readouterr()
     assert code == 0, err
     d = json.loads(out)

@@ -10,12 +10,24 @@ import pytest
 from qsid_core import Experiment, MPCConfig, QuantizerSpec, SweepConfig, run_sweep
 from qsid_core.errors import ConfigError
 from qsid_core.records import (
-    COLUMNS, RealizationRecord, experiment_records, realization_records, to_columns, to_pandas, write_csv,
+    COLUMNS,
+    RealizationRecord,
+    experiment_records,
+    realization_records,
+    to_columns,
+    to_pandas,
+    write_csv,
 )
 
 # no guard band, so that the overload column has something to show (the engine's default guards against it)
-CFG = dict(bits=(1, 4, 10), realizations=5, trajectories=10, steps=150, mpc=MPCConfig(horizon=5, steps=15),
-           quantizer=QuantizerSpec(guard=False))
+CFG = dict(
+    bits=(1, 4, 10),
+    realizations=5,
+    trajectories=10,
+    steps=150,
+    mpc=MPCConfig(horizon=5, steps=15),
+    quantizer=QuantizerSpec(guard=False),
+)
 
 
 @pytest.fixture(scope="module")
@@ -26,9 +38,24 @@ def result():
 def test_one_row_per_b_and_realization_with_the_sweeps_numbers(result):
     recs = realization_records(result)
     assert len(recs) == 3 * 5
-    assert COLUMNS == ("system", "bits", "estimator", "realization", "err_A", "err_B", "overload", "ident_failed",
-                       "bcls_fallback", "mpc_status", "mpc_cost", "mpc_predicted_cost", "final_state_norm", "outcome",
-                       "closed_loop_spectral_radius", "controllability")
+    assert COLUMNS == (
+        "system",
+        "bits",
+        "estimator",
+        "realization",
+        "err_A",
+        "err_B",
+        "overload",
+        "ident_failed",
+        "bcls_fallback",
+        "mpc_status",
+        "mpc_cost",
+        "mpc_predicted_cost",
+        "final_state_norm",
+        "outcome",
+        "closed_loop_spectral_radius",
+        "controllability",
+    )
     assert [(r.bits, r.realization) for r in recs] == [(b, i) for b in (1, 4, 10) for i in range(5)]
     for b in result.bits:
         rows = [r for r in recs if r.bits == b]
@@ -107,5 +134,6 @@ def test_no_pandas_is_a_clear_error(result, monkeypatch):
 def test_rejects_other_things(tmp_path):
     with pytest.raises(ConfigError, match="SweepResult or a list of RealizationRecord"):
         write_csv([{"bits": 3}], tmp_path / "x.csv")
-    assert isinstance(realization_records(run_sweep(SweepConfig(**dict(CFG, bits=(6,), mpc=None))))[0],
-                      RealizationRecord)
+    assert isinstance(
+        realization_records(run_sweep(SweepConfig(**dict(CFG, bits=(6,), mpc=None))))[0], RealizationRecord
+    )

@@ -17,8 +17,10 @@ def _residual(A, B, Q, R, X):
 
 def _models(s, k, seed=0, scale=0.01):
     rng = np.random.default_rng(seed)
-    return (np.stack([s.A + scale * rng.normal(size=s.A.shape) for _ in range(k)]),
-            np.stack([s.B + scale * rng.normal(size=s.B.shape) for _ in range(k)]))
+    return (
+        np.stack([s.A + scale * rng.normal(size=s.A.shape) for _ in range(k)]),
+        np.stack([s.B + scale * rng.normal(size=s.B.shape) for _ in range(k)]),
+    )
 
 
 @pytest.mark.parametrize("system", [dc_motor, boeing747])
@@ -59,7 +61,7 @@ def _condensed(A, B, Q, R, Qf, N):
     Su = np.zeros((N * n, N * m))
     for k in range(N):
         for j in range(k + 1):
-            Su[k * n:(k + 1) * n, j * m:(j + 1) * m] = np.linalg.matrix_power(A, k - j) @ B
+            Su[k * n : (k + 1) * n, j * m : (j + 1) * m] = np.linalg.matrix_power(A, k - j) @ B
     Qb = np.kron(np.eye(N), Q)
     Qb[-n:, -n:] = Qf
     H = Su.T @ Qb @ Su + np.kron(np.eye(N), R)
@@ -92,7 +94,7 @@ def test_batched_lq_parts_equal_single_model_parts():
     r = np.array([0.1, 0.0, -0.2, 0.0])
     batch = lq_parts(A, B, s.Q, s.R, Qf, r, 6, np.ones(2), x_max=np.full(4, 50.0))
     for k in range(4):
-        one = lq_parts(A[k:k + 1], B[k:k + 1], s.Q, s.R, Qf[k:k + 1], r, 6, np.ones(2), x_max=np.full(4, 50.0))
+        one = lq_parts(A[k : k + 1], B[k : k + 1], s.Q, s.R, Qf[k : k + 1], r, 6, np.ones(2), x_max=np.full(4, 50.0))
         for name in ("K", "kf", "P0", "p0", "c0", "F", "f"):
             np.testing.assert_allclose(getattr(batch, name)[k], getattr(one, name)[0], rtol=1e-12, atol=1e-12)
     assert batch.finite().all()

@@ -7,11 +7,31 @@ from qsid_core import MPCConfig, QuantizerSpec, SummaryRow, SweepConfig, run_swe
 from qsid_core.summary import json_clean, saturated_steps
 
 SMALL = dict(trajectories=10, steps=200, realizations=4)
-OLD_KEYS = ("bits", "eps_x", "eps_u", "err_A", "err_B", "err_A_theory", "err_B_theory", "overload_fraction",
-            "bcls_fallbacks", "ultimate_bound", "ultimate_bound_note", "ident_failures", "mpc_cost",
-            "final_state_norm", "osqp_steps")
-NEW_KEYS = ("realizations", "effective_realizations", "rho", "ultimate_bound_realized", "assumptions",
-            "saturated_steps")
+OLD_KEYS = (
+    "bits",
+    "eps_x",
+    "eps_u",
+    "err_A",
+    "err_B",
+    "err_A_theory",
+    "err_B_theory",
+    "overload_fraction",
+    "bcls_fallbacks",
+    "ultimate_bound",
+    "ultimate_bound_note",
+    "ident_failures",
+    "mpc_cost",
+    "final_state_norm",
+    "osqp_steps",
+)
+NEW_KEYS = (
+    "realizations",
+    "effective_realizations",
+    "rho",
+    "ultimate_bound_realized",
+    "assumptions",
+    "saturated_steps",
+)
 
 
 def test_summary_row_is_typed_and_its_dict_keeps_old_keys_and_values():
@@ -25,8 +45,12 @@ def test_summary_row_is_typed_and_its_dict_keeps_old_keys_and_values():
     assert d["ultimate_bound"] == th.delta and d["rho"] == pytest.approx(th.bound.rho) and d["rho"] > 0
     assert d["effective_realizations"] == d["realizations"] == 4
     rb = res.realized[4]
-    assert d["ultimate_bound_realized"] == {"median": pytest.approx(rb.median), "max": pytest.approx(rb.max),
-                                            "self_consistent": rb.self_consistent, "informative": rb.informative}
+    assert d["ultimate_bound_realized"] == {
+        "median": pytest.approx(rb.median),
+        "max": pytest.approx(rb.max),
+        "self_consistent": rb.self_consistent,
+        "informative": rb.informative,
+    }
     assert d["assumptions"]["bits"] == 4 and isinstance(d["assumptions"]["notes"], list)
     assert d["saturated_steps"]["of_steps"] == 4 * res.config.mpc.steps
     # a row reads like the former dict rows (front ends written for them keep working)
@@ -46,8 +70,15 @@ def test_sweep_json_is_strict_and_has_new_config_fields():
 
 
 def test_json_clean_replaces_non_finite():
-    out = json_clean({"a": float("nan"), "b": [np.inf, 1.0, np.float64(2)], "c": np.array([np.nan, 3.0]),
-                      "d": np.bool_(True), "e": np.int64(4)})
+    out = json_clean(
+        {
+            "a": float("nan"),
+            "b": [np.inf, 1.0, np.float64(2)],
+            "c": np.array([np.nan, 3.0]),
+            "d": np.bool_(True),
+            "e": np.int64(4),
+        }
+    )
     assert out == {"a": None, "b": [None, 1.0, 2.0], "c": [None, 3.0], "d": True, "e": 4}
     json.dumps(out, allow_nan=False)
 

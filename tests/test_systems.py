@@ -61,7 +61,7 @@ def test_uncontrollable_system_warns_not_crashes():
 
 def test_toml_and_json_files(tmp_path):
     t = tmp_path / "plant.toml"
-    t.write_text('A = [[0.9, 0.1], [0.0, 0.8]]\nB = [[0.0], [1.0]]\nx0 = [1.0, -1.0]\nQ = [1.0, 2.0]\nR = [[0.5]]\n')
+    t.write_text("A = [[0.9, 0.1], [0.0, 0.8]]\nB = [[0.0], [1.0]]\nx0 = [1.0, -1.0]\nQ = [1.0, 2.0]\nR = [[0.5]]\n")
     s = load_system(t)
     assert s.name == "plant" and s.n == 2 and s.m == 1
     np.testing.assert_allclose(np.diag(s.Q), [1, 2])

@@ -40,8 +40,10 @@ def test_zoh_matches_python_control():
 
 
 def test_presets_build_without_python_control():
-    probe = ("import sys; from qsid_core.systems import PRESETS; [f() for f in PRESETS.values()]; "
-             "print('control' in sys.modules)")
+    probe = (
+        "import sys; from qsid_core.systems import PRESETS; [f() for f in PRESETS.values()]; "
+        "print('control' in sys.modules)"
+    )
     r = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "False"

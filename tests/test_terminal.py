@@ -19,11 +19,18 @@ def _cfg(capsys, *extra):
     return json.loads(capsys.readouterr().out)
 
 
-@pytest.mark.parametrize("flag, want", [(["--Qf", "dare"], None), (["--Qf", "Q"], [1.0, 0.1, 0.1]),
-                                        (["--Qf=2"], [2.0]), (["--Qf=1,2,3"], [1.0, 2.0, 3.0])])
+@pytest.mark.parametrize(
+    "flag, want",
+    [
+        (["--Qf", "dare"], None),
+        (["--Qf", "Q"], [1.0, 0.1, 0.1]),
+        (["--Qf=2"], [2.0]),
+        (["--Qf=1,2,3"], [1.0, 2.0, 3.0]),
+    ],
+)
 def test_cli_terminal_weight(capsys, flag, want):
-    from app.cli.parser import UsageError  # noqa: F401  (the parser is the CLI's)
     from app.cli import build_parser
+    from app.cli.parser import UsageError  # noqa: F401  (the parser is the CLI's)
     from app.cli.runner import config, system_from_args
 
     args = build_parser().parse_args(["sweep", *TINY, *flag])
@@ -43,13 +50,16 @@ def test_terminal_weight_changes_the_bound_and_terminal_box_binds():
     assert not np.allclose(np.nan_to_num(boxed.inputs), np.nan_to_num(free.inputs))
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--Qf", "abc"], "argument --Qf: must be 'dare', 'Q' or numbers"),
-    (["--Qf=1,2"], "Qf must have 1 or 3 entries"),
-    (["--Qf=-1"], "Qf diagonal must be >= 0"),
-    (["--terminal-box=0"], "xf_max must be positive"),
-    (["--terminal-box=1,2"], "xf_max must have 1 or 3 entries"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--Qf", "abc"], "argument --Qf: must be 'dare', 'Q' or numbers"),
+        (["--Qf=1,2"], "Qf must have 1 or 3 entries"),
+        (["--Qf=-1"], "Qf diagonal must be >= 0"),
+        (["--terminal-box=0"], "xf_max must be positive"),
+        (["--terminal-box=1,2"], "xf_max must have 1 or 3 entries"),
+    ],
+)
 def test_cli_terminal_bad_input_is_one_line(capsys, args, message):
     assert main(["sweep", *TINY, *args]) == 2
     err = capsys.readouterr().err.strip()
@@ -62,7 +72,10 @@ def test_dashboard_terminal_settings():
     m = mpc_config(Values(qf="Q", terminal_box="0.5"), s)
     assert m.Qf == (1.0, 0.1, 0.1) and m.xf_max == (0.5, 0.5, 0.5)
     assert mpc_config(Values(qf="DARE"), s).Qf is None
-    for v, msg in ((Values(qf="x"), "Qf"), (Values(terminal_box="0"), "terminal box"),
-                   (Values(terminal_box="1, 2"), "terminal box")):
+    for v, msg in (
+        (Values(qf="x"), "Qf"),
+        (Values(terminal_box="0"), "terminal box"),
+        (Values(terminal_box="1, 2"), "terminal box"),
+    ):
         with pytest.raises(InputError, match=msg):
             mpc_config(v, s)

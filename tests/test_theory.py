@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from qsid_core import ConfigError, Experiment, QuantizerSpec, SweepConfig, run_sweep, theorem1_prediction
-from qsid_core.theory import riccati_finite, ultimate_bound
 from qsid_core.riccati import dare_stabilizing
 from qsid_core.systems import boeing747, dc_motor
+from qsid_core.theory import riccati_finite, ultimate_bound
 
 
 def test_per_channel_form_reduces_to_letters_shared_formula():
@@ -21,8 +21,11 @@ def test_per_channel_form_reduces_to_letters_shared_formula():
 @pytest.mark.slow
 def test_theorem1_matches_mean_ls_error_boeing_shared_b4():
     """Boeing, shared range, b = 4, 200 x 1000 data: mean LS error within 3% of the prediction."""
-    ex = Experiment(SweepConfig(system="boeing747", bits=(4,), realizations=10,
-                                quantizer=QuantizerSpec(range_mode="shared"), mpc=None))
+    ex = Experiment(
+        SweepConfig(
+            system="boeing747", bits=(4,), realizations=10, quantizer=QuantizerSpec(range_mode="shared"), mpc=None
+        )
+    )
     ident, th = ex.identification(4), ex.theory(4)
     assert ident.err_A.mean() == pytest.approx(th.err_A, rel=0.03)
     assert ident.err_B.mean() == pytest.approx(th.err_B, rel=0.03)

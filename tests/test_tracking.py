@@ -30,18 +30,25 @@ def _direct(s, cfg, A_hat, B_hat):
         g = cq.Gx[0] @ x + cq.Gr[0] @ w.reference[t + 1 : t + 1 + N].reshape(-1)
         if cfg.tracking == "offset-free":  # -R u_ref,k on the rows of u_k
             g -= (w.reference[t : t + N] @ Ku.T @ w.R.T).reshape(-1)
-        U, _, flag, _ = daqp.solve(np.ascontiguousarray(cq.H[0]), g, np.zeros((0, N * m)), ub, -ub,
-                                   np.zeros(N * m, dtype=np.int32))
+        U, _, flag, _ = daqp.solve(
+            np.ascontiguousarray(cq.H[0]), g, np.zeros((0, N * m)), ub, -ub, np.zeros(N * m, dtype=np.int32)
+        )
         assert flag == 1
         x = s.A @ x + s.B @ np.clip(U[:m], -w.u_max, w.u_max)
         xs.append(x)
     return np.array(xs)
 
 
-@pytest.mark.parametrize("u_max, ref, form", [(100.0, "sine:1:1:40", "letter"), (0.3, "square:2:0.5:20", "letter"),
-                                              (0.5, "step:theta:0.3:5", "letter"),
-                                              (100.0, "sine:1:1:40", "offset-free"),
-                                              (0.3, "square:4:0.5:20", "offset-free")])
+@pytest.mark.parametrize(
+    "u_max, ref, form",
+    [
+        (100.0, "sine:1:1:40", "letter"),
+        (0.3, "square:2:0.5:20", "letter"),
+        (0.5, "step:theta:0.3:5", "letter"),
+        (100.0, "sine:1:1:40", "offset-free"),
+        (0.3, "square:4:0.5:20", "offset-free"),
+    ],
+)
 def test_tracking_loop_is_the_condensed_qp_solved_step_by_step(u_max, ref, form):
     s = get_system("boeing747")
     rng = np.random.default_rng(0)
@@ -77,9 +84,17 @@ def test_reference_forms():
     assert held.tolist() == [[1, 2], [3, 4], [3, 4], [3, 4]]
 
 
-@pytest.mark.parametrize("spec, msg", [("ramp:1:1:3", "must look like"), ("step:9:1:3", "1..2"),
-                                       ("step:zz:1:3", "state name"), ("sine:1:1:1", "period"),
-                                       ("step:1:x:3", "numbers"), ("step:1:1:-2", "step time")])
+@pytest.mark.parametrize(
+    "spec, msg",
+    [
+        ("ramp:1:1:3", "must look like"),
+        ("step:9:1:3", "1..2"),
+        ("step:zz:1:3", "state name"),
+        ("sine:1:1:1", "period"),
+        ("step:1:x:3", "numbers"),
+        ("step:1:1:-2", "step time"),
+    ],
+)
 def test_bad_reference_specs(spec, msg):
     with pytest.raises(ConfigError, match=msg):
         reference_samples(spec, ("a", "b"), 5)
@@ -103,9 +118,12 @@ def test_cli_reference_file_and_bad_input(tmp_path, capsys):
     assert d["config"]["mpc"]["reference"][0] == [0.5, 0.0, 0.0] and d["results"][0]["tracking_error"]["mean"] > 0
     bad = tmp_path / "bad.csv"
     bad.write_text("1,2\n3,4\n")
-    for args, msg in ((["--reference", str(bad)], "3 columns"), (["--reference", "nofile.csv"], "neither"),
-                      (["--reference", "sine:7:1:10"], "1..3"),
-                      (["--reference", "sine:1:1:10", "--x-ref", "1"], "exclude each other")):
+    for args, msg in (
+        (["--reference", str(bad)], "3 columns"),
+        (["--reference", "nofile.csv"], "neither"),
+        (["--reference", "sine:7:1:10"], "1..3"),
+        (["--reference", "sine:1:1:10", "--x-ref", "1"], "exclude each other"),
+    ):
         assert main([*base, *args]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and msg in err, err
@@ -136,8 +154,14 @@ def test_dashboard_draws_the_reference_in_3d_and_in_the_time_series():
     from app.figures.phase_scene import scene_view
 
     small = dict(realizations=3, trajectories=20, steps=100, identification="LS")
-    fr = list(iter_frames(Values(system="boeing747", bits=8, reference="sine:u:1:20", **small), SharedCache(),
-                          chunk=16, min_interval=0.0))
+    fr = list(
+        iter_frames(
+            Values(system="boeing747", bits=8, reference="sine:u:1:20", **small),
+            SharedCache(),
+            chunk=16,
+            min_interval=0.0,
+        )
+    )
     v = scene_view(fr[-1])
     assert v.ref_segments.shape == (50, 2, 3) and np.isfinite(v.ref_segments).all()
     ts = build_figures(fr[-1], ["timeseries"])["timeseries"]

@@ -7,8 +7,15 @@ import pytest
 
 from qsid_core.experiment import Experiment, SweepConfig
 from qsid_core.mpc import MPCConfig
-from qsid_core.stability import (certify, complex_stability_radius, controllability_margin, lyapunov_batch,
-                                 small_gain_holds, small_gain_margin, spectral_radius)
+from qsid_core.stability import (
+    certify,
+    complex_stability_radius,
+    controllability_margin,
+    lyapunov_batch,
+    small_gain_holds,
+    small_gain_margin,
+    spectral_radius,
+)
 from qsid_core.systems import LTISystem
 from qsid_core.verdicts import OUTCOMES
 

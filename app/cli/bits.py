@@ -7,18 +7,19 @@ import math
 
 from .output import dumps, g
 from .parser import add_run_options
-from .runner import (UsageError, bits_text, config, executor, input_files, out_file, system_from_args,
-                     write_text)
+from .runner import UsageError, bits_text, config, executor, input_files, out_file, system_from_args, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "format_bits"]
 
 HELP = "how many bits the MPC needs: stabilized share and cost gap per b, three word lengths"
-DESCRIPTION = ("For each b: the share of MPC loops (built on the quantized-data models) that converge on the true "
-               "plant, with a 95 % interval, and the gap of their mean cost to the true-model MPC. Then three word "
-               "lengths: b_observed (from which on at least --target of the loops converge and the cost gap is at "
-               "most --cost-gap), b_robust (from which on the small-gain test certifies the loop for Theorem 1's "
-               "predicted model error) and b_letter (from which on the letter's ultimate bound is below rho and "
-               "below ||x0||).")
+DESCRIPTION = (
+    "For each b: the share of MPC loops (built on the quantized-data models) that converge on the true "
+    "plant, with a 95 % interval, and the gap of their mean cost to the true-model MPC. Then three word "
+    "lengths: b_observed (from which on at least --target of the loops converge and the cost gap is at "
+    "most --cost-gap), b_robust (from which on the small-gain test certifies the loop for Theorem 1's "
+    "predicted model error) and b_letter (from which on the letter's ultimate bound is below rho and "
+    "below ||x0||)."
+)
 
 
 def _fraction(text: str) -> float:
@@ -34,15 +35,28 @@ def _fraction(text: str) -> float:
 def add_arguments(p) -> None:
     add_run_options(p)
     a = p.add_argument_group("the answer")
-    a.add_argument("--target", type=_fraction, default=0.95, metavar="P",
-                   help="share of stabilized loops b_observed asks for, in (0, 1] or as a percentage "
-                        "(default: 0.95)")
-    a.add_argument("--cost-gap", type=_fraction, default=0.01, metavar="G",
-                   help="largest gap of the mean closed-loop cost to the true-model MPC's, relative, >= 0 "
-                        "(default: 0.01, i.e. 1%%)")
+    a.add_argument(
+        "--target",
+        type=_fraction,
+        default=0.95,
+        metavar="P",
+        help="share of stabilized loops b_observed asks for, in (0, 1] or as a percentage (default: 0.95)",
+    )
+    a.add_argument(
+        "--cost-gap",
+        type=_fraction,
+        default=0.01,
+        metavar="G",
+        help="largest gap of the mean closed-loop cost to the true-model MPC's, relative, >= 0 "
+        "(default: 0.01, i.e. 1%%)",
+    )
     a.add_argument("--json", action="store_true", help="print one JSON object to stdout instead of a table")
-    a.add_argument("--out", metavar="FILE", default=None,
-                   help="also write the JSON to FILE (checked before the run; an existing FILE is replaced)")
+    a.add_argument(
+        "--out",
+        metavar="FILE",
+        default=None,
+        help="also write the JSON to FILE (checked before the run; an existing FILE is replaced)",
+    )
 
 
 def _check(args) -> None:
@@ -58,34 +72,62 @@ def _pct(x) -> str:
 
 def format_bits(d: dict) -> str:
     """The plain table of a ``qsid bits`` JSON dict, then the answer in one sentence."""
-    head = ["b", "stabilized", "95% interval", "cost gap", "converged/bounded/diverged/failed",
-            "small gain (pred.)", "certified (own error)", "delta", "delta < rho", "delta < |x0|"]
+    head = [
+        "b",
+        "stabilized",
+        "95% interval",
+        "cost gap",
+        "converged/bounded/diverged/failed",
+        "small gain (pred.)",
+        "certified (own error)",
+        "delta",
+        "delta < rho",
+        "delta < |x0|",
+    ]
     rows = []
     for r in d["rows"]:
         oc = r["closed_loop_outcomes"]
         lo, hi = r["stabilized_interval"]
-        sg = "-" if r["robust_certified"] is None else (
-            f"{'yes' if r['robust_certified'] else 'no'} {g(r['robust_perturbation'], '.2g')}<"
-            f"{g(r['robust_radius'], '.2g')}" if r["robust_certified"] else
-            f"no {g(r['robust_perturbation'], '.2g')}>={g(r['robust_radius'], '.2g')}")
+        sg = (
+            "-"
+            if r["robust_certified"] is None
+            else (
+                f"{'yes' if r['robust_certified'] else 'no'} {g(r['robust_perturbation'], '.2g')}<"
+                f"{g(r['robust_radius'], '.2g')}"
+                if r["robust_certified"]
+                else f"no {g(r['robust_perturbation'], '.2g')}>={g(r['robust_radius'], '.2g')}"
+            )
+        )
         total = sum(oc.values())
-        rows.append([
-            str(r["bits"]), _pct(r["stabilized_fraction"]), f"{_pct(lo)}..{_pct(hi)}", _pct(r["cost_gap"]),
-            "/".join(str(oc.get(k, 0)) for k in ("converged", "bounded", "diverged", "failed")),
-            sg, "-" if r["robust_certified_realized"] is None else f"{r['robust_certified_realized']}/{total}",
-            g(r["ultimate_bound"], ".3g"), _yn(r["bound_self_consistent"]), _yn(r["bound_informative"]),
-        ])
+        rows.append(
+            [
+                str(r["bits"]),
+                _pct(r["stabilized_fraction"]),
+                f"{_pct(lo)}..{_pct(hi)}",
+                _pct(r["cost_gap"]),
+                "/".join(str(oc.get(k, 0)) for k in ("converged", "bounded", "diverged", "failed")),
+                sg,
+                "-" if r["robust_certified_realized"] is None else f"{r['robust_certified_realized']}/{total}",
+                g(r["ultimate_bound"], ".3g"),
+                _yn(r["bound_self_consistent"]),
+                _yn(r["bound_informative"]),
+            ]
+        )
     widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
 
     def fmt(cells):
         return "  ".join(c.rjust(w) for c, w in zip(cells, widths))
 
     s = d["settings"]
-    lines = [f"system {d['system']}: {s['trajectories']} x {s['steps']} samples, {s['realizations']} realizations, "
-             f"estimator {s['estimator']}, dither {s['dither']}; true-model MPC cost {g(d['true_model_cost'], '.4g')}",
-             fmt(head), fmt(["-" * w for w in widths]), *(fmt(r) for r in rows),
-             f"b_observed = {_b(d['b_observed'])}, b_robust = {_b(d['b_robust'])}, b_letter = {_b(d['b_letter'])}",
-             d["sentence"]]
+    lines = [
+        f"system {d['system']}: {s['trajectories']} x {s['steps']} samples, {s['realizations']} realizations, "
+        f"estimator {s['estimator']}, dither {s['dither']}; true-model MPC cost {g(d['true_model_cost'], '.4g')}",
+        fmt(head),
+        fmt(["-" * w for w in widths]),
+        *(fmt(r) for r in rows),
+        f"b_observed = {_b(d['b_observed'])}, b_robust = {_b(d['b_robust'])}, b_letter = {_b(d['b_letter'])}",
+        d["sentence"],
+    ]
     return "\n".join(lines)
 
 
@@ -107,10 +149,11 @@ def run(args, rep) -> int:
     cfg = config(args, system, True)
     with executor(args, rep) as (pool, nw):
         ex = Experiment(cfg, pool, tasks=max(4, 2 * nw))
-        rep.stage(f"system {system.name!r}: b = {bits_text(cfg.bits)}, {cfg.realizations} realizations, "
-                  f"{cfg.trajectories} x {cfg.steps} samples; quantize, identify, run and judge every closed loop")
-        ans = bits_needed(cfg, target=args.target, cost_gap=args.cost_gap, executor=pool, progress=rep,
-                          experiment=ex)
+        rep.stage(
+            f"system {system.name!r}: b = {bits_text(cfg.bits)}, {cfg.realizations} realizations, "
+            f"{cfg.trajectories} x {cfg.steps} samples; quantize, identify, run and judge every closed loop"
+        )
+        ans = bits_needed(cfg, target=args.target, cost_gap=args.cost_gap, executor=pool, progress=rep, experiment=ex)
     d = ans.to_dict()
     d["timing_s"] = ans.result.timing_s if ans.result is not None else {}
     text = dumps(d)

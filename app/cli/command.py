@@ -46,14 +46,16 @@ def _mpc_args(cfg, system) -> list:
         out.append(f"--u-max={floats_spec(m.u_max)}")
     if m.reference is not None:
         if not isinstance(m.reference, str):
-            raise ValueError("the command line gives a sampled reference as a CSV file: write it and use "
-                             "--reference FILE.csv")
+            raise ValueError(
+                "the command line gives a sampled reference as a CSV file: write it and use --reference FILE.csv"
+            )
         out.append(f"--reference={m.reference}")
     if m.tracking != d.tracking:
         out.append(f"--tracking={m.tracking}")
     if m.disturbance:
-        out.append(f"--disturbance={m.disturbance!r}" + ("" if m.disturbance_kind == "gaussian" else
-                                                         f":{m.disturbance_kind}"))
+        out.append(
+            f"--disturbance={m.disturbance!r}" + ("" if m.disturbance_kind == "gaussian" else f":{m.disturbance_kind}")
+        )
     if m.feedback_bits is not None:
         out.append(f"--feedback-bits={m.feedback_bits}")
     if m.feedback_noise:
@@ -64,8 +66,15 @@ def _mpc_args(cfg, system) -> list:
         if m.verify_steps is None:
             raise ValueError("the command line has no flag for switching the closed-loop verdicts off")
         out.append(f"--verify-steps={m.verify_steps}")
-    for flag, v in (("--x0", m.x0), ("--x-ref", m.x_ref), ("--x-max", m.x_max), ("--terminal-box", m.xf_max),
-                    ("--Qf", m.Qf), ("--Q", m.Q), ("--R", m.R)):
+    for flag, v in (
+        ("--x0", m.x0),
+        ("--x-ref", m.x_ref),
+        ("--x-max", m.x_max),
+        ("--terminal-box", m.xf_max),
+        ("--Qf", m.Qf),
+        ("--Q", m.Q),
+        ("--R", m.R),
+    ):
         if v is not None:
             out.append(f"{flag}={floats_spec(v)}")
     unsupported = [k for k in ("eps", "max_iter") if getattr(m, k) != getattr(d, k)]
@@ -93,11 +102,16 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
     out = _system_args(system, system_source)
     if cfg.bits != d.bits:
         out.append(f"--bits={bits_spec(cfg.bits)}")
-    for flag, v, dv in (("--realizations", cfg.realizations, d.realizations),
-                        ("--trajectories", cfg.trajectories, d.trajectories), ("--steps", cfg.steps, d.steps),
-                        ("--data-seed", cfg.data_seed, d.data_seed), ("--dither-seed", cfg.dither_seed, d.dither_seed),
-                        ("--range", q.range_mode, dq.range_mode), ("--dither", q.dither, dq.dither),
-                        ("--estimator", cfg.estimator, d.estimator)):
+    for flag, v, dv in (
+        ("--realizations", cfg.realizations, d.realizations),
+        ("--trajectories", cfg.trajectories, d.trajectories),
+        ("--steps", cfg.steps, d.steps),
+        ("--data-seed", cfg.data_seed, d.data_seed),
+        ("--dither-seed", cfg.dither_seed, d.dither_seed),
+        ("--range", q.range_mode, dq.range_mode),
+        ("--dither", q.dither, dq.dither),
+        ("--estimator", cfg.estimator, d.estimator),
+    ):
         if v != dv:
             out.append(f"{flag}={v}")
     if cfg.input_amplitude != d.input_amplitude:
@@ -130,6 +144,7 @@ def sweep_command(cfg, system_source: str | None = None) -> str:
 
 def bits_command(cfg, target: float = 0.95, cost_gap: float = 0.01, system_source: str | None = None) -> str:
     """The shell line ``qsid bits ...`` for ``cfg`` and the answer's thresholds (defaults left out)."""
-    extra = ([] if target == 0.95 else [f"--target={target!r}"]) + \
-            ([] if cost_gap == 0.01 else [f"--cost-gap={cost_gap!r}"])
+    extra = ([] if target == 0.95 else [f"--target={target!r}"]) + (
+        [] if cost_gap == 0.01 else [f"--cost-gap={cost_gap!r}"]
+    )
     return shlex.join(["qsid", "bits", *sweep_argv(cfg, system_source), *extra])

@@ -18,9 +18,11 @@ from .runner import _quantizer, executor, input_files, out_file, resolve_system,
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
 HELP = "model error against data length at one word length (LS, BCLS, Theorem 1's floor)"
-DESCRIPTION = ("Relative errors of A and B (mean +- std over dither realizations) of LS and BCLS against the "
-               "number of regression samples T at one word length, with Theorem 1's large-data prediction. "
-               "Trajectories x steps per length are chosen by the engine and reported.")
+DESCRIPTION = (
+    "Relative errors of A and B (mean +- std over dither realizations) of LS and BCLS against the "
+    "number of regression samples T at one word length, with Theorem 1's large-data prediction. "
+    "Trajectories x steps per length are chosen by the engine and reported."
+)
 
 
 def _samples(text: str) -> tuple[int, ...]:
@@ -31,7 +33,8 @@ def _samples(text: str) -> tuple[int, ...]:
             v = float(part)
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"must be comma-separated sample counts like 1000,10000; got {text!r}") from None
+                f"must be comma-separated sample counts like 1000,10000; got {text!r}"
+            ) from None
         if not (math.isfinite(v) and v.is_integer() and abs(v) < 1e15):
             raise argparse.ArgumentTypeError(f"sample counts must be whole numbers; got {part.strip()!r}")
         out.append(int(v))
@@ -44,29 +47,72 @@ def add_arguments(p) -> None:
     d = DataLengthConfig()
     q0 = d.quantizer
     g_ = p.add_argument_group("system and data")
-    g_.add_argument("--system", default=d.system, metavar="NAME|FILE",
-                    help=f"preset name or a .toml/.json system file (default: {d.system})")
+    g_.add_argument(
+        "--system",
+        default=d.system,
+        metavar="NAME|FILE",
+        help=f"preset name or a .toml/.json system file (default: {d.system})",
+    )
     g_.add_argument("--bits", type=pos_int, default=d.bits, metavar="B", help=f"word length (default: {d.bits})")
-    g_.add_argument("--samples", type=_samples, default=DEFAULT_SAMPLES, metavar="T1,T2,..",
-                    help="total regression samples per length, e.g. 1000,10000,100000 (default: "
-                         f"{len(DEFAULT_SAMPLES)} lengths from {DEFAULT_SAMPLES[0]} to {DEFAULT_SAMPLES[-1]})")
-    g_.add_argument("--realizations", type=pos_int, default=d.realizations, metavar="N",
-                    help=f"dither realizations per length (default: {d.realizations})")
-    g_.add_argument("--input-amplitude", type=_float_type, default=d.input_amplitude, metavar="A",
-                    help=f"training inputs u ~ U[-A, A] (default: {d.input_amplitude:g})")
-    g_.add_argument("--data-seed", type=_nonneg_int, default=d.data_seed, metavar="N",
-                    help=f"seed of the simulated data (default: {d.data_seed})")
-    g_.add_argument("--dither-seed", type=_nonneg_int, default=d.dither_seed, metavar="N",
-                    help=f"seed of the dither streams (default: {d.dither_seed})")
+    g_.add_argument(
+        "--samples",
+        type=_samples,
+        default=DEFAULT_SAMPLES,
+        metavar="T1,T2,..",
+        help="total regression samples per length, e.g. 1000,10000,100000 (default: "
+        f"{len(DEFAULT_SAMPLES)} lengths from {DEFAULT_SAMPLES[0]} to {DEFAULT_SAMPLES[-1]})",
+    )
+    g_.add_argument(
+        "--realizations",
+        type=pos_int,
+        default=d.realizations,
+        metavar="N",
+        help=f"dither realizations per length (default: {d.realizations})",
+    )
+    g_.add_argument(
+        "--input-amplitude",
+        type=_float_type,
+        default=d.input_amplitude,
+        metavar="A",
+        help=f"training inputs u ~ U[-A, A] (default: {d.input_amplitude:g})",
+    )
+    g_.add_argument(
+        "--data-seed",
+        type=_nonneg_int,
+        default=d.data_seed,
+        metavar="N",
+        help=f"seed of the simulated data (default: {d.data_seed})",
+    )
+    g_.add_argument(
+        "--dither-seed",
+        type=_nonneg_int,
+        default=d.dither_seed,
+        metavar="N",
+        help=f"seed of the dither streams (default: {d.dither_seed})",
+    )
     q = p.add_argument_group("quantizer")
-    q.add_argument("--range", dest="range_mode", choices=engine().range_modes, default=q0.range_mode,
-                   help=f"range of the largest data set, used at every length (default: {q0.range_mode})")
-    q.add_argument("--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]",
-                   help="the fixed range (with --range fixed)")
-    q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
-                   help=f"half-cell guard band, no overload (default: {_onoff(q0.guard)})")
-    q.add_argument("--dither", choices=engine().dithers, default=q0.dither,
-                   help=f"subtractive uniform dither or none (default: {q0.dither})")
+    q.add_argument(
+        "--range",
+        dest="range_mode",
+        choices=engine().range_modes,
+        default=q0.range_mode,
+        help=f"range of the largest data set, used at every length (default: {q0.range_mode})",
+    )
+    q.add_argument(
+        "--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]", help="the fixed range (with --range fixed)"
+    )
+    q.add_argument(
+        "--guard",
+        action=argparse.BooleanOptionalAction,
+        default=q0.guard,
+        help=f"half-cell guard band, no overload (default: {_onoff(q0.guard)})",
+    )
+    q.add_argument(
+        "--dither",
+        choices=engine().dithers,
+        default=q0.dither,
+        help=f"subtractive uniform dither or none (default: {q0.dither})",
+    )
     r = p.add_argument_group("output and running")
     r.add_argument("--json", action="store_true", help="print one JSON object (one row per length) to stdout")
     r.add_argument("--out", metavar="FILE", default=None, help="also write the JSON to FILE")
@@ -80,23 +126,38 @@ def _pm(s: dict) -> str:
 def format_table(d: dict) -> str:
     """The readable table of :meth:`DataLengthResult.to_dict`."""
     c = d["config"]
-    head = ["T", "runs x steps", "LS err_A", "LS err_B", "BCLS err_A", "BCLS err_B", "Thm1 A", "Thm1 B",
-            "overload"]
-    rows = [[str(r["samples"]), f"{r['trajectories']} x {r['steps']}", _pm(r["ls"]["err_A"]), _pm(r["ls"]["err_B"]),
-             _pm(r["bcls"]["err_A"]), _pm(r["bcls"]["err_B"]), g(r["err_A_theory"], ".3e"),
-             g(r["err_B_theory"], ".3e"), f"{100 * r['overload_fraction']:.2f}%"] for r in d["rows"]]
+    head = ["T", "runs x steps", "LS err_A", "LS err_B", "BCLS err_A", "BCLS err_B", "Thm1 A", "Thm1 B", "overload"]
+    rows = [
+        [
+            str(r["samples"]),
+            f"{r['trajectories']} x {r['steps']}",
+            _pm(r["ls"]["err_A"]),
+            _pm(r["ls"]["err_B"]),
+            _pm(r["bcls"]["err_A"]),
+            _pm(r["bcls"]["err_B"]),
+            g(r["err_A_theory"], ".3e"),
+            g(r["err_B_theory"], ".3e"),
+            f"{100 * r['overload_fraction']:.2f}%",
+        ]
+        for r in d["rows"]
+    ]
     widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
 
     def fmt(cells):
         return "  ".join(cell.rjust(w) for cell, w in zip(cells, widths))
 
     eps = d["eps"]
-    lines = [f"system {d['system']}, b = {d['bits']}: {c['realizations']} realizations, range {c['range']}"
-             f"{' + guard' if c['guard'] else ', no guard'}, dither {c['dither']}, inputs "
-             f"U[-{c['input_amplitude']:g}, {c['input_amplitude']:g}], eps {min(eps):.2e}..{max(eps):.2e} "
-             "(the same at every length)", fmt(head), fmt(["-" * w for w in widths]), *(fmt(r) for r in rows),
-             "errors are relative (Frobenius), mean +/- std over realizations; Thm1 = Theorem 1's large-data "
-             "prediction (LS's floor); runs x steps chosen by the engine (nested prefixes of one data set)"]
+    lines = [
+        f"system {d['system']}, b = {d['bits']}: {c['realizations']} realizations, range {c['range']}"
+        f"{' + guard' if c['guard'] else ', no guard'}, dither {c['dither']}, inputs "
+        f"U[-{c['input_amplitude']:g}, {c['input_amplitude']:g}], eps {min(eps):.2e}..{max(eps):.2e} "
+        "(the same at every length)",
+        fmt(head),
+        fmt(["-" * w for w in widths]),
+        *(fmt(r) for r in rows),
+        "errors are relative (Frobenius), mean +/- std over realizations; Thm1 = Theorem 1's large-data "
+        "prediction (LS's floor); runs x steps chosen by the engine (nested prefixes of one data set)",
+    ]
     fb = sum(r["bcls_fallbacks"] for r in d["rows"])
     if fb:
         lines.append(f"BCLS fell back to LS in {fb} realization(s) (corrected Gram matrix not positive definite)")
@@ -108,13 +169,22 @@ def run(args, rep) -> int:
 
     system = resolve_system(args.system)
     out = out_file(args.out, rep, inputs=input_files(args))
-    cfg = DataLengthConfig(system=system, bits=args.bits, samples=args.samples, realizations=args.realizations,
-                           quantizer=_quantizer(args, system), input_amplitude=args.input_amplitude,
-                           data_seed=args.data_seed, dither_seed=args.dither_seed)
-    plan = ", ".join(f"{T}: {'x'.join(map(str, runs_and_steps(T, cfg.steps_per_run, cfg.min_runs)))}"
-                     for T in cfg.samples)
-    rep.stage(f"system {system.name!r}, b = {cfg.bits}, {cfg.realizations} realizations; "
-              f"runs x steps per length: {plan}")
+    cfg = DataLengthConfig(
+        system=system,
+        bits=args.bits,
+        samples=args.samples,
+        realizations=args.realizations,
+        quantizer=_quantizer(args, system),
+        input_amplitude=args.input_amplitude,
+        data_seed=args.data_seed,
+        dither_seed=args.dither_seed,
+    )
+    plan = ", ".join(
+        f"{T}: {'x'.join(map(str, runs_and_steps(T, cfg.steps_per_run, cfg.min_runs)))}" for T in cfg.samples
+    )
+    rep.stage(
+        f"system {system.name!r}, b = {cfg.bits}, {cfg.realizations} realizations; runs x steps per length: {plan}"
+    )
     with executor(args, rep) as (pool, nw):
         res = run_datalength(cfg, pool, progress=rep, tasks=max(4, 2 * nw))
     d = res.to_dict()

@@ -15,28 +15,45 @@ from .runner import UsageError, _quantizer, out_file, resolve_system, write_text
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
 HELP = "identify your own recorded data (.npz or .csv) at each word length by LS and BCLS"
-DESCRIPTION = ("Quantize recorded data (a .npz with x: runs x (steps+1) x n and u: runs x steps x m, or a .csv "
-               "with columns run, t, x1..xn, u1..um) at each word length, identify A and B by LS and BCLS, and "
-               "report their relative errors against the LS model of the unquantized data (or --system's).")
+DESCRIPTION = (
+    "Quantize recorded data (a .npz with x: runs x (steps+1) x n and u: runs x steps x m, or a .csv "
+    "with columns run, t, x1..xn, u1..um) at each word length, identify A and B by LS and BCLS, and "
+    "report their relative errors against the LS model of the unquantized data (or --system's)."
+)
 
 
 def add_arguments(p) -> None:
     q0 = engine().quant
     g = p.add_argument_group("data")
     g.add_argument("--data", required=True, metavar="FILE", help="the recorded data, .npz or .csv")
-    g.add_argument("--system", default=None, metavar="NAME|FILE",
-                   help="a true model to compare with (default: LS on the unquantized data)")
+    g.add_argument(
+        "--system",
+        default=None,
+        metavar="NAME|FILE",
+        help="a true model to compare with (default: LS on the unquantized data)",
+    )
     g.add_argument("--bits", default="2:12", metavar="SPEC", help="word lengths (default: 2:12)")
-    g.add_argument("--realizations", type=pos_int, default=5, metavar="N",
-                   help="dither realizations per word length (default: 5)")
+    g.add_argument(
+        "--realizations", type=pos_int, default=5, metavar="N", help="dither realizations per word length (default: 5)"
+    )
     g.add_argument("--dither-seed", type=_nonneg_int, default=1, metavar="N", help="seed of the dither (default: 1)")
     q = p.add_argument_group("quantizer")
-    q.add_argument("--range", dest="range_mode", choices=engine().range_modes, default=q0.range_mode,
-                   help=f"quantizer range (default: {q0.range_mode})")
-    q.add_argument("--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]",
-                   help="the fixed range (with --range fixed)")
-    q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
-                   help=f"guard band of the dither's amplitude (default: {_onoff(q0.guard)})")
+    q.add_argument(
+        "--range",
+        dest="range_mode",
+        choices=engine().range_modes,
+        default=q0.range_mode,
+        help=f"quantizer range (default: {q0.range_mode})",
+    )
+    q.add_argument(
+        "--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]", help="the fixed range (with --range fixed)"
+    )
+    q.add_argument(
+        "--guard",
+        action=argparse.BooleanOptionalAction,
+        default=q0.guard,
+        help=f"guard band of the dither's amplitude (default: {_onoff(q0.guard)})",
+    )
     q.add_argument("--dither", choices=engine().dithers, default=q0.dither, help=f"(default: {q0.dither})")
     r = p.add_argument_group("output")
     r.add_argument("--json", action="store_true", help="print one JSON object to stdout")
@@ -51,13 +68,26 @@ def _pm(s: dict) -> str:
 def format_table(d: dict) -> str:
     """The readable table of :meth:`RecordedResult.to_dict`."""
     head = ["b", "eps min..max", "LS err_A", "BCLS err_A", "LS err_B", "BCLS err_B", "overload"]
-    rows = [[str(r["bits"]), f"{min(r['eps']):.2e}..{max(r['eps']):.2e}", _pm(r["ls"]["err_A"]),
-             _pm(r["bcls"]["err_A"]), _pm(r["ls"]["err_B"]), _pm(r["bcls"]["err_B"]),
-             f"{100 * r['overload_fraction']:.2f}%"] for r in d["results"]]
+    rows = [
+        [
+            str(r["bits"]),
+            f"{min(r['eps']):.2e}..{max(r['eps']):.2e}",
+            _pm(r["ls"]["err_A"]),
+            _pm(r["bcls"]["err_A"]),
+            _pm(r["ls"]["err_B"]),
+            _pm(r["bcls"]["err_B"]),
+            f"{100 * r['overload_fraction']:.2f}%",
+        ]
+        for r in d["results"]
+    ]
     w = [max(len(x) for x in col) for col in zip(head, *rows)]
     fmt = lambda cells: "  ".join(c.rjust(k) for c, k in zip(cells, w))  # noqa: E731
-    lines = [f"recorded data: {d['runs']} runs x {d['steps']} steps; errors against {d['reference']}",
-             fmt(head), fmt(["-" * k for k in w]), *map(fmt, rows)]
+    lines = [
+        f"recorded data: {d['runs']} runs x {d['steps']} steps; errors against {d['reference']}",
+        fmt(head),
+        fmt(["-" * k for k in w]),
+        *map(fmt, rows),
+    ]
     lines += [f"note: {n}" for n in d["notes"]]
     return "\n".join(lines)
 

@@ -13,8 +13,8 @@ import signal
 import sys
 import threading
 import warnings
+from collections.abc import Sequence
 from concurrent.futures.process import BrokenProcessPool
-from typing import Sequence
 
 from . import bits, datalength, identify, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
@@ -22,8 +22,14 @@ from .runner import Reporter, UsageError, one_line
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 #: name -> command module, in the order ``qsid --help`` lists them.
-COMMANDS = {"systems": systems, "sweep": sweep, "bits": bits, "reproduce": reproduce, "datalength": datalength,
-            "identify": identify}
+COMMANDS = {
+    "systems": systems,
+    "sweep": sweep,
+    "bits": bits,
+    "reproduce": reproduce,
+    "datalength": datalength,
+    "identify": identify,
+}
 
 
 def build_parser(only: str | None = "*"):

@@ -29,10 +29,14 @@ def _reference(text: str | None, system):
             rows = rows[1:]  # a header row
         data = np.array([[float(v) for v in ln.split(",")] for ln in rows], dtype=float)
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise UsageError(f"argument --reference: cannot read {text!r} as CSV numbers ({' '.join(str(exc).split())})") from None
+        raise UsageError(
+            f"argument --reference: cannot read {text!r} as CSV numbers ({' '.join(str(exc).split())})"
+        ) from None
     if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != system.n:
-        raise UsageError(f"argument --reference: {text!r} needs one row per step and {system.n} columns (one per "
-                         f"state: {', '.join(system.state_names)})")
+        raise UsageError(
+            f"argument --reference: {text!r} needs one row per step and {system.n} columns (one per "
+            f"state: {', '.join(system.state_names)})"
+        )
     return tuple(tuple(r) for r in data.tolist())
 
 
@@ -41,8 +45,9 @@ def mpc_config(args, system):
     from qsid_core import MPCConfig
 
     if len(args.u_max) not in (1, system.m):
-        raise UsageError(f"argument --u-max: give 1 or {system.m} values for system {system.name!r}; "
-                         f"got {len(args.u_max)}")
+        raise UsageError(
+            f"argument --u-max: give 1 or {system.m} values for system {system.name!r}; got {len(args.u_max)}"
+        )
     u_max = args.u_max[0] if len(args.u_max) == 1 else args.u_max
     qf = getattr(args, "qf", None)
     if qf == "Q":  # the stage weight as the terminal weight
@@ -53,13 +58,25 @@ def mpc_config(args, system):
     reference = _reference(getattr(args, "reference", None), system)
     if reference is not None and args.x_ref is not None:
         raise UsageError("arguments --reference and --x-ref exclude each other (a reference is constant or not)")
-    mcfg = MPCConfig(horizon=args.horizon, steps=args.mpc_steps, u_max=u_max, x0=args.x0, x_ref=args.x_ref,
-                     reference=reference, tracking=getattr(args, "tracking", "letter"),
-                     x_max=args.x_max, xf_max=getattr(args, "xf_max", None), Qf=qf, Q=args.q_diag, R=args.r_diag,
-                     verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps),
-                     disturbance=getattr(args, "disturbance", (0.0, "gaussian"))[0],
-                     disturbance_kind=getattr(args, "disturbance", (0.0, "gaussian"))[1],
-                     feedback_bits=getattr(args, "feedback_bits", None),
-                     feedback_noise=getattr(args, "feedback_noise", 0.0), loop_seed=getattr(args, "loop_seed", 0))
+    mcfg = MPCConfig(
+        horizon=args.horizon,
+        steps=args.mpc_steps,
+        u_max=u_max,
+        x0=args.x0,
+        x_ref=args.x_ref,
+        reference=reference,
+        tracking=getattr(args, "tracking", "letter"),
+        x_max=args.x_max,
+        xf_max=getattr(args, "xf_max", None),
+        Qf=qf,
+        Q=args.q_diag,
+        R=args.r_diag,
+        verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps),
+        disturbance=getattr(args, "disturbance", (0.0, "gaussian"))[0],
+        disturbance_kind=getattr(args, "disturbance", (0.0, "gaussian"))[1],
+        feedback_bits=getattr(args, "feedback_bits", None),
+        feedback_noise=getattr(args, "feedback_noise", 0.0),
+        loop_seed=getattr(args, "loop_seed", 0),
+    )
     mcfg.resolve(system)  # shape checks now, before any work
     return mcfg

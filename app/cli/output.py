@@ -35,10 +35,17 @@ def sweep_dict(res) -> dict:
     mcfg = res.config.mpc
     if mcfg is not None and d["config"].get("mpc") is not None:
         r = mcfg.resolve(res.system)
-        d["config"]["mpc"].update(clean({
-            "x0": r.x0, "x_ref": r.x_ref, "x_max": r.x_max,
-            "Q": [float(v) for v in r.Q.diagonal()], "R": [float(v) for v in r.R.diagonal()],
-        }))
+        d["config"]["mpc"].update(
+            clean(
+                {
+                    "x0": r.x0,
+                    "x_ref": r.x_ref,
+                    "x_max": r.x_max,
+                    "Q": [float(v) for v in r.Q.diagonal()],
+                    "R": [float(v) for v in r.R.diagonal()],
+                }
+            )
+        )
     return d
 
 
@@ -58,11 +65,13 @@ def _bits_list(bits: list) -> str:
 
 
 #: Hypothesis flag in the JSON -> how the table names it when it fails.
-_HYPOTHESES = (("known_noise", "dither of known noise variance (subtractive or tpdf)"),
-               ("no_overload", "no overload in effect (clipped samples move the estimate by > 1/3 of its fluctuation)"),
-               ("stationary", "Psi Psi^T/T converges (no eigenvalue of A on/outside the unit circle)"),
-               ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"),
-               ("sensor_noise_known", "sensor noise known to BCLS (--noise-known; BCLS only)"))
+_HYPOTHESES = (
+    ("known_noise", "dither of known noise variance (subtractive or tpdf)"),
+    ("no_overload", "no overload in effect (clipped samples move the estimate by > 1/3 of its fluctuation)"),
+    ("stationary", "Psi Psi^T/T converges (no eigenvalue of A on/outside the unit circle)"),
+    ("large_data", "large data (Theorem 1's bias above the finite-data fluctuation)"),
+    ("sensor_noise_known", "sensor noise known to BCLS (--noise-known; BCLS only)"),
+)
 
 
 def assumptions_lines(results: list) -> list:
@@ -74,20 +83,30 @@ def assumptions_lines(results: list) -> list:
         if bad:
             lines.append(f"  fails: {name} at b = {_bits_list(bad)}")
             if key == "no_overload":  # the engine names the range, the share it clips and what that does
-                why = [x for x in rows[[r["bits"] for r in rows].index(bad[-1])]["assumptions"].get("notes", ())
-                       if x.startswith("overload:")]
+                why = [
+                    x
+                    for x in rows[[r["bits"] for r in rows].index(bad[-1])]["assumptions"].get("notes", ())
+                    if x.startswith("overload:")
+                ]
                 lines += [f"    at b = {bad[-1]}: {why[0]}"] if why else []
     for k in ("A", "B"):
-        kept = [r["bits"] for r in rows if r["assumptions"].get(f"fits_{k}")
-                and not r["assumptions"].get(f"theorem1_holds_{k}", True)]
+        kept = [
+            r["bits"]
+            for r in rows
+            if r["assumptions"].get(f"fits_{k}") and not r["assumptions"].get(f"theorem1_holds_{k}", True)
+        ]
         if kept:
-            lines.append(f"  a hypothesis formally fails yet Theorem 1's prediction fits {k} (mean LS error "
-                         f"within 5 % of the line) at b = {_bits_list(kept)}")
+            lines.append(
+                f"  a hypothesis formally fails yet Theorem 1's prediction fits {k} (mean LS error "
+                f"within 5 % of the line) at b = {_bits_list(kept)}"
+            )
     if lines:
         t1 = [r["bits"] for r in rows if not r["assumptions"]["theorem1_holds"]]
         bc = [r["bits"] for r in rows if not r["assumptions"]["bcls_holds"]]
-        head = (f"assumptions: Theorem 1's line does not apply at b = {_bits_list(t1) or 'none'}; "
-                f"BCLS's correction does not apply at b = {_bits_list(bc) or 'none'}")
+        head = (
+            f"assumptions: Theorem 1's line does not apply at b = {_bits_list(t1) or 'none'}; "
+            f"BCLS's correction does not apply at b = {_bits_list(bc) or 'none'}"
+        )
         lines.insert(0, head)
     elif rows:
         lines.append("assumptions: every hypothesis of Theorem 1 and BCLS holds at every b")
@@ -98,8 +117,11 @@ def _flags(r: dict) -> str:
     a = r.get("assumptions")
     if not a:
         return "-"
-    t1 = "yes" if a["theorem1_holds"] else ("A" if a.get("theorem1_holds_A") else
-                                            "B" if a.get("theorem1_holds_B") else "no")  # one block only
+    t1 = (
+        "yes"
+        if a["theorem1_holds"]
+        else ("A" if a.get("theorem1_holds_A") else "B" if a.get("theorem1_holds_B") else "no")
+    )  # one block only
     return f"{t1}/{'yes' if a['bcls_holds'] else 'no'}"
 
 
@@ -139,17 +161,24 @@ def real_loop_line(d: dict) -> str:
     if m.get("feedback_noise"):
         causes.append(f"sensor noise sigma {m['feedback_noise']:g}")
     if m.get("reference"):
-        causes.append("the time-varying reference " + (m["reference"] if isinstance(m["reference"], str)
-                                                       else "(samples)"))
-    text = (f"steady err = RMS of |x_t - x_ref| over the last half of each loop; causes: {', '.join(causes)}; "
-            f"the true-model loop keeps {g(d.get('steady_state_error_true_model'), '.3e')} (no model error: "
-            "that much comes from these causes); delta covers the model error only")
+        causes.append(
+            "the time-varying reference " + (m["reference"] if isinstance(m["reference"], str) else "(samples)")
+        )
+    text = (
+        f"steady err = RMS of |x_t - x_ref| over the last half of each loop; causes: {', '.join(causes)}; "
+        f"the true-model loop keeps {g(d.get('steady_state_error_true_model'), '.3e')} (no model error: "
+        "that much comes from these causes); delta covers the model error only"
+    )
     if m.get("reference"):
-        text += (f"; tracking err = RMS of |x_t - r_t| over each whole loop, true model "
-                 f"{g(d.get('tracking_error_true_model'), '.4e')}")
+        text += (
+            f"; tracking err = RMS of |x_t - r_t| over each whole loop, true model "
+            f"{g(d.get('tracking_error_true_model'), '.4e')}"
+        )
     if m.get("feedback_bits"):
-        text += (f"; data-rate floor of this plant: {g(d.get('data_rate_bits'), '.3g')} bits per sample "
-                 "(any quantized feedback needs more)")
+        text += (
+            f"; data-rate floor of this plant: {g(d.get('data_rate_bits'), '.3g')} bits per sample "
+            "(any quantized feedback needs more)"
+        )
     return text
 
 
@@ -163,8 +192,10 @@ def verdict_lines(results: list) -> list:
             continue
         parts = [f"{oc[k]} {k}" for k in ("bounded", "diverged", "failed") if oc.get(k)]
         rad = (r.get("closed_loop_spectral_radius") or {}).get("max")
-        out.append(f"b = {r['bits']}: {total - oc['converged']} of {total} closed loops did not converge "
-                   f"({', '.join(parts)}; spectral radius of A - B K^ up to {g(rad, '.4f')})")
+        out.append(
+            f"b = {r['bits']}: {total - oc['converged']} of {total} closed loops did not converge "
+            f"({', '.join(parts)}; spectral radius of A - B K^ up to {g(rad, '.4f')})"
+        )
     return out
 
 
@@ -174,8 +205,10 @@ def bound_lines(results: list) -> list:
     weak = [r["bits"] for r in results if r.get("bound_self_consistent") and r.get("bound_informative") is False]
     out = []
     if bad:
-        out.append(f"* delta >= rho at b = {_bits_list(bad)}: the proof assumes the state stays within rho, "
-                   "so there it gives no bound")
+        out.append(
+            f"* delta >= rho at b = {_bits_list(bad)}: the proof assumes the state stays within rho, "
+            "so there it gives no bound"
+        )
     if weak:
         out.append(f"delta >= ||x0|| at b = {_bits_list(weak)}: a bound, but larger than the start")
     return out
@@ -186,24 +219,46 @@ def _what_if_lines(c: dict) -> list:
     parts = []
     ib = c.get("input_bits")
     if ib is not None:
-        which = "exact (inputs not quantized: eps_u = 0)" if ib == "exact" else \
-            ",".join(map(str, ib)) if isinstance(ib, list) else str(ib)
+        which = (
+            "exact (inputs not quantized: eps_u = 0)"
+            if ib == "exact"
+            else ",".join(map(str, ib))
+            if isinstance(ib, list)
+            else str(ib)
+        )
         parts.append(f"b is swept for the states; input bits {which}")
     sb = c.get("state_bits")
     if sb is not None:
         parts.append(f"state bits {','.join(map(str, sb))} (b = the swept word length)")
     noise = c.get("noise") or []
     if any(v for v in noise):
-        parts.append(f"sensor noise sigma {','.join(format(v, 'g') for v in noise)} on the states"
-                     + (" (known to BCLS: D + sigma^2)" if c.get("noise_known") else
-                        " (unknown to BCLS: it corrects only the quantization noise)"))
+        parts.append(
+            f"sensor noise sigma {','.join(format(v, 'g') for v in noise)} on the states"
+            + (
+                " (known to BCLS: D + sigma^2)"
+                if c.get("noise_known")
+                else " (unknown to BCLS: it corrects only the quantization noise)"
+            )
+        )
     return ["; ".join(parts)] if parts else []
 
 
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
-    head = ["b", "eps min..max", "err_A mean +/- std", "Thm1 A", "err_B mean +/- std", "Thm1 B", "overload",
-            "MPC cost (failed)", "stabilized", "delta bound", "|x_T| mean", "Thm1/BCLS hold"]
+    head = [
+        "b",
+        "eps min..max",
+        "err_A mean +/- std",
+        "Thm1 A",
+        "err_B mean +/- std",
+        "Thm1 B",
+        "overload",
+        "MPC cost (failed)",
+        "stabilized",
+        "delta bound",
+        "|x_T| mean",
+        "Thm1/BCLS hold",
+    ]
     m = d["config"].get("mpc") or {}
     noisy = bool(m.get("disturbance") or m.get("feedback_bits") or m.get("feedback_noise") or m.get("reference"))
     if noisy:
@@ -216,20 +271,22 @@ def format_table(d: dict) -> str:
         cost = r.get("mpc_cost")
         cost_s = "-" if cost is None else f"{g(cost.get('mean'), '.4g')} ({cost.get('failed', 0)})"
         fsn = r.get("final_state_norm")
-        rows.append([
-            str(r["bits"]),
-            f"{min(eps):.2e}..{max(eps):.2e}",
-            _pm(r["err_A"]),
-            g(r["err_A_theory"], ".3e"),
-            _pm(r["err_B"]),
-            g(r["err_B_theory"], ".3e"),
-            f"{100 * r['overload_fraction']:.2f}%",
-            cost_s,
-            _stabilized(r),
-            g(r["ultimate_bound"], ".3e") + ("" if r.get("bound_self_consistent") is not False else "*"),
-            "-" if fsn is None else g(fsn.get("mean"), ".2e"),
-            _flags(r),
-        ])
+        rows.append(
+            [
+                str(r["bits"]),
+                f"{min(eps):.2e}..{max(eps):.2e}",
+                _pm(r["err_A"]),
+                g(r["err_A_theory"], ".3e"),
+                _pm(r["err_B"]),
+                g(r["err_B_theory"], ".3e"),
+                f"{100 * r['overload_fraction']:.2f}%",
+                cost_s,
+                _stabilized(r),
+                g(r["ultimate_bound"], ".3e") + ("" if r.get("bound_self_consistent") is not False else "*"),
+                "-" if fsn is None else g(fsn.get("mean"), ".2e"),
+                _flags(r),
+            ]
+        )
         if noisy:
             rows[-1].insert(10, g((r.get("steady_state_error") or {}).get("mean"), ".3e"))
         if m.get("reference"):
@@ -246,19 +303,23 @@ def format_table(d: dict) -> str:
         f"system {d['system']}: {c['trajectories']} x {c['steps']} samples, {c['realizations']} realizations, "
         f"range {c['range']}{_limits_text(c)}{' + guard' if c['guard'] else ', no guard'}, "
         f"inputs U[-{c.get('input_amplitude', 1):g}, {c.get('input_amplitude', 1):g}], dither {c['dither']}, estimator {c['estimator']}"
-        + ("" if c["mpc"] is None else
-           f", MPC horizon {c['mpc']['horizon']}, {c['mpc']['steps']} steps, u_max "
-           f"{','.join(format(u, 'g') for u in c['mpc']['u_max'])}"),
+        + (
+            ""
+            if c["mpc"] is None
+            else f", MPC horizon {c['mpc']['horizon']}, {c['mpc']['steps']} steps, u_max "
+            f"{','.join(format(u, 'g') for u in c['mpc']['u_max'])}"
+        ),
         *_what_if_lines(c),
         fmt(head),
         fmt(["-" * w for w in widths]),
         *(fmt(row) for row in rows),
     ]
     t = d.get("timing_s", {})
-    slope = (f"slope of log10 mean error per bit: A {g(d.get('slope_A'), '+.3f')}, "
-             f"B {g(d.get('slope_B'), '+.3f')} (letter: -0.301 = -log10 2)")
-    true_cost = ("MPC off" if c["mpc"] is None else
-                 f"true-model MPC cost {g(d.get('mpc_cost_true_model'), '.4g')}")
+    slope = (
+        f"slope of log10 mean error per bit: A {g(d.get('slope_A'), '+.3f')}, "
+        f"B {g(d.get('slope_B'), '+.3f')} (letter: -0.301 = -log10 2)"
+    )
+    true_cost = "MPC off" if c["mpc"] is None else f"true-model MPC cost {g(d.get('mpc_cost_true_model'), '.4g')}"
     timing = "time " + ", ".join(f"{k} {v:.2f} s" for k, v in t.items())
     lines.append(f"{slope}; {true_cost}; {timing}")
     fails: dict = {}
@@ -274,8 +335,10 @@ def format_table(d: dict) -> str:
     lines.extend(assumptions_lines(d["results"]))
     bc = d.get("bcls") or {}
     if bc.get("reason"):
-        lines.append(f"BCLS not applicable with {c.get('dither')} dither: {bc['reason']}"
-                     + ("; BCLS used a nominal D = eps^2/12" if c.get("estimator") == "bcls" else ""))
+        lines.append(
+            f"BCLS not applicable with {c.get('dither')} dither: {bc['reason']}"
+            + ("; BCLS used a nominal D = eps^2/12" if c.get("estimator") == "bcls" else "")
+        )
     fb = sum(r.get("bcls_fallbacks", 0) for r in d["results"])
     if fb:
         lines.append(f"BCLS fell back to LS in {fb} realization(s) (corrected Gram matrix not positive definite)")

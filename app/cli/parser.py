@@ -9,12 +9,21 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Mapping
 from types import ModuleType
-from typing import Mapping
 
-
-__all__ = ["PROG", "UsageError", "engine", "build_parser", "add_run_options", "add_data_options", "bits_spec", "pos_int",
-           "limits_spec", "floats_spec"]
+__all__ = [
+    "PROG",
+    "UsageError",
+    "engine",
+    "build_parser",
+    "add_run_options",
+    "add_data_options",
+    "bits_spec",
+    "pos_int",
+    "limits_spec",
+    "floats_spec",
+]
 
 PROG = "qsid"
 
@@ -35,9 +44,15 @@ def engine():
         from qsid_core.mpc import MPCConfig
         from qsid_core.quantize import DITHERS, RANGE_MODES, QuantizerSpec
 
-        _ENGINE = SimpleNamespace(sweep=SweepConfig(mpc=None), mpc=MPCConfig(), quant=QuantizerSpec(),
-                                  letter=SweepConfig.letter(mpc=None), dithers=DITHERS, range_modes=RANGE_MODES,
-                                  estimators=ESTIMATORS)
+        _ENGINE = SimpleNamespace(
+            sweep=SweepConfig(mpc=None),
+            mpc=MPCConfig(),
+            quant=QuantizerSpec(),
+            letter=SweepConfig.letter(mpc=None),
+            dithers=DITHERS,
+            range_modes=RANGE_MODES,
+            estimators=ESTIMATORS,
+        )
     return _ENGINE
 
 
@@ -156,8 +171,9 @@ def _qf_spec(text: str):
     try:
         return _float_list(t)
     except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"must be 'dare', 'Q' or numbers (one or one per state); got {text!r}") \
-            from None
+        raise argparse.ArgumentTypeError(
+            f"must be 'dare', 'Q' or numbers (one or one per state); got {text!r}"
+        ) from None
 
 
 def _limits(text: str) -> tuple[tuple[float, float], ...]:
@@ -218,49 +234,120 @@ def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -
     q0 = base.quantizer
     bits_default = bits_spec(base.bits)
     g = p.add_argument_group("system and data")
-    g.add_argument("--system", default=base.system, metavar="NAME|FILE",
-                   help="preset name (see 'qsid systems') or a .toml/.json file with A, B [, x0, Q, R, dt] "
-                        f"(default: {base.system})")
-    g.add_argument("--A", dest="a_text", type=_matrix_text, default=None, metavar="ROWS",
-                   help="a custom system typed inline, as in the dashboard: '0.9 0.1; 0 0.8' (with --B; "
-                        "x0 = e1, Q = I, R = I unless given)")
-    g.add_argument("--B", dest="b_text", type=_matrix_text, default=None, metavar="ROWS",
-                   help="input matrix of the inline custom system, one row per state: '0; 1'")
-    g.add_argument("--bits", default=bits_default, metavar="SPEC",
-                   help=f"word lengths: '2:12' (inclusive), '2:12:2' (step), '2,4,6' or '8' "
-                        f"(default: {bits_default})")
-    g.add_argument("--realizations", type=pos_int, default=base.realizations, metavar="N",
-                   help=f"dither realizations per word length (default: {base.realizations})")
-    g.add_argument("--trajectories", type=pos_int, default=base.trajectories, metavar="N",
-                   help=f"simulated trajectories (default: {base.trajectories})")
-    g.add_argument("--steps", type=pos_int, default=base.steps, metavar="N",
-                   help=f"samples per trajectory (default: {base.steps})")
-    g.add_argument("--input-amplitude", type=_float_type, default=base.input_amplitude, metavar="A",
-                   help=f"training inputs u ~ U[-A, A] (default: {_g(base.input_amplitude)}, the letter's)")
+    g.add_argument(
+        "--system",
+        default=base.system,
+        metavar="NAME|FILE",
+        help="preset name (see 'qsid systems') or a .toml/.json file with A, B [, x0, Q, R, dt] "
+        f"(default: {base.system})",
+    )
+    g.add_argument(
+        "--A",
+        dest="a_text",
+        type=_matrix_text,
+        default=None,
+        metavar="ROWS",
+        help="a custom system typed inline, as in the dashboard: '0.9 0.1; 0 0.8' (with --B; "
+        "x0 = e1, Q = I, R = I unless given)",
+    )
+    g.add_argument(
+        "--B",
+        dest="b_text",
+        type=_matrix_text,
+        default=None,
+        metavar="ROWS",
+        help="input matrix of the inline custom system, one row per state: '0; 1'",
+    )
+    g.add_argument(
+        "--bits",
+        default=bits_default,
+        metavar="SPEC",
+        help=f"word lengths: '2:12' (inclusive), '2:12:2' (step), '2,4,6' or '8' (default: {bits_default})",
+    )
+    g.add_argument(
+        "--realizations",
+        type=pos_int,
+        default=base.realizations,
+        metavar="N",
+        help=f"dither realizations per word length (default: {base.realizations})",
+    )
+    g.add_argument(
+        "--trajectories",
+        type=pos_int,
+        default=base.trajectories,
+        metavar="N",
+        help=f"simulated trajectories (default: {base.trajectories})",
+    )
+    g.add_argument(
+        "--steps", type=pos_int, default=base.steps, metavar="N", help=f"samples per trajectory (default: {base.steps})"
+    )
+    g.add_argument(
+        "--input-amplitude",
+        type=_float_type,
+        default=base.input_amplitude,
+        metavar="A",
+        help=f"training inputs u ~ U[-A, A] (default: {_g(base.input_amplitude)}, the letter's)",
+    )
     if seed:
-        g.add_argument("--seed", type=_nonneg_int, default=None, metavar="N",
-                       help="seed of both the data and the dither streams (sets --data-seed and --dither-seed)")
-    g.add_argument("--data-seed", type=_nonneg_int, default=None, metavar="N",
-                   help=f"seed of the simulated data (default: {base.data_seed})")
-    g.add_argument("--dither-seed", type=_nonneg_int, default=None, metavar="N",
-                   help=f"seed of the dither streams (default: {base.dither_seed})")
+        g.add_argument(
+            "--seed",
+            type=_nonneg_int,
+            default=None,
+            metavar="N",
+            help="seed of both the data and the dither streams (sets --data-seed and --dither-seed)",
+        )
+    g.add_argument(
+        "--data-seed",
+        type=_nonneg_int,
+        default=None,
+        metavar="N",
+        help=f"seed of the simulated data (default: {base.data_seed})",
+    )
+    g.add_argument(
+        "--dither-seed",
+        type=_nonneg_int,
+        default=None,
+        metavar="N",
+        help=f"seed of the dither streams (default: {base.dither_seed})",
+    )
     q = p.add_argument_group("quantizer and identification")
-    q.add_argument("--range", dest="range_mode", choices=e.range_modes, default=q0.range_mode,
-                   help="quantizer range: min/max per channel, one range for all, or fixed (--limits) "
-                        f"(default: {q0.range_mode})")
-    q.add_argument("--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]",
-                   help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
-                        "channel, states then inputs")
-    q.add_argument("--guard", action=argparse.BooleanOptionalAction, default=q0.guard,
-                   help="widen the range by the dither's amplitude on each side (half a cell; a cell for tpdf), "
-                        "so x + w never overloads "
-                        f"(default: {_onoff(q0.guard)})")
-    q.add_argument("--dither", choices=e.dithers, default=q0.dither,
-                   help="subtractive uniform dither (the letter's), tpdf (non-subtractive triangular, width 2 eps: "
-                        "BCLS with D = eps^2/4), rpdf (non-subtractive uniform: BCLS not applicable) or none "
-                        f"(default: {q0.dither})")
-    q.add_argument("--estimator", choices=e.estimators, default=base.estimator,
-                   help=f"least squares or bias-compensated LS (default: {base.estimator})")
+    q.add_argument(
+        "--range",
+        dest="range_mode",
+        choices=e.range_modes,
+        default=q0.range_mode,
+        help=f"quantizer range: min/max per channel, one range for all, or fixed (--limits) (default: {q0.range_mode})",
+    )
+    q.add_argument(
+        "--limits",
+        type=_limits,
+        default=None,
+        metavar="LO,HI[;LO,HI...]",
+        help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
+        "channel, states then inputs",
+    )
+    q.add_argument(
+        "--guard",
+        action=argparse.BooleanOptionalAction,
+        default=q0.guard,
+        help="widen the range by the dither's amplitude on each side (half a cell; a cell for tpdf), "
+        "so x + w never overloads "
+        f"(default: {_onoff(q0.guard)})",
+    )
+    q.add_argument(
+        "--dither",
+        choices=e.dithers,
+        default=q0.dither,
+        help="subtractive uniform dither (the letter's), tpdf (non-subtractive triangular, width 2 eps: "
+        "BCLS with D = eps^2/4), rpdf (non-subtractive uniform: BCLS not applicable) or none "
+        f"(default: {q0.dither})",
+    )
+    q.add_argument(
+        "--estimator",
+        choices=e.estimators,
+        default=base.estimator,
+        help=f"least squares or bias-compensated LS (default: {base.estimator})",
+    )
 
 
 def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
@@ -270,85 +357,204 @@ def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
     mpc = e.mpc
     add_data_options(p, base)
     x = p.add_argument_group("what-ifs: word length per channel, sensor noise, a saved study")
-    x.add_argument("--input-bits", default=None, metavar="B|exact|B1,B2,..",
-                   help="word length of the inputs: one for all, one per input ('8,exact'), or 'exact' (inputs "
-                        "recorded without quantization); --bits then sweeps the states (default: same as --bits)")
-    x.add_argument("--state-bits", default=None, metavar="E|E1,E2,..",
-                   help="word length of the states, one entry for all or one per state: 'b' (the swept --bits), "
-                        "a fixed word length, or 'exact' (not quantized), e.g. 'b,b,12,exact' (default: all b)")
-    x.add_argument("--noise", default=None, metavar="SIGMA|S1,S2,..",
-                   help="standard deviation of Gaussian sensor noise added to the recorded states before "
-                        "quantization, one for all or one per state (seeded by the data seed; default: 0)")
-    x.add_argument("--noise-known", action="store_true",
-                   help="BCLS adds the noise variance sigma^2 to D (without it BCLS corrects only the "
-                        "quantization noise it knows of)")
+    x.add_argument(
+        "--input-bits",
+        default=None,
+        metavar="B|exact|B1,B2,..",
+        help="word length of the inputs: one for all, one per input ('8,exact'), or 'exact' (inputs "
+        "recorded without quantization); --bits then sweeps the states (default: same as --bits)",
+    )
+    x.add_argument(
+        "--state-bits",
+        default=None,
+        metavar="E|E1,E2,..",
+        help="word length of the states, one entry for all or one per state: 'b' (the swept --bits), "
+        "a fixed word length, or 'exact' (not quantized), e.g. 'b,b,12,exact' (default: all b)",
+    )
+    x.add_argument(
+        "--noise",
+        default=None,
+        metavar="SIGMA|S1,S2,..",
+        help="standard deviation of Gaussian sensor noise added to the recorded states before "
+        "quantization, one for all or one per state (seeded by the data seed; default: 0)",
+    )
+    x.add_argument(
+        "--noise-known",
+        action="store_true",
+        help="BCLS adds the noise variance sigma^2 to D (without it BCLS corrects only the "
+        "quantization noise it knows of)",
+    )
     m = p.add_argument_group("MPC and ultimate bound")
-    m.add_argument("--horizon", type=pos_int, default=mpc.horizon, metavar="N",
-                   help=f"MPC horizon (default: {mpc.horizon})")
-    m.add_argument("--mpc-steps", type=pos_int, default=mpc.steps, metavar="N",
-                   help=f"closed-loop steps on the true system (default: {mpc.steps})")
-    m.add_argument("--u-max", type=_floats_type, default=mpc.u_max, metavar="X",
-                   help="input bound |u_i| <= X; one value or one per input, comma-separated "
-                        f"(default: {','.join(map(_g, mpc.u_max))})")
-    m.add_argument("--x0", type=_float_list, default=None, metavar="X1,X2,..",
-                   help="initial state of the closed loops, one per state (default: the system's x0)")
-    m.add_argument("--x-ref", type=_float_list, default=None, metavar="R1,R2,..",
-                   help="constant reference the MPC tracks, one value or one per state (default: 0)")
-    m.add_argument("--reference", default=None, metavar="SPEC|FILE.csv",
-                   help="time-varying reference the MPC tracks with preview: step:STATE:AMPLITUDE:TIME, "
-                        "sine:STATE:AMPLITUDE:PERIOD, square:STATE:AMPLITUDE:PERIOD (STATE a name or 1-based "
-                        "index, times in samples) or a CSV file with one row per step and one column per state; "
-                        "excludes --x-ref")
-    m.add_argument("--tracking", choices=("letter", "offset-free"), default="letter",
-                   help="the cost's input term: the letter's u'Ru, or offset-free (u - u_ref)'R(u - u_ref) with "
-                        "u_ref = B^+ (I - A^) r, the input that holds the model at the reference (default: letter)")
-    m.add_argument("--x-max", type=_float_list, default=None, metavar="X",
-                   help="state box |x_i| <= X on the predicted states, one value or one per state (default: none)")
-    m.add_argument("--Qf", dest="qf", type=_qf_spec, default=None, metavar="dare|Q|F1,F2,..",
-                   help="terminal weight of the MPC: 'dare' (the stabilizing DARE solution of each identified "
-                        "model, the default), 'Q' (the stage weight) or a diagonal, one value or one per state")
-    m.add_argument("--terminal-box", dest="xf_max", type=_float_list, default=None, metavar="X",
-                   help="terminal box |x_N,i| <= X_i on the last predicted state, one value or one per state "
-                        "(default: none)")
-    m.add_argument("--Q", dest="q_diag", type=_float_list, default=None, metavar="Q1,Q2,..",
-                   help="diagonal of the state weight, one value or one per state (default: the system's Q)")
-    m.add_argument("--R", dest="r_diag", type=_float_list, default=None, metavar="R1,R2,..",
-                   help="diagonal of the input weight, one value or one per input (default: the system's R)")
+    m.add_argument(
+        "--horizon", type=pos_int, default=mpc.horizon, metavar="N", help=f"MPC horizon (default: {mpc.horizon})"
+    )
+    m.add_argument(
+        "--mpc-steps",
+        type=pos_int,
+        default=mpc.steps,
+        metavar="N",
+        help=f"closed-loop steps on the true system (default: {mpc.steps})",
+    )
+    m.add_argument(
+        "--u-max",
+        type=_floats_type,
+        default=mpc.u_max,
+        metavar="X",
+        help="input bound |u_i| <= X; one value or one per input, comma-separated "
+        f"(default: {','.join(map(_g, mpc.u_max))})",
+    )
+    m.add_argument(
+        "--x0",
+        type=_float_list,
+        default=None,
+        metavar="X1,X2,..",
+        help="initial state of the closed loops, one per state (default: the system's x0)",
+    )
+    m.add_argument(
+        "--x-ref",
+        type=_float_list,
+        default=None,
+        metavar="R1,R2,..",
+        help="constant reference the MPC tracks, one value or one per state (default: 0)",
+    )
+    m.add_argument(
+        "--reference",
+        default=None,
+        metavar="SPEC|FILE.csv",
+        help="time-varying reference the MPC tracks with preview: step:STATE:AMPLITUDE:TIME, "
+        "sine:STATE:AMPLITUDE:PERIOD, square:STATE:AMPLITUDE:PERIOD (STATE a name or 1-based "
+        "index, times in samples) or a CSV file with one row per step and one column per state; "
+        "excludes --x-ref",
+    )
+    m.add_argument(
+        "--tracking",
+        choices=("letter", "offset-free"),
+        default="letter",
+        help="the cost's input term: the letter's u'Ru, or offset-free (u - u_ref)'R(u - u_ref) with "
+        "u_ref = B^+ (I - A^) r, the input that holds the model at the reference (default: letter)",
+    )
+    m.add_argument(
+        "--x-max",
+        type=_float_list,
+        default=None,
+        metavar="X",
+        help="state box |x_i| <= X on the predicted states, one value or one per state (default: none)",
+    )
+    m.add_argument(
+        "--Qf",
+        dest="qf",
+        type=_qf_spec,
+        default=None,
+        metavar="dare|Q|F1,F2,..",
+        help="terminal weight of the MPC: 'dare' (the stabilizing DARE solution of each identified "
+        "model, the default), 'Q' (the stage weight) or a diagonal, one value or one per state",
+    )
+    m.add_argument(
+        "--terminal-box",
+        dest="xf_max",
+        type=_float_list,
+        default=None,
+        metavar="X",
+        help="terminal box |x_N,i| <= X_i on the last predicted state, one value or one per state (default: none)",
+    )
+    m.add_argument(
+        "--Q",
+        dest="q_diag",
+        type=_float_list,
+        default=None,
+        metavar="Q1,Q2,..",
+        help="diagonal of the state weight, one value or one per state (default: the system's Q)",
+    )
+    m.add_argument(
+        "--R",
+        dest="r_diag",
+        type=_float_list,
+        default=None,
+        metavar="R1,R2,..",
+        help="diagonal of the input weight, one value or one per input (default: the system's R)",
+    )
     loop = p.add_argument_group("the real loop (disturbance and measurement)")
-    loop.add_argument("--disturbance", type=_disturbance_spec, default=(0.0, "gaussian"),
-                      metavar="SIGMA[:gaussian|uniform]",
-                      help="process noise of standard deviation SIGMA added to the true plant in the closed loop "
-                           "(the same draws for every b, estimator and the true-model loop; default: 0)")
-    loop.add_argument("--feedback-bits", type=_feedback_bits, default=None, metavar="B|none",
-                      help="the MPC measures the state through a B-bit quantizer with subtractive dither over the "
-                           "training data's range (default: none, exact state)")
-    loop.add_argument("--feedback-noise", type=_nonneg_float, default=0.0, metavar="SIGMA",
-                      help="sensor noise (standard deviation) on that measurement (default: 0)")
-    loop.add_argument("--loop-seed", type=_nonneg_int, default=0, metavar="N",
-                      help="seed of the disturbance, feedback dither and sensor noise (default: 0)")
-    m.add_argument("--verify-steps", type=_nonneg_int, default=mpc.verify_steps, metavar="N",
-                   help="at most N closed-loop steps beyond --mpc-steps to decide whether a loop converges, stays "
-                        f"bounded or diverges on the true plant (default: {mpc.verify_steps}; 0: judge from the "
-                        "run alone where the spectral radius and the certificate decide, else call it bounded)")
-    m.add_argument("--theta", type=_float_type, default=base.theta, metavar="X",
-                   help=f"theta of the ultimate bound, in (0, 1) (default: {_g(base.theta)})")
-    m.add_argument("--rho", type=_float_type, default=None, metavar="X",
-                   help="rho of the ultimate bound, > 0 (default: the level-set ball through x0)")
+    loop.add_argument(
+        "--disturbance",
+        type=_disturbance_spec,
+        default=(0.0, "gaussian"),
+        metavar="SIGMA[:gaussian|uniform]",
+        help="process noise of standard deviation SIGMA added to the true plant in the closed loop "
+        "(the same draws for every b, estimator and the true-model loop; default: 0)",
+    )
+    loop.add_argument(
+        "--feedback-bits",
+        type=_feedback_bits,
+        default=None,
+        metavar="B|none",
+        help="the MPC measures the state through a B-bit quantizer with subtractive dither over the "
+        "training data's range (default: none, exact state)",
+    )
+    loop.add_argument(
+        "--feedback-noise",
+        type=_nonneg_float,
+        default=0.0,
+        metavar="SIGMA",
+        help="sensor noise (standard deviation) on that measurement (default: 0)",
+    )
+    loop.add_argument(
+        "--loop-seed",
+        type=_nonneg_int,
+        default=0,
+        metavar="N",
+        help="seed of the disturbance, feedback dither and sensor noise (default: 0)",
+    )
+    m.add_argument(
+        "--verify-steps",
+        type=_nonneg_int,
+        default=mpc.verify_steps,
+        metavar="N",
+        help="at most N closed-loop steps beyond --mpc-steps to decide whether a loop converges, stays "
+        f"bounded or diverges on the true plant (default: {mpc.verify_steps}; 0: judge from the "
+        "run alone where the spectral radius and the certificate decide, else call it bounded)",
+    )
+    m.add_argument(
+        "--theta",
+        type=_float_type,
+        default=base.theta,
+        metavar="X",
+        help=f"theta of the ultimate bound, in (0, 1) (default: {_g(base.theta)})",
+    )
+    m.add_argument(
+        "--rho",
+        type=_float_type,
+        default=None,
+        metavar="X",
+        help="rho of the ultimate bound, > 0 (default: the level-set ball through x0)",
+    )
     add_running_options(p)
 
 
 def add_running_options(p: argparse.ArgumentParser) -> None:
     r = p.add_argument_group("running")
-    r.add_argument("--workers", type=pos_int, default=1, metavar="N",
-                   help="processes (N > 1 uses a ProcessPoolExecutor; at most the machine's CPU count; "
-                        "default: 1, in-process)")
-    r.add_argument("--threads", type=pos_int, default=2, metavar="N",
-                   help="threads of an in-process run (--workers 1): the compiled kernels run beside each other "
-                        "without the GIL, with the same results (default: 2, at most the CPU count; "
-                        "1: one thread)")
-    r.add_argument("--dask", metavar="SPEC", default=None,
-                   help="run on dask.distributed: 'local' or 'local:N' (a LocalCluster of N worker processes "
-                        "here) or 'tcp://HOST:PORT' (a running 'dask scheduler'); needs the 'distributed' package")
+    r.add_argument(
+        "--workers",
+        type=pos_int,
+        default=1,
+        metavar="N",
+        help="processes (N > 1 uses a ProcessPoolExecutor; at most the machine's CPU count; default: 1, in-process)",
+    )
+    r.add_argument(
+        "--threads",
+        type=pos_int,
+        default=2,
+        metavar="N",
+        help="threads of an in-process run (--workers 1): the compiled kernels run beside each other "
+        "without the GIL, with the same results (default: 2, at most the CPU count; "
+        "1: one thread)",
+    )
+    r.add_argument(
+        "--dask",
+        metavar="SPEC",
+        default=None,
+        help="run on dask.distributed: 'local' or 'local:N' (a LocalCluster of N worker processes "
+        "here) or 'tcp://HOST:PORT' (a running 'dask scheduler'); needs the 'distributed' package",
+    )
     r.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
 

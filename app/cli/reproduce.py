@@ -15,15 +15,17 @@ from pathlib import Path
 
 from .output import dumps, format_table, g
 from .parser import add_run_options
-from .runner import (UsageError, bits_text, check_writable, config, input_files, run as run_sweep, system_from_args,
-                     write_text)
+from .runner import UsageError, bits_text, check_writable, config, input_files, system_from_args, write_text
+from .runner import run as run_sweep
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "PORTRAIT_BITS"]
 
 HELP = "write the letter's figure panels (a)-(f) as offline HTML"
-DESCRIPTION = ("Write the letter's figure panels as standalone offline HTML: (a)/(b) relative errors of A and B "
-               "vs b, (c) MPC cost vs b, (d)-(f) closed-loop phase portraits for b = 2, 4, 6; plus index.html "
-               "and data.json.")
+DESCRIPTION = (
+    "Write the letter's figure panels as standalone offline HTML: (a)/(b) relative errors of A and B "
+    "vs b, (c) MPC cost vs b, (d)-(f) closed-loop phase portraits for b = 2, 4, 6; plus index.html "
+    "and data.json."
+)
 PORTRAIT_BITS = (2, 4, 6)
 
 _INDEX = """<!DOCTYPE html>
@@ -52,8 +54,12 @@ def add_arguments(p) -> None:
     from qsid_core.experiment import SweepConfig
 
     add_run_options(p, base=SweepConfig.letter())  # defaults: the letter's settings (no guard band)
-    p.add_argument("--out", metavar="DIR", required=True,
-                   help="output directory (created if missing; a non-empty one needs --force)")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        required=True,
+        help="output directory (created if missing; a non-empty one needs --force)",
+    )
     p.add_argument("--force", action="store_true", help="write into a non-empty --out directory (files replaced)")
 
 
@@ -63,21 +69,30 @@ def letter_note(cfg, system) -> str:
 
     letter = SweepConfig.letter(system)
     q, lq = cfg.quantizer, letter.quantizer
-    kept = (f"b = {bits_text(letter.bits)}, {letter.realizations} realizations, {letter.trajectories} x "
-            f"{letter.steps} samples, u ~ U[-{letter.input_amplitude:g}, {letter.input_amplitude:g}], "
-            f"{lq.dither} dither, {lq.range_mode} range from the data, "
-            f"{'a' if lq.guard else 'no'} guard band, {letter.estimator.upper()}")
+    kept = (
+        f"b = {bits_text(letter.bits)}, {letter.realizations} realizations, {letter.trajectories} x "
+        f"{letter.steps} samples, u ~ U[-{letter.input_amplitude:g}, {letter.input_amplitude:g}], "
+        f"{lq.dither} dither, {lq.range_mode} range from the data, "
+        f"{'a' if lq.guard else 'no'} guard band, {letter.estimator.upper()}"
+    )
     changed = []
-    for name, a, b in (("bits", cfg.bits, letter.bits), ("realizations", cfg.realizations, letter.realizations),
-                       ("trajectories", cfg.trajectories, letter.trajectories), ("steps", cfg.steps, letter.steps),
-                       ("input amplitude", cfg.input_amplitude, letter.input_amplitude),
-                       ("dither", q.dither, lq.dither), ("range", q.range_mode, lq.range_mode),
-                       ("guard", q.guard, lq.guard), ("estimator", cfg.estimator, letter.estimator)):
+    for name, a, b in (
+        ("bits", cfg.bits, letter.bits),
+        ("realizations", cfg.realizations, letter.realizations),
+        ("trajectories", cfg.trajectories, letter.trajectories),
+        ("steps", cfg.steps, letter.steps),
+        ("input amplitude", cfg.input_amplitude, letter.input_amplitude),
+        ("dither", q.dither, lq.dither),
+        ("range", q.range_mode, lq.range_mode),
+        ("guard", q.guard, lq.guard),
+        ("estimator", cfg.estimator, letter.estimator),
+    ):
         if a != b:
             shown = bits_text(a) if name == "bits" else ("on" if a else "off") if name == "guard" else a
             changed.append(f"{name} {shown}")
-    return ("the letter's settings: " + kept + ("" if not changed else "; changed by your options: "
-                                                + ", ".join(changed)))
+    return (
+        "the letter's settings: " + kept + ("" if not changed else "; changed by your options: " + ", ".join(changed))
+    )
 
 
 def _split_error_panel(fig, col: int):
@@ -92,8 +107,9 @@ def _split_error_panel(fig, col: int):
         t = tr.__class__(tr)  # a copy
         t.update(xaxis="x", yaxis="y", showlegend=(t.fill != "toself"))
         panel.add_trace(t)
-    panel.update_layout(template="plotly_white", height=420, margin=dict(l=60, r=20, t=60, b=50),
-                        legend=dict(orientation="h", y=-0.2))
+    panel.update_layout(
+        template="plotly_white", height=420, margin=dict(l=60, r=20, t=60, b=50), legend=dict(orientation="h", y=-0.2)
+    )
     panel.update_yaxes(type="log", exponentformat="power")
     panel.update_xaxes(title_text="word length b [bits]", dtick=2)
     return panel
@@ -103,8 +119,7 @@ def _portrait_title(tag: str, system, b: int, R: int) -> str:
     which = ""
     if system.n > 3:
         names = system.state_names
-        which = (f"; states 1-3 ({', '.join(names[:3])}) of {system.n} shown, "
-                 f"{', '.join(names[3:])} not drawn")
+        which = f"; states 1-3 ({', '.join(names[:3])}) of {system.n} shown, {', '.join(names[3:])} not drawn"
     return f"({tag}) closed loops on the true system, b = {b}, {R} realizations{which}"
 
 
@@ -121,10 +136,15 @@ def _curve_panels(d: dict, label: str, R: int) -> list:
     fb.update_layout(title=f"(b) relative error of B vs b ({label}, mean ± std over {R} realizations)")
     fb.update_yaxes(title_text="‖B − B̂‖ / ‖B‖")
     fc = cost_figure({label: rows}, true_cost=d["mpc_cost_true_model"], height=420)
-    fc.update_layout(title=f"(c) closed-loop MPC cost on the true system vs b (mean ± std, {R} realizations)",
-                     margin=dict(l=60, r=20, t=60, b=50))
-    return [("a_error_A", "(a) relative error in A", fa), ("b_error_B", "(b) relative error in B", fb),
-            ("c_mpc_cost", "(c) MPC cost", fc)]
+    fc.update_layout(
+        title=f"(c) closed-loop MPC cost on the true system vs b (mean ± std, {R} realizations)",
+        margin=dict(l=60, r=20, t=60, b=50),
+    )
+    return [
+        ("a_error_A", "(a) relative error in A", fa),
+        ("b_error_B", "(b) relative error in B", fb),
+        ("c_mpc_cost", "(c) MPC cost", fc),
+    ]
 
 
 def _portrait_panels(ex, system, label: str, R: int) -> tuple[list, dict, object]:
@@ -135,11 +155,22 @@ def _portrait_panels(ex, system, label: str, R: int) -> tuple[list, dict, object
     panels, portraits = [], {}
     for tag, b in zip("def", PORTRAIT_BITS):
         loops = ex.closed_loops(b)
-        fig = phase_portrait_figure(loops.states, true_states, dims=(0, 1, 2), names=system.state_names,
-                                    title=_portrait_title(tag, system, b, R), label=label)
+        fig = phase_portrait_figure(
+            loops.states,
+            true_states,
+            dims=(0, 1, 2),
+            names=system.state_names,
+            title=_portrait_title(tag, system, b, R),
+            label=label,
+        )
         panels.append((f"{tag}_phase_b{b}", f"({tag}) phase portrait, b = {b}", fig))
-        portraits[str(b)] = {"bits": b, "states": loops.states, "failed": loops.failed,
-                             "failures": loops.failure, "cost": loops.cost}
+        portraits[str(b)] = {
+            "bits": b,
+            "states": loops.states,
+            "failed": loops.failed,
+            "failures": loops.failure,
+            "cost": loops.cost,
+        }
     return panels, portraits, true_states
 
 
@@ -152,20 +183,27 @@ def _index_html(d: dict, system, panels: list) -> str:
         heading = fig.layout.title.text or stem
         fig = go.Figure(fig)  # a copy without the title: the page heading carries it
         fig.update_layout(title=None, margin=dict(t=30))
-        div = pio.to_html(fig, include_plotlyjs=False, full_html=False, div_id=f"panel-{stem}",
-                          config={"responsive": True})
+        div = pio.to_html(
+            fig, include_plotlyjs=False, full_html=False, div_id=f"panel-{stem}", config={"responsive": True}
+        )
         divs.append(f'<div class="panel"><h2><a href="{stem}.html">{html.escape(heading)}</a></h2>\n{div}\n</div>')
     c = d["config"]
     title_sys = f"{system.name}: {system.description}" if system.description else system.name
-    caption = (f"{html.escape(title_sys)}. {c['trajectories']} trajectories x {c['steps']} samples, "
-               f"{c['realizations']} dither realizations per word length, range {html.escape(c['range'])}, "
-               f"dither {html.escape(c['dither'])}, estimator {html.escape(c['estimator'])}, MPC horizon "
-               f"{c['mpc']['horizon']}, {c['mpc']['steps']} closed-loop steps. Slopes of log10 error per bit: "
-               f"A {g(d['slope_A'], '+.3f')}, B {g(d['slope_B'], '+.3f')}; true-model MPC cost "
-               f"{g(d['mpc_cost_true_model'], '.4g')}.")
+    caption = (
+        f"{html.escape(title_sys)}. {c['trajectories']} trajectories x {c['steps']} samples, "
+        f"{c['realizations']} dither realizations per word length, range {html.escape(c['range'])}, "
+        f"dither {html.escape(c['dither'])}, estimator {html.escape(c['estimator'])}, MPC horizon "
+        f"{c['mpc']['horizon']}, {c['mpc']['steps']} closed-loop steps. Slopes of log10 error per bit: "
+        f"A {g(d['slope_A'], '+.3f')}, B {g(d['slope_B'], '+.3f')}; true-model MPC cost "
+        f"{g(d['mpc_cost_true_model'], '.4g')}."
+    )
     links = ", ".join(f'<a href="{s}.html">{s}</a>' for s, _, _ in panels)
-    return _INDEX.format(title=html.escape(f"QSID-MPC letter figure: {system.name}"), caption=caption,
-                         links=links, panels="\n".join(divs))
+    return _INDEX.format(
+        title=html.escape(f"QSID-MPC letter figure: {system.name}"),
+        caption=caption,
+        links=links,
+        panels="\n".join(divs),
+    )
 
 
 def _out_dir(text: str, force: bool, inputs=()) -> Path:
@@ -178,8 +216,10 @@ def _out_dir(text: str, force: bool, inputs=()) -> Path:
         if outdir.resolve() in Path(inp).resolve().parents:
             raise UsageError(f"argument --out: {text!r} holds the input file {str(inp)!r}; give another directory")
     if outdir.is_dir() and any(outdir.iterdir()) and not force:
-        raise UsageError(f"argument --out: {text!r} is not empty; give a new directory or add --force "
-                         "(files of the same name are replaced)")
+        raise UsageError(
+            f"argument --out: {text!r} is not empty; give a new directory or add --force "
+            "(files of the same name are replaced)"
+        )
     try:
         outdir.mkdir(parents=True, exist_ok=True)  # fail before the run, not after it
     except OSError as exc:
@@ -193,8 +233,10 @@ def run(args, rep) -> int:
 
     system = system_from_args(args)
     if system.n < 3:
-        raise UsageError(f"reproduce draws 3-D phase portraits and needs a system with at least 3 states; "
-                         f"{system.name!r} has {system.n}")
+        raise UsageError(
+            f"reproduce draws 3-D phase portraits and needs a system with at least 3 states; "
+            f"{system.name!r} has {system.n}"
+        )
     outdir = _out_dir(args.out, args.force, input_files(args))
     if args.force and any(outdir.iterdir()):
         rep.line(f"note: --force: files in {outdir} with the same names will be replaced")
@@ -215,9 +257,13 @@ def run(args, rep) -> int:
         written.append(path)
     data = {
         "sweep": d,
-        "phase_portraits": {"bits": list(PORTRAIT_BITS), "drawn_states": [0, 1, 2],
-                            "state_names": list(system.state_names), "true_model_states": true_states,
-                            "by_bits": portraits},
+        "phase_portraits": {
+            "bits": list(PORTRAIT_BITS),
+            "drawn_states": [0, 1, 2],
+            "state_names": list(system.state_names),
+            "true_model_states": true_states,
+            "by_bits": portraits,
+        },
         "system": system.to_dict(),
     }
     write_text(outdir / "data.json", dumps(data, indent=None) + "\n")

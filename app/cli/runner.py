@@ -15,17 +15,31 @@ import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
-from typing import Sequence, TextIO
+from typing import TextIO
 
 from app.procs import end_with_parent, kill_workers
 
 from .mpc_args import mpc_config
 from .parser import PROG, UsageError
 
-__all__ = ["UsageError", "Reporter", "one_line", "resolve_system", "system_from_args", "config", "workers", "run",
-           "check_writable", "write_text", "bits_text", "out_file", "input_files"]
+__all__ = [
+    "UsageError",
+    "Reporter",
+    "one_line",
+    "resolve_system",
+    "system_from_args",
+    "config",
+    "workers",
+    "run",
+    "check_writable",
+    "write_text",
+    "bits_text",
+    "out_file",
+    "input_files",
+]
 
 
 def one_line(text: object) -> str:
@@ -133,8 +147,9 @@ def resolve_system(spec: str):
         system = get_system(spec)
     except (TypeError, OverflowError, RecursionError, AttributeError) as exc:
         # engine versions without full input validation: still one line, naming the file
-        raise UsageError(f"system {spec!r}: an entry is not a usable number ({type(exc).__name__}: "
-                         f"{one_line(exc)[:200]})") from None
+        raise UsageError(
+            f"system {spec!r}: an entry is not a usable number ({type(exc).__name__}: {one_line(exc)[:200]})"
+        ) from None
     dt = getattr(system, "dt", 1.0)
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise UsageError(f"system {spec!r}: dt must be a positive finite sample time; got {dt!r}")
@@ -164,10 +179,16 @@ def _quantizer(args, system):
         raise UsageError(f"argument --limits: only used with --range fixed; got --range {args.range_mode}")
     k = system.n + system.m
     if fixed is not None and len(fixed) not in (1, k):
-        raise UsageError(f"argument --limits: give 1 pair or {k} pairs (states then inputs) for system "
-                         f"{system.name!r}; got {len(fixed)}")
-    return QuantizerSpec(dither=args.dither, range_mode=args.range_mode, guard=args.guard,
-                         fixed_range=None if fixed is None else (fixed[0] if len(fixed) == 1 else fixed))
+        raise UsageError(
+            f"argument --limits: give 1 pair or {k} pairs (states then inputs) for system "
+            f"{system.name!r}; got {len(fixed)}"
+        )
+    return QuantizerSpec(
+        dither=args.dither,
+        range_mode=args.range_mode,
+        guard=args.guard,
+        fixed_range=None if fixed is None else (fixed[0] if len(fixed) == 1 else fixed),
+    )
 
 
 def config(args, system, mpc: bool):
@@ -180,8 +201,10 @@ def config(args, system, mpc: bool):
         raise UsageError(f"argument --rho: must be > 0 and at most {rho_max:g}; got {args.rho:g}")
     defaults = SweepConfig(mpc=None)
     seed = getattr(args, "seed", None)
-    seeds = {"data_seed": next(v for v in (args.data_seed, seed, defaults.data_seed) if v is not None),
-             "dither_seed": next(v for v in (args.dither_seed, seed, defaults.dither_seed) if v is not None)}
+    seeds = {
+        "data_seed": next(v for v in (args.data_seed, seed, defaults.data_seed) if v is not None),
+        "dither_seed": next(v for v in (args.dither_seed, seed, defaults.dither_seed) if v is not None),
+    }
     extra = {}
     if getattr(args, "input_bits", None) is not None:
         extra["input_bits"] = args.input_bits
@@ -192,10 +215,19 @@ def config(args, system, mpc: bool):
     if getattr(args, "noise_known", False):
         extra["noise_known"] = True
     cfg = SweepConfig(
-        system=system, bits=bits, realizations=args.realizations, trajectories=args.trajectories,
-        steps=args.steps, quantizer=_quantizer(args, system), estimator=args.estimator,
-        mpc=mpc_config(args, system) if mpc else None, theta=args.theta, rho=args.rho,
-        input_amplitude=args.input_amplitude, **seeds, **extra,
+        system=system,
+        bits=bits,
+        realizations=args.realizations,
+        trajectories=args.trajectories,
+        steps=args.steps,
+        quantizer=_quantizer(args, system),
+        estimator=args.estimator,
+        mpc=mpc_config(args, system) if mpc else None,
+        theta=args.theta,
+        rho=args.rho,
+        input_amplitude=args.input_amplitude,
+        **seeds,
+        **extra,
     )
     check_channels(cfg, system)
     return cfg
@@ -207,11 +239,12 @@ def check_channels(cfg, system) -> None:
 
     channel_bits(cfg.bits[0], system.n, system.m, cfg.input_bits, cfg.state_bits)
     if len(cfg.noise) not in (1, system.n):
-        raise UsageError(f"argument --noise: give 1 or {system.n} values for system {system.name!r}; "
-                         f"got {len(cfg.noise)}")
+        raise UsageError(
+            f"argument --noise: give 1 or {system.n} values for system {system.name!r}; got {len(cfg.noise)}"
+        )
 
 
-def workers(args, rep: "Reporter") -> int:
+def workers(args, rep: Reporter) -> int:
     """``--workers``, capped at the machine's CPU count (said on stderr when it is)."""
     cpus = os.cpu_count() or 1
     if args.workers > cpus:
@@ -231,7 +264,7 @@ def _executor(workers: int, threads: int = 1) -> Executor:
 
 
 @contextlib.contextmanager
-def executor(args, rep: "Reporter"):
+def executor(args, rep: Reporter):
     """The executor of a run and its task count: ``--dask`` (a dask.distributed cluster), else ``--workers``."""
     spec = getattr(args, "dask", None)
     if spec is not None:
@@ -276,15 +309,23 @@ def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = (), 
     cfg = config(args, system, mpc) if cfg is None else cfg
     with executor(args, rep) as (pool, nw):
         ex = Experiment(cfg, pool, tasks=max(4, 2 * nw))
-        rep.stage(f"system {system.name!r} ({_plural(system.n, 'state')}, {_plural(system.m, 'input')}); "
-                  f"{cfg.trajectories} x {cfg.steps} samples, b = {bits_text(cfg.bits)}, "
-                  f"{cfg.realizations} realizations, "
-                  + (f"{nw} worker(s)" if args.workers > 1 or getattr(args, "dask", None) else
-                     f"in-process, {_plural(nw, 'thread')}"))
+        rep.stage(
+            f"system {system.name!r} ({_plural(system.n, 'state')}, {_plural(system.m, 'input')}); "
+            f"{cfg.trajectories} x {cfg.steps} samples, b = {bits_text(cfg.bits)}, "
+            f"{cfg.realizations} realizations, "
+            + (
+                f"{nw} worker(s)"
+                if args.workers > 1 or getattr(args, "dask", None)
+                else f"in-process, {_plural(nw, 'thread')}"
+            )
+        )
         rep.stage("[1/2] simulate data, quantize and identify")
         rep.after_stage["quantize + identify"] = (
             f"[2/2] Theorem 1, ultimate bound and MPC closed loops ({len(cfg.bits)} word lengths "
-            f"x {cfg.realizations} realizations)" if mpc else "[2/2] Theorem 1 and ultimate bound")
+            f"x {cfg.realizations} realizations)"
+            if mpc
+            else "[2/2] Theorem 1 and ultimate bound"
+        )
         res = run_sweep(cfg, pool, progress=rep, experiment=ex)
         rep.after_stage.clear()
         todo = [b for b in extra_bits if b not in res.loops]
@@ -327,8 +368,10 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs=()) ->
         raise UsageError(f"argument {flag}: {text!r} is a directory; give a file name")
     for inp in inputs:
         if _same_file(out, Path(inp)):
-            raise UsageError(f"argument {flag}: {text!r} is the input file {str(inp)!r}; writing it would destroy "
-                             "the input, give another name")
+            raise UsageError(
+                f"argument {flag}: {text!r} is the input file {str(inp)!r}; writing it would destroy "
+                "the input, give another name"
+            )
     parent = out.parent
     for up in (parent, *parent.parents):
         if up.exists():

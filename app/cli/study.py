@@ -10,15 +10,35 @@ __all__ = ["config_from_file"]
 
 
 #: flags whose non-default value overrides a --config file, and the SweepConfig field each sets
-_OVERRIDES = {"bits": "bits", "realizations": "realizations", "trajectories": "trajectories", "steps": "steps",
-              "data_seed": "data_seed", "dither_seed": "dither_seed", "estimator": "estimator",
-              "input_bits": "input_bits", "state_bits": "state_bits", "noise": "noise", "noise_known": "noise_known", "theta": "theta",
-              "rho": "rho", "input_amplitude": "input_amplitude"}
+_OVERRIDES = {
+    "bits": "bits",
+    "realizations": "realizations",
+    "trajectories": "trajectories",
+    "steps": "steps",
+    "data_seed": "data_seed",
+    "dither_seed": "dither_seed",
+    "estimator": "estimator",
+    "input_bits": "input_bits",
+    "state_bits": "state_bits",
+    "noise": "noise",
+    "noise_known": "noise_known",
+    "theta": "theta",
+    "rho": "rho",
+    "input_amplitude": "input_amplitude",
+}
 
 
 #: MPC flags (parsed name -> MPCConfig field) that override the file's MPC settings
-_MPC_FLAGS = {"horizon": "horizon", "mpc_steps": "steps", "u_max": "u_max", "x0": "x0", "x_ref": "x_ref",
-              "x_max": "x_max", "q_diag": "Q", "r_diag": "R"}
+_MPC_FLAGS = {
+    "horizon": "horizon",
+    "mpc_steps": "steps",
+    "u_max": "u_max",
+    "x0": "x0",
+    "x_ref": "x_ref",
+    "x_max": "x_max",
+    "q_diag": "Q",
+    "r_diag": "R",
+}
 
 
 def config_from_file(args, defaults, mpc: bool):
@@ -46,8 +66,10 @@ def config_from_file(args, defaults, mpc: bool):
         else:
             data = json.loads(text)
     except ValueError as exc:
-        raise UsageError(f"argument --config: {str(path)!r} is not valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} "
-                         f"({one_line(exc)})") from None
+        raise UsageError(
+            f"argument --config: {str(path)!r} is not valid {'TOML' if path.suffix.lower() == '.toml' else 'JSON'} "
+            f"({one_line(exc)})"
+        ) from None
     cfg = SweepConfig.from_dict(data)
     changes = {}
     for flag, fieldname in _OVERRIDES.items():
@@ -59,16 +81,20 @@ def config_from_file(args, defaults, mpc: bool):
         changes.setdefault("data_seed", seed)
         changes.setdefault("dither_seed", seed)
     q = cfg.quantizer
-    qchanges = {k: getattr(args, a) for a, k in (("dither", "dither"), ("range_mode", "range_mode"),
-                                                ("guard", "guard")) if getattr(args, a) != getattr(defaults, a)}
+    qchanges = {
+        k: getattr(args, a)
+        for a, k in (("dither", "dither"), ("range_mode", "range_mode"), ("guard", "guard"))
+        if getattr(args, a) != getattr(defaults, a)
+    }
     if args.limits is not None:
         qchanges["fixed_range"] = args.limits[0] if len(args.limits) == 1 else args.limits
     if qchanges:
         changes["quantizer"] = dataclasses.replace(q, **qchanges)
     for flag in ("system", "a_text", "b_text"):
         if getattr(args, flag, None) != getattr(defaults, flag, None):
-            raise UsageError("argument --config: the system comes from the file; drop --system/--A/--B "
-                             "(or edit the file's system)")
+            raise UsageError(
+                "argument --config: the system comes from the file; drop --system/--A/--B (or edit the file's system)"
+            )
     mchanges = {k: getattr(args, a) for a, k in _MPC_FLAGS.items() if getattr(args, a) != getattr(defaults, a)}
     if "u_max" in mchanges and len(mchanges["u_max"]) == 1:
         mchanges["u_max"] = mchanges["u_max"][0]

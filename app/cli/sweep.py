@@ -4,28 +4,43 @@ from __future__ import annotations
 
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
-from .runner import UsageError, input_files, out_file, run as run_sweep, system_from_args, write_text
+from .runner import UsageError, input_files, out_file, system_from_args, write_text
+from .runner import run as run_sweep
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
 HELP = "sweep the word length b: identification errors, theory, MPC cost"
-DESCRIPTION = ("Sweep the word length b: identification errors (mean +- std over dither realizations), Theorem 1 "
-               "prediction, overload, MPC cost on the true system, ultimate bound.")
+DESCRIPTION = (
+    "Sweep the word length b: identification errors (mean +- std over dither realizations), Theorem 1 "
+    "prediction, overload, MPC cost on the true system, ultimate bound."
+)
 
 
 def add_arguments(p) -> None:
     add_run_options(p)
-    p.add_argument("--config", metavar="FILE", default=None,
-                   help="take every setting from FILE: a previous JSON result (--out) or a TOML file with the "
-                        "same keys (system, bits, dither, ...); flags given with non-default values override it")
+    p.add_argument(
+        "--config",
+        metavar="FILE",
+        default=None,
+        help="take every setting from FILE: a previous JSON result (--out) or a TOML file with the "
+        "same keys (system, bits, dither, ...); flags given with non-default values override it",
+    )
     p.add_argument("--no-mpc", action="store_true", help="skip the MPC closed loops (identification and theory)")
     p.add_argument("--json", action="store_true", help="print one JSON object to stdout instead of a table")
-    p.add_argument("--csv", metavar="FILE", default=None,
-                   help="also write one row per (b, estimator, realization): errors, overload, MPC cost, failure "
-                        "kind, final norm (checked before the run like --out)")
-    p.add_argument("--out", metavar="FILE", default=None,
-                   help="also write the JSON to FILE (checked before the run; an existing FILE is replaced, "
-                        "with a note on stderr; never an input file)")
+    p.add_argument(
+        "--csv",
+        metavar="FILE",
+        default=None,
+        help="also write one row per (b, estimator, realization): errors, overload, MPC cost, failure "
+        "kind, final norm (checked before the run like --out)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="FILE",
+        default=None,
+        help="also write the JSON to FILE (checked before the run; an existing FILE is replaced, "
+        "with a note on stderr; never an input file)",
+    )
 
 
 def run(args, rep) -> int:

@@ -20,8 +20,17 @@ def run(args, rep) -> int:
     items = []
     for name, make in PRESETS.items():
         s = make()
-        items.append({"name": name, "n": s.n, "m": s.m, "dt": s.dt, "description": s.description,
-                      "states": list(s.state_names), "inputs": list(s.input_names)})
+        items.append(
+            {
+                "name": name,
+                "n": s.n,
+                "m": s.m,
+                "dt": s.dt,
+                "description": s.description,
+                "states": list(s.state_names),
+                "inputs": list(s.input_names),
+            }
+        )
     if args.json:
         print(dumps(items))
         return 0

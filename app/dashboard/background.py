@@ -12,7 +12,7 @@ b already computed) shows it at once.
 from __future__ import annotations
 
 import threading
-from typing import Callable, MutableMapping
+from collections.abc import Callable, MutableMapping
 
 from qsid_core.datalength import DEFAULT_SAMPLES, DataLengthConfig, DataLengthResult, run_datalength
 
@@ -27,16 +27,31 @@ MAX_REALIZATIONS = 10
 def datalength_config(values: Values) -> DataLengthConfig:
     """The study for the panel's system, quantizer, seeds and current b (ten lengths, 10^3..10^6 samples)."""
     system = resolve_system(values).system
-    return DataLengthConfig(system=system, bits=int(values.bits), samples=DEFAULT_SAMPLES,
-                            realizations=min(int(values.realizations), MAX_REALIZATIONS),
-                            quantizer=quantizer_spec(values, system.n, system.m), data_seed=int(values.data_seed),
-                            dither_seed=int(values.dither_seed))
+    return DataLengthConfig(
+        system=system,
+        bits=int(values.bits),
+        samples=DEFAULT_SAMPLES,
+        realizations=min(int(values.realizations), MAX_REALIZATIONS),
+        quantizer=quantizer_spec(values, system.n, system.m),
+        data_seed=int(values.data_seed),
+        dither_seed=int(values.dither_seed),
+    )
 
 
 def _key(cfg: DataLengthConfig) -> tuple:
     s = cfg.system
-    return ("datalength", s.name, s.A.tobytes(), s.B.tobytes(), cfg.bits, cfg.samples, cfg.realizations,
-            repr(cfg.quantizer), cfg.data_seed, cfg.dither_seed)
+    return (
+        "datalength",
+        s.name,
+        s.A.tobytes(),
+        s.B.tobytes(),
+        cfg.bits,
+        cfg.samples,
+        cfg.realizations,
+        repr(cfg.quantizer),
+        cfg.data_seed,
+        cfg.dither_seed,
+    )
 
 
 class DataLengthRunner:
@@ -91,8 +106,10 @@ class DataLengthRunner:
             self.on_progress(0.0, f"⚠️ data-length study failed: {type(exc).__name__}: {exc}")
             return
         if res.cancelled:
-            self.on_progress(0.0, f"cancelled by a change after {len(res.rows)} of {len(cfg.samples)} lengths; "
-                                  "press the button again")
+            self.on_progress(
+                0.0,
+                f"cancelled by a change after {len(res.rows)} of {len(cfg.samples)} lengths; press the button again",
+            )
             return
         self.cache[_key(cfg)] = res
         self.on_progress(1.0, f"done: {len(res.rows)} lengths, {cfg.realizations} realizations, b = {cfg.bits}")

@@ -33,8 +33,11 @@ def _nbytes(obj, depth: int = 0) -> int:
     if depth > 6:
         return 64
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return 64 + sys.getsizeof(getattr(obj, "__dict__", {})) + sum(
-            _nbytes(getattr(obj, f.name), depth + 1) for f in dataclasses.fields(obj))
+        return (
+            64
+            + sys.getsizeof(getattr(obj, "__dict__", {}))
+            + sum(_nbytes(getattr(obj, f.name), depth + 1) for f in dataclasses.fields(obj))
+        )
     if isinstance(obj, (list, tuple, set, frozenset)):
         return sys.getsizeof(obj) + sum(_nbytes(x, depth + 1) for x in obj)
     if isinstance(obj, dict):

@@ -30,11 +30,19 @@ from __future__ import annotations
 import math
 import threading
 from collections import OrderedDict, deque
+from collections.abc import Callable
 from concurrent.futures import Future
-from typing import Callable
 
-__all__ = ["inline", "TabCallbacks", "FairSlots", "guard_updates", "limit_reads", "pool_tasks", "TASK_SECONDS",
-           "READ_BYTES"]
+__all__ = [
+    "inline",
+    "TabCallbacks",
+    "FairSlots",
+    "guard_updates",
+    "limit_reads",
+    "pool_tasks",
+    "TASK_SECONDS",
+    "READ_BYTES",
+]
 
 #: Target length of one pool task (s): abandoned tasks still running delay a newer setting by about this much.
 TASK_SECONDS = 0.3
@@ -142,7 +150,7 @@ class FairSlots:
             else:
                 self._free += 1
 
-    def __enter__(self) -> "FairSlots":
+    def __enter__(self) -> FairSlots:
         self.acquire()
         return self
 
@@ -171,8 +179,10 @@ def guard_updates(gui, on_reject: Callable[[str], None]) -> bool:
             handle = gui._gui_input_handle_from_uuid.get(message.uuid)
             label = getattr(handle, "label", None) or "an input"
             sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in dict(message.updates).items())
-            on_reject(f"{label}: the value sent ({sent}) was refused ({type(exc).__name__}: {str(exc)[:80]}); "
-                      "the input keeps its last value")
+            on_reject(
+                f"{label}: the value sent ({sent}) was refused ({type(exc).__name__}: {str(exc)[:80]}); "
+                "the input keeps its last value"
+            )
 
     conn.unregister_handler(GuiUpdateMessage, orig)
     conn.register_handler(GuiUpdateMessage, checked)

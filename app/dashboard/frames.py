@@ -8,8 +8,8 @@ arranges them for the views (:mod:`app.figures`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass, field
-from typing import Mapping, MutableMapping
 
 import numpy as np
 
@@ -31,8 +31,17 @@ def full_row(ex: Experiment, est: str, b: int, lp) -> dict:
     """The engine's complete row at ``b`` (closed loops ``lp``, the a-posteriori bound, the assumptions,
     the saturated steps), as the dict the views read."""
     u_max = ex.config.mpc.resolve(ex.system).u_max
-    return row(summary_row(ex.system.n, ex.identification(b, est), ex.theory(b), lp, u_max=u_max,
-                           realized=ex.realized_bound(b, est), assumptions=ex.assumptions(b)))
+    return row(
+        summary_row(
+            ex.system.n,
+            ex.identification(b, est),
+            ex.theory(b),
+            lp,
+            u_max=u_max,
+            realized=ex.realized_bound(b, est),
+            assumptions=ex.assumptions(b),
+        )
+    )
 
 
 @dataclass
@@ -144,8 +153,18 @@ def start(values: Values, cache: MutableMapping | None, executor, tasks: int) ->
     rows = {LABELS[e]: {b: full_row(ex, e, b, loops[LABELS[e]])} for e in ests}
     mc = mpc_config(values, system)
     x0 = np.asarray(mc.x0 if mc.x0 is not None else system.x0, dtype=float)
-    common = dict(values=values, system=system, bits=b, labels=tuple(LABELS[e] for e in ests), loops=loops,
-                  true_loop=ex.true_model_loop(), theory=th, idents=idents, x0=x0, notes=tuple(choice.notes))
+    common = dict(
+        values=values,
+        system=system,
+        bits=b,
+        labels=tuple(LABELS[e] for e in ests),
+        loops=loops,
+        true_loop=ex.true_model_loop(),
+        theory=th,
+        idents=idents,
+        x0=x0,
+        notes=tuple(choice.notes),
+    )
     return Job(ex, ests, b, cfg.bits, common), rows
 
 
@@ -159,5 +178,13 @@ def fill_rows(job: Job, rows: dict, est: str, bits, loops: Mapping | None = None
 
 def make_frame(job: Job, stage: str, rows: dict, done: int, elapsed: float, timings: dict) -> Frame:
     """A frame with a copy of ``rows`` (the caller keeps filling its own)."""
-    return Frame(stage, rows={lab: dict(r) for lab, r in rows.items()}, done=done, total=len(job.all_bits),
-                 elapsed=elapsed, timings=dict(timings), ex=job.ex, **job.common)
+    return Frame(
+        stage,
+        rows={lab: dict(r) for lab, r in rows.items()},
+        done=done,
+        total=len(job.all_bits),
+        elapsed=elapsed,
+        timings=dict(timings),
+        ex=job.ex,
+        **job.common,
+    )

@@ -79,8 +79,9 @@ def check_value(c: Control, value, options=None) -> None:
         if len(value) > MAX_TEXT:
             raise InputError(f"{lab}: the text is too long ({len(value):,} characters; at most {MAX_TEXT:,})")
         if _nesting(value) > MAX_NESTING:
-            raise InputError(f"{lab}: too many nested brackets (at most {MAX_NESTING}; a matrix needs 2, "
-                             f"e.g. [[1, 2], [3, 4]])")
+            raise InputError(
+                f"{lab}: too many nested brackets (at most {MAX_NESTING}; a matrix needs 2, e.g. [[1, 2], [3, 4]])"
+            )
 
 
 def check_panel(el) -> None:
@@ -98,8 +99,10 @@ def check_panel(el) -> None:
         for s in sliders:
             x = _number(s.label, s.value, False)
             if not LOG_MIN <= x <= LOG_MAX:
-                raise InputError(f"{s.label}: {s.value:g} is outside the slider's range {LOG_MIN:g} … {LOG_MAX:g} "
-                                 f"(log10 of the {kind} weight)")
+                raise InputError(
+                    f"{s.label}: {s.value:g} is outside the slider's range {LOG_MIN:g} … {LOG_MAX:g} "
+                    f"(log10 of the {kind} weight)"
+                )
 
 
 def unusable(frame) -> str | None:
@@ -108,11 +111,12 @@ def unusable(frame) -> str | None:
         return None
     for ident in frame.idents.values():
         if not np.all(np.isfinite(ident.eps)):
-            return (f"the quantizer step ε at b = {frame.bits} is not a finite number (the range is too wide "
-                    "for floating point); choose a narrower range")
+            return (
+                f"the quantizer step ε at b = {frame.bits} is not a finite number (the range is too wide "
+                "for floating point); choose a narrower range"
+            )
     if frame.idents and all(np.all(ident.failed) for ident in frame.idents.values()):
         ident = next(iter(frame.idents.values()))
         why = "; ".join(ident.notes[:2]) or "no reason given"
-        return (f"every identification failed at b = {frame.bits} (all {len(ident.failed)} dither realizations): "
-                f"{why}")
+        return f"every identification failed at b = {frame.bits} (all {len(ident.failed)} dither realizations): {why}"
     return None

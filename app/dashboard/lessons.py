@@ -19,8 +19,13 @@ __all__ = ["Lesson", "LESSONS", "NONE", "lesson_names", "get_lesson", "lesson_va
 NONE = NO_LESSON
 
 #: The letter's settings (Section V): per-channel range, no guard band, subtractive dither, 200 x 1000, 50.
-_LETTER = dict(dither=LETTER_QUANTIZER.dither, range_mode=LETTER_QUANTIZER.range_mode, guard=LETTER_QUANTIZER.guard,
-               input_amplitude=1.0, **PAPER_SCALE)
+_LETTER = dict(
+    dither=LETTER_QUANTIZER.dither,
+    range_mode=LETTER_QUANTIZER.range_mode,
+    guard=LETTER_QUANTIZER.guard,
+    input_amplitude=1.0,
+    **PAPER_SCALE,
+)
 
 
 @dataclass(frozen=True)
@@ -37,99 +42,226 @@ class Lesson:
 
 
 LESSONS: tuple[Lesson, ...] = (
-    Lesson("fig1", "The letter's Fig. 1 (dc motor)",
-           "The letter's own settings and estimator, LS (200 runs × 1000 steps, 50 dither realizations, "
-           "per-channel range, no guard band). Look at the error plot (Identification tab): Â and B̂ fall about "
-           "0.3 decades per bit, like the grey dotted line, and the fitted slopes are read out next to the "
-           "letter's −0.301 and −0.322: finite data, O(ε). Theorem 1's line is faded: the motor angle is an "
-           "integrator. Move b to 2, 4 and 6: in the 3-D scene the closed loops (blue) close in on the "
-           "true-model loop (black).",
-           dict(system="dc-motor", bits=2, identification="LS", **_LETTER)),
-    Lesson("fig2", "The letter's Fig. 2 (Boeing 747)",
-           "The letter's settings and estimator, LS, on the Boeing 747. Look at the error plot (Identification "
-           "tab): for b = 2..6 the error of Â falls about 0.55 decades per bit on Theorem 1's dashed line (its "
-           "O(ε²) bias), from b = 8 on about 0.3 (finite data, O(ε)). B̂ is not on its line: the range (the "
-           "data's min/max, no guard band) clips samples near the extremes, which moves B̂ by more than its "
-           "fluctuation (the plot's note and the summary give the numbers). In the cost plot (Control tab) the "
-           "identified models' MPC cost is within 0.01 % of the true model's (dashed) from b = 8 on.",
-           dict(system="boeing747", bits=8, identification="LS", **_LETTER)),
-    Lesson("theorem1", "Theorem 1 in action",
-           "Boeing 747 (stable, so Ψ Ψᵀ/T converges), one shared range with guard band, the letter's data "
-           "size; look at the error plot (Identification tab). Where the summary says every hypothesis holds "
-           "(coarse b), the LS error of Â sits on the dashed Theorem 1 line (within 10 %): the O(ε²) bias. At "
-           "fine b the line is faded: the O(ε) finite-data fluctuation dominates.",
-           dict(system="boeing747", bits=3, identification="LS", range_mode="shared", guard=True,
-                dither="subtractive", input_amplitude=1.0, **PAPER_SCALE)),
-    Lesson("dither", "Why dither",
-           "A coarse fixed range [-20, 20] at b = 3 (Boeing 747), error plot in the Identification tab. With "
-           "subtractive dither the noise is known (ε²/12, independent of the signal), so BCLS removes its bias: "
-           "the BCLS error of Â is below 0.05 while LS is above 0.7; switch dither to 'none' and BCLS's noise "
-           "model fails (red crosses), its error above 0.5. Move b to 12: LS and BCLS level off near 2e-4, and the "
-           "plot's note names the cause: the range ±20 clips 0.05 % of the samples, and that, not the data "
-           "length, sets this floor. Type the range -40, 40 and the error keeps falling.",
-           dict(system="boeing747", bits=3, identification="LS + BCLS", range_mode="fixed", fixed_range="-20, 20",
-                guard=False, dither="subtractive", input_amplitude=1.0, trajectories=200, steps=1000,
-                realizations=5)),
-    Lesson("one-cell", "Plain quantization fails, dither rescues it",
-           "Boeing 747, one fixed range [-40, 40] at b = 4: cells 5 wide, so the inputs (|u| ≤ 1) stay in the two "
-           "cells next to 0 and plain quantization keeps only their sign. Look at the quantizer plot (Quantizer "
-           "tab, channel u: elevator): without dither the error is a deterministic function of u (a piece of the "
-           "sawtooth), so the data say almost nothing about u, and LS and BCLS both miss Â and B̂ by more than "
-           "60 % (error plot, Identification tab). Switch dither to 'subtractive': the error becomes a uniform "
-           "band independent of u, and BCLS recovers Â and B̂ to within 5 %.",
-           dict(system="boeing747", bits=4, identification="LS + BCLS", range_mode="fixed", fixed_range="-40, 40",
-                guard=False, dither="none", input_amplitude=1.0, trajectories=200, steps=1000, realizations=5,
-                view_channel=4), plot="quantizer"),
-    Lesson("data-length", "Finite vs large data",
-           "Boeing 747 with a small data set (50 runs × 200 steps). The summary flags 'finite data' from a "
-           "coarser b on than at the letter's size, and Theorem 1's line is faded there; at b = 16 the "
-           "measured error is far above the line (error plot, Identification tab). Press 'Paper scale' "
-           "(200 × 1000): the line holds down to finer b. The Data length tab draws the error against the data "
-           "size.",
-           dict(system="boeing747", bits=6, identification="LS", range_mode="per-channel", guard=True,
-                dither="subtractive", input_amplitude=1.0, trajectories=50, steps=200, realizations=20)),
-    Lesson("saturation", "Actuator saturation",
-           "A large start x0 = (5, 5, 0, 0) and a small input bound 0.2 on the Boeing 747; look at the time "
-           "series (Control tab): the inputs sit on ±0.2 for many steps, and the summary counts them. The loops "
-           "still converge: ‖x_T‖ ends well below ‖x0‖.",
-           dict(system="boeing747", bits=8, identification="LS", x0="5, 5, 0, 0", u_max=0.2, mpc_steps=100,
-                guard=True, dither="subtractive", range_mode="per-channel", input_amplitude=1.0,
-                trajectories=50, steps=200, realizations=20), plot="timeseries"),
-    Lesson("bits-needed", "How many bits does the MPC need?",
-           "The Boeing 747 at the letter's data size, LS, b = 2; look at the bits plot (Control tab). At b = 2 "
-           "most loops never settle on the true plant (the summary counts them: the spectral radius of A − BK̂ "
-           "is above 1), although none fails outright. The plot's title gives three answers: the b from which "
-           "on 95 % of the loops converge at a cost within 1 % of the true model's (b_observed, 4), the b from "
-           "which the small-gain certificate holds for Theorem 1's model (b_robust, 5) and the b from which the "
-           "letter's bound says anything (b_letter, 9).",
-           dict(system="boeing747", bits=2, identification="LS", guard=True, dither="subtractive",
-                range_mode="per-channel", input_amplitude=1.0, **PAPER_SCALE), plot="bits"),
-    Lesson("tracking", "Bits and tracking",
-           "The Boeing 747 tracks a sine on its speed u (reference sine:u:1:40, seen over the MPC's horizon); "
-           "look at the residual plot (Control tab) and the time series. At b = 2 the tracking error (dotted) "
-           "is more than twice the true model's, from b = 4 on it is within 5 % of it: the bits the model needs "
-           "for tracking are few. The reference is drawn dashed in the time series and in the 3-D view.",
-           dict(system="boeing747", bits=2, identification="LS", reference="sine:u:1:40", guard=True,
-                dither="subtractive", range_mode="per-channel", input_amplitude=1.0, trajectories=200,
-                steps=1000, realizations=20), plot="residual"),
-    Lesson("feedback", "Quantized feedback: the floor",
-           "Now the MPC measures the Boeing's state through a 4-bit quantizer (subtractive dither over the "
-           "training range); look at the residual plot (Control tab). The loops keep a steady-state error of "
-           "about 0.8: from b = 8 on it no longer falls with b and equals the true model's within 1 %, so the "
-           "floor is the measurement, not the model, and the letter's δ (model error only) does not cover it. "
-           "Set feedback bits to 8: the floor falls more than 4× (about half per bit).",
-           dict(system="boeing747", bits=12, identification="LS", feedback_bits=4, guard=True,
-                dither="subtractive", range_mode="per-channel", input_amplitude=1.0, trajectories=200,
-                steps=1000, realizations=10), plot="residual"),
-    Lesson("bound", "The ultimate bound",
-           "Two bounds in the bound plot (Control tab): the letter's δ(ε) (green, from Theorem 1's T → ∞ model "
-           "errors) and the a-posteriori δ (purple, from each realization's own model error): with finite data "
-           "the a-posteriori δ is the larger one at every b. Both bound ‖x_t‖ only as t → ∞; the closed loops "
-           "end below both. The summary's 'bound lesson' line reads how loose each δ is at the current b "
-           "(against the measured ‖x_T‖), whether δ < ρ (else the proof gives no bound) and whether δ < ‖x0‖.",
-           dict(system="dc-motor", bits=8, identification="LS", guard=True, dither="subtractive",
-                range_mode="per-channel", input_amplitude=1.0, trajectories=50, steps=200, realizations=20),
-           plot="bound"),
+    Lesson(
+        "fig1",
+        "The letter's Fig. 1 (dc motor)",
+        "The letter's own settings and estimator, LS (200 runs × 1000 steps, 50 dither realizations, "
+        "per-channel range, no guard band). Look at the error plot (Identification tab): Â and B̂ fall about "
+        "0.3 decades per bit, like the grey dotted line, and the fitted slopes are read out next to the "
+        "letter's −0.301 and −0.322: finite data, O(ε). Theorem 1's line is faded: the motor angle is an "
+        "integrator. Move b to 2, 4 and 6: in the 3-D scene the closed loops (blue) close in on the "
+        "true-model loop (black).",
+        dict(system="dc-motor", bits=2, identification="LS", **_LETTER),
+    ),
+    Lesson(
+        "fig2",
+        "The letter's Fig. 2 (Boeing 747)",
+        "The letter's settings and estimator, LS, on the Boeing 747. Look at the error plot (Identification "
+        "tab): for b = 2..6 the error of Â falls about 0.55 decades per bit on Theorem 1's dashed line (its "
+        "O(ε²) bias), from b = 8 on about 0.3 (finite data, O(ε)). B̂ is not on its line: the range (the "
+        "data's min/max, no guard band) clips samples near the extremes, which moves B̂ by more than its "
+        "fluctuation (the plot's note and the summary give the numbers). In the cost plot (Control tab) the "
+        "identified models' MPC cost is within 0.01 % of the true model's (dashed) from b = 8 on.",
+        dict(system="boeing747", bits=8, identification="LS", **_LETTER),
+    ),
+    Lesson(
+        "theorem1",
+        "Theorem 1 in action",
+        "Boeing 747 (stable, so Ψ Ψᵀ/T converges), one shared range with guard band, the letter's data "
+        "size; look at the error plot (Identification tab). Where the summary says every hypothesis holds "
+        "(coarse b), the LS error of Â sits on the dashed Theorem 1 line (within 10 %): the O(ε²) bias. At "
+        "fine b the line is faded: the O(ε) finite-data fluctuation dominates.",
+        dict(
+            system="boeing747",
+            bits=3,
+            identification="LS",
+            range_mode="shared",
+            guard=True,
+            dither="subtractive",
+            input_amplitude=1.0,
+            **PAPER_SCALE,
+        ),
+    ),
+    Lesson(
+        "dither",
+        "Why dither",
+        "A coarse fixed range [-20, 20] at b = 3 (Boeing 747), error plot in the Identification tab. With "
+        "subtractive dither the noise is known (ε²/12, independent of the signal), so BCLS removes its bias: "
+        "the BCLS error of Â is below 0.05 while LS is above 0.7; switch dither to 'none' and BCLS's noise "
+        "model fails (red crosses), its error above 0.5. Move b to 12: LS and BCLS level off near 2e-4, and the "
+        "plot's note names the cause: the range ±20 clips 0.05 % of the samples, and that, not the data "
+        "length, sets this floor. Type the range -40, 40 and the error keeps falling.",
+        dict(
+            system="boeing747",
+            bits=3,
+            identification="LS + BCLS",
+            range_mode="fixed",
+            fixed_range="-20, 20",
+            guard=False,
+            dither="subtractive",
+            input_amplitude=1.0,
+            trajectories=200,
+            steps=1000,
+            realizations=5,
+        ),
+    ),
+    Lesson(
+        "one-cell",
+        "Plain quantization fails, dither rescues it",
+        "Boeing 747, one fixed range [-40, 40] at b = 4: cells 5 wide, so the inputs (|u| ≤ 1) stay in the two "
+        "cells next to 0 and plain quantization keeps only their sign. Look at the quantizer plot (Quantizer "
+        "tab, channel u: elevator): without dither the error is a deterministic function of u (a piece of the "
+        "sawtooth), so the data say almost nothing about u, and LS and BCLS both miss Â and B̂ by more than "
+        "60 % (error plot, Identification tab). Switch dither to 'subtractive': the error becomes a uniform "
+        "band independent of u, and BCLS recovers Â and B̂ to within 5 %.",
+        dict(
+            system="boeing747",
+            bits=4,
+            identification="LS + BCLS",
+            range_mode="fixed",
+            fixed_range="-40, 40",
+            guard=False,
+            dither="none",
+            input_amplitude=1.0,
+            trajectories=200,
+            steps=1000,
+            realizations=5,
+            view_channel=4,
+        ),
+        plot="quantizer",
+    ),
+    Lesson(
+        "data-length",
+        "Finite vs large data",
+        "Boeing 747 with a small data set (50 runs × 200 steps). The summary flags 'finite data' from a "
+        "coarser b on than at the letter's size, and Theorem 1's line is faded there; at b = 16 the "
+        "measured error is far above the line (error plot, Identification tab). Press 'Paper scale' "
+        "(200 × 1000): the line holds down to finer b. The Data length tab draws the error against the data "
+        "size.",
+        dict(
+            system="boeing747",
+            bits=6,
+            identification="LS",
+            range_mode="per-channel",
+            guard=True,
+            dither="subtractive",
+            input_amplitude=1.0,
+            trajectories=50,
+            steps=200,
+            realizations=20,
+        ),
+    ),
+    Lesson(
+        "saturation",
+        "Actuator saturation",
+        "A large start x0 = (5, 5, 0, 0) and a small input bound 0.2 on the Boeing 747; look at the time "
+        "series (Control tab): the inputs sit on ±0.2 for many steps, and the summary counts them. The loops "
+        "still converge: ‖x_T‖ ends well below ‖x0‖.",
+        dict(
+            system="boeing747",
+            bits=8,
+            identification="LS",
+            x0="5, 5, 0, 0",
+            u_max=0.2,
+            mpc_steps=100,
+            guard=True,
+            dither="subtractive",
+            range_mode="per-channel",
+            input_amplitude=1.0,
+            trajectories=50,
+            steps=200,
+            realizations=20,
+        ),
+        plot="timeseries",
+    ),
+    Lesson(
+        "bits-needed",
+        "How many bits does the MPC need?",
+        "The Boeing 747 at the letter's data size, LS, b = 2; look at the bits plot (Control tab). At b = 2 "
+        "most loops never settle on the true plant (the summary counts them: the spectral radius of A − BK̂ "
+        "is above 1), although none fails outright. The plot's title gives three answers: the b from which "
+        "on 95 % of the loops converge at a cost within 1 % of the true model's (b_observed, 4), the b from "
+        "which the small-gain certificate holds for Theorem 1's model (b_robust, 5) and the b from which the "
+        "letter's bound says anything (b_letter, 9).",
+        dict(
+            system="boeing747",
+            bits=2,
+            identification="LS",
+            guard=True,
+            dither="subtractive",
+            range_mode="per-channel",
+            input_amplitude=1.0,
+            **PAPER_SCALE,
+        ),
+        plot="bits",
+    ),
+    Lesson(
+        "tracking",
+        "Bits and tracking",
+        "The Boeing 747 tracks a sine on its speed u (reference sine:u:1:40, seen over the MPC's horizon); "
+        "look at the residual plot (Control tab) and the time series. At b = 2 the tracking error (dotted) "
+        "is more than twice the true model's, from b = 4 on it is within 5 % of it: the bits the model needs "
+        "for tracking are few. The reference is drawn dashed in the time series and in the 3-D view.",
+        dict(
+            system="boeing747",
+            bits=2,
+            identification="LS",
+            reference="sine:u:1:40",
+            guard=True,
+            dither="subtractive",
+            range_mode="per-channel",
+            input_amplitude=1.0,
+            trajectories=200,
+            steps=1000,
+            realizations=20,
+        ),
+        plot="residual",
+    ),
+    Lesson(
+        "feedback",
+        "Quantized feedback: the floor",
+        "Now the MPC measures the Boeing's state through a 4-bit quantizer (subtractive dither over the "
+        "training range); look at the residual plot (Control tab). The loops keep a steady-state error of "
+        "about 0.8: from b = 8 on it no longer falls with b and equals the true model's within 1 %, so the "
+        "floor is the measurement, not the model, and the letter's δ (model error only) does not cover it. "
+        "Set feedback bits to 8: the floor falls more than 4× (about half per bit).",
+        dict(
+            system="boeing747",
+            bits=12,
+            identification="LS",
+            feedback_bits=4,
+            guard=True,
+            dither="subtractive",
+            range_mode="per-channel",
+            input_amplitude=1.0,
+            trajectories=200,
+            steps=1000,
+            realizations=10,
+        ),
+        plot="residual",
+    ),
+    Lesson(
+        "bound",
+        "The ultimate bound",
+        "Two bounds in the bound plot (Control tab): the letter's δ(ε) (green, from Theorem 1's T → ∞ model "
+        "errors) and the a-posteriori δ (purple, from each realization's own model error): with finite data "
+        "the a-posteriori δ is the larger one at every b. Both bound ‖x_t‖ only as t → ∞; the closed loops "
+        "end below both. The summary's 'bound lesson' line reads how loose each δ is at the current b "
+        "(against the measured ‖x_T‖), whether δ < ρ (else the proof gives no bound) and whether δ < ‖x0‖.",
+        dict(
+            system="dc-motor",
+            bits=8,
+            identification="LS",
+            guard=True,
+            dither="subtractive",
+            range_mode="per-channel",
+            input_amplitude=1.0,
+            trajectories=50,
+            steps=200,
+            realizations=20,
+        ),
+        plot="bound",
+    ),
 )
 
 

@@ -47,10 +47,13 @@ def check_address(host: str, port: int) -> str | None:
             try:
                 s.bind((sockaddr[0], 0))  # any free port: only whether the address is ours is checked here
             except OSError as exc:
-                raise ConfigError(f"--host {host!r} ({sockaddr[0]}) is not an address of this machine "
-                                  f"({exc.strerror or exc})") from None
+                raise ConfigError(
+                    f"--host {host!r} ({sockaddr[0]}) is not an address of this machine ({exc.strerror or exc})"
+                ) from None
     if all(ipaddress.ip_address(a.split("%")[0]).is_loopback for a in addrs):
         return None
-    return (f"warning: listening on {host} ({', '.join(addrs)}), not only on this machine: anyone who can reach "
-            "it on the network can use the dashboard and its CPU (there is no login). Use --host 127.0.0.1 "
-            "to keep it private.")
+    return (
+        f"warning: listening on {host} ({', '.join(addrs)}), not only on this machine: anyone who can reach "
+        "it on the network can use the dashboard and its CPU (there is no login). Use --host 127.0.0.1 "
+        "to keep it private."
+    )

@@ -30,17 +30,25 @@ import threading
 import time
 import weakref
 from collections import OrderedDict
+from collections.abc import Callable
 from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from typing import Callable
 
 from app.procs import end_with_parent, kill_workers
 from qsid_core.errors import QsidError
 
 from .memory import trim
 
-__all__ = ["Pool", "Guarded", "PoolFailure", "PoolBroken", "PoolTimeout", "Superseded", "DEFAULT_TIMEOUT",
-           "SHARE_BYTES"]
+__all__ = [
+    "Pool",
+    "Guarded",
+    "PoolFailure",
+    "PoolBroken",
+    "PoolTimeout",
+    "Superseded",
+    "DEFAULT_TIMEOUT",
+    "SHARE_BYTES",
+]
 
 #: Seconds between two ``malloc_trim`` calls of the watchdog.
 TRIM_EVERY = 10.0
@@ -65,8 +73,10 @@ def _load_shared(path: str):
             with open(path, "rb") as f:
                 obj = pickle.load(f)
         except FileNotFoundError:
-            raise QsidError("the data of this task were replaced meanwhile (many tabs changed their data at "
-                            "once); change a setting to retry") from None
+            raise QsidError(
+                "the data of this task were replaced meanwhile (many tabs changed their data at "
+                "once); change a setting to retry"
+            ) from None
         _worker_shared[path] = obj
         while len(_worker_shared) > WORKER_KEEP:
             _worker_shared.popitem(last=False)
@@ -102,8 +112,11 @@ class PoolTimeout(PoolFailure):
 
 def twice_message(exc: PoolFailure) -> str:
     """What a tab says when its work failed in the pool twice in a row."""
-    hint = (" Try smaller settings, or start the server with a larger --task-timeout." if isinstance(exc, PoolTimeout)
-            else " Change a setting to retry.")
+    hint = (
+        " Try smaller settings, or start the server with a larger --task-timeout."
+        if isinstance(exc, PoolTimeout)
+        else " Change a setting to retry."
+    )
     return f"{exc} (twice).{hint}"
 
 
@@ -148,19 +161,25 @@ class Pool:
         return self._spawner.submit(self._start).result()
 
     def _start(self):
-        pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_worker_init, initargs=(os.getpid(),))
+        pool = ProcessPoolExecutor(
+            self.workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_worker_init,
+            initargs=(os.getpid(),),
+        )
         try:
             for f in [pool.submit(abs, 0) for _ in range(self.workers)]:  # start the workers now
                 f.result(timeout=120)
         except Exception as exc:  # e.g. started from a script without a __main__ guard
             pool.shutdown(wait=False, cancel_futures=True)
-            print(f"qsid-dashboard: no worker processes ({type(exc).__name__}: {exc}); computing in-process",
-                  file=sys.stderr)
+            print(
+                f"qsid-dashboard: no worker processes ({type(exc).__name__}: {exc}); computing in-process",
+                file=sys.stderr,
+            )
             return None
         return pool
 
-    def guarded(self, stop: Callable[[], bool] | None = None) -> "Guarded | None":
+    def guarded(self, stop: Callable[[], bool] | None = None) -> Guarded | None:
         """An executor for one computation (None: compute in-process); ``stop()`` true abandons its tasks."""
         ex = self.current
         return None if ex is None else Guarded(self, ex, stop or (lambda: False))
@@ -249,9 +268,14 @@ class Pool:
                         self.replace(guard.executor)
                     continue
                 if e[3] is not None and now - e[3] > self.timeout:
-                    _settle(outer, exc=PoolTimeout(
-                        f"a worker process did not finish its task within {self.timeout:g} s (hung?); "
-                        "it was stopped and the pool restarted", guard.executor))
+                    _settle(
+                        outer,
+                        exc=PoolTimeout(
+                            f"a worker process did not finish its task within {self.timeout:g} s (hung?); "
+                            "it was stopped and the pool restarted",
+                            guard.executor,
+                        ),
+                    )
                     self.replace(guard.executor)
 
 

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from app.figures.compare import PINNED_VIEWS, overlay_pinned
-from app.figures.phase_scene import SceneView, scene_view
 from app.figures import registry
 from app.figures.axes import finite_axes
+from app.figures.compare import PINNED_VIEWS, overlay_pinned
+from app.figures.phase_scene import SceneView, scene_view
 from app.figures.raw import Wire
-from app.figures.traces import move_current_bits
-from app.figures.traces import CURRENT_B
+from app.figures.traces import CURRENT_B, move_current_bits
 from app.figures.view import CURRENT, CURVES
 
 from .frames import Frame
@@ -73,9 +72,16 @@ class Renderer:
                         todo.append(v.name)
                         self._current_keys[v.name] = key
             out.update(build_figures(frame, todo))
-        rows_key = (frame.labels, frame.true_cost, id(frame.pinned), frame.values.compare_bits, frame.values.axes,
-                    frame.values.target, frame.values.cost_gap,
-                    tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())))
+        rows_key = (
+            frame.labels,
+            frame.true_cost,
+            id(frame.pinned),
+            frame.values.compare_bits,
+            frame.values.axes,
+            frame.values.target,
+            frame.values.cost_gap,
+            tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())),
+        )
         if frame.stage == "curves" and rows_key != self._rows_key:
             out.update(build_figures(frame, curves))
             self._rows_key = rows_key

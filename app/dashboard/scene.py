@@ -42,28 +42,42 @@ class PhasePortrait:
         ax = np.zeros((3, 2, 3), dtype=np.float32)
         for i in range(3):
             ax[i, 0, i], ax[i, 1, i] = -AXIS, AXIS
-        self.axes = scene.add_line_segments(f"{prefix}/axes", ax, np.array(_GREY, dtype=np.uint8),
-                                            thickness=1.0, thickness_units="screen")
+        self.axes = scene.add_line_segments(
+            f"{prefix}/axes", ax, np.array(_GREY, dtype=np.uint8), thickness=1.0, thickness_units="screen"
+        )
         ends = np.eye(3) * (AXIS + 0.08)
         self.axis_labels = [
-            scene.add_label(f"{prefix}/axis_{i}", "x" + str(i + 1), position=tuple(ends[i]), anchor="center-left",
-                            font_screen_scale=1.1)
+            scene.add_label(
+                f"{prefix}/axis_{i}",
+                "x" + str(i + 1),
+                position=tuple(ends[i]),
+                anchor="center-left",
+                font_screen_scale=1.1,
+            )
             for i in range(3)
         ]
-        self.scale_label = scene.add_label(f"{prefix}/scale", "", position=(0.0, 0.0, -AXIS - 0.05),
-                                           anchor="top-center", font_screen_scale=0.85)
+        self.scale_label = scene.add_label(
+            f"{prefix}/scale", "", position=(0.0, 0.0, -AXIS - 0.05), anchor="top-center", font_screen_scale=0.85
+        )
         self.sphere = self._add_circles("bound", _NONE, _SPHERE)
         self.realized = self._add_circles("bound_realized", _NONE, _REALIZED)
         self.ref_path = self._add_circles("reference", _NONE, rgb("theory"))  # a time-varying reference
-        self.marks = scene.add_point_cloud(f"{prefix}/time_marks", np.zeros((1, 3), dtype=np.float32),
-                                           np.array(rgb("true"), dtype=np.uint8), point_size=0.035,
-                                           point_shape="circle")
-        self.sphere_label = scene.add_label(f"{prefix}/bound_label", "", position=(0.0, 0.0, 0.0),
-                                            anchor="bottom-center", font_screen_scale=0.9)
-        self.start = scene.add_icosphere(f"{prefix}/x0", radius=0.035, color=(0, 0, 0), subdivisions=2,
-                                         cast_shadow=False, receive_shadow=False)
-        self.start_label = scene.add_label(f"{prefix}/x0_label", "x0", position=(0.0, 0.0, 0.0),
-                                           anchor="bottom-right", font_screen_scale=1.0)
+        self.marks = scene.add_point_cloud(
+            f"{prefix}/time_marks",
+            np.zeros((1, 3), dtype=np.float32),
+            np.array(rgb("true"), dtype=np.uint8),
+            point_size=0.035,
+            point_shape="circle",
+        )
+        self.sphere_label = scene.add_label(
+            f"{prefix}/bound_label", "", position=(0.0, 0.0, 0.0), anchor="bottom-center", font_screen_scale=0.9
+        )
+        self.start = scene.add_icosphere(
+            f"{prefix}/x0", radius=0.035, color=(0, 0, 0), subdivisions=2, cast_shadow=False, receive_shadow=False
+        )
+        self.start_label = scene.add_label(
+            f"{prefix}/x0_label", "x0", position=(0.0, 0.0, 0.0), anchor="bottom-right", font_screen_scale=1.0
+        )
         empty = np.zeros((1, 2, 3), dtype=np.float32)
         self.traj = self._add_traj(empty, np.zeros((1, 2, 3), dtype=np.uint8))
         self.true = self._add_true(empty)
@@ -71,8 +85,9 @@ class PhasePortrait:
     # ----- nodes ------------------------------------------------------------------------
     def _add_circles(self, name: str, pts, color):
         """Thin outline circles of a bound (unobtrusive: never hides the loops)."""
-        return self.scene.add_line_segments(f"{self.p}/{name}", pts, np.array(color, dtype=np.uint8),
-                                            thickness=1.2, thickness_units="screen")
+        return self.scene.add_line_segments(
+            f"{self.p}/{name}", pts, np.array(color, dtype=np.uint8), thickness=1.2, thickness_units="screen"
+        )
 
     def _set_circles(self, attr: str, name: str, pts, color) -> None:
         node = getattr(self, attr)
@@ -87,12 +102,14 @@ class PhasePortrait:
         node.visible = True
 
     def _add_traj(self, pts, cols):
-        return self.scene.add_line_segments(f"{self.p}/trajectories", pts, cols, thickness=2.0,
-                                            thickness_units="screen")
+        return self.scene.add_line_segments(
+            f"{self.p}/trajectories", pts, cols, thickness=2.0, thickness_units="screen"
+        )
 
     def _add_true(self, pts):
-        return self.scene.add_line_segments(f"{self.p}/true_model", pts, np.array(rgb("true"), dtype=np.uint8),
-                                            thickness=5.0, thickness_units="screen")
+        return self.scene.add_line_segments(
+            f"{self.p}/true_model", pts, np.array(rgb("true"), dtype=np.uint8), thickness=5.0, thickness_units="screen"
+        )
 
     # ----- drawing ----------------------------------------------------------------------
     def draw(self, v: SceneView) -> None:
@@ -119,9 +136,13 @@ class PhasePortrait:
         r = min(v.sphere_radius, 1.6) if v.bound_circles.shape[0] else 0.0
         self.sphere_label.position = (0.0, 0.0, float(max(r, 0.02)))
         if v.time_marks.shape[0] and v.time_marks.shape != self.marks.points.shape:
-            self.marks = self.scene.add_point_cloud(f"{self.p}/time_marks", v.time_marks,
-                                                    np.array(rgb("true"), dtype=np.uint8), point_size=0.035,
-                                                    point_shape="circle")
+            self.marks = self.scene.add_point_cloud(
+                f"{self.p}/time_marks",
+                v.time_marks,
+                np.array(rgb("true"), dtype=np.uint8),
+                point_size=0.035,
+                point_shape="circle",
+            )
         elif v.time_marks.shape[0]:
             self.marks.points = v.time_marks
         self.marks.visible = v.time_marks.shape[0] > 0
@@ -141,8 +162,13 @@ class PhasePortrait:
             extra.append(f"{v.clipped} loops leave the view (clipped)")
         same = "" if v.polylines == v.realizations else f" ({v.realizations} computed, identical without dither)"
         # one fact per line (viser splits labels at newlines): a long single line was cut at the canvas edge
-        self.scale_label.text = "\n".join([f"{v.polylines} distinct closed loops{same}",
-                                           f"dots every {v.mark_every} steps on the true-model loop "
-                                           "(until it converges)", f"1 box unit = {v.scale:.3g}", *extra])
+        self.scale_label.text = "\n".join(
+            [
+                f"{v.polylines} distinct closed loops{same}",
+                f"dots every {v.mark_every} steps on the true-model loop (until it converges)",
+                f"1 box unit = {v.scale:.3g}",
+                *extra,
+            ]
+        )
         self.view = v
         self.draws += 1

@@ -61,10 +61,21 @@ class DashboardApp:
         Tabs served at once; a further tab gets a page saying the dashboard is full (None: no limit).
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 8080, system: str = "dc-motor", workers: int = 2,
-                 slots: int = 2, scale: str = "interactive", verbose: bool = False,
-                 cache_bytes: int = 256 * 2**20, settings: Values | None = None, lesson: str | None = None,
-                 task_timeout: float = DEFAULT_TIMEOUT, max_tabs: int | None = None):
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        system: str = "dc-motor",
+        workers: int = 2,
+        slots: int = 2,
+        scale: str = "interactive",
+        verbose: bool = False,
+        cache_bytes: int = 256 * 2**20,
+        settings: Values | None = None,
+        lesson: str | None = None,
+        task_timeout: float = DEFAULT_TIMEOUT,
+        max_tabs: int | None = None,
+    ):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
@@ -116,9 +127,11 @@ class DashboardApp:
             if not full:
                 self._admitted.add(client.client_id)
         if full:
-            client.gui.add_markdown(f"**This dashboard is full**: it serves at most {self.max_tabs} tab(s) at a "
-                                    "time, so that every open tab stays fast. Close another tab, or reload this "
-                                    "page in a while.")
+            client.gui.add_markdown(
+                f"**This dashboard is full**: it serves at most {self.max_tabs} tab(s) at a "
+                "time, so that every open tab stays fast. Close another tab, or reload this "
+                "page in a while."
+            )
             return
         try:
             s = Session(self, client, self.defaults)
@@ -191,31 +204,62 @@ def _check_lesson(name: str) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = OneLineParser(prog="qsid-dashboard", description="Live dashboard: quantized data -> "
-                                "identification -> MPC. Open the printed URL in a browser.")
+    p = OneLineParser(
+        prog="qsid-dashboard",
+        description="Live dashboard: quantized data -> identification -> MPC. Open the printed URL in a browser.",
+    )
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--port", type=port_number, default=8080,
-                   help="port 0-65535 (default 8080; the next free one if taken; 0: any free port)")
+    p.add_argument(
+        "--port",
+        type=port_number,
+        default=8080,
+        help="port 0-65535 (default 8080; the next free one if taken; 0: any free port)",
+    )
     p.add_argument("--system", default="dc-motor", choices=STARTING_SYSTEMS, help="initial system of new tabs")
-    p.add_argument("--scale", default="interactive", choices=("interactive", "paper"),
-                   help=f"initial data size: interactive ({INTERACTIVE['trajectories']} x {INTERACTIVE['steps']}, "
-                        f"{INTERACTIVE['realizations']} realizations) or paper ({PAPER_SCALE['trajectories']} x "
-                        f"{PAPER_SCALE['steps']}, {PAPER_SCALE['realizations']})")
-    p.add_argument("--workers", type=int, default=2,
-                   help="processes for the quantization and closed-loop work, shared by all tabs "
-                        "(0 = in-process; default 2)")
-    p.add_argument("--task-timeout", type=float, default=DEFAULT_TIMEOUT, metavar="SECONDS",
-                   help=f"a pool task running longer counts as hung: its worker is replaced (default "
-                        f"{DEFAULT_TIMEOUT:g})")
-    p.add_argument("--max-tabs", type=int, default=None, metavar="N",
-                   help="serve at most N tabs at once; further tabs get a page saying the dashboard is full "
-                        "(default: no limit)")
-    p.add_argument("--cache-mb", type=int, default=256, metavar="MB",
-                   help="memory budget of the results cache shared by all tabs (default 256)")
-    p.add_argument("--settings", metavar="FILE", default=None,
-                   help="start every new tab from a settings file (saved with the panel's 'Download settings')")
-    p.add_argument("--lesson", default=None, metavar="NAME",
-                   help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}")
+    p.add_argument(
+        "--scale",
+        default="interactive",
+        choices=("interactive", "paper"),
+        help=f"initial data size: interactive ({INTERACTIVE['trajectories']} x {INTERACTIVE['steps']}, "
+        f"{INTERACTIVE['realizations']} realizations) or paper ({PAPER_SCALE['trajectories']} x "
+        f"{PAPER_SCALE['steps']}, {PAPER_SCALE['realizations']})",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        help="processes for the quantization and closed-loop work, shared by all tabs (0 = in-process; default 2)",
+    )
+    p.add_argument(
+        "--task-timeout",
+        type=float,
+        default=DEFAULT_TIMEOUT,
+        metavar="SECONDS",
+        help=f"a pool task running longer counts as hung: its worker is replaced (default {DEFAULT_TIMEOUT:g})",
+    )
+    p.add_argument(
+        "--max-tabs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="serve at most N tabs at once; further tabs get a page saying the dashboard is full (default: no limit)",
+    )
+    p.add_argument(
+        "--cache-mb",
+        type=int,
+        default=256,
+        metavar="MB",
+        help="memory budget of the results cache shared by all tabs (default 256)",
+    )
+    p.add_argument(
+        "--settings",
+        metavar="FILE",
+        default=None,
+        help="start every new tab from a settings file (saved with the panel's 'Download settings')",
+    )
+    p.add_argument(
+        "--lesson", default=None, metavar="NAME", help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}"
+    )
     return p
 
 
@@ -279,15 +323,20 @@ def main(argv: list[str] | None = None) -> int:
     """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
     args = _parser().parse_args(argv)
     if args.workers < 0 or args.workers > 4 * (os.cpu_count() or 1):
-        print(f"qsid-dashboard: error: --workers must be between 0 and {4 * (os.cpu_count() or 1)} "
-              f"(this machine has {os.cpu_count()} CPUs); got {args.workers}", file=sys.stderr)
+        print(
+            f"qsid-dashboard: error: --workers must be between 0 and {4 * (os.cpu_count() or 1)} "
+            f"(this machine has {os.cpu_count()} CPUs); got {args.workers}",
+            file=sys.stderr,
+        )
         return 2
     if not 16 <= args.cache_mb <= 65536:
         print(f"qsid-dashboard: error: --cache-mb must be between 16 and 65536; got {args.cache_mb}", file=sys.stderr)
         return 2
     if not (args.task_timeout > 0 and args.task_timeout < 1e6):
-        print(f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
-              file=sys.stderr)
+        print(
+            f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
+            file=sys.stderr,
+        )
         return 2
     if args.max_tabs is not None and not 1 <= args.max_tabs <= 10000:
         print(f"qsid-dashboard: error: --max-tabs must be between 1 and 10000; got {args.max_tabs}", file=sys.stderr)
@@ -313,9 +362,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if needs_compiling():
             print(f"qsid dashboard: compiling the kernels once, ~{COMPILE_SECONDS} s", flush=True)
-        app = DashboardApp(args.host, args.port, args.system, workers=args.workers, scale=args.scale,
-                           settings=settings, lesson=args.lesson, task_timeout=args.task_timeout,
-                           cache_bytes=args.cache_mb * 2**20, max_tabs=args.max_tabs)
+        app = DashboardApp(
+            args.host,
+            args.port,
+            args.system,
+            workers=args.workers,
+            scale=args.scale,
+            settings=settings,
+            lesson=args.lesson,
+            task_timeout=args.task_timeout,
+            cache_bytes=args.cache_mb * 2**20,
+            max_tabs=args.max_tabs,
+        )
         warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         _wait_for_stop_signal(stop)

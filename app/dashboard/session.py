@@ -37,10 +37,10 @@ from qsid_core.systems import PRESETS, get_system
 
 from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
-from .lessons import get_lesson, lesson_names, lesson_values
 from .flow import TabCallbacks, guard_updates
 from .frames import Frame
 from .inputs import check_panel, unusable
+from .lessons import get_lesson, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
 from .render import Renderer
 from .scene import PhasePortrait
@@ -60,6 +60,7 @@ MAX_GAP = 2.0
 FLOOD_CHANGES, FLOOD_RATE = 20, 200.0
 #: Seconds before a computation that failed with an internal error is tried once more.
 RETRY_AFTER = 0.2
+
 
 class Session:
     """One browser tab: its controls, scene, plots and the worker thread that redraws them.
@@ -99,8 +100,9 @@ class Session:
         self._lesson = values.lesson  # the lesson whose settings the panel was given
         self.share = add_share_panel(self)  # keep & share: settings file, command line, exports
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
-        self.views = ViewPanel(gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin,
-                               self.start_datalength)
+        self.views = ViewPanel(
+            gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin, self.start_datalength
+        )
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
         self.plots = self.views.plots
@@ -280,8 +282,14 @@ class Session:
                 c.progress.value = 100.0 * done / total
                 c.status.content = text
 
-        frames = iter_frames(values, self.app.cache, self.app.pool.guarded(lambda: self._stale(gen)), self.app.tasks,
-                             should_stop=lambda: self._stale(gen), on_progress=progress)
+        frames = iter_frames(
+            values,
+            self.app.cache,
+            self.app.pool.guarded(lambda: self._stale(gen)),
+            self.app.tasks,
+            should_stop=lambda: self._stale(gen),
+            on_progress=progress,
+        )
         try:
             while True:
                 with self.app.slots:  # (4) at most a few tabs compute at once
@@ -298,16 +306,19 @@ class Session:
                 self.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
                 if frame.complete:
                     c.progress.value = 100.0
-                    c.status.content = (f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
-                                        f"all curves in {self.timings['all']:.2f} s")
+                    c.status.content = (
+                        f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
+                        f"all curves in {self.timings['all']:.2f} s"
+                    )
         except (PoolFailure, Superseded) as exc:
             if isinstance(exc, PoolFailure):
                 raise
         except QsidError as exc:
             self._show_error(str(exc))
         except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
-            self._show_error(f"these settings cannot be computed ({type(exc).__name__}: {exc}); "
-                             "try smaller or less extreme values")
+            self._show_error(
+                f"these settings cannot be computed ({type(exc).__name__}: {exc}); try smaller or less extreme values"
+            )
         finally:
             frames.close()
         return gen

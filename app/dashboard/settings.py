@@ -25,9 +25,28 @@ from qsid_core.quantize import QuantizerSpec
 from qsid_core.systems import PRESETS, LTISystem, UncontrollableWarning, get_system, parse_matrix
 
 __all__ = [
-    "ALL_BITS", "INTERACTIVE", "PAPER_SCALE", "SYSTEM_CHOICES", "IDENT_CHOICES", "LABELS", "LOG_MIN", "LOG_MAX",
-    "NO_LESSON", "InputError", "Values", "SystemChoice", "resolve_system", "matrix_text", "quantizer_spec", "mpc_config",
-    "sweep_config", "estimators", "weights_from_log", "log_from_weights", "format_weights", "parse_vector",
+    "ALL_BITS",
+    "INTERACTIVE",
+    "PAPER_SCALE",
+    "SYSTEM_CHOICES",
+    "IDENT_CHOICES",
+    "LABELS",
+    "LOG_MIN",
+    "LOG_MAX",
+    "NO_LESSON",
+    "InputError",
+    "Values",
+    "SystemChoice",
+    "resolve_system",
+    "matrix_text",
+    "quantizer_spec",
+    "mpc_config",
+    "sweep_config",
+    "estimators",
+    "weights_from_log",
+    "log_from_weights",
+    "format_weights",
+    "parse_vector",
 ]
 
 _SWEEP = SweepConfig(mpc=None)  # the engine's defaults (no system is built: "dc-motor" stays a name)
@@ -115,7 +134,7 @@ class Values:
     noise: str = ""  # sensor noise sigma on the recorded states: one for all or one per state ("" = none)
     noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
 
-    def replace(self, **kw) -> "Values":
+    def replace(self, **kw) -> Values:
         return dataclasses.replace(self, **kw)
 
 
@@ -164,13 +183,14 @@ def panel_matrix(text: str, name: str) -> np.ndarray:
     """
     if isinstance(text, str) and not text.isascii():
         bad = next(ch for ch in text if not ch.isascii())
-        raise SystemDefinitionError(f"{name}: {bad!r} is not allowed; type numbers with the digits 0-9 "
-                                    "(plain ASCII)")
+        raise SystemDefinitionError(f"{name}: {bad!r} is not allowed; type numbers with the digits 0-9 (plain ASCII)")
     M = parse_matrix(text, name)
     tiny = (M != 0) & (np.abs(M) < MIN_ENTRY)
     if np.any(tiny):
-        raise SystemDefinitionError(f"{name}: the entry {M[tiny][0]:g} is too close to zero for the numerics; "
-                                    f"write 0 or a magnitude of at least {MIN_ENTRY:g}")
+        raise SystemDefinitionError(
+            f"{name}: the entry {M[tiny][0]:g} is too close to zero for the numerics; "
+            f"write 0 or a magnitude of at least {MIN_ENTRY:g}"
+        )
     return M
 
 
@@ -193,15 +213,13 @@ def resolve_system(v: Values) -> SystemChoice:
         raise InputError(f"Custom system: {exc}") from None
     n = A.shape[0]
     if A.shape != (n, n):
-        raise InputError(f"Custom system: A must be square (n x n); it has {A.shape[0]} rows and "
-                         f"{A.shape[1]} columns")
+        raise InputError(f"Custom system: A must be square (n x n); it has {A.shape[0]} rows and {A.shape[1]} columns")
     if B.shape[0] != n:
         if B.shape[1] == n and B.shape[0] != n:
             hint = " (did you type B transposed? write one row per state)"
         else:
             hint = ""
-        raise InputError(f"Custom system: B must have one row per state ({n} rows, like A); it has "
-                         f"{B.shape[0]}{hint}")
+        raise InputError(f"Custom system: B must have one row per state ({n} rows, like A); it has {B.shape[0]}{hint}")
     if n > MAX_CUSTOM_STATES:
         raise InputError(f"Custom system: at most {MAX_CUSTOM_STATES} states in the dashboard; A is {n} x {n}")
     try:
@@ -240,15 +258,18 @@ def _fixed_range(text: str, n: int, m: int) -> tuple:
     elif M.shape == (n + m, 2):
         pairs = M
     else:
-        raise InputError(f"fixed range: give one 'lo, hi' pair, or {n + m} rows 'lo hi' (states then inputs); "
-                         f"got shape {M.shape}")
+        raise InputError(
+            f"fixed range: give one 'lo, hi' pair, or {n + m} rows 'lo hi' (states then inputs); got shape {M.shape}"
+        )
     if not np.all(np.isfinite(pairs)) or np.abs(pairs).max() > FIXED_RANGE_MAX:
         raise InputError(f"fixed range: every number must lie between -{FIXED_RANGE_MAX:g} and {FIXED_RANGE_MAX:g}")
     if np.any(pairs[:, 1] <= pairs[:, 0]):
         raise InputError("fixed range: every range needs lo < hi")
     if np.any(pairs[:, 1] - pairs[:, 0] < 1e-9 * np.maximum(1.0, np.abs(pairs).max(axis=1))):
-        raise InputError("fixed range: a range this narrow leaves no room for 2^b cells "
-                         "(hi - lo must be at least 1e-9 × max(1, |lo|, |hi|))")
+        raise InputError(
+            "fixed range: a range this narrow leaves no room for 2^b cells "
+            "(hi - lo must be at least 1e-9 × max(1, |lo|, |hi|))"
+        )
     return tuple(map(tuple, pairs.tolist()))
 
 
@@ -322,12 +343,26 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
             from qsid_core.reference import parse_reference
 
             parse_reference(reference, system.state_names)
-        return MPCConfig(horizon=int(v.horizon), steps=int(v.mpc_steps), u_max=float(v.u_max), Q=Q, R=R, x0=x0,
-                         x_ref=x_ref, reference=reference, tracking=v.tracking,
-                         x_max=x_max, xf_max=xf_max, Qf=Qf, verify_steps=int(v.verify_steps),
-                         disturbance=float(v.disturbance), disturbance_kind=v.disturbance_kind,
-                         feedback_bits=int(v.feedback_bits) or None, feedback_noise=float(v.feedback_noise),
-                         loop_seed=int(v.loop_seed))
+        return MPCConfig(
+            horizon=int(v.horizon),
+            steps=int(v.mpc_steps),
+            u_max=float(v.u_max),
+            Q=Q,
+            R=R,
+            x0=x0,
+            x_ref=x_ref,
+            reference=reference,
+            tracking=v.tracking,
+            x_max=x_max,
+            xf_max=xf_max,
+            Qf=Qf,
+            verify_steps=int(v.verify_steps),
+            disturbance=float(v.disturbance),
+            disturbance_kind=v.disturbance_kind,
+            feedback_bits=int(v.feedback_bits) or None,
+            feedback_noise=float(v.feedback_noise),
+            loop_seed=int(v.loop_seed),
+        )
     except QsidError as exc:
         raise InputError(str(exc)) from None
 
@@ -344,8 +379,10 @@ def _what_ifs(v: Values, system: LTISystem) -> tuple:
     except QsidError as exc:
         raise InputError(str(exc)) from None
     if len(noise) not in (1, system.n):
-        raise InputError(f"sensor noise: give one σ for every state or one per state "
-                         f"({', '.join(system.state_names)}); got {len(noise)}")
+        raise InputError(
+            f"sensor noise: give one σ for every state or one per state "
+            f"({', '.join(system.state_names)}); got {len(noise)}"
+        )
     return ib, sb, noise
 
 
@@ -364,12 +401,23 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
     input_bits, state_bits, noise = _what_ifs(v, system)
     try:
         return SweepConfig(
-            system=system, bits=ALL_BITS, realizations=int(v.realizations), trajectories=int(v.trajectories),
-            steps=int(v.steps), input_amplitude=float(v.input_amplitude), data_seed=int(v.data_seed),
+            system=system,
+            bits=ALL_BITS,
+            realizations=int(v.realizations),
+            trajectories=int(v.trajectories),
+            steps=int(v.steps),
+            input_amplitude=float(v.input_amplitude),
+            data_seed=int(v.data_seed),
             dither_seed=int(v.dither_seed),
-            quantizer=quantizer_spec(v, system.n, system.m), estimator=estimators(v.identification)[0],
-            mpc=mpc_config(v, system), theta=float(v.theta), rho=None if v.rho_auto else float(v.rho),
-            input_bits=input_bits, state_bits=state_bits, noise=noise, noise_known=bool(v.noise_known),
+            quantizer=quantizer_spec(v, system.n, system.m),
+            estimator=estimators(v.identification)[0],
+            mpc=mpc_config(v, system),
+            theta=float(v.theta),
+            rho=None if v.rho_auto else float(v.rho),
+            input_bits=input_bits,
+            state_bits=state_bits,
+            noise=noise,
+            noise_known=bool(v.noise_known),
         )
     except InputError:
         raise

@@ -20,11 +20,26 @@ from app.cli.command import bits_command, sweep_command
 from app.cli.output import dumps
 
 from .controls import CONTROLS, read_values
-from .settings import IDENT_CHOICES, InputError, Values, estimators, resolve_system, sweep_config
+from .settings import InputError, Values, estimators, resolve_system, sweep_config
 
-__all__ = ["SETTINGS_KIND", "settings_json", "values_from_json", "load_settings_file", "command_lines",
-           "curves_rows", "curves_csv", "curves_json", "figures_html", "apply_values", "add_share_panel",
-           "show_frame", "apply_pending", "frame_html", "ShareHandles", "panel_values"]
+__all__ = [
+    "SETTINGS_KIND",
+    "settings_json",
+    "values_from_json",
+    "load_settings_file",
+    "command_lines",
+    "curves_rows",
+    "curves_csv",
+    "curves_json",
+    "figures_html",
+    "apply_values",
+    "add_share_panel",
+    "show_frame",
+    "apply_pending",
+    "frame_html",
+    "ShareHandles",
+    "panel_values",
+]
 
 #: The "kind" tag of a settings file (and its format version).
 SETTINGS_KIND, SETTINGS_VERSION = "qsid-dashboard-settings", 1
@@ -35,8 +50,9 @@ _CONTROL = {c.name: c for c in CONTROLS}
 
 def settings_json(v: Values) -> str:
     """The panel's settings as a small JSON document (what "Download settings" saves)."""
-    return json.dumps({"kind": SETTINGS_KIND, "version": SETTINGS_VERSION, "values": dataclasses.asdict(v)},
-                      indent=2, allow_nan=False)
+    return json.dumps(
+        {"kind": SETTINGS_KIND, "version": SETTINGS_VERSION, "values": dataclasses.asdict(v)}, indent=2, allow_nan=False
+    )
 
 
 def _field_value(name: str, value):
@@ -61,8 +77,9 @@ def _field_value(name: str, value):
             raise InputError(f"settings: {name} must be {span} (the panel's range); got {value:g}")
         return type(default)(value)
     if isinstance(default, tuple):
-        if not isinstance(value, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                  and math.isfinite(x) for x in value):
+        if not isinstance(value, list) or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value
+        ):
             raise InputError(f"settings: {name} must be a list of finite numbers; got {value!r:.40}")
         return tuple(float(x) for x in value)
     if not isinstance(value, str):
@@ -84,7 +101,7 @@ def values_from_json(text: str | bytes) -> Values:
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise InputError(f"settings: not a JSON file ({getattr(exc, 'msg', type(exc).__name__)})") from None
     if not isinstance(d, dict) or d.get("kind") != SETTINGS_KIND or not isinstance(d.get("values"), dict):
-        raise InputError(f"settings: not a qsid settings file (needs \"kind\": \"{SETTINGS_KIND}\" and \"values\")")
+        raise InputError(f'settings: not a qsid settings file (needs "kind": "{SETTINGS_KIND}" and "values")')
     unknown = sorted(set(d["values"]) - set(_FIELDS))
     if unknown:
         raise InputError(f"settings: unknown field(s) {', '.join(map(str, unknown))[:200]}")
@@ -115,11 +132,33 @@ def command_lines(v: Values) -> list:
 
 
 # ----- exports of the current frame ----------------------------------------------------------------------------
-_COLUMNS = ("estimator", "bits", "err_A_mean", "err_A_std", "err_B_mean", "err_B_std", "err_A_theory",
-            "err_B_theory", "overload_fraction", "mpc_cost_mean", "mpc_cost_std", "mpc_failed", "ultimate_bound",
-            "ultimate_bound_realized_median", "ultimate_bound_realized_max", "final_state_norm_mean",
-            "theorem1_holds", "bcls_holds", "stabilized_fraction", "converged", "bounded", "diverged", "failed",
-            "steady_state_error_mean", "tracking_error_mean")
+_COLUMNS = (
+    "estimator",
+    "bits",
+    "err_A_mean",
+    "err_A_std",
+    "err_B_mean",
+    "err_B_std",
+    "err_A_theory",
+    "err_B_theory",
+    "overload_fraction",
+    "mpc_cost_mean",
+    "mpc_cost_std",
+    "mpc_failed",
+    "ultimate_bound",
+    "ultimate_bound_realized_median",
+    "ultimate_bound_realized_max",
+    "final_state_norm_mean",
+    "theorem1_holds",
+    "bcls_holds",
+    "stabilized_fraction",
+    "converged",
+    "bounded",
+    "diverged",
+    "failed",
+    "steady_state_error_mean",
+    "tracking_error_mean",
+)
 
 
 def curves_rows(frame) -> list:
@@ -129,21 +168,35 @@ def curves_rows(frame) -> list:
         for b, r in sorted(frame.rows[lab].items()):
             cost, fsn = r.get("mpc_cost") or {}, r.get("final_state_norm") or {}
             real, a = r.get("ultimate_bound_realized") or {}, r.get("assumptions") or {}
-            out.append({
-                "estimator": lab, "bits": b, "err_A_mean": r["err_A"]["mean"], "err_A_std": r["err_A"]["std"],
-                "err_B_mean": r["err_B"]["mean"], "err_B_std": r["err_B"]["std"],
-                "err_A_theory": r.get("err_A_theory"), "err_B_theory": r.get("err_B_theory"),
-                "overload_fraction": r.get("overload_fraction"), "mpc_cost_mean": cost.get("mean"),
-                "mpc_cost_std": cost.get("std"), "mpc_failed": cost.get("failed"),
-                "ultimate_bound": r.get("ultimate_bound"), "ultimate_bound_realized_median": real.get("median"),
-                "ultimate_bound_realized_max": real.get("max"), "final_state_norm_mean": fsn.get("mean"),
-                "theorem1_holds": a.get("theorem1_holds"), "bcls_holds": a.get("bcls_holds"),
-                "stabilized_fraction": r.get("stabilized_fraction"),
-                **{k: (r.get("closed_loop_outcomes") or {}).get(k) for k in ("converged", "bounded", "diverged",
-                                                                          "failed")},
-                "steady_state_error_mean": (r.get("steady_state_error") or {}).get("mean"),
-                "tracking_error_mean": (r.get("tracking_error") or {}).get("mean"),
-            })
+            out.append(
+                {
+                    "estimator": lab,
+                    "bits": b,
+                    "err_A_mean": r["err_A"]["mean"],
+                    "err_A_std": r["err_A"]["std"],
+                    "err_B_mean": r["err_B"]["mean"],
+                    "err_B_std": r["err_B"]["std"],
+                    "err_A_theory": r.get("err_A_theory"),
+                    "err_B_theory": r.get("err_B_theory"),
+                    "overload_fraction": r.get("overload_fraction"),
+                    "mpc_cost_mean": cost.get("mean"),
+                    "mpc_cost_std": cost.get("std"),
+                    "mpc_failed": cost.get("failed"),
+                    "ultimate_bound": r.get("ultimate_bound"),
+                    "ultimate_bound_realized_median": real.get("median"),
+                    "ultimate_bound_realized_max": real.get("max"),
+                    "final_state_norm_mean": fsn.get("mean"),
+                    "theorem1_holds": a.get("theorem1_holds"),
+                    "bcls_holds": a.get("bcls_holds"),
+                    "stabilized_fraction": r.get("stabilized_fraction"),
+                    **{
+                        k: (r.get("closed_loop_outcomes") or {}).get(k)
+                        for k in ("converged", "bounded", "diverged", "failed")
+                    },
+                    "steady_state_error_mean": (r.get("steady_state_error") or {}).get("mean"),
+                    "tracking_error_mean": (r.get("tracking_error") or {}).get("mean"),
+                }
+            )
     return out
 
 
@@ -153,17 +206,25 @@ def curves_csv(frame) -> str:
     w = csv.DictWriter(buf, fieldnames=_COLUMNS, lineterminator="\n")
     w.writeheader()
     for r in curves_rows(frame):
-        w.writerow({k: ("" if v is None or (isinstance(v, float) and not math.isfinite(v)) else v)
-                    for k, v in r.items()})
+        w.writerow(
+            {k: ("" if v is None or (isinstance(v, float) and not math.isfinite(v)) else v) for k, v in r.items()}
+        )
     return buf.getvalue()
 
 
 def curves_json(frame) -> str:
     """The current curves, settings and command as strict JSON (rows as the CLI's ``results``)."""
-    return dumps({"system": frame.system.name, "settings": dataclasses.asdict(frame.values),
-                  "command": command_lines(frame.values), "bits_drawn": frame.bits,
-                  "complete": frame.done >= frame.total, "mpc_cost_true_model": frame.true_cost,
-                  "curves": {lab: [frame.rows[lab][b] for b in sorted(frame.rows[lab])] for lab in frame.labels}})
+    return dumps(
+        {
+            "system": frame.system.name,
+            "settings": dataclasses.asdict(frame.values),
+            "command": command_lines(frame.values),
+            "bits_drawn": frame.bits,
+            "complete": frame.done >= frame.total,
+            "mpc_cost_true_model": frame.true_cost,
+            "curves": {lab: [frame.rows[lab][b] for b in sorted(frame.rows[lab])] for lab in frame.labels},
+        }
+    )
 
 
 def figures_html(figures: dict, title: str, caption: str) -> str:
@@ -171,15 +232,20 @@ def figures_html(figures: dict, title: str, caption: str) -> str:
     import plotly.io as pio
     from plotly.offline import get_plotlyjs
 
-    divs = [f'<div class="panel"><h2>{html.escape(fig.layout.title.text or name)}</h2>\n'
-            + pio.to_html(fig, include_plotlyjs=False, full_html=False, div_id=f"fig-{name}",
-                          config={"responsive": True}) + "\n</div>" for name, fig in figures.items()]
-    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
-            f"<title>{html.escape(title)}</title>\n<script>{get_plotlyjs()}</script>\n"
-            "<style>body{font-family:system-ui,sans-serif;margin:1em 2em;color:#222}"
-            ".panel{border:1px solid #ddd;border-radius:4px;padding:.3em;margin-bottom:1em}"
-            ".panel h2{font-size:1em;margin:.2em .4em}code{white-space:pre-wrap}</style></head>\n<body>\n"
-            f"<h1>{html.escape(title)}</h1>\n<p>{caption}</p>\n" + "\n".join(divs) + "\n</body></html>\n")
+    divs = [
+        f'<div class="panel"><h2>{html.escape(fig.layout.title.text or name)}</h2>\n'
+        + pio.to_html(fig, include_plotlyjs=False, full_html=False, div_id=f"fig-{name}", config={"responsive": True})
+        + "\n</div>"
+        for name, fig in figures.items()
+    ]
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">\n'
+        f"<title>{html.escape(title)}</title>\n<script>{get_plotlyjs()}</script>\n"
+        "<style>body{font-family:system-ui,sans-serif;margin:1em 2em;color:#222}"
+        ".panel{border:1px solid #ddd;border-radius:4px;padding:.3em;margin-bottom:1em}"
+        ".panel h2{font-size:1em;margin:.2em .4em}code{white-space:pre-wrap}</style></head>\n<body>\n"
+        f"<h1>{html.escape(title)}</h1>\n<p>{caption}</p>\n" + "\n".join(divs) + "\n</body></html>\n"
+    )
 
 
 def frame_html(frame) -> str:
@@ -187,8 +253,10 @@ def frame_html(frame) -> str:
     from .render import build_figures
 
     cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
-    caption = (f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "
-               f"lengths computed. Reproduce the numbers: {cmds}")
+    caption = (
+        f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "
+        f"lengths computed. Reproduce the numbers: {cmds}"
+    )
     figs = build_figures(frame)
     if getattr(frame, "datalength", None) is None:  # not computed: no empty "press Compute" plot in the page
         figs.pop("datalength", None)
@@ -255,8 +323,11 @@ def add_share_panel(session) -> ShareHandles:
     gui = session.client.gui
     with gui.add_folder("Save, load & export", expand_by_default=False):
         down = gui.add_button("Download settings (JSON)", hint="Save every setting of this panel to a file")
-        up = gui.add_upload_button("Load settings (JSON)", mime_type="application/json",
-                                   hint="Set the panel from a file saved with 'Download settings'")
+        up = gui.add_upload_button(
+            "Load settings (JSON)",
+            mime_type="application/json",
+            hint="Set the panel from a file saved with 'Download settings'",
+        )
         gui.add_markdown("**As a command** (reproduces the numbers of the curves):")
         command = gui.add_markdown("")
         csv_b = gui.add_button("Export curves (CSV)")
@@ -264,9 +335,10 @@ def add_share_panel(session) -> ShareHandles:
         html_b = gui.add_button("Export figures (HTML, offline)")
         status = gui.add_markdown("")
     sh = ShareHandles(command=command, status=status)
-    stem = lambda: (session.last_frame.system.name if session.last_frame else "qsid")  # noqa: E731
-    down.on_click(lambda _: _download(session, "qsid-settings.json", lambda _f: settings_json(panel_values(session)),
-                                      False))
+    stem = lambda: session.last_frame.system.name if session.last_frame else "qsid"  # noqa: E731
+    down.on_click(
+        lambda _: _download(session, "qsid-settings.json", lambda _f: settings_json(panel_values(session)), False)
+    )
     csv_b.on_click(lambda _: _download(session, f"{stem()}-curves.csv", curves_csv))
     json_b.on_click(lambda _: _download(session, f"{stem()}-curves.json", curves_json))
     html_b.on_click(lambda _: _download(session, f"{stem()}-figures.html", frame_html))

@@ -12,8 +12,8 @@ word length by word length.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Iterator, MutableMapping
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Callable, Iterator, MutableMapping
 
 from .flow import pool_tasks
 from .frames import Frame, fill_rows, make_frame, start
@@ -66,9 +66,16 @@ def _loops_all(helper: ThreadPoolExecutor, job, rows: dict, bits: list) -> None:
         fill_rows(job, rows, e, bits, f.result())
 
 
-def iter_frames(values: Values, cache: MutableMapping | None = None, executor=None, tasks: int = 1,
-                should_stop: Callable[[], bool] | None = None, chunk: int = len(ALL_BITS) - 1, min_interval: float = 0.3,
-                on_progress: Callable[[int, int, str], None] | None = None) -> Iterator[Frame]:
+def iter_frames(
+    values: Values,
+    cache: MutableMapping | None = None,
+    executor=None,
+    tasks: int = 1,
+    should_stop: Callable[[], bool] | None = None,
+    chunk: int = len(ALL_BITS) - 1,
+    min_interval: float = 0.3,
+    on_progress: Callable[[int, int, str], None] | None = None,
+) -> Iterator[Frame]:
     """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames.
 
     Parameters
@@ -100,12 +107,16 @@ def iter_frames(values: Values, cache: MutableMapping | None = None, executor=No
     if on_progress:
         on_progress(0, total, f"computing b={b} (1/{total})")
     samples = int(values.trajectories) * int(values.steps)
-    job, rows = start(values, cache, executor, pool_tasks(samples, int(values.realizations), 1, tasks)
-                      if executor is not None else tasks)
+    job, rows = start(
+        values,
+        cache,
+        executor,
+        pool_tasks(samples, int(values.realizations), 1, tasks) if executor is not None else tasks,
+    )
     timings = {"current": time.perf_counter() - t0}
     yield make_frame(job, "current", rows, 1, timings["current"], timings)
     rest = [x for x in job.all_bits if x != b]
-    parts = [rest[i:i + chunk] for i in range(0, len(rest), chunk)]
+    parts = [rest[i : i + chunk] for i in range(0, len(rest), chunk)]
     if executor is not None and parts:  # tasks of a fraction of a second: abandoned work never holds the pool long
         channels = job.n + job.common["system"].m
         job.ex.tasks = pool_tasks(samples * channels // 4, int(values.realizations), len(parts[0]), tasks)
@@ -139,5 +150,3 @@ def iter_frames(values: Values, cache: MutableMapping | None = None, executor=No
                 yield make_frame(job, "curves", rows, done, now - t0, timings)
     finally:
         helper.shutdown(wait=False, cancel_futures=True)
-
-

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from app.figures.hypotheses import CAPTION, bcls_reasons, fits_reasons, line_holds, theorem1_reasons
-from qsid_core.summary import saturated_steps
 from qsid_core.assumptions import OVERLOAD_EFFECT_RATIO
+from qsid_core.summary import saturated_steps
 
 from .frames import Frame
 
@@ -45,21 +45,30 @@ def _real_loop(frame: Frame) -> list:
     causes = causes_text(mc)
     out = []
     if mc is not None and mc.reference is not None and frame.true_loop is not None:
-        per = " · ".join(f"{lab} {_g((frame.rows[lab][frame.bits].get('tracking_error') or {}).get('mean'))}"
-                         for lab in frame.labels)
-        out += ["", f"**Tracking** {mc.reference if isinstance(mc.reference, str) else 'sampled reference'}: "
-                    f"RMS ‖x_t − r_t‖ {per} · true model {_g(float(frame.true_loop.tracking_error[0]))} "
-                    "(δ(ε) assumes regulation to 0; the verdicts judge the same MPC regulating to 0)"]
+        per = " · ".join(
+            f"{lab} {_g((frame.rows[lab][frame.bits].get('tracking_error') or {}).get('mean'))}" for lab in frame.labels
+        )
+        out += [
+            "",
+            f"**Tracking** {mc.reference if isinstance(mc.reference, str) else 'sampled reference'}: "
+            f"RMS ‖x_t − r_t‖ {per} · true model {_g(float(frame.true_loop.tracking_error[0]))} "
+            "(δ(ε) assumes regulation to 0; the verdicts judge the same MPC regulating to 0)",
+        ]
     if not causes or frame.true_loop is None:
         return out
-    per = " · ".join(f"{lab} {_g((frame.rows[lab][frame.bits].get('steady_state_error') or {}).get('mean'))}"
-                     for lab in frame.labels)
+    per = " · ".join(
+        f"{lab} {_g((frame.rows[lab][frame.bits].get('steady_state_error') or {}).get('mean'))}" for lab in frame.labels
+    )
     true_err = float(frame.true_loop.steady_state_error[0])
-    text = (f"**Real loop** ({causes}): steady-state error {per} · true model {_g(true_err)} — no model error there: "
-            "that much comes from the causes named here; δ(ε) covers the model error only.")
+    text = (
+        f"**Real loop** ({causes}): steady-state error {per} · true model {_g(true_err)} — no model error there: "
+        "that much comes from the causes named here; δ(ε) covers the model error only."
+    )
     if mc.feedback_bits is not None:
-        text += (f" Data-rate floor of this plant: {data_rate_bits(frame.system.A):.3g} bits per sample "
-                 f"(the loop sends {mc.feedback_bits} × {frame.system.n} = {mc.feedback_bits * frame.system.n}).")
+        text += (
+            f" Data-rate floor of this plant: {data_rate_bits(frame.system.A):.3g} bits per sample "
+            f"(the loop sends {mc.feedback_bits} × {frame.system.n} = {mc.feedback_bits * frame.system.n})."
+        )
     return out + ["", text]
 
 
@@ -78,8 +87,10 @@ def _bounds(frame: Frame, first: dict) -> str:
         rb = frame.rows[lab][frame.bits].get("ultimate_bound_realized") or {}
         sc = rb.get("self_consistent")
         ok = "" if sc is None else f", below its ρ in {sc}/{frame.values.realizations}"
-        parts.append(f"a-posteriori δ {lab} = {_g(rb.get('median'))} median, {_g(rb.get('max'))} max "
-                     f"(each realization's own model error and P{ok})")
+        parts.append(
+            f"a-posteriori δ {lab} = {_g(rb.get('median'))} median, {_g(rb.get('max'))} max "
+            f"(each realization's own model error and P{ok})"
+        )
     return "**Ultimate bound** · " + " · ".join(parts) + f" · {rho_text}.  \n*{CAPTION}.*"
 
 
@@ -89,11 +100,16 @@ def _overload(first: dict) -> str:
     head = f"overload: {100 * first['overload_fraction']:.2f} % of samples"
     if "overload_effect_A" not in a:
         return head
-    eff = (f"predicted effect of the clipped samples on Â {_g(a['overload_effect_A'])}, on B̂ "
-           f"{_g(a['overload_effect_B'])} (finite-data fluctuation {_g(a['fluctuation_A'])}, "
-           f"{_g(a['fluctuation_B'])})")
-    verdict = ("harmless here (below 1/{:g} of the fluctuation)".format(OVERLOAD_EFFECT_RATIO) if a["no_overload"]
-               else "it matters (see Theorem 1 / BCLS below)")
+    eff = (
+        f"predicted effect of the clipped samples on Â {_g(a['overload_effect_A'])}, on B̂ "
+        f"{_g(a['overload_effect_B'])} (finite-data fluctuation {_g(a['fluctuation_A'])}, "
+        f"{_g(a['fluctuation_B'])})"
+    )
+    verdict = (
+        f"harmless here (below 1/{OVERLOAD_EFFECT_RATIO:g} of the fluctuation)"
+        if a["no_overload"]
+        else "it matters (see Theorem 1 / BCLS below)"
+    )
     return f"{head} clipped by {a.get('overload_range', 'the range')}; {eff}: {verdict}"
 
 
@@ -106,23 +122,31 @@ def _bound_lesson(frame: Frame, first: dict) -> list:
     x0n = float(np.linalg.norm(frame.x0))
     xt = (first.get("final_state_norm") or {}).get("max")
     deltas = [("letter's δ", first.get("ultimate_bound"))]
-    deltas += [(f"a-posteriori δ {lab} (median)",
-                (frame.rows[lab][frame.bits].get("ultimate_bound_realized") or {}).get("median"))
-               for lab in frame.labels]
+    deltas += [
+        (
+            f"a-posteriori δ {lab} (median)",
+            (frame.rows[lab][frame.bits].get("ultimate_bound_realized") or {}).get("median"),
+        )
+        for lab in frame.labels
+    ]
     if xt is None:
         loose = "no closed loops to compare with"
     elif xt <= CONVERGED_REL_FLOOR * max(x0n, 1e-300):
-        loose = (f"the loops converge (‖x_T‖ ≤ {_g(xt)}, zero up to rounding): without disturbances there is no "
-                 "residual, so each δ is loose by its whole size")
+        loose = (
+            f"the loops converge (‖x_T‖ ≤ {_g(xt)}, zero up to rounding): without disturbances there is no "
+            "residual, so each δ is loose by its whole size"
+        )
     else:
-        loose = "; ".join(f"{nm} = {_g(d)} is {d / xt:.3g}× the measured max ‖x_T‖ = {_g(xt)}"
-                          for nm, d in deltas if d is not None)
+        loose = "; ".join(
+            f"{nm} = {_g(d)} is {d / xt:.3g}× the measured max ‖x_T‖ = {_g(xt)}" for nm, d in deltas if d is not None
+        )
     rho = first.get("rho")
     d0 = first.get("ultimate_bound")
     checks = []
     if d0 is not None and rho is not None:
-        checks.append(f"δ {'<' if d0 < rho else '≥'} ρ = {_g(rho)}"
-                      + ("" if d0 < rho else " (the proof gives no bound here)"))
+        checks.append(
+            f"δ {'<' if d0 < rho else '≥'} ρ = {_g(rho)}" + ("" if d0 < rho else " (the proof gives no bound here)")
+        )
     if d0 is not None:
         checks.append(f"δ {'<' if d0 < x0n else '≥'} ‖x0‖ = {x0n:.3g}")
     return [f"**Bound lesson, b = {frame.bits}**: {loose}. " + "; ".join(checks) + ".", ""]
@@ -149,8 +173,10 @@ def _hypotheses(frame: Frame) -> list:
         head = "does not apply here (line faded):"
     lines = ["**Theorem 1** (dashed line): " + head]
     lines += [f"- {w}" for w in t1 + fits]
-    lines += ["", "**BCLS** (known noise ε²/12): " + ("its hypotheses hold." if not bc else
-                                                    "its hypotheses fail (✕ marks):")]
+    lines += [
+        "",
+        "**BCLS** (known noise ε²/12): " + ("its hypotheses hold." if not bc else "its hypotheses fail (✕ marks):"),
+    ]
     lines += [f"- {w}" for w in bc]
     return lines
 
@@ -186,8 +212,10 @@ def _lesson_changes(values) -> list:
     changed = [k for k in keys if getattr(values, k, None) != getattr(ref, k, None)]
     if not changed:
         return []
-    return [f"*Lesson **{name}** with changed settings ({', '.join(changed)}): its text describes its own "
-            "settings.*", ""]
+    return [
+        f"*Lesson **{name}** with changed settings ({', '.join(changed)}): its text describes its own settings.*",
+        "",
+    ]
 
 
 def summary_markdown(frame: Frame) -> str:
@@ -219,8 +247,10 @@ def summary_markdown(frame: Frame) -> str:
     for lab in frame.labels:
         r = frame.rows[lab][b]
         cost = (r.get("mpc_cost") or {}).get("mean")
-        lines.append(f"| {lab} | {_g(r['err_A']['mean'])} | {_g(r['err_B']['mean'])} | {_g(cost, '.4g')} | "
-                     f"{_failures(r, frame.loops[lab])} |")
+        lines.append(
+            f"| {lab} | {_g(r['err_A']['mean'])} | {_g(r['err_B']['mean'])} | {_g(cost, '.4g')} | "
+            f"{_failures(r, frame.loops[lab])} |"
+        )
     lines.append(f"| Thm 1 | {_g(first['err_A_theory'])} | {_g(first['err_B_theory'])} | | |")
     lines += ["", _saturation(frame)]
     lines.append("")
@@ -233,26 +263,33 @@ def summary_markdown(frame: Frame) -> str:
         k = frame.rows[lab][b].get("ident_failures") or 0
         if k:
             why = "; ".join(x for x in frame.idents[lab].notes if x.startswith("identification failed"))[:200]
-            notes.append(f"{lab} identification failed in {k} of {frame.values.realizations} realizations "
-                         f"(their loops are not drawn): {why}")
+            notes.append(
+                f"{lab} identification failed in {k} of {frame.values.realizations} realizations "
+                f"(their loops are not drawn): {why}"
+            )
     for lab in frame.labels:
         k = (frame.rows[lab][b].get("controllability") or {}).get("uncontrollable") or 0
         if k:
-            notes.append(f"{lab}: {k} of {frame.values.realizations} identified models are not controllable "
-                         "(the letter's Assumption 2 fails for them)")
+            notes.append(
+                f"{lab}: {k} of {frame.values.realizations} identified models are not controllable "
+                "(the letter's Assumption 2 fails for them)"
+            )
     if "BCLS" in frame.labels:
         r = frame.rows["BCLS"][b]
         if r["bcls_fallbacks"]:
             why = "; ".join(frame.idents["BCLS"].notes[:2])
-            notes.append(f"BCLS fell back to LS in {r['bcls_fallbacks']} of {frame.values.realizations} "
-                         f"realizations: {why}")
+            notes.append(
+                f"BCLS fell back to LS in {r['bcls_fallbacks']} of {frame.values.realizations} realizations: {why}"
+            )
     for lab in frame.labels:
         msgs = sorted({m for m in frame.loops[lab].messages if m})
         if msgs:
             notes.append(f"{lab} MPC: " + "; ".join(msgs[:2]) + (" …" if len(msgs) > 2 else ""))
     if frame.values.x_ref.strip() and any(float(x) for x in frame.ex.config.mpc.x_ref or ()):
-        notes.append("tracking x_ref ≠ 0: δ(ε) and the bound sphere assume x_ref = 0 (regulation); the loops "
-                     "settle near x_ref instead")
+        notes.append(
+            "tracking x_ref ≠ 0: δ(ε) and the bound sphere assume x_ref = 0 (regulation); the loops "
+            "settle near x_ref instead"
+        )
     if frame.theory.bound_note:
         notes.append(f"bound: {frame.theory.bound_note}")
     if notes:

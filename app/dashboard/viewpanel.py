@@ -10,7 +10,7 @@ inputs, a change only marks the tab dirty; :meth:`ViewPanel.values` gives the
 from __future__ import annotations
 
 import json
-from typing import Callable
+from collections.abc import Callable
 
 import plotly.graph_objects as go
 
@@ -30,10 +30,14 @@ PANEL_WIDTH = 640
 
 def blank_figure() -> go.Figure:
     fig = go.Figure()
-    fig.update_layout(height=200, template="plotly_white", margin=dict(l=10, r=10, t=10, b=10),
-                      annotations=[dict(text="computing …", showarrow=False, x=0.5, y=0.5, xref="paper",
-                                        yref="paper")],
-                      xaxis=dict(visible=False), yaxis=dict(visible=False))
+    fig.update_layout(
+        height=200,
+        template="plotly_white",
+        margin=dict(l=10, r=10, t=10, b=10),
+        annotations=[dict(text="computing …", showarrow=False, x=0.5, y=0.5, xref="paper", yref="paper")],
+        xaxis=dict(visible=False),
+        yaxis=dict(visible=False),
+    )
     return fig
 
 
@@ -42,12 +46,16 @@ def show_tab_html(tab: str, nonce: int) -> str:
     the plots panel's tab ``tab`` (the tab strip that also holds "Identification"), the keyboard way the
     dock activates a tab. ``nonce`` makes each call new content, so the browser runs it again."""
     first = json.dumps(registry.TABS[0])
-    script = ("var t=[].slice.call(document.querySelectorAll('[role=tab]'));"
-              f"var s=t.filter(function(e){{return e.title=={first};}}).map(function(e){{return e.parentElement;}})[0];"
-              f"var g=s&&[].slice.call(s.querySelectorAll('[role=tab]')).filter(function(e){{return e.title=={json.dumps(tab)};}})[0];"
-              "if(g){g.dispatchEvent(new KeyboardEvent('keydown',{key:'Enter',bubbles:true}));}")
-    return (f'<img alt="" data-qsid-tab="{nonce}" src="data:," style="display:none" '
-            f'onerror="{script.replace(chr(34), "&quot;")}">')
+    script = (
+        "var t=[].slice.call(document.querySelectorAll('[role=tab]'));"
+        f"var s=t.filter(function(e){{return e.title=={first};}}).map(function(e){{return e.parentElement;}})[0];"
+        f"var g=s&&[].slice.call(s.querySelectorAll('[role=tab]')).filter(function(e){{return e.title=={json.dumps(tab)};}})[0];"
+        "if(g){g.dispatchEvent(new KeyboardEvent('keydown',{key:'Enter',bubbles:true}));}"
+    )
+    return (
+        f'<img alt="" data-qsid-tab="{nonce}" src="data:," style="display:none" '
+        f'onerror="{script.replace(chr(34), "&quot;")}">'
+    )
 
 
 class ViewPanel:
@@ -64,8 +72,17 @@ class ViewPanel:
         The Compare tab's buttons and the Data length tab's button.
     """
 
-    def __init__(self, gui, panel, values, system, on_change: Callable[[], None], on_pin: Callable[[], None],
-                 on_unpin: Callable[[], None], on_datalength: Callable[[], None]):
+    def __init__(
+        self,
+        gui,
+        panel,
+        values,
+        system,
+        on_change: Callable[[], None],
+        on_pin: Callable[[], None],
+        on_unpin: Callable[[], None],
+        on_datalength: Callable[[], None],
+    ):
         self.plots: dict = {}
         self.system_names: tuple = ()
         #: None: plotly.js's basic bundle was sent (1.2 MB, not 4.8 MB); else why viser's full one goes
@@ -73,26 +90,34 @@ class ViewPanel:
         for tab in registry.TABS:
             with panel.add_tab(tab):
                 if tab == "Quantizer":
-                    self.channel = gui.add_dropdown("channel", ("x",), hint="The signal quantized below: a state "
-                                                    "or an input of the training data (dither seed 0)")
+                    self.channel = gui.add_dropdown(
+                        "channel",
+                        ("x",),
+                        hint="The signal quantized below: a state or an input of the training data (dither seed 0)",
+                    )
                     self.channel.on_update(lambda _e: on_change())
                 elif tab == "Data length":
-                    self.dl_button = gui.add_button("Compute error vs data length",
-                                                    hint="10 lengths from 10³ to 10⁶ samples at the current b; "
-                                                         "any change cancels it")
+                    self.dl_button = gui.add_button(
+                        "Compute error vs data length",
+                        hint="10 lengths from 10³ to 10⁶ samples at the current b; any change cancels it",
+                    )
                     self.dl_button.on_click(lambda _e: on_datalength())
                     self.dl_progress = gui.add_progress_bar(0.0, animated=False)
                     self.dl_status = gui.add_markdown("Not computed yet (it takes ~10-60 s; other views stay live).")
                 elif tab == "Compare":
-                    self.pin = gui.add_button("Pin current result", hint="Keep the current curves: the error, "
-                                              "cost and bound plots show them dashed until unpinned")
+                    self.pin = gui.add_button(
+                        "Pin current result",
+                        hint="Keep the current curves: the error, cost and bound plots show them dashed until unpinned",
+                    )
                     self.unpin = gui.add_button("Unpin", disabled=True)
                     self.pin.on_click(lambda _e: on_pin())
                     self.unpin.on_click(lambda _e: on_unpin())
                     self.pin_note = gui.add_markdown("Nothing pinned.")
-                    self.compare_bits = gui.add_text("portraits at b", values.compare_bits,
-                                                     hint="Word lengths side by side, e.g. '2, 4, 6' "
-                                                          "(the letter's figures (d)-(f))")
+                    self.compare_bits = gui.add_text(
+                        "portraits at b",
+                        values.compare_bits,
+                        hint="Word lengths side by side, e.g. '2, 4, 6' (the letter's figures (d)-(f))",
+                    )
                     self.compare_bits.on_update(lambda _e: on_change())
                 for v in (v for v in registry.VIEWS if v.tab == tab):
                     self.plots[v.name] = gui.add_plotly(blank_figure(), aspect=v.aspect)
@@ -141,7 +166,9 @@ class ViewPanel:
             self.pin_note.content = "Nothing pinned."
         else:
             v = frame.values
-            self.pin_note.content = (f"Pinned (dashed): **{frame.system.name}**, b = {frame.bits}, {v.dither} dither, "
-                                     f"{v.trajectories} × {v.steps} samples, {v.realizations} realizations, "
-                                     f"input bound {v.u_max:g}")
+            self.pin_note.content = (
+                f"Pinned (dashed): **{frame.system.name}**, b = {frame.bits}, {v.dither} dither, "
+                f"{v.trajectories} × {v.steps} samples, {v.realizations} realizations, "
+                f"input bound {v.u_max:g}"
+            )
         self.unpin.disabled = frame is None

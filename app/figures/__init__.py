@@ -12,5 +12,12 @@ from .palette import COLORS
 from .phase_portrait import phase_portrait_figure
 from .traces import move_current_bits
 
-__all__ = ["COLORS", "error_figure", "cost_figure", "bound_figure", "eigen_figure", "phase_portrait_figure",
-           "move_current_bits"]
+__all__ = [
+    "COLORS",
+    "error_figure",
+    "cost_figure",
+    "bound_figure",
+    "eigen_figure",
+    "phase_portrait_figure",
+    "move_current_bits",
+]

@@ -41,22 +41,59 @@ def bits_figure(answers: dict, current_bits: int | None = None, height: int = 42
         f = np.array([100 * r.stabilized_fraction for r in rows])
         lo = np.array([100 * r.interval[0] for r in rows])
         hi = np.array([100 * r.interval[1] for r in rows])
-        data.append(dict(type="scatter", x=b, y=f.tolist(), mode="lines+markers", name=f"{lab} stabilized",
-                         legendgroup=lab, line=dict(color=c), yaxis=y1,
-                         error_y=dict(type="data", symmetric=False, array=(hi - f).tolist(),
-                                      arrayminus=(f - lo).tolist(), color=c, thickness=1),
-                         hovertemplate="b = %{x}: %{y:.0f} % converged<extra>" + lab + "</extra>"))
+        data.append(
+            dict(
+                type="scatter",
+                x=b,
+                y=f.tolist(),
+                mode="lines+markers",
+                name=f"{lab} stabilized",
+                legendgroup=lab,
+                line=dict(color=c),
+                yaxis=y1,
+                error_y=dict(
+                    type="data",
+                    symmetric=False,
+                    array=(hi - f).tolist(),
+                    arrayminus=(f - lo).tolist(),
+                    color=c,
+                    thickness=1,
+                ),
+                hovertemplate="b = %{x}: %{y:.0f} % converged<extra>" + lab + "</extra>",
+            )
+        )
         gap = [(r.bits, abs(r.cost_gap)) for r in rows if r.cost_gap is not None and abs(r.cost_gap) > 0]
         if gap:
-            data.append(dict(type="scatter", x=[g[0] for g in gap], y=[100 * g[1] for g in gap],
-                             mode="lines+markers", name=f"{lab} cost gap", legendgroup=lab, showlegend=False,
-                             line=dict(color=c, dash="dash"), yaxis=y2,
-                             hovertemplate="b = %{x}: |gap| %{y:.3g} %<extra>" + lab + "</extra>"))
+            data.append(
+                dict(
+                    type="scatter",
+                    x=[g[0] for g in gap],
+                    y=[100 * g[1] for g in gap],
+                    mode="lines+markers",
+                    name=f"{lab} cost gap",
+                    legendgroup=lab,
+                    showlegend=False,
+                    line=dict(color=c, dash="dash"),
+                    yaxis=y2,
+                    hovertemplate="b = %{x}: |gap| %{y:.3g} %<extra>" + lab + "</extra>",
+                )
+            )
     if first is not None:
         t, g = first.settings["target"], first.settings["cost_gap"]
         shapes.append(hline(100 * t, y1, COLORS["ref"], "dash"))
-        notes.append(dict(text=f"target {100 * t:g} %", x=0, xref="x domain", y=100 * t, yref=y1, showarrow=False,
-                          xanchor="left", yanchor="bottom", font=dict(size=10, color=COLORS["ref"])))
+        notes.append(
+            dict(
+                text=f"target {100 * t:g} %",
+                x=0,
+                xref="x domain",
+                y=100 * t,
+                yref=y1,
+                showarrow=False,
+                xanchor="left",
+                yanchor="bottom",
+                font=dict(size=10, color=COLORS["ref"]),
+            )
+        )
         if g > 0:
             shapes.append(hline(100 * g, y2, COLORS["ref"], "dash"))
         for key, dash in DASH.items():
@@ -64,20 +101,52 @@ def bits_figure(answers: dict, current_bits: int | None = None, height: int = 42
             if bk is None:
                 continue
             for ya in (y1, y2):
-                shapes.append(dict(type="line", x0=bk, x1=bk, xref="x", y0=0, y1=1, yref=f"{ya} domain",
-                                   line=dict(color=COLORS["theory"], dash=dash, width=2)))
-            notes.append(dict(text=key.replace("b_", "") + f" {bk}", x=bk, xref="x", y=1, yref=f"{y1} domain",
-                              showarrow=False, xanchor="left", yanchor="top", textangle=-90,
-                              font=dict(size=10, color=COLORS["theory"])))
+                shapes.append(
+                    dict(
+                        type="line",
+                        x0=bk,
+                        x1=bk,
+                        xref="x",
+                        y0=0,
+                        y1=1,
+                        yref=f"{ya} domain",
+                        line=dict(color=COLORS["theory"], dash=dash, width=2),
+                    )
+                )
+            notes.append(
+                dict(
+                    text=key.replace("b_", "") + f" {bk}",
+                    x=bk,
+                    xref="x",
+                    y=1,
+                    yref=f"{y1} domain",
+                    showarrow=False,
+                    xanchor="left",
+                    yanchor="top",
+                    textangle=-90,
+                    font=dict(size=10, color=COLORS["theory"]),
+                )
+            )
     title = "<br>".join(_wrap(f"{lab}: {a.sentence}") for lab, a in answers.items()) + partial
-    lay[y1.replace("y", "yaxis")] = {**lay[y1.replace("y", "yaxis")], "title": dict(text="stabilized [%]"),
-                                     "range": [-3, 103]}
+    lay[y1.replace("y", "yaxis")] = {
+        **lay[y1.replace("y", "yaxis")],
+        "title": dict(text="stabilized [%]"),
+        "range": [-3, 103],
+    }
     lay["yaxis2"] = {**lay["yaxis2"], "title": dict(text="|cost gap| [%]"), "type": "log"}
-    return figure(data, dict(height=height, margin=dict(l=55, r=10, t=30 + 14 * title.count("<br>") + 14, b=40),
-                             title=dict(text=title, font=dict(size=11), x=0, xanchor="left"),
-                             legend=dict(orientation="h", y=-0.18), shapes=shapes, annotations=notes,
-                             xaxis={**lay.pop("xaxis"), **{k: v for k, v in BITS_AXIS.items() if k != "title"}},
-                             **lay))
+    return figure(
+        data,
+        dict(
+            height=height,
+            margin=dict(l=55, r=10, t=30 + 14 * title.count("<br>") + 14, b=40),
+            title=dict(text=title, font=dict(size=11), x=0, xanchor="left"),
+            legend=dict(orientation="h", y=-0.18),
+            shapes=shapes,
+            annotations=notes,
+            xaxis={**lay.pop("xaxis"), **{k: v for k, v in BITS_AXIS.items() if k != "title"}},
+            **lay,
+        ),
+    )
 
 
 def _wrap(text: str, width: int = 95) -> str:
@@ -102,8 +171,16 @@ def answers(series: Series, true_cost, ex, target: float, cost_gap: float) -> di
             continue
         if robust is None and ex is not None:
             robust = {int(r["bits"]): predicted_small_gain(ex, int(r["bits"])) for r in rows}
-        out[lab] = answer_from_rows(getattr(ex.system, "name", ""), {}, rows, true_cost, robust=robust,
-                                    target=target, cost_gap=cost_gap, data_rate=data_rate_bits(ex.system.A))
+        out[lab] = answer_from_rows(
+            getattr(ex.system, "name", ""),
+            {},
+            rows,
+            true_cost,
+            robust=robust,
+            target=target,
+            cost_gap=cost_gap,
+            data_rate=data_rate_bits(ex.system.A),
+        )
     return out
 
 

@@ -25,7 +25,6 @@ from .view import CURVES, View
 __all__ = ["bound_figure", "VIEW", "CAPTION"]
 
 
-
 def _realized(rows, label: str, c: str, dash: str = "solid") -> list:
     """Trace dicts: median line and median..max band of the a-posteriori bound of one estimator."""
     mx, my = xy(rows, "ultimate_bound_realized", "median")
@@ -36,12 +35,32 @@ def _realized(rows, label: str, c: str, dash: str = "solid") -> list:
     bx = [b for b in mx if b in top]
     if bx:
         lo = dict(zip(mx, my))
-        out.append(dict(type="scatter", x=bx + bx[::-1], y=[top[b] for b in bx] + [lo[b] for b in bx[::-1]],
-                        fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
-                        showlegend=False, legendgroup=f"re{label}"))
-    out.append(dict(type="scatter", x=mx, y=my, mode="lines+markers", legendgroup=f"re{label}",
-                    name=f"a-posteriori δ, {label} (median; band: max)", line=dict(color=c, width=1.5, dash=dash),
-                    marker=dict(symbol="diamond", size=5)))
+        out.append(
+            dict(
+                type="scatter",
+                x=bx + bx[::-1],
+                y=[top[b] for b in bx] + [lo[b] for b in bx[::-1]],
+                fill="toself",
+                fillcolor=c,
+                opacity=0.15,
+                line=dict(width=0),
+                hoverinfo="skip",
+                showlegend=False,
+                legendgroup=f"re{label}",
+            )
+        )
+    out.append(
+        dict(
+            type="scatter",
+            x=mx,
+            y=my,
+            mode="lines+markers",
+            legendgroup=f"re{label}",
+            name=f"a-posteriori δ, {label} (median; band: max)",
+            line=dict(color=c, width=1.5, dash=dash),
+            marker=dict(symbol="diamond", size=5),
+        )
+    )
     return out
 
 
@@ -60,15 +79,46 @@ def _no_bound(rows) -> tuple[list, list]:
             runs[-1][1] = b
         else:
             runs.append([b, b])
-    shapes = [dict(type="rect", xref="x", yref="paper", x0=lo - 0.5, x1=hi + 0.5, y0=0, y1=1, layer="below",
-                   fillcolor=COLORS["ref"], opacity=0.12, line=dict(width=0)) for lo, hi in runs]
-    notes = [dict(text="δ ≥ ρ: no bound", x=(lo + hi) / 2, xref="x", y=0.02, yref="paper", showarrow=False,
-                  yanchor="bottom", font=dict(size=9, color=COLORS["ref"])) for lo, hi in runs]
+    shapes = [
+        dict(
+            type="rect",
+            xref="x",
+            yref="paper",
+            x0=lo - 0.5,
+            x1=hi + 0.5,
+            y0=0,
+            y1=1,
+            layer="below",
+            fillcolor=COLORS["ref"],
+            opacity=0.12,
+            line=dict(width=0),
+        )
+        for lo, hi in runs
+    ]
+    notes = [
+        dict(
+            text="δ ≥ ρ: no bound",
+            x=(lo + hi) / 2,
+            xref="x",
+            y=0.02,
+            yref="paper",
+            showarrow=False,
+            yanchor="bottom",
+            font=dict(size=9, color=COLORS["ref"]),
+        )
+        for lo, hi in runs
+    ]
     return shapes, notes
 
 
-def bound_figure(series: Series, current_bits: int | None = None, height: int = 300,
-                 floor: float | None = None, steps: int | None = None, x0_norm: float | None = None) -> go.Figure:
+def bound_figure(
+    series: Series,
+    current_bits: int | None = None,
+    height: int = 300,
+    floor: float | None = None,
+    steps: int | None = None,
+    x0_norm: float | None = None,
+) -> go.Figure:
     """Letter's delta(eps) (dashed), a-posteriori delta per series (median, max band), ``|x_T|`` mean and max.
 
     ``floor`` (state units, e.g. ``1e-12 ||x0||``): final norms below it are converged and drawn at it
@@ -81,30 +131,62 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
         c = color(label, i)
         if i == 0:
             bx, by = xy(rows, "ultimate_bound")
-            data.append(dict(type="scatter", x=bx, y=by, mode="lines+markers", name="letter's δ(ε) (Theorem 1 errors)",
-                             legendgroup="th", line=dict(color=COLORS["theory"], dash="dash")))
+            data.append(
+                dict(
+                    type="scatter",
+                    x=bx,
+                    y=by,
+                    mode="lines+markers",
+                    name="letter's δ(ε) (Theorem 1 errors)",
+                    legendgroup="th",
+                    line=dict(color=COLORS["theory"], dash="dash"),
+                )
+            )
         # every a-posteriori δ in the bound colour (not the estimator's: BCLS δ and BCLS ‖x_T‖ looked alike)
         data += _realized(rows, label, COLORS["realized"], "solid" if i == 0 else "dot")
         mx, my = xy(rows, "final_state_norm", "mean")
         my, c1 = _floored(my, floor)
-        data.append(dict(type="scatter", x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean",
-                         line=dict(color=c)))
+        data.append(
+            dict(type="scatter", x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean", line=dict(color=c))
+        )
         xx, xy_ = xy(rows, "final_state_norm", "max")
         xy_, c2 = _floored(xy_, floor)
         conv = conv or c1 or c2
-        data.append(dict(type="scatter", x=xx, y=xy_, mode="markers", name=f"{label} ‖x_T‖ max",
-                         marker=dict(color=c, symbol="triangle-up")))
+        data.append(
+            dict(
+                type="scatter",
+                x=xx,
+                y=xy_,
+                mode="markers",
+                name=f"{label} ‖x_T‖ max",
+                marker=dict(color=c, symbol="triangle-up"),
+            )
+        )
     shapes = mark_bits(current_bits)
     first_rows = next(iter(series.values()), [])
     shade, shade_notes = _no_bound(first_rows)
     shapes += shade
     caption = CAPTION + ("" if steps is None else f" · ‖x_T‖: last state of the drawn loops, T = {steps} steps")
-    notes = [dict(text=caption, showarrow=False, x=0, y=1.02, xref="paper", yref="paper", xanchor="left",
-                  yanchor="bottom", font=dict(size=10, color=COLORS["ref"])), *shade_notes]
+    notes = [
+        dict(
+            text=caption,
+            showarrow=False,
+            x=0,
+            y=1.02,
+            xref="paper",
+            yref="paper",
+            xanchor="left",
+            yanchor="bottom",
+            font=dict(size=10, color=COLORS["ref"]),
+        ),
+        *shade_notes,
+    ]
     if x0_norm is not None and x0_norm > 0:
         shapes.append(hline(float(x0_norm), "y", COLORS["true"], "dashdot", 1.0))
         notes.append(hline_note(x0_norm, f"‖x0‖ = {x0_norm:.3g}", x=0.0, size=9))
-        data.append(dict(type="scatter", x=[None], y=[float(x0_norm)], mode="lines", showlegend=False, hoverinfo="skip"))
+        data.append(
+            dict(type="scatter", x=[None], y=[float(x0_norm)], mode="lines", showlegend=False, hoverinfo="skip")
+        )
     yaxis = dict(type="log", title=dict(text="norm"), exponentformat="power")
     # the bounds always show; final norms off the axis sit on its edge, marked (_off_axis)
     bounds = [v for tr in data if "δ" in tr.get("name", "") for v in tr["y"]]
@@ -115,8 +197,18 @@ def bound_figure(series: Series, current_bits: int | None = None, height: int = 
     if conv and (rng is None or np.log10(floor) >= rng[0]):
         shapes.append(hline(float(floor), "y", COLORS["ref"], "dot", 1.0))
         notes.append(hline_note(floor, "converged (‖x_T‖ ≤ 1e-12‖x0‖)", where="bottom", size=9))
-    return figure(data, dict(height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
-                             shapes=shapes, annotations=notes, xaxis=dict(BITS_AXIS), yaxis=yaxis))
+    return figure(
+        data,
+        dict(
+            height=height,
+            margin=dict(l=50, r=10, t=30, b=40),
+            legend=dict(orientation="h", y=-0.3),
+            shapes=shapes,
+            annotations=notes,
+            xaxis=dict(BITS_AXIS),
+            yaxis=yaxis,
+        ),
+    )
 
 
 def _off_axis(data: list, rng: list) -> list:
@@ -129,25 +221,38 @@ def _off_axis(data: list, rng: list) -> list:
         if "‖x_T‖" not in tr.get("name", ""):
             continue
         c = (tr.get("line") or tr.get("marker") or {}).get("color")
-        for where, test, y_edge, sym in (("below", lambda y: y < 10.0 ** rng[0], rng[0] + 0.01, "triangle-down-open"),
-                                         ("above", lambda y: y > 10.0 ** rng[1], rng[1] - 0.01, "triangle-up-open")):
+        for where, test, y_edge, sym in (
+            ("below", lambda y: y < 10.0 ** rng[0], rng[0] + 0.01, "triangle-down-open"),
+            ("above", lambda y: y > 10.0 ** rng[1], rng[1] - 0.01, "triangle-up-open"),
+        ):
             pts = [(b, y) for b, y in zip(tr["x"], tr["y"]) if y is not None and y > 0 and test(y)]
             if pts:  # one legend entry per edge ("‖x_T‖ below the axis"); the hover names the series
                 first = not any(o["legendgroup"] == where for o in out)
-                out.append(dict(type="scatter", x=[b for b, _ in pts], y=[10.0 ** y_edge] * len(pts), mode="markers",
-                                name=f"‖x_T‖ {where} the axis (hover: value)", meta=tr["name"], legendgroup=where,
-                                showlegend=first,
-                                text=[f"{y:.3g}" for _, y in pts],
-                                hovertemplate=f"{tr['name']}, b = %{{x}}: %{{text}}<extra></extra>", cliponaxis=False,
-                                marker=dict(color=c, symbol=sym, size=9)))
+                out.append(
+                    dict(
+                        type="scatter",
+                        x=[b for b, _ in pts],
+                        y=[10.0**y_edge] * len(pts),
+                        mode="markers",
+                        name=f"‖x_T‖ {where} the axis (hover: value)",
+                        meta=tr["name"],
+                        legendgroup=where,
+                        showlegend=first,
+                        text=[f"{y:.3g}" for _, y in pts],
+                        hovertemplate=f"{tr['name']}, b = %{{x}}: %{{text}}<extra></extra>",
+                        cliponaxis=False,
+                        marker=dict(color=c, symbol=sym, size=9),
+                    )
+                )
     return out
 
 
 def _build(frame) -> go.Figure:
     r0 = float(np.linalg.norm(frame.x0))
     floor = CONVERGED_REL_FLOOR * (r0 if r0 > 0 else 1.0)
-    return bound_figure(frame.series(), current_bits=frame.bits, height=300, floor=floor,
-                        steps=int(frame.values.mpc_steps), x0_norm=r0)
+    return bound_figure(
+        frame.series(), current_bits=frame.bits, height=300, floor=floor, steps=int(frame.values.mpc_steps), x0_norm=r0
+    )
 
 
 VIEW = View("bound", aspect=0.75, depends=CURVES, build=_build)

@@ -66,12 +66,24 @@ def _lines(states: np.ndarray, i: int, j: int, xa: str, ya: str, c: str, name: s
     gap = np.full((R, 1), np.nan)
     xs = np.hstack([states[:, :, i], gap]).reshape(-1)
     ys = np.hstack([states[:, :, j], gap]).reshape(-1)
-    return dict(type="scatter", x=arr(xs), y=arr(ys), mode="lines", name=name, legendgroup=name, showlegend=legend,
-                line=dict(color=c, width=w), opacity=0.6 if w < 1.5 else 1.0, xaxis=xa, yaxis=ya)
+    return dict(
+        type="scatter",
+        x=arr(xs),
+        y=arr(ys),
+        mode="lines",
+        name=name,
+        legendgroup=name,
+        showlegend=legend,
+        line=dict(color=c, width=w),
+        opacity=0.6 if w < 1.5 else 1.0,
+        xaxis=xa,
+        yaxis=ya,
+    )
 
 
-def portraits_figure(loops: dict, true_states: np.ndarray | None, dims: tuple, names: tuple, height: int = 320,
-                     note: str = "") -> go.Figure:
+def portraits_figure(
+    loops: dict, true_states: np.ndarray | None, dims: tuple, names: tuple, height: int = 320, note: str = ""
+) -> go.Figure:
     """Side-by-side phase portraits.
 
     Parameters
@@ -91,16 +103,21 @@ def portraits_figure(loops: dict, true_states: np.ndarray | None, dims: tuple, n
     for p, (b, per) in enumerate(loops.items()):
         xa, ya = ("x", "y") if p == 0 else (f"x{p + 1}", f"y{p + 1}")
         lo = p * (w + gap)
-        layout["xaxis" if p == 0 else f"xaxis{p + 1}"] = dict(domain=[lo, lo + w], anchor=ya,
-                                                                 title=dict(text=f"{names[0]}  (b = {b})"))
+        layout["xaxis" if p == 0 else f"xaxis{p + 1}"] = dict(
+            domain=[lo, lo + w], anchor=ya, title=dict(text=f"{names[0]}  (b = {b})")
+        )
         layout["yaxis" if p == 0 else f"yaxis{p + 1}"] = dict(anchor=xa, title=dict(text=names[1] if p == 0 else ""))
         for q, (label, st) in enumerate(per.items()):
             ok = np.all(np.isfinite(st.reshape(st.shape[0], -1)), axis=1)
             data.append(_lines(st[ok], *dims, xa, ya, color(label, q), label, p == 0))
         if true_states is not None:
             data.append(_lines(true_states[None], *dims, xa, ya, COLORS["true"], "true model", p == 0, w=1.5))
-    layout.update(height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
-                  title=dict(text=note or "closed loops at several word lengths", font=dict(size=11)))
+    layout.update(
+        height=height,
+        margin=dict(l=50, r=10, t=30, b=40),
+        legend=dict(orientation="h", y=-0.3),
+        title=dict(text=note or "closed loops at several word lengths", font=dict(size=11)),
+    )
     return figure(data, layout)
 
 

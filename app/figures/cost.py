@@ -13,29 +13,58 @@ from .view import CURVES, View
 __all__ = ["cost_figure", "VIEW"]
 
 
-def cost_figure(series: Series, true_cost: float | None = None, current_bits: int | None = None,
-                height: int = 300) -> go.Figure:
+def cost_figure(
+    series: Series, true_cost: float | None = None, current_bits: int | None = None, height: int = 300
+) -> go.Figure:
     """Mean +- std of the closed-loop cost per estimator against b, and the true-model cost (dashed)."""
     data, shapes, notes = [], mark_bits(current_bits), []
     stuck = []
     for i, (label, rows) in enumerate(series.items()):
         data += band(rows, "mpc_cost", color(label, i), f"{label} model")
-        bad = [(r["bits"], r["closed_loop_outcomes"]) for r in rows if r.get("closed_loop_outcomes")
-               and r["closed_loop_outcomes"]["converged"] < sum(r["closed_loop_outcomes"].values())]
+        bad = [
+            (r["bits"], r["closed_loop_outcomes"])
+            for r in rows
+            if r.get("closed_loop_outcomes")
+            and r["closed_loop_outcomes"]["converged"] < sum(r["closed_loop_outcomes"].values())
+        ]
         if bad:
-            stuck.append(f"{label}: " + ", ".join(f"b={b} {sum(o.values()) - o['converged']}/{sum(o.values())}"
-                                                  for b, o in bad))
+            stuck.append(
+                f"{label}: " + ", ".join(f"b={b} {sum(o.values()) - o['converged']}/{sum(o.values())}" for b, o in bad)
+            )
     if stuck:  # the cost of a loop that never settles is no success
-        notes.append(dict(text="did not converge: " + "; ".join(stuck), showarrow=False, x=0, y=1.0, xref="paper",
-                          yref="paper", xanchor="left", yanchor="bottom", font=dict(size=10, color=COLORS["ref"])))
+        notes.append(
+            dict(
+                text="did not converge: " + "; ".join(stuck),
+                showarrow=False,
+                x=0,
+                y=1.0,
+                xref="paper",
+                yref="paper",
+                xanchor="left",
+                yanchor="bottom",
+                font=dict(size=10, color=COLORS["ref"]),
+            )
+        )
     if true_cost is not None and np.isfinite(true_cost) and true_cost > 0:
         shapes.append(hline(float(true_cost), "y", COLORS["true"], "dash", 2.0))
         notes.append(hline_note(true_cost, f"true model {true_cost:.4g}"))
-    return figure(data, dict(height=height, margin=dict(l=50, r=10, t=20, b=40), legend=dict(orientation="h", y=-0.3),
-                             shapes=shapes, annotations=notes, xaxis=dict(BITS_AXIS),
-                             yaxis=dict(type="log", title=dict(text="closed-loop cost"))))
+    return figure(
+        data,
+        dict(
+            height=height,
+            margin=dict(l=50, r=10, t=20, b=40),
+            legend=dict(orientation="h", y=-0.3),
+            shapes=shapes,
+            annotations=notes,
+            xaxis=dict(BITS_AXIS),
+            yaxis=dict(type="log", title=dict(text="closed-loop cost")),
+        ),
+    )
 
 
-VIEW = View("cost", aspect=0.6, depends=CURVES,
-            build=lambda frame: cost_figure(frame.series(), true_cost=frame.true_cost, current_bits=frame.bits,
-                                            height=260))
+VIEW = View(
+    "cost",
+    aspect=0.6,
+    depends=CURVES,
+    build=lambda frame: cost_figure(frame.series(), true_cost=frame.true_cost, current_bits=frame.bits, height=260),
+)

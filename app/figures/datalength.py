@@ -27,20 +27,67 @@ def _panel(rows: list, key: str, xa: str, ya: str, legend: bool) -> list:
         m = np.array([np.nan if r[est][key]["mean"] is None else r[est][key]["mean"] for r in rows], dtype=float)
         s = np.array([0.0 if r[est][key]["std"] is None else r[est][key]["std"] for r in rows], dtype=float)
         lo = np.where(m - s > 0, m - s, m / 10)
-        data.append(dict(type="scatter", x=arr(np.concatenate([T, T[::-1]])), y=arr(np.concatenate([m + s, lo[::-1]])),
-                         fill="toself", fillcolor=color(lab, i), opacity=0.18, line=dict(width=0), hoverinfo="skip",
-                         showlegend=False, legendgroup=lab, xaxis=xa, yaxis=ya))
-        data.append(dict(type="scatter", x=arr(T), y=arr(m), mode="lines+markers", name=f"{lab} mean ± std",
-                         legendgroup=lab, showlegend=legend, line=dict(color=color(lab, i)), xaxis=xa, yaxis=ya))
+        data.append(
+            dict(
+                type="scatter",
+                x=arr(np.concatenate([T, T[::-1]])),
+                y=arr(np.concatenate([m + s, lo[::-1]])),
+                fill="toself",
+                fillcolor=color(lab, i),
+                opacity=0.18,
+                line=dict(width=0),
+                hoverinfo="skip",
+                showlegend=False,
+                legendgroup=lab,
+                xaxis=xa,
+                yaxis=ya,
+            )
+        )
+        data.append(
+            dict(
+                type="scatter",
+                x=arr(T),
+                y=arr(m),
+                mode="lines+markers",
+                name=f"{lab} mean ± std",
+                legendgroup=lab,
+                showlegend=legend,
+                line=dict(color=color(lab, i)),
+                xaxis=xa,
+                yaxis=ya,
+            )
+        )
     th = [r[f"{key}_theory"] for r in rows]
-    data.append(dict(type="scatter", x=arr(T), y=arr([np.nan if v is None else v for v in th]), mode="lines",
-                     name="Theorem 1 (large T)", legendgroup="th", showlegend=legend,
-                     line=dict(color=COLORS["theory"], dash="dash"), xaxis=xa, yaxis=ya))
+    data.append(
+        dict(
+            type="scatter",
+            x=arr(T),
+            y=arr([np.nan if v is None else v for v in th]),
+            mode="lines",
+            name="Theorem 1 (large T)",
+            legendgroup="th",
+            showlegend=legend,
+            line=dict(color=COLORS["theory"], dash="dash"),
+            xaxis=xa,
+            yaxis=ya,
+        )
+    )
     ls0 = rows[0]["ls"][key]["mean"]
     if ls0:
-        data.append(dict(type="scatter", x=arr(T), y=arr(ls0 * np.sqrt(T[0] / T)), mode="lines", name="∝ T^-1/2",
-                         legendgroup="ref", showlegend=legend, line=dict(color=COLORS["ref"], dash="dot"),
-                         xaxis=xa, yaxis=ya))
+        data.append(
+            dict(
+                type="scatter",
+                x=arr(T),
+                y=arr(ls0 * np.sqrt(T[0] / T)),
+                mode="lines",
+                name="∝ T^-1/2",
+                legendgroup="ref",
+                showlegend=legend,
+                line=dict(color=COLORS["ref"], dash="dot"),
+                xaxis=xa,
+                yaxis=ya,
+            )
+        )
     return data
 
 
@@ -52,18 +99,32 @@ def datalength_figure(result: dict | None, bits: int, height: int = 340, note: s
         xaxis2=dict(domain=[0.54, 1], type="log", title=dict(text="samples T"), anchor="y2", exponentformat="power"),
         yaxis=dict(type="log", anchor="x", title=dict(text="‖ΔA‖/‖A‖"), exponentformat="power"),
         yaxis2=dict(type="log", anchor="x2", title=dict(text="‖ΔB‖/‖B‖"), exponentformat="power"),
-        height=height, margin=dict(l=55, r=10, t=40, b=40), legend=dict(orientation="h", y=-0.3),
+        height=height,
+        margin=dict(l=55, r=10, t=40, b=40),
+        legend=dict(orientation="h", y=-0.3),
     )
     if not rows:
-        layout["annotations"] = [dict(text=note or "press “Compute error vs data length”", showarrow=False,
-                                      x=0.5, y=0.5, xref="paper", yref="paper")]
+        layout["annotations"] = [
+            dict(
+                text=note or "press “Compute error vs data length”",
+                showarrow=False,
+                x=0.5,
+                y=0.5,
+                xref="paper",
+                yref="paper",
+            )
+        ]
         layout["title"] = dict(text=f"error vs data length at b = {bits}", font=dict(size=11))
         return figure([], layout)
     data = _panel(rows, "err_A", "x", "y", True) + _panel(rows, "err_B", "x2", "y2", False)
     cfg = result.get("config", {})
-    layout["title"] = dict(text=(f"error vs data length at b = {result.get('bits', bits)} · "
-                                 f"{cfg.get('realizations', '?')} realizations · {note}").rstrip(" ·"),
-                           font=dict(size=11))
+    layout["title"] = dict(
+        text=(
+            f"error vs data length at b = {result.get('bits', bits)} · "
+            f"{cfg.get('realizations', '?')} realizations · {note}"
+        ).rstrip(" ·"),
+        font=dict(size=11),
+    )
     return figure(data, layout)
 
 
@@ -72,5 +133,11 @@ def _build(frame) -> go.Figure:
     return datalength_figure(None if res is None else res.to_dict(), frame.bits)
 
 
-VIEW = View("datalength", aspect=0.6, depends=CURRENT, build=_build, tab="Data length",
-            key=lambda frame: (frame.bits, id(frame.datalength)))
+VIEW = View(
+    "datalength",
+    aspect=0.6,
+    depends=CURRENT,
+    build=_build,
+    tab="Data length",
+    key=lambda frame: (frame.bits, id(frame.datalength)),
+)

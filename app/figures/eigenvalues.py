@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import plotly.graph_objects as go
@@ -14,8 +14,9 @@ from .view import CURRENT, View
 __all__ = ["eigen_figure", "VIEW"]
 
 
-def eigen_figure(eigs: Mapping[str, np.ndarray] | np.ndarray, true_eigs: np.ndarray, height: int = 320,
-                 title: str = "") -> go.Figure:
+def eigen_figure(
+    eigs: Mapping[str, np.ndarray] | np.ndarray, true_eigs: np.ndarray, height: int = 320, title: str = ""
+) -> go.Figure:
     """Eigenvalues over realizations (``eigs``: complex array (R, n), or label -> such arrays).
 
     NaN eigenvalues (failed identifications) are not drawn by plotly.
@@ -23,21 +24,52 @@ def eigen_figure(eigs: Mapping[str, np.ndarray] | np.ndarray, true_eigs: np.ndar
     if not isinstance(eigs, Mapping):
         eigs = {"Â": eigs}
     th = np.linspace(0, 2 * np.pi, 181)
-    data = [dict(type="scatter", x=arr(np.cos(th)), y=arr(np.sin(th)), mode="lines", name="unit circle",
-                 line=dict(color=COLORS["unit_circle"], width=1), hoverinfo="skip")]
+    data = [
+        dict(
+            type="scatter",
+            x=arr(np.cos(th)),
+            y=arr(np.sin(th)),
+            mode="lines",
+            name="unit circle",
+            line=dict(color=COLORS["unit_circle"], width=1),
+            hoverinfo="skip",
+        )
+    ]
     # the true eigenvalues first, as open rings: the estimates are drawn over them and stay visible
     te = np.asarray(true_eigs).reshape(-1)
-    data.append(dict(type="scatter", x=arr(te.real), y=arr(te.imag), mode="markers", name="eig A (true)",
-                     marker=dict(color=COLORS["true"], symbol="circle-open", size=14, line=dict(width=1.5))))
+    data.append(
+        dict(
+            type="scatter",
+            x=arr(te.real),
+            y=arr(te.imag),
+            mode="markers",
+            name="eig A (true)",
+            marker=dict(color=COLORS["true"], symbol="circle-open", size=14, line=dict(width=1.5)),
+        )
+    )
     for i, (label, ev) in enumerate(eigs.items()):
         ev = np.asarray(ev).reshape(-1)
-        data.append(dict(type="scatter", x=arr(ev.real), y=arr(ev.imag), mode="markers", name=f"eig {label}",
-                         marker=dict(color=color(label, i), size=6, opacity=0.6)))
-    return figure(data, dict(
-        height=height, margin=dict(l=50, r=10, t=30 if title else 10, b=40), legend=dict(orientation="h", y=-0.25),
-        xaxis=dict(title=dict(text="Re"), zeroline=True),
-        yaxis=dict(title=dict(text="Im"), scaleanchor="x", scaleratio=1, zeroline=True),
-        **({"title": dict(text=title)} if title else {})))
+        data.append(
+            dict(
+                type="scatter",
+                x=arr(ev.real),
+                y=arr(ev.imag),
+                mode="markers",
+                name=f"eig {label}",
+                marker=dict(color=color(label, i), size=6, opacity=0.6),
+            )
+        )
+    return figure(
+        data,
+        dict(
+            height=height,
+            margin=dict(l=50, r=10, t=30 if title else 10, b=40),
+            legend=dict(orientation="h", y=-0.25),
+            xaxis=dict(title=dict(text="Re"), zeroline=True),
+            yaxis=dict(title=dict(text="Im"), scaleanchor="x", scaleratio=1, zeroline=True),
+            **({"title": dict(text=title)} if title else {}),
+        ),
+    )
 
 
 def _build(frame) -> go.Figure:

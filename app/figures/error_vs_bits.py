@@ -31,17 +31,42 @@ def _theorem1(rows, key: str, col: int) -> list:
     ok = {r["bits"]: line_holds(r, key[-1]) for r in rows}
     # the faded part also takes the neighbours of a failing b, so the two parts join up
     good = [y if ok[b] else None for b, y in zip(tx, ty)]
-    bad = [y if not ok[b] or (i > 0 and not ok[tx[i - 1]]) or (i + 1 < len(tx) and not ok[tx[i + 1]]) else None
-           for i, (b, y) in enumerate(zip(tx, ty))]
+    bad = [
+        y if not ok[b] or (i > 0 and not ok[tx[i - 1]]) or (i + 1 < len(tx) and not ok[tx[i + 1]]) else None
+        for i, (b, y) in enumerate(zip(tx, ty))
+    ]
     out = []
     if any(v is not None for v in good):
-        out.append(dict(type="scatter", x=tx, y=good, mode="lines", name="Theorem 1", legendgroup="th",
-                        showlegend=(col == 1), connectgaps=False, line=dict(color=COLORS["theory"], dash="dash"),
-                        **_axes(col)))
+        out.append(
+            dict(
+                type="scatter",
+                x=tx,
+                y=good,
+                mode="lines",
+                name="Theorem 1",
+                legendgroup="th",
+                showlegend=(col == 1),
+                connectgaps=False,
+                line=dict(color=COLORS["theory"], dash="dash"),
+                **_axes(col),
+            )
+        )
     if any(v is not None for v in bad) and not all(ok[b] for b in tx):
-        out.append(dict(type="scatter", x=tx, y=bad, mode="lines", name="Theorem 1 (hypotheses fail)",
-                        legendgroup="thx", showlegend=(col == 1), connectgaps=False, opacity=0.35,
-                        line=dict(color=COLORS["theory"], dash="dot", width=1.5), **_axes(col)))
+        out.append(
+            dict(
+                type="scatter",
+                x=tx,
+                y=bad,
+                mode="lines",
+                name="Theorem 1 (hypotheses fail)",
+                legendgroup="thx",
+                showlegend=(col == 1),
+                connectgaps=False,
+                opacity=0.35,
+                line=dict(color=COLORS["theory"], dash="dot", width=1.5),
+                **_axes(col),
+            )
+        )
     return out
 
 
@@ -52,9 +77,19 @@ def _bcls_marks(rows, key: str, col: int) -> list:
     pts = [(b, y) for b, y in pts if y is not None and np.isfinite(y) and y > 0]
     if not pts:
         return []
-    return [dict(type="scatter", x=[p[0] for p in pts], y=[p[1] for p in pts], mode="markers",
-                 name="BCLS: noise not ε²/12", legendgroup="bclsx", showlegend=(col == 1),
-                 marker=dict(color=COLORS["BCLS"], symbol="x-open", size=11), **_axes(col))]
+    return [
+        dict(
+            type="scatter",
+            x=[p[0] for p in pts],
+            y=[p[1] for p in pts],
+            mode="markers",
+            name="BCLS: noise not ε²/12",
+            legendgroup="bclsx",
+            showlegend=(col == 1),
+            marker=dict(color=COLORS["BCLS"], symbol="x-open", size=11),
+            **_axes(col),
+        )
+    ]
 
 
 def _theory_and_reference(rows, key: str, col: int, ref_slope: float) -> list:
@@ -64,9 +99,19 @@ def _theory_and_reference(rows, key: str, col: int, ref_slope: float) -> list:
     if mx:
         b = np.array([mx[0], max(mx[-1], mx[0] + 1)])
         ry = my[0] * 10.0 ** (ref_slope * (b - mx[0]))
-        out.append(dict(type="scatter", x=b.tolist(), y=ry.tolist(), mode="lines", name=f"{ref_slope:+.3f}/bit",
-                        legendgroup="ref", showlegend=(col == 1), line=dict(color=COLORS["ref"], dash="dot"),
-                        **_axes(col)))
+        out.append(
+            dict(
+                type="scatter",
+                x=b.tolist(),
+                y=ry.tolist(),
+                mode="lines",
+                name=f"{ref_slope:+.3f}/bit",
+                legendgroup="ref",
+                showlegend=(col == 1),
+                line=dict(color=COLORS["ref"], dash="dot"),
+                **_axes(col),
+            )
+        )
     return out
 
 
@@ -85,8 +130,9 @@ def slope_text(rows, key: str, letter: float) -> str:
     return f"slope {s:+.2f}/bit (letter {letter:+.3f})".replace("-", "−")
 
 
-def error_figure(series: Series, current_bits: int | None = None, ref_slope: float = -0.301,
-                 height: int = 330) -> go.Figure:
+def error_figure(
+    series: Series, current_bits: int | None = None, ref_slope: float = -0.301, height: int = 330
+) -> go.Figure:
     """Relative errors of A^ and B^ against b (two panels, log y).
 
     Each series draws mean +- std over realizations; the Theorem 1 prediction
@@ -108,25 +154,60 @@ def error_figure(series: Series, current_bits: int | None = None, ref_slope: flo
     notes += [f"Theorem 1 kept: {w}" for w in fits_reasons(first)]
     if "BCLS" in series:
         notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series["BCLS"])]
-    titles = [t + (f"<span style='font-size:12px'>  {s}</span>" if s else "") for (t, _), s in
-              zip(_PANELS, (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), LETTER_SLOPES)))]
-    annotations = [dict(text=t, x=sum(dom) / 2, xanchor="center", xref="paper", y=1.0, yanchor="bottom",
-                        yref="paper", showarrow=False, font=dict(size=16)) for t, (_, dom) in zip(titles, _PANELS)]
+    titles = [
+        t + (f"<span style='font-size:12px'>  {s}</span>" if s else "")
+        for (t, _), s in zip(_PANELS, (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), LETTER_SLOPES)))
+    ]
+    annotations = [
+        dict(
+            text=t,
+            x=sum(dom) / 2,
+            xanchor="center",
+            xref="paper",
+            y=1.0,
+            yanchor="bottom",
+            yref="paper",
+            showarrow=False,
+            font=dict(size=16),
+        )
+        for t, (_, dom) in zip(titles, _PANELS)
+    ]
     shown = ""
     if notes:  # a few words each (the plot keeps its height); the full sentences on hover and in the summary
         shown = _wrap(" · ".join(_short(t) for t in notes) + " (hover: why)")
-        annotations.append(dict(text=shown, hovertext="<br>".join(_wrap(t) for t in notes), xref="paper",
-                                yref="paper", x=0, y=1.0, yanchor="bottom", xanchor="left", yshift=22,
-                                showarrow=False, align="left", font=dict(size=9, color="#555555")))
+        annotations.append(
+            dict(
+                text=shown,
+                hovertext="<br>".join(_wrap(t) for t in notes),
+                xref="paper",
+                yref="paper",
+                x=0,
+                y=1.0,
+                yanchor="bottom",
+                xanchor="left",
+                yshift=22,
+                showarrow=False,
+                align="left",
+                font=dict(size=9, color="#555555"),
+            )
+        )
     layout = dict(annotations=annotations, shapes=mark_bits(current_bits, (("x", "y"), ("x2", "y2"))))
     for col, (_, dom) in enumerate(_PANELS, start=1):
         ax = _axes(col)
         layout["xaxis" if col == 1 else f"xaxis{col}"] = dict(BITS_AXIS, anchor=ax["yaxis"], domain=dom)
-        layout["yaxis" if col == 1 else f"yaxis{col}"] = dict(type="log", exponentformat="power",
-                                                               anchor=ax["xaxis"], domain=[0.0, 1.0])
+        layout["yaxis" if col == 1 else f"yaxis{col}"] = dict(
+            type="log", exponentformat="power", anchor=ax["xaxis"], domain=[0.0, 1.0]
+        )
     top = 30 + 13 * len(shown.split("<br>")) if shown else 30
-    return figure(data, dict(layout, height=height + top - 30, margin=dict(l=50, r=10, t=top, b=40),
-                             legend=dict(orientation="h", y=-0.25)))
+    return figure(
+        data,
+        dict(
+            layout,
+            height=height + top - 30,
+            margin=dict(l=50, r=10, t=top, b=40),
+            legend=dict(orientation="h", y=-0.25),
+        ),
+    )
 
 
 def _short(note: str) -> str:
@@ -147,5 +228,9 @@ def _wrap(text: str, width: int = 95) -> str:
     return "<br>".join(lines + [cur])
 
 
-VIEW = View("error", aspect=0.62, depends=CURVES,
-            build=lambda frame: error_figure(frame.series(), current_bits=frame.bits, height=300))
+VIEW = View(
+    "error",
+    aspect=0.62,
+    depends=CURVES,
+    build=lambda frame: error_figure(frame.series(), current_bits=frame.bits, height=300),
+)

@@ -6,7 +6,7 @@ flags for the plots' notes and the summary.
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 from qsid_core.assumptions import FIT_TOLERANCE
 
@@ -19,11 +19,11 @@ CAPTION = "δ bounds ‖x_t‖ as t → ∞; assumes x_ref = 0"
 _WHY = {
     "sensor_noise_known": "sensor noise not known to BCLS: it removes only the quantization noise's bias",
     "known_noise": "no dither of known variance (subtractive or tpdf): the quantization error's variance "
-                   "depends on the signal",
+    "depends on the signal",
     "no_overload": "overload: the quantizer range clips samples, and the clipped samples move the estimate by "
-                   "more than a third of its finite-data fluctuation (guard band or a wider range fixes it)",
+    "more than a third of its finite-data fluctuation (guard band or a wider range fixes it)",
     "large_data": "finite data: at this data size the predicted O(ε) fluctuation exceeds Theorem 1's O(ε²) "
-                  "bias, so the error is expected above the line (a prediction: compare the points with it)",
+    "bias, so the error is expected above the line (a prediction: compare the points with it)",
 }
 
 
@@ -50,8 +50,10 @@ def _stationary_words(a: Mapping) -> str:
     r = a.get("spectral_radius")
     where = "on" if r is not None and abs(r - 1.0) < 1e-6 else "on or outside"
     kind = " (integrator)" if where == "on" else ""
-    return (f"A has an eigenvalue {where} the unit circle{kind}: Ψ Ψᵀ/T does not converge, so Theorem 1's "
-            "T → ∞ statement does not apply")
+    return (
+        f"A has an eigenvalue {where} the unit circle{kind}: Ψ Ψᵀ/T does not converge, so Theorem 1's "
+        "T → ∞ statement does not apply"
+    )
 
 
 #: Hypotheses judged per block: the row has ``<key>_A`` and ``<key>_B``.
@@ -66,8 +68,7 @@ def line_holds(row: Mapping, block: str | None = None) -> bool:
     if a is None:
         return True
     blocks = (block,) if block else ("A", "B")
-    return all(a.get(f"theorem1_holds_{k}", a.get("theorem1_holds", True)) or a.get(f"fits_{k}", False)
-               for k in blocks)
+    return all(a.get(f"theorem1_holds_{k}", a.get("theorem1_holds", True)) or a.get(f"fits_{k}", False) for k in blocks)
 
 
 def _engine_words(rows: Sequence[Mapping], key: str, bad: Sequence[int]) -> str:
@@ -131,11 +132,16 @@ def fits_reasons(rows: Sequence[Mapping]) -> list[str]:
     """Where a hypothesis formally fails yet the measured LS error is on Theorem 1's line (per block)."""
     out = []
     for k in ("A", "B"):
-        bad = [r["bits"] for r in rows if flags(r) is not None and flags(r).get(f"fits_{k}")
-               and not flags(r).get(f"theorem1_holds_{k}", True)]
+        bad = [
+            r["bits"]
+            for r in rows
+            if flags(r) is not None and flags(r).get(f"fits_{k}") and not flags(r).get(f"theorem1_holds_{k}", True)
+        ]
         if bad:
-            out.append(f"a hypothesis formally fails yet the prediction fits for {_HAT[k]}: its mean LS error is "
-                       f"within {100 * FIT_TOLERANCE:g} % of Theorem 1's line ({bits_text(bad)})")
+            out.append(
+                f"a hypothesis formally fails yet the prediction fits for {_HAT[k]}: its mean LS error is "
+                f"within {100 * FIT_TOLERANCE:g} % of Theorem 1's line ({bits_text(bad)})"
+            )
     return out
 
 
@@ -143,6 +149,6 @@ def short(reason: str) -> str:
     """A reason in a few words for a plot's note: the part before ':' and the word lengths it names
     ("finite data (b = 2–16)"); the full sentence goes to the summary and the note's hover text."""
     head = reason.split(";")[0] if reason.startswith("overload:") else reason.split(":")[0]
-    group = reason[reason.rfind(" ("):] if reason.endswith(")") and " (" in reason else ""
+    group = reason[reason.rfind(" (") :] if reason.endswith(")") and " (" in reason else ""
     tail = group if ("b = " in group or group.startswith(" (for ")) else ""
     return head + tail

@@ -22,8 +22,7 @@ from .view import CURRENT, View
 __all__ = ["norm_time_figure", "VIEW"]
 
 
-def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: float = 1.5,
-           where: str = "top") -> None:
+def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: float = 1.5, where: str = "top") -> None:
     """A labelled horizontal line at ``y`` (skipped unless finite and > 0: the y axis is log)."""
     if y is None or not np.isfinite(y) or y <= 0:
         return
@@ -32,8 +31,15 @@ def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: fl
     notes.append(hline_note(y, name, where=where, size=9, x=(1.0, 0.0, 0.5)[len(notes) % 3], color=c))
 
 
-def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None = None,
-                     realized: dict | None = None, bits: int | None = None, height: int = 300) -> go.Figure:
+def norm_time_figure(
+    loops: dict,
+    x0,
+    true_loop=None,
+    letter_delta: float | None = None,
+    realized: dict | None = None,
+    bits: int | None = None,
+    height: int = 300,
+) -> go.Figure:
     """Median and min..max band of ``||x_t||`` per estimator, the true-model loop, both bounds.
 
     Parameters
@@ -60,16 +66,44 @@ def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None
             continue
         t = ts.t.tolist()
         c = color(label, i)
-        data.append(dict(type="scatter", x=t + t[::-1], y=arr(np.nanmax(d, 0)) + arr(np.nanmin(d, 0)[::-1]),
-                         fill="toself", fillcolor=c, opacity=0.15, line=dict(width=0), hoverinfo="skip",
-                         showlegend=False, legendgroup=label))
-        data.append(dict(type="scatter", x=t, y=arr(np.nanmedian(d, 0)), mode="lines", legendgroup=label,
-                         name=f"{label} ‖x_t‖ (median; band: min..max)", line=dict(color=c)))
+        data.append(
+            dict(
+                type="scatter",
+                x=t + t[::-1],
+                y=arr(np.nanmax(d, 0)) + arr(np.nanmin(d, 0)[::-1]),
+                fill="toself",
+                fillcolor=c,
+                opacity=0.15,
+                line=dict(width=0),
+                hoverinfo="skip",
+                showlegend=False,
+                legendgroup=label,
+            )
+        )
+        data.append(
+            dict(
+                type="scatter",
+                x=t,
+                y=arr(np.nanmedian(d, 0)),
+                mode="lines",
+                legendgroup=label,
+                name=f"{label} ‖x_t‖ (median; band: min..max)",
+                line=dict(color=c),
+            )
+        )
     if true_loop is not None:
         ts = time_series(true_loop, x0)
         if ts.ok[0]:
-            data.append(dict(type="scatter", x=ts.t.tolist(), y=arr(ts.norms_display[0]), mode="lines",
-                             name="true model", line=dict(color=COLORS["true"], width=1.5)))
+            data.append(
+                dict(
+                    type="scatter",
+                    x=ts.t.tolist(),
+                    y=arr(ts.norms_display[0]),
+                    mode="lines",
+                    name="true model",
+                    line=dict(color=COLORS["true"], width=1.5),
+                )
+            )
     _hline(shapes, notes, letter_delta, f"letter's δ(ε) {_g(letter_delta)}", COLORS["theory"], "dash")
     for label, rb in (realized or {}).items():
         y = (rb or {}).get("median")
@@ -85,11 +119,22 @@ def norm_time_figure(loops: dict, x0, true_loop=None, letter_delta: float | None
     if rng is not None:
         yaxis.update(range=rng, autorange=False)
         if ys and np.log10(min(ys)) < rng[0]:
-            yaxis["title"]["text"] = "‖x_t‖ (" + ("converged tails" if converged else "some values") + " below the axis)"
-    return figure(data, dict(
-        height=height, margin=dict(l=50, r=10, t=30, b=40), legend=dict(orientation="h", y=-0.3),
-        title=dict(text=title, font=dict(size=11), x=0.01), shapes=shapes, annotations=notes,
-        yaxis=yaxis, xaxis=dict(title=dict(text="closed-loop step t"))))
+            yaxis["title"]["text"] = (
+                "‖x_t‖ (" + ("converged tails" if converged else "some values") + " below the axis)"
+            )
+    return figure(
+        data,
+        dict(
+            height=height,
+            margin=dict(l=50, r=10, t=30, b=40),
+            legend=dict(orientation="h", y=-0.3),
+            title=dict(text=title, font=dict(size=11), x=0.01),
+            shapes=shapes,
+            annotations=notes,
+            yaxis=yaxis,
+            xaxis=dict(title=dict(text="closed-loop step t")),
+        ),
+    )
 
 
 def _g(y) -> str:
@@ -99,9 +144,21 @@ def _g(y) -> str:
 def _build(frame) -> go.Figure:
     first = frame.rows[frame.labels[0]][frame.bits]
     realized = {lab: frame.rows[lab][frame.bits].get("ultimate_bound_realized") for lab in frame.labels}
-    return norm_time_figure({lab: frame.loops[lab] for lab in frame.labels}, frame.x0, frame.true_loop,
-                            first.get("ultimate_bound"), realized, bits=frame.bits, height=300)
+    return norm_time_figure(
+        {lab: frame.loops[lab] for lab in frame.labels},
+        frame.x0,
+        frame.true_loop,
+        first.get("ultimate_bound"),
+        realized,
+        bits=frame.bits,
+        height=300,
+    )
 
 
-VIEW = View("norm_time", aspect=0.75, depends=CURRENT, build=_build,
-            key=lambda frame: (frame.bits, tuple(id(frame.loops[lab]) for lab in frame.labels)))
+VIEW = View(
+    "norm_time",
+    aspect=0.75,
+    depends=CURRENT,
+    build=_build,
+    key=lambda frame: (frame.bits, tuple(id(frame.loops[lab]) for lab in frame.labels)),
+)

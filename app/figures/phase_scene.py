@@ -110,8 +110,9 @@ def axes_indices(choice: str, names) -> tuple:
     if len(names) <= 3:
         idx = list(range(len(names)))
     else:
-        idx = list(next(c for c in itertools.combinations(range(len(names)), 3)
-                        if ", ".join(names[i] for i in c) == choice))
+        idx = list(
+            next(c for c in itertools.combinations(range(len(names)), 3) if ", ".join(names[i] for i in c) == choice)
+        )
     return tuple(idx + [None] * (3 - len(idx)))
 
 
@@ -217,9 +218,14 @@ def _bounds(frame, dims: tuple, scale: float) -> dict:
         else:
             words.append(f"{name} = {val:.3g}" + ("" if fits else f" (off scale: {r:.3g} box units)"))
     radius = d / scale if d is not None else 0.0
-    out.update(delta=d, delta_realized=rb, show_bound=show, sphere_radius=radius,
-               sphere_capped=radius > SPHERE_CAP,
-               bound_text="\n".join(words + ["as t → ∞, around x_ref = 0"]))  # one per line: fits the canvas
+    out.update(
+        delta=d,
+        delta_realized=rb,
+        show_bound=show,
+        sphere_radius=radius,
+        sphere_capped=radius > SPHERE_CAP,
+        bound_text="\n".join(words + ["as t → ∞, around x_ref = 0"]),
+    )  # one per line: fits the canvas
     return out
 
 
@@ -274,9 +280,19 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         labels[ta] = "time"
     segs, cols = _interleave(segs, ts.shape[0] - 1), _interleave(cols, ts.shape[0] - 1)
     return SceneView(
-        segments=segs.astype(np.float32), colors=np.ascontiguousarray(cols),
-        true_segments=tseg.astype(np.float32), time_marks=marks.astype(np.float32), start=start, scale=scale,
-        axis_names=tuple(labels), failed=failed, clipped=clipped, polylines=poly, realizations=total,
-        mark_every=every, not_converged=stuck, ref_segments=_reference_path(frame, dims, scale, start),
+        segments=segs.astype(np.float32),
+        colors=np.ascontiguousarray(cols),
+        true_segments=tseg.astype(np.float32),
+        time_marks=marks.astype(np.float32),
+        start=start,
+        scale=scale,
+        axis_names=tuple(labels),
+        failed=failed,
+        clipped=clipped,
+        polylines=poly,
+        realizations=total,
+        mark_every=every,
+        not_converged=stuck,
+        ref_segments=_reference_path(frame, dims, scale, start),
         **_bounds(frame, dims, scale),
     )

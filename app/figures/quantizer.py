@@ -35,21 +35,27 @@ def demo_text(d: QuantizerDemo) -> str:
     overload; with overload the errors outside ±ε/2 (not in the histogram) are counted instead.
     """
     ideal = d.outside_dithered == 0 and d.overload_dithered == 0
-    spread = (f" (± {d.var_sampling_std / d.var_theory:.3f})" if ideal else "")
-    text = (f"{d.label}, b = {d.bits}: ε = {d.eps:.3g} · error variance / (ε²/12): dithered "
-            f"{d.var_dithered / d.var_theory:.3g}{spread}, plain {d.var_plain / d.var_theory:.3g} · "
-            f"overload {100 * d.overload_dithered:.2f} %")
+    spread = f" (± {d.var_sampling_std / d.var_theory:.3f})" if ideal else ""
+    text = (
+        f"{d.label}, b = {d.bits}: ε = {d.eps:.3g} · error variance / (ε²/12): dithered "
+        f"{d.var_dithered / d.var_theory:.3g}{spread}, plain {d.var_plain / d.var_theory:.3g} · "
+        f"overload {100 * d.overload_dithered:.2f} %"
+    )
     if d.outside_dithered > 0 or d.outside_plain > 0:
-        text += (f"<br>errors outside ±ε/2 (off the histogram): dithered {100 * d.outside_dithered:.2f} %, "
-                 f"plain {100 * d.outside_plain:.2f} % — the ε²/12 law needs no overload")
+        text += (
+            f"<br>errors outside ±ε/2 (off the histogram): dithered {100 * d.outside_dithered:.2f} %, "
+            f"plain {100 * d.outside_plain:.2f} % — the ε²/12 law needs no overload"
+        )
     return text
 
 
 def dependence_text(d: QuantizerDemo) -> str:
     """One-line reading of the error-vs-signal panel: how much of each error the signal value fixes."""
-    return (f"error fixed by x's place in its cell: plain {100 * d.cell_dependence_plain:.0f} % (a sawtooth of x), "
-            f"dithered {100 * d.cell_dependence_dithered:.1f} % (independent of x)<br>correlation with x: plain "
-            f"{d.corr_plain:+.2f}, dithered {d.corr_dithered:+.2f} (it misses the sawtooth at fine b)")
+    return (
+        f"error fixed by x's place in its cell: plain {100 * d.cell_dependence_plain:.0f} % (a sawtooth of x), "
+        f"dithered {100 * d.cell_dependence_dithered:.1f} % (independent of x)<br>correlation with x: plain "
+        f"{d.corr_plain:+.2f}, dithered {d.corr_dithered:+.2f} (it misses the sawtooth at fine b)"
+    )
 
 
 def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
@@ -64,32 +70,104 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
     layout["yaxis2"]["title"] = dict(text="error x − x̃", font=dict(size=10))
     layout["yaxis3"]["title"] = dict(text="density", font=dict(size=10))
     data = [
-        dict(type="scatter", x=arr(d.t), y=arr(d.signal), mode="lines", name="signal", xaxis="x", yaxis=y1,
-             line=dict(color=COLORS["true"], width=1.5)),
-        dict(type="scatter", x=arr(d.t), y=arr(d.dithered), mode="lines", name="Q(x+w)−w (subtractive dither)",
-             xaxis="x", yaxis=y1, line=dict(color=DITHERED, width=1)),
-        dict(type="scatter", x=arr(d.t), y=arr(d.plain), mode="lines", name="Q(x) (no dither)", xaxis="x",
-             yaxis=y1, line=dict(color=PLAIN, width=1, shape="hv")),
+        dict(
+            type="scatter",
+            x=arr(d.t),
+            y=arr(d.signal),
+            mode="lines",
+            name="signal",
+            xaxis="x",
+            yaxis=y1,
+            line=dict(color=COLORS["true"], width=1.5),
+        ),
+        dict(
+            type="scatter",
+            x=arr(d.t),
+            y=arr(d.dithered),
+            mode="lines",
+            name="Q(x+w)−w (subtractive dither)",
+            xaxis="x",
+            yaxis=y1,
+            line=dict(color=DITHERED, width=1),
+        ),
+        dict(
+            type="scatter",
+            x=arr(d.t),
+            y=arr(d.plain),
+            mode="lines",
+            name="Q(x) (no dither)",
+            xaxis="x",
+            yaxis=y1,
+            line=dict(color=PLAIN, width=1, shape="hv"),
+        ),
     ]
-    for name, e, c, sym in (("error vs x, dithered", d.scatter_dithered, DITHERED, "circle"),
-                            ("error vs x, no dither", d.scatter_plain, PLAIN, "diamond")):
-        data.append(dict(type="scatter", x=arr(d.scatter_x), y=arr(e), mode="markers", name=name, xaxis="x2",
-                         yaxis=y2, marker=dict(color=c, size=3, opacity=0.6, symbol=sym)))
+    for name, e, c, sym in (
+        ("error vs x, dithered", d.scatter_dithered, DITHERED, "circle"),
+        ("error vs x, no dither", d.scatter_plain, PLAIN, "diamond"),
+    ):
+        data.append(
+            dict(
+                type="scatter",
+                x=arr(d.scatter_x),
+                y=arr(e),
+                mode="markers",
+                name=name,
+                xaxis="x2",
+                yaxis=y2,
+                marker=dict(color=c, size=3, opacity=0.6, symbol=sym),
+            )
+        )
     centers = 0.5 * (d.hist_edges[1:] + d.hist_edges[:-1])
     width = float(np.diff(d.hist_edges).mean())
     for name, h, c in (("error, dithered", d.hist_dithered, DITHERED), ("error, no dither", d.hist_plain, PLAIN)):
-        data.append(dict(type="bar", x=arr(centers), y=arr(h), width=width, name=name, xaxis="x3", yaxis=y3,
-                         marker=dict(color=c), opacity=0.55))
+        data.append(
+            dict(
+                type="bar",
+                x=arr(centers),
+                y=arr(h),
+                width=width,
+                name=name,
+                xaxis="x3",
+                yaxis=y3,
+                marker=dict(color=c),
+                opacity=0.55,
+            )
+        )
     e2 = d.eps / 2
-    data.append(dict(type="scatter", x=[-e2, -e2, e2, e2], y=[0, d.uniform_density, d.uniform_density, 0],
-                     mode="lines", name="uniform 1/ε on ±ε/2", xaxis="x3", yaxis=y3,
-                     line=dict(color=COLORS["theory"], dash="dash", width=2)))
+    data.append(
+        dict(
+            type="scatter",
+            x=[-e2, -e2, e2, e2],
+            y=[0, d.uniform_density, d.uniform_density, 0],
+            mode="lines",
+            name="uniform 1/ε on ±ε/2",
+            xaxis="x3",
+            yaxis=y3,
+            line=dict(color=COLORS["theory"], dash="dash", width=2),
+        )
+    )
     top2 = layout["yaxis2"]["domain"][1]
-    note = dict(text=dependence_text(d), xref="paper", yref="paper", x=0, y=top2, xanchor="left",
-                yanchor="bottom", showarrow=False, align="left", font=dict(size=10, color="#444444"))
-    layout.update(height=height, barmode="overlay", bargap=0, margin=dict(l=60, r=10, t=50, b=40),
-                  annotations=[note], title=dict(text=demo_text(d), font=dict(size=11)),
-                  legend=dict(orientation="h", y=-0.12))
+    note = dict(
+        text=dependence_text(d),
+        xref="paper",
+        yref="paper",
+        x=0,
+        y=top2,
+        xanchor="left",
+        yanchor="bottom",
+        showarrow=False,
+        align="left",
+        font=dict(size=10, color="#444444"),
+    )
+    layout.update(
+        height=height,
+        barmode="overlay",
+        bargap=0,
+        margin=dict(l=60, r=10, t=50, b=40),
+        annotations=[note],
+        title=dict(text=demo_text(d), font=dict(size=11)),
+        legend=dict(orientation="h", y=-0.12),
+    )
     return figure(data, layout)
 
 

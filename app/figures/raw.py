@@ -8,7 +8,7 @@ Only use it for figures whose keys are known to be valid (the tests build them).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import orjson
@@ -20,7 +20,7 @@ __all__ = ["figure", "stacked_axes", "arr", "hline", "to_json", "Wire"]
 _JSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 
 
-@lru_cache(maxsize=None)
+@cache
 def _template(name: str) -> dict:
     return pio.templates[name].to_plotly_json()
 
@@ -51,8 +51,9 @@ def stacked_axes(rows: int, gap: float = 0.02, x_title: str = "") -> tuple[dict,
 
 def hline(y: float, yaxis: str, color: str, dash: str = "dash", width: float = 1.0) -> dict:
     """A horizontal line across the plot at ``y`` on axis ``yaxis`` (a layout shape)."""
-    return dict(type="line", xref="x domain", x0=0, x1=1, yref=yaxis, y0=y, y1=y,
-                line=dict(color=color, dash=dash, width=width))
+    return dict(
+        type="line", xref="x domain", x0=0, x1=1, yref=yaxis, y0=y, y1=y, line=dict(color=color, dash=dash, width=width)
+    )
 
 
 def _json_default(o):

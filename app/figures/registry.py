@@ -8,7 +8,19 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from . import bits_needed, bound, compare, cost, datalength, residual, eigenvalues, error_vs_bits, norm_time, quantizer, time_series
+from . import (
+    bits_needed,
+    bound,
+    compare,
+    cost,
+    datalength,
+    eigenvalues,
+    error_vs_bits,
+    norm_time,
+    quantizer,
+    residual,
+    time_series,
+)
 from .view import View
 
 __all__ = ["TABS", "VIEWS", "view_names"]

@@ -21,9 +21,15 @@ from .view import CURVES, View
 __all__ = ["residual_figure", "VIEW"]
 
 
-def residual_figure(series: Series, true_error: float | None = None, current_bits: int | None = None,
-                    causes: str = "", height: int = 280, tracking: bool = False,
-                    true_tracking: float | None = None) -> go.Figure:
+def residual_figure(
+    series: Series,
+    true_error: float | None = None,
+    current_bits: int | None = None,
+    causes: str = "",
+    height: int = 280,
+    tracking: bool = False,
+    true_tracking: float | None = None,
+) -> go.Figure:
     """Mean and max steady-state error per estimator against b; the true-model loop's as a dashed line.
 
     With ``tracking`` (a time-varying reference) also the tracking error over the whole loop (dotted)."""
@@ -33,23 +39,51 @@ def residual_figure(series: Series, true_error: float | None = None, current_bit
         bx, by = xy(rows, "steady_state_error", "mean")
         data.append(dict(type="scatter", x=bx, y=by, mode="lines+markers", name=f"{label} mean", line=dict(color=c)))
         mx, my = xy(rows, "steady_state_error", "max")
-        data.append(dict(type="scatter", x=mx, y=my, mode="markers", name=f"{label} max",
-                         marker=dict(color=c, symbol="triangle-up")))
+        data.append(
+            dict(
+                type="scatter",
+                x=mx,
+                y=my,
+                mode="markers",
+                name=f"{label} max",
+                marker=dict(color=c, symbol="triangle-up"),
+            )
+        )
         if tracking:
             tx, ty = xy(rows, "tracking_error", "mean")
-            data.append(dict(type="scatter", x=tx, y=ty, mode="lines+markers", name=f"{label} tracking (whole loop)",
-                             line=dict(color=c, dash="dot"), marker=dict(symbol="square", size=5)))
+            data.append(
+                dict(
+                    type="scatter",
+                    x=tx,
+                    y=ty,
+                    mode="lines+markers",
+                    name=f"{label} tracking (whole loop)",
+                    line=dict(color=c, dash="dot"),
+                    marker=dict(symbol="square", size=5),
+                )
+            )
     for val, what, dash in ((true_error, "true model", "dash"), (true_tracking, "true model, tracking", "dot")):
         if val is not None and np.isfinite(val) and val > 0:
             shapes.append(hline(float(val), "y", COLORS["true"], dash, 2.0))
             notes.append(hline_note(val, f"{what} {val:.3g}", where="bottom" if dash == "dot" else "top"))
-    title = ("steady-state error (RMS of ‖x_t − x_ref‖, last half of the loop)"
-             + (f"<br>causes besides the model: {causes}" if causes else "<br>exact state, no disturbance: "
-                "what is left of the transient"))
-    return figure(data, dict(height=height, margin=dict(l=50, r=10, t=44, b=40), legend=dict(orientation="h", y=-0.3),
-                             title=dict(text=title, font=dict(size=11), x=0, xanchor="left"), shapes=shapes,
-                             annotations=notes, xaxis=dict(BITS_AXIS),
-                             yaxis=dict(type="log", title=dict(text="steady-state error"), exponentformat="power")))
+    title = "steady-state error (RMS of ‖x_t − x_ref‖, last half of the loop)" + (
+        f"<br>causes besides the model: {causes}"
+        if causes
+        else "<br>exact state, no disturbance: what is left of the transient"
+    )
+    return figure(
+        data,
+        dict(
+            height=height,
+            margin=dict(l=50, r=10, t=44, b=40),
+            legend=dict(orientation="h", y=-0.3),
+            title=dict(text=title, font=dict(size=11), x=0, xanchor="left"),
+            shapes=shapes,
+            annotations=notes,
+            xaxis=dict(BITS_AXIS),
+            yaxis=dict(type="log", title=dict(text="steady-state error"), exponentformat="power"),
+        ),
+    )
 
 
 def causes_text(mpc) -> str:
@@ -74,8 +108,9 @@ def _build(frame) -> go.Figure:
     mpc = frame.ex.config.mpc
     tracking = mpc is not None and mpc.reference is not None
     true_tr = float(tl.tracking_error[0]) if (tl is not None and tracking) else None
-    return residual_figure(frame.series(), true_err, frame.bits, causes_text(mpc), tracking=tracking,
-                           true_tracking=true_tr)
+    return residual_figure(
+        frame.series(), true_err, frame.bits, causes_text(mpc), tracking=tracking, true_tracking=true_tr
+    )
 
 
 VIEW = View("residual", aspect=0.6, depends=CURVES, build=_build, tab="Control")

@@ -30,18 +30,54 @@ def _lines(t, Y, ok, c: str, name: str, yaxis: str, legend: bool) -> list:
     gap = np.full((Y.shape[0], 1), np.nan)
     xs = np.hstack([np.broadcast_to(t, Y.shape), gap]).reshape(-1)
     ys = np.hstack([Y, gap]).reshape(-1)
-    return [dict(type="scatter", x=arr(xs), y=arr(ys), mode="lines", name=name, legendgroup=name,
-                 showlegend=legend, line=dict(color=c, width=1), opacity=0.55, xaxis="x", yaxis=yaxis)]
+    return [
+        dict(
+            type="scatter",
+            x=arr(xs),
+            y=arr(ys),
+            mode="lines",
+            name=name,
+            legendgroup=name,
+            showlegend=legend,
+            line=dict(color=c, width=1),
+            opacity=0.55,
+            xaxis="x",
+            yaxis=yaxis,
+        )
+    ]
 
 
 def _band(t, m, s, c: str, name: str, yaxis: str, legend: bool) -> list:
     if not np.all(np.isfinite(m)):
         return []
-    return [dict(type="scatter", x=arr(np.concatenate([t, t[::-1]])), y=arr(np.concatenate([m + s, (m - s)[::-1]])),
-                 fill="toself", fillcolor=c, opacity=0.18, line=dict(width=0), hoverinfo="skip", showlegend=False,
-                 legendgroup=name, xaxis="x", yaxis=yaxis),
-            dict(type="scatter", x=arr(t), y=arr(m), mode="lines", name=f"{name} mean ± std", legendgroup=name,
-                 showlegend=legend, line=dict(color=c, width=1.5), xaxis="x", yaxis=yaxis)]
+    return [
+        dict(
+            type="scatter",
+            x=arr(np.concatenate([t, t[::-1]])),
+            y=arr(np.concatenate([m + s, (m - s)[::-1]])),
+            fill="toself",
+            fillcolor=c,
+            opacity=0.18,
+            line=dict(width=0),
+            hoverinfo="skip",
+            showlegend=False,
+            legendgroup=name,
+            xaxis="x",
+            yaxis=yaxis,
+        ),
+        dict(
+            type="scatter",
+            x=arr(t),
+            y=arr(m),
+            mode="lines",
+            name=f"{name} mean ± std",
+            legendgroup=name,
+            showlegend=legend,
+            line=dict(color=c, width=1.5),
+            xaxis="x",
+            yaxis=yaxis,
+        ),
+    ]
 
 
 def _channel(ts: TimeSeries, k: int, n: int):
@@ -51,8 +87,16 @@ def _channel(ts: TimeSeries, k: int, n: int):
     return ts.t[:-1], ts.inputs[..., k - n], ts.input_mean[:, k - n], ts.input_std[:, k - n]
 
 
-def time_series_figure(series: dict, true: TimeSeries | None, state_names, input_names, x_ref=None, x_max=None,
-                       height: int = 520, title: str = "") -> go.Figure:
+def time_series_figure(
+    series: dict,
+    true: TimeSeries | None,
+    state_names,
+    input_names,
+    x_ref=None,
+    x_max=None,
+    height: int = 520,
+    title: str = "",
+) -> go.Figure:
     """One subplot per state, then one per input, over one shared time axis.
 
     Parameters
@@ -73,14 +117,26 @@ def time_series_figure(series: dict, true: TimeSeries | None, state_names, input
         c, many = color(label, i), int(ts.ok.sum()) > MAX_LINES
         for k in range(n + m):
             t, Y, mean, std = _channel(ts, k, n)
-            data += _band(t, mean, std, c, label, yax[k], k == 0) if many else _lines(t, Y, ts.ok, c, label,
-                                                                                        yax[k], k == 0)
+            data += (
+                _band(t, mean, std, c, label, yax[k], k == 0) if many else _lines(t, Y, ts.ok, c, label, yax[k], k == 0)
+            )
     if true is not None and true.ok.any():
         for k in range(n + m):
             t, Y, _, _ = _channel(true, k, n)
-            data.append(dict(type="scatter", x=arr(t), y=arr(Y[0]), mode="lines", name="true model",
-                             legendgroup="true", showlegend=k == 0, line=dict(color=COLORS["true"], width=1.5),
-                             xaxis="x", yaxis=yax[k]))
+            data.append(
+                dict(
+                    type="scatter",
+                    x=arr(t),
+                    y=arr(Y[0]),
+                    mode="lines",
+                    name="true model",
+                    legendgroup="true",
+                    showlegend=k == 0,
+                    line=dict(color=COLORS["true"], width=1.5),
+                    xaxis="x",
+                    yaxis=yax[k],
+                )
+            )
     umax = next((ts.u_max for ts in series.values() if ts.u_max is not None), None)
     for j in range(m):
         if umax is not None and np.isfinite(umax[j]):
@@ -88,9 +144,20 @@ def time_series_figure(series: dict, true: TimeSeries | None, state_names, input
     ref = None if x_ref is None else np.asarray(x_ref, dtype=float)
     for k in range(n):
         if ref is not None and ref.ndim == 2 and np.any(ref[:, k] != 0):  # time-varying: the path, dashed
-            data.append(dict(type="scatter", x=list(range(ref.shape[0])), y=arr(ref[:, k]), mode="lines",
-                             name="reference", legendgroup="ref", showlegend=k == 0, xaxis="x", yaxis=yax[k],
-                             line=dict(color=COLORS["theory"], dash="dash", width=2)))
+            data.append(
+                dict(
+                    type="scatter",
+                    x=list(range(ref.shape[0])),
+                    y=arr(ref[:, k]),
+                    mode="lines",
+                    name="reference",
+                    legendgroup="ref",
+                    showlegend=k == 0,
+                    xaxis="x",
+                    yaxis=yax[k],
+                    line=dict(color=COLORS["theory"], dash="dash", width=2),
+                )
+            )
         elif ref is not None and ref.ndim == 1 and ref[k] != 0:
             shapes.append(hline(float(ref[k]), yax[k], COLORS["theory"], dash="dot"))
         if x_max is not None and np.isfinite(x_max[k]):
@@ -98,8 +165,12 @@ def time_series_figure(series: dict, true: TimeSeries | None, state_names, input
     names = [f"x: {s}" for s in state_names] + [f"u: {u}" for u in input_names]
     for k, nm in enumerate(names):
         layout["yaxis" if k == 0 else f"yaxis{k + 1}"]["title"] = dict(text=nm, font=dict(size=10))
-    layout.update(height=height, shapes=shapes, margin=dict(l=60, r=10, t=30 + 14 * title.count("<br>") if title else 10, b=40),
-                  legend=dict(orientation="h", y=-0.12))
+    layout.update(
+        height=height,
+        shapes=shapes,
+        margin=dict(l=60, r=10, t=30 + 14 * title.count("<br>") if title else 10, b=40),
+        legend=dict(orientation="h", y=-0.12),
+    )
     if title:
         layout["title"] = dict(text=title, font=dict(size=12))
     return figure(data, layout)
@@ -125,8 +196,9 @@ def loop_series(frame) -> tuple[dict, TimeSeries | None]:
 
 def saturation_text(ts: dict) -> str:
     """'LS 12 steps in 3/20 loops, BCLS ...' (steps with an input on its bound)."""
-    return ", ".join(f"{lab} {s.saturated_steps} steps in {s.saturated_loops}/{len(s.ok)} loops"
-                     for lab, s in ts.items())
+    return ", ".join(
+        f"{lab} {s.saturated_steps} steps in {s.saturated_loops}/{len(s.ok)} loops" for lab, s in ts.items()
+    )
 
 
 def failure_text(loops: dict) -> str:
@@ -140,8 +212,10 @@ def failure_text(loops: dict) -> str:
         oc = lp.outcome_counts()
         stuck = {k: oc[k] for k in ("bounded", "diverged") if oc.get(k)}
         if stuck and sum(stuck.values()) > len(kinds):
-            out.append(f"{lab} {len(lp.outcome) - oc['converged']}/{len(lp.outcome)} did not converge on the true "
-                       f"plant ({', '.join(f'{v} {k}' for k, v in stuck.items())})")
+            out.append(
+                f"{lab} {len(lp.outcome) - oc['converged']}/{len(lp.outcome)} did not converge on the true "
+                f"plant ({', '.join(f'{v} {k}' for k, v in stuck.items())})"
+            )
     return ", ".join(out)
 
 
@@ -151,10 +225,17 @@ def _build(frame) -> go.Figure:
     x_ref, x_max = rm.get("x_ref"), rm.get("x_max")
     rows = len(frame.system.state_names) + len(frame.system.input_names)
     failed = failure_text({lab: frame.loops[lab] for lab in frame.labels})
-    return time_series_figure(ts, true, frame.system.state_names, frame.system.input_names, x_ref, x_max,
-                              height=110 * rows + 90,
-                              title=f"closed loops at b = {frame.bits} · saturated: {saturation_text(ts)}"
-                                    + (f"<br>{failed}" if failed else ""))
+    return time_series_figure(
+        ts,
+        true,
+        frame.system.state_names,
+        frame.system.input_names,
+        x_ref,
+        x_max,
+        height=110 * rows + 90,
+        title=f"closed loops at b = {frame.bits} · saturated: {saturation_text(ts)}"
+        + (f"<br>{failed}" if failed else ""),
+    )
 
 
 def _key(frame) -> tuple:

@@ -9,7 +9,7 @@ The only arithmetic here is reshaping for display.
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import plotly.graph_objects as go
@@ -47,8 +47,9 @@ def xy(rows: Rows, *path) -> tuple[list, list]:
     return xs, ys
 
 
-def band(rows: Rows, key: str, color: str, name: str, xaxis: str = "x", yaxis: str = "y",
-         showlegend: bool = True) -> list:
+def band(
+    rows: Rows, key: str, color: str, name: str, xaxis: str = "x", yaxis: str = "y", showlegend: bool = True
+) -> list:
     """Trace dicts: mean line with a mean +- std band (clipped above zero for the log axis); [] if no mean."""
     pts = []
     for r in sorted(rows, key=lambda r: r["bits"]):
@@ -62,30 +63,80 @@ def band(rows: Rows, key: str, color: str, name: str, xaxis: str = "x", yaxis: s
     s = np.array([p[2] for p in pts], dtype=float)
     lo = np.where(m - s > 0, m - s, m / 10)
     ax = dict(xaxis=xaxis, yaxis=yaxis)
-    return [dict(type="scatter", x=b + b[::-1], y=(m + s).tolist() + lo[::-1].tolist(), fill="toself",
-                 fillcolor=color, opacity=0.18, line=dict(width=0), hoverinfo="skip", showlegend=False,
-                 legendgroup=name, **ax),
-            dict(type="scatter", x=b, y=m.tolist(), mode="lines+markers", name=name, legendgroup=name,
-                 showlegend=showlegend, line=dict(color=color),
-                 error_y=dict(type="data", array=s.tolist(), visible=False), **ax)]
+    return [
+        dict(
+            type="scatter",
+            x=b + b[::-1],
+            y=(m + s).tolist() + lo[::-1].tolist(),
+            fill="toself",
+            fillcolor=color,
+            opacity=0.18,
+            line=dict(width=0),
+            hoverinfo="skip",
+            showlegend=False,
+            legendgroup=name,
+            **ax,
+        ),
+        dict(
+            type="scatter",
+            x=b,
+            y=m.tolist(),
+            mode="lines+markers",
+            name=name,
+            legendgroup=name,
+            showlegend=showlegend,
+            line=dict(color=color),
+            error_y=dict(type="data", array=s.tolist(), visible=False),
+            **ax,
+        ),
+    ]
 
 
 def mark_bits(current_bits: int | None, axes=(("x", "y"),)) -> list:
     """Shape dicts: a dotted vertical line at the current word length on each (x, y) axis pair ([] if None)."""
     if current_bits is None:
         return []
-    return [dict(type="line", x0=current_bits, x1=current_bits, xref=xa, y0=0, y1=1, yref=f"{ya} domain",
-                 line=dict(color=COLORS["marker"], dash="dot", width=1), name=CURRENT_B) for xa, ya in axes]
+    return [
+        dict(
+            type="line",
+            x0=current_bits,
+            x1=current_bits,
+            xref=xa,
+            y0=0,
+            y1=1,
+            yref=f"{ya} domain",
+            line=dict(color=COLORS["marker"], dash="dot", width=1),
+            name=CURRENT_B,
+        )
+        for xa, ya in axes
+    ]
 
 
-def hline_note(y: float, text: str, yaxis: str = "y", where: str = "top", log: bool = True, size: int = 10,
-               x: float = 1.0, color: str | None = None) -> dict:
+def hline_note(
+    y: float,
+    text: str,
+    yaxis: str = "y",
+    where: str = "top",
+    log: bool = True,
+    size: int = 10,
+    x: float = 1.0,
+    color: str | None = None,
+) -> dict:
     """Annotation dict: ``text`` on a horizontal line at ``y`` (log axis: plotly takes log10 y), at ``x`` of the
     plot's width (1: right end, 0: left end, 0.5: middle), optionally in ``color``."""
     anchor = {1.0: "right", 0.0: "left"}.get(float(x), "center")
     font = dict(size=size) if color is None else dict(size=size, color=color)
-    return dict(xref="x domain", x=x, xanchor=anchor, yref=yaxis, y=float(np.log10(y)) if log else float(y),
-                yanchor="bottom" if where == "top" else "top", showarrow=False, text=text, font=font)
+    return dict(
+        xref="x domain",
+        x=x,
+        xanchor=anchor,
+        yref=yaxis,
+        y=float(np.log10(y)) if log else float(y),
+        yanchor="bottom" if where == "top" else "top",
+        showarrow=False,
+        text=text,
+        font=font,
+    )
 
 
 def move_current_bits(fig: go.Figure, current_bits: int) -> go.Figure:

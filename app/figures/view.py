@@ -12,8 +12,9 @@ for the current settings, or None).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import plotly.graph_objects as go
 
