@@ -21,6 +21,7 @@ from collections import OrderedDict
 import viser
 
 from qsid_core.errors import QsidError
+from qsid_core.version import __version__
 
 from .cache import SharedCache
 from .flow import FairSlots, limit_reads
@@ -208,6 +209,7 @@ def _parser() -> argparse.ArgumentParser:
         prog="qsid-dashboard",
         description="Live dashboard: quantized data -> identification -> MPC. Open the printed URL in a browser.",
     )
+    p.add_argument("--version", action="version", version=f"qsid-dashboard {__version__}")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
     p.add_argument(
         "--port",
