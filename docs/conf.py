@@ -1,4 +1,5 @@
-"""Sphinx configuration of the qsid docs: the API reference from the docstrings, the CLI from the parsers.
+"""Sphinx configuration of the qsid docs: the API reference from the docstrings, the CLI from the parsers,
+every shown output from running it (``docs/qsidext.py``).
 
 Build (warnings are errors): ``python -m sphinx -W --keep-going -b html docs docs/_build/html``.
 """
@@ -10,7 +11,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the checkout's packages, not an older installed copy
-sys.path.insert(0, str(ROOT / "docs"))  # cliparsers: the CLI parsers for sphinx-argparse
+sys.path.insert(0, str(ROOT / "docs"))  # cliparsers (the CLI parsers for sphinx-argparse), qsidext
 
 import qsid_core  # noqa: E402
 
@@ -24,6 +25,7 @@ extensions = [
     "sphinx.ext.napoleon",  # the docstrings are numpydoc style
     "sphinx.ext.mathjax",
     "sphinxarg.ext",  # the CLI reference, rendered from the argparse parsers themselves
+    "qsidext",  # qsid-run, qsid-python, the dashboard's tables: generated at build time
 ]
 
 napoleon_google_docstring = False
@@ -41,6 +43,6 @@ autodoc_typehints = "description"
 # have such a field, so the (harmless, unlinked) lookup is ambiguous
 suppress_warnings = ["ref.python"]
 
-exclude_patterns = ["_build"]
+exclude_patterns = ["_build", "data"]
 html_theme = "alabaster"
 html_static_path: list[str] = []
