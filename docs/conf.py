@@ -44,5 +44,6 @@ autodoc_typehints = "description"
 suppress_warnings = ["ref.python"]
 
 exclude_patterns = ["_build", "data"]
+smartquotes = False  # u'Ru, 'dare' and "..." are shown as the programs print them
 html_theme = "alabaster"
 html_static_path: list[str] = []

@@ -193,7 +193,7 @@ def _range(control) -> str:
         return f"{control.lo:g} .. {control.hi:g} (step {control.step:g})"
     if control.kind == "number":
         return f">= {control.lo:g} (step {control.step:g})"
-    return {"checkbox": "on / off", "text": "text"}.get(control.kind, "")
+    return {"checkbox": "on / off", "text": "typed"}.get(control.kind, "")
 
 
 def _default(defaults, control) -> str:
