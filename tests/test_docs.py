@@ -3,6 +3,7 @@ the build-time output directive fails on a command that fails."""
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -83,3 +84,17 @@ def test_qsid_in_a_docs_command_is_this_checkout():
     from qsid_core.version import __version__
 
     assert run_commands(["qsid --version"]) == f"$ qsid --version\nqsid {__version__}"
+
+
+#: the pages of this docs set whose shown outputs all come from qsid-run / qsid-python
+GENERATED_PAGES = ["index", "getting-started", "dashboard", "cli-guide", "science", "examples", "architecture"]
+
+
+@pytest.mark.parametrize("page", GENERATED_PAGES)
+def test_hand_written_console_blocks_hold_commands_only(page):
+    """Output in a page comes from running the command at build time, never typed into a console block."""
+    text = (DOCS / f"{page}.rst").read_text(encoding="utf-8")
+    blocks = re.findall(r"^\.\. code-block:: console\n\n((?:   .*\n|\n)+)", text, re.M)
+    for block in blocks:
+        lines = [line.strip() for line in block.splitlines() if line.strip()]
+        assert all(line.startswith("$ ") for line in lines), f"{page}.rst shows output by hand:\n{block}"
