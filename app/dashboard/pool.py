@@ -37,6 +37,7 @@ from collections.abc import Callable
 from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
+from app import tracker
 from app.procs import end_with_parent, kill_workers
 from qsid_core.errors import QsidError
 
@@ -266,12 +267,15 @@ class Pool:
             self._pending.append(entry)
 
     def _watchdog(self) -> None:
-        last_trim = time.monotonic()
+        last_trim = last_tracker = time.monotonic()
         while True:
             time.sleep(0.1)
             if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
                 trim()
                 last_trim = time.monotonic()
+            if time.monotonic() - last_tracker > 1.0:  # a dead resource tracker: reaped and replaced, one line
+                tracker.check(lambda text: print(f"qsid-dashboard: {text}", file=sys.stderr, flush=True))
+                last_tracker = time.monotonic()
             with self._plock:  # a superseded task still running stays watched until its worker is free
                 entries = [e for e in self._pending if not (e[0].done() and e[1].done())]
                 self._pending = entries
