@@ -253,7 +253,7 @@ def run(args, rep) -> int:
     written = []
     for stem, _, fig in panels:
         path = outdir / f"{stem}.html"
-        fig.write_html(path, include_plotlyjs="directory", full_html=True)
+        write_text(path, fig.to_html(include_plotlyjs="directory", full_html=True))  # whole or not at all
         written.append(path)
     data = {
         "sweep": d,

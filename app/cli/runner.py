@@ -12,7 +12,6 @@ import os
 import shutil
 import signal
 import sys
-import tempfile
 import time
 import warnings
 from collections.abc import Sequence
@@ -390,26 +389,9 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs=()) ->
     return out
 
 
-def _mode_for(path: Path) -> int:
-    """The permission bits ``path`` has, or a new file would get under the umask."""
-    try:
-        return os.stat(path).st_mode & 0o7777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
-
-
 def write_text(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically: a temporary file beside it, renamed over it when complete
     (an interrupted run never leaves a half-written file, and an existing one stays until then)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, _mode_for(path))
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    from qsid_core.records import replace_atomically
+
+    replace_atomically(Path(path), text)

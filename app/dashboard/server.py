@@ -27,7 +27,7 @@ from .cache import SharedCache
 from .flow import FairSlots, limit_reads
 from .lessons import get_lesson, lesson_names, lesson_values
 from .memory import limit_arenas, trim
-from .netcheck import OneLineParser, check_address, port_number
+from .netcheck import OneLineParser, check_address, port_number, who_can_connect
 from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
@@ -378,6 +378,9 @@ def main(argv: list[str] | None = None) -> int:
         )
         warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
+        note = who_can_connect(args.host, app.port)
+        if note:
+            print(f"qsid dashboard: {note}", flush=True)
         _wait_for_stop_signal(stop)
         print("\nqsid dashboard: stopping", flush=True)
     except (QsidError, OSError) as exc:

@@ -282,6 +282,14 @@ class Session:
                 c.progress.value = 100.0 * done / total
                 c.status.content = text
 
+        waited: list = []
+
+        def queued(ahead: int) -> None:
+            waited.append(ahead)
+            if not self._stale(gen):
+                c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
+
+        c.status.content = "computing …"
         frames = iter_frames(
             values,
             self.app.cache,
@@ -292,9 +300,11 @@ class Session:
         )
         try:
             while True:
-                with self.app.slots:  # (4) at most a few tabs compute at once
+                with self.app.slots.turn(queued):  # (4) at most a few tabs compute at once, in turn
                     if self._stale(gen):
                         return gen
+                    if waited:  # its turn came
+                        c.status.content, waited[:] = "computing …", []
                     frame = next(frames, None)
                 if frame is None or self._stale(gen):
                     return gen
@@ -310,6 +320,7 @@ class Session:
                         f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
                         f"all curves in {self.timings['all']:.2f} s"
                     )
+                    return gen  # the last frame: no further turn to wait for
         except (PoolFailure, Superseded) as exc:
             if isinstance(exc, PoolFailure):
                 raise
