@@ -123,7 +123,7 @@ def engine_loops(pb: Problem, solver: str = "daqp"):
         lp = run_closed_loops([(pb.A, pb.B)], pb.A, pb.B, cfg, pb.sys)
         if lp.failure[0]:
             raise RuntimeError(f"engine failed: {lp.messages[0]}")
-        return lp.inputs[0], dict(osqp_steps=lp.osqp_steps, fast_steps=pb.steps - lp.osqp_steps)
+        return lp.inputs[0], dict(qp_steps=lp.qp_steps, fast_steps=pb.steps - lp.qp_steps)
 
     return run, 0.0
 
@@ -141,7 +141,7 @@ def engine_controller(pb: Problem):
             nfast += bool(fast)
             us[t] = u
             x = pb.A @ x + pb.B @ u
-        return us, dict(osqp_steps=pb.steps - nfast, fast_steps=nfast)
+        return us, dict(qp_steps=pb.steps - nfast, fast_steps=nfast)
 
     return run, 0.0
 
@@ -298,7 +298,7 @@ def check_agreement(quick: bool = True, solvers=None) -> dict:
     for c in cases(quick):
         pb = Problem(**c)
         r = benchmark_problem(pb, solvers, 1, 1)
-        res[pb.name] = {k: dict(max_abs_du=v["max_abs_du"], osqp_steps=v.get("osqp_steps")) for k, v in r.items()}
+        res[pb.name] = {k: dict(max_abs_du=v["max_abs_du"], qp_steps=v.get("qp_steps")) for k, v in r.items()}
     return res
 
 
@@ -354,7 +354,7 @@ def main(argv=None) -> dict:
             f"{'max|du| vs engine':>19}{'time / engine':>15}"
         )
         for name, v in r.items():
-            steps = f"{v['fast_steps']}/{v['osqp_steps']}" if "osqp_steps" in v else "-"
+            steps = f"{v['fast_steps']}/{v['qp_steps']}" if "qp_steps" in v else "-"
             ratio = v["best"] / eng_best
             agree = v["max_abs_du"] <= TOL
             if "defaults" not in name:  # the defaults rows are for reference: tight rows must agree
@@ -380,7 +380,7 @@ def main(argv=None) -> dict:
                         times_s=v["times"],
                         setup_s=v["setup"],
                         max_abs_du=v["max_abs_du"],
-                        osqp_steps=v.get("osqp_steps"),
+                        qp_steps=v.get("qp_steps"),
                         fast_steps=v.get("fast_steps"),
                         speedup_vs_engine=v["best"] / eng_best,
                     )
