@@ -47,6 +47,7 @@ import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
+from app.procs import descendants, kill_new_descendants
 from qsid_core.errors import ConfigError, QsidError
 
 __all__ = ["ClusterError", "DaskSpec", "DaskExecutor", "parse_dask_spec", "make_executor", "MAX_LOCAL_WORKERS"]
@@ -349,9 +350,49 @@ def make_executor(
     """
     parsed = parse_dask_spec(spec)
     _import_distributed()
-    from distributed import Client, LocalCluster
 
     say = progress or (lambda _msg: None)
+    before = set(descendants(os.getpid())) if parsed.local else None
+    clusters = _clusters()
+    try:
+        with _cluster_executor(
+            parsed, say, connect_timeout, worker_timeout, stall_timeout, retries, share_data, quiet
+        ) as ex:
+            yield ex
+    except BaseException as exc:  # interrupted (a signal) at any moment, start-up included: no cluster process left
+        if before is not None:
+            kill_new_descendants(before, keep=_resource_tracker())
+        if isinstance(exc, KeyboardInterrupt):
+            # the program is stopping: the cluster's half-started tasks end with "Task exception was never
+            # retrieved" tracebacks from asyncio and dask when they are collected; the interrupt says it all
+            for name in ("asyncio", "distributed", "tornado"):
+                logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+            # a cluster interrupted while it started has no handle here; its processes are gone, and dask's own
+            # exit hook would only fail to close it (an "Exception ignored in atexit callback" traceback)
+            for cluster in _clusters() - clusters:
+                cluster.shutdown_on_close = False
+        raise
+
+
+def _clusters() -> set:
+    """dask's own registry of the clusters this program started (closed at exit by dask unless told not to)."""
+    from distributed.deploy.spec import SpecCluster
+
+    return set(SpecCluster._instances)
+
+
+def _resource_tracker() -> set[int]:
+    """multiprocessing's resource tracker (shared by the whole program: never killed here)."""
+    from multiprocessing import resource_tracker
+
+    pid = getattr(getattr(resource_tracker, "_resource_tracker", None), "_pid", None)
+    return {pid} if pid else set()
+
+
+@contextlib.contextmanager
+def _cluster_executor(parsed, say, connect_timeout, worker_timeout, stall_timeout, retries, share_data, quiet):
+    from distributed import Client, LocalCluster
+
     cluster = None
     with contextlib.ExitStack() as stack:
         if quiet:  # dask logs lost connections with tracebacks; the run reports them as one ClusterError line

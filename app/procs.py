@@ -7,7 +7,7 @@ import signal
 import threading
 import time
 
-__all__ = ["end_with_parent", "kill_workers"]
+__all__ = ["end_with_parent", "kill_workers", "descendants", "kill_new_descendants"]
 
 
 def end_with_parent(parent: int) -> None:
@@ -45,3 +45,40 @@ def kill_workers(ex) -> None:
             p.kill()
         except Exception:
             pass
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (children, their children, ...), from Linux ``/proc`` (empty elsewhere)."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{p}/task")
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                with open(f"/proc/{p}/task/{task}/children") as f:
+                    kids = [int(c) for c in f.read().split()]
+            except OSError:
+                continue
+            out += kids
+            todo += kids
+    return out
+
+
+def kill_new_descendants(before: set[int], keep: set[int] = frozenset()) -> list[int]:
+    """SIGKILL every descendant of this process not in ``before`` or ``keep`` (e.g. a cluster interrupted
+    while it started, whose processes no handle owns yet); returns their process ids."""
+    new = [p for p in descendants(os.getpid()) if p not in before and p not in keep]
+    for p in new:
+        try:
+            os.kill(p, signal.SIGKILL)
+        except OSError:
+            pass
+    for p in new:  # reap our own children (grandchildren are reaped by whoever adopts them)
+        try:
+            os.waitpid(p, os.WNOHANG)
+        except (ChildProcessError, OSError):
+            pass
+    return new

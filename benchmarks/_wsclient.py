@@ -33,6 +33,9 @@ _CAMERA = {
 }
 
 
+#: How the tab's status line starts (any other markdown is not the status).
+STATUS_STARTS = ("ready", "computing", "error", "starting", "queued")
+
 #: The keys a markdown's text arrives under (viser >= 1.0: "_markdown"; older: "content").
 _TEXT_KEYS = ("_markdown", "content")
 
@@ -61,6 +64,7 @@ class WsTab:
         self.markdown: dict[str, str] = {}  # markdown uuid -> content
         self.received = 0
         self.closed = False
+        self.statuses: list[tuple[float, str]] = []  # (monotonic time, text) of every status line received
         self._dz = zstandard.ZstdDecompressor()
         self._lock = threading.Lock()
         self.thread = threading.Thread(target=self._read, daemon=True)
@@ -93,6 +97,11 @@ class WsTab:
                 for key in _TEXT_KEYS:  # viser 1.x sends a markdown's text as "_markdown"
                     if key in up:
                         self.markdown[m["uuid"]] = up[key]
+                        if isinstance(up[key], str) and up[key].startswith(STATUS_STARTS):
+                            self.statuses.append((time.monotonic(), up[key]))
+            elif typ == "GuiRemoveMessage":  # e.g. the weight sliders of another system: forget their labels
+                for label in [k for k, v in self.uuids.items() if v == m.get("uuid")]:
+                    del self.uuids[label]
 
     def wait_for(self, label: str, timeout: float = 30.0) -> str:
         end = time.monotonic() + timeout
@@ -108,7 +117,7 @@ class WsTab:
         """The status line ("ready · ...", "computing ...", "error ...")."""
         with self._lock:
             texts = list(self.markdown.values())
-        return next((t for t in texts if t.startswith(("ready", "computing", "error", "starting"))), "")
+        return next((t for t in texts if t.startswith(STATUS_STARTS)), "")
 
     @property
     def ready(self) -> bool:
@@ -124,6 +133,24 @@ class WsTab:
                 raise ConnectionError("the server closed the connection")
             time.sleep(0.02)
         raise TimeoutError(f"the tab was not ready within {timeout} s (status: {self.status!r})")
+
+    def labels(self, prefix: str) -> list[str]:
+        """The labels of the inputs shown now that start with ``prefix``."""
+        with self._lock:
+            return sorted(k for k in self.uuids if k.startswith(prefix))
+
+    def answer_after(self, index: int, timeout: float) -> tuple[float, str]:
+        """The first "ready" or "error" status line after ``statuses[index - 1]``: (time it arrived, text)."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            with self._lock:
+                hit = next((s for s in self.statuses[index:] if s[1].startswith(("ready", "error"))), None)
+            if hit is not None:
+                return hit
+            if self.closed:
+                raise ConnectionError("the server closed the connection")
+            time.sleep(0.01)
+        raise TimeoutError(f"no answer within {timeout} s (status: {self.status!r})")
 
     def send(self, label: str, value) -> None:
         """Set input ``label`` to ``value`` exactly as a browser does (no range check on this side)."""

@@ -23,6 +23,11 @@ Usage::
     python benchmarks/bench_dashboard.py --pool thread  # a thread pool of 2 (the kernels release the GIL)
     python benchmarks/bench_dashboard.py --no-paper     # interactive only
 
+Every row prints the 1-minute load average while it ran (the machine is shared). With
+``--workers 0`` (everything in this process) each row is followed by where its CPU time
+went: identification, closed loops, bounds, figure building, serialisation and the
+rest (``benchmarks/_breakdown.py``).
+
 Numbers are printed, never hard-coded; they depend on the machine and its load.
 "CPU ms" is this process's CPU time per change (all its threads; a process pool's
 workers are not included): on a loaded machine it shows what the change costs,
@@ -48,6 +53,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
+from _breakdown import Breakdown, line  # noqa: E402
 
 from app.dashboard.cache import SharedCache  # noqa: E402
 from app.dashboard.render import Renderer  # noqa: E402
@@ -60,11 +66,16 @@ from app.dashboard.settings import (  # noqa: E402
     resolve_system,
 )
 
+#: the CPU breakdown while the benchmark runs in-process (None with a pool)
+BREAKDOWN: Breakdown | None = None
+
 
 def update(values: Values, cache, renderer: Renderer, executor, tasks: int) -> dict:
     """One change of settings, as a tab's worker handles it; returns seconds to the current b and to all curves."""
+    if BREAKDOWN is not None:
+        BREAKDOWN.reset()
     t0, c0 = time.perf_counter(), time.process_time()
-    out = {}
+    out = {"load": os.getloadavg()[0]}
     for frame in iter_frames(values, cache, executor, tasks):
         r = renderer.render(frame, values.axes)
         for fig in r.figures.values():
@@ -73,6 +84,8 @@ def update(values: Values, cache, renderer: Renderer, executor, tasks: int) -> d
             out["current"] = time.perf_counter() - t0
     out["all"] = time.perf_counter() - t0
     out["cpu"] = time.process_time() - c0  # this process's threads only (not a process pool's workers)
+    if BREAKDOWN is not None:
+        out["breakdown"] = dict(BREAKDOWN.cpu)
     return out
 
 
@@ -111,12 +124,20 @@ def _row(name: str, runs: list, target: str, limit_ms: float | None = None) -> N
     cur = [r["current"] * 1000 for r in runs]
     tot = [r["all"] * 1000 for r in runs]
     verdict = "" if limit_ms is None else ("  MET" if statistics.median(tot) <= limit_ms else "  NOT MET")
+    load = [r["load"] for r in runs]
     print(
         f"{name:<42} {statistics.median(cur):8.0f} {min(cur):8.0f} {max(cur):8.0f}   "
         f"{statistics.median(tot):8.0f} {min(tot):8.0f} {max(tot):8.0f}   "
-        f"{statistics.median(r['cpu'] * 1000 for r in runs):6.0f}   {target}{verdict}",
+        f"{statistics.median(r['cpu'] * 1000 for r in runs):6.0f}   {min(load):4.1f}-{max(load):<4.1f}  "
+        f"{target}{verdict}",
         flush=True,
     )
+    if all("breakdown" in r for r in runs):
+        bd = Breakdown()
+        for r in runs:
+            for k, v in r["breakdown"].items():
+                bd.cpu[k] += v
+        print(f"  CPU ms per change: {line(bd, sum(r['cpu'] for r in runs), len(runs))}", flush=True)
 
 
 #: The saturated-MPC what-if of issue 9 (the Boeing's input bound made active).
@@ -154,6 +175,9 @@ def main(argv=None) -> int:
         for f in [ex.submit(abs, 0) for _ in range(a.workers)]:
             f.result()
     tasks = max(1, a.workers)
+    global BREAKDOWN
+    if not a.workers:
+        BREAKDOWN = Breakdown().__enter__()
     print(
         f"qsid dashboard update latency · system {a.system} · {a.identification} · "
         f"{a.pool + ' pool of ' + str(a.workers) if a.workers else 'in-process'} · "
@@ -161,7 +185,7 @@ def main(argv=None) -> int:
     )
     print(
         f"{'change':<42} {'current b [ms]: median':>24} {'min':>4} {'max':>8}   "
-        f"{'all curves [ms]: median':>8} {'min':>4} {'max':>8}   {'CPU ms':>6}   target"
+        f"{'all curves [ms]: median':>8} {'min':>4} {'max':>8}   {'CPU ms':>6}   {'load':>9}  target"
     )
     cache = SharedCache()
     ren = Renderer()
@@ -213,6 +237,9 @@ def main(argv=None) -> int:
         )
     if ex is not None:
         (pool if a.pool == "process" else ex).shutdown()
+    if BREAKDOWN is not None:
+        BREAKDOWN.__exit__(None, None, None)
+        BREAKDOWN = None
     return 0
 
 

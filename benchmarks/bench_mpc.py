@@ -27,6 +27,10 @@ Solvers, each timed per closed loop (best and median of ``--repeats``):
   silenced); IPOPT's defaults and tightened tolerances.
 
 Agreement: max |u_peer - u_engine| over the applied input sequences (target 1e-6).
+Then the saturated stage of a sweep (``benchmarks/_mpc_stage.py``): every identified
+Boeing model's saturated closed loop by the compiled loop against per-step OSQP loops
+(target >= 100x), with the 1-minute load average beside every row (the machine is shared).
+
 The last line is ``RESULT {json}``.
 """
 
@@ -119,7 +123,7 @@ def engine_loops(pb: Problem, solver: str = "daqp"):
         lp = run_closed_loops([(pb.A, pb.B)], pb.A, pb.B, cfg, pb.sys)
         if lp.failure[0]:
             raise RuntimeError(f"engine failed: {lp.messages[0]}")
-        return lp.inputs[0], dict(osqp_steps=lp.osqp_steps, fast_steps=pb.steps - lp.osqp_steps)
+        return lp.inputs[0], dict(qp_steps=lp.qp_steps, fast_steps=pb.steps - lp.qp_steps)
 
     return run, 0.0
 
@@ -137,7 +141,7 @@ def engine_controller(pb: Problem):
             nfast += bool(fast)
             us[t] = u
             x = pb.A @ x + pb.B @ u
-        return us, dict(osqp_steps=pb.steps - nfast, fast_steps=nfast)
+        return us, dict(qp_steps=pb.steps - nfast, fast_steps=nfast)
 
     return run, 0.0
 
@@ -294,7 +298,7 @@ def check_agreement(quick: bool = True, solvers=None) -> dict:
     for c in cases(quick):
         pb = Problem(**c)
         r = benchmark_problem(pb, solvers, 1, 1)
-        res[pb.name] = {k: dict(max_abs_du=v["max_abs_du"], osqp_steps=v.get("osqp_steps")) for k, v in r.items()}
+        res[pb.name] = {k: dict(max_abs_du=v["max_abs_du"], qp_steps=v.get("qp_steps")) for k, v in r.items()}
     return res
 
 
@@ -305,7 +309,12 @@ def main(argv=None) -> dict:
     ap.add_argument(
         "--engine-repeats", type=int, default=None, help="timed closed loops per engine variant (default 50; quick 3)"
     )
-    ap.add_argument("--skip", default="", help="comma-separated peer families to skip: cvxpy, do-mpc")
+    ap.add_argument("--skip", default="", help="comma-separated parts to skip: cvxpy, do-mpc, stage")
+    ap.add_argument(
+        "--stage-realizations", type=int, default=None, help="dither realizations per b in the stage (default 10)"
+    )
+    ap.add_argument("--stage-repeats", type=int, default=None, help="timed stages, compiled rows (default 5)")
+    ap.add_argument("--osqp-repeats", type=int, default=None, help="timed stages, OSQP rows (default 2)")
     ap.add_argument(
         "--blas-threads",
         type=int,
@@ -329,7 +338,7 @@ def main(argv=None) -> dict:
         "engine times include building the controller (DARE, gains, QP setup); peer times exclude their setup "
         "(shown separately)"
     )
-    print(f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}")
+    print(f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}; load average {os.getloadavg()}")
     if missing:
         print("not installed, skipped:", ", ".join(missing))
     results = []
@@ -345,7 +354,7 @@ def main(argv=None) -> dict:
             f"{'max|du| vs engine':>19}{'time / engine':>15}"
         )
         for name, v in r.items():
-            steps = f"{v['fast_steps']}/{v['osqp_steps']}" if "osqp_steps" in v else "-"
+            steps = f"{v['fast_steps']}/{v['qp_steps']}" if "qp_steps" in v else "-"
             ratio = v["best"] / eng_best
             agree = v["max_abs_du"] <= TOL
             if "defaults" not in name:  # the defaults rows are for reference: tight rows must agree
@@ -371,7 +380,7 @@ def main(argv=None) -> dict:
                         times_s=v["times"],
                         setup_s=v["setup"],
                         max_abs_du=v["max_abs_du"],
-                        osqp_steps=v.get("osqp_steps"),
+                        qp_steps=v.get("qp_steps"),
                         fast_steps=v.get("fast_steps"),
                         speedup_vs_engine=v["best"] / eng_best,
                     )
@@ -412,8 +421,21 @@ def main(argv=None) -> dict:
     )
     if loose:
         print("with their default tolerances these peers miss 1e-6 (hence the tightened rows): " + "; ".join(loose))
+    stage = None
+    if "stage" not in skip:
+        import _mpc_stage
+
+        stage = _mpc_stage.stage(
+            args.quick,
+            args.stage_realizations or (2 if args.quick else 10),
+            args.stage_repeats or (1 if args.quick else 5),
+            args.osqp_repeats or (1 if args.quick else 2),
+        )
+        ok_all &= _mpc_stage.report(stage, TOL)
     out = dict(
         benchmark="bench_mpc",
+        loadavg=os.getloadavg(),
+        saturated_stage=stage,
         quick=bool(args.quick),
         cores=os.cpu_count(),
         blas_threads=blas_threads(),

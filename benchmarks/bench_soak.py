@@ -56,9 +56,9 @@ class Server:
             text=True,
         )
         line, end = "", time.time() + 120
-        while not line.startswith("qsid dashboard:") and time.time() < end and self.p.poll() is None:
+        while not line.startswith("qsid dashboard: http") and time.time() < end and self.p.poll() is None:
             line = self.p.stdout.readline()
-        if not line.startswith("qsid dashboard:"):
+        if not line.startswith("qsid dashboard: http"):
             self.stop()
             raise RuntimeError(f"the server did not start: {self.p.stderr.read()[-2000:]}")
         self.url = line.split()[2]

@@ -114,7 +114,7 @@ def fast_numbers(res) -> dict:
             err_B=idn.err_B,
             cost=None if lp is None else lp.cost,
             failed=None if lp is None else lp.failed,
-            osqp_steps=None if lp is None else lp.osqp_steps,
+            qp_steps=None if lp is None else lp.qp_steps,
         )
     return out
 
@@ -501,7 +501,7 @@ def main(argv=None) -> dict:
             err_B=float(fv["err_B"].mean()),
             cost=float(np.nanmean(fc)) if np.isfinite(fc).any() else None,
             failed=int(fv["failed"].sum()),
-            osqp_steps=int(fv["osqp_steps"]),
+            qp_steps=int(fv["qp_steps"]),
             naive_err_A=float(nv["err_A"].mean()),
             engine_err_A_at_K=float(fv["err_A"][:K].mean()),
             naive_cost=float(np.nanmean(nv["cost"])) if np.isfinite(nv["cost"]).any() else None,
@@ -511,7 +511,7 @@ def main(argv=None) -> dict:
         rows.append(row)
         print(
             f"{b:>3}{row['err_A']:>11.3e}{row['err_B']:>11.3e}{_fmt(row['cost'], '>11.4f')}{row['failed']:>5}"
-            f"{row['osqp_steps']:>6}{row['naive_err_A']:>12.3e}{row['engine_err_A_at_K']:>12.3e}"
+            f"{row['qp_steps']:>6}{row['naive_err_A']:>12.3e}{row['engine_err_A_at_K']:>12.3e}"
             f"{_fmt(row['naive_cost'], '>12.4f')}{_fmt(row['engine_cost_at_K'], '>12.4f')}"
         )
     tc = res.true_loop.cost[0] if res.true_loop is not None else float("nan")

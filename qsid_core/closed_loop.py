@@ -6,8 +6,10 @@ ahead and every predicted constraint checked in one batch; only the steps where
 a bound is active solve a QP: the condensed box QPs of all such models at once by
 primal-dual active-set iterations (compiled, :func:`qsid_core.kernels.box_qp_pdas`),
 and DAQP (:mod:`qsid_core.condensed_qp`) where those do not settle or a state box
-is set. ``solver="osqp"`` runs the previous engine's OSQP path instead. Failures
-are recorded per model, never raised.
+is set. Where the input box is the only constraint, the state is measured exactly
+and the reference is constant, the whole loop runs compiled instead, the same law
+step by step (:mod:`qsid_core.loop_kernel`). ``solver="osqp"`` runs the previous
+engine's OSQP path instead. Failures are recorded per model, never raised.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 from .condensed_qp import box_qp_batch, condense
 from .controllers import build_controllers
 from .errors import FailureKind, MPCFailure
+from .loop_kernel import eligible, run_compiled
 from .loop_noise import LoopNoise, loop_noise
 from .mpc import MPCConfig, MPCWeights
 from .stage_results import ClosedLoops
@@ -63,6 +66,7 @@ class _Loops:
         # current true state per realisation (x0, or where an earlier run stopped)
         self.x = np.tile(w.x0, (len(ctrls), 1)) if x_start is None else np.array(x_start, dtype=float)
         out.states[live, 0] = self.x[live]
+        self.first_costs = x_start is None  # record J*(x0) of the first problem (not for a continued run)
         self.cq = cq  # condensed QPs of the live models (built at the first constrained step)
         # box-only problems solved by DAQP: guess the active set in one batch, DAQP only where the guess fails
         self.solver_is_daqp = ctrls[live[0]].solver == "daqp"
@@ -399,6 +403,9 @@ def _extender(loops: _Loops):
 
 def advance(loops: _Loops, active: np.ndarray) -> None:
     """Run the loops ``active`` for ``loops.steps`` steps: the fast path ahead, one step at a time where a bound is active."""
+    if eligible(loops):  # box-only DAQP, exact feedback: the whole loop compiled
+        run_compiled(loops, active, DIVERGED, loops.first_costs)
+        return
     t, steps = 0, loops.steps
     with np.errstate(over="ignore", invalid="ignore"):
         while t < steps and active.size:

@@ -152,6 +152,64 @@ def _chol_solve_py(Hs, free, nf, L, rhs):
     return True
 
 
+def _pdas_one_py(Hs, gs, ub, up, lo, iters, tol, x, L, rhs, free):
+    """Primal-dual active-set iterations for one box QP from the guess ``up``/``lo`` (updated in place).
+
+    On True, ``x`` holds the minimiser of ``1/2 x'Hs x + gs'x`` subject to ``|x| <= ub``
+    (its KKT conditions checked); False if it did not settle within ``iters`` iterations
+    or ``Hs`` restricted to the free variables is not numerically definite.
+    """
+    nU = gs.shape[0]
+    scale = 1.0
+    for i in range(nU):
+        scale = max(scale, 1.0 + abs(gs[i]))
+    for _ in range(iters):
+        # fix the active variables at their bound, solve H_FF x_F = -(g_F + H_FA x_A) by Cholesky
+        nf = 0
+        for i in range(nU):
+            if up[i]:
+                x[i] = ub[i]
+            elif lo[i]:
+                x[i] = -ub[i]
+            else:
+                free[nf] = i
+                nf += 1
+        for a in range(nf):
+            i = free[a]
+            acc = -gs[i]
+            for j in range(nU):
+                if up[j] or lo[j]:
+                    acc -= Hs[i, j] * x[j]
+            rhs[a] = acc
+        if not _chol_solve(Hs, free, nf, L, rhs):
+            return False
+        for a in range(nf):
+            x[free[a]] = rhs[a]
+        # KKT: free variables inside the box, multipliers of the fixed ones >= 0
+        kkt = True
+        for i in range(nU):
+            gr = gs[i]
+            for j in range(nU):
+                gr += Hs[i, j] * x[j]
+            if up[i]:
+                lam = -gr
+            elif lo[i]:
+                lam = gr
+            else:
+                lam = 0.0
+                if abs(x[i]) > ub[i] * (1.0 + tol):
+                    kkt = False
+            if lam < -tol * scale:
+                kkt = False
+            # next active set: coordinate-wise Newton step y = x - grad / H_ii
+            y = x[i] - gr / Hs[i, i]
+            up[i] = y > ub[i]
+            lo[i] = y < -ub[i]
+        if kkt:
+            return True
+    return False
+
+
 def _box_qp_pdas_py(H, g, ub, upper, lower, iters, tol, U, ok):
     """Primal-dual active-set iterations for each box QP of a batch (see :func:`box_qp_pdas`)."""
     S, nU = g.shape
@@ -160,62 +218,16 @@ def _box_qp_pdas_py(H, g, ub, upper, lower, iters, tol, U, ok):
     free = np.empty(nU, dtype=np.int64)
     x = np.empty(nU)
     for s in range(S):
-        Hs, gs = H[s], g[s]
         up, lo = upper[s].copy(), lower[s].copy()
-        scale = 1.0
-        for i in range(nU):
-            scale = max(scale, 1.0 + abs(gs[i]))
-        for _ in range(iters):
-            # fix the active variables at their bound, solve H_FF x_F = -(g_F + H_FA x_A) by Cholesky
-            nf = 0
+        if _pdas_one(H[s], g[s], ub, up, lo, iters, tol, x, L, rhs, free):
             for i in range(nU):
-                if up[i]:
-                    x[i] = ub[i]
-                elif lo[i]:
-                    x[i] = -ub[i]
-                else:
-                    free[nf] = i
-                    nf += 1
-            for a in range(nf):
-                i = free[a]
-                acc = -gs[i]
-                for j in range(nU):
-                    if up[j] or lo[j]:
-                        acc -= Hs[i, j] * x[j]
-                rhs[a] = acc
-            if not _chol_solve(Hs, free, nf, L, rhs):
-                break
-            for a in range(nf):
-                x[free[a]] = rhs[a]
-            # KKT: free variables inside the box, multipliers of the fixed ones >= 0
-            kkt = True
-            for i in range(nU):
-                gr = gs[i]
-                for j in range(nU):
-                    gr += Hs[i, j] * x[j]
-                if up[i]:
-                    lam = -gr
-                elif lo[i]:
-                    lam = gr
-                else:
-                    lam = 0.0
-                    if abs(x[i]) > ub[i] * (1.0 + tol):
-                        kkt = False
-                if lam < -tol * scale:
-                    kkt = False
-                # next active set: coordinate-wise Newton step y = x - grad / H_ii
-                y = x[i] - gr / Hs[i, i]
-                up[i] = y > ub[i]
-                lo[i] = y < -ub[i]
-            if kkt:
-                for i in range(nU):
-                    U[s, i] = x[i]
-                ok[s] = True
-                break
+                U[s, i] = x[i]
+            ok[s] = True
 
 
 if AVAILABLE:
     _chol_solve = _numba.njit(cache=True, nogil=True)(_chol_solve_py)
+    _pdas_one = _numba.njit(cache=True, nogil=True)(_pdas_one_py)
     _box_qp_pdas_nb = _numba.njit(cache=True, nogil=True)(_box_qp_pdas_py)
     _dot = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_dot_py)
     _accumulate_chunk_nb = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_accumulate_chunk_py)
@@ -223,6 +235,7 @@ if AVAILABLE:
     # no "contract": y * scale + u stays two roundings, so every quantized sample equals numpy's
 else:  # pragma: no cover
     _chol_solve = _chol_solve_py
+    _pdas_one = _pdas_one_py
     _box_qp_pdas_nb = None
     _dot = _dot_py
     _accumulate_chunk_nb = None

@@ -15,8 +15,12 @@ and empty cells in the CSV.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import math
+import os
+import tempfile
 from collections.abc import Iterable
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
@@ -231,11 +235,36 @@ def write_csv(records_or_result, path: str | Path) -> int:
     """Write the tidy table to ``path`` (header :data:`COLUMNS`, NaN as an empty cell); returns the row count.
 
     Floats are written with ``repr`` (they read back bit-exactly); booleans as ``true``/``false``.
+    The file is written whole or not at all: into a temporary file in the same directory, renamed over
+    ``path`` when complete (an existing ``path`` stays as it was until then; the temporary file is removed
+    if the write fails or is interrupted).
     """
     recs = _records(records_or_result)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(COLUMNS)
-        for r in recs:
-            w.writerow([_cell(v) for v in astuple(r)])
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(COLUMNS)
+    for r in recs:
+        w.writerow([_cell(v) for v in astuple(r)])
+    replace_atomically(Path(path), buf.getvalue())
     return len(recs)
+
+
+def replace_atomically(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` through a temporary file beside it and ``os.replace``; the file keeps
+    its permission bits (a new one gets the umask's)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
+            f.write(text)
+        try:
+            mode = os.stat(path).st_mode & 0o7777
+        except OSError:
+            mask = os.umask(0)
+            os.umask(mask)
+            mode = 0o666 & ~mask
+        os.chmod(tmp, mode)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise

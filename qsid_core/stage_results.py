@@ -215,11 +215,6 @@ class ClosedLoops:
         return {k: sum(o == k for o in self.outcome) for k in ("converged", "bounded", "diverged", "failed")}
 
     @property
-    def osqp_steps(self) -> int:
-        """Old name of :attr:`qp_steps` (the sweep's JSON key ``osqp_steps`` keeps it)."""
-        return self.qp_steps
-
-    @property
     def failed(self) -> np.ndarray:
         """shape (R,): True where the loop failed."""
         return np.array([bool(f) for f in self.failure])

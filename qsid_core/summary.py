@@ -103,7 +103,8 @@ class SummaryRow(Mapping):
         Hypotheses of Theorem 1 and BCLS (:mod:`qsid_core.assumptions`).
     mpc_cost, final_state_norm : dict or None
         Closed-loop summaries (None when MPC is off).
-    osqp_steps : int or None
+    qp_steps : int or None
+        Closed-loop steps whose input needed the QP solver (a constraint was active).
     saturated_steps : dict or None
         ``{"steps": k, "loops": l, "of_steps": R*steps}``: closed-loop steps with an
         input on its bound, and loops with at least one.
@@ -145,7 +146,7 @@ class SummaryRow(Mapping):
     assumptions: object = None
     mpc_cost: dict | None = None
     final_state_norm: dict | None = None
-    osqp_steps: int | None = None
+    qp_steps: int | None = None
     saturated_steps: dict | None = None
     stabilized_fraction: float | None = None
     closed_loop_outcomes: dict | None = None
@@ -176,8 +177,8 @@ class SummaryRow(Mapping):
                 "mpc_cost": self.mpc_cost,
                 "final_state_norm": self.final_state_norm,
             }
-            if self.osqp_steps is not None:
-                d["osqp_steps"] = self.osqp_steps
+            if self.qp_steps is not None:
+                d["qp_steps"] = self.qp_steps
             d.update(
                 {
                     "realizations": self.realizations,
@@ -276,7 +277,7 @@ def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assu
             "mean": float(fsn.mean()) if fsn.size else None,
             "max": float(fsn.max()) if fsn.size else None,
         }
-        kw["osqp_steps"] = lp.osqp_steps
+        kw["qp_steps"] = lp.qp_steps
         for key, vals in (("steady_state_error", lp.steady_state_error), ("tracking_error", lp.tracking_error)):
             ok = vals[np.isfinite(vals)]
             kw[key] = {"mean": float(ok.mean()) if ok.size else None, "max": float(ok.max()) if ok.size else None}

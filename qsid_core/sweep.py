@@ -35,7 +35,12 @@ __all__ = [
     "summarize",
     "fit_slope",
     "load_result",
+    "RESULT_FORMAT",
 ]
+
+#: Version of the sweep result's JSON layout (the ``result_format`` key). 1: files without the key, whose
+#: rows count the closed-loop steps that needed the QP solver as ``osqp_steps``; 2: that key is ``qp_steps``.
+RESULT_FORMAT = 2
 
 
 def fit_slope(bits, values) -> float:
@@ -208,6 +213,7 @@ class SweepResult:
         why = bcls_reason(q.dither)
         return json_clean(
             {
+                "result_format": RESULT_FORMAT,
                 "qsid_version": self.version or __version__,
                 "system": self.system.name,
                 "config": cfg,
@@ -341,6 +347,13 @@ def _bits_text(bits) -> str:
     return ",".join(map(str, b))
 
 
+def _upgrade_row(row: dict, fmt: int) -> dict:
+    """A per-b summary of JSON format ``fmt`` in the current format's keys (same order)."""
+    if fmt < 2:
+        row = {("qp_steps" if k == "osqp_steps" else k): v for k, v in row.items()}
+    return row
+
+
 def load_result(path) -> SweepResult:
     """Read a saved sweep (``qsid sweep --out FILE`` or ``json.dump(res.to_dict())``) back into a SweepResult.
 
@@ -353,7 +366,9 @@ def load_result(path) -> SweepResult:
     ------
     ConfigError
         If the file is missing, not JSON, or not a sweep result with a full config (files
-        written before the config carried the system are refused with that reason).
+        written before the config carried the system are refused with that reason), or its
+        ``result_format`` is newer than :data:`RESULT_FORMAT`. Older formats are read and their
+        rows renamed to the current keys (format 1's ``osqp_steps`` becomes ``qp_steps``).
     """
     import json
     from pathlib import Path
@@ -374,8 +389,13 @@ def load_result(path) -> SweepResult:
             f"{p} was written without the full configuration (no system_definition): "
             "re-run that sweep with this qsid to get a file that can be loaded"
         )
+    fmt = d.get("result_format", 1)
+    if not isinstance(fmt, int) or isinstance(fmt, bool) or fmt > RESULT_FORMAT:
+        raise ConfigError(
+            f"{p} has result_format {fmt!r}; this qsid reads formats 1 to {RESULT_FORMAT} (a newer qsid wrote it?)"
+        )
     cfg = SweepConfig.from_dict(d["config"])
-    rows = {int(r["bits"]): StoredRow(r) for r in d["results"]}
+    rows = {int(r["bits"]): StoredRow(_upgrade_row(r, fmt)) for r in d["results"]}
     nan = float("nan")
     return SweepResult(
         cfg,

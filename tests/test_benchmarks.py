@@ -67,12 +67,12 @@ def test_mpc_engine_variants_agree_and_use_both_paths():
         r = bench_mpc.benchmark_problem(pb, list(bench_mpc.ENGINE), 1, 1)
         a, b = r[bench_mpc.ENGINE[0]], r[bench_mpc.ENGINE[1]]
         assert np.abs(a["inputs"] - b["inputs"]).max() < 1e-9
-        assert a["osqp_steps"] == b["osqp_steps"]
+        assert a["qp_steps"] == b["qp_steps"]
         if c["case"] == "constrained":
-            assert a["osqp_steps"] > 0  # the input bound is active: the OSQP path is exercised
+            assert a["qp_steps"] > 0  # the input bound is active: the QP path is exercised
             assert np.abs(a["inputs"]).max() == pytest.approx(c["u_max"])
         else:
-            assert a["osqp_steps"] == 0
+            assert a["qp_steps"] == 0
 
 
 @pytest.mark.parametrize("peer", ["cvxpy+OSQP tight (eps 1e-9)", "do-mpc+IPOPT tight (tol 1e-12)"])

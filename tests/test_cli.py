@@ -214,13 +214,6 @@ def test_reproduce_writes_offline_panels(capsys, tmp_path):
     assert "index.html" in out
 
 
-def test_reproduce_needs_three_states(capsys, tmp_path):
-    f = tmp_path / "two.toml"
-    f.write_text("A = [[0.9, 0.1], [0.0, 0.8]]\nB = [[0.0], [1.0]]\n")
-    code, _, err = _run(capsys, "reproduce", "--system", str(f), "--out", str(tmp_path / "o"), *TINY)
-    assert code == 2 and "at least 3 states" in err
-
-
 MALFORMED = "A = [[0.9, 0.1]\nB = \n"
 
 

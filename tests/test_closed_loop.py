@@ -5,6 +5,7 @@ import pytest
 from scipy.optimize import lsq_linear
 
 import qsid_core.closed_loop as closed_loop
+import qsid_core.loop_kernel as loop_kernel
 from qsid_core import FailureKind, LTISystem, MPCConfig, run_closed_loops
 from qsid_core.riccati import dare_stabilizing
 from qsid_core.systems import boeing747, dc_motor
@@ -46,13 +47,16 @@ def _reference(model, s, cfg):
     return np.array(us)
 
 
-@pytest.mark.parametrize("compiled", [True, False])
-def test_saturated_loops_equal_an_exact_reference(compiled, monkeypatch):
+@pytest.mark.parametrize("path", ["loop", "batched", "numpy"])
+def test_saturated_loops_equal_an_exact_reference(path, monkeypatch):
     from qsid_core import kernels
 
-    if compiled and not kernels.AVAILABLE:
+    if path != "numpy" and not kernels.AVAILABLE:
         pytest.skip(kernels.REASON)
-    monkeypatch.setattr(kernels, "AVAILABLE", compiled)  # False: the batched numpy active-set iterations
+    # loop: the compiled closed loop; batched: the compiled active-set kernel per step; numpy: its numpy version
+    monkeypatch.setattr(kernels, "AVAILABLE", path != "numpy")
+    if path == "batched":
+        monkeypatch.setattr(closed_loop, "eligible", lambda loops: False)
     s, models = _boeing_models(5)
     cfg = MPCConfig(**SATURATED)
     loops = run_closed_loops(models, s.A, s.B, cfg, s)
@@ -62,11 +66,18 @@ def test_saturated_loops_equal_an_exact_reference(compiled, monkeypatch):
         np.testing.assert_allclose(loops.inputs[i], _reference(mdl, s, cfg), rtol=0, atol=1e-8)
 
 
-def test_daqp_alone_equals_the_exact_reference(monkeypatch):
-    # switch off the batched active-set step: every constrained step goes to DAQP
-    monkeypatch.setattr(
-        closed_loop, "box_qp_batch", lambda H, g, ub, hi, lo: (np.full(g.shape, np.nan), np.zeros(len(g), dtype=bool))
-    )
+@pytest.mark.parametrize("path", ["batched", "compiled"])
+def test_daqp_alone_equals_the_exact_reference(path, monkeypatch):
+    # switch off the active-set iterations: every constrained step goes to DAQP
+    if path == "batched":
+        monkeypatch.setattr(closed_loop, "eligible", lambda loops: False)
+        monkeypatch.setattr(
+            closed_loop,
+            "box_qp_batch",
+            lambda H, g, ub, hi, lo: (np.full(g.shape, np.nan), np.zeros(len(g), dtype=bool)),
+        )
+    else:
+        monkeypatch.setattr(loop_kernel, "PDAS_ITERS", 0)
     s, models = _boeing_models(2, seed=1)
     cfg = MPCConfig(**SATURATED)
     loops = run_closed_loops(models, s.A, s.B, cfg, s)

@@ -166,31 +166,37 @@ def test_a_tab_closed_while_it_is_being_built_is_not_kept(monkeypatch):
         app.stop()
 
 
-@pytest.mark.xfail(
-    reason="timing-dependent: if the workers are stopped before the heavy task reaches them no stale "
-    "task holds a worker and the pool is not replaced (seen in a fresh-clone CI run); a worker "
-    "stopped while idle is an open edge case",
-    strict=False,
-)
-def test_newest_settings_win_over_a_hung_task_without_waiting_for_the_timeout():
-    """Workers frozen during heavy work, the task timeout out of reach: the tab's newer (small) settings replace
-    the busy pool instead of queueing behind the stale task."""
+def _busy(app) -> bool:
+    """True once the pool has work of the tab that reached it (queued for or taken by a worker)."""
+    with app.pool._plock:
+        return any(e[1].running() for e in app.pool._pending)
+
+
+@pytest.mark.parametrize("when", ["mid-task", "idle"])
+def test_newest_settings_win_over_a_hung_task_without_waiting_for_the_timeout(when):
+    """Workers frozen (during heavy work, or idle before any task reached them), the task timeout out of reach:
+    the tab's newer (small) settings replace the frozen pool at once instead of waiting behind it."""
     app = DashboardApp(host="127.0.0.1", port=0, workers=2, task_timeout=100000.0)
     tab, victims = None, []
     try:
         tab = open_tab(app)
+        tab.wait()
         old = app.executor
+        victims = _pids(app)
+        if when == "idle":
+            for v in victims:
+                os.kill(v, signal.SIGSTOP)
         for k, v in HEAVIER.items():
             tab.controls[k].value = v
         tab.controls["bits"].value = 7
-        time.sleep(1.0)  # the heavy work is in the pool
-        victims = _pids(app)
-        for v in victims:
-            os.kill(v, signal.SIGSTOP)
+        wait_until(lambda: _busy(app), "the heavy work reached the pool")
+        if when == "mid-task":
+            for v in victims:
+                os.kill(v, signal.SIGSTOP)
         for k, v in LIGHTER.items():
             tab.controls[k].value = v
         tab.controls["bits"].value = 5
-        tab.wait(240)
+        tab.wait()
         assert app.executor is not old and app.pool.replacements >= 1
         assert tab.error is None, tab.error
         assert tab.frame.bits == 5 and tab.frame.values.realizations == LIGHTER["realizations"]

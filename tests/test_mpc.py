@@ -55,7 +55,7 @@ def test_active_input_bound_uses_osqp_and_holds():
     s = boeing747()
     cfg = MPCConfig(x0=(20.0, 20.0, 0.0, 0.0), u_max=0.5, steps=60)
     loops = run_closed_loops([(s.A, s.B)], s.A, s.B, cfg, s)
-    assert loops.osqp_steps > 0
+    assert loops.qp_steps > 0
     assert np.all(np.abs(loops.inputs) <= 0.5 + 1e-12)
     assert np.max(np.abs(loops.inputs)) == pytest.approx(0.5, abs=1e-6)
     # the engine's loop applies exactly what a per-step controller gives
@@ -149,7 +149,7 @@ def test_batched_speculative_loop_equals_per_step_mpc(u_max):
     cfg = MPCConfig(x0=(8.0, 8.0, 0.0, 0.0), u_max=u_max, steps=40)
     loops = run_closed_loops(models, s.A, s.B, cfg, s)
     if u_max < 1:
-        assert loops.osqp_steps > 0
+        assert loops.qp_steps > 0
     for i, mdl in enumerate(models):
         if loops.failure[i]:
             continue

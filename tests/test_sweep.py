@@ -22,7 +22,7 @@ OLD_KEYS = (
     "ident_failures",
     "mpc_cost",
     "final_state_norm",
-    "osqp_steps",
+    "qp_steps",
 )
 NEW_KEYS = (
     "realizations",
@@ -128,3 +128,25 @@ def test_summarize_matches_sweep_row():
     res = run_sweep(cfg)
     row = summarize(Experiment(cfg), 4)
     assert row.to_dict() == res.summary(4).to_dict()
+
+
+def test_result_json_has_its_format_and_format_1_files_load_with_the_renamed_key(tmp_path):
+    from qsid_core import ConfigError, load_result
+    from qsid_core.sweep import RESULT_FORMAT
+
+    res = run_sweep(SweepConfig(bits=(3,), mpc=MPCConfig(steps=10, u_max=(0.2,)), **SMALL))
+    d = json.loads(json.dumps(res.to_dict()))
+    assert d["result_format"] == RESULT_FORMAT == 2
+    row = d["results"][0]
+    assert "osqp_steps" not in row and row["qp_steps"] == res.loops[3].qp_steps
+    old = json.loads(json.dumps(d))  # as qsid wrote it before the key was renamed
+    del old["result_format"]
+    old["results"][0] = {("osqp_steps" if k == "qp_steps" else k): v for k, v in row.items()}
+    (tmp_path / "v1.json").write_text(json.dumps(old))
+    back = load_result(tmp_path / "v1.json")
+    assert list(back.summary(3)) == list(row) and back.summary(3)["qp_steps"] == row["qp_steps"]
+    assert back.to_dict()["results"] == d["results"]
+    newer = dict(d, result_format=RESULT_FORMAT + 1)
+    (tmp_path / "v3.json").write_text(json.dumps(newer))
+    with pytest.raises(ConfigError, match="result_format 3"):
+        load_result(tmp_path / "v3.json")

@@ -95,6 +95,30 @@ def test_realized_bound_uses_each_models_own_error_and_P():
     assert rb.median == pytest.approx(np.median(rb.delta[:3])) and rb.max == pytest.approx(rb.delta[:3].max())
 
 
+@pytest.mark.parametrize("x0, rho", [("sys", None), (None, None), ("sys", 2.0)])
+def test_realized_bounds_at_once_equal_ultimate_bound_model_by_model(x0, rho):
+    from qsid_core.errors import MPCFailure
+    from qsid_core.theory import realized_bounds
+
+    s = boeing747()
+    x0 = s.x0 if x0 == "sys" else None
+    rng = np.random.default_rng(2)
+    # small to huge model errors: finite bounds, overflowing ones, models without a stabilizing DARE solution
+    models = [
+        (s.A + e * rng.normal(size=s.A.shape), s.B + e * rng.normal(size=s.B.shape)) for e in np.logspace(-5, 1, 30)
+    ]
+    rb = realized_bounds(models, s.A, s.B, s.Q, s.R, None, 10, x0=x0, rho=rho)
+    for (Ah, Bh), d, r in zip(models, rb.delta, rb.rho):
+        try:
+            P = riccati_finite(Ah, Bh, s.Q, s.R, dare_stabilizing(Ah, Bh, s.Q, s.R), 10)
+        except MPCFailure:
+            assert d == np.inf
+            continue
+        ub = ultimate_bound(P, s.Q, s.R, s.A - Ah, s.B - Bh, x0=x0, rho=rho)
+        assert d == pytest.approx(ub.delta, rel=1e-6)
+        assert r == pytest.approx(ub.rho, rel=1e-6, nan_ok=True)
+
+
 def test_letter_bound_vs_realized_bound_motor_b16():
     """Issue 7: at b = 16 the letter's delta (Theorem 1's T -> inf errors) is ~10^4 smaller than the bound
     from the realizations' own finite-data errors (measured 5.75e-7 vs median 5.8e-3)."""

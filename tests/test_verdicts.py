@@ -116,11 +116,12 @@ def test_certificate_is_a_proof_on_random_stable_loops():
 
 def test_complex_stability_radius_matches_a_fine_grid_and_small_gain_is_sound():
     rng = np.random.default_rng(0)
-    for _ in range(4):
-        M = rng.normal(size=(3, 3))
-        M *= 0.97 / spectral_radius(M)
-        th = np.linspace(0, np.pi, 40001)
-        fine = np.linalg.svd(np.exp(1j * th)[:, None, None] * np.eye(3) - M, compute_uv=False)[:, -1].min()
+    for k in range(24):  # sizes 1-4, spectral radii up to 0.999 (sharp dips near the unit circle)
+        n = 1 + k % 4
+        M = rng.normal(size=(n, n))
+        M *= (0.97 if k < 4 else rng.uniform(0.5, 0.999)) / spectral_radius(M)
+        th = np.union1d(np.linspace(0, np.pi, 40001), np.abs(np.angle(np.linalg.eigvals(M))))
+        fine = np.linalg.svd(np.exp(1j * th)[:, None, None] * np.eye(n) - M, compute_uv=False)[:, -1].min()
         r = complex_stability_radius(M)
         assert r <= fine + 1e-12 and r == pytest.approx(fine, rel=1e-6)
     assert complex_stability_radius(np.diag([1.2, 0.1])) == 0.0

@@ -1,7 +1,8 @@
 """``qsid reproduce``: the letter's figure panels (a)-(f) as offline HTML, plus the data as JSON.
 
 (a)/(b) relative errors of A and B against b, (c) the closed-loop MPC cost
-against b, (d)-(f) phase portraits of the closed loops for b = 2, 4, 6. Every page
+against b, (d)-(f) phase portraits of the closed loops for b = 2, 4, 6 (systems with fewer than
+three states draw time on the missing axis). Every page
 loads ``plotly.min.js`` from its own folder, so the folder works offline. The
 numbers come from the engine (through :func:`app.cli.runner.run`); this module
 only lays out and writes figures (the builders are :mod:`app.figures`).
@@ -13,6 +14,7 @@ import html
 import time
 from pathlib import Path
 
+from .figure_out import check_formats, save_panels
 from .output import dumps, format_table, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, check_writable, config, input_files, system_from_args, write_text
@@ -61,6 +63,13 @@ def add_arguments(p) -> None:
         help="output directory (created if missing; a non-empty one needs --force)",
     )
     p.add_argument("--force", action="store_true", help="write into a non-empty --out directory (files replaced)")
+    p.add_argument(
+        "--figure",
+        metavar="FMT[,FMT]",
+        default=None,
+        help="also write every panel as png, svg and/or pdf beside its HTML (drawn offline by a local headless "
+        "Chromium, /usr/bin/chromium or $QSID_CHROMIUM; without it only the HTML, with a note why)",
+    )
 
 
 def letter_note(cfg, system) -> str:
@@ -115,9 +124,18 @@ def _split_error_panel(fig, col: int):
     return panel
 
 
+def portrait_dims(n: int) -> tuple:
+    """The states a portrait draws: the first three; ``None`` (time, the step k) for the ones a system lacks."""
+    return tuple(i if i < n else None for i in range(3))
+
+
 def _portrait_title(tag: str, system, b: int, R: int) -> str:
     which = ""
-    if system.n > 3:
+    if system.n == 2:
+        which = "; time (step k) on the third axis"
+    elif system.n == 1:
+        which = "; the state against time (step k)"
+    elif system.n > 3:
         names = system.state_names
         which = f"; states 1-3 ({', '.join(names[:3])}) of {system.n} shown, {', '.join(names[3:])} not drawn"
     return f"({tag}) closed loops on the true system, b = {b}, {R} realizations{which}"
@@ -158,7 +176,7 @@ def _portrait_panels(ex, system, label: str, R: int) -> tuple[list, dict, object
         fig = phase_portrait_figure(
             loops.states,
             true_states,
-            dims=(0, 1, 2),
+            dims=portrait_dims(system.n),
             names=system.state_names,
             title=_portrait_title(tag, system, b, R),
             label=label,
@@ -232,11 +250,7 @@ def run(args, rep) -> int:
     from plotly.offline import get_plotlyjs
 
     system = system_from_args(args)
-    if system.n < 3:
-        raise UsageError(
-            f"reproduce draws 3-D phase portraits and needs a system with at least 3 states; "
-            f"{system.name!r} has {system.n}"
-        )
+    formats = check_formats(args.figure)
     outdir = _out_dir(args.out, args.force, input_files(args))
     if args.force and any(outdir.iterdir()):
         rep.line(f"note: --force: files in {outdir} with the same names will be replaced")
@@ -253,13 +267,17 @@ def run(args, rep) -> int:
     written = []
     for stem, _, fig in panels:
         path = outdir / f"{stem}.html"
-        fig.write_html(path, include_plotlyjs="directory", full_html=True)
+        write_text(path, fig.to_html(include_plotlyjs="directory", full_html=True))  # whole or not at all
         written.append(path)
+    if formats:
+        rep.stage(f"drawing {len(panels)} panels as {', '.join(formats)} in a headless Chromium")
+        written += save_panels([(fig, outdir / f"{stem}.{f}") for stem, _, fig in panels for f in formats], rep)
     data = {
         "sweep": d,
         "phase_portraits": {
             "bits": list(PORTRAIT_BITS),
-            "drawn_states": [0, 1, 2],
+            "drawn_states": [i for i in portrait_dims(system.n) if i is not None],
+            "time_axes": [j for j, i in enumerate(portrait_dims(system.n)) if i is None],
             "state_names": list(system.state_names),
             "true_model_states": true_states,
             "by_bits": portraits,

@@ -7,12 +7,10 @@ Commands import this module (and :mod:`app.cli.output`), never each other.
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import shutil
 import signal
 import sys
-import tempfile
 import time
 import warnings
 from collections.abc import Sequence
@@ -125,15 +123,6 @@ def _worker_init(parent: int | None = None) -> None:
         end_with_parent(parent)
 
 
-def _max_magnitude() -> float:
-    """The engine's bound on magnitudes (1e12 for engines before it had one)."""
-    try:
-        from qsid_core.validate import MAX_MAGNITUDE
-    except ImportError:  # pragma: no cover - engines before input validation
-        return 1e12
-    return float(MAX_MAGNITUDE)
-
-
 def resolve_system(spec: str):
     """A preset name or a system file (``--system``); every bad file is one :class:`UsageError` line."""
     from qsid_core.systems import get_system
@@ -143,17 +132,7 @@ def resolve_system(spec: str):
         raise UsageError(f"argument --system: {spec!r} is a directory; give a preset name or a .toml/.json file")
     if spec.lower().endswith((".toml", ".json")) and p.exists() and not p.is_file():
         raise UsageError(f"system file {spec!r} is not a regular file")
-    try:
-        system = get_system(spec)
-    except (TypeError, OverflowError, RecursionError, AttributeError) as exc:
-        # engine versions without full input validation: still one line, naming the file
-        raise UsageError(
-            f"system {spec!r}: an entry is not a usable number ({type(exc).__name__}: {one_line(exc)[:200]})"
-        ) from None
-    dt = getattr(system, "dt", 1.0)
-    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise UsageError(f"system {spec!r}: dt must be a positive finite sample time; got {dt!r}")
-    return system
+    return get_system(spec)  # a bad file is a SystemDefinitionError (a ValueError: one line from main)
 
 
 def system_from_args(args):
@@ -194,11 +173,11 @@ def _quantizer(args, system):
 def config(args, system, mpc: bool):
     """The engine's :class:`~qsid_core.SweepConfig` for parsed arguments (shapes checked before any work)."""
     from qsid_core import SweepConfig, parse_bits
+    from qsid_core.validate import MAX_MAGNITUDE
 
     bits = parse_bits(args.bits)
-    rho_max = _max_magnitude()
-    if args.rho is not None and not 0 < args.rho <= rho_max:
-        raise UsageError(f"argument --rho: must be > 0 and at most {rho_max:g}; got {args.rho:g}")
+    if args.rho is not None and not 0 < args.rho <= MAX_MAGNITUDE:
+        raise UsageError(f"argument --rho: must be > 0 and at most {MAX_MAGNITUDE:g}; got {args.rho:g}")
     defaults = SweepConfig(mpc=None)
     seed = getattr(args, "seed", None)
     seeds = {
@@ -390,26 +369,9 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs=()) ->
     return out
 
 
-def _mode_for(path: Path) -> int:
-    """The permission bits ``path`` has, or a new file would get under the umask."""
-    try:
-        return os.stat(path).st_mode & 0o7777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
-
-
 def write_text(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically: a temporary file beside it, renamed over it when complete
     (an interrupted run never leaves a half-written file, and an existing one stays until then)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, _mode_for(path))
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    from qsid_core.records import replace_atomically
+
+    replace_atomically(Path(path), text)

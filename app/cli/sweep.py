@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .figure_out import add_figure_arguments, check_figure, write_figure
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
 from .runner import UsageError, input_files, out_file, system_from_args, write_text
@@ -41,6 +42,7 @@ def add_arguments(p) -> None:
         help="also write the JSON to FILE (checked before the run; an existing FILE is replaced, "
         "with a note on stderr; never an input file)",
     )
+    add_figure_arguments(p)
 
 
 def run(args, rep) -> int:
@@ -65,6 +67,7 @@ def run(args, rep) -> int:
     csv_out = out_file(args.csv, rep, flag="--csv", inputs=inputs)
     if out is not None and csv_out is not None and out.resolve() == csv_out.resolve():
         raise UsageError("arguments --out and --csv name the same file; give two names")
+    fig_out = check_figure(args, rep, inputs, (("--out", out), ("--csv", csv_out)))
     res, _ = run_sweep(args, system, not args.no_mpc, rep, cfg=cfg)
     d = sweep_dict(res)
     if csv_out is not None:
@@ -75,6 +78,7 @@ def run(args, rep) -> int:
     text = dumps(d)
     if out is not None:
         write_text(out, text + "\n")
+    write_figure(res, fig_out, args.figure_view, rep)
     rep.stage(f"done in {d['timing_s']['total']:.2f} s" + (f"; JSON written to {out}" if out else ""))
     print(text if args.json else format_table(d))
     return 0

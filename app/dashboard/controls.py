@@ -45,8 +45,15 @@ __all__ = [
     "set_scale",
     "set_system",
     "apply_lesson",
+    "PLAY_LABEL",
 ]
 
+#: The auto-play button's label when it would start (b from 1 to 16) and what it does.
+PLAY_LABEL = "▶ auto-play b = 1 → 16"
+PLAY_HINT = (
+    "Steps the word length from 1 to 16, about one b per second (the next b only once the previous one is drawn); "
+    "press again to pause or resume. Any change of yours stops it."
+)
 MATRIX_HINT = "One row per line (or separate rows with ';'); numbers separated by spaces or commas."
 
 
@@ -93,6 +100,14 @@ CONTROLS: tuple[Control, ...] = (
         convert=int,
         hint=f"Bits per sample of the quantizer ({ALL_BITS[0]}..{ALL_BITS[-1]}). "
         "Curves show every b; the 3-D view shows this one.",
+    ),
+    Control(
+        "presenter",
+        "checkbox",
+        "presenter",
+        convert=bool,
+        hint="Lecture-hall layout: plot text 18 px, panel text 16 px, thick lines, a wide 3-D scene "
+        "(both panels narrowed). Auto-play below steps b from 1 to 16.",
     ),
     Control(
         "system",
@@ -397,9 +412,10 @@ class GuiElements:
     system_note: object
     weights_note: object
     lesson_text: object
+    play: object
     q_folder: object
     r_folder: object
-    on_change: Callable[[], None]
+    on_change: Callable[..., None]
     q_sliders: list = field(default_factory=list)
     r_sliders: list = field(default_factory=list)
     system_key: tuple | None = None
@@ -466,8 +482,9 @@ def _extras_after(gui, name: str, values: Values, handles: dict, extra: dict) ->
         extra["weights_note"] = gui.add_markdown("")
 
 
-def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callable[[], None]) -> GuiElements:
-    """Build the whole panel of a tab in ``gui`` (``client.gui``); every input calls ``on_change()``."""
+def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callable[..., None]) -> GuiElements:
+    """Build the whole panel of a tab in ``gui`` (``client.gui``); every input calls ``on_change(user)``,
+    ``user`` True when the change came from the browser."""
     gui.add_markdown("**qsid** · quantized data → identified model → MPC")
     handles: dict = {}
     extra: dict = {}
@@ -475,7 +492,9 @@ def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callabl
 
     def add(c: Control) -> None:
         h = _add(gui, c, _initial(c, values, system), system, custom)
-        h.on_update(inline(lambda _event: on_change()))  # only mark dirty (at once); the tab's worker redraws
+        # only mark dirty (at once); the tab's worker redraws. A change from the browser (client_id set, not one
+        # the server made) also counts as the person's own: it stops the auto-play.
+        h.on_update(inline(lambda event: on_change(event.client_id is not None)))
         handles[c.name] = h
 
     for c in (c for c in CONTROLS if c.tab == ""):  # the lesson and the word length, above the tabs
@@ -483,6 +502,8 @@ def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callabl
         if c.name == "lesson":
             text = lesson_markdown(values.lesson)
             extra["lesson_text"] = gui.add_markdown(text, visible=bool(text))
+        if c.name == "presenter":
+            extra["play"] = gui.add_button(PLAY_LABEL, hint=PLAY_HINT)
     extra["progress"] = gui.add_progress_bar(0.0, animated=False)
     extra["status"] = gui.add_markdown("starting …")
     extra["error"] = gui.add_markdown("", visible=False)
@@ -535,7 +556,7 @@ def _weight_sliders(el: GuiElements, folder, kind: str, names, logs) -> list:
             for nm, x in zip(names, logs)
         ]
     for h in sliders:
-        h.on_update(inline(lambda _event: el.on_change()))
+        h.on_update(inline(lambda event: el.on_change(event.client_id is not None)))
     return sliders
 
 
@@ -600,7 +621,7 @@ def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
     ):
         s.value = x
     for c in CONTROLS:
-        if c.name in ("lesson", "system", "a_text", "b_text", "axes"):
+        if c.name in ("lesson", "system", "a_text", "b_text", "axes", "presenter"):  # presenter: the room's choice
             continue
         value = getattr(v, c.name) if c.name != "x0" or v.x0 else ", ".join(f"{x:g}" for x in system.x0)
         if h[c.name].value != value:

@@ -27,6 +27,7 @@ connect callback (queued behind it) did not run for more than 30 s.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 from collections import OrderedDict, deque
@@ -127,21 +128,47 @@ class TabCallbacks:
 
 
 class FairSlots:
-    """At most ``n`` holders at once, handed out in the order they were asked for (a context manager)."""
+    """At most ``n`` holders at once, handed out in the order they were asked for (a context manager).
+
+    :meth:`turn` is the same with a report: a caller that has to wait is told, and told again whenever its
+    place changes, how many tabs are ahead of it (those holding a slot and those waiting before it).
+    """
+
+    #: Seconds between two looks at a waiting caller's place in the queue.
+    REPORT_EVERY = 0.25
 
     def __init__(self, n: int):
-        self._free = max(1, int(n))
+        self.n = max(1, int(n))
+        self._free = self.n
         self._lock = threading.Lock()
         self._waiting: deque = deque()
 
-    def acquire(self) -> None:
+    def acquire(self, on_wait: Callable[[int], None] | None = None) -> None:
         with self._lock:
             if self._free > 0 and not self._waiting:
                 self._free -= 1
                 return
             turn = threading.Event()
             self._waiting.append(turn)
-        turn.wait()  # release() hands its slot over directly: nobody can barge in between
+            ahead = self._ahead(turn)
+        if on_wait is None:
+            turn.wait()  # release() hands its slot over directly: nobody can barge in between
+            return
+        on_wait(ahead)
+        while not turn.wait(self.REPORT_EVERY):
+            with self._lock:
+                now = self._ahead(turn)
+            if now != ahead and not turn.is_set():
+                ahead = now
+                on_wait(ahead)
+
+    def _ahead(self, turn: threading.Event) -> int:
+        """Callers ahead of ``turn`` (which is waiting): the holders plus those queued before it (lock held)."""
+        try:
+            before = self._waiting.index(turn)
+        except ValueError:  # handed a slot meanwhile
+            return 0
+        return self.n - self._free + before
 
     def release(self) -> None:
         with self._lock:
@@ -149,6 +176,15 @@ class FairSlots:
                 self._waiting.popleft().set()
             else:
                 self._free += 1
+
+    @contextlib.contextmanager
+    def turn(self, on_wait: Callable[[int], None] | None = None):
+        """``with slots.turn(report):`` holds a slot for the block; ``report(n)`` while ``n`` callers are ahead."""
+        self.acquire(on_wait)
+        try:
+            yield self
+        finally:
+            self.release()
 
     def __enter__(self) -> FairSlots:
         self.acquire()

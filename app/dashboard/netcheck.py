@@ -8,7 +8,7 @@ import socket
 
 from qsid_core.errors import ConfigError
 
-__all__ = ["OneLineParser", "check_address", "port_number"]
+__all__ = ["OneLineParser", "check_address", "port_number", "who_can_connect"]
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -56,4 +56,41 @@ def check_address(host: str, port: int) -> str | None:
         f"warning: listening on {host} ({', '.join(addrs)}), not only on this machine: anyone who can reach "
         "it on the network can use the dashboard and its CPU (there is no login). Use --host 127.0.0.1 "
         "to keep it private."
+    )
+
+
+def _own_addresses() -> list[str]:
+    """This machine's non-loopback IPv4 addresses (its host name's, and the one its default route uses)."""
+    found: set[str] = set()
+    try:
+        found |= {i[4][0] for i in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET)}
+    except (socket.gaierror, UnicodeError, OSError):
+        pass
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.connect(("192.0.2.1", 9))  # TEST-NET-1: picks the outgoing address, sends nothing
+            found.add(s.getsockname()[0])
+    except OSError:
+        pass
+    return sorted(a for a in found if not ipaddress.ip_address(a).is_loopback)
+
+
+def who_can_connect(host: str, port: int) -> str | None:
+    """One note line for a server on ``host``:``port`` that others can reach (None: this machine only)."""
+    try:
+        addrs = sorted({i[4][0] for i in socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)})
+    except (socket.gaierror, UnicodeError, OSError):
+        return None
+    ips = [ipaddress.ip_address(a.split("%")[0]) for a in addrs]
+    if all(ip.is_loopback for ip in ips):
+        return None
+    if any(ip.is_unspecified for ip in ips):
+        urls = [f"http://{a}:{port}" for a in _own_addresses()] or [f"http://<this machine's address>:{port}"]
+        where = "every network of this machine"
+    else:
+        urls = [f"http://{host}:{port}"]
+        where = f"the network of {host}"
+    return (
+        f"note: others connect at {', '.join(urls)} (anyone who can reach {where}; no login; "
+        "--max-tabs N limits how many tabs it serves)"
     )

@@ -11,7 +11,10 @@ Threading (see the list in :mod:`app.dashboard.session`):
   (:class:`Superseded`; queued work is cancelled; a worker still busy with it after ``SUPERSEDED_GRACE``
   seconds is replaced with its pool), a task running longer than
   ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced
-  (the hung worker is killed).
+  (the hung worker is killed), and a pool one of whose workers is stopped (SIGSTOP, job control) is
+  replaced as soon as it has work: a stopped worker never finishes its task, and one stopped while idle
+  may hold the lock of the pool's task queue, so no other worker gets a task either. Tasks of the
+  replaced pool that are not superseded fail with :class:`PoolBroken` (their tab retries once).
 
 The engine only sees :class:`Guarded`, an executor whose futures settle in one of
 those ways; everything else (results, exceptions) passes through unchanged.
@@ -34,6 +37,7 @@ from collections.abc import Callable
 from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
+from app import tracker
 from app.procs import end_with_parent, kill_workers
 from qsid_core.errors import QsidError
 
@@ -118,6 +122,22 @@ def twice_message(exc: PoolFailure) -> str:
         else " Change a setting to retry."
     )
     return f"{exc} (twice).{hint}"
+
+
+def _stopped(pid: int) -> bool:
+    """True if process ``pid`` is stopped by a signal (Linux ``/proc``; False where that cannot be read)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat = f.read()
+    except OSError:
+        return False
+    return stat[stat.rfind(b")") + 2 : stat.rfind(b")") + 3] == b"T"
+
+
+def stopped_workers(ex) -> list[int]:
+    """The process ids of the workers of ``ProcessPoolExecutor`` ``ex`` that are stopped (SIGSTOP)."""
+    procs = getattr(ex, "_processes", None) or {}
+    return [pid for pid in list(procs) if _stopped(pid)]
 
 
 class Superseded(Exception):
@@ -247,15 +267,19 @@ class Pool:
             self._pending.append(entry)
 
     def _watchdog(self) -> None:
-        last_trim = time.monotonic()
+        last_trim = last_tracker = time.monotonic()
         while True:
             time.sleep(0.1)
             if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
                 trim()
                 last_trim = time.monotonic()
+            if time.monotonic() - last_tracker > 1.0:  # a dead resource tracker: reaped and replaced, one line
+                tracker.check(lambda text: print(f"qsid-dashboard: {text}", file=sys.stderr, flush=True))
+                last_tracker = time.monotonic()
             with self._plock:  # a superseded task still running stays watched until its worker is free
                 entries = [e for e in self._pending if not (e[0].done() and e[1].done())]
                 self._pending = entries
+            self._check_stopped(entries)
             now = time.monotonic()
             for e in entries:
                 outer, inner, guard = e[0], e[1], e[2]
@@ -277,6 +301,20 @@ class Pool:
                         ),
                     )
                     self.replace(guard.executor)
+
+    def _check_stopped(self, entries: list) -> None:
+        """Replace the current pool at once if it has unfinished work and a stopped worker."""
+        ex = self.current
+        if ex is None or not any(e[2].executor is ex and not e[1].done() for e in entries):
+            return
+        pids = stopped_workers(ex)
+        if not pids:
+            return
+        exc = PoolBroken(f"a worker process was stopped (pid {pids[0]}); the pool was restarted", ex)
+        for outer, inner, guard, _ in entries:
+            if guard.executor is ex and not inner.done():
+                _settle(outer, exc=Superseded() if guard.stop() else exc)
+        self.replace(ex)
 
 
 def _settle(fut: Future, result=None, exc: BaseException | None = None) -> None:
@@ -306,8 +344,9 @@ class Guarded:
         outer.set_running_or_notify_cancel()
 
         def copy(f: Future) -> None:
-            if f.cancelled():
-                _settle(outer, exc=Superseded())
+            if f.cancelled():  # abandoned (newer settings), or its pool was replaced under it (retried)
+                broken = PoolBroken("the worker pool was restarted", self.executor)
+                _settle(outer, exc=Superseded() if self.stop() else broken)
                 return
             exc = f.exception()
             if isinstance(exc, BrokenProcessPool):

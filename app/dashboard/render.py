@@ -8,6 +8,7 @@ from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.compare import PINNED_VIEWS, overlay_pinned
 from app.figures.phase_scene import SceneView, scene_view
+from app.figures.presenter import presenter_figure
 from app.figures.raw import Wire
 from app.figures.traces import CURRENT_B, move_current_bits
 from app.figures.view import CURRENT, CURVES
@@ -55,9 +56,14 @@ class Renderer:
         self.figures: dict = {}
         self._rows_key = None
         self._current_keys: dict = {}
+        self._presenter = False
 
     def render(self, frame: Frame, axes: str | None = None) -> Render:
         out: dict = {}
+        presenter = bool(getattr(frame.values, "presenter", False))
+        if presenter != self._presenter:  # every figure is rebuilt in the other style
+            self.figures, self._rows_key, self._current_keys = {}, None, {}
+            self._presenter = presenter
         scene = summary = None
         curves = [v.name for v in registry.VIEWS if v.depends == CURVES]
         if frame.stage == "current":
@@ -90,6 +96,11 @@ class Renderer:
                 fig = self.figures.get(name)
                 if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
                     out[name] = move_current_bits(fig, frame.bits)
+        if presenter:
+            out = {
+                name: presenter_figure(fig) if name not in self.figures or fig is not self.figures[name] else fig
+                for name, fig in out.items()
+            }
         self.figures.update(out)
         # viser's plot handle calls figure.to_json(): Wire's skips plotly's deep copy (raw.to_json)
         return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()})

@@ -16,6 +16,7 @@ from app.figures.phase_scene import SceneView
 
 __all__ = ["PhasePortrait"]
 
+PRESENTER_SCALE = 1.8  # presenter mode: lines and labels of the 3-D scene this much thicker / bigger
 AXIS = 1.25  # half length of the drawn axes, in box units
 _GREY = rgb("axes")
 _SPHERE = rgb("bound")
@@ -39,6 +40,7 @@ class PhasePortrait:
         self.p = prefix
         self.view: SceneView | None = None
         self.draws = 0
+        self.thick = 1.0  # line widths and label sizes x this (presenter mode: PRESENTER_SCALE)
         ax = np.zeros((3, 2, 3), dtype=np.float32)
         for i in range(3):
             ax[i, 0, i], ax[i, 1, i] = -AXIS, AXIS
@@ -103,13 +105,26 @@ class PhasePortrait:
 
     def _add_traj(self, pts, cols):
         return self.scene.add_line_segments(
-            f"{self.p}/trajectories", pts, cols, thickness=2.0, thickness_units="screen"
+            f"{self.p}/trajectories", pts, cols, thickness=2.0 * self.thick, thickness_units="screen"
         )
 
     def _add_true(self, pts):
         return self.scene.add_line_segments(
-            f"{self.p}/true_model", pts, np.array(rgb("true"), dtype=np.uint8), thickness=5.0, thickness_units="screen"
+            f"{self.p}/true_model",
+            pts,
+            np.array(rgb("true"), dtype=np.uint8),
+            thickness=5.0 * self.thick,
+            thickness_units="screen",
         )
+
+    def set_presenter(self, on: bool) -> None:
+        """Thicker loops and bigger labels (presenter mode), or the normal ones."""
+        self.thick = PRESENTER_SCALE if on else 1.0
+        self.traj.thickness = 2.0 * self.thick
+        self.true.thickness = 5.0 * self.thick
+        labels = (*self.axis_labels, self.start_label, self.scale_label, self.sphere_label)
+        for lab, base in zip(labels, (1.1, 1.1, 1.1, 1.0, 0.85, 0.9)):
+            lab.font_screen_scale = base * self.thick
 
     # ----- drawing ----------------------------------------------------------------------
     def draw(self, v: SceneView) -> None:

@@ -27,11 +27,13 @@ from .cache import SharedCache
 from .flow import FairSlots, limit_reads
 from .lessons import get_lesson, lesson_names, lesson_values
 from .memory import limit_arenas, trim
-from .netcheck import OneLineParser, check_address, port_number
+from .netcheck import OneLineParser, check_address, port_number, who_can_connect
 from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
+from .viewcodes import ViewStore, default_store_path, open_view
+from .viserfix import check_request_hook, connection_request
 from .viserfix import install as _install_viser_fix
 from .warm import COMPILE_SECONDS, needs_compiling, warm
 
@@ -60,6 +62,10 @@ class DashboardApp:
         Seconds one pool task may run before its worker counts as hung and is replaced.
     max_tabs : int, optional
         Tabs served at once; a further tab gets a page saying the dashboard is full (None: no limit).
+    presenter : bool
+        New tabs open in presenter mode (large text, a wide 3-D scene, auto-play).
+    views_file : path, optional
+        The JSON file that keeps the view codes' settings across restarts (None: in memory only).
     """
 
     def __init__(
@@ -76,6 +82,8 @@ class DashboardApp:
         lesson: str | None = None,
         task_timeout: float = DEFAULT_TIMEOUT,
         max_tabs: int | None = None,
+        presenter: bool = False,
+        views_file=None,
     ):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
@@ -83,6 +91,9 @@ class DashboardApp:
         self.defaults = settings if settings is not None else Values(system=system, **size)
         if lesson is not None:  # every new tab opens on the lesson (its settings, its text)
             self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
+        if presenter:
+            self.defaults = self.defaults.replace(presenter=True)
+        self.views = ViewStore(views_file)  # view codes -> settings (links that survive a reload)
         self.cache = SharedCache(cache_bytes)
         self.slots = FairSlots(slots)  # (4) at most `slots` tabs compute at once, first come first served
         self.workers = max(0, int(workers))
@@ -101,6 +112,7 @@ class DashboardApp:
         cam.look_at = (0.0, 0.0, 0.0)
         cam.up = (0.0, 0.0, 1.0)
         _refuse_share_requests(self.server)
+        check_request_hook(self.server)  # view links need the websocket's path: fail now, not silently later
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
 
@@ -135,7 +147,9 @@ class DashboardApp:
             )
             return
         try:
-            s = Session(self, client, self.defaults)
+            path, host = connection_request(self.server, client.client_id) or ("/", "")
+            values, view = open_view(self.views, path, host or f"{self.host}:{self.port}", self.defaults)
+            s = Session(self, client, values, view)
         except Exception:  # a broken tab must not take the server down
             traceback.print_exc()
             with self._lock:
@@ -161,6 +175,7 @@ class DashboardApp:
                     self._gone.popitem(last=False)
         if s is not None:
             s.close(wait=False)  # never block viser's callback threads; the worker ends at its next check
+            self.views.flush()
             trim()
 
     def wait_for_sessions(self, count: int, timeout: float = 30.0) -> list:
@@ -180,6 +195,7 @@ class DashboardApp:
         for s in sessions:
             s.close(wait=False)
         self.pool.shutdown()  # workers killed: a tab's pending task fails at once
+        self.views.flush()
         if wait:
             for s in sessions:
                 s.close()
@@ -258,6 +274,11 @@ def _parser() -> argparse.ArgumentParser:
         metavar="FILE",
         default=None,
         help="start every new tab from a settings file (saved with the panel's 'Download settings')",
+    )
+    p.add_argument(
+        "--presenter",
+        action="store_true",
+        help="open new tabs in presenter mode: plot text 18 px, panel text 16 px, thick lines, a wide 3-D scene",
     )
     p.add_argument(
         "--lesson", default=None, metavar="NAME", help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}"
@@ -375,9 +396,16 @@ def main(argv: list[str] | None = None) -> int:
             task_timeout=args.task_timeout,
             cache_bytes=args.cache_mb * 2**20,
             max_tabs=args.max_tabs,
+            presenter=args.presenter,
+            views_file=default_store_path(),
         )
+        if app.views.load_note:
+            print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
         warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
+        note = who_can_connect(args.host, app.port)
+        if note:
+            print(f"qsid dashboard: {note}", flush=True)
         _wait_for_stop_signal(stop)
         print("\nqsid dashboard: stopping", flush=True)
     except (QsidError, OSError) as exc:

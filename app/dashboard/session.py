@@ -42,11 +42,13 @@ from .frames import Frame
 from .inputs import check_panel, unusable
 from .lessons import get_lesson, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
+from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
 from .scene import PhasePortrait
 from .settings import InputError, Values, resolve_system
 from .share import add_share_panel, apply_pending, show_frame
 from .stages import iter_frames
+from .viewcodes import ViewOpen, add_code_panel, remember
 from .viewpanel import PANEL_WIDTH, ViewPanel
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
@@ -70,7 +72,7 @@ class Session:
     newer change arrived meanwhile.
     """
 
-    def __init__(self, app, client, values: Values):
+    def __init__(self, app, client, values: Values, view: ViewOpen | None = None):
         self.app = app
         self.client = client
         # (1) guards _gen (bumped per change), _done (last generation handled) and _closed
@@ -97,6 +99,9 @@ class Session:
         self.plots_panel.set_width(PANEL_WIDTH)
         system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
         self.controls = make_gui_elements(gui, values, system, self.touch)
+        self.play = AutoPlay(self.controls.play, self.controls["bits"], self.touch)
+        self.controls.play.on_click(lambda _e: self.play.press())
+        self.codes = None if view is None else add_code_panel(self, view, self.controls.play)
         self._lesson = values.lesson  # the lesson whose settings the panel was given
         self.share = add_share_panel(self)  # keep & share: settings file, command line, exports
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
@@ -109,14 +114,20 @@ class Session:
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
         self.renderer = Renderer()
         self.portrait = PhasePortrait(client.scene)
+        self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH)
         # (2) the tab's one worker
         self.thread = threading.Thread(target=self._loop, name=f"qsid-tab-{client.client_id}", daemon=True)
         self.thread.start()
         self.touch()
 
     # ----- called from viser's callback threads -----------------------------------------
-    def touch(self) -> None:
-        """Something changed: the worker recomputes from the newest values (older work is dropped)."""
+    def touch(self, user: bool = False) -> None:
+        """Something changed: the worker recomputes from the newest values (older work is dropped).
+
+        ``user``: the change came from the browser (it stops the auto-play)."""
+        play = getattr(self, "play", None)
+        if user and play is not None:
+            play.user_changed()
         with self._cond:
             self._gen += 1
             self._touches += 1
@@ -171,10 +182,15 @@ class Session:
 
     def _loop(self) -> None:
         while True:
-            with self._cond:
-                self._cond.wait_for(lambda: self._closed or self._done != self._gen)
+            with self._cond:  # idle: sleep until a change, or until the auto-play's next word length is due
+                self._cond.wait_for(lambda: self._closed or self._done != self._gen, self.play.wait_time())
                 if self._closed:
                     return
+                idle = self._done == self._gen
+            if idle:  # (everything drawn) the auto-play's next b, if due: a new generation like any change
+                self.play.step()
+                continue
+            with self._cond:
                 # (2) a burst of changes: wait out the gap since the last start, then take the newest
                 self._cond.wait_for(lambda: self._closed, self._last_start + self._gap - time.monotonic())
                 if self._closed:
@@ -254,6 +270,8 @@ class Session:
             self._show_error(str(exc))
             return gen
         show_weights(c)
+        self.play.show()
+        self.presenter.apply(bool(c["presenter"].value))
         gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:
@@ -282,6 +300,14 @@ class Session:
                 c.progress.value = 100.0 * done / total
                 c.status.content = text
 
+        waited: list = []
+
+        def queued(ahead: int) -> None:
+            waited.append(ahead)
+            if not self._stale(gen):
+                c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
+
+        c.status.content = "computing …"
         frames = iter_frames(
             values,
             self.app.cache,
@@ -292,9 +318,11 @@ class Session:
         )
         try:
             while True:
-                with self.app.slots:  # (4) at most a few tabs compute at once
+                with self.app.slots.turn(queued):  # (4) at most a few tabs compute at once, in turn
                     if self._stale(gen):
                         return gen
+                    if waited:  # its turn came
+                        c.status.content, waited[:] = "computing …", []
                     frame = next(frames, None)
                 if frame is None or self._stale(gen):
                     return gen
@@ -310,6 +338,7 @@ class Session:
                         f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
                         f"all curves in {self.timings['all']:.2f} s"
                     )
+                    return gen  # the last frame: no further turn to wait for
         except (PoolFailure, Superseded) as exc:
             if isinstance(exc, PoolFailure):
                 raise
@@ -354,5 +383,6 @@ class Session:
                 self.plots[name].figure = fig
         self.last_frame = frame
         show_frame(self, frame)
+        remember(self)
         self.frames_drawn += 1
         return True

@@ -133,6 +133,7 @@ class Values:
     state_bits: str = "b"  # states' word length: "b" (the slider's), or one entry per state (b, a number, exact)
     noise: str = ""  # sensor noise sigma on the recorded states: one for all or one per state ("" = none)
     noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
+    presenter: bool = False  # lecture-hall layout: large text, thick lines, a wide 3-D scene (display only)
 
     def replace(self, **kw) -> Values:
         return dataclasses.replace(self, **kw)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import asyncio
 
-__all__ = ["install", "LoopEvent"]
+__all__ = ["install", "LoopEvent", "check_request_hook", "connection_request"]
 
 
 class LoopEvent(asyncio.Event):
@@ -60,3 +60,31 @@ def install() -> bool:
     cls.__init__ = __init__
     cls._qsid_loop_event = True
     return True
+
+
+# ----- the websocket's request path (view codes) --------------------------------------------------------------
+# viser's client does not tell the server its page URL. It does connect to the websocket address given by the
+# page's ``?websocket=`` query parameter, path included, and viser's websocket server accepts any path. The
+# server keeps each client's raw connection in ``WebsockServer._live_connections`` (viser/infra/_infra.py,
+# filled before the connect callbacks run, emptied on disconnect); the ``websockets`` connection keeps the
+# upgrade request (``connection.request``: path and headers). That is the only place the path is visible.
+
+
+def check_request_hook(server) -> None:
+    """Fail loudly (RuntimeError) if this viser no longer keeps the raw connections where
+    :func:`connection_request` reads them: view links would silently open default settings."""
+    ws = getattr(server, "_websock_server", None)
+    if not isinstance(getattr(ws, "_live_connections", None), dict):
+        raise RuntimeError(
+            "viser internals changed: ViserServer._websock_server._live_connections is missing, so the "
+            "dashboard cannot read a tab's view code from its websocket path (app/dashboard/viserfix.py)"
+        )
+
+
+def connection_request(server, client_id) -> tuple[str, str] | None:
+    """(path, Host header) of the request that opened ``client_id``'s websocket; None if it is gone already."""
+    conn = server._websock_server._live_connections.get(client_id)
+    request = getattr(conn, "request", None)
+    if request is None:
+        return None
+    return str(request.path), str(request.headers.get("Host", "") or "")

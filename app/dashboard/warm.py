@@ -18,8 +18,16 @@ __all__ = ["needs_compiling", "warm", "warm_here", "COMPILE_SECONDS"]
 #: 2-CPU machine; rounded up for slower ones).
 COMPILE_SECONDS = 10
 
-#: The compiled kernels of :mod:`qsid_core.kernels` (their cache index files are named after them).
-KERNELS = ("_accumulate_chunk_py", "_box_qp_pdas_py", "_chol_solve_py", "_dot_py")
+#: The compiled kernels as ``module.function`` (numba names their cache index files after them):
+#: :mod:`qsid_core.kernels` and the compiled closed loop of :mod:`qsid_core.loop_kernel`.
+KERNELS = (
+    "kernels._accumulate_chunk_py",
+    "kernels._box_qp_pdas_py",
+    "kernels._chol_solve_py",
+    "kernels._dot_py",
+    "kernels._pdas_one_py",
+    "loop_kernel._box_loop_py",
+)
 
 
 def needs_compiling() -> bool:
@@ -29,11 +37,12 @@ def needs_compiling() -> bool:
     if not kernels.AVAILABLE:
         return False
     d = kernels.cache_dir()
-    return not all(glob.glob(os.path.join(d, "**", f"kernels.{k}-*.nbi"), recursive=True) for k in KERNELS)
+    return not all(glob.glob(os.path.join(d, "**", f"{k}-*.nbi"), recursive=True) for k in KERNELS)
 
 
 def warm_here() -> int:
-    """A tiny computation of a tab, saturated (so the box-QP kernel runs too); returns this process's pid."""
+    """A tiny computation of a tab, saturated (so the compiled closed loop and the box-QP kernel run too);
+    returns this process's pid."""
     from app.dashboard.cache import SharedCache
     from app.dashboard.settings import Values
     from app.dashboard.stages import iter_frames

@@ -30,10 +30,18 @@ MIN_DECADES = 1.0
 MARGIN = 0.05
 
 
+#: element types converted in one numpy call (bool is not among them: True is no data value)
+_PLAIN = {float, int, type(None), np.float64, np.float32, np.int64, np.int32}
+
+
 def _numbers(seq) -> np.ndarray:
     """Finite floats of a plotly data array (None, strings and non-finite values dropped)."""
     if seq is None:
         return np.zeros(0)
+    a = seq if isinstance(seq, np.ndarray) and seq.dtype.kind in "fiu" else np.asarray(seq, dtype=object)
+    if a.dtype.kind in "fiu" or set(map(type, a.reshape(-1).tolist())) <= _PLAIN:
+        f = a.astype(float).reshape(-1)  # None -> NaN
+        return f[np.isfinite(f)]
     out = []
     for v in np.asarray(seq, dtype=object).reshape(-1):
         if isinstance(v, (bool, np.bool_)) or v is None:

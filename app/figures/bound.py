@@ -118,6 +118,7 @@ def bound_figure(
     floor: float | None = None,
     steps: int | None = None,
     x0_norm: float | None = None,
+    theory_per_series: bool = False,
 ) -> go.Figure:
     """Letter's delta(eps) (dashed), a-posteriori delta per series (median, max band), ``|x_T|`` mean and max.
 
@@ -125,23 +126,27 @@ def bound_figure(
     (floating-point noise such as 1e-48 is no distance to the origin). The b where the letter's
     delta is not below its rho are shaded (the proof assumes the state stays within rho: there it
     gives no bound); ``x0_norm`` is drawn as a line (a bound above it says less than the start).
+    The letter's delta is the first series' unless ``theory_per_series``: then every series whose
+    delta differs gets its own dashed line in its colour (equal ones are drawn once).
     """
-    data, conv = [], False
+    data, conv, drawn = [], False, []
+    several = theory_per_series and len({repr(xy(rows, "ultimate_bound")) for rows in series.values()}) > 1
     for i, (label, rows) in enumerate(series.items()):
         c = color(label, i)
-        if i == 0:
-            bx, by = xy(rows, "ultimate_bound")
+        bx, by = xy(rows, "ultimate_bound")
+        if i == 0 or (theory_per_series and (bx, by) not in drawn):
             data.append(
                 dict(
                     type="scatter",
                     x=bx,
                     y=by,
                     mode="lines+markers",
-                    name="letter's δ(ε) (Theorem 1 errors)",
-                    legendgroup="th",
-                    line=dict(color=COLORS["theory"], dash="dash"),
+                    name="letter's δ(ε) (Theorem 1 errors)" + (f" · {label}" if several else ""),
+                    legendgroup=f"th {i}",
+                    line=dict(color=COLORS["theory"] if i == 0 else c, dash="dash"),
                 )
             )
+            drawn.append((bx, by))
         # every a-posteriori δ in the bound colour (not the estimator's: BCLS δ and BCLS ‖x_T‖ looked alike)
         data += _realized(rows, label, COLORS["realized"], "solid" if i == 0 else "dot")
         mx, my = xy(rows, "final_state_norm", "mean")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import plotly.graph_objects as go
 
@@ -14,9 +16,17 @@ __all__ = ["cost_figure", "VIEW"]
 
 
 def cost_figure(
-    series: Series, true_cost: float | None = None, current_bits: int | None = None, height: int = 300
+    series: Series,
+    true_cost: float | None = None,
+    current_bits: int | None = None,
+    height: int = 300,
+    more_true: Sequence[tuple[str, float | None]] = (),
 ) -> go.Figure:
-    """Mean +- std of the closed-loop cost per estimator against b, and the true-model cost (dashed)."""
+    """Mean +- std of the closed-loop cost per estimator against b, and the true-model cost (dashed).
+
+    ``more_true`` adds further true-model costs as ``(label, cost)`` (results of other plants or
+    MPC settings on one figure): each a dashed line in its series' colour, labelled.
+    """
     data, shapes, notes = [], mark_bits(current_bits), []
     stuck = []
     for i, (label, rows) in enumerate(series.items()):
@@ -48,6 +58,12 @@ def cost_figure(
     if true_cost is not None and np.isfinite(true_cost) and true_cost > 0:
         shapes.append(hline(float(true_cost), "y", COLORS["true"], "dash", 2.0))
         notes.append(hline_note(true_cost, f"true model {true_cost:.4g}"))
+    order = list(series)
+    for label, c in more_true:
+        if c is not None and np.isfinite(c) and c > 0 and c != true_cost:
+            i = order.index(label) if label in order else len(order)
+            shapes.append(hline(float(c), "y", color(label, i), "dash", 1.5))
+            notes.append(hline_note(c, f"true model ({label}) {c:.4g}", x=0.5, size=9))
     return figure(
         data,
         dict(

@@ -25,7 +25,7 @@ def _axes(col: int) -> dict:
     return dict(xaxis="x" if col == 1 else f"x{col}", yaxis="y" if col == 1 else f"y{col}")
 
 
-def _theorem1(rows, key: str, col: int) -> list:
+def _theorem1(rows, key: str, col: int, name: str = "Theorem 1", line_color: str = COLORS["theory"]) -> list:
     """Theorem 1's line for this panel's block: dashed where it applies (or fits), faded and dotted elsewhere."""
     tx, ty = xy(rows, f"{key}_theory")
     ok = {r["bits"]: line_holds(r, key[-1]) for r in rows}
@@ -43,11 +43,11 @@ def _theorem1(rows, key: str, col: int) -> list:
                 x=tx,
                 y=good,
                 mode="lines",
-                name="Theorem 1",
-                legendgroup="th",
+                name=name,
+                legendgroup=f"th {name}",
                 showlegend=(col == 1),
                 connectgaps=False,
-                line=dict(color=COLORS["theory"], dash="dash"),
+                line=dict(color=line_color, dash="dash"),
                 **_axes(col),
             )
         )
@@ -58,12 +58,12 @@ def _theorem1(rows, key: str, col: int) -> list:
                 x=tx,
                 y=bad,
                 mode="lines",
-                name="Theorem 1 (hypotheses fail)",
-                legendgroup="thx",
+                name=f"{name} (hypotheses fail)",
+                legendgroup=f"thx {name}",
                 showlegend=(col == 1),
                 connectgaps=False,
                 opacity=0.35,
-                line=dict(color=COLORS["theory"], dash="dot", width=1.5),
+                line=dict(color=line_color, dash="dot", width=1.5),
                 **_axes(col),
             )
         )
@@ -92,9 +92,9 @@ def _bcls_marks(rows, key: str, col: int) -> list:
     ]
 
 
-def _theory_and_reference(rows, key: str, col: int, ref_slope: float) -> list:
+def _theory_and_reference(rows, key: str, col: int, ref_slope: float, name: str = "Theorem 1") -> list:
     """Theorem 1's prediction (dashed / faded) and a ``ref_slope``/bit line through the first mean (dotted)."""
-    out = _theorem1(rows, key, col)
+    out = _theorem1(rows, key, col, name=name)
     mx, my = xy(rows, key, "mean")
     if mx:
         b = np.array([mx[0], max(mx[-1], mx[0] + 1)])
@@ -130,8 +130,20 @@ def slope_text(rows, key: str, letter: float) -> str:
     return f"slope {s:+.2f}/bit (letter {letter:+.3f})".replace("-", "−")
 
 
+def _theory_values(rows) -> tuple:
+    """The series' Theorem 1 predictions (b, A, B), to tell series with the same prediction apart."""
+    return tuple(
+        (r["bits"], r.get("err_A_theory"), r.get("err_B_theory")) for r in sorted(rows, key=lambda r: r["bits"])
+    )
+
+
 def error_figure(
-    series: Series, current_bits: int | None = None, ref_slope: float = -0.301, height: int = 330
+    series: Series,
+    current_bits: int | None = None,
+    ref_slope: float = -0.301,
+    height: int = 330,
+    theory_per_series: bool = False,
+    bcls=None,
 ) -> go.Figure:
     """Relative errors of A^ and B^ against b (two panels, log y).
 
@@ -139,21 +151,34 @@ def error_figure(
     (taken from the first series) is dashed; a grey dotted line of slope
     ``ref_slope`` per bit (the letter's -0.301 = -log10 2) passes through the
     first series' mean at the smallest b; the current b is marked.
+    With ``theory_per_series`` every later series whose Theorem 1 prediction
+    differs (another system, data length, word length per channel, dither kind)
+    also gets its own dashed line in the series' colour (equal predictions are
+    drawn once); the first series' line keeps the theory colour.
+    ``bcls`` names the series estimated by BCLS (default: the one labelled
+    "BCLS"): open crosses mark the b where its known-noise model fails.
     """
-    data, lines = [], []
+    bcls = {"BCLS"} if bcls is None else set(bcls)
+    data, lines, drawn = [], [], set()
+    several = theory_per_series and len({_theory_values(rows) for rows in series.values()}) > 1
     for i, (label, rows) in enumerate(series.items()):
+        th = _theory_values(rows)
+        name = f"Theorem 1 · {label}" if several else "Theorem 1"
         for col, key in ((1, "err_A"), (2, "err_B")):
             data += band(rows, key, color(label, i), label, showlegend=(col == 1), **_axes(col))
             if i == 0:
-                lines += _theory_and_reference(rows, key, col, ref_slope)
-            if label == "BCLS":
+                lines += _theory_and_reference(rows, key, col, ref_slope, name=name)
+            elif several and th not in drawn:
+                lines += _theorem1(rows, key, col, name=name, line_color=color(label, i))
+            if label in bcls:
                 data += _bcls_marks(rows, key, col)
+        drawn.add(th)
     data += lines  # the theory and reference lines last: drawn above the data, never hidden by them
     first = next(iter(series.values()), [])
     notes = [f"Theorem 1 faded: {w}" for w in theorem1_reasons(first)]
     notes += [f"Theorem 1 kept: {w}" for w in fits_reasons(first)]
-    if "BCLS" in series:
-        notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series["BCLS"])]
+    for lab in [lab for lab in series if lab in bcls][:1]:
+        notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series[lab])]
     titles = [
         t + (f"<span style='font-size:12px'>  {s}</span>" if s else "")
         for (t, _), s in zip(_PANELS, (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), LETTER_SLOPES)))

@@ -1,6 +1,8 @@
 """View (offline HTML): 3-D phase portrait of closed loops, as a plotly figure (``qsid reproduce``).
 
 The live dashboard draws the same picture with viser nodes (:mod:`app.figures.phase_scene`).
+Systems with fewer than three states put time on the missing axis: a 2-state system
+draws (x1, x2, step) in 3-D, a 1-state system x1 against the step in 2-D.
 """
 
 from __future__ import annotations
@@ -14,6 +16,61 @@ from .palette import COLORS, color
 
 __all__ = ["phase_portrait_figure"]
 
+#: Axis title of the time axis that stands in for a missing state.
+TIME_TITLE = "step k (time)"
+
+
+def _with_time(states, true_states, names, dims):
+    """Append the step k as an extra 'state' and draw it on the first missing axis."""
+    R, T1, n = states.shape
+    k = np.broadcast_to(np.arange(T1, dtype=float)[None, :, None], (R, T1, 1))
+    states = np.concatenate([states, k], axis=2)
+    if true_states is not None:
+        ts = np.asarray(true_states, dtype=float)
+        true_states = np.concatenate([ts, np.arange(ts.shape[0], dtype=float)[:, None]], axis=1)
+    pos = dims.index(None)
+    dims = dims[:pos] + (n,) + dims[pos + 1 :]
+    if None not in dims:
+        return states, true_states, [*names, TIME_TITLE], dims
+    # one state: a 2-D plot, time on x
+    return states, true_states, [*names, TIME_TITLE], (dims[0], None, None) if pos != 0 else (n, None, None)
+
+
+def _time_figure(states, true_states, names, d: int, title: str, height: int, label: str) -> go.Figure:
+    """A 1-state system: every realization's x1 against the step k (2-D), the true model in black."""
+    xs, ys = [], []
+    for tr in states:
+        ok = np.isfinite(tr[:, d])
+        if ok.any():
+            xs += np.flatnonzero(ok).tolist() + [None]
+            ys += tr[ok, d].tolist() + [None]
+    fig = go.Figure(
+        go.Scatter(
+            x=xs,
+            y=ys,
+            mode="lines",
+            name=f"{states.shape[0]} realizations",
+            line=dict(color=color(label), width=1.5),
+            opacity=0.6,
+        )
+    )
+    if true_states is not None:
+        ts = np.asarray(true_states, dtype=float)
+        fig.add_trace(go.Scatter(y=ts[:, d], mode="lines", name="true model", line=dict(color=COLORS["true"], width=3)))
+        fig.add_trace(
+            go.Scatter(x=[0], y=[ts[0, d]], mode="markers", name="x0", marker=dict(color=COLORS["true"], size=8))
+        )
+    fig.update_layout(
+        title=title or None,
+        height=height,
+        template="plotly_white",
+        margin=dict(l=60, r=10, t=40 if title else 10, b=40),
+        xaxis_title=TIME_TITLE,
+        yaxis_title=names[d],
+        legend=dict(orientation="h", y=-0.2),
+    )
+    return fig
+
 
 def phase_portrait_figure(
     states: np.ndarray,
@@ -26,12 +83,19 @@ def phase_portrait_figure(
 ) -> go.Figure:
     """One line per realization (``states``: (R, T+1, n)) plus the true-model trajectory ((T+1, n)).
 
-    ``dims`` picks the three states drawn (for 4-state systems); ``label`` (the
-    estimator) picks the colour of the realizations; the true model is black.
+    ``dims`` picks the three states drawn (for 4-state systems); ``None`` entries
+    (systems with fewer states) draw the step k instead: ``(0, 1, None)`` is a 3-D
+    plot of x1, x2 and time, ``(0, None, None)`` a 2-D plot of x1 against time.
+    ``label`` (the estimator) picks the colour of the realizations; the true model is black.
     Realizations with no finite point on the drawn states are skipped.
     """
     states = np.asarray(states, dtype=float)
     names = list(names) if names is not None else [f"x{i + 1}" for i in range(states.shape[-1])]
+    dims = tuple(dims) + (None,) * (3 - len(dims))
+    if None in dims:
+        states, true_states, names, dims = _with_time(states, true_states, names, dims)
+    if dims[1] is None:
+        return _time_figure(states, true_states, names, dims[0], title, height, label)
     i, j, k = dims
     xs, ys, zs = [], [], []
     for tr in states:

@@ -68,6 +68,7 @@ def band(
             type="scatter",
             x=b + b[::-1],
             y=(m + s).tolist() + lo[::-1].tolist(),
+            mode="lines",
             fill="toself",
             fillcolor=color,
             opacity=0.18,

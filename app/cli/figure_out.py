@@ -1,0 +1,98 @@
+"""The ``--figure FILE`` / ``--figure-view`` options: a sweep's figure as PNG, SVG, PDF or offline HTML.
+
+The figure is :func:`app.figures.results.plot_results` of the run's result, written by
+:func:`app.figures.export.save_figure` (a local headless Chromium; without it, offline
+HTML beside the asked name and a note on stderr saying why).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .runner import UsageError, out_file
+
+__all__ = ["add_figure_arguments", "check_figure", "write_figure", "check_formats", "save", "save_panels"]
+
+
+def add_figure_arguments(p) -> None:
+    from app.figures.results import VIEWS
+
+    g = p.add_argument_group("figure")
+    g.add_argument(
+        "--figure",
+        metavar="FILE",
+        default=None,
+        help="also draw the result to FILE: .png, .svg or .pdf (drawn offline by a local headless Chromium, "
+        "/usr/bin/chromium or $QSID_CHROMIUM; without it offline .html beside FILE, with a note why) or .html",
+    )
+    g.add_argument(
+        "--figure-view",
+        choices=VIEWS,
+        default="error",
+        help="what --figure draws: relative errors of A and B with Theorem 1 (error), the closed-loop MPC "
+        "cost (cost), the share of loops that converge and the cost gap (stabilized) or the ultimate bound "
+        "(bound) against b (default: error)",
+    )
+
+
+def check_figure(args, rep, inputs=(), others=()) -> Path | None:
+    """Check ``--figure`` before the run: a known suffix, a writable place, not an input or another output."""
+    if args.figure is None:
+        return None
+    from app.figures.export import ExportError, figure_format
+
+    path = out_file(args.figure, rep, flag="--figure", inputs=inputs)
+    try:
+        figure_format(path)
+    except ExportError as exc:
+        raise UsageError(f"argument --figure: {str(exc).removeprefix('path: ')}") from None
+    for flag, other in others:
+        if other is not None and other.resolve() == path.resolve():
+            raise UsageError(f"arguments {flag} and --figure name the same file; give two names")
+    if getattr(args, "no_mpc", False) and args.figure_view in ("cost", "stabilized"):
+        raise UsageError(f"argument --figure-view: {args.figure_view!r} needs the closed loops; drop --no-mpc")
+    return path
+
+
+def save(fig, path: Path, rep) -> Path:
+    """Write ``fig`` to ``path``; a fallback to HTML is said on stderr. Returns the file written."""
+    from app.figures.export import save_figure
+
+    saved = save_figure(fig, path)
+    if saved.note:
+        rep.line(f"note: --figure: {saved.note}")
+    return saved.path
+
+
+def save_panels(items, rep) -> list:
+    """Write ``(fig, path)`` pairs in one Chromium; without it nothing (the HTML is there) and a note why."""
+    from app.figures.export import chromium_path, save_figures, why_no_browser
+
+    why = why_no_browser(chromium_path())
+    if why:
+        rep.line(f"note: --figure: {why}: only the HTML panels were written")
+        return []
+    return [s.path for s in save_figures(items)]
+
+
+def write_figure(result, path: Path | None, view: str, rep) -> None:
+    """Draw ``result`` (a SweepResult) as ``view`` into ``path`` (nothing when ``path`` is None)."""
+    if path is None:
+        return
+    from app.figures.results import plot_results
+
+    written = save(plot_results(result, view=view), path, rep)
+    rep.stage(f"figure ({view}) written to {written}")
+
+
+def check_formats(text: str | None) -> tuple:
+    """``--figure png,svg`` of ``qsid reproduce``: the static formats asked for (empty when None)."""
+    if text is None:
+        return ()
+    fmts = tuple(dict.fromkeys(f.strip().lower().lstrip(".") for f in text.split(",") if f.strip()))
+    bad = [f for f in fmts if f not in ("png", "svg", "pdf")]
+    if not fmts or bad:
+        raise UsageError(
+            f"argument --figure: give png, svg and/or pdf, comma-separated (the HTML is always written); got {text!r}"
+        )
+    return fmts

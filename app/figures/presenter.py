@@ -1,0 +1,67 @@
+"""Presenter style of any figure: text of at least :data:`PLOT_FONT` px and thicker lines, for a lecture hall.
+
+Works on the figure's plain JSON (every font size the views set, the HTML ``font-size:..px`` spans of their
+titles, the default font, trace line widths), so every registered view gets it without a change of its own.
+"""
+
+from __future__ import annotations
+
+import re
+
+import plotly.graph_objects as go
+
+__all__ = ["PLOT_FONT", "LINE_SCALE", "presenter_figure"]
+
+#: Smallest plot text in presenter mode (px).
+PLOT_FONT = 18
+#: Factor on every trace's line width (at least :data:`MIN_LINE` px).
+LINE_SCALE, MIN_LINE = 1.8, 3.0
+_SPAN = re.compile(r"font-size:\s*(\d+(?:\.\d+)?)px")
+
+
+def _bigger_text(s: str) -> str:
+    return _SPAN.sub(lambda m: f"font-size:{max(float(m.group(1)), PLOT_FONT):g}px", s)
+
+
+def _walk(node, in_font: bool = False):
+    """A copy of ``node`` with every font size raised to PLOT_FONT and every inline font-size span too."""
+    if isinstance(node, dict):
+        out = {}
+        for k, v in node.items():
+            if in_font and k == "size" and isinstance(v, (int, float)):
+                out[k] = max(float(v), PLOT_FONT)
+            else:
+                out[k] = _walk(v, k == "font" or k.endswith("font"))
+        return out
+    if isinstance(node, list):
+        return [_walk(v) for v in node]
+    if isinstance(node, str) and "font-size" in node:
+        return _bigger_text(node)
+    return node
+
+
+def _thicker(trace: dict) -> dict:
+    """Scatter traces drawn with lines: width x LINE_SCALE (at least MIN_LINE); other traces as they are."""
+    if trace.get("type", "scatter") not in ("scatter", "scattergl") or "lines" not in str(trace.get("mode", "lines")):
+        return trace
+    line = dict(trace.get("line") or {})
+    w = line.get("width")
+    if isinstance(w, (int, float)) and w == 0:  # an invisible line (a band's edge) stays invisible
+        return trace
+    line["width"] = max(MIN_LINE, LINE_SCALE * (float(w) if isinstance(w, (int, float)) else 2.0))
+    return {**trace, "line": line}
+
+
+def presenter_figure(fig: go.Figure) -> go.Figure:
+    """``fig`` in presenter style (a new figure; ``fig`` is left as it is)."""
+    d = fig.to_plotly_json()
+    layout = dict(d.get("layout") or {})
+    template = layout.pop("template", None)
+    layout = _walk(layout)
+    font = dict(layout.get("font") or {})
+    font["size"] = max(float(font.get("size") or 0), PLOT_FONT)
+    layout["font"] = font
+    if template is not None:
+        layout["template"] = template
+    data = [_thicker(_walk(t)) for t in d.get("data") or []]
+    return go.Figure(dict(data=data, layout=layout), _validate=False)

@@ -1,0 +1,190 @@
+"""Figures straight from finished sweeps: several :class:`~qsid_core.SweepResult` on one plotly figure.
+
+The engine stays free of plotting; this module turns results (fresh, loaded by
+:func:`qsid_core.load_result`, their ``to_dict()`` JSON, or the path of a saved
+``qsid sweep --out`` file) into the per-b rows the dashboard's view builders
+draw, and calls those builders:
+
+``error``
+    relative errors of A and B against b, Theorem 1's line for every series
+    whose prediction differs (:func:`app.figures.error_vs_bits.error_figure`);
+``cost``
+    closed-loop MPC cost on the true plant, with each result's true-model cost;
+``stabilized``
+    share of closed loops that converge (95 % Wilson interval) and the cost gap
+    (:func:`app.figures.bits_needed.bits_figure`; ``b_robust`` needs the
+    experiment and is not drawn here: ``qsid bits`` computes it);
+``bound``
+    the letter's ultimate bound delta(eps), the a-posteriori bound and the final
+    state norms.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import plotly.graph_objects as go
+
+__all__ = ["plot_results", "result_series", "FigureError", "VIEWS"]
+
+#: The views :func:`plot_results` draws.
+VIEWS = ("error", "cost", "stabilized", "bound")
+#: Settings that tell results apart in automatic labels, in the order they are named.
+_LABEL_KEYS = (
+    "system",
+    "estimator",
+    "dither",
+    "input_bits",
+    "state_bits",
+    "noise",
+    "noise_known",
+    "range",
+    "guard",
+    "trajectories",
+    "steps",
+    "realizations",
+    "input_amplitude",
+    "data_seed",
+    "dither_seed",
+)
+
+
+class FigureError(ValueError):
+    """A bad argument to a figure function (the message names it)."""
+
+
+def _as_dict(result, k: int) -> dict:
+    """The JSON of one result: a SweepResult, its ``to_dict()``, or the path of a saved one."""
+    if isinstance(result, (str, Path)):
+        from qsid_core import load_result
+
+        return load_result(result).to_dict()
+    if hasattr(result, "to_dict") and hasattr(result, "bits"):
+        return result.to_dict()
+    if isinstance(result, dict) and isinstance(result.get("results"), list):
+        return result
+    raise FigureError(
+        f"results[{k}]: expected a SweepResult, its to_dict() or the path of a saved result; "
+        f"got {type(result).__name__}"
+    )
+
+
+def _setting(d: dict, key: str):
+    if key == "system":
+        return d.get("system")
+    v = (d.get("config") or {}).get(key)
+    return tuple(v) if isinstance(v, list) else v
+
+
+def _auto_labels(dicts: list) -> list:
+    """'LS' / 'BCLS' for one result; else the estimator plus every setting that differs between results."""
+    differ = [k for k in _LABEL_KEYS if k != "estimator" and len({repr(_setting(d, k)) for d in dicts}) > 1]
+    out = []
+    for d in dicts:
+        est = str(_setting(d, "estimator") or "ls").upper()
+        parts = []
+        for k in differ:
+            v = _setting(d, k)
+            v = ",".join(map(str, v)) if isinstance(v, tuple) else ("default" if v is None else v)
+            parts.append(str(v) if k == "system" else f"{k.replace('_', ' ')} {v}")
+        out.append(", ".join([est, *parts]))
+    return out
+
+
+def result_series(*results, labels: Sequence[str] | None = None) -> tuple[dict, list]:
+    """``({label: rows}, [result JSON, ...])`` of the results, in order (the rows the view builders draw).
+
+    Raises
+    ------
+    FigureError
+        No results, a result of another type, labels of the wrong number or repeated.
+    """
+    if not results:
+        raise FigureError("results: give at least one SweepResult")
+    dicts = [_as_dict(r, k) for k, r in enumerate(results)]
+    if labels is None:
+        labels = _auto_labels(dicts)
+        if len(set(labels)) < len(labels):  # the same settings twice: number them
+            labels = [f"{lab} #{k + 1}" for k, lab in enumerate(labels)]
+    else:
+        labels = [str(lab) for lab in labels]
+        if len(labels) != len(dicts):
+            raise FigureError(f"labels: {len(labels)} labels for {len(dicts)} results; give one per result")
+        if len(set(labels)) < len(labels):
+            raise FigureError(f"labels: every label must be different; got {labels}")
+    return dict(zip(labels, (d["results"] for d in dicts))), dicts
+
+
+def _stabilized(series: dict, dicts: list, height: int) -> go.Figure:
+    from qsid_core.bits import answer_from_rows
+    from qsid_core.stability import data_rate_bits
+
+    from .bits_needed import bits_figure
+
+    answers = {}
+    for (label, rows), d in zip(series.items(), dicts):
+        if not any(r.get("closed_loop_outcomes") for r in rows):
+            raise FigureError(f"view 'stabilized': the result {label!r} has no closed loops (it ran without MPC)")
+        A = np.asarray(d["config"]["system_definition"]["A"], dtype=float)
+        answers[label] = answer_from_rows(
+            d.get("system", ""), {}, rows, d.get("mpc_cost_true_model"), data_rate=data_rate_bits(A)
+        )
+    return bits_figure(answers, height=height)
+
+
+def plot_results(*results, view: str = "error", labels: Sequence[str] | None = None, height: int | None = None):
+    """One plotly figure of several sweep results.
+
+    Parameters
+    ----------
+    *results : SweepResult, dict or path
+        Fresh results of :func:`qsid_core.run_sweep`, results read back by
+        :func:`qsid_core.load_result`, their ``to_dict()``, or paths of saved JSON results.
+    view : {"error", "cost", "stabilized", "bound"}
+        What to draw (see the module docstring).
+    labels : sequence of str, optional
+        One legend label per result (default: the estimator and the settings that differ).
+    height : int, optional
+        Figure height in pixels (default: the view's own).
+
+    Returns
+    -------
+    plotly.graph_objects.Figure
+
+    Raises
+    ------
+    FigureError
+        An unknown view, bad labels, or a view the results cannot give (``cost`` and
+        ``stabilized`` need closed loops).
+    """
+    if view not in VIEWS:
+        raise FigureError(f"view: {view!r} is not one of {', '.join(VIEWS)}")
+    series, dicts = result_series(*results, labels=labels)
+    bcls = [lab for lab, d in zip(series, dicts) if d["config"].get("estimator") == "bcls"]
+    if view == "error":
+        from .error_vs_bits import error_figure
+
+        return error_figure(series, height=height or 380, theory_per_series=True, bcls=bcls)
+    if view == "stabilized":
+        return _stabilized(series, dicts, height or 480)
+    if view == "cost":
+        from .cost import cost_figure
+
+        for label, rows in series.items():
+            if not any(r.get("mpc_cost") for r in rows):
+                raise FigureError(f"view 'cost': the result {label!r} has no MPC cost (it ran without MPC)")
+        more = [(lab, d.get("mpc_cost_true_model")) for lab, d in list(zip(series, dicts))[1:]]
+        return cost_figure(series, true_cost=dicts[0].get("mpc_cost_true_model"), height=height or 380, more_true=more)
+    from .bound import bound_figure
+
+    mpc = dicts[0]["config"].get("mpc") or {}
+    x0 = dicts[0]["config"]["system_definition"].get("x0")
+    return bound_figure(
+        series,
+        theory_per_series=True,
+        height=height or 400,
+        steps=mpc.get("steps"),
+        x0_norm=float(np.linalg.norm(x0)) if x0 else None,
+    )

@@ -1,0 +1,251 @@
+"""The saturated MPC closed loop compiled end to end (numba): no Python per step.
+
+For box-only MPC (input bounds, no state box), exact state feedback, no
+disturbance and a constant reference, :func:`run_compiled` runs every loop of a
+:class:`qsid_core.closed_loop._Loops` for all its steps inside one compiled
+kernel, step by step, with the same law as the batched numpy path:
+
+* the unconstrained LQ optimum ``z = F x + f`` (the fast path) where it meets the box;
+* else the condensed box QP by primal-dual active-set iterations
+  (:func:`qsid_core.kernels._pdas_one_py`), warm-started from the previous step's
+  optimal sequence shifted by one step (receding horizon), or at the first
+  constrained step of a stretch from the bounds the unconstrained optimum violates;
+* the true plant moves, ``x+ = A x + B u``; a state beyond the divergence bound ends the loop.
+
+A loop leaves the kernel at a step it cannot settle (iteration limit, a free block
+of the Hessian not numerically definite): that step is solved by the model's DAQP
+solver in Python (warm start, exact failure kinds), then the kernel goes on from the
+next step. A loop that reaches its first constrained step before the condensed
+QPs exist leaves the kernel too; they are built once and the kernel resumes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+from .errors import FailureKind, MPCFailure
+
+__all__ = ["eligible", "run_compiled", "PDAS_ITERS"]
+
+#: active-set iterations per constrained step before the step goes to DAQP
+PDAS_ITERS = 8
+#: relative slack of the KKT checks (rounding only)
+TOL = 1e-12
+# why a loop left the kernel
+_DONE, _NEED_QP, _UNSETTLED, _DIVERGED = 0, 1, 2, 3
+
+
+def _box_loop_py(
+    idx, rows, t0, steps, F, f, bound, H, Gx, g0, have_qp, A, B, Q, R, x_ref, ub, iters, tol, diverged,
+    x, prevU, prev_t, states, inputs, acc, U0, first, qp_steps, status, tstop,
+):  # fmt: skip
+    """Run loops ``idx`` (rows ``rows`` of ``F``, ``H``, ...) from steps ``t0`` until done or stopped."""
+    nz, n = F.shape[1], F.shape[2]
+    m = B.shape[1]
+    nU = ub.shape[0]
+    z = np.empty(nz)
+    g = np.empty(nU)
+    U = np.empty(nU)
+    up = np.empty(nU, dtype=np.bool_)
+    lo = np.empty(nU, dtype=np.bool_)
+    Lc = np.empty((nU, nU))
+    rhs = np.empty(nU)
+    free = np.empty(nU, dtype=np.int64)
+    u = np.empty(m)
+    xn = np.empty(n)
+    for a in range(idx.shape[0]):
+        i, r = idx[a], rows[a]
+        xs = x[i]
+        status[a] = _DONE
+        for t in range(t0[a], steps):
+            fast = True
+            for k in range(nz):
+                s = f[r, k]
+                for c in range(n):
+                    s += F[r, k, c] * xs[c]
+                z[k] = s
+                if not abs(s) <= bound[k]:
+                    fast = False
+            if fast:
+                for c in range(m):
+                    u[c] = z[c]
+                if t == 0:
+                    first[a] = 1
+            else:
+                if not have_qp:
+                    status[a], tstop[a] = _NEED_QP, t
+                    break
+                for k in range(nU):
+                    s = g0[r, k]
+                    for c in range(n):
+                        s += Gx[r, k, c] * xs[c]
+                    g[k] = s
+                warm = prev_t[i] == t - 1
+                for k in range(nU):  # the guess: last step's sequence shifted by one step, or the violated bounds
+                    if warm:
+                        base = prevU[i, k + m] if k + m < nU else prevU[i, k]
+                    else:
+                        base = z[k]
+                    up[k] = base >= ub[k] * (1 - 1e-9)
+                    lo[k] = (base <= -ub[k] * (1 - 1e-9)) and not up[k]
+                if not kernels._pdas_one(H[r], g, ub, up, lo, iters, tol, U, Lc, rhs, free):
+                    status[a], tstop[a] = _UNSETTLED, t
+                    break
+                qp_steps[a] += 1
+                for k in range(nU):
+                    prevU[i, k] = U[k]
+                prev_t[i] = t
+                for c in range(m):  # the active set meets the bounds up to rounding: clip that rounding
+                    u[c] = min(max(U[c], -ub[c]), ub[c])
+                if t == 0:
+                    first[a] = 2
+                    for k in range(nU):
+                        U0[a, k] = U[k]
+            bad = False
+            for k in range(n):
+                s = 0.0
+                for c in range(n):
+                    s += A[k, c] * xs[c]
+                for c in range(m):
+                    s += B[k, c] * u[c]
+                xn[k] = s
+                if not abs(s) <= diverged:  # beyond the bound, infinite or NaN
+                    bad = True
+            if bad:
+                status[a], tstop[a] = _DIVERGED, t
+                break
+            cost = 0.0
+            for k in range(n):
+                for c in range(n):
+                    cost += (xs[k] - x_ref[k]) * Q[k, c] * (xs[c] - x_ref[c])
+            for k in range(m):
+                for c in range(m):
+                    cost += u[k] * R[k, c] * u[c]
+            acc[i] += cost
+            for k in range(n):
+                states[i, t + 1, k] = xn[k]
+                xs[k] = xn[k]
+            for c in range(m):
+                inputs[i, t, c] = u[c]
+
+
+if kernels.AVAILABLE:
+    _box_loop = kernels._numba.njit(cache=True, nogil=True)(_box_loop_py)
+else:  # pragma: no cover
+    _box_loop = None
+
+
+def eligible(loops) -> bool:
+    """Whether :func:`run_compiled` can run ``loops``: numba present, DAQP on box-only problems,
+    exact state feedback, no disturbance, no time-varying reference."""
+    return kernels.AVAILABLE and loops.guess and loops.noise is None and loops.preview is None
+
+
+class _Kernel:
+    """The kernel's arguments for the live models of ``loops`` (the condensed QPs once built)."""
+
+    def __init__(self, loops, diverged: float):
+        self.loops, self.diverged = loops, float(diverged)
+        w = loops.w
+        self.F, self.f = np.ascontiguousarray(loops.F), np.ascontiguousarray(loops.f)
+        self.fixed = (
+            np.ascontiguousarray(loops.A),
+            np.ascontiguousarray(loops.B),
+            np.ascontiguousarray(w.Q, dtype=float),
+            np.ascontiguousarray(w.R, dtype=float),
+            np.ascontiguousarray(w.x_ref, dtype=float),
+            np.ascontiguousarray(loops.ub, dtype=float),
+        )
+        self.qp = None
+
+    def need_qp(self) -> None:
+        if self.qp is None:
+            self.loops.condensed()
+            cq = self.loops.cq
+            self.qp = (np.ascontiguousarray(cq.H), np.ascontiguousarray(cq.Gx), np.ascontiguousarray(cq.g0))
+
+    def run(self, idx: np.ndarray, t0: np.ndarray):
+        """Run loops ``idx`` from steps ``t0``; returns ``(status, tstop, first, U0)`` per loop."""
+        L, k = self.loops, idx.size
+        nU = L.ub.size
+        if self.qp is None:
+            n = L.n
+            qp = (np.zeros((1, nU, nU)), np.zeros((1, nU, n)), np.zeros((1, nU)))
+        else:
+            qp = self.qp
+        U0 = np.full((k, nU), np.nan)
+        first = np.zeros(k, dtype=np.int8)
+        qp_steps = np.zeros(k, dtype=np.int64)
+        status = np.zeros(k, dtype=np.int64)
+        tstop = np.full(k, L.steps, dtype=np.int64)
+        out = L.out
+        _box_loop(
+            idx, L.rows(idx), t0, L.steps, self.F, self.f, np.ascontiguousarray(L.bound, dtype=float), *qp,
+            self.qp is not None, *self.fixed, PDAS_ITERS, TOL, self.diverged,
+            L.x, L.prevU, L.prev_t, out.states, out.inputs, L.acc, U0, first, qp_steps, status, tstop,
+        )  # fmt: skip
+        out.qp_steps += int(qp_steps.sum())
+        return status, tstop, first, U0
+
+
+def run_compiled(loops, active: np.ndarray, diverged: float, first_costs: bool) -> None:
+    """Run the loops ``active`` of ``loops`` for ``loops.steps`` steps in the compiled kernel.
+
+    Fills ``loops.out`` (states, inputs, ``qp_steps``, failures, and ``J0`` when
+    ``first_costs``: the loops start at ``loops.w.x0``), ``loops.acc`` and ``loops.x``
+    as :func:`qsid_core.closed_loop.advance` does.
+    """
+    kern = _Kernel(loops, diverged)
+    idx = np.ascontiguousarray(active, dtype=np.int64)
+    t0 = np.zeros(idx.size, dtype=np.int64)
+    while idx.size:
+        status, tstop, first, U0 = kern.run(idx, t0)
+        if first_costs:
+            _first_costs(loops, idx, t0, first, U0)
+        go_on, at = [], []
+        for a in np.flatnonzero(status != _DONE):
+            i, t = int(idx[a]), int(tstop[a])
+            if status[a] == _DIVERGED:
+                loops.fail(i, FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
+                continue
+            kern.need_qp()
+            if status[a] == _UNSETTLED:
+                if not _daqp_step(loops, i, t, diverged, first_costs):
+                    continue
+                t += 1
+            go_on.append(i)
+            at.append(t)
+        idx, t0 = np.array(go_on, dtype=np.int64), np.array(at, dtype=np.int64)
+
+
+def _first_costs(loops, idx, t0, first, U0) -> None:
+    """``J*(x0)`` of the loops whose first step the kernel took (fast path or active set)."""
+    x0, out = loops.w.x0, loops.out
+    for a in np.flatnonzero((t0 == 0) & (first > 0)):
+        c = loops.ctrls[int(idx[a])]
+        out.J0[idx[a]] = c.cost_to_go(x0) if first[a] == 1 else c.qp_cost(x0, U0[a])
+
+
+def _daqp_step(loops, i: int, t: int, diverged: float, first_costs: bool) -> bool:
+    """Step ``t`` of loop ``i`` by its DAQP solver (warm-started); False if the loop failed there."""
+    c, out = loops.ctrls[i], loops.out
+    x = loops.x[i].copy()
+    out.qp_steps += 1
+    try:
+        U = c.solve_daqp(x)
+    except MPCFailure as exc:
+        loops.fail(i, exc.kind, f"step {t}: {exc}")
+        return False
+    loops.prevU[i], loops.prev_t[i] = U, t
+    if t == 0 and first_costs:
+        out.J0[i] = c.qp_cost(x, U)
+    u = np.clip(U[: loops.m], -loops.w.u_max, loops.w.u_max)
+    xn = loops.moved(x[None], u[None], t)[0]
+    if not np.all(np.isfinite(xn)) or np.abs(xn).max() > diverged:
+        loops.fail(i, FailureKind.DIVERGED, f"closed loop diverged at step {t + 1}")
+        return False
+    out.states[i, t + 1], out.inputs[i, t] = xn, u
+    loops.acc[i] += loops.stage_cost(x[None], u[None], t)[0]
+    loops.x[i] = xn
+    return True
