@@ -24,6 +24,7 @@ extensions = [
     "sphinx.ext.napoleon",  # the docstrings are numpydoc style
     "sphinx.ext.mathjax",
     "sphinxarg.ext",  # the CLI reference, rendered from the argparse parsers themselves
+    "runblock",  # qsid-run / qsid-cli: code and commands run while the docs build, their real output shown
 ]
 
 napoleon_google_docstring = False
@@ -41,6 +42,6 @@ autodoc_typehints = "description"
 # have such a field, so the (harmless, unlinked) lookup is ambiguous
 suppress_warnings = ["ref.python"]
 
-exclude_patterns = ["_build"]
+exclude_patterns = ["_build", "_generated"]
 html_theme = "alabaster"
 html_static_path: list[str] = []
