@@ -85,6 +85,13 @@ def test_cost_and_stabilized_views_from_mpc_results(with_mpc):
     ls = [t for t in stab.data if t.name == "LS stabilized"][0]
     oc = [r["closed_loop_outcomes"] for r in with_mpc[0].to_dict()["results"]]
     assert list(ls.y) == [100 * o["converged"] / sum(o.values()) for o in oc]
+    # the title is the engine's own answer (qsid bits), the small-gain certificate recomputed from the config
+    from qsid_core.bits import bits_needed
+
+    engine = bits_needed(with_mpc[0].config)
+    ls_title = stab.layout.title.text.split("<br>BCLS")[0]
+    assert ls_title.replace("<br>", "").replace(" ", "") == f"LS: {engine.sentence}".replace(" ", "")
+    assert "certificate needs b >=" in engine.sentence  # recomputed, not "holds nowhere" for want of it
 
 
 @pytest.mark.parametrize(
