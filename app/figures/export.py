@@ -53,6 +53,7 @@ _PAGE = (
 _DRAW = """async ([fig, fmt, w, h, scale]) => {
   const f = JSON.parse(fig);
   const gd = document.getElementById('fig');
+  Plotly.purge(gd);
   await Plotly.newPlot(gd, f.data, Object.assign({}, f.layout, {width: w, height: h}), {staticPlot: true});
   return await Plotly.toImage(gd, {format: fmt, width: w, height: h, scale: scale});
 }"""
@@ -130,31 +131,40 @@ def _chromium(browser: str):
             b.close()
 
 
-def _render(b, fig, fmt: str, w: int, h: int, scale: float) -> bytes:
-    """The figure as ``fmt`` bytes, drawn in a new page of browser ``b`` (closed before returning)."""
+def _plotly_page(b):
+    """A page of browser ``b`` with plotly.js loaded (from the installed plotly package) and no network."""
     from plotly.offline import get_plotlyjs
 
+    page = b.new_page()
+    page.set_default_timeout(TIMEOUT_MS)
+    page.route("**/*", lambda route: route.abort() if route.request.url.startswith("http") else route.fallback())
+    page.set_content(_PAGE.format(js=get_plotlyjs()))
+    return page
+
+
+def _render(b, page, fig, fmt: str, w: int, h: int, scale: float) -> bytes:
+    """The figure as ``fmt`` bytes, drawn in ``page`` (plotly.js loaded); a PDF is printed in a page of its own."""
     from .raw import to_json
 
-    page = b.new_page(viewport={"width": w, "height": h})
+    png = fmt == "png"
+    page.set_viewport_size({"width": w, "height": h})
+    url = page.evaluate(_DRAW, [to_json(fig), "png" if png else "svg", w, h, scale if png else 1])
+    if png:
+        return base64.b64decode(url.split(",", 1)[1])
+    if fmt == "svg":
+        return urllib.parse.unquote(url.split(",", 1)[1]).encode("utf-8")
+    pdf = b.new_page(viewport={"width": w, "height": h})
     try:
-        page.set_default_timeout(TIMEOUT_MS)
-        page.route("**/*", lambda route: route.abort() if route.request.url.startswith("http") else route.fallback())
-        page.set_content(_PAGE.format(js=get_plotlyjs()))
-        png = fmt == "png"
-        url = page.evaluate(_DRAW, [to_json(fig), "png" if png else "svg", w, h, scale if png else 1])
-        if png:
-            return base64.b64decode(url.split(",", 1)[1])
-        if fmt == "svg":
-            return urllib.parse.unquote(url.split(",", 1)[1]).encode("utf-8")
-        page.set_content(
+        pdf.set_default_timeout(TIMEOUT_MS)
+        pdf.route("**/*", lambda route: route.abort() if route.request.url.startswith("http") else route.fallback())
+        pdf.set_content(
             "<!DOCTYPE html><html><body style='margin:0'>"
             f"<img style='display:block;width:{w}px;height:{h}px' src=\"{url}\"></body></html>"
         )
-        page.wait_for_function("document.images[0].complete")
-        return page.pdf(width=f"{w}px", height=f"{h}px", print_background=True, page_ranges="1")
+        pdf.wait_for_function("document.images[0].complete")
+        return pdf.pdf(width=f"{w}px", height=f"{h}px", print_background=True, page_ranges="1")
     finally:
-        page.close()
+        pdf.close()
 
 
 def _checked(path) -> tuple[Path, str]:
@@ -190,9 +200,10 @@ def save_figures(
             out[path] = SavedFigure(html, "html", note)
     if static and not why:
         with _chromium(browser) as b:
+            page = _plotly_page(b)  # plotly.js (4.6 MB) parsed once for all figures
             for fig, path, fmt in static:
                 w, h = _size(fig, width, height)
-                path.write_bytes(_render(b, fig, fmt, w, h, scale))
+                path.write_bytes(_render(b, page, fig, fmt, w, h, scale))
                 out[path] = SavedFigure(path, fmt)
     return [out[path] for _, path, _ in items]
 
