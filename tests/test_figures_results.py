@@ -168,3 +168,10 @@ def test_png_svg_pdf_offline_in_chromium_and_the_browser_ends(results, tmp_path)
     assert raw.startswith(b"%PDF") and raw.rstrip().endswith(b"%%EOF") and len(raw) > 5_000
     left = set(descendants(os.getpid())) - before
     assert gone_within(sorted(left), 60) == []  # Chromium and the playwright driver ended
+
+
+def test_a_browser_that_does_not_start_falls_back_to_html_with_its_first_line(results, tmp_path):
+    pytest.importorskip("playwright.sync_api")
+    saved = save_figure(plot_results(results[0]), tmp_path / "f.svg", browser="/bin/false")
+    assert saved.format == "html" and saved.path.exists() and not (tmp_path / "f.svg").exists()
+    assert saved.note.startswith("Chromium at /bin/false did not start (") and "\n" not in saved.note

@@ -14,6 +14,7 @@ returned note says why.
 from __future__ import annotations
 
 import base64
+import contextlib
 import os
 import urllib.parse
 from contextlib import contextmanager
@@ -175,6 +176,35 @@ def _checked(path) -> tuple[Path, str]:
     return path, fmt
 
 
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _draw(static: list, out: dict, width, height, scale: float, browser: str) -> str:
+    """Draw the ``(fig, path, fmt)`` items into ``out``; "" or why Chromium did not start (then nothing is drawn).
+
+    A figure that fails to draw is an :class:`ExportError` with Chromium's first line.
+    """
+    from playwright.sync_api import Error as PlaywrightError
+
+    with contextlib.ExitStack() as stack:
+        try:
+            b = stack.enter_context(_chromium(browser))
+        except (PlaywrightError, OSError) as exc:
+            return f"Chromium at {browser} did not start ({_first_line(exc)})"
+        page = _plotly_page(b)  # plotly.js (4.6 MB) parsed once for all figures
+        for fig, path, fmt in static:
+            w, h = _size(fig, width, height)
+            try:
+                data = _render(b, page, fig, fmt, w, h, scale)
+            except PlaywrightError as exc:
+                raise ExportError(f"path: drawing {path.name} in Chromium failed: {_first_line(exc)}") from None
+            path.write_bytes(data)
+            out[path] = SavedFigure(path, fmt)
+    return ""
+
+
 def save_figures(
     items, width: int | None = None, height: int | None = None, scale: float = 2.0, browser: str | None = None
 ) -> list:
@@ -192,19 +222,15 @@ def save_figures(
     static = [it for it in items if it[2] != "html"]
     why = why_no_browser(browser) if static else ""
     out: dict = {}
-    for fig, path, fmt in items:
-        if fmt == "html" or why:
-            html = path.with_suffix(".html")
-            fig.write_html(html, include_plotlyjs=True, full_html=True)
-            note = f"{why}: wrote offline HTML {html.name} instead of {path.name}" if fmt != "html" else ""
-            out[path] = SavedFigure(html, "html", note)
     if static and not why:
-        with _chromium(browser) as b:
-            page = _plotly_page(b)  # plotly.js (4.6 MB) parsed once for all figures
-            for fig, path, fmt in static:
-                w, h = _size(fig, width, height)
-                path.write_bytes(_render(b, page, fig, fmt, w, h, scale))
-                out[path] = SavedFigure(path, fmt)
+        why = _draw(static, out, width, height, scale, browser)
+    for fig, path, fmt in items:
+        if path in out:
+            continue
+        html = path.with_suffix(".html")
+        fig.write_html(html, include_plotlyjs=True, full_html=True)
+        note = f"{why}: wrote offline HTML {html.name} instead of {path.name}" if fmt != "html" else ""
+        out[path] = SavedFigure(html, "html", note)
     return [out[path] for _, path, _ in items]
 
 
