@@ -26,6 +26,7 @@ extensions = [
     "sphinx.ext.mathjax",
     "sphinxarg.ext",  # the CLI reference, rendered from the argparse parsers themselves
     "qsidext",  # qsid-run, qsid-python, the dashboard's tables: generated at build time
+    "runblock",  # qsid-exec / qsid-cli: code and commands run while the docs build, their real output shown
 ]
 
 napoleon_google_docstring = False
@@ -43,7 +44,7 @@ autodoc_typehints = "description"
 # have such a field, so the (harmless, unlinked) lookup is ambiguous
 suppress_warnings = ["ref.python"]
 
-exclude_patterns = ["_build", "data"]
+exclude_patterns = ["_build", "data", "_generated"]
 smartquotes = False  # u'Ru, 'dare' and "..." are shown as the programs print them
 html_theme = "alabaster"
 html_static_path: list[str] = []

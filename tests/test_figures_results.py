@@ -85,6 +85,13 @@ def test_cost_and_stabilized_views_from_mpc_results(with_mpc):
     ls = [t for t in stab.data if t.name == "LS stabilized"][0]
     oc = [r["closed_loop_outcomes"] for r in with_mpc[0].to_dict()["results"]]
     assert list(ls.y) == [100 * o["converged"] / sum(o.values()) for o in oc]
+    # the title is the engine's own answer (qsid bits), the small-gain certificate recomputed from the config
+    from qsid_core.bits import bits_needed
+
+    engine = bits_needed(with_mpc[0].config)
+    ls_title = stab.layout.title.text.split("<br>BCLS")[0]
+    assert ls_title.replace("<br>", "").replace(" ", "") == f"LS: {engine.sentence}".replace(" ", "")
+    assert "certificate needs b >=" in engine.sentence  # recomputed, not "holds nowhere" for want of it
 
 
 @pytest.mark.parametrize(
@@ -161,3 +168,10 @@ def test_png_svg_pdf_offline_in_chromium_and_the_browser_ends(results, tmp_path)
     assert raw.startswith(b"%PDF") and raw.rstrip().endswith(b"%%EOF") and len(raw) > 5_000
     left = set(descendants(os.getpid())) - before
     assert gone_within(sorted(left), 60) == []  # Chromium and the playwright driver ended
+
+
+def test_a_browser_that_does_not_start_falls_back_to_html_with_its_first_line(results, tmp_path):
+    pytest.importorskip("playwright.sync_api")
+    saved = save_figure(plot_results(results[0]), tmp_path / "f.svg", browser="/bin/false")
+    assert saved.format == "html" and saved.path.exists() and not (tmp_path / "f.svg").exists()
+    assert saved.note.startswith("Chromium at /bin/false did not start (") and "\n" not in saved.note

@@ -96,10 +96,12 @@ def bits_figure(answers: dict, current_bits: int | None = None, height: int = 42
         )
         if g > 0:
             shapes.append(hline(100 * g, y2, COLORS["ref"], "dash"))
+        at: dict = {}  # b -> the answers marked there (one label, not several on top of each other)
         for key, dash in DASH.items():
             bk = getattr(first, key)
             if bk is None:
                 continue
+            at.setdefault(bk, []).append(key.replace("b_", ""))
             for ya in (y1, y2):
                 shapes.append(
                     dict(
@@ -113,9 +115,10 @@ def bits_figure(answers: dict, current_bits: int | None = None, height: int = 42
                         line=dict(color=COLORS["theory"], dash=dash, width=2),
                     )
                 )
+        for bk, names in at.items():
             notes.append(
                 dict(
-                    text=key.replace("b_", "") + f" {bk}",
+                    text=", ".join(names) + f" {bk}",
                     x=bk,
                     xref="x",
                     y=1,
@@ -138,8 +141,11 @@ def bits_figure(answers: dict, current_bits: int | None = None, height: int = 42
         data,
         dict(
             height=height,
-            margin=dict(l=55, r=10, t=30 + 14 * title.count("<br>") + 14, b=40),
-            title=dict(text=title, font=dict(size=11), x=0, xanchor="left"),
+            margin=dict(l=55, r=10, t=30 + 15 * title.count("<br>") + 14, b=40),
+            # anchored at the top: a title of several lines grows down into the margin, not over the plot
+            title=dict(
+                text=title, font=dict(size=11), x=0, xanchor="left", yref="container", y=1, yanchor="top", pad=dict(t=8)
+            ),
             legend=dict(orientation="h", y=-0.18),
             shapes=shapes,
             annotations=notes,

@@ -142,7 +142,7 @@ def bound_figure(
                     y=by,
                     mode="lines+markers",
                     name="letter's δ(ε) (Theorem 1 errors)" + (f" · {label}" if several else ""),
-                    legendgroup=f"th {i}",
+                    legendgroup="th" if i == 0 else f"th {i}",
                     line=dict(color=COLORS["theory"] if i == 0 else c, dash="dash"),
                 )
             )

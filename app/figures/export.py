@@ -14,6 +14,7 @@ returned note says why.
 from __future__ import annotations
 
 import base64
+import contextlib
 import os
 import urllib.parse
 from contextlib import contextmanager
@@ -53,6 +54,7 @@ _PAGE = (
 _DRAW = """async ([fig, fmt, w, h, scale]) => {
   const f = JSON.parse(fig);
   const gd = document.getElementById('fig');
+  Plotly.purge(gd);
   await Plotly.newPlot(gd, f.data, Object.assign({}, f.layout, {width: w, height: h}), {staticPlot: true});
   return await Plotly.toImage(gd, {format: fmt, width: w, height: h, scale: scale});
 }"""
@@ -130,31 +132,40 @@ def _chromium(browser: str):
             b.close()
 
 
-def _render(b, fig, fmt: str, w: int, h: int, scale: float) -> bytes:
-    """The figure as ``fmt`` bytes, drawn in a new page of browser ``b`` (closed before returning)."""
+def _plotly_page(b):
+    """A page of browser ``b`` with plotly.js loaded (from the installed plotly package) and no network."""
     from plotly.offline import get_plotlyjs
 
+    page = b.new_page()
+    page.set_default_timeout(TIMEOUT_MS)
+    page.route("**/*", lambda route: route.abort() if route.request.url.startswith("http") else route.fallback())
+    page.set_content(_PAGE.format(js=get_plotlyjs()))
+    return page
+
+
+def _render(b, page, fig, fmt: str, w: int, h: int, scale: float) -> bytes:
+    """The figure as ``fmt`` bytes, drawn in ``page`` (plotly.js loaded); a PDF is printed in a page of its own."""
     from .raw import to_json
 
-    page = b.new_page(viewport={"width": w, "height": h})
+    png = fmt == "png"
+    page.set_viewport_size({"width": w, "height": h})
+    url = page.evaluate(_DRAW, [to_json(fig), "png" if png else "svg", w, h, scale if png else 1])
+    if png:
+        return base64.b64decode(url.split(",", 1)[1])
+    if fmt == "svg":
+        return urllib.parse.unquote(url.split(",", 1)[1]).encode("utf-8")
+    pdf = b.new_page(viewport={"width": w, "height": h})
     try:
-        page.set_default_timeout(TIMEOUT_MS)
-        page.route("**/*", lambda route: route.abort() if route.request.url.startswith("http") else route.fallback())
-        page.set_content(_PAGE.format(js=get_plotlyjs()))
-        png = fmt == "png"
-        url = page.evaluate(_DRAW, [to_json(fig), "png" if png else "svg", w, h, scale if png else 1])
-        if png:
-            return base64.b64decode(url.split(",", 1)[1])
-        if fmt == "svg":
-            return urllib.parse.unquote(url.split(",", 1)[1]).encode("utf-8")
-        page.set_content(
+        pdf.set_default_timeout(TIMEOUT_MS)
+        pdf.route("**/*", lambda route: route.abort() if route.request.url.startswith("http") else route.fallback())
+        pdf.set_content(
             "<!DOCTYPE html><html><body style='margin:0'>"
             f"<img style='display:block;width:{w}px;height:{h}px' src=\"{url}\"></body></html>"
         )
-        page.wait_for_function("document.images[0].complete")
-        return page.pdf(width=f"{w}px", height=f"{h}px", print_background=True, page_ranges="1")
+        pdf.wait_for_function("document.images[0].complete")
+        return pdf.pdf(width=f"{w}px", height=f"{h}px", print_background=True, page_ranges="1")
     finally:
-        page.close()
+        pdf.close()
 
 
 def _checked(path) -> tuple[Path, str]:
@@ -163,6 +174,35 @@ def _checked(path) -> tuple[Path, str]:
     if not path.parent.is_dir():
         raise ExportError(f"path: the folder {str(path.parent)!r} does not exist")
     return path, fmt
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _draw(static: list, out: dict, width, height, scale: float, browser: str) -> str:
+    """Draw the ``(fig, path, fmt)`` items into ``out``; "" or why Chromium did not start (then nothing is drawn).
+
+    A figure that fails to draw is an :class:`ExportError` with Chromium's first line.
+    """
+    from playwright.sync_api import Error as PlaywrightError
+
+    with contextlib.ExitStack() as stack:
+        try:
+            b = stack.enter_context(_chromium(browser))
+        except (PlaywrightError, OSError) as exc:
+            return f"Chromium at {browser} did not start ({_first_line(exc)})"
+        page = _plotly_page(b)  # plotly.js (4.6 MB) parsed once for all figures
+        for fig, path, fmt in static:
+            w, h = _size(fig, width, height)
+            try:
+                data = _render(b, page, fig, fmt, w, h, scale)
+            except PlaywrightError as exc:
+                raise ExportError(f"path: drawing {path.name} in Chromium failed: {_first_line(exc)}") from None
+            path.write_bytes(data)
+            out[path] = SavedFigure(path, fmt)
+    return ""
 
 
 def save_figures(
@@ -182,18 +222,15 @@ def save_figures(
     static = [it for it in items if it[2] != "html"]
     why = why_no_browser(browser) if static else ""
     out: dict = {}
-    for fig, path, fmt in items:
-        if fmt == "html" or why:
-            html = path.with_suffix(".html")
-            fig.write_html(html, include_plotlyjs=True, full_html=True)
-            note = f"{why}: wrote offline HTML {html.name} instead of {path.name}" if fmt != "html" else ""
-            out[path] = SavedFigure(html, "html", note)
     if static and not why:
-        with _chromium(browser) as b:
-            for fig, path, fmt in static:
-                w, h = _size(fig, width, height)
-                path.write_bytes(_render(b, fig, fmt, w, h, scale))
-                out[path] = SavedFigure(path, fmt)
+        why = _draw(static, out, width, height, scale, browser)
+    for fig, path, fmt in items:
+        if path in out:
+            continue
+        html = path.with_suffix(".html")
+        fig.write_html(html, include_plotlyjs=True, full_html=True)
+        note = f"{why}: wrote offline HTML {html.name} instead of {path.name}" if fmt != "html" else ""
+        out[path] = SavedFigure(html, "html", note)
     return [out[path] for _, path, _ in items]
 
 

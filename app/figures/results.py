@@ -12,8 +12,9 @@ draw, and calls those builders:
     closed-loop MPC cost on the true plant, with each result's true-model cost;
 ``stabilized``
     share of closed loops that converge (95 % Wilson interval) and the cost gap
-    (:func:`app.figures.bits_needed.bits_figure`; ``b_robust`` needs the
-    experiment and is not drawn here: ``qsid bits`` computes it);
+    and the word lengths from which the MPC stabilizes, the small-gain certificate
+    holds and the letter's bound says something
+    (:func:`app.figures.bits_needed.bits_figure`, as ``qsid bits``);
 ``bound``
     the letter's ultimate bound delta(eps), the a-posteriori bound and the final
     state norms.
@@ -118,7 +119,10 @@ def result_series(*results, labels: Sequence[str] | None = None) -> tuple[dict, 
 
 
 def _stabilized(series: dict, dicts: list, height: int) -> go.Figure:
-    from qsid_core.bits import answer_from_rows
+    """The bits view; the small-gain test of Theorem 1's predicted model is recomputed from each result's
+    configuration (its data are simulated again; no closed loop runs)."""
+    from qsid_core import Experiment, SweepConfig
+    from qsid_core.bits import answer_from_rows, predicted_small_gain
     from qsid_core.stability import data_rate_bits
 
     from .bits_needed import bits_figure
@@ -127,9 +131,11 @@ def _stabilized(series: dict, dicts: list, height: int) -> go.Figure:
     for (label, rows), d in zip(series.items(), dicts):
         if not any(r.get("closed_loop_outcomes") for r in rows):
             raise FigureError(f"view 'stabilized': the result {label!r} has no closed loops (it ran without MPC)")
+        ex = Experiment(SweepConfig.from_dict(d["config"]))
+        robust = {int(r["bits"]): predicted_small_gain(ex, int(r["bits"])) for r in rows}
         A = np.asarray(d["config"]["system_definition"]["A"], dtype=float)
         answers[label] = answer_from_rows(
-            d.get("system", ""), {}, rows, d.get("mpc_cost_true_model"), data_rate=data_rate_bits(A)
+            d.get("system", ""), {}, rows, d.get("mpc_cost_true_model"), robust=robust, data_rate=data_rate_bits(A)
         )
     return bits_figure(answers, height=height)
 
