@@ -161,7 +161,7 @@ class _Kernel:
 
     def need_qp(self) -> None:
         if self.qp is None:
-            self.loops.condensed()
+            self.loops.condensed(attach=False)
             cq = self.loops.cq
             self.qp = (np.ascontiguousarray(cq.H), np.ascontiguousarray(cq.Gx), np.ascontiguousarray(cq.g0))
 
@@ -220,16 +220,32 @@ def run_compiled(loops, active: np.ndarray, diverged: float, first_costs: bool) 
 
 
 def _first_costs(loops, idx, t0, first, U0) -> None:
-    """``J*(x0)`` of the loops whose first step the kernel took (fast path or active set)."""
-    x0, out = loops.w.x0, loops.out
-    for a in np.flatnonzero((t0 == 0) & (first > 0)):
-        c = loops.ctrls[int(idx[a])]
-        out.J0[idx[a]] = c.cost_to_go(x0) if first[a] == 1 else c.qp_cost(x0, U0[a])
+    """``J*(x0)`` of the loops whose first step the kernel took: the unconstrained optimal cost where
+    the fast path held, else the condensed QP's cost ``U'HU + 2 g'U + c(x0)`` of the active-set solution."""
+    x0, out, w = loops.w.x0, loops.out, loops.w
+    fast = idx[(t0 == 0) & (first == 1)]
+    if fast.size:
+        parts = [loops.ctrls[i].parts for i in fast]
+        P0, p0 = np.stack([p.P0 for p in parts]), np.stack([p.p0 for p in parts])
+        out.J0[fast] = np.einsum("i,lij,j->l", x0, P0, x0) + 2 * p0 @ x0 + np.array([p.c0 for p in parts])
+    sel = np.flatnonzero((t0 == 0) & (first == 2))
+    if sel.size:
+        cq, j, U = loops.cq, loops.rows(idx[sel]), U0[sel]
+        g = cq.Gx[j] @ x0 + cq.g0[j]
+        e = cq.Sx[j] @ x0 - np.tile(w.x_ref, cq.Sx.shape[1] // x0.size)
+        d0 = x0 - w.x_ref
+        out.J0[idx[sel]] = (
+            np.einsum("li,lij,lj->l", U, cq.H[j], U)
+            + 2 * np.einsum("li,li->l", g, U)
+            + np.einsum("li,lij,lj->l", e, cq.Qbars[j], e)
+            + d0 @ w.Q @ d0
+        )
 
 
 def _daqp_step(loops, i: int, t: int, diverged: float, first_costs: bool) -> bool:
     """Step ``t`` of loop ``i`` by its DAQP solver (warm-started); False if the loop failed there."""
     c, out = loops.ctrls[i], loops.out
+    loops.attach(i)
     x = loops.x[i].copy()
     out.qp_steps += 1
     try:
