@@ -338,7 +338,9 @@ def _main(argv=None) -> dict:
         "engine times include building the controller (DARE, gains, QP setup); peer times exclude their setup "
         "(shown separately)"
     )
-    print(f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}; load average {os.getloadavg()}")
+    print(
+        f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}; load average {'/'.join(f'{x:.1f}' for x in os.getloadavg())}"
+    )
     if missing:
         print("not installed, skipped:", ", ".join(missing))
     results = []

@@ -36,38 +36,80 @@ TOL = 1e-12
 _DONE, _NEED_QP, _UNSETTLED, _DIVERGED = 0, 1, 2, 3
 
 
+def _predict_py(F, f, bound, r, xs, z):
+    """``z = F[r] xs + f[r]``; whether it meets the box (the unconstrained optimum is the MPC's)."""
+    fast = True
+    for k in range(z.shape[0]):
+        s = f[r, k]
+        for c in range(xs.shape[0]):
+            s += F[r, k, c] * xs[c]
+        z[k] = s
+        if not abs(s) <= bound[k]:
+            fast = False
+    return fast
+
+
+def _guess_py(Gx, g0, r, xs, z, prevU, prev_t, i, t, ub, m, g, up, lo):
+    """The QP's ``g = Gx[r] xs + g0[r]`` and the active-set guess: the last step's optimal sequence shifted
+    by one step when the last step was a QP step, else the bounds the unconstrained optimum ``z`` violates."""
+    nU = ub.shape[0]
+    warm = prev_t[i] == t - 1
+    for k in range(nU):
+        s = g0[r, k]
+        for c in range(xs.shape[0]):
+            s += Gx[r, k, c] * xs[c]
+        g[k] = s
+        if warm:
+            base = prevU[i, k + m] if k + m < nU else prevU[i, k]
+        else:
+            base = z[k]
+        up[k] = base >= ub[k] * (1 - 1e-9)
+        lo[k] = (base <= -ub[k] * (1 - 1e-9)) and not up[k]
+
+
+def _move_py(A, B, xs, u, xn, diverged):
+    """``xn = A xs + B u``; False if a component leaves ``|x| <= diverged`` (or is not finite)."""
+    ok = True
+    for k in range(xn.shape[0]):
+        s = 0.0
+        for c in range(xs.shape[0]):
+            s += A[k, c] * xs[c]
+        for c in range(u.shape[0]):
+            s += B[k, c] * u[c]
+        xn[k] = s
+        if not abs(s) <= diverged:
+            ok = False
+    return ok
+
+
+def _stage_py(xs, x_ref, Q, u, R):
+    """``(x - r)'Q(x - r) + u'R u``."""
+    cost = 0.0
+    for k in range(xs.shape[0]):
+        for c in range(xs.shape[0]):
+            cost += (xs[k] - x_ref[k]) * Q[k, c] * (xs[c] - x_ref[c])
+    for k in range(u.shape[0]):
+        for c in range(u.shape[0]):
+            cost += u[k] * R[k, c] * u[c]
+    return cost
+
+
 def _box_loop_py(
     idx, rows, t0, steps, F, f, bound, H, Gx, g0, have_qp, A, B, Q, R, x_ref, ub, iters, tol, diverged,
     x, prevU, prev_t, states, inputs, acc, U0, first, qp_steps, status, tstop,
 ):  # fmt: skip
     """Run loops ``idx`` (rows ``rows`` of ``F``, ``H``, ...) from steps ``t0`` until done or stopped."""
-    nz, n = F.shape[1], F.shape[2]
-    m = B.shape[1]
-    nU = ub.shape[0]
-    z = np.empty(nz)
-    g = np.empty(nU)
-    U = np.empty(nU)
-    up = np.empty(nU, dtype=np.bool_)
-    lo = np.empty(nU, dtype=np.bool_)
-    Lc = np.empty((nU, nU))
-    rhs = np.empty(nU)
-    free = np.empty(nU, dtype=np.int64)
-    u = np.empty(m)
-    xn = np.empty(n)
+    n, m, nU = F.shape[2], B.shape[1], ub.shape[0]
+    z, g, U = np.empty(F.shape[1]), np.empty(nU), np.empty(nU)
+    up, lo = np.empty(nU, dtype=np.bool_), np.empty(nU, dtype=np.bool_)
+    Lc, rhs, free = np.empty((nU, nU)), np.empty(nU), np.empty(nU, dtype=np.int64)
+    u, xn = np.empty(m), np.empty(n)
     for a in range(idx.shape[0]):
         i, r = idx[a], rows[a]
         xs = x[i]
         status[a] = _DONE
         for t in range(t0[a], steps):
-            fast = True
-            for k in range(nz):
-                s = f[r, k]
-                for c in range(n):
-                    s += F[r, k, c] * xs[c]
-                z[k] = s
-                if not abs(s) <= bound[k]:
-                    fast = False
-            if fast:
+            if _predict(F, f, bound, r, xs, z):
                 for c in range(m):
                     u[c] = z[c]
                 if t == 0:
@@ -76,63 +118,33 @@ def _box_loop_py(
                 if not have_qp:
                     status[a], tstop[a] = _NEED_QP, t
                     break
-                for k in range(nU):
-                    s = g0[r, k]
-                    for c in range(n):
-                        s += Gx[r, k, c] * xs[c]
-                    g[k] = s
-                warm = prev_t[i] == t - 1
-                for k in range(nU):  # the guess: last step's sequence shifted by one step, or the violated bounds
-                    if warm:
-                        base = prevU[i, k + m] if k + m < nU else prevU[i, k]
-                    else:
-                        base = z[k]
-                    up[k] = base >= ub[k] * (1 - 1e-9)
-                    lo[k] = (base <= -ub[k] * (1 - 1e-9)) and not up[k]
+                _guess(Gx, g0, r, xs, z, prevU, prev_t, i, t, ub, m, g, up, lo)
                 if not kernels._pdas_one(H[r], g, ub, up, lo, iters, tol, U, Lc, rhs, free):
                     status[a], tstop[a] = _UNSETTLED, t
                     break
                 qp_steps[a] += 1
-                for k in range(nU):
-                    prevU[i, k] = U[k]
+                prevU[i, :] = U
                 prev_t[i] = t
                 for c in range(m):  # the active set meets the bounds up to rounding: clip that rounding
                     u[c] = min(max(U[c], -ub[c]), ub[c])
                 if t == 0:
                     first[a] = 2
-                    for k in range(nU):
-                        U0[a, k] = U[k]
-            bad = False
-            for k in range(n):
-                s = 0.0
-                for c in range(n):
-                    s += A[k, c] * xs[c]
-                for c in range(m):
-                    s += B[k, c] * u[c]
-                xn[k] = s
-                if not abs(s) <= diverged:  # beyond the bound, infinite or NaN
-                    bad = True
-            if bad:
+                    U0[a, :] = U
+            if not _move(A, B, xs, u, xn, diverged):
                 status[a], tstop[a] = _DIVERGED, t
                 break
-            cost = 0.0
-            for k in range(n):
-                for c in range(n):
-                    cost += (xs[k] - x_ref[k]) * Q[k, c] * (xs[c] - x_ref[c])
-            for k in range(m):
-                for c in range(m):
-                    cost += u[k] * R[k, c] * u[c]
-            acc[i] += cost
-            for k in range(n):
-                states[i, t + 1, k] = xn[k]
-                xs[k] = xn[k]
-            for c in range(m):
-                inputs[i, t, c] = u[c]
+            acc[i] += _stage(xs, x_ref, Q, u, R)
+            states[i, t + 1, :] = xn
+            inputs[i, t, :] = u
+            xs[:] = xn
 
 
 if kernels.AVAILABLE:
-    _box_loop = kernels._numba.njit(cache=True, nogil=True)(_box_loop_py)
+    _jit = kernels._numba.njit(cache=True, nogil=True)
+    _predict, _guess, _move, _stage = _jit(_predict_py), _jit(_guess_py), _jit(_move_py), _jit(_stage_py)
+    _box_loop = _jit(_box_loop_py)
 else:  # pragma: no cover
+    _predict, _guess, _move, _stage = _predict_py, _guess_py, _move_py, _stage_py
     _box_loop = None
 
 
