@@ -170,11 +170,13 @@ def _main(argv=None) -> int:
         ex = ThreadPoolExecutor(a.workers)
     elif a.workers:  # the dashboard's own pool, as a tab uses it (data shared once per worker, watched tasks)
         from app.dashboard.pool import Pool
+        from app.dashboard.warm import warm
 
         pool = Pool(a.workers)
         ex = pool.guarded()
         for f in [ex.submit(abs, 0) for _ in range(a.workers)]:
             f.result()
+        warm(pool)  # as the server does before it says it is ready: kernels compiled or loaded in every worker
     tasks = max(1, a.workers)
     global BREAKDOWN
     if not a.workers:
