@@ -154,20 +154,26 @@ def eligible(loops) -> bool:
     return kernels.AVAILABLE and loops.guess and loops.noise is None and loops.preview is None
 
 
+def _own(a, dtype=float) -> np.ndarray:
+    """A writable C-contiguous copy: the kernel is compiled for one array type, not also for read-only
+    (shared-memory) or strided inputs, so a cache written by any process serves every process."""
+    return np.array(a, dtype=dtype, order="C")
+
+
 class _Kernel:
     """The kernel's arguments for the live models of ``loops`` (the condensed QPs once built)."""
 
     def __init__(self, loops, diverged: float):
         self.loops, self.diverged = loops, float(diverged)
         w = loops.w
-        self.F, self.f = np.ascontiguousarray(loops.F), np.ascontiguousarray(loops.f)
+        self.F, self.f = _own(loops.F), _own(loops.f)
         self.fixed = (
-            np.ascontiguousarray(loops.A),
-            np.ascontiguousarray(loops.B),
-            np.ascontiguousarray(w.Q, dtype=float),
-            np.ascontiguousarray(w.R, dtype=float),
-            np.ascontiguousarray(w.x_ref, dtype=float),
-            np.ascontiguousarray(loops.ub, dtype=float),
+            _own(loops.A),
+            _own(loops.B),
+            _own(w.Q),
+            _own(w.R),
+            _own(w.x_ref),
+            _own(loops.ub),
         )
         self.qp = None
 
@@ -175,7 +181,7 @@ class _Kernel:
         if self.qp is None:
             self.loops.condensed(attach=False)
             cq = self.loops.cq
-            self.qp = (np.ascontiguousarray(cq.H), np.ascontiguousarray(cq.Gx), np.ascontiguousarray(cq.g0))
+            self.qp = (_own(cq.H), _own(cq.Gx), _own(cq.g0))
 
     def run(self, idx: np.ndarray, t0: np.ndarray):
         """Run loops ``idx`` from steps ``t0``; returns ``(status, tstop, first, U0)`` per loop."""
@@ -193,7 +199,7 @@ class _Kernel:
         tstop = np.full(k, L.steps, dtype=np.int64)
         out = L.out
         _box_loop(
-            idx, L.rows(idx), t0, L.steps, self.F, self.f, np.ascontiguousarray(L.bound, dtype=float), *qp,
+            idx, L.rows(idx), t0, L.steps, self.F, self.f, _own(L.bound), *qp,
             self.qp is not None, *self.fixed, PDAS_ITERS, TOL, self.diverged,
             L.x, L.prevU, L.prev_t, out.states, out.inputs, L.acc, U0, first, qp_steps, status, tstop,
         )  # fmt: skip
@@ -209,7 +215,7 @@ def run_compiled(loops, active: np.ndarray, diverged: float, first_costs: bool) 
     as :func:`qsid_core.closed_loop.advance` does.
     """
     kern = _Kernel(loops, diverged)
-    idx = np.ascontiguousarray(active, dtype=np.int64)
+    idx = _own(active, dtype=np.int64)
     t0 = np.zeros(idx.size, dtype=np.int64)
     while idx.size:
         status, tstop, first, U0 = kern.run(idx, t0)
