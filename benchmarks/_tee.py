@@ -46,8 +46,8 @@ def code_version() -> str:
 
 
 @contextlib.contextmanager
-def saved(path: str | None, argv: list):
-    """Print to stdout and, with ``path``, to that file too (header first)."""
+def saved(path: str | None, argv: list, name: str | None = None):
+    """Print to stdout and, with ``path``, to that file too (header first; ``name``: the script)."""
     if not path:
         yield
         return
@@ -55,7 +55,7 @@ def saved(path: str | None, argv: list):
     with open(path, "w", encoding="utf-8") as fh:
         now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         fh.write(
-            f"{HEADER}: {' '.join([Path(sys.argv[0]).name] + list(argv))}\n"
+            f"{HEADER}: {' '.join([name or Path(sys.argv[0]).name] + list(argv))}\n"
             f"# {now} · {platform.machine()} · {os.cpu_count()} CPUs (shared) · load average at start "
             f"{os.getloadavg()[0]:.1f} · code {code_version()}\n"
         )
@@ -84,5 +84,6 @@ def run(main, argv):
     """``main(argv)`` with ``--save FILE`` handled (the rest of ``argv`` goes to ``main``)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     path = pop_save(argv)
-    with saved(path, argv):
+    script = getattr(sys.modules.get(main.__module__), "__file__", None)
+    with saved(path, argv, Path(script).name if script else None):
         return main(argv)
