@@ -22,6 +22,7 @@ Usage::
     python benchmarks/bench_dashboard.py --workers 0    # everything in-process
     python benchmarks/bench_dashboard.py --pool thread  # a thread pool of 2 (the kernels release the GIL)
     python benchmarks/bench_dashboard.py --no-paper     # interactive only
+    python benchmarks/bench_dashboard.py --save out.txt # also write the output to out.txt (docs/perf/)
 
 Every row prints the 1-minute load average while it ran (the machine is shared). With
 ``--workers 0`` (everything in this process) each row is followed by where its CPU time
@@ -154,7 +155,7 @@ def saturated_runs(base: Values, cache, renderer: Renderer, executor, tasks: int
     return runs
 
 
-def main(argv=None) -> int:
+def _main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--workers", type=int, default=2, help="pool size (0 = in-process)")
     p.add_argument("--pool", default="process", choices=("process", "thread"), help="kind of pool")
@@ -169,11 +170,13 @@ def main(argv=None) -> int:
         ex = ThreadPoolExecutor(a.workers)
     elif a.workers:  # the dashboard's own pool, as a tab uses it (data shared once per worker, watched tasks)
         from app.dashboard.pool import Pool
+        from app.dashboard.warm import warm
 
         pool = Pool(a.workers)
         ex = pool.guarded()
         for f in [ex.submit(abs, 0) for _ in range(a.workers)]:
             f.result()
+        warm(pool)  # as the server does before it says it is ready: kernels compiled or loaded in every worker
     tasks = max(1, a.workers)
     global BREAKDOWN
     if not a.workers:
@@ -241,6 +244,13 @@ def main(argv=None) -> int:
         BREAKDOWN.__exit__(None, None, None)
         BREAKDOWN = None
     return 0
+
+
+def main(argv=None):
+    """Run the benchmark; ``--save FILE`` also writes the printed output to FILE (header first)."""
+    import _tee
+
+    return _tee.run(_main, argv)
 
 
 if __name__ == "__main__":

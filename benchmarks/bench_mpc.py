@@ -31,7 +31,7 @@ Then the saturated stage of a sweep (``benchmarks/_mpc_stage.py``): every identi
 Boeing model's saturated closed loop by the compiled loop against per-step OSQP loops
 (target >= 100x), with the 1-minute load average beside every row (the machine is shared).
 
-The last line is ``RESULT {json}``.
+The last line is ``RESULT {json}``; ``--save FILE`` writes the output to FILE as well.
 """
 
 from __future__ import annotations
@@ -302,7 +302,7 @@ def check_agreement(quick: bool = True, solvers=None) -> dict:
     return res
 
 
-def main(argv=None) -> dict:
+def _main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="dc-motor only, horizon 5, 12 steps, 1 repeat")
     ap.add_argument("--repeats", type=int, default=None, help="timed closed loops per peer (default 5; quick 1)")
@@ -338,7 +338,9 @@ def main(argv=None) -> dict:
         "engine times include building the controller (DARE, gains, QP setup); peer times exclude their setup "
         "(shown separately)"
     )
-    print(f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}; load average {os.getloadavg()}")
+    print(
+        f"OpenBLAS threads in this process: {blas_threads() or 'unknown'}; load average {'/'.join(f'{x:.1f}' for x in os.getloadavg())}"
+    )
     if missing:
         print("not installed, skipped:", ", ".join(missing))
     results = []
@@ -448,6 +450,13 @@ def main(argv=None) -> dict:
     )
     print("RESULT " + json.dumps(out))
     return out
+
+
+def main(argv=None):
+    """Run the benchmark; ``--save FILE`` also writes the printed output to FILE (header first)."""
+    import _tee
+
+    return _tee.run(_main, argv)
 
 
 if __name__ == "__main__":

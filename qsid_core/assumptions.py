@@ -232,6 +232,9 @@ def clipping_effect(
     levels = 2.0 ** np.asarray(bits, dtype=float)
     lo_l = np.where(exact, -np.inf, lo_q + eps / 2)
     hi_l = np.where(exact, np.inf, lo_q + eps * (levels - 0.5))
+    inside = np.all(Psi.min(axis=1) >= lo_l) and np.all(Psi.max(axis=1) <= hi_l)
+    if inside and np.all(Xp.min(axis=1) >= lo_l[:n]) and np.all(Xp.max(axis=1) <= hi_l[:n]):
+        return np.zeros_like(G)  # nothing clipped (checked on the extremes, without clipped copies)
     Pc = np.clip(Psi, lo_l[:, None], hi_l[:, None])
     Xc = np.clip(Xp, lo_l[:n, None], hi_l[:n, None])
     if np.array_equal(Pc, Psi) and np.array_equal(Xc, Xp):

@@ -168,8 +168,9 @@ class _Loops:
         self.preview.set_qp(c._qp, self.pos[i], 0)
         return c.qp_cost(y, U)
 
-    def condensed(self) -> None:
-        """Condense the QPs of all live models in one batch (once) and hand them to the controllers."""
+    def condensed(self, attach: bool = True) -> None:
+        """Condense the QPs of all live models in one batch (once) and, with ``attach``, hand them to the
+        controllers (the compiled loop attaches a model only when its DAQP solver is needed: :meth:`attach`)."""
         if self.cq is not None:
             return
         cs = [self.ctrls[i] for i in self.live]
@@ -183,8 +184,14 @@ class _Loops:
             c0.x_ref,
             c0.N,
         )
-        for k, c in enumerate(cs):
-            c.use_condensed(self.cq, k)
+        if attach:
+            for k, c in enumerate(cs):
+                c.use_condensed(self.cq, k)
+
+    def attach(self, i: int) -> None:
+        """Hand realisation ``i``'s condensed QP to its controller (for its DAQP solver)."""
+        self.condensed(attach=False)
+        self.ctrls[i].use_condensed(self.cq, int(self.pos[i]))
 
     def solve_slow(self, idx: np.ndarray, xs: np.ndarray, zs: np.ndarray, t: int) -> tuple[np.ndarray, np.ndarray]:
         """``u_0`` of the models ``idx`` (states ``xs``) whose unconstrained optimum ``zs`` violates a bound.

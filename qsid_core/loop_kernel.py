@@ -36,38 +36,80 @@ TOL = 1e-12
 _DONE, _NEED_QP, _UNSETTLED, _DIVERGED = 0, 1, 2, 3
 
 
+def _predict_py(F, f, bound, r, xs, z):
+    """``z = F[r] xs + f[r]``; whether it meets the box (the unconstrained optimum is the MPC's)."""
+    fast = True
+    for k in range(z.shape[0]):
+        s = f[r, k]
+        for c in range(xs.shape[0]):
+            s += F[r, k, c] * xs[c]
+        z[k] = s
+        if not abs(s) <= bound[k]:
+            fast = False
+    return fast
+
+
+def _guess_py(Gx, g0, r, xs, z, prevU, prev_t, i, t, ub, m, g, up, lo):
+    """The QP's ``g = Gx[r] xs + g0[r]`` and the active-set guess: the last step's optimal sequence shifted
+    by one step when the last step was a QP step, else the bounds the unconstrained optimum ``z`` violates."""
+    nU = ub.shape[0]
+    warm = prev_t[i] == t - 1
+    for k in range(nU):
+        s = g0[r, k]
+        for c in range(xs.shape[0]):
+            s += Gx[r, k, c] * xs[c]
+        g[k] = s
+        if warm:
+            base = prevU[i, k + m] if k + m < nU else prevU[i, k]
+        else:
+            base = z[k]
+        up[k] = base >= ub[k] * (1 - 1e-9)
+        lo[k] = (base <= -ub[k] * (1 - 1e-9)) and not up[k]
+
+
+def _move_py(A, B, xs, u, xn, diverged):
+    """``xn = A xs + B u``; False if a component leaves ``|x| <= diverged`` (or is not finite)."""
+    ok = True
+    for k in range(xn.shape[0]):
+        s = 0.0
+        for c in range(xs.shape[0]):
+            s += A[k, c] * xs[c]
+        for c in range(u.shape[0]):
+            s += B[k, c] * u[c]
+        xn[k] = s
+        if not abs(s) <= diverged:
+            ok = False
+    return ok
+
+
+def _stage_py(xs, x_ref, Q, u, R):
+    """``(x - r)'Q(x - r) + u'R u``."""
+    cost = 0.0
+    for k in range(xs.shape[0]):
+        for c in range(xs.shape[0]):
+            cost += (xs[k] - x_ref[k]) * Q[k, c] * (xs[c] - x_ref[c])
+    for k in range(u.shape[0]):
+        for c in range(u.shape[0]):
+            cost += u[k] * R[k, c] * u[c]
+    return cost
+
+
 def _box_loop_py(
     idx, rows, t0, steps, F, f, bound, H, Gx, g0, have_qp, A, B, Q, R, x_ref, ub, iters, tol, diverged,
     x, prevU, prev_t, states, inputs, acc, U0, first, qp_steps, status, tstop,
 ):  # fmt: skip
     """Run loops ``idx`` (rows ``rows`` of ``F``, ``H``, ...) from steps ``t0`` until done or stopped."""
-    nz, n = F.shape[1], F.shape[2]
-    m = B.shape[1]
-    nU = ub.shape[0]
-    z = np.empty(nz)
-    g = np.empty(nU)
-    U = np.empty(nU)
-    up = np.empty(nU, dtype=np.bool_)
-    lo = np.empty(nU, dtype=np.bool_)
-    Lc = np.empty((nU, nU))
-    rhs = np.empty(nU)
-    free = np.empty(nU, dtype=np.int64)
-    u = np.empty(m)
-    xn = np.empty(n)
+    n, m, nU = F.shape[2], B.shape[1], ub.shape[0]
+    z, g, U = np.empty(F.shape[1]), np.empty(nU), np.empty(nU)
+    up, lo = np.empty(nU, dtype=np.bool_), np.empty(nU, dtype=np.bool_)
+    Lc, rhs, free = np.empty((nU, nU)), np.empty(nU), np.empty(nU, dtype=np.int64)
+    u, xn = np.empty(m), np.empty(n)
     for a in range(idx.shape[0]):
         i, r = idx[a], rows[a]
         xs = x[i]
         status[a] = _DONE
         for t in range(t0[a], steps):
-            fast = True
-            for k in range(nz):
-                s = f[r, k]
-                for c in range(n):
-                    s += F[r, k, c] * xs[c]
-                z[k] = s
-                if not abs(s) <= bound[k]:
-                    fast = False
-            if fast:
+            if _predict(F, f, bound, r, xs, z):
                 for c in range(m):
                     u[c] = z[c]
                 if t == 0:
@@ -76,63 +118,33 @@ def _box_loop_py(
                 if not have_qp:
                     status[a], tstop[a] = _NEED_QP, t
                     break
-                for k in range(nU):
-                    s = g0[r, k]
-                    for c in range(n):
-                        s += Gx[r, k, c] * xs[c]
-                    g[k] = s
-                warm = prev_t[i] == t - 1
-                for k in range(nU):  # the guess: last step's sequence shifted by one step, or the violated bounds
-                    if warm:
-                        base = prevU[i, k + m] if k + m < nU else prevU[i, k]
-                    else:
-                        base = z[k]
-                    up[k] = base >= ub[k] * (1 - 1e-9)
-                    lo[k] = (base <= -ub[k] * (1 - 1e-9)) and not up[k]
+                _guess(Gx, g0, r, xs, z, prevU, prev_t, i, t, ub, m, g, up, lo)
                 if not kernels._pdas_one(H[r], g, ub, up, lo, iters, tol, U, Lc, rhs, free):
                     status[a], tstop[a] = _UNSETTLED, t
                     break
                 qp_steps[a] += 1
-                for k in range(nU):
-                    prevU[i, k] = U[k]
+                prevU[i, :] = U
                 prev_t[i] = t
                 for c in range(m):  # the active set meets the bounds up to rounding: clip that rounding
                     u[c] = min(max(U[c], -ub[c]), ub[c])
                 if t == 0:
                     first[a] = 2
-                    for k in range(nU):
-                        U0[a, k] = U[k]
-            bad = False
-            for k in range(n):
-                s = 0.0
-                for c in range(n):
-                    s += A[k, c] * xs[c]
-                for c in range(m):
-                    s += B[k, c] * u[c]
-                xn[k] = s
-                if not abs(s) <= diverged:  # beyond the bound, infinite or NaN
-                    bad = True
-            if bad:
+                    U0[a, :] = U
+            if not _move(A, B, xs, u, xn, diverged):
                 status[a], tstop[a] = _DIVERGED, t
                 break
-            cost = 0.0
-            for k in range(n):
-                for c in range(n):
-                    cost += (xs[k] - x_ref[k]) * Q[k, c] * (xs[c] - x_ref[c])
-            for k in range(m):
-                for c in range(m):
-                    cost += u[k] * R[k, c] * u[c]
-            acc[i] += cost
-            for k in range(n):
-                states[i, t + 1, k] = xn[k]
-                xs[k] = xn[k]
-            for c in range(m):
-                inputs[i, t, c] = u[c]
+            acc[i] += _stage(xs, x_ref, Q, u, R)
+            states[i, t + 1, :] = xn
+            inputs[i, t, :] = u
+            xs[:] = xn
 
 
 if kernels.AVAILABLE:
-    _box_loop = kernels._numba.njit(cache=True, nogil=True)(_box_loop_py)
+    _jit = kernels._numba.njit(cache=True, nogil=True)
+    _predict, _guess, _move, _stage = _jit(_predict_py), _jit(_guess_py), _jit(_move_py), _jit(_stage_py)
+    _box_loop = _jit(_box_loop_py)
 else:  # pragma: no cover
+    _predict, _guess, _move, _stage = _predict_py, _guess_py, _move_py, _stage_py
     _box_loop = None
 
 
@@ -142,28 +154,34 @@ def eligible(loops) -> bool:
     return kernels.AVAILABLE and loops.guess and loops.noise is None and loops.preview is None
 
 
+def _own(a, dtype=float) -> np.ndarray:
+    """A writable C-contiguous copy: the kernel is compiled for one array type, not also for read-only
+    (shared-memory) or strided inputs, so a cache written by any process serves every process."""
+    return np.array(a, dtype=dtype, order="C")
+
+
 class _Kernel:
     """The kernel's arguments for the live models of ``loops`` (the condensed QPs once built)."""
 
     def __init__(self, loops, diverged: float):
         self.loops, self.diverged = loops, float(diverged)
         w = loops.w
-        self.F, self.f = np.ascontiguousarray(loops.F), np.ascontiguousarray(loops.f)
+        self.F, self.f = _own(loops.F), _own(loops.f)
         self.fixed = (
-            np.ascontiguousarray(loops.A),
-            np.ascontiguousarray(loops.B),
-            np.ascontiguousarray(w.Q, dtype=float),
-            np.ascontiguousarray(w.R, dtype=float),
-            np.ascontiguousarray(w.x_ref, dtype=float),
-            np.ascontiguousarray(loops.ub, dtype=float),
+            _own(loops.A),
+            _own(loops.B),
+            _own(w.Q),
+            _own(w.R),
+            _own(w.x_ref),
+            _own(loops.ub),
         )
         self.qp = None
 
     def need_qp(self) -> None:
         if self.qp is None:
-            self.loops.condensed()
+            self.loops.condensed(attach=False)
             cq = self.loops.cq
-            self.qp = (np.ascontiguousarray(cq.H), np.ascontiguousarray(cq.Gx), np.ascontiguousarray(cq.g0))
+            self.qp = (_own(cq.H), _own(cq.Gx), _own(cq.g0))
 
     def run(self, idx: np.ndarray, t0: np.ndarray):
         """Run loops ``idx`` from steps ``t0``; returns ``(status, tstop, first, U0)`` per loop."""
@@ -181,7 +199,7 @@ class _Kernel:
         tstop = np.full(k, L.steps, dtype=np.int64)
         out = L.out
         _box_loop(
-            idx, L.rows(idx), t0, L.steps, self.F, self.f, np.ascontiguousarray(L.bound, dtype=float), *qp,
+            idx, L.rows(idx), t0, L.steps, self.F, self.f, _own(L.bound), *qp,
             self.qp is not None, *self.fixed, PDAS_ITERS, TOL, self.diverged,
             L.x, L.prevU, L.prev_t, out.states, out.inputs, L.acc, U0, first, qp_steps, status, tstop,
         )  # fmt: skip
@@ -197,7 +215,7 @@ def run_compiled(loops, active: np.ndarray, diverged: float, first_costs: bool) 
     as :func:`qsid_core.closed_loop.advance` does.
     """
     kern = _Kernel(loops, diverged)
-    idx = np.ascontiguousarray(active, dtype=np.int64)
+    idx = _own(active, dtype=np.int64)
     t0 = np.zeros(idx.size, dtype=np.int64)
     while idx.size:
         status, tstop, first, U0 = kern.run(idx, t0)
@@ -220,16 +238,32 @@ def run_compiled(loops, active: np.ndarray, diverged: float, first_costs: bool) 
 
 
 def _first_costs(loops, idx, t0, first, U0) -> None:
-    """``J*(x0)`` of the loops whose first step the kernel took (fast path or active set)."""
-    x0, out = loops.w.x0, loops.out
-    for a in np.flatnonzero((t0 == 0) & (first > 0)):
-        c = loops.ctrls[int(idx[a])]
-        out.J0[idx[a]] = c.cost_to_go(x0) if first[a] == 1 else c.qp_cost(x0, U0[a])
+    """``J*(x0)`` of the loops whose first step the kernel took: the unconstrained optimal cost where
+    the fast path held, else the condensed QP's cost ``U'HU + 2 g'U + c(x0)`` of the active-set solution."""
+    x0, out, w = loops.w.x0, loops.out, loops.w
+    fast = idx[(t0 == 0) & (first == 1)]
+    if fast.size:
+        parts = [loops.ctrls[i].parts for i in fast]
+        P0, p0 = np.stack([p.P0 for p in parts]), np.stack([p.p0 for p in parts])
+        out.J0[fast] = np.einsum("i,lij,j->l", x0, P0, x0) + 2 * p0 @ x0 + np.array([p.c0 for p in parts])
+    sel = np.flatnonzero((t0 == 0) & (first == 2))
+    if sel.size:
+        cq, j, U = loops.cq, loops.rows(idx[sel]), U0[sel]
+        g = cq.Gx[j] @ x0 + cq.g0[j]
+        e = cq.Sx[j] @ x0 - np.tile(w.x_ref, cq.Sx.shape[1] // x0.size)
+        d0 = x0 - w.x_ref
+        out.J0[idx[sel]] = (
+            np.einsum("li,lij,lj->l", U, cq.H[j], U)
+            + 2 * np.einsum("li,li->l", g, U)
+            + np.einsum("li,lij,lj->l", e, cq.Qbars[j], e)
+            + d0 @ w.Q @ d0
+        )
 
 
 def _daqp_step(loops, i: int, t: int, diverged: float, first_costs: bool) -> bool:
     """Step ``t`` of loop ``i`` by its DAQP solver (warm-started); False if the loop failed there."""
     c, out = loops.ctrls[i], loops.out
+    loops.attach(i)
     x = loops.x[i].copy()
     out.qp_steps += 1
     try:

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "benchmarks"
 if str(BENCH) not in sys.path:
     sys.path.insert(0, str(BENCH))
 
@@ -85,8 +86,9 @@ def test_mpc_peers_agree_with_engine(peer):
         assert r[peer]["max_abs_du"] < bench_mpc.TOL, (problem, r[peer])
 
 
-def test_bench_mpc_quick_main_prints_result(capsys):
-    bench_mpc.main(["--quick", "--skip", "do-mpc", "--engine-repeats", "1"])
+def test_bench_mpc_quick_main_prints_result(capsys, tmp_path):
+    saved = tmp_path / "out.txt"
+    bench_mpc.main(["--quick", "--skip", "do-mpc", "--engine-repeats", "1", "--save", str(saved)])
     text = capsys.readouterr().out
     line = [ln for ln in text.splitlines() if ln.startswith("RESULT ")][-1]
     data = json.loads(line[len("RESULT ") :])
@@ -94,6 +96,25 @@ def test_bench_mpc_quick_main_prints_result(capsys):
     assert {p["case"] for p in data["problems"]} == {"letter", "constrained"}
     for p in data["problems"]:
         assert p["solvers"]["engine run_closed_loops"]["max_abs_du"] == 0.0
+    stage = data["saturated_stage"]  # the compiled loop beside the per-step OSQP loops, on the same models
+    assert stage["qp_steps"] > 0 and data["all_agree"]
+    assert all(r["max_abs_du_vs_osqp"] <= bench_mpc.TOL for r in stage["rows"].values())
+    # --save: the same output after a header naming the command, the machine's load and the code
+    head, rest = saved.read_text().split("\n", 2)[:2], saved.read_text().split("\n", 2)[2]
+    assert head[0].startswith("# qsid benchmark output: bench") and "load average" in head[1]
+    assert rest.strip() == text.strip()
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["bench_mpc.txt", "bench_dashboard.txt", "bench_dashboard_inprocess.txt", "bench_dashboard_inprocess_before.txt"],
+)
+def test_the_benchmark_outputs_in_the_docs_were_saved_by_the_benchmarks(name):
+    # docs/performance.rst includes these files verbatim: each is a benchmark's own --save output
+    path = ROOT / "docs" / "perf" / name
+    text = path.read_text(encoding="utf-8")
+    assert text.startswith("# qsid benchmark output: bench_") and "load average at start" in text
+    assert f"perf/{name}" in (ROOT / "docs" / "performance.rst").read_text(encoding="utf-8")
 
 
 def test_blas_helper_reports_and_limits_threads():

@@ -27,6 +27,10 @@ KERNELS = (
     "kernels._dot_py",
     "kernels._pdas_one_py",
     "loop_kernel._box_loop_py",
+    "loop_kernel._guess_py",
+    "loop_kernel._move_py",
+    "loop_kernel._predict_py",
+    "loop_kernel._stage_py",
 )
 
 
