@@ -137,3 +137,10 @@ def test_reproduce_figure_writes_every_panel_as_png(capsys, tmp_path):
         "f_phase_b6.png",
     ]
     assert all((out_dir / p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
+
+
+def test_the_figure_views_the_parser_offers_are_the_plotting_views():
+    from app.cli.figure_out import FIGURE_VIEWS
+    from app.figures.results import VIEWS
+
+    assert FIGURE_VIEWS == VIEWS

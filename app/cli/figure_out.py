@@ -11,12 +11,22 @@ from pathlib import Path
 
 from .runner import UsageError, out_file
 
-__all__ = ["add_figure_arguments", "check_figure", "write_figure", "check_formats", "save", "save_panels"]
+#: The views ``--figure-view`` offers: those of :func:`app.figures.results.plot_results` (a test checks they agree),
+#: written out so that building the parser does not import plotly.
+FIGURE_VIEWS = ("error", "cost", "stabilized", "bound")
+
+__all__ = [
+    "FIGURE_VIEWS",
+    "add_figure_arguments",
+    "check_figure",
+    "write_figure",
+    "check_formats",
+    "save",
+    "save_panels",
+]
 
 
 def add_figure_arguments(p) -> None:
-    from app.figures.results import VIEWS
-
     g = p.add_argument_group("figure")
     g.add_argument(
         "--figure",
@@ -27,7 +37,7 @@ def add_figure_arguments(p) -> None:
     )
     g.add_argument(
         "--figure-view",
-        choices=VIEWS,
+        choices=FIGURE_VIEWS,
         default="error",
         help="what --figure draws: relative errors of A and B with Theorem 1 (error), the closed-loop MPC "
         "cost (cost), the share of loops that converge and the cost gap (stabilized) or the ultimate bound "
