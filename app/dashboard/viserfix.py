@@ -143,7 +143,7 @@ def guard_updates(gui: Any, on_reject: Callable[[str], None]) -> bool:
     orig = getattr(gui, "_handle_gui_updates", None)
     handlers = getattr(conn, "_incoming_handlers", None)
     inputs = getattr(gui, "_gui_input_handle_from_uuid", None)
-    if orig is None or not isinstance(handlers, dict) or orig not in handlers.get(GuiUpdateMessage, ()):
+    if conn is None or orig is None or not isinstance(handlers, dict) or orig not in handlers.get(GuiUpdateMessage, ()):
         return _missing("the explanation of refused values", "GuiApi._handle_gui_updates registered on its connection")
     if not isinstance(inputs, dict):
         return _missing("the explanation of refused values", "GuiApi._gui_input_handle_from_uuid")
@@ -227,8 +227,10 @@ def send_plotly_js(gui: Any, source: str) -> bool:
     except ImportError:
         return _missing("the small plotly.js bundle", "viser._messages.RunJavascriptMessage")
     conn = getattr(gui, "_websock_interface", None)
-    if not callable(getattr(conn, "queue_message", None)) or not isinstance(
-        getattr(gui, "_setup_plotly_js", None), bool
+    if (
+        conn is None
+        or not callable(getattr(conn, "queue_message", None))
+        or not isinstance(getattr(gui, "_setup_plotly_js", None), bool)
     ):
         return _missing("the small plotly.js bundle", "GuiApi._websock_interface.queue_message")
     conn.queue_message(RunJavascriptMessage(source=source))
