@@ -128,3 +128,10 @@ def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatc
         with pytest.warns(ViserHookWarning, match=r"viser .* has no .*; switched off: "):
             result = hook()
     assert result in (False, None)
+
+
+def test_limit_reads_of_a_tab_already_gone_is_no_warning(live, fresh):
+    server, client = live
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ViserHookWarning)
+        assert viserfix.limit_reads(server, client.client_id + 1000, 4096) is False

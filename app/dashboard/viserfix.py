@@ -173,11 +173,15 @@ def limit_reads(server: Any, client_id: int, nbytes: int) -> bool:
     (client id -> the websockets ``ServerConnection``) and on the asyncio selector transport's
     ``max_size`` (its read size, 256 KiB by default): viser turns every message read into tasks before
     the loop does anything else, so one big read of a flooding client made every loop turn long.
+    False without a warning when the client is not connected (any more).
     """
     conns = getattr(getattr(server, "_websock_server", None), "_live_connections", None)
     if not isinstance(conns, dict):
         return _missing("the bounded socket reads", "ViserServer._websock_server._live_connections")
-    transport = getattr(conns.get(client_id), "transport", None)
+    conn = conns.get(client_id)
+    if conn is None:  # the tab has gone already: nothing to limit
+        return False
+    transport = getattr(conn, "transport", None)
     if transport is None or not isinstance(getattr(transport, "max_size", None), int):
         return _missing("the bounded socket reads", "asyncio transport max_size on the client's connection")
     transport.max_size = int(nbytes)
