@@ -184,7 +184,7 @@ class DaskExecutor(cf.Executor):
         self._shared[key] = (obj, fut)
         return fut
 
-    def submit(self, fn, /, *args, **kwargs) -> cf.Future:  # type: ignore[override]
+    def submit(self, fn, /, *args, **kwargs) -> cf.Future:
         if self._closed:
             raise RuntimeError("cannot submit to a DaskExecutor after shutdown")
         dfut = self.client.submit(fn, *args, pure=False, retries=self.retries, **kwargs)

@@ -1,4 +1,10 @@
-"""Child processes that never outlive the program that started them (dashboard pool, ``qsid --workers``)."""
+"""Child processes that never outlive the program that started them (dashboard pool, ``qsid --workers``).
+
+The standard library's private parts qsid relies on are all here, each with its reason:
+``ProcessPoolExecutor._processes`` (its table of worker processes, to kill or count them) and
+``multiprocessing.util._run_finalizers`` / ``resource_tracker._resource_tracker._stop`` (to release
+a pool's semaphores at shutdown).
+"""
 
 from __future__ import annotations
 
@@ -6,8 +12,9 @@ import os
 import signal
 import threading
 import time
+from typing import Any
 
-__all__ = ["end_with_parent", "kill_workers", "descendants", "kill_new_descendants"]
+__all__ = ["end_with_parent", "kill_workers", "worker_pids", "release_ipc", "descendants", "kill_new_descendants"]
 
 
 def end_with_parent(parent: int) -> None:
@@ -37,10 +44,22 @@ def _watch_parent(parent: int) -> None:
     os._exit(0)
 
 
-def kill_workers(ex) -> None:
+def _workers(ex: Any) -> list[Any]:
+    """The worker processes of the ``ProcessPoolExecutor`` ``ex`` (none for another executor).
+
+    The executor has no public list of them; its private ``_processes`` (pid -> Process) is that list.
+    """
+    return list((getattr(ex, "_processes", None) or {}).values())
+
+
+def worker_pids(ex: Any) -> list[int]:
+    """The process ids of the workers of the ``ProcessPoolExecutor`` ``ex`` (empty for another executor)."""
+    return [int(p.pid) for p in _workers(ex) if p.pid is not None]
+
+
+def kill_workers(ex: Any) -> None:
     """SIGKILL every worker process of the ``ProcessPoolExecutor`` ``ex`` (a stopped one too)."""
-    procs = getattr(ex, "_processes", None) or {}  # ProcessPoolExecutor's own table of its workers
-    for p in list(procs.values()):
+    for p in _workers(ex):
         try:
             p.kill()
         except Exception:
@@ -82,3 +101,20 @@ def kill_new_descendants(before: set[int], keep: set[int] = frozenset()) -> list
         except (ChildProcessError, OSError):
             pass
     return new
+
+
+def release_ipc() -> None:
+    """After a process pool is gone: unlink its semaphores and stop the resource tracker.
+
+    Without this the tracker warns at exit of "leaked semaphore objects". There is no public call for
+    either step: ``multiprocessing.util._run_finalizers(0)`` runs the semaphores' finalizers (which
+    unlink and unregister them) and ``resource_tracker._resource_tracker._stop()`` ends the tracker
+    process (nothing is left for it to warn of). Any failure is ignored: this runs at shutdown.
+    """
+    from multiprocessing import resource_tracker, util
+
+    try:
+        util._run_finalizers(0)  # type: ignore[attr-defined]
+        resource_tracker._resource_tracker._stop()  # type: ignore[attr-defined]
+    except Exception:
+        pass

@@ -65,8 +65,15 @@ BCLS (``Psi~ Psi~^T - T D``) needs 1 and 2 (the noise variance must be the known
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from .config import SweepConfig
+    from .lti import LTISystem
+    from .quantize import QuantizerSpec
 
 __all__ = [
     "Assumptions",
@@ -158,11 +165,11 @@ class Assumptions:
     fits_A: bool
     fits_B: bool
     bcls_holds: bool
-    notes: tuple = ()
+    notes: tuple[str, ...] = ()
     known_noise: bool = True
     sensor_noise_known: bool = True
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready data (non-finite numbers become None)."""
         d = asdict(self)
         d["notes"] = list(self.notes)
@@ -202,7 +209,7 @@ def clipping_effect(
     Xp: np.ndarray,
     lo_q: np.ndarray,
     eps: np.ndarray,
-    bits,
+    bits: ArrayLike,
     variance: float = 1.0 / 12.0,
 ) -> np.ndarray:
     """Predicted absolute change of ``[A^, B^]`` caused by the quantizer clipping the data.
@@ -247,10 +254,11 @@ def clipping_effect(
         bcls_shift = np.linalg.solve(PPc, XPc.T).T - G
     except np.linalg.LinAlgError:
         return np.full_like(G, np.inf)
-    return np.maximum(np.abs(ls_shift), np.abs(bcls_shift))
+    shift: np.ndarray = np.maximum(np.abs(ls_shift), np.abs(bcls_shift))
+    return shift
 
 
-def range_words(spec, lo: np.ndarray, hi: np.ndarray) -> str:
+def range_words(spec: QuantizerSpec, lo: np.ndarray, hi: np.ndarray) -> str:
     """The quantizer range in words: 'the range ±20 (no guard band)', 'the per-channel data range (min/max)'."""
     guard = "guard band" if spec.guard else "no guard band"
     if np.allclose(lo, lo[0]) and np.allclose(hi, hi[0]):
@@ -261,14 +269,14 @@ def range_words(spec, lo: np.ndarray, hi: np.ndarray) -> str:
     return f"the {spec.range_mode} range ({guard})"
 
 
-def _block_norms(sysm) -> tuple[float, float]:
+def _block_norms(sysm: LTISystem) -> tuple[float, float]:
     """The denominators of identify.relative_errors (an all-zero A or B is measured against ||[A, B]||)."""
     nG = float(np.linalg.norm(sysm.G))
     nA, nB = float(np.linalg.norm(sysm.A)), float(np.linalg.norm(sysm.B))
     return (nA if nA > 0 else nG), (nB if nB > 0 else nG)
 
 
-def _overload_note(a: dict) -> str:
+def _overload_note(a: dict[str, Any]) -> str:
     """Plain words for overload that matters: what clips, how much, and what it does to the estimate."""
     bad = [k for k in "AB" if not a[f"no_overload_{k}"]]
     hat = {"A": "Â", "B": "B̂"}
@@ -288,10 +296,10 @@ def _overload_note(a: dict) -> str:
     return f"{head}; that moves {moves} (harmless below 1/{OVERLOAD_EFFECT_RATIO:g})"
 
 
-def _notes(a: dict, c) -> list:
+def _notes(a: dict[str, Any], c: SweepConfig) -> list[str]:
     from .quantize import bcls_reason
 
-    notes = []
+    notes: list[str] = []
     if c.quantizer.dither == "none":
         notes.append(
             "no dither: the quantization error is a deterministic function of the signal, not "
@@ -329,7 +337,7 @@ def _notes(a: dict, c) -> list:
     return notes
 
 
-def assess(ex, b: int) -> Assumptions:
+def assess(ex, b: int) -> Assumptions:  # ex: an Experiment (its config is not precisely typed yet)
     """The hypotheses at word length ``b`` for an :class:`~qsid_core.experiment.Experiment`."""
     from .quantize import ERROR_VARIANCE, bcls_reason, channel_bits, guard_cells
 

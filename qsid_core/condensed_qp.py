@@ -25,8 +25,10 @@ starts from the previous step's active set (warm start).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import FailureKind, MPCFailure
 
@@ -68,7 +70,9 @@ class CondensedQP:
     Gr: np.ndarray | None = None
 
 
-def condense(A, B, Q, R, Qf, r, N: int) -> CondensedQP:
+def condense(
+    A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray, r: np.ndarray, N: int
+) -> CondensedQP:
     """Condense the horizon-``N`` MPC problem of each model onto its input sequence.
 
     Parameters
@@ -131,7 +135,16 @@ class DaqpMPC:
         DAQP iteration limit.
     """
 
-    def __init__(self, cq: CondensedQP, k: int, Q, r, u_max, x_box=None, max_iter: int = 20000):
+    def __init__(
+        self,
+        cq: CondensedQP,
+        k: int,
+        Q: ArrayLike,
+        r: ArrayLike,
+        u_max: ArrayLike,
+        x_box: np.ndarray | None = None,
+        max_iter: int = 20000,
+    ) -> None:
         self.H = np.ascontiguousarray(cq.H[k])
         self.Gx, self.g0 = cq.Gx[k], cq.g0[k]
         self.Sx, self.Qbar = cq.Sx[k], cq.Qbars[k]
@@ -155,7 +168,7 @@ class DaqpMPC:
         self._bl = np.concatenate([-ub, np.zeros(nc)])
         self._sense = np.zeros(nU + nc, dtype=np.int32)
         self.max_iter = int(max_iter)
-        self._model = None
+        self._model: Any = None  # the daqp.Model, made by the first solve
         self.g_ref = 0.0  # with a time-varying reference: its part of g at the current step (set by the caller)
         self.c_ref = 0.0  # ... and of the cost's constant (offset-free form: u_ref'R u_ref terms)
 
@@ -186,6 +199,7 @@ class DaqpMPC:
             self._model.update(f=g, bupper=self._bu, blower=self._bl)
         else:
             self._model.update(f=g)
+        U: np.ndarray
         U, _, flag, _ = self._model.solve()
         if flag != _OPTIMAL:
             self._raise(flag)
@@ -217,7 +231,9 @@ class DaqpMPC:
         return float(U @ self.H @ U + 2 * g @ U + e @ self.Qbar @ e + d0 @ self.Q @ d0 + self.c_ref)
 
 
-def active_set_solution(H, g, upper, lower, ub, tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def active_set_solution(
+    H: np.ndarray, g: np.ndarray, upper: np.ndarray, lower: np.ndarray, ub: np.ndarray, tol: float = 1e-12
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact minimiser of a batch of box QPs for a *guessed* active set, and whether it is optimal.
 
     For each problem ``min 1/2 U'HU + g'U  s.t. |U| <= ub`` the variables in
@@ -263,7 +279,9 @@ def active_set_solution(H, g, upper, lower, ub, tol: float = 1e-12) -> tuple[np.
     return U, ok, grad
 
 
-def box_qp_batch(H, g, ub, upper, lower, iters: int = 8) -> tuple[np.ndarray, np.ndarray]:
+def box_qp_batch(
+    H: np.ndarray, g: np.ndarray, ub: np.ndarray, upper: np.ndarray, lower: np.ndarray, iters: int = 8
+) -> tuple[np.ndarray, np.ndarray]:
     """Solve a batch of box QPs by primal-dual active-set iterations from a guessed active set.
 
     Each iteration solves every unsettled problem on its current active set
@@ -293,7 +311,8 @@ def box_qp_batch(H, g, ub, upper, lower, iters: int = 8) -> tuple[np.ndarray, np
     from . import kernels
 
     if kernels.AVAILABLE:
-        return kernels.box_qp_pdas(H, g, ub, upper, lower, iters)
+        solved: tuple[np.ndarray, np.ndarray] = kernels.box_qp_pdas(H, g, ub, upper, lower, iters)
+        return solved
     S, nU = g.shape
     U = np.full((S, nU), np.nan)
     ok = np.zeros(S, dtype=bool)

@@ -2,16 +2,24 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from .errors import MPCFailure
 from .mpc import MPCConfig, MPCController, MPCWeights
-from .riccati import dare_batch, lq_parts
+from .riccati import LQParts, dare_batch, lq_parts
 
 __all__ = ["build_controllers"]
 
 
-def build_controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, messages: list) -> list:
+def build_controllers(
+    models: Sequence[tuple[np.ndarray, np.ndarray]],
+    w: MPCWeights,
+    cfg: MPCConfig,
+    failure: list[str],
+    messages: list[str],
+) -> list[MPCController | None]:
     """One :class:`MPCController` per model (None where it cannot be built; the reason is recorded).
 
     The expensive parts are computed for all models at once: the terminal weights
@@ -21,14 +29,14 @@ def build_controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, mess
     """
     # models without finite entries (failed identifications) are left to MPCController to reject
     fi = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
-    Qfs: list = [w.Qf] * len(models)
+    Qfs: list[np.ndarray | None] = [w.Qf] * len(models)
     if w.Qf is None and fi:
         X, okd = dare_batch(np.stack([models[i][0] for i in fi]), np.stack([models[i][1] for i in fi]), w.Q, w.R)
         for k, i in enumerate(fi):
             if okd[k]:
                 Qfs[i] = X[k]
     ready = [i for i in fi if Qfs[i] is not None]
-    parts: dict = {}
+    parts: dict[int, LQParts] = {}
     if ready:
         with np.errstate(all="ignore"):
             bp = lq_parts(
@@ -45,7 +53,7 @@ def build_controllers(models, w: MPCWeights, cfg: MPCConfig, failure: list, mess
             )
         fin = bp.finite()
         parts = {i: bp.model(k) for k, i in enumerate(ready) if fin[k]}
-    ctrls: list = []
+    ctrls: list[MPCController | None] = []
     for i, (Ah, Bh) in enumerate(models):
         try:
             ctrls.append(

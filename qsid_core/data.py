@@ -8,6 +8,7 @@ quantizer range.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,19 +45,19 @@ class Dataset:
 
     @property
     def trajectories(self) -> int:
-        return self.states.shape[0]
+        return int(self.states.shape[0])
 
     @property
     def steps(self) -> int:
-        return self.inputs.shape[1]
+        return int(self.inputs.shape[1])
 
     @property
     def n(self) -> int:
-        return self.states.shape[2]
+        return int(self.states.shape[2])
 
     @property
     def m(self) -> int:
-        return self.inputs.shape[2]
+        return int(self.inputs.shape[2])
 
     @property
     def T(self) -> int:
@@ -139,7 +140,7 @@ def simulate(
     return Dataset(states, inputs, seed, input_amplitude)
 
 
-def with_sensor_noise(data: Dataset, sigma, seed: int) -> Dataset:
+def with_sensor_noise(data: Dataset, sigma: float | Sequence[float], seed: int) -> Dataset:
     """The data as a sensor records them: Gaussian noise of standard deviation ``sigma`` on every state.
 
     Parameters

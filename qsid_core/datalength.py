@@ -17,9 +17,11 @@ set, or the fixed range) so eps is the same at every length: only T changes.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -27,7 +29,7 @@ from .data import Dataset, simulate
 from .errors import ConfigError, check_float, check_int
 from .executors import InlineExecutor, single_threaded_blas
 from .identify import identify, relative_errors
-from .moments import prepare, quantized_moments
+from .moments import PreparedData, prepare, quantized_moments
 from .quantize import MAX_BITS, QuantizerSpec, data_ranges, effective_ranges
 from .summary import Stats, json_clean
 from .systems import LTISystem, get_system
@@ -80,7 +82,7 @@ class DataLengthConfig:
 
     system: str | LTISystem = "boeing747"
     bits: int = 4
-    samples: tuple = DEFAULT_SAMPLES
+    samples: tuple[int, ...] = DEFAULT_SAMPLES
     realizations: int = 10
     quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
     steps_per_run: int = 1000
@@ -134,8 +136,8 @@ class DataLengthRow:
     overload_fraction: float
     bcls_fallbacks: int
 
-    def to_dict(self) -> dict:
-        return json_clean(
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = json_clean(
             {
                 "samples": self.samples,
                 "trajectories": self.trajectories,
@@ -148,6 +150,7 @@ class DataLengthRow:
                 "bcls_fallbacks": self.bcls_fallbacks,
             }
         )
+        return out
 
 
 @dataclass
@@ -157,12 +160,12 @@ class DataLengthResult:
     config: DataLengthConfig
     system: LTISystem
     eps: np.ndarray
-    rows: list
+    rows: list[DataLengthRow]
     cancelled: bool = False
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         c, q = self.config, self.config.quantizer
-        return json_clean(
+        out: dict[str, Any] = json_clean(
             {
                 "system": self.system.name,
                 "bits": c.bits,
@@ -183,9 +186,12 @@ class DataLengthResult:
                 "rows": [r.to_dict() for r in self.rows],
             }
         )
+        return out
 
 
-def _task(prep, b: int, spec: QuantizerSpec, seeds: list, G: np.ndarray, n: int) -> np.ndarray:
+def _task(
+    prep: PreparedData, b: int, spec: QuantizerSpec, seeds: list[np.random.SeedSequence], G: np.ndarray, n: int
+) -> np.ndarray:
     """Rows ``[ls_A, ls_B, bcls_A, bcls_B, fallback, overload]`` per realization (picklable for process pools)."""
     A, B = G[:, :n], G[:, n:]
     out = []
@@ -213,7 +219,7 @@ def run_datalength(
     config: DataLengthConfig,
     executor: Executor | None = None,
     progress: Callable[[int, int, str], None] | None = None,
-    should_stop=None,
+    should_stop: Callable[[], bool] | threading.Event | None = None,
     tasks: int = 4,
 ) -> DataLengthResult:
     """Run the study: LS and BCLS errors against data length at ``config.bits``.
@@ -232,7 +238,7 @@ def run_datalength(
     tasks : int
         Realization chunks per length.
     """
-    stop = (should_stop.is_set if hasattr(should_stop, "is_set") else should_stop) or (lambda: False)
+    stop: Callable[[], bool] = getattr(should_stop, "is_set", None) or should_stop or (lambda: False)  # type: ignore[assignment]  # an Event of any kind, or a callable
     system = get_system(config.system)
     n = system.n
     ex = executor or InlineExecutor()

@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Executor, Future
+from contextlib import AbstractContextManager
+from typing import Any
 
 __all__ = ["InlineExecutor", "single_threaded_blas"]
 
 
-class _DeferredFuture(Future):
+class _DeferredFuture(Future[Any]):
     """A future whose work runs in the calling thread when its result is first asked for."""
 
-    def __init__(self, fn, args, kwargs):
+    def __init__(self, fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
         super().__init__()
-        self._call = (fn, args, kwargs)
+        self._call: tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]] | None = (fn, args, kwargs)
 
     def _run(self) -> None:
         if self._call is not None:
@@ -23,11 +26,11 @@ class _DeferredFuture(Future):
             except BaseException as exc:  # delivered through the future, as a pool would
                 self.set_exception(exc)
 
-    def result(self, timeout=None):
+    def result(self, timeout: float | None = None) -> Any:
         self._run()
         return super().result(timeout)
 
-    def exception(self, timeout=None):
+    def exception(self, timeout: float | None = None) -> BaseException | None:
         self._run()
         return super().exception(timeout)
 
@@ -39,11 +42,11 @@ class InlineExecutor(Executor):
     a whole stage and then reads results in order reports progress as it goes.
     """
 
-    def submit(self, fn, /, *args, **kwargs) -> Future:  # type: ignore[override]
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]:
         return _DeferredFuture(fn, args, kwargs)
 
 
-def single_threaded_blas():
+def single_threaded_blas() -> AbstractContextManager[object]:
     """Context manager limiting BLAS to one thread while the engine computes.
 
     The engine makes many tiny BLAS/LAPACK calls (5 x 5 Gram matrices, 4 x 4
@@ -54,4 +57,5 @@ def single_threaded_blas():
     """
     from threadpoolctl import threadpool_limits
 
-    return threadpool_limits(limits=1, user_api="blas")
+    limits: AbstractContextManager[object] = threadpool_limits(limits=1, user_api="blas")
+    return limits

@@ -74,8 +74,8 @@ def _solve_spd(PP: np.ndarray, XP: np.ndarray) -> np.ndarray | None:
         return None
     if np.min(np.abs(np.diag(c[0]))) < 1e-7:
         return None
-    G = sla.cho_solve(c, (XP / d[None, :]).T, check_finite=False).T
-    return G / d[None, :]
+    G: np.ndarray = sla.cho_solve(c, (XP / d[None, :]).T, check_finite=False).T / d[None, :]
+    return G
 
 
 def least_squares(PP: np.ndarray, XP: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -21,10 +21,15 @@ compare like with like.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .quantize import effective_ranges
+
+if TYPE_CHECKING:
+    from .mpc import MPCConfig
 
 __all__ = ["DISTURBANCES", "LoopNoise", "loop_noise"]
 
@@ -69,7 +74,9 @@ class LoopNoise:
         return y
 
 
-def loop_noise(cfg, n: int, steps: int, feedback_range: tuple | None = None) -> LoopNoise | None:
+def loop_noise(
+    cfg: MPCConfig, n: int, steps: int, feedback_range: tuple[ArrayLike, ArrayLike, bool] | None = None
+) -> LoopNoise | None:
     """The draws of ``cfg`` (an :class:`~qsid_core.mpc.MPCConfig`) for ``steps`` steps (None: a clean loop).
 
     Parameters
@@ -93,11 +100,11 @@ def loop_noise(cfg, n: int, steps: int, feedback_range: tuple | None = None) -> 
     w = cfg.disturbance * raw
     unit = rng.random((steps, n)) - 0.5
     noise = rng.standard_normal((steps, n))
-    kw: dict = {}
-    if cfg.feedback_bits is not None:
-        if feedback_range is None:
-            raise ValueError("feedback quantization needs the training data's range")
-        lo, hi, guard = feedback_range
-        lo_q, eps = effective_ranges(np.asarray(lo, float)[:n], np.asarray(hi, float)[:n], cfg.feedback_bits, guard)
-        kw = dict(dither=unit, lo=lo_q, eps=eps, levels=2**cfg.feedback_bits)
-    return LoopNoise(w=w, v=cfg.feedback_noise * noise if cfg.feedback_noise else None, **kw)
+    v = cfg.feedback_noise * noise if cfg.feedback_noise else None
+    if cfg.feedback_bits is None:
+        return LoopNoise(w=w, v=v)
+    if feedback_range is None:
+        raise ValueError("feedback quantization needs the training data's range")
+    lo, hi, guard = feedback_range
+    lo_q, eps = effective_ranges(np.asarray(lo, float)[:n], np.asarray(hi, float)[:n], cfg.feedback_bits, guard)
+    return LoopNoise(w=w, v=v, dither=unit, lo=lo_q, eps=eps, levels=2**cfg.feedback_bits)

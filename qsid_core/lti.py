@@ -138,12 +138,12 @@ class LTISystem:
     @property
     def n(self) -> int:
         """Number of states."""
-        return self.A.shape[0]
+        return int(self.A.shape[0])
 
     @property
     def m(self) -> int:
         """Number of inputs."""
-        return self.B.shape[1]
+        return int(self.B.shape[1])
 
     @property
     def eigenvalues(self) -> np.ndarray:
@@ -184,8 +184,8 @@ class LTISystem:
             "name": self.name,
             "A": self.A.tolist(),
             "B": self.B.tolist(),
-            "x0": self.x0.tolist(),
-            "Q": self.Q.tolist(),
-            "R": self.R.tolist(),
+            "x0": np.asarray(self.x0).tolist(),  # never None after __post_init__
+            "Q": np.asarray(self.Q).tolist(),
+            "R": np.asarray(self.R).tolist(),
             "dt": self.dt,
         }

@@ -18,6 +18,7 @@ The results are identical (to rounding) to quantizing with
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,7 @@ from .errors import ConfigError, check_choice
 from .quantize import (
     ERROR_VARIANCE,
     NOMINAL_VARIANCE,
+    BitsSpec,
     QuantizerSpec,
     bcls_reason,
     channel_bits,
@@ -167,7 +169,17 @@ class _Sums:
         )
 
 
-def _chunk_numpy(y, u, sub: float, scale, half, quant, start: int, S1: int, acc: _Sums) -> None:
+def _chunk_numpy(
+    y: np.ndarray,
+    u: np.ndarray | None,
+    sub: float,
+    scale: np.ndarray,
+    half: np.ndarray,
+    quant: np.ndarray,
+    start: int,
+    S1: int,
+    acc: _Sums,
+) -> None:
     """numpy version of :func:`qsid_core.kernels.accumulate_chunk` (the reference; BLAS for the sums).
 
     ``scale`` and ``half`` have shape (nb, p); ``quant`` (p,) is False for channels recorded exactly.
@@ -205,7 +217,13 @@ def _chunk_numpy(y, u, sub: float, scale, half, quant, start: int, S1: int, acc:
 
 
 def _gram(
-    prep: PreparedData, chan: tuple, scale: np.ndarray, spec: QuantizerSpec, acc: _Sums, j: int, upper_only: bool
+    prep: PreparedData,
+    chan: tuple[int | None, ...],
+    scale: np.ndarray,
+    spec: QuantizerSpec,
+    acc: _Sums,
+    j: int,
+    upper_only: bool,
 ) -> Moments:
     """Gram matrices of the quantized data at word length ``b`` from the sums over ``v``.
 
@@ -257,8 +275,8 @@ def quantized_moments(
     spec: QuantizerSpec,
     rng: np.random.Generator | None,
     engine: str = "auto",
-    input_bits=None,
-    state_bits=None,
+    input_bits: BitsSpec = None,
+    state_bits: Sequence[int | str] | None = None,
 ) -> list[Moments]:
     """Gram matrices of the data quantized at each word length in ``bits``.
 
@@ -321,7 +339,7 @@ def quantized_moments(
     acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
     for start in range(0, N, CHUNK_ROWS):
         y = yc[start : start + CHUNK_ROWS]
-        u = draw_dither_units(rng, y.shape, spec.dither) if dithered else None
+        u = draw_dither_units(rng, y.shape, spec.dither) if dithered and rng is not None else None
         if compiled:
             kernels.accumulate_chunk(
                 y,

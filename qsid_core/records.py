@@ -24,11 +24,20 @@ import tempfile
 from collections.abc import Iterable
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeAlias, cast
 
 import numpy as np
 
 from .errors import ConfigError, check_choice
 from .identify import ESTIMATORS
+
+if TYPE_CHECKING:
+    from .experiment import Experiment, Progress
+    from .stage_results import BitsIdentification, ClosedLoops
+    from .sweep import SweepResult
+
+    #: What the table functions take: a finished sweep or a list of records.
+    Records: TypeAlias = "SweepResult | Iterable[RealizationRecord]"
 
 __all__ = [
     "RealizationRecord",
@@ -101,7 +110,7 @@ class RealizationRecord:
 COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(RealizationRecord))
 
 
-def _rows(system: str, estimator: str, ident, loops) -> list[RealizationRecord]:
+def _rows(system: str, estimator: str, ident: BitsIdentification, loops: ClosedLoops | None) -> list[RealizationRecord]:
     """Records of one (b, estimator): ``ident`` a BitsIdentification, ``loops`` ClosedLoops or None."""
     R = len(ident.err_A)
     if loops is not None:
@@ -117,7 +126,7 @@ def _rows(system: str, estimator: str, ident, loops) -> list[RealizationRecord]:
         else:
             status = loops.failure[r] or "ok"
             cost, j0, norm = float(loops.cost[r]), float(loops.J0[r]), float(fsn[r])
-            if loops.outcome:
+            if loops.outcome and loops.spectral_radius is not None:  # judged: both are filled
                 outcome, radius = loops.outcome[r], float(loops.spectral_radius[r])
         out.append(
             RealizationRecord(
@@ -142,7 +151,7 @@ def _rows(system: str, estimator: str, ident, loops) -> list[RealizationRecord]:
     return out
 
 
-def realization_records(result) -> list[RealizationRecord]:
+def realization_records(result: SweepResult) -> list[RealizationRecord]:
     """One record per (b, realization) of a finished sweep (its estimator), ordered by b then realization.
 
     Parameters
@@ -161,7 +170,12 @@ def realization_records(result) -> list[RealizationRecord]:
     return out
 
 
-def experiment_records(experiment, bits, estimators: Iterable[str] = ESTIMATORS, progress=None) -> list:
+def experiment_records(
+    experiment: Experiment,
+    bits: str | int | list[int] | tuple[int, ...] | range,
+    estimators: Iterable[str] = ESTIMATORS,
+    progress: Progress | None = None,
+) -> list[RealizationRecord]:
     """Records for several estimators on the same quantized data (MPC loops included when configured).
 
     Parameters
@@ -191,22 +205,22 @@ def experiment_records(experiment, bits, estimators: Iterable[str] = ESTIMATORS,
     return out
 
 
-def _records(obj) -> list[RealizationRecord]:
+def _records(obj: Records) -> list[RealizationRecord]:
     if hasattr(obj, "identification") and hasattr(obj, "bits"):
-        return realization_records(obj)
+        return realization_records(cast("SweepResult", obj))
     recs = list(obj)
     if not all(isinstance(r, RealizationRecord) for r in recs):
         raise ConfigError("expected a SweepResult or a list of RealizationRecord")
     return recs
 
 
-def to_columns(records_or_result) -> dict[str, list]:
+def to_columns(records_or_result: Records) -> dict[str, list[Any]]:
     """The table as ``{column: list of values}`` (plain Python, no dependencies)."""
     recs = _records(records_or_result)
     return {c: [getattr(r, c) for r in recs] for c in COLUMNS}
 
 
-def to_pandas(records_or_result):
+def to_pandas(records_or_result: Records) -> Any:
     """The table as a ``pandas.DataFrame`` (columns :data:`COLUMNS`).
 
     Raises
@@ -223,7 +237,7 @@ def to_pandas(records_or_result):
     return pd.DataFrame(to_columns(records_or_result), columns=list(COLUMNS))
 
 
-def _cell(v) -> str:
+def _cell(v: object) -> str:
     if isinstance(v, (bool, np.bool_)):
         return "true" if v else "false"
     if isinstance(v, float):
@@ -231,7 +245,7 @@ def _cell(v) -> str:
     return str(v)
 
 
-def write_csv(records_or_result, path: str | Path) -> int:
+def write_csv(records_or_result: Records, path: str | Path) -> int:
     """Write the tidy table to ``path`` (header :data:`COLUMNS`, NaN as an empty cell); returns the row count.
 
     Floats are written with ``repr`` (they read back bit-exactly); booleans as ``true``/``false``.

@@ -15,7 +15,10 @@ are 0. TIME and PERIOD are in samples. The MPC at step ``t`` sees ``r_t .. r_{t+
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import ConfigError, short_repr
 
@@ -25,7 +28,7 @@ __all__ = ["KINDS", "reference_samples", "parse_reference"]
 KINDS = ("step", "sine", "square")
 
 
-def parse_reference(spec: str, state_names) -> tuple[str, int, float, float]:
+def parse_reference(spec: str, state_names: Sequence[str]) -> tuple[str, int, float, float]:
     """``(kind, state index, amplitude, time or period)`` of a text reference (ConfigError if malformed)."""
     form = "reference must look like step:STATE:AMPLITUDE:TIME, sine:STATE:AMPLITUDE:PERIOD or square:STATE:AMPLITUDE:PERIOD"
     parts = str(spec).split(":")
@@ -57,7 +60,7 @@ def parse_reference(spec: str, state_names) -> tuple[str, int, float, float]:
     return kind.lower(), idx, a, w
 
 
-def reference_samples(spec, state_names, length: int) -> np.ndarray:
+def reference_samples(spec: str | ArrayLike, state_names: Sequence[str], length: int) -> np.ndarray:
     """The reference ``r_0 .. r_{length-1}``, shape (length, n).
 
     Parameters
@@ -88,4 +91,5 @@ def reference_samples(spec, state_names, length: int) -> np.ndarray:
     if not np.all(np.isfinite(arr)) or np.abs(arr).max() > 1e12:
         raise ConfigError("reference samples must be finite numbers (at most 1e12 in size)")
     idx = np.minimum(np.arange(length), arr.shape[0] - 1)
-    return arr[idx]
+    out: np.ndarray = arr[idx]
+    return out

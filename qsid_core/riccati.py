@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
+from numpy.typing import ArrayLike
 
 from .errors import FailureKind, MPCFailure
 
@@ -30,7 +31,7 @@ def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray)
     """
     try:
         with np.errstate(all="ignore"):
-            X = sla.solve_discrete_are(A, B, Q, R)
+            X: np.ndarray = sla.solve_discrete_are(A, B, Q, R)
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise MPCFailure(
             FailureKind.DARE, f"DARE has no stabilizing solution for the identified model ({exc})"
@@ -128,7 +129,7 @@ def _solve_each(S: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         return out
 
 
-def state_box(n: int, N: int, x_max=None, xf_max=None) -> np.ndarray | None:
+def state_box(n: int, N: int, x_max: ArrayLike | None = None, xf_max: ArrayLike | None = None) -> np.ndarray | None:
     """Half-widths of the box on the predicted states ``x_1..x_N``, shape (N*n,), or None.
 
     ``x_max`` (shape (n,)) bounds every ``x_k``, ``xf_max`` (shape (n,)) the terminal
@@ -184,10 +185,22 @@ class LQParts:
     def finite(self) -> np.ndarray:
         """Per model (batched parts): True where every part is finite. Shape (L,)."""
         arrays = (self.K, self.kf, self.P0, self.p0, self.c0, self.F, self.f)
-        return np.logical_and.reduce([np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1) for a in arrays])
+        ok: np.ndarray = np.logical_and.reduce([np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1) for a in arrays])
+        return ok
 
 
-def lq_parts(A, B, Q, R, Qf, r, N, u_max, x_max=None, xf_max=None) -> LQParts:
+def lq_parts(
+    A: np.ndarray,
+    B: np.ndarray,
+    Q: np.ndarray,
+    R: np.ndarray,
+    Qf: np.ndarray,
+    r: np.ndarray,
+    N: int,
+    u_max: np.ndarray,
+    x_max: np.ndarray | None = None,
+    xf_max: np.ndarray | None = None,
+) -> LQParts:
     """Unconstrained finite-horizon LQ solution for a batch of models (the MPC's fast path).
 
     Backward Riccati recursion with an affine term for the reference ``r``:

@@ -12,6 +12,8 @@ previous one after), so a Ctrl-C can be lost when solves run in threads.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -38,7 +40,21 @@ class OsqpMPC:
     max_iter : int
     """
 
-    def __init__(self, A, B, Q, R, Qf, x_ref, N, u_max, x_max, xf_max, eps, max_iter):
+    def __init__(
+        self,
+        A: np.ndarray,
+        B: np.ndarray,
+        Q: np.ndarray,
+        R: np.ndarray,
+        Qf: np.ndarray,
+        x_ref: np.ndarray,
+        N: int,
+        u_max: np.ndarray,
+        x_max: np.ndarray | None,
+        xf_max: np.ndarray | None,
+        eps: float,
+        max_iter: int,
+    ) -> None:
         self.A, self.B, self.Q, self.R, self.Qf, self.x_ref = A, B, Q, R, Qf, x_ref
         self.n, self.m = B.shape
         self.N, self.u_max, self.x_max, self.xf_max = N, u_max, x_max, xf_max
@@ -99,10 +115,10 @@ class OsqpMPC:
     def _coarse(self) -> float:
         return self.COARSE_EPS if self.eps < self.COARSE_EPS else 0.0
 
-    def _polished(self, res) -> bool:
+    def _polished(self, res: Any) -> bool:
         import osqp
 
-        return (
+        return bool(
             res.info.status_val == osqp.SolverStatus.OSQP_SOLVED
             and res.info.status_polish == 1
             and max(res.info.prim_res, res.info.dual_res) <= self.eps

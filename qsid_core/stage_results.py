@@ -50,8 +50,8 @@ class BitsIdentification:
     err_B: np.ndarray
     overload: np.ndarray
     fallback: np.ndarray
-    notes: list
-    failed: np.ndarray | None = None
+    notes: list[str]
+    failed: np.ndarray = None  # type: ignore[assignment]  # None: no failures (set in __post_init__)
     dither: str = "subtractive"
     _ctrb: np.ndarray | None = field(default=None, repr=False, compare=False)
 
@@ -77,11 +77,13 @@ class BitsIdentification:
     def controllability(self) -> np.ndarray:
         """shape (R,): relative smallest singular value of the controllability matrix of each ``(A^, B^)``
         (:func:`qsid_core.stability.controllability_margin`; NaN for a failed identification)."""
-        if self._ctrb is None:
+        margin = self._ctrb
+        if margin is None:
             from .stability import controllability_margin
 
-            object.__setattr__(self, "_ctrb", controllability_margin(self.A_hat, self.B_hat))
-        return self._ctrb
+            margin = controllability_margin(self.A_hat, self.B_hat)
+            object.__setattr__(self, "_ctrb", margin)
+        return margin
 
     @property
     def eigenvalues(self) -> np.ndarray:
@@ -89,7 +91,8 @@ class BitsIdentification:
         A = self.A_hat[~self.failed]
         A = A[np.all(np.isfinite(A.reshape(len(A), -1)), axis=1)]
         n = self.A_hat.shape[1]
-        return np.linalg.eigvals(A) if len(A) else np.zeros((0, n), dtype=complex)
+        eig: np.ndarray = np.linalg.eigvals(A) if len(A) else np.zeros((0, n), dtype=complex)
+        return eig
 
 
 @dataclass
@@ -163,13 +166,13 @@ class ClosedLoops:
     inputs: np.ndarray
     cost: np.ndarray
     J0: np.ndarray
-    failure: list = field(default_factory=list)
-    messages: list = field(default_factory=list)
+    failure: list[str] = field(default_factory=list)
+    messages: list[str] = field(default_factory=list)
     qp_steps: int = 0
-    outcome: list = field(default_factory=list)
+    outcome: list[str] = field(default_factory=list)
     spectral_radius: np.ndarray | None = None
     verdict_steps: np.ndarray | None = None
-    gains: list = field(default_factory=list)
+    gains: list[np.ndarray | None] = field(default_factory=list)
     x_ref: np.ndarray | None = None
 
     @property
@@ -178,7 +181,8 @@ class ClosedLoops:
         st = self.states
         ref = 0.0 if self.x_ref is None else self.x_ref
         with np.errstate(invalid="ignore"):
-            return np.sqrt(np.mean(np.sum((st - ref) ** 2, axis=2), axis=1))
+            rms: np.ndarray = np.sqrt(np.mean(np.sum((st - ref) ** 2, axis=2), axis=1))
+        return rms
 
     @property
     def steady_state_error(self) -> np.ndarray:
@@ -189,11 +193,12 @@ class ClosedLoops:
         """
         st = self.states
         T = st.shape[1]
-        ref = 0.0 if self.x_ref is None else np.asarray(self.x_ref)
-        if np.ndim(ref) == 2:  # a time-varying reference, r_0 .. r_steps
+        ref: float | np.ndarray = 0.0 if self.x_ref is None else np.asarray(self.x_ref)
+        if isinstance(ref, np.ndarray) and ref.ndim == 2:  # a time-varying reference, r_0 .. r_steps
             ref = ref[T // 2 :]
         with np.errstate(invalid="ignore"):
-            return np.sqrt(np.mean(np.sum((st[:, T // 2 :] - ref) ** 2, axis=2), axis=1))
+            rms: np.ndarray = np.sqrt(np.mean(np.sum((st[:, T // 2 :] - ref) ** 2, axis=2), axis=1))
+        return rms
 
     @classmethod
     def empty(cls, loops: int, steps: int, n: int, m: int) -> ClosedLoops:
@@ -208,7 +213,7 @@ class ClosedLoops:
             0,
         )
 
-    def outcome_counts(self) -> dict:
+    def outcome_counts(self) -> dict[str, int]:
         """``{"converged", "bounded", "diverged", "failed"}`` -> number of loops (empty if not judged)."""
         if not self.outcome:
             return {}
@@ -222,4 +227,5 @@ class ClosedLoops:
     @property
     def final_state_norm(self) -> np.ndarray:
         """shape (R,): ``||x_steps||_2``."""
-        return np.linalg.norm(self.states[:, -1, :], axis=1)
+        norm: np.ndarray = np.linalg.norm(self.states[:, -1, :], axis=1)
+        return norm

@@ -10,19 +10,26 @@ code written for the former plain-dict rows keeps working.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from .assumptions import Assumptions
+    from .stage_results import BitsIdentification, ClosedLoops, TheoryAtBits
+    from .theory import RealizedBounds
 
 __all__ = ["Stats", "SummaryRow", "build_row", "json_clean", "saturated_steps"]
 
 
-def _num(x):
+def _num(x: float | None) -> float | None:
     return None if x is None or not np.isfinite(x) else float(x)
 
 
-def json_clean(obj):
+def json_clean(obj: Any) -> Any:
     """``obj`` with every NaN/inf float replaced by None and numpy scalars/arrays made plain (recursively)."""
     if isinstance(obj, dict):
         return {k: json_clean(v) for k, v in obj.items()}
@@ -47,16 +54,16 @@ class Stats:
     std: float | None
 
     @classmethod
-    def of(cls, x) -> Stats:
+    def of(cls, x: ArrayLike) -> Stats:
         x = np.asarray(x, dtype=float)
         ok = x[np.isfinite(x)]
         return cls(float(ok.mean()) if ok.size else None, float(ok.std()) if ok.size else None)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, float | None]:
         return {"mean": self.mean, "std": self.std}
 
 
-def saturated_steps(inputs: np.ndarray, u_max, rtol: float = 1e-9) -> tuple[int, int]:
+def saturated_steps(inputs: np.ndarray, u_max: ArrayLike | None, rtol: float = 1e-9) -> tuple[int, int]:
     """Closed-loop steps where some input sits on its bound: ``(steps, loops with any)``.
 
     Parameters
@@ -75,7 +82,7 @@ def saturated_steps(inputs: np.ndarray, u_max, rtol: float = 1e-9) -> tuple[int,
 
 
 @dataclass(frozen=True)
-class SummaryRow(Mapping):
+class SummaryRow(Mapping[str, Any]):
     """Summary of one word length (units: errors relative; bounds and norms in state units).
 
     Attributes
@@ -128,8 +135,8 @@ class SummaryRow(Mapping):
     """
 
     bits: int
-    eps_x: tuple
-    eps_u: tuple
+    eps_x: tuple[float, ...]
+    eps_u: tuple[float, ...]
     err_A: Stats
     err_B: Stats
     err_A_theory: float | None
@@ -142,23 +149,23 @@ class SummaryRow(Mapping):
     realizations: int = 0
     effective_realizations: int = 0
     rho: float | None = None
-    ultimate_bound_realized: dict | None = None
-    assumptions: object = None
-    mpc_cost: dict | None = None
-    final_state_norm: dict | None = None
+    ultimate_bound_realized: dict[str, Any] | None = None
+    assumptions: Assumptions | None = None
+    mpc_cost: dict[str, Any] | None = None
+    final_state_norm: dict[str, Any] | None = None
     qp_steps: int | None = None
-    saturated_steps: dict | None = None
+    saturated_steps: dict[str, Any] | None = None
     stabilized_fraction: float | None = None
-    closed_loop_outcomes: dict | None = None
-    closed_loop_spectral_radius: dict | None = None
+    closed_loop_outcomes: dict[str, Any] | None = None
+    closed_loop_spectral_radius: dict[str, Any] | None = None
     bound_self_consistent: bool | None = None
     bound_informative: bool | None = None
-    controllability: dict | None = None
-    steady_state_error: dict | None = None
-    tracking_error: dict | None = None
-    _dict: dict | None = field(default=None, repr=False, compare=False)
+    controllability: dict[str, Any] | None = None
+    steady_state_error: dict[str, Any] | None = None
+    tracking_error: dict[str, Any] | None = None
+    _dict: dict[str, Any] | None = field(default=None, repr=False, compare=False)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """Plain strict-JSON data (earlier keys unchanged, new keys added)."""
         if self._dict is None:
             d = {
@@ -198,13 +205,13 @@ class SummaryRow(Mapping):
                 }
             )
             object.__setattr__(self, "_dict", json_clean(d))
-        return self._dict
+        return self._dict or {}  # set just above
 
     # read-only mapping of to_dict(), for code written for plain-dict rows
-    def __getitem__(self, key):
+    def __getitem__(self, key: str) -> Any:
         return self.to_dict()[key]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(self.to_dict())
 
     def __len__(self) -> int:
@@ -217,7 +224,7 @@ _UNKNOWN = object()
 UNCONTROLLABLE = 1e-9
 
 
-def _loop_verdicts(lp) -> dict:
+def _loop_verdicts(lp: ClosedLoops) -> dict[str, Any]:
     """The verdict fields of a row from judged closed loops (empty if they were not judged)."""
     counts = lp.outcome_counts()
     if not counts:
@@ -234,10 +241,10 @@ def _loop_verdicts(lp) -> dict:
     }
 
 
-def _bound_flags(th, realized) -> dict:
+def _bound_flags(th: TheoryAtBits, realized: RealizedBounds | None) -> dict[str, Any]:
     """Whether the letter's delta (and each a-posteriori delta) is below rho and below ||x0||."""
     ub = getattr(th, "bound", None)
-    out: dict = {}
+    out: dict[str, Any] = {}
     if ub is not None and np.isfinite(ub.delta):
         out["bound_self_consistent"] = ub.self_consistent
         out["bound_informative"] = ub.informative if np.isfinite(ub.x0_norm) else None
@@ -246,7 +253,16 @@ def _bound_flags(th, realized) -> dict:
     return out
 
 
-def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assumptions=None) -> SummaryRow:
+def build_row(
+    n: int,
+    ident: BitsIdentification,
+    th: TheoryAtBits,
+    lp: ClosedLoops | None = None,
+    *,
+    u_max: Any = _UNKNOWN,
+    realized: RealizedBounds | None = None,
+    assumptions: Assumptions | None = None,
+) -> SummaryRow:
     """The :class:`SummaryRow` of one word length.
 
     Parameters
@@ -264,11 +280,11 @@ def build_row(n: int, ident, th, lp=None, *, u_max=_UNKNOWN, realized=None, assu
     assumptions : Assumptions, optional
         From :meth:`Experiment.assumptions`.
     """
-    kw: dict = {}
+    kw: dict[str, Any] = {}
     if lp is not None:
         failed = lp.failed
         fsn = lp.final_state_norm[~failed]
-        kinds: dict = {}
+        kinds: dict[str, int] = {}
         for f in lp.failure:
             if f:
                 kinds[f] = kinds.get(f, 0) + 1

@@ -36,9 +36,11 @@ Both bound ``||x_t||`` only as t -> inf, and assume ``x_ref = 0``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import ConfigError, check_choice, check_float
 
@@ -139,7 +141,7 @@ class UltimateBound:
         return bool(self.delta < self.x0_norm)
 
 
-def _auto_rho(P: np.ndarray, pmin: float, pmax: float, x0) -> float:
+def _auto_rho(P: np.ndarray, pmin: float, pmax: float, x0: ArrayLike | None) -> float:
     """The default ``rho``: radius of the smallest ball holding ``{x'Px <= x0'P x0}`` (worst unit x0 without x0)."""
     if x0 is not None and np.linalg.norm(x0) > 0:
         x0v = np.asarray(x0, dtype=float)
@@ -335,7 +337,8 @@ class RealizedBounds:
 
     def _finite(self) -> np.ndarray:
         d = np.asarray(self.delta, dtype=float)
-        return d[np.isfinite(d)]
+        finite: np.ndarray = d[np.isfinite(d)]
+        return finite
 
     @property
     def median(self) -> float:
@@ -357,7 +360,7 @@ class RealizedBounds:
 
 
 def realized_bounds(
-    models,
+    models: Sequence[tuple[np.ndarray, np.ndarray]],
     A: np.ndarray,
     B: np.ndarray,
     Q: np.ndarray,
@@ -393,7 +396,7 @@ def realized_bounds(
     delta = np.full(Rn, np.nan)
     rhos = np.full(Rn, np.nan)
     ok = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
-    Qfs: dict = {i: Qf for i in ok}
+    Qfs: dict[int, np.ndarray | None] = {i: Qf for i in ok}
     if Qf is None and ok:
         X, good = dare_batch(np.stack([models[i][0] for i in ok]), np.stack([models[i][1] for i in ok]), Q, R)
         for k, i in enumerate(ok):
@@ -404,15 +407,16 @@ def realized_bounds(
                     Qfs[i] = dare_stabilizing(models[i][0], models[i][1], Q, R)
                 except MPCFailure:
                     Qfs[i] = None
-    todo = [i for i in ok if Qfs[i] is not None]
-    delta[[i for i in ok if Qfs[i] is None]] = np.inf
+    settled = {i: qf for i, qf in Qfs.items() if qf is not None}
+    todo = list(settled)
+    delta[[i for i in ok if i not in settled]] = np.inf
     if todo:
         P = _riccati_finite_batch(
             np.stack([models[i][0] for i in todo]),
             np.stack([models[i][1] for i in todo]),
             Q,
             R,
-            np.stack([Qfs[i] for i in todo]),
+            np.stack([settled[i] for i in todo]),
             horizon,
         )
         dA = A - np.stack([models[i][0] for i in todo])

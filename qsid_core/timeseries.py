@@ -11,11 +11,16 @@ axis should show the floor instead).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import check_float
 from .summary import saturated_steps
+
+if TYPE_CHECKING:
+    from .stage_results import ClosedLoops
 
 __all__ = ["TimeSeries", "time_series", "CONVERGED_REL_FLOOR"]
 
@@ -70,13 +75,15 @@ class TimeSeries:
     norms_display: np.ndarray
 
 
-def _mean_std(a: np.ndarray, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+def _mean_std(a: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     if a.shape[0] == 0:
         return np.full(shape, np.nan), np.full(shape, np.nan)
     return a.mean(axis=0), a.std(axis=0)
 
 
-def time_series(loops, x0, u_max=None, rel_floor: float = CONVERGED_REL_FLOOR) -> TimeSeries:
+def time_series(
+    loops: ClosedLoops, x0: ArrayLike, u_max: ArrayLike | None = None, rel_floor: float = CONVERGED_REL_FLOOR
+) -> TimeSeries:
     """Arrange closed loops as time series.
 
     Parameters

@@ -13,7 +13,12 @@ states when a state box is set). The offset-free form adds the input target:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from .condensed_qp import CondensedQP, DaqpMPC
 
 __all__ = ["Preview"]
 
@@ -31,7 +36,15 @@ class Preview:
         ``r_0 .. r_{T-1}`` with ``T >= steps + N + 1``.
     """
 
-    def __init__(self, cq, rows: int, reference: np.ndarray, offset_free: tuple | None = None):
+    def __init__(
+        self,
+        cq: CondensedQP,
+        rows: int,
+        reference: np.ndarray,
+        offset_free: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        if cq.Gr is None:
+            raise ValueError("a reference preview needs the condensed problem's reference map Gr")
         self.r = np.asarray(reference, dtype=float)
         L, nU, nN = cq.Gr.shape
         self.n = self.r.shape[1]
@@ -59,17 +72,19 @@ class Preview:
     def offsets(self, j: np.ndarray, t: int, H: int) -> np.ndarray:
         """Reference part of the prediction map of models ``j`` at steps ``t .. t+H-1``, shape (len(j), H, rows)."""
         W = np.stack([self.window(t + h) for h in range(H)])  # (H, (N+1) n)
-        return np.einsum("lrk,hk->lhr", self.Fr[j], W)
+        out: np.ndarray = np.einsum("lrk,hk->lhr", self.Fr[j], W)
+        return out
 
     def g(self, j: np.ndarray, t: int) -> np.ndarray:
         """The reference part of ``g`` of models ``j``, shape (len(j), N m)."""
-        return np.einsum("lqk,k->lq", self.G[j], self.window(t))
+        out: np.ndarray = np.einsum("lqk,k->lq", self.G[j], self.window(t))
+        return out
 
-    def set_qp(self, qp, k: int, t: int) -> None:
+    def set_qp(self, qp: DaqpMPC, k: int, t: int) -> None:
         """Point one model's :class:`~qsid_core.condensed_qp.DaqpMPC` at the reference window of step ``t``."""
         w = self.window(t)
         qp.g_ref = self.G[k] @ w
         qp.rbar, qp.r = w[self.n :], w[: self.n]
-        if self.Ku is not None:  # the constant of (u - u_ref)'R(u - u_ref)
+        if self.Ku is not None and self.R is not None:  # the constant of (u - u_ref)'R(u - u_ref)
             ub = self.r[t : t + self.N] @ self.Ku[k].T
             qp.c_ref = float(np.einsum("ki,ij,kj->", ub, self.R, ub))

@@ -12,7 +12,7 @@ import datetime as _dt
 import json
 import numbers
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, SupportsInt, cast
 
 import numpy as np
 
@@ -55,7 +55,7 @@ def _kind(value: Any) -> str:
     return f"{short_repr(value)} ({type(value).__name__})"
 
 
-def _where(path: tuple) -> str:
+def _where(path: tuple[int, ...]) -> str:
     """Where a bad value is, counted from 1 as a person reads it: ``"entry 3 is"`` (a list),
     ``"row 2, column 1 is"`` (a matrix), ``"entry (1, 2, 3) is"`` (deeper), ``"it is"`` (a single value)."""
     if not path:
@@ -72,7 +72,7 @@ def _walk(name: str, value: Any, ndim_max: int, error: type, what: str | None = 
     what = what or {0: "a number", 1: "a list of numbers", 2: "a matrix of numbers (a list of rows)"}.get(
         ndim_max, f"an array of numbers with at most {ndim_max} dimensions"
     )
-    stack = [(value, ())]
+    stack: list[tuple[Any, tuple[int, ...]]] = [(value, ())]
     count = 0
     while stack:
         v, path = stack.pop()
@@ -89,7 +89,7 @@ def _walk(name: str, value: Any, ndim_max: int, error: type, what: str | None = 
             try:
                 float(v)
             except OverflowError:
-                digits = int(int(v).bit_length() * 0.30103) + 1
+                digits = int(int(cast(SupportsInt, v)).bit_length() * 0.30103) + 1  # an int, or a Fraction
                 raise error(
                     f"{name}: {_where(path)} an integer with about {digits} digits, too large "
                     "for a floating-point number"

@@ -34,12 +34,17 @@ run itself; only their verdicts are kept, not the extra trajectories.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import FailureKind
 from .stability import certify_batch, lyapunov_batch, spectral_radius
+
+if TYPE_CHECKING:
+    from .stage_results import ClosedLoops
 
 __all__ = ["OUTCOMES", "WINDOW", "STALL", "judge"]
 
@@ -61,7 +66,7 @@ def _peak(states: np.ndarray, x_ref: np.ndarray) -> float:
 class _Judge:
     """The verdict state of every loop of one :func:`judge` call."""
 
-    def __init__(self, loops):
+    def __init__(self, loops: Any) -> None:  # a closed_loop._Loops (closed_loop imports this module)
         self.loops = loops
         out = loops.out
         Rn, m = len(loops.ctrls), loops.m
@@ -85,9 +90,9 @@ class _Judge:
             self.M[self.live], self.c[self.live] = M, c
             self.S[self.live] = lyapunov_batch(M)[0]
         self.plant_stable = bool(spectral_radius(loops.A) < 1.0)
-        self.peaks: dict = {i: [] for i in self.live}
+        self.peaks: dict[int, list[float]] = {i: [] for i in self.live}
 
-    def certified(self, idx, x: np.ndarray) -> np.ndarray:
+    def certified(self, idx: ArrayLike, x: np.ndarray) -> np.ndarray:
         """Whether loops ``idx`` from states ``x[idx]`` provably stay on their (stable) unconstrained law."""
         idx = np.asarray(idx, dtype=int)
         if not idx.size:
@@ -96,7 +101,7 @@ class _Judge:
         r = L.pos[idx]
         return certify_batch(self.M[idx], self.c[idx], L.F[r], L.f[r], L.bound, x[idx], S=self.S[idx])
 
-    def first_look(self, x_end: np.ndarray) -> list:
+    def first_look(self, x_end: np.ndarray) -> list[int]:
         """Verdicts from the run alone; returns the loops that need stepping on."""
         pending = []
         cert = dict(zip(self.live, self.certified(self.live, x_end)))
@@ -125,7 +130,9 @@ class _Judge:
             self.steps[i] = done_steps
 
 
-def judge(loops, budget: int, extend: Callable) -> None:
+def judge(
+    loops: Any, budget: int, extend: Callable[[np.ndarray, int, Sequence[int]], tuple[ClosedLoops, np.ndarray]]
+) -> None:
     """Give every loop of a finished run its verdict (fills ``outcome``, ``spectral_radius``, ``verdict_steps``,
     ``gains`` of ``loops.out``).
 

@@ -13,13 +13,10 @@ connect callback (queued behind it) did not run for more than 30 s.
   queue at most one call per callback, whatever it sends.
 - :class:`FairSlots`: the compute slots are handed out first come, first served,
   so a tab that keeps computing cannot take a slot back before a waiting tab.
-- :func:`guard_updates`: a value viser itself cannot take (e.g. text sent for a
-  slider) is explained in the tab instead of ending as "Task exception was never
-  retrieved" on the server's console.
-- :func:`limit_reads`: the event loop reads at most :data:`READ_BYTES` of one tab's socket at a time.
-  viser turns every message read into tasks before the loop does anything else; one 256 KiB read
-  of a flooding client (thousands of messages) made every loop turn last ~1 s, and a new tab's
-  handshake needs several turns (it took 5-11 s during a flood).
+- :data:`READ_BYTES`: the event loop reads at most this much of one tab's socket at a time
+  (:func:`app.dashboard.viserfix.limit_reads`). viser turns every message read into tasks before the
+  loop does anything else; one 256 KiB read of a flooding client (thousands of messages) made every
+  loop turn last ~1 s, and a new tab's handshake needs several turns (it took 5-11 s during a flood).
 - :func:`pool_tasks`: how many pool tasks a quantization pass is split into, so
   each lasts a fraction of a second (a newer setting never waits long for the
   pool to finish abandoned work).
@@ -38,8 +35,6 @@ __all__ = [
     "inline",
     "TabCallbacks",
     "FairSlots",
-    "guard_updates",
-    "limit_reads",
     "pool_tasks",
     "TASK_SECONDS",
     "READ_BYTES",
@@ -192,51 +187,6 @@ class FairSlots:
 
     def __exit__(self, *exc) -> None:
         self.release()
-
-
-def guard_updates(gui, on_reject: Callable[[str], None]) -> bool:
-    """Wrap viser's handler of one tab's input messages: a value viser cannot take is explained by ``on_reject``.
-
-    viser converts each value to the input's type before any callback runs (text sent for
-    a slider, a list for a checkbox ...); that error used to end unnoticed in the event loop.
-    Returns False (nothing wrapped) if this viser version has no such handler.
-    """
-    from viser._messages import GuiUpdateMessage
-
-    conn = getattr(gui, "_websock_interface", None)
-    orig = getattr(gui, "_handle_gui_updates", None)
-    if conn is None or orig is None or orig not in conn._incoming_handlers.get(GuiUpdateMessage, ()):
-        return False
-
-    async def checked(client_id, message) -> None:
-        try:
-            await orig(client_id, message)
-        except Exception as exc:
-            handle = gui._gui_input_handle_from_uuid.get(message.uuid)
-            label = getattr(handle, "label", None) or "an input"
-            sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in dict(message.updates).items())
-            on_reject(
-                f"{label}: the value sent ({sent}) was refused ({type(exc).__name__}: {str(exc)[:80]}); "
-                "the input keeps its last value"
-            )
-
-    conn.unregister_handler(GuiUpdateMessage, orig)
-    conn.register_handler(GuiUpdateMessage, checked)
-    return True
-
-
-def limit_reads(server, client_id, nbytes: int = READ_BYTES) -> bool:
-    """Make the event loop read at most ``nbytes`` of client ``client_id``'s socket per turn.
-
-    ``server`` is the ``viser.ViserServer``. Returns False (nothing changed) if this viser or
-    asyncio keeps the connection elsewhere (e.g. another event loop implementation).
-    """
-    conns = getattr(getattr(server, "_websock_server", None), "_live_connections", None) or {}
-    transport = getattr(conns.get(client_id), "transport", None)
-    if transport is None or not isinstance(getattr(transport, "max_size", None), int):
-        return False
-    transport.max_size = int(nbytes)
-    return True
 
 
 def pool_tasks(samples: int, realizations: int, bits: int, workers: int, target: float = TASK_SECONDS) -> int:

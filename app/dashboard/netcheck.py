@@ -41,7 +41,7 @@ def check_address(host: str, port: int) -> str | None:
         infos = socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)
     except (socket.gaierror, UnicodeError, OSError) as exc:
         raise ConfigError(f"--host {host!r} cannot be resolved ({exc})") from None
-    addrs = sorted({i[4][0] for i in infos})
+    addrs = sorted({str(i[4][0]) for i in infos})
     for family, _, _, _, sockaddr in infos[:1]:
         with socket.socket(family, socket.SOCK_STREAM) as s:
             try:

@@ -19,6 +19,9 @@ from __future__ import annotations
 import re
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
+
+from .viserfix import plotly_js_unsent, send_plotly_js
 
 __all__ = ["BUNDLE", "TRACE_TYPES", "bundle_version", "send_basic_bundle"]
 
@@ -43,21 +46,20 @@ def bundle_version(source: str) -> str:
     return m.group(1) if m else ""
 
 
-def send_basic_bundle(gui) -> str | None:
+def send_basic_bundle(gui: Any) -> str | None:
     """Queue the basic bundle to the tab of ``gui`` (a ``client.gui``) before its first plot.
 
     Returns None when it was sent, else why viser's own bundle will be sent instead.
     Call it before the tab's first ``add_plotly``.
     """
     import plotly.offline
-    from viser import _messages
 
-    if getattr(gui, "_setup_plotly_js", None) is not False:
+    if not plotly_js_unsent(gui):
         return "this viser version sends plotly.js differently (or it was sent already)"
     version, source = _bundle()
     wanted = plotly.offline.get_plotlyjs_version()
     if version != wanted:
         return f"the shipped basic bundle is plotly.js {version or '(missing)'}, plotly needs {wanted}"
-    gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
-    gui._setup_plotly_js = True  # viser's own flag: it then skips sending the full bundle
+    if not send_plotly_js(gui, source):  # viser then skips sending the full bundle
+        return "this viser version sends plotly.js differently"
     return None

@@ -20,11 +20,12 @@ from collections import OrderedDict
 
 import viser
 
+from app.procs import release_ipc
 from qsid_core.errors import QsidError
 from qsid_core.version import __version__
 
 from .cache import SharedCache
-from .flow import FairSlots, limit_reads
+from .flow import READ_BYTES, FairSlots
 from .lessons import get_lesson, lesson_names, lesson_values
 from .memory import limit_arenas, trim
 from .netcheck import OneLineParser, check_address, port_number, who_can_connect
@@ -33,7 +34,7 @@ from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
 from .viewcodes import ViewStore, default_store_path, open_view
-from .viserfix import check_request_hook, connection_request
+from .viserfix import check_request_hook, connection_request, limit_reads, refuse_share_requests
 from .viserfix import install as _install_viser_fix
 from .warm import COMPILE_SECONDS, needs_compiling, warm
 
@@ -111,7 +112,7 @@ class DashboardApp:
         cam.position = (1.7, -2.2, 1.4)
         cam.look_at = (0.0, 0.0, 0.0)
         cam.up = (0.0, 0.0, 1.0)
-        _refuse_share_requests(self.server)
+        refuse_share_requests(self.server)
         check_request_hook(self.server)  # view links need the websocket's path: fail now, not silently later
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
@@ -134,7 +135,7 @@ class DashboardApp:
         return f"http://{self.host}:{self.port}"
 
     def _connect(self, client) -> None:
-        limit_reads(self.server, client.client_id)  # a flooding tab cannot make the event loop's turns long
+        limit_reads(self.server, client.client_id, READ_BYTES)  # a flooding tab cannot make the event loop's turns long
         with self._lock:
             full = self.max_tabs is not None and len(self._admitted) >= self.max_tabs
             if not full:
@@ -200,16 +201,6 @@ class DashboardApp:
             for s in sessions:
                 s.close()
         self.server.stop()
-
-
-def _refuse_share_requests(server) -> None:
-    """Ignore viser's "share URL" requests: the button is hidden, but any client could still send one and
-    make the server open a public tunnel through viser's relay (the whole class's server on the internet)."""
-    from viser import _messages
-
-    handlers = getattr(getattr(server, "_websock_server", None), "_incoming_handlers", {})
-    for msg in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
-        handlers.pop(msg, None)
 
 
 def _check_lesson(name: str) -> str:
@@ -326,20 +317,9 @@ def _wait_for_stop_signal(stop: threading.Event) -> None:
             return
 
 
-def _release_ipc() -> None:
-    """After the pool is gone: unlink its semaphores and stop the resource tracker (nothing left to warn of)."""
-    from multiprocessing import resource_tracker, util
-
-    try:
-        util._run_finalizers(0)  # the semaphores' finalizers unlink and unregister them
-        resource_tracker._resource_tracker._stop()
-    except Exception:
-        pass
-
-
 def _shutdown(app) -> None:
     app.stop(wait=False)
-    _release_ipc()
+    release_ipc()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -37,7 +37,7 @@ from qsid_core.systems import PRESETS, get_system
 
 from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
-from .flow import TabCallbacks, guard_updates
+from .flow import TabCallbacks
 from .frames import Frame
 from .inputs import check_panel, unusable
 from .lessons import get_lesson, lesson_names, lesson_values
@@ -50,6 +50,7 @@ from .share import add_share_panel, apply_pending, show_frame
 from .stages import iter_frames
 from .viewcodes import ViewOpen, add_code_panel, remember
 from .viewpanel import PANEL_WIDTH, ViewPanel
+from .viserfix import guard_updates, set_callback_executor
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
 
@@ -88,8 +89,7 @@ class Session:
         gui = client.gui
         # (1) this tab's callbacks: cheap ones at once, others in one thread of its own, never queued twice
         self.callbacks = TabCallbacks(str(client.client_id))
-        if hasattr(gui, "_thread_executor"):
-            gui._thread_executor = self.callbacks
+        set_callback_executor(gui, self.callbacks)
         guard_updates(gui, self._show_error)  # a value viser refuses is explained, not dropped
         gui.configure_theme(show_share_button=False, control_width="large", show_logo=False)
         # place the panels before filling them: moving a filled panel re-mounts its plots

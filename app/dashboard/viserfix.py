@@ -1,24 +1,69 @@
-"""Make viser's message buffers safe to push into from many threads at once (viser 1.1.x).
+"""Every use of viser's private internals, in one place (viser 1.1.x; pyproject pins ``>=1.1.1,<1.2``).
 
-``AsyncMessageBuffer.push`` (viser/infra/_async_message_buffer.py) calls ``self.message_event.set()``
-directly from the calling thread, besides scheduling the same call on the event loop with
-``call_soon_threadsafe``. ``asyncio.Event.set`` iterates the event's deque of waiting futures, which
-the event loop thread appends to and removes from in ``Event.wait``: with several tabs drawing at once
-that iteration races the loop ("RuntimeError: deque mutated during iteration") and the push raises
-in the tab's worker. A lock on our side cannot help, because the other party is viser's event loop.
+The dashboard needs a few things viser's public API does not offer: thread-safe message buffers,
+a bounded callback queue per tab, an explanation for a value viser refuses, a bounded socket read
+per turn, no "share URL" tunnel, and a smaller plotly.js bundle. Each hook below is one function with
+a comment saying which private names it relies on and why; the rest of the dashboard calls only
+these functions. A hook returns True when it is in place; when this viser lacks what the hook relies
+on it changes nothing, returns False and warns once (:class:`ViserHookWarning`), so a viser upgrade
+cannot switch a protection off silently. ``tests/test_dashboard_viserfix.py`` installs every hook
+against the installed viser and checks each one reports a missing attribute.
 
-:func:`install` gives every buffer an event whose ``set`` only touches the waiters on the loop's own
-thread; from any other thread it hands the call to the loop. Nothing is lost: push already schedules
-the loop-side ``set`` (directly, or at the end of an atomic block), and viser reads the event only on
-the loop (``await message_event.wait()``). Every draw of every tab goes through ``push``, so this is the
-one place that makes them all safe.
+The message-buffer hook (:func:`install`): ``AsyncMessageBuffer.push``
+(viser/infra/_async_message_buffer.py) calls ``self.message_event.set()`` directly from the calling
+thread, besides scheduling the same call on the event loop with ``call_soon_threadsafe``.
+``asyncio.Event.set`` iterates the event's deque of waiting futures, which the event loop thread
+appends to and removes from in ``Event.wait``: with several tabs drawing at once that iteration races
+the loop ("RuntimeError: deque mutated during iteration") and the push raises in the tab's worker. A
+lock on our side cannot help, because the other party is viser's event loop. :func:`install` gives
+every buffer an event whose ``set`` only touches the waiters on the loop's own thread; from any other
+thread it hands the call to the loop. Nothing is lost: push already schedules the loop-side ``set``
+(directly, or at the end of an atomic block), and viser reads the event only on the loop (``await
+message_event.wait()``). Every draw of every tab goes through ``push``, so this is the one place
+that makes them all safe.
 """
 
 from __future__ import annotations
 
 import asyncio
+import warnings
+from collections.abc import Awaitable, Callable
+from typing import Any
 
-__all__ = ["install", "LoopEvent", "check_request_hook", "connection_request"]
+__all__ = [
+    "install",
+    "check_request_hook",
+    "connection_request",
+    "LoopEvent",
+    "ViserHookWarning",
+    "set_callback_executor",
+    "guard_updates",
+    "limit_reads",
+    "refuse_share_requests",
+    "plotly_js_unsent",
+    "send_plotly_js",
+]
+
+
+class ViserHookWarning(RuntimeWarning):
+    """A hook into viser's internals could not be installed (this viser version lacks what it relies on)."""
+
+
+_warned: set[str] = set()
+
+
+def _missing(hook: str, what: str) -> bool:
+    """Warn (once per hook) that ``hook`` is not installed because ``what`` is missing; returns False."""
+    if hook not in _warned:
+        _warned.add(hook)
+        import viser
+
+        warnings.warn(
+            f"qsid-dashboard: viser {viser.__version__} has no {what}; switched off: {hook} (qsid is tested with viser 1.1.1)",
+            ViserHookWarning,
+            stacklevel=3,
+        )
+    return False
 
 
 class LoopEvent(asyncio.Event):
@@ -43,17 +88,23 @@ class LoopEvent(asyncio.Event):
 
 
 def install() -> bool:
-    """Patch viser's ``AsyncMessageBuffer`` (once); False if this viser has no such class."""
+    """Make viser's message buffers safe to push into from many threads (once; see the module docstring).
+
+    Relies on ``viser.infra._async_message_buffer.AsyncMessageBuffer`` setting ``self.event_loop`` and
+    ``self.message_event`` in ``__init__``; the wrapped ``__init__`` replaces the event by a :class:`LoopEvent`.
+    """
     try:
         from viser.infra import _async_message_buffer as amb
     except ImportError:
-        return False
-    cls = getattr(amb, "AsyncMessageBuffer", None)
-    if cls is None or getattr(cls, "_qsid_loop_event", False):
-        return cls is not None
+        return _missing("thread-safe message buffers", "module viser.infra._async_message_buffer")
+    cls: Any = getattr(amb, "AsyncMessageBuffer", None)
+    if cls is None:
+        return _missing("thread-safe message buffers", "AsyncMessageBuffer")
+    if getattr(cls, "_qsid_loop_event", False):
+        return True
     init = cls.__init__
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
         init(self, *args, **kwargs)
         self.message_event = LoopEvent(self.event_loop)
 
@@ -88,3 +139,134 @@ def connection_request(server, client_id) -> tuple[str, str] | None:
     if request is None:
         return None
     return str(request.path), str(request.headers.get("Host", "") or "")
+
+
+def set_callback_executor(gui: Any, executor: Any) -> bool:
+    """Run the input callbacks of one tab's panel (``client.gui``) in ``executor`` instead of viser's shared pool.
+
+    Relies on ``GuiApi._thread_executor``: viser submits every ``def`` callback of the panel to it, once
+    per message, so a flooding tab grew viser's one shared queue without bound. ``executor`` needs
+    ``submit(fn, *args, **kwargs)``; the dashboard's :class:`~app.dashboard.flow.TabCallbacks` keeps at
+    most one queued call per callback.
+    """
+    if not callable(getattr(getattr(gui, "_thread_executor", None), "submit", None)):
+        return _missing("the per-tab callback queue", "GuiApi._thread_executor")
+    gui._thread_executor = executor
+    return True
+
+
+def guard_updates(gui: Any, on_reject: Callable[[str], None]) -> bool:
+    """Wrap viser's handler of one tab's input messages: a value viser cannot take is explained by ``on_reject``.
+
+    viser converts each value to the input's type before any callback runs (text sent for a slider,
+    a list for a checkbox ...); that error used to end unnoticed in the event loop. Relies on
+    ``GuiApi._websock_interface`` (the tab's connection, whose public ``register_handler`` /
+    ``unregister_handler`` swap the handler, and ``_incoming_handlers`` to find it),
+    ``GuiApi._handle_gui_updates`` (viser's handler of ``viser._messages.GuiUpdateMessage``) and
+    ``GuiApi._gui_input_handle_from_uuid`` (to name the input in the explanation).
+    """
+    try:
+        from viser._messages import GuiUpdateMessage
+    except ImportError:
+        return _missing("the explanation of refused values", "viser._messages.GuiUpdateMessage")
+    conn = getattr(gui, "_websock_interface", None)
+    orig = getattr(gui, "_handle_gui_updates", None)
+    handlers = getattr(conn, "_incoming_handlers", None)
+    inputs = getattr(gui, "_gui_input_handle_from_uuid", None)
+    if conn is None or orig is None or not isinstance(handlers, dict) or orig not in handlers.get(GuiUpdateMessage, ()):
+        return _missing("the explanation of refused values", "GuiApi._handle_gui_updates registered on its connection")
+    if not isinstance(inputs, dict):
+        return _missing("the explanation of refused values", "GuiApi._gui_input_handle_from_uuid")
+
+    async def checked(client_id: int, message: Any) -> None:
+        try:
+            await orig(client_id, message)
+        except Exception as exc:
+            handle = inputs.get(message.uuid)
+            label = getattr(handle, "label", None) or "an input"
+            sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in dict(message.updates).items())
+            on_reject(
+                f"{label}: the value sent ({sent}) was refused ({type(exc).__name__}: {str(exc)[:80]}); "
+                "the input keeps its last value"
+            )
+
+    handler: Callable[[int, Any], Awaitable[None]] = checked
+    conn.unregister_handler(GuiUpdateMessage, orig)
+    conn.register_handler(GuiUpdateMessage, handler)
+    return True
+
+
+def limit_reads(server: Any, client_id: int, nbytes: int) -> bool:
+    """Make the event loop read at most ``nbytes`` of client ``client_id``'s socket per turn.
+
+    ``server`` is the ``viser.ViserServer``. Relies on ``ViserServer._websock_server._live_connections``
+    (client id -> the websockets ``ServerConnection``) and on the asyncio selector transport's
+    ``max_size`` (its read size, 256 KiB by default): viser turns every message read into tasks before
+    the loop does anything else, so one big read of a flooding client made every loop turn long.
+    False without a warning when the client is not connected (any more).
+    """
+    conns = getattr(getattr(server, "_websock_server", None), "_live_connections", None)
+    if not isinstance(conns, dict):
+        return _missing("the bounded socket reads", "ViserServer._websock_server._live_connections")
+    conn = conns.get(client_id)
+    if conn is None:  # the tab has gone already: nothing to limit
+        return False
+    transport = getattr(conn, "transport", None)
+    if transport is None or not isinstance(getattr(transport, "max_size", None), int):
+        return _missing("the bounded socket reads", "asyncio transport max_size on the client's connection")
+    transport.max_size = int(nbytes)
+    return True
+
+
+def refuse_share_requests(server: Any) -> bool:
+    """Ignore viser's "share URL" requests from any client.
+
+    The button is hidden, but any client could still send one and make the server open a public tunnel
+    through viser's relay (the whole class's server on the internet). Relies on
+    ``ViserServer._websock_server._incoming_handlers`` holding the handlers of
+    ``viser._messages.ShareUrlRequest`` and ``ShareUrlDisconnect``; they are removed.
+    """
+    from viser import _messages
+
+    handlers = getattr(getattr(server, "_websock_server", None), "_incoming_handlers", None)
+    kinds = [getattr(_messages, name, None) for name in ("ShareUrlRequest", "ShareUrlDisconnect")]
+    if not isinstance(handlers, dict) or None in kinds:
+        return _missing("the refusal of share-URL requests", "ViserServer._websock_server._incoming_handlers")
+    for msg in kinds:
+        handlers.pop(msg, None)
+    return True
+
+
+def plotly_js_unsent(gui: Any) -> bool | None:
+    """Whether viser has not yet sent plotly.js to the tab of ``gui`` (None: this viser keeps no such flag).
+
+    Relies on ``GuiApi._setup_plotly_js``: False until viser's ``add_plotly`` sends the full bundle.
+    """
+    flag = getattr(gui, "_setup_plotly_js", None)
+    if not isinstance(flag, bool):
+        _missing("the small plotly.js bundle", "GuiApi._setup_plotly_js")
+        return None
+    return not flag
+
+
+def send_plotly_js(gui: Any, source: str) -> bool:
+    """Queue ``source`` (a plotly.js bundle) to the tab of ``gui`` and tell viser it was sent.
+
+    Relies on ``GuiApi._websock_interface.queue_message``, ``viser._messages.RunJavascriptMessage``
+    (what viser itself sends the bundle in) and ``GuiApi._setup_plotly_js`` (set True: viser then
+    skips sending its own 4.8 MB bundle).
+    """
+    try:
+        from viser._messages import RunJavascriptMessage
+    except ImportError:
+        return _missing("the small plotly.js bundle", "viser._messages.RunJavascriptMessage")
+    conn = getattr(gui, "_websock_interface", None)
+    if (
+        conn is None
+        or not callable(getattr(conn, "queue_message", None))
+        or not isinstance(getattr(gui, "_setup_plotly_js", None), bool)
+    ):
+        return _missing("the small plotly.js bundle", "GuiApi._websock_interface.queue_message")
+    conn.queue_message(RunJavascriptMessage(source=source))
+    gui._setup_plotly_js = True
+    return True

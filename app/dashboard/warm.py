@@ -12,6 +12,8 @@ from __future__ import annotations
 import glob
 import os
 
+from app.procs import worker_pids
+
 __all__ = ["needs_compiling", "warm", "warm_here", "COMPILE_SECONDS"]
 
 #: What the first compile of all kernels takes (measured: 8.4 s cold vs 2.1 s cached for this warm-up on a loaded
@@ -76,7 +78,7 @@ def warm(pool) -> None:
     ex = pool.current
     if ex is None:
         return
-    want = {p.pid for p in getattr(ex, "_processes", {}).values()}
+    want = set(worker_pids(ex))
     seen: set = set()
     for _ in range(20):  # a worker may take two tasks of a round: ask until each answered once
         seen |= {f.result(timeout=300) for f in [ex.submit(warm_here) for _ in range(len(want))]}
