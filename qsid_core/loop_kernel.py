@@ -21,7 +21,10 @@ QPs exist leaves the kernel too; they are built once and the kernel resumes.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 from . import kernels
 from .errors import FailureKind, MPCFailure
@@ -35,8 +38,15 @@ TOL = 1e-12
 # why a loop left the kernel
 _DONE, _NEED_QP, _UNSETTLED, _DIVERGED = 0, 1, 2, 3
 
+_Floats = NDArray[np.float64]
+_Ints = NDArray[np.int64]
+_Bools = NDArray[np.bool_]
+#: a :class:`qsid_core.closed_loop._Loops`; that module imports this one, so naming the class here (even for
+#: the type checker only) would be an import cycle
+_LoopsT = Any
 
-def _predict_py(F, f, bound, r, xs, z):
+
+def _predict_py(F: _Floats, f: _Floats, bound: _Floats, r: int, xs: _Floats, z: _Floats) -> bool:
     """``z = F[r] xs + f[r]``; whether it meets the box (the unconstrained optimum is the MPC's)."""
     fast = True
     for k in range(z.shape[0]):
@@ -49,7 +59,22 @@ def _predict_py(F, f, bound, r, xs, z):
     return fast
 
 
-def _guess_py(Gx, g0, r, xs, z, prevU, prev_t, i, t, ub, m, g, up, lo):
+def _guess_py(
+    Gx: _Floats,
+    g0: _Floats,
+    r: int,
+    xs: _Floats,
+    z: _Floats,
+    prevU: _Floats,
+    prev_t: _Ints,
+    i: int,
+    t: int,
+    ub: _Floats,
+    m: int,
+    g: _Floats,
+    up: _Bools,
+    lo: _Bools,
+) -> None:
     """The QP's ``g = Gx[r] xs + g0[r]`` and the active-set guess: the last step's optimal sequence shifted
     by one step when the last step was a QP step, else the bounds the unconstrained optimum ``z`` violates."""
     nU = ub.shape[0]
@@ -67,7 +92,7 @@ def _guess_py(Gx, g0, r, xs, z, prevU, prev_t, i, t, ub, m, g, up, lo):
         lo[k] = (base <= -ub[k] * (1 - 1e-9)) and not up[k]
 
 
-def _move_py(A, B, xs, u, xn, diverged):
+def _move_py(A: _Floats, B: _Floats, xs: _Floats, u: _Floats, xn: _Floats, diverged: float) -> bool:
     """``xn = A xs + B u``; False if a component leaves ``|x| <= diverged`` (or is not finite)."""
     ok = True
     for k in range(xn.shape[0]):
@@ -82,7 +107,7 @@ def _move_py(A, B, xs, u, xn, diverged):
     return ok
 
 
-def _stage_py(xs, x_ref, Q, u, R):
+def _stage_py(xs: _Floats, x_ref: _Floats, Q: _Floats, u: _Floats, R: _Floats) -> float:
     """``(x - r)'Q(x - r) + u'R u``."""
     cost = 0.0
     for k in range(xs.shape[0]):
@@ -95,9 +120,12 @@ def _stage_py(xs, x_ref, Q, u, R):
 
 
 def _box_loop_py(
-    idx, rows, t0, steps, F, f, bound, H, Gx, g0, have_qp, A, B, Q, R, x_ref, ub, iters, tol, diverged,
-    x, prevU, prev_t, states, inputs, acc, U0, first, qp_steps, status, tstop,
-):  # fmt: skip
+    idx: _Ints, rows: _Ints, t0: _Ints, steps: int, F: _Floats, f: _Floats, bound: _Floats, H: _Floats,
+    Gx: _Floats, g0: _Floats, have_qp: bool, A: _Floats, B: _Floats, Q: _Floats, R: _Floats, x_ref: _Floats,
+    ub: _Floats, iters: int, tol: float, diverged: float, x: _Floats, prevU: _Floats, prev_t: _Ints,
+    states: _Floats, inputs: _Floats, acc: _Floats, U0: _Floats, first: NDArray[np.int8], qp_steps: _Ints,
+    status: _Ints, tstop: _Ints,
+) -> None:  # fmt: skip
     """Run loops ``idx`` (rows ``rows`` of ``F``, ``H``, ...) from steps ``t0`` until done or stopped."""
     n, m, nU = F.shape[2], B.shape[1], ub.shape[0]
     z, g, U = np.empty(F.shape[1]), np.empty(nU), np.empty(nU)
@@ -148,13 +176,13 @@ else:  # pragma: no cover
     _box_loop = None
 
 
-def eligible(loops) -> bool:
+def eligible(loops: _LoopsT) -> bool:
     """Whether :func:`run_compiled` can run ``loops``: numba present, DAQP on box-only problems,
     exact state feedback, no disturbance, no time-varying reference."""
     return kernels.AVAILABLE and loops.guess and loops.noise is None and loops.preview is None
 
 
-def _own(a, dtype=float) -> np.ndarray:
+def _own(a: ArrayLike, dtype: DTypeLike = float) -> NDArray[Any]:
     """A writable C-contiguous copy: the kernel is compiled for one array type, not also for read-only
     (shared-memory) or strided inputs, so a cache written by any process serves every process."""
     return np.array(a, dtype=dtype, order="C")
@@ -163,7 +191,7 @@ def _own(a, dtype=float) -> np.ndarray:
 class _Kernel:
     """The kernel's arguments for the live models of ``loops`` (the condensed QPs once built)."""
 
-    def __init__(self, loops, diverged: float):
+    def __init__(self, loops: _LoopsT, diverged: float) -> None:
         self.loops, self.diverged = loops, float(diverged)
         w = loops.w
         self.F, self.f = _own(loops.F), _own(loops.f)
@@ -175,7 +203,7 @@ class _Kernel:
             _own(w.x_ref),
             _own(loops.ub),
         )
-        self.qp = None
+        self.qp: tuple[_Floats, _Floats, _Floats] | None = None
 
     def need_qp(self) -> None:
         if self.qp is None:
@@ -183,7 +211,7 @@ class _Kernel:
             cq = self.loops.cq
             self.qp = (_own(cq.H), _own(cq.Gx), _own(cq.g0))
 
-    def run(self, idx: np.ndarray, t0: np.ndarray):
+    def run(self, idx: _Ints, t0: _Ints) -> tuple[_Ints, _Ints, NDArray[np.int8], _Floats]:
         """Run loops ``idx`` from steps ``t0``; returns ``(status, tstop, first, U0)`` per loop."""
         L, k = self.loops, idx.size
         nU = L.ub.size
@@ -207,7 +235,7 @@ class _Kernel:
         return status, tstop, first, U0
 
 
-def run_compiled(loops, active: np.ndarray, diverged: float, first_costs: bool) -> None:
+def run_compiled(loops: _LoopsT, active: NDArray[np.integer[Any]], diverged: float, first_costs: bool) -> None:
     """Run the loops ``active`` of ``loops`` for ``loops.steps`` steps in the compiled kernel.
 
     Fills ``loops.out`` (states, inputs, ``qp_steps``, failures, and ``J0`` when
@@ -237,7 +265,7 @@ def run_compiled(loops, active: np.ndarray, diverged: float, first_costs: bool) 
         idx, t0 = np.array(go_on, dtype=np.int64), np.array(at, dtype=np.int64)
 
 
-def _first_costs(loops, idx, t0, first, U0) -> None:
+def _first_costs(loops: _LoopsT, idx: _Ints, t0: _Ints, first: NDArray[np.int8], U0: _Floats) -> None:
     """``J*(x0)`` of the loops whose first step the kernel took: the unconstrained optimal cost where
     the fast path held, else the condensed QP's cost ``U'HU + 2 g'U + c(x0)`` of the active-set solution."""
     x0, out, w = loops.w.x0, loops.out, loops.w
@@ -260,7 +288,7 @@ def _first_costs(loops, idx, t0, first, U0) -> None:
         )
 
 
-def _daqp_step(loops, i: int, t: int, diverged: float, first_costs: bool) -> bool:
+def _daqp_step(loops: _LoopsT, i: int, t: int, diverged: float, first_costs: bool) -> bool:
     """Step ``t`` of loop ``i`` by its DAQP solver (warm-started); False if the loop failed there."""
     c, out = loops.ctrls[i], loops.out
     loops.attach(i)

@@ -40,7 +40,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from .errors import ConfigError, check_choice, check_float
 
@@ -256,7 +256,16 @@ def ultimate_bound(
     )
 
 
-def _bounds_batch(P, Q, R, dA, dB, theta, rho, x0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _bounds_batch(
+    P: NDArray[np.float64],
+    Q: NDArray[np.float64],
+    R: NDArray[np.float64],
+    dA: NDArray[np.float64],
+    dB: NDArray[np.float64],
+    theta: float,
+    rho: float | None,
+    x0: ArrayLike | None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """:func:`ultimate_bound`'s ``delta`` and ``rho`` for a batch (P (L, n, n), dA (L, n, n), dB (L, n, m)).
 
     The same formulas, evaluated for all models at once; returns ``(delta, rho, odd)``
@@ -422,7 +431,7 @@ def realized_bounds(
         dA = A - np.stack([models[i][0] for i in todo])
         dB = B - np.stack([models[i][1] for i in todo])
         d, r, odd = _bounds_batch(P, Q, R, dA, dB, theta, rho, x0)
-        for k in np.flatnonzero(odd):  # an automatic rho that is no positive number: ultimate_bound says why
+        for k in np.flatnonzero(odd).tolist():  # an automatic rho that is no positive number: ultimate_bound says why
             ub = ultimate_bound(P[k], Q, R, dA[k], dB[k], theta=theta, rho=rho, x0=x0)
             d[k], r[k] = ub.delta, ub.rho
         delta[todo], rhos[todo] = d, r
