@@ -7,9 +7,17 @@ HTML beside the asked name and a note on stderr saying why).
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from .runner import UsageError, out_file
+from .runner import Reporter, UsageError, out_file
+
+if TYPE_CHECKING:
+    import plotly.graph_objects as go
+
+    from qsid_core import SweepResult
 
 #: The views ``--figure-view`` offers: those of :func:`app.figures.results.plot_results` (a test checks they agree),
 #: written out so that building the parser does not import plotly.
@@ -26,7 +34,7 @@ __all__ = [
 ]
 
 
-def add_figure_arguments(p) -> None:
+def add_figure_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("figure")
     g.add_argument(
         "--figure",
@@ -45,13 +53,20 @@ def add_figure_arguments(p) -> None:
     )
 
 
-def check_figure(args, rep, inputs=(), others=()) -> Path | None:
+def check_figure(
+    args: argparse.Namespace,
+    rep: Reporter,
+    inputs: Sequence[str | Path] = (),
+    others: Iterable[tuple[str, Path | None]] = (),
+) -> Path | None:
     """Check ``--figure`` before the run: a known suffix, a writable place, not an input or another output."""
     if args.figure is None:
         return None
     from app.figures.export import ExportError, figure_format
 
     path = out_file(args.figure, rep, flag="--figure", inputs=inputs)
+    if path is None:
+        raise UsageError("argument --figure: give a file name")
     try:
         figure_format(path)
     except ExportError as exc:
@@ -64,7 +79,7 @@ def check_figure(args, rep, inputs=(), others=()) -> Path | None:
     return path
 
 
-def save(fig, path: Path, rep) -> Path:
+def save(fig: go.Figure, path: Path, rep: Reporter) -> Path:
     """Write ``fig`` to ``path``; a fallback to HTML is said on stderr. Returns the file written."""
     from app.figures.export import save_figure
 
@@ -74,7 +89,7 @@ def save(fig, path: Path, rep) -> Path:
     return saved.path
 
 
-def save_panels(items, rep) -> list:
+def save_panels(items: Iterable[tuple[go.Figure, Path]], rep: Reporter) -> list[Path]:
     """Write ``(fig, path)`` pairs in one Chromium; without it nothing (the HTML is there) and a note why."""
     from app.figures.export import chromium_path, save_figures, why_no_browser
 
@@ -85,7 +100,7 @@ def save_panels(items, rep) -> list:
     return [s.path for s in save_figures(items)]
 
 
-def write_figure(result, path: Path | None, view: str, rep) -> None:
+def write_figure(result: SweepResult, path: Path | None, view: str, rep: Reporter) -> None:
     """Draw ``result`` (a SweepResult) as ``view`` into ``path`` (nothing when ``path`` is None)."""
     if path is None:
         return
@@ -95,7 +110,7 @@ def write_figure(result, path: Path | None, view: str, rep) -> None:
     rep.stage(f"figure ({view}) written to {written}")
 
 
-def check_formats(text: str | None) -> tuple:
+def check_formats(text: str | None) -> tuple[str, ...]:
     """``--figure png,svg`` of ``qsid reproduce``: the static formats asked for (empty when None)."""
     if text is None:
         return ()

@@ -17,9 +17,15 @@ import base64
 import contextlib
 import os
 import urllib.parse
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import plotly.graph_objects as go
+    from playwright.sync_api import Browser, Page
 
 __all__ = [
     "save_figure",
@@ -113,14 +119,14 @@ def why_no_browser(browser: str) -> str:
     return ""
 
 
-def _size(fig, width: int | None, height: int | None) -> tuple[int, int]:
+def _size(fig: go.Figure, width: int | None, height: int | None) -> tuple[int, int]:
     w = width or fig.layout.width or 900
     h = height or fig.layout.height or 500
     return int(w), int(h)
 
 
 @contextmanager
-def _chromium(browser: str):
+def _chromium(browser: str) -> Iterator[Browser]:
     """A headless Chromium (and its playwright driver), both ended when the block is left."""
     from playwright.sync_api import sync_playwright
 
@@ -132,7 +138,7 @@ def _chromium(browser: str):
             b.close()
 
 
-def _plotly_page(b):
+def _plotly_page(b: Browser) -> Page:
     """A page of browser ``b`` with plotly.js loaded (from the installed plotly package) and no network."""
     from plotly.offline import get_plotlyjs
 
@@ -143,7 +149,7 @@ def _plotly_page(b):
     return page
 
 
-def _render(b, page, fig, fmt: str, w: int, h: int, scale: float) -> bytes:
+def _render(b: Browser, page: Page, fig: go.Figure, fmt: str, w: int, h: int, scale: float) -> bytes:
     """The figure as ``fmt`` bytes, drawn in ``page`` (plotly.js loaded); a PDF is printed in a page of its own."""
     from .raw import to_json
 
@@ -168,7 +174,7 @@ def _render(b, page, fig, fmt: str, w: int, h: int, scale: float) -> bytes:
         pdf.close()
 
 
-def _checked(path) -> tuple[Path, str]:
+def _checked(path: str | os.PathLike[str]) -> tuple[Path, str]:
     path = Path(path)
     fmt = figure_format(path)
     if not path.parent.is_dir():
@@ -181,7 +187,14 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
-def _draw(static: list, out: dict, width, height, scale: float, browser: str) -> str:
+def _draw(
+    static: list[tuple[go.Figure, Path, str]],
+    out: dict[Path, SavedFigure],
+    width: int | None,
+    height: int | None,
+    scale: float,
+    browser: str,
+) -> str:
     """Draw the ``(fig, path, fmt)`` items into ``out``; "" or why Chromium did not start (then nothing is drawn).
 
     A figure that fails to draw is an :class:`ExportError` with Chromium's first line.
@@ -206,8 +219,12 @@ def _draw(static: list, out: dict, width, height, scale: float, browser: str) ->
 
 
 def save_figures(
-    items, width: int | None = None, height: int | None = None, scale: float = 2.0, browser: str | None = None
-) -> list:
+    items: Iterable[tuple[go.Figure, str | os.PathLike[str]]],
+    width: int | None = None,
+    height: int | None = None,
+    scale: float = 2.0,
+    browser: str | None = None,
+) -> list[SavedFigure]:
     """:func:`save_figure` for several ``(fig, path)`` pairs, drawn in one Chromium (started once).
 
     Returns
@@ -215,27 +232,32 @@ def save_figures(
     list of SavedFigure
         In the order of ``items``.
     """
-    items = [(fig, *_checked(path)) for fig, path in items]
+    checked = [(fig, *_checked(path)) for fig, path in items]
     if not scale > 0:
         raise ExportError(f"scale: must be > 0; got {scale!r}")
     browser = browser or chromium_path()
-    static = [it for it in items if it[2] != "html"]
+    static = [it for it in checked if it[2] != "html"]
     why = why_no_browser(browser) if static else ""
-    out: dict = {}
+    out: dict[Path, SavedFigure] = {}
     if static and not why:
         why = _draw(static, out, width, height, scale, browser)
-    for fig, path, fmt in items:
+    for fig, path, fmt in checked:
         if path in out:
             continue
         html = path.with_suffix(".html")
         fig.write_html(html, include_plotlyjs=True, full_html=True)
         note = f"{why}: wrote offline HTML {html.name} instead of {path.name}" if fmt != "html" else ""
         out[path] = SavedFigure(html, "html", note)
-    return [out[path] for _, path, _ in items]
+    return [out[path] for _, path, _ in checked]
 
 
 def save_figure(
-    fig, path, width: int | None = None, height: int | None = None, scale: float = 2.0, browser: str | None = None
+    fig: go.Figure,
+    path: str | os.PathLike[str],
+    width: int | None = None,
+    height: int | None = None,
+    scale: float = 2.0,
+    browser: str | None = None,
 ) -> SavedFigure:
     """Write a plotly figure to ``path``; the format comes from the suffix (.png, .svg, .pdf, .html).
 

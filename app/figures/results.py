@@ -24,9 +24,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 import plotly.graph_objects as go
+
+if TYPE_CHECKING:
+    from qsid_core import SweepResult
+
+#: What the functions take as one result: a SweepResult, its ``to_dict()``, or the path of a saved one.
+ResultLike: TypeAlias = "SweepResult | dict[str, Any] | str | Path"
 
 __all__ = ["plot_results", "result_series", "FigureError", "VIEWS"]
 
@@ -56,7 +63,7 @@ class FigureError(ValueError):
     """A bad argument to a figure function (the message names it)."""
 
 
-def _as_dict(result, k: int) -> dict:
+def _as_dict(result: ResultLike, k: int) -> dict[str, Any]:
     """The JSON of one result: a SweepResult, its ``to_dict()``, or the path of a saved one."""
     if isinstance(result, (str, Path)):
         from qsid_core import load_result
@@ -72,14 +79,14 @@ def _as_dict(result, k: int) -> dict:
     )
 
 
-def _setting(d: dict, key: str):
+def _setting(d: dict[str, Any], key: str) -> Any:
     if key == "system":
         return d.get("system")
     v = (d.get("config") or {}).get(key)
     return tuple(v) if isinstance(v, list) else v
 
 
-def _auto_labels(dicts: list) -> list:
+def _auto_labels(dicts: list[dict[str, Any]]) -> list[str]:
     """'LS' / 'BCLS' for one result; else the estimator plus every setting that differs between results."""
     differ = [k for k in _LABEL_KEYS if k != "estimator" and len({repr(_setting(d, k)) for d in dicts}) > 1]
     out = []
@@ -94,7 +101,9 @@ def _auto_labels(dicts: list) -> list:
     return out
 
 
-def result_series(*results, labels: Sequence[str] | None = None) -> tuple[dict, list]:
+def result_series(
+    *results: ResultLike, labels: Sequence[str] | None = None
+) -> tuple[dict[str, list[dict[str, Any]]], list[dict[str, Any]]]:
     """``({label: rows}, [result JSON, ...])`` of the results, in order (the rows the view builders draw).
 
     Raises
@@ -118,7 +127,7 @@ def result_series(*results, labels: Sequence[str] | None = None) -> tuple[dict, 
     return dict(zip(labels, (d["results"] for d in dicts))), dicts
 
 
-def _stabilized(series: dict, dicts: list, height: int) -> go.Figure:
+def _stabilized(series: dict[str, list[dict[str, Any]]], dicts: list[dict[str, Any]], height: int) -> go.Figure:
     """The bits view; the small-gain test of Theorem 1's predicted model is recomputed from each result's
     configuration (its data are simulated again; no closed loop runs)."""
     from qsid_core import Experiment, SweepConfig
@@ -140,7 +149,9 @@ def _stabilized(series: dict, dicts: list, height: int) -> go.Figure:
     return bits_figure(answers, height=height)
 
 
-def plot_results(*results, view: str = "error", labels: Sequence[str] | None = None, height: int | None = None):
+def plot_results(
+    *results: ResultLike, view: str = "error", labels: Sequence[str] | None = None, height: int | None = None
+) -> go.Figure:
     """One plotly figure of several sweep results.
 
     Parameters
