@@ -17,8 +17,11 @@ Only reshaping for display: nothing is computed from the numbers but their exten
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
+
 import numpy as np
 import plotly.graph_objects as go
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["finite_axes", "axis_ranges", "top_log_range", "MAX_DECADES", "MIN_DECADES", "MARGIN"]
 
@@ -34,7 +37,7 @@ MARGIN = 0.05
 _PLAIN = {float, int, type(None), np.float64, np.float32, np.int64, np.int32}
 
 
-def _numbers(seq) -> np.ndarray:
+def _numbers(seq: ArrayLike | None) -> NDArray[np.float64]:
     """Finite floats of a plotly data array (None, strings and non-finite values dropped)."""
     if seq is None:
         return np.zeros(0)
@@ -47,11 +50,11 @@ def _numbers(seq) -> np.ndarray:
         if isinstance(v, (bool, np.bool_)) or v is None:
             continue
         try:
-            f = float(v)
+            fv = float(v)
         except (TypeError, ValueError):
             continue
-        if np.isfinite(f):
-            out.append(f)
+        if np.isfinite(fv):
+            out.append(fv)
     return np.asarray(out, dtype=float)
 
 
@@ -61,9 +64,9 @@ def _axis_name(ref: str | None, letter: str) -> str:
     return f"{letter}axis{ref[1:]}"
 
 
-def _collect(fig: go.Figure) -> dict:
+def _collect(fig: go.Figure) -> dict[str, NDArray[np.float64]]:
     """layout axis key -> finite data drawn on it (traces, and lines drawn in data units)."""
-    data: dict = {}
+    data: dict[str, list[NDArray[np.float64]]] = {}
     for tr in fig.data:
         if not hasattr(tr, "xaxis") or not hasattr(tr, "y"):
             continue
@@ -80,7 +83,7 @@ def _collect(fig: go.Figure) -> dict:
     return {k: np.concatenate(v) if v else np.zeros(0) for k, v in data.items()}
 
 
-def _log_range(vals: np.ndarray, max_dec: float) -> tuple[list, bool]:
+def _log_range(vals: NDArray[np.float64], max_dec: float) -> tuple[list[float], bool]:
     """(range in decades, some data off the axis)."""
     L = np.sort(np.log10(vals[vals > 0]))
     width = max_dec / (1 + 2 * MARGIN)
@@ -97,7 +100,7 @@ def _log_range(vals: np.ndarray, max_dec: float) -> tuple[list, bool]:
     return [lo - pad, hi + pad], off
 
 
-def _lin_range(vals: np.ndarray) -> list:
+def _lin_range(vals: NDArray[np.float64]) -> list[float]:
     lo, hi = float(vals.min()), float(vals.max())
     if hi - lo <= 1e-12 * max(abs(lo), abs(hi), 1e-300):
         half = 0.1 * abs(lo) if lo != 0 else 1.0
@@ -106,12 +109,12 @@ def _lin_range(vals: np.ndarray) -> list:
     return [lo - pad, hi + pad]
 
 
-def _logs(values) -> np.ndarray:
+def _logs(values: Iterable[float | None]) -> NDArray[np.float64]:
     v = np.asarray([x for x in values if x is not None], dtype=float)
     return np.log10(v[np.isfinite(v) & (v > 0)])
 
 
-def top_log_range(values, keep=()) -> list | None:
+def top_log_range(values: Iterable[float | None], keep: Sequence[float | None] = ()) -> list[float] | None:
     """A log axis range (decades) of at most MAX_DECADES that always shows ``keep``, then the top of ``values``.
 
     For views whose point is a few lines (bounds, starting norms) while other values lie
@@ -164,9 +167,9 @@ def finite_axes(fig: go.Figure, max_decades: float = MAX_DECADES) -> go.Figure:
     return fig
 
 
-def axis_ranges(fig: go.Figure) -> dict:
+def axis_ranges(fig: go.Figure) -> dict[str, tuple[str, tuple[float, ...] | None]]:
     """layout axis key -> (type, range) of every 2-D axis with data (for tests and checks)."""
-    out = {}
+    out: dict[str, tuple[str, tuple[float, ...] | None]] = {}
     for key in _collect(fig):
         if key in fig.layout:
             ax = fig.layout[key]
