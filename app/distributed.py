@@ -396,9 +396,11 @@ def _cluster_executor(parsed, say, connect_timeout, worker_timeout, stall_timeou
     cluster = None
     with contextlib.ExitStack() as stack:
         if quiet:  # dask logs lost connections with tracebacks; the run reports them as one ClusterError line
-            log = logging.getLogger("distributed")
-            stack.callback(log.setLevel, log.level)
-            log.setLevel(logging.CRITICAL)
+            # (its tornado/asyncio callbacks too: an interrupt during start-up fails some of them)
+            for name in ("distributed", "tornado", "asyncio"):
+                log = logging.getLogger(name)
+                stack.callback(log.setLevel, log.level)
+                log.setLevel(logging.CRITICAL)
         if parsed.local:
             say(f"dask: starting a local cluster of {parsed.workers} worker process(es) on 127.0.0.1")
             with warnings.catch_warnings():  # its small HTTP server moves off a busy port 8787: not news

@@ -86,21 +86,36 @@ def descendants(pid: int) -> list[int]:
     return out
 
 
-def kill_new_descendants(before: set[int], keep: set[int] = frozenset()) -> list[int]:
+def kill_new_descendants(before: set[int], keep: frozenset[int] | set[int] = frozenset()) -> list[int]:
     """SIGKILL every descendant of this process not in ``before`` or ``keep`` (e.g. a cluster interrupted
-    while it started, whose processes no handle owns yet); returns their process ids."""
-    new = [p for p in descendants(os.getpid()) if p not in before and p not in keep]
-    for p in new:
+    while it started, whose processes no handle owns yet); returns their process ids.
+
+    They are stopped first (SIGSTOP), and the tree is read again until no new process appears: a process
+    killed while it forks would leave a child that no longer counts as ours (it prints a traceback when
+    its parent's pipe closes under it). Stopped processes cannot fork, so the final SIGKILL gets them all.
+    """
+    found: list[int] = []
+    for _ in range(50):  # each pass stops the processes the previous one found; a tree is rarely deeper than 3
+        new = [p for p in descendants(os.getpid()) if p not in before and p not in keep and p not in found]
+        if not new:
+            break
+        for p in new:
+            try:
+                os.kill(p, signal.SIGSTOP)
+            except OSError:
+                pass
+        found += new
+    for p in found:
         try:
             os.kill(p, signal.SIGKILL)
         except OSError:
             pass
-    for p in new:  # reap our own children (grandchildren are reaped by whoever adopts them)
+    for p in found:  # reap our own children (grandchildren are reaped by whoever adopts them)
         try:
             os.waitpid(p, os.WNOHANG)
         except (ChildProcessError, OSError):
             pass
-    return new
+    return found
 
 
 def release_ipc() -> None:

@@ -64,9 +64,11 @@ def family_rss(pid: int) -> tuple[float, float]:
     rest = 0.0
     for p in family(pid)[1:]:
         try:
-            rest += rss_mb(p)
-        except OSError:
-            pass
+            mb = rss_mb(p)
+        except OSError:  # ended meanwhile
+            continue
+        if mb == mb:  # a zombie (a replaced worker not yet reaped) has no resident memory
+            rest += mb
     return rss_mb(pid), rest
 
 
@@ -84,13 +86,16 @@ class Student:
         self.final_ok, self.died, self.why = False, False, ""
         self.tab = WsTab(url, timeout=hang)
         self.b, self.seed, self.bound = 4, 0, 1.0
+        self.pending: tuple | None = None  # the change waiting for its answer
 
     def change(self, label: str, value, kind: str | None) -> None:
         with self.tab._lock:
             start = len(self.tab.statuses)
         t0 = time.monotonic()
+        self.pending = (label, value)
         self.tab.send(label, value)
         t1, text = self.tab.answer_after(start, self.hang)
+        self.pending = None
         with self.tab._lock:
             seen = [s for _, s in self.tab.statuses[start:]]
         waits = [int(s.split()[2]) for s in seen if s.startswith("queued behind")]
@@ -113,7 +118,8 @@ class Student:
             self.seed += 1 + self.rnd.randint(0, 5)
             return kind, "data seed", self.seed
         if kind == "Q/R":
-            label = self.rnd.choice(self.tab.labels("Q ") + self.tab.labels("R "))
+            sliders = [x for x in self.tab.labels("Q ") + self.tab.labels("R ") if "diagonal" not in x]  # no folder
+            label = self.rnd.choice(sliders)
             return kind, label, round(self.rnd.uniform(-1.5, 1.5), 2)
         self.bound = self.rnd.choice([x for x in (1.0, 0.3, 0.2) if x != self.bound])
         return kind, "input bound", self.bound
@@ -135,7 +141,7 @@ class Student:
             if not self.final_ok:
                 self.why = status
         except Exception as exc:  # no answer within the hang guard, or the connection closed
-            self.died, self.why = True, f"{type(exc).__name__}: {exc}"
+            self.died, self.why = True, f"{type(exc).__name__}: {exc}; waiting after {self.pending}"
 
 
 def pct(xs: list[float], q: float) -> float:

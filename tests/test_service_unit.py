@@ -118,3 +118,18 @@ def test_host_note_says_who_can_connect():
     assert note.startswith("note: others connect at http://") and ":8080" in note and "no login" in note
     assert "\n" not in note  # one line
     assert who_can_connect("127.0.0.1", 8080) is None and who_can_connect("localhost", 8080) is None
+
+
+def test_the_class_page_shows_the_note_line_the_server_prints():
+    import re
+
+    from app.dashboard.netcheck import who_can_connect
+
+    page = (ROOT / "docs" / "class.rst").read_text()
+    shown = next(x.strip() for x in page.splitlines() if x.strip().startswith("qsid dashboard: note:"))
+    printed = f"qsid dashboard: {who_can_connect('0.0.0.0', 8080)}"
+
+    def mask(s):
+        return re.sub(r"http://[^ ,]+:8080(, http://[^ ,]+:8080)*", "http://ADDRESS:8080", s)
+
+    assert mask(shown) == mask(printed)
