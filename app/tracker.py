@@ -59,11 +59,12 @@ def _launch(rt) -> int:
         except (AttributeError, OSError, ValueError):
             pass
         exe = spawn.get_executable()
-        args = [exe, *util._args_from_interpreter_flags(), "-c", f"from app.tracker import main; main({r})"]
+        flags = util._args_from_interpreter_flags()  # type: ignore[attr-defined]  # CPython's private helper
+        args = [exe, *flags, "-c", f"from app.tracker import main; main({r})"]
         blocked = {signal.SIGINT, signal.SIGTERM}
         old = signal.pthread_sigmask(signal.SIG_BLOCK, blocked)  # the child ignores them before it can be hit
         try:
-            pid = util.spawnv_passfds(exe, args, fds)
+            pid = util.spawnv_passfds(os.fsencode(exe), args, fds)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, old)
     except BaseException:
@@ -80,7 +81,7 @@ def main(fd: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
-    funcs = resource_tracker._CLEANUP_FUNCS
+    funcs = resource_tracker._CLEANUP_FUNCS  # type: ignore[attr-defined]  # CPython's cleanup table
     cache: dict[str, set] = {rtype: set() for rtype in funcs}
     try:
         with open(fd, "rb") as f:

@@ -63,7 +63,7 @@ def _own_addresses() -> list[str]:
     """This machine's non-loopback IPv4 addresses (its host name's, and the one its default route uses)."""
     found: set[str] = set()
     try:
-        found |= {i[4][0] for i in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET)}
+        found |= {str(i[4][0]) for i in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET)}
     except (socket.gaierror, UnicodeError, OSError):
         pass
     try:
@@ -78,7 +78,7 @@ def _own_addresses() -> list[str]:
 def who_can_connect(host: str, port: int) -> str | None:
     """One note line for a server on ``host``:``port`` that others can reach (None: this machine only)."""
     try:
-        addrs = sorted({i[4][0] for i in socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)})
+        addrs = sorted({str(i[4][0]) for i in socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)})
     except (socket.gaierror, UnicodeError, OSError):
         return None
     ips = [ipaddress.ip_address(a.split("%")[0]) for a in addrs]
