@@ -16,6 +16,9 @@ from support import HANG_S
 
 from qsid_core.records import COLUMNS, replace_atomically, write_csv
 
+# slow: interrupts real qsid processes mid-write
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 SMALL_SWEEP = ["sweep", "--bits", "4", "--realizations", "2", "--trajectories", "5", "--steps", "50", "--no-mpc"]
 

@@ -11,6 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+# slow: runs the benchmarks' quick modes
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "benchmarks"
 if str(BENCH) not in sys.path:

@@ -13,6 +13,9 @@ from pathlib import Path
 
 import pytest
 
+# slow: each test starts a real qsid process (pool or dask cluster) and signals it
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from support import HANG_S, alive, descendants, gone_within, wait_until  # noqa: E402

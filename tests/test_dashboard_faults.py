@@ -17,6 +17,9 @@ from support import CAMERA, HANG_S, SMALL, connect_ws, open_tab, wait_until
 from app.dashboard import DashboardApp
 from app.dashboard.pool import Pool, PoolTimeout, Superseded
 
+# slow: stops and kills real pool workers
+pytestmark = pytest.mark.slow
+
 HEAVIER = dict(trajectories=200, steps=1000, realizations=50)  # the letter's size: seconds of pool work
 LIGHTER = dict(trajectories=20, steps=100, realizations=6)  # milliseconds of work: only a hang times out
 

@@ -14,6 +14,9 @@ from app.figures import registry
 from qsid_core import Experiment
 from qsid_core.sweep import fit_slope
 
+# slow: computes every lesson at its own (often paper-scale) settings
+pytestmark = pytest.mark.slow
+
 _EX: dict = {}
 
 

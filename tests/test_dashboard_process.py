@@ -16,6 +16,9 @@ from pathlib import Path
 import pytest
 from support import HANG_S, alive, children, descendants, gone_within, wait_until
 
+# slow: starts qsid-dashboard as a real process
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _wsclient import WsTab  # noqa: E402

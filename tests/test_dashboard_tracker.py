@@ -11,7 +11,11 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 from support import HANG_S, descendants, gone_within, wait_until
+
+# slow: starts a real dashboard process and kills its resource tracker
+pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import pytest
 
+# slow: runs every example script in a fresh interpreter
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = sorted((ROOT / "examples").glob("[0-9][0-9]_*.py"))
 

@@ -19,7 +19,11 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 from support import HANG_S, alive
+
+# slow: runs the systemd unit's command line as a real process
+pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 UNIT = ROOT / "docs" / "qsid-dashboard.service"
