@@ -305,3 +305,17 @@ def test_the_request_path_hook_reads_the_live_path_and_fails_loudly_without_it(d
         t.close()
     with pytest.raises(RuntimeError, match="viser internals changed"):
         check_request_hook(SimpleNamespace(_websock_server=SimpleNamespace()))
+
+
+def test_the_teaching_page_lists_every_lesson_and_shows_committed_screenshots():
+    import re
+
+    from app.dashboard.lessons import LESSONS
+
+    text = (ROOT / "docs" / "teaching.rst").read_text(encoding="utf-8")
+    for les in LESSONS:
+        assert f"``{les.name}``" in text, les.name
+    images = re.findall(r"\.\. image:: \.\./(assets/[\w.-]+\.png)", text)
+    assert len(images) >= 3
+    for img in images:
+        assert (ROOT / img).is_file(), img
