@@ -277,7 +277,7 @@ def test_auto_play_steps_b_from_1_one_drawn_frame_at_a_time_and_stops_at_a_user_
     wait_until(lambda: s.last_frame is not None and s.last_frame.bits == 4 and s.wait_idle(0), "auto-play reached b=4")
     steps = [b for b in drawn if b <= 4]
     assert steps[-4:] == [1, 2, 3, 4]  # from 1, each b drawn before the next was set
-    assert s.controls.play.label.startswith("⏸")
+    assert s.controls.play.label.startswith("■ pause")
     _send(tab, tab.controls["theta"], 0.3)  # the person moves another input in the browser
     wait_until(lambda: s.play.state == "paused", "the auto-play stopped")
     b = tab.wait().frame.values.bits

@@ -12,8 +12,10 @@ from __future__ import annotations
 import os
 
 import pytest
+from support import wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 
+import app.dashboard.presenter as presenter_module
 from app.dashboard.lessons import LESSONS, get_lesson
 from app.dashboard.presenter import PANEL_FONT
 from app.dashboard.viewcodes import view_link
@@ -49,6 +51,12 @@ CANVAS = "() => { const r = document.querySelector('canvas').getBoundingClientRe
 #: Top (px) of the topmost visible plot in the plots panel.
 TOP_PLOT = """() => Math.min(...[...document.querySelectorAll('.js-plotly-plot')]
   .filter(e => e.offsetParent !== null).map(e => e.getBoundingClientRect().top))"""
+#: The word-length slider's position in the page.
+BITS_THUMB = """() => {
+  const uid = [...document.querySelectorAll('label')].find(e => e.textContent.includes('word length b')).htmlFor;
+  const t = document.querySelector(`[id='${uid}'] [role=slider]`);
+  return t ? t.getAttribute('aria-valuenow') : null;
+}"""
 ACTIVE_TAB = """() => {
   const strip = [...document.querySelectorAll('[role=tab]')].filter(e => e.title === 'Identification')
     .map(e => e.parentElement)[0];
@@ -105,7 +113,7 @@ def _walk_lessons(page, session, size, presenter: bool, shots) -> None:
 
 
 @pytest.mark.parametrize("size,presenter", [((1366, 768), True), ((1920, 1080), False)])
-def test_teacher_walkthrough(size, presenter):
+def test_teacher_walkthrough(size, presenter, monkeypatch):
     _require_browser()
     from playwright.sync_api import sync_playwright
 
@@ -129,23 +137,31 @@ def test_teacher_walkthrough(size, presenter):
                 # auto-play: a few word lengths, one after the other, each drawn before the next
                 s.controls["lesson"].value = "bound"
                 assert s.wait_idle(TIMEOUT_MS / 1000)
+                drawn: list = []
+                draw = s._draw
+
+                def spy(frame, gen):  # the b of every frame the tab draws
+                    ok = draw(frame, gen)
+                    if ok and frame.stage == "current":
+                        drawn.append(frame.bits)
+                    return ok
+
+                s._draw = spy
+                # a slower play here (3 s a step): the page must not reach b = 16 before the test presses pause
+                monkeypatch.setattr(presenter_module, "STEP_SECONDS", 3.0)
                 page.get_by_role("button", name="auto-play").first.click()
-                seen = []
-                for b in (1, 2, 3):
-                    page.wait_for_function(
-                        f"() => document.body.textContent.includes('b = {b} drawn')", timeout=TIMEOUT_MS
-                    )
-                    seen.append(b)
-                assert seen == [1, 2, 3] and s.play.state == "playing"
-                assert page.get_by_role("button", name="pause auto-play").count() == 1
-                if shots and presenter:
-                    _dismiss_notices(page)
-                    page.screenshot(path=os.path.join(shots, "teach-autoplay.png"))
-                page.get_by_role("button", name="pause auto-play").click()
+                page.wait_for_function(f"() => Number(({BITS_THUMB})()) >= 3", timeout=TIMEOUT_MS)
+                wait_until(lambda: 3 in drawn, "b = 3 drawn")
+                assert drawn[drawn.index(1) :][:3] == [1, 2, 3] and s.play.state == "playing", drawn
+                page.get_by_role("button", name="pause auto-play").click(timeout=TIMEOUT_MS)
                 page.wait_for_function(
                     "() => [...document.querySelectorAll('button')].some(b => b.textContent.includes('resume'))",
                     timeout=TIMEOUT_MS,
                 )
+                if shots and presenter:
+                    _dismiss_notices(page)
+                    page.wait_for_timeout(500)
+                    page.screenshot(path=os.path.join(shots, "teach-autoplay.png"))
                 assert s.wait_idle(TIMEOUT_MS / 1000)
                 b_paused = s.last_frame.bits
                 assert s.play.state == "paused" and 3 <= b_paused < 16
