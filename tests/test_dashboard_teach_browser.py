@@ -65,6 +65,10 @@ ACTIVE_TAB = """() => {
 }"""
 
 
+#: The lessons pictured in docs/teaching.rst: (lesson, presenter mode).
+SHOTS = {("fig1", True), ("bound", True), ("dither", False)}
+
+
 def _dismiss_notices(page) -> None:
     close = page.locator(".mantine-Notification-closeButton")
     for i in range(close.count()):
@@ -106,7 +110,7 @@ def _walk_lessons(page, session, size, presenter: bool, shots) -> None:
             assert width >= size[0] / 2, (les.name, left, width)
         else:
             assert small < PLOT_FONT  # the normal style is the smaller one
-        if shots and les.name in ("fig1", "dither", "bound"):
+        if shots and (les.name, presenter) in SHOTS:
             _dismiss_notices(page)
             page.wait_for_timeout(500)
             page.screenshot(path=os.path.join(shots, f"teach-{les.name}-{'presenter' if presenter else 'normal'}.png"))
