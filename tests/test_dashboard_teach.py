@@ -16,7 +16,7 @@ import msgspec
 import pytest
 from support import CAMERA, HANG_S, ROOT, SMALL, Tab, wait_until
 
-from app.dashboard.presenter import LEFT_WIDTH, RIGHT_WIDTH, STEP_SECONDS
+from app.dashboard.presenter import LEFT_WIDTH, RIGHT_WIDTH
 from app.dashboard.settings import InputError, Values
 from app.dashboard.viewcodes import (
     CODE_LETTERS,
@@ -27,6 +27,9 @@ from app.dashboard.viewcodes import (
     view_link,
 )
 from app.figures.presenter import PLOT_FONT, presenter_figure
+
+# slow: each test starts a dashboard and waits for drawn frames (auto-play steps b once a second)
+pytestmark = pytest.mark.slow
 
 
 # ----- view codes: the store and the parsing ---------------------------------------------------------------------
@@ -259,7 +262,10 @@ def _send(tab, handle, value):
     )
 
 
-def test_auto_play_steps_b_from_1_one_drawn_frame_at_a_time_and_stops_at_a_user_change(tab):
+def test_auto_play_steps_b_from_1_one_drawn_frame_at_a_time_and_stops_at_a_user_change(tab, monkeypatch):
+    import app.dashboard.presenter as presenter_module
+
+    monkeypatch.setattr(presenter_module, "STEP_SECONDS", 2.0)  # room for the test's own steps on a busy machine
     s = tab.session
     drawn: list = []
     draw = s._draw
@@ -274,16 +280,16 @@ def test_auto_play_steps_b_from_1_one_drawn_frame_at_a_time_and_stops_at_a_user_
     tab.set(bits=8)
     s.play.press()
     assert s.play.state == "playing"
-    wait_until(lambda: s.last_frame is not None and s.last_frame.bits == 4 and s.wait_idle(0), "auto-play reached b=4")
+    wait_until(lambda: 4 in drawn, "auto-play drew b = 4")
     steps = [b for b in drawn if b <= 4]
     assert steps[-4:] == [1, 2, 3, 4]  # from 1, each b drawn before the next was set
-    assert s.controls.play.label.startswith("⏸")
+    assert s.controls.play.label.startswith("■ pause")
     _send(tab, tab.controls["theta"], 0.3)  # the person moves another input in the browser
     wait_until(lambda: s.play.state == "paused", "the auto-play stopped")
     b = tab.wait().frame.values.bits
     assert s.play.stopped_by_user and s.play.wait_time() is None
     wait_until(lambda: "stopped by your change" in s.controls.play.label, "the button says so")
-    time.sleep(2.5 * STEP_SECONDS)
+    time.sleep(2.5 * presenter_module.STEP_SECONDS)
     assert s.controls["bits"].value == b  # paused: b stays put
     s.play.press()  # resume: from the b shown, to 16, then off
     wait_until(lambda: s.play.state == "off", "the auto-play ran to b = 16")
@@ -305,3 +311,17 @@ def test_the_request_path_hook_reads_the_live_path_and_fails_loudly_without_it(d
         t.close()
     with pytest.raises(RuntimeError, match="viser internals changed"):
         check_request_hook(SimpleNamespace(_websock_server=SimpleNamespace()))
+
+
+def test_the_teaching_page_lists_every_lesson_and_shows_committed_screenshots():
+    import re
+
+    from app.dashboard.lessons import LESSONS
+
+    text = (ROOT / "docs" / "teaching.rst").read_text(encoding="utf-8")
+    for les in LESSONS:
+        assert f"``{les.name}``" in text, les.name
+    images = re.findall(r"\.\. image:: \.\./(assets/[\w.-]+\.png)", text)
+    assert len(images) >= 3
+    for img in images:
+        assert (ROOT / img).is_file(), img

@@ -129,7 +129,7 @@ class AutoPlay:
         with self._lock:
             state, by_user = self.state, self.stopped_by_user
         if state == "playing":
-            label = "⏸ pause auto-play"
+            label = "■ pause auto-play"
         elif state == "paused":
             label = "▶ resume auto-play" + (" (stopped by your change)" if by_user else "")
         else:

@@ -16,6 +16,8 @@ __all__ = ["PLOT_FONT", "LINE_SCALE", "presenter_figure"]
 PLOT_FONT = 18
 #: Factor on every trace's line width (at least :data:`MIN_LINE` px).
 LINE_SCALE, MIN_LINE = 1.8, 3.0
+#: plotly's size of the small 2..9 labels of a log axis, relative to its tick font.
+MINOR_LOG = 0.75
 _SPAN = re.compile(r"font-size:\s*(\d+(?:\.\d+)?)px")
 
 
@@ -61,6 +63,11 @@ def presenter_figure(fig: go.Figure) -> go.Figure:
     font = dict(layout.get("font") or {})
     font["size"] = max(float(font.get("size") or 0), PLOT_FONT)
     layout["font"] = font
+    for key, ax in layout.items():  # plotly draws the 2..9 labels of a "D1"/"D2" log axis at 3/4 of the tick font
+        if (key.startswith("xaxis") or key.startswith("yaxis")) and isinstance(ax, dict) and ax.get("type") == "log":
+            tick = dict(ax.get("tickfont") or {})
+            tick["size"] = max(float(tick.get("size") or 0), PLOT_FONT / MINOR_LOG)
+            layout[key] = {**ax, "tickfont": tick}
     if template is not None:
         layout["template"] = template
     data = [_thicker(_walk(t)) for t in d.get("data") or []]
