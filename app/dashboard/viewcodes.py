@@ -26,6 +26,7 @@ import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from .settings import InputError, Values
 from .share import panel_values, settings_json, values_from_json
@@ -125,6 +126,8 @@ class ViewStore:
             self._read()
 
     def _read(self) -> None:
+        if self.path is None:
+            return
         try:
             d = json.loads(self.path.read_text(encoding="utf-8"))
         except FileNotFoundError:
@@ -252,10 +255,10 @@ class CodePanel:
     """The tab's code line, the "load view code" box, its status line and the address-bar setter."""
 
     view: ViewOpen
-    line: object
-    box: object
-    status: object
-    url: object
+    line: Any  # viser GUI handles (markdown, text, markdown, html)
+    box: Any
+    status: Any
+    url: Any
 
 
 def _say(panel: CodePanel, text: str) -> None:

@@ -7,6 +7,7 @@ titles, the default font, trace line widths), so every registered view gets it w
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import plotly.graph_objects as go
 
@@ -25,7 +26,7 @@ def _bigger_text(s: str) -> str:
     return _SPAN.sub(lambda m: f"font-size:{max(float(m.group(1)), PLOT_FONT):g}px", s)
 
 
-def _walk(node, in_font: bool = False):
+def _walk(node: Any, in_font: bool = False) -> Any:
     """A copy of ``node`` with every font size raised to PLOT_FONT and every inline font-size span too."""
     if isinstance(node, dict):
         out = {}
