@@ -354,6 +354,10 @@ def make_executor(
     say = progress or (lambda _msg: None)
     before = set(descendants(os.getpid())) if parsed.local else None
     clusters = _clusters()
+    if before is not None:
+        from app.tracker import ensure_tolerant
+
+        ensure_tolerant()  # the cluster's processes share this program's tracker; killing them must not make it talk
     try:
         with _cluster_executor(
             parsed, say, connect_timeout, worker_timeout, stall_timeout, retries, share_data, quiet

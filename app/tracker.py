@@ -21,7 +21,24 @@ import warnings
 from collections.abc import Callable
 from multiprocessing import resource_tracker, spawn, util
 
-__all__ = ["check", "main"]
+__all__ = ["check", "main", "ensure_tolerant"]
+
+
+def ensure_tolerant() -> bool:
+    """Start this program's resource tracker now, running :func:`main`, unless one already runs; True if started.
+
+    For a program about to start processes it may kill at any moment (a local dask cluster stopped by a
+    signal during its start-up): a process killed between creating a semaphore and registering it makes
+    CPython's tracker print a ``KeyError`` traceback when the name is released; :func:`main` ignores it.
+    """
+    rt = getattr(resource_tracker, "_resource_tracker", None)
+    if rt is None:
+        return False
+    with rt._lock:
+        if rt._pid is not None:
+            return False
+        _launch(rt)
+    return True
 
 
 def check(say: Callable[[str], None]) -> bool:

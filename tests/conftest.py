@@ -1,4 +1,5 @@
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -11,6 +12,13 @@ if str(ROOT / "tests") not in sys.path:  # the shared helpers (tests/support.py)
     sys.path.append(str(ROOT / "tests"))
 
 from support import open_tab  # noqa: E402
+
+# The processes the tests start and interrupt stand for a program run from a terminal, where Ctrl-C is SIGINT
+# with its default action. A test run started in the background of a non-interactive shell (`cmd &`) inherits
+# SIGINT *ignored*, and every child would inherit that too (an ignored signal survives exec, a handled one is
+# reset to the default): the Ctrl-C tests would then watch a program that rightly ignores Ctrl-C.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.hookimpl(hookwrapper=True)
