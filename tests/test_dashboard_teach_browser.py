@@ -76,7 +76,8 @@ def _dismiss_notices(page) -> None:
 
 
 def _newest(app):
-    return max(app.sessions.values(), key=lambda s: s.client.client_id)
+    with app._lock:  # tabs connect and leave on the server's threads
+        return max(app.sessions.values(), key=lambda s: s.client.client_id, default=None)
 
 
 def _open(ctx, app, url, count):
@@ -176,8 +177,15 @@ def test_teacher_walkthrough(size, presenter, monkeypatch):
                 page.wait_for_function(
                     f"() => document.body.textContent.includes('view code {code}')", timeout=TIMEOUT_MS
                 )
+                # the reloaded page's panel can show before the server has filed the new tab's session
+                wait_until(
+                    lambda: (
+                        getattr(_newest(app), "client", None) is not None and _newest(app).client.client_id != before
+                    ),
+                    "the reloaded tab",
+                )
                 again = _newest(app)
-                assert again.client.client_id != before and again.codes.view.code == code
+                assert again.codes.view.code == code
                 assert again.wait_idle(TIMEOUT_MS / 1000)
                 v = again.last_frame.values
                 assert (v.bits, v.lesson, v.presenter) == (b_paused, "bound", presenter)
