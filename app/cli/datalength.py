@@ -12,7 +12,13 @@ import argparse
 import math
 
 from .output import dumps, g
-from .parser import _float_type, _limits, _nonneg_int, _onoff, add_running_options, engine, pos_int
+from .parser import (
+    _float_type,
+    _nonneg_int,
+    add_quantizer_options,
+    add_running_options,
+    pos_int,
+)
 from .runner import _quantizer, executor, input_files, out_file, resolve_system, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
@@ -91,28 +97,7 @@ def add_arguments(p) -> None:
         help=f"seed of the dither streams (default: {d.dither_seed})",
     )
     q = p.add_argument_group("quantizer")
-    q.add_argument(
-        "--range",
-        dest="range_mode",
-        choices=engine().range_modes,
-        default=q0.range_mode,
-        help=f"range of the largest data set, used at every length (default: {q0.range_mode})",
-    )
-    q.add_argument(
-        "--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]", help="the fixed range (with --range fixed)"
-    )
-    q.add_argument(
-        "--guard",
-        action=argparse.BooleanOptionalAction,
-        default=q0.guard,
-        help=f"half-cell guard band, no overload (default: {_onoff(q0.guard)})",
-    )
-    q.add_argument(
-        "--dither",
-        choices=engine().dithers,
-        default=q0.dither,
-        help=f"subtractive uniform dither or none (default: {q0.dither})",
-    )
+    add_quantizer_options(q, q0, "range of the largest data set, used at every length")
     r = p.add_argument_group("output and running")
     r.add_argument("--json", action="store_true", help="print one JSON object (one row per length) to stdout")
     r.add_argument("--out", metavar="FILE", default=None, help="also write the JSON to FILE")

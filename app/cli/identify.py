@@ -6,10 +6,8 @@ the numbers are :func:`qsid_core.recorded.identify_recorded`'s.
 
 from __future__ import annotations
 
-import argparse
-
 from .output import dumps
-from .parser import _limits, _nonneg_int, _onoff, engine, pos_int
+from .parser import _nonneg_int, add_quantizer_options, engine, pos_int
 from .runner import UsageError, _quantizer, out_file, resolve_system, write_text
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
@@ -38,23 +36,7 @@ def add_arguments(p) -> None:
     )
     g.add_argument("--dither-seed", type=_nonneg_int, default=1, metavar="N", help="seed of the dither (default: 1)")
     q = p.add_argument_group("quantizer")
-    q.add_argument(
-        "--range",
-        dest="range_mode",
-        choices=engine().range_modes,
-        default=q0.range_mode,
-        help=f"quantizer range (default: {q0.range_mode})",
-    )
-    q.add_argument(
-        "--limits", type=_limits, default=None, metavar="LO,HI[;LO,HI...]", help="the fixed range (with --range fixed)"
-    )
-    q.add_argument(
-        "--guard",
-        action=argparse.BooleanOptionalAction,
-        default=q0.guard,
-        help=f"guard band of the dither's amplitude (default: {_onoff(q0.guard)})",
-    )
-    q.add_argument("--dither", choices=engine().dithers, default=q0.dither, help=f"(default: {q0.dither})")
+    add_quantizer_options(q, q0, "quantizer range")
     r = p.add_argument_group("output")
     r.add_argument("--json", action="store_true", help="print one JSON object to stdout")
     r.add_argument("--out", metavar="FILE", default=None, help="also write the JSON to FILE")

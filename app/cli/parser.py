@@ -11,9 +11,11 @@ import argparse
 import math
 from collections.abc import Mapping
 from types import ModuleType
+from typing import Any
 
 __all__ = [
     "PROG",
+    "add_quantizer_options",
     "UsageError",
     "engine",
     "build_parser",
@@ -311,37 +313,7 @@ def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -
         help=f"seed of the dither streams (default: {base.dither_seed})",
     )
     q = p.add_argument_group("quantizer and identification")
-    q.add_argument(
-        "--range",
-        dest="range_mode",
-        choices=e.range_modes,
-        default=q0.range_mode,
-        help=f"quantizer range: min/max per channel, one range for all, or fixed (--limits) (default: {q0.range_mode})",
-    )
-    q.add_argument(
-        "--limits",
-        type=_limits,
-        default=None,
-        metavar="LO,HI[;LO,HI...]",
-        help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
-        "channel, states then inputs",
-    )
-    q.add_argument(
-        "--guard",
-        action=argparse.BooleanOptionalAction,
-        default=q0.guard,
-        help="widen the range by the dither's amplitude on each side (half a cell; a cell for tpdf), "
-        "so x + w never overloads "
-        f"(default: {_onoff(q0.guard)})",
-    )
-    q.add_argument(
-        "--dither",
-        choices=e.dithers,
-        default=q0.dither,
-        help="subtractive uniform dither (the letter's), tpdf (non-subtractive triangular, width 2 eps: "
-        "BCLS with D = eps^2/4), rpdf (non-subtractive uniform: BCLS not applicable) or none "
-        f"(default: {q0.dither})",
-    )
+    add_quantizer_options(q, q0, "quantizer range: min/max per channel, one range for all, or fixed (--limits)")
     q.add_argument(
         "--estimator",
         choices=e.estimators,
@@ -576,3 +548,40 @@ def build_parser(commands: Mapping[str, ModuleType], only: str | None = "*") -> 
         if only == "*" or only == name:
             mod.add_arguments(sp)
     return parser
+
+
+def add_quantizer_options(q: argparse._ArgumentGroup, q0: Any, range_help: str) -> None:
+    """``--range``, ``--limits``, ``--guard`` and ``--dither`` in the group ``q`` (defaults from the
+    engine's ``QuantizerSpec`` ``q0``); ``range_help`` says what the range means for this command."""
+    e = engine()
+    q.add_argument(
+        "--range",
+        dest="range_mode",
+        choices=e.range_modes,
+        default=q0.range_mode,
+        help=f"{range_help} (default: {q0.range_mode})",
+    )
+    q.add_argument(
+        "--limits",
+        type=_limits,
+        default=None,
+        metavar="LO,HI[;LO,HI...]",
+        help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
+        "channel, states then inputs",
+    )
+    q.add_argument(
+        "--guard",
+        action=argparse.BooleanOptionalAction,
+        default=q0.guard,
+        help="widen the range by the dither's amplitude on each side (half a cell; a cell for tpdf), "
+        "so x + w never overloads "
+        f"(default: {_onoff(q0.guard)})",
+    )
+    q.add_argument(
+        "--dither",
+        choices=e.dithers,
+        default=q0.dither,
+        help="subtractive uniform dither (the letter's), tpdf (non-subtractive triangular, width 2 eps: "
+        "BCLS with D = eps^2/4), rpdf (non-subtractive uniform: BCLS not applicable) or none "
+        f"(default: {q0.dither})",
+    )
