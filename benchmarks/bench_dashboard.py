@@ -165,6 +165,9 @@ def _main(argv=None) -> int:
     p.add_argument("--datalength", action="store_true", help="also time the data-length study (tens of seconds)")
     p.add_argument("--identification", default="LS + BCLS", choices=("LS", "BCLS", "LS + BCLS"))
     a = p.parse_args(argv)
+    from app.dashboard.memory import one_blas_thread
+
+    one_blas_thread()  # as the server does at start
     ex = pool = None
     if a.workers and a.pool == "thread":
         ex = ThreadPoolExecutor(a.workers)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import functools
 from collections.abc import Callable
 from concurrent.futures import Executor, Future
 from contextlib import AbstractContextManager
@@ -54,8 +56,25 @@ def single_threaded_blas() -> AbstractContextManager[object]:
     are pure overhead for such sizes and oversubscribe the cores when tasks run
     side by side (measured: a 4 x 4 DARE took 24 ms with two busy BLAS threads,
     0.5 ms with one). The previous limits are restored on exit.
+
+    Where every BLAS library already runs one thread (a program that set it once, as the dashboard
+    server and its pool workers do) this does nothing: ``threadpool_limits`` scans every loaded library
+    on each call (0.6-3 ms, paid about 30 times per dashboard change), while reading the thread counts
+    through the libraries found once costs microseconds.
     """
+    if all(lib.num_threads == 1 for lib in _blas_libraries()):
+        return contextlib.nullcontext()
     from threadpoolctl import threadpool_limits
 
     limits: AbstractContextManager[object] = threadpool_limits(limits=1, user_api="blas")
     return limits
+
+
+@functools.cache
+def _blas_libraries() -> tuple[Any, ...]:
+    """threadpoolctl's controllers of the process's BLAS libraries (numpy's and scipy's), found once."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401  (scipy may bring a BLAS of its own)
+    from threadpoolctl import ThreadpoolController
+
+    return tuple(lib for lib in ThreadpoolController().lib_controllers if lib.user_api == "blas")

@@ -12,7 +12,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 
-__all__ = ["limit_arenas", "trim"]
+__all__ = ["limit_arenas", "trim", "one_blas_thread"]
 
 _M_ARENA_MAX = -8  # glibc's mallopt parameter number
 
@@ -37,3 +37,15 @@ def limit_arenas(n: int = 2) -> bool:
 def trim() -> bool:
     """Return the allocator's free pages to the system; True if any memory was released."""
     return bool(_LIBC is not None and _LIBC.malloc_trim(0))
+
+
+def one_blas_thread() -> None:
+    """Run BLAS with one thread in this whole process, from now on (the dashboard server and its workers).
+
+    The engine's matrices are tiny and its parallelism comes from the tabs and the pool: extra BLAS threads
+    only oversubscribe the cores. Set once, the engine's :func:`~qsid_core.executors.single_threaded_blas`
+    has nothing left to do on each call (it scanned every loaded library each time).
+    """
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")  # not used as a context manager: the limit stays

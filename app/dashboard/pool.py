@@ -41,7 +41,7 @@ from app import tracker
 from app.procs import end_with_parent, kill_workers
 from qsid_core.errors import QsidError
 
-from .memory import trim
+from .memory import one_blas_thread, trim
 
 __all__ = [
     "Pool",
@@ -145,11 +145,13 @@ class Superseded(Exception):
 
 
 def _worker_init(parent: int | None = None) -> None:
-    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited; a worker
+    """Pool workers: Ctrl-C belongs to the server; the signal mask the server set is not inherited; BLAS runs
+    one thread (as in the server, :func:`~app.dashboard.memory.one_blas_thread`); a worker
     ends by itself when the server dies, even by SIGKILL (see :func:`app.procs.end_with_parent`: this is
     why :class:`Pool` starts every worker from one thread that lives as long as the pool)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
+    one_blas_thread()
     if parent is not None:
         end_with_parent(parent)
 

@@ -27,7 +27,7 @@ from qsid_core.version import __version__
 from .cache import SharedCache
 from .flow import READ_BYTES, FairSlots
 from .lessons import get_lesson, lesson_names, lesson_values
-from .memory import limit_arenas, trim
+from .memory import limit_arenas, one_blas_thread, trim
 from .netcheck import OneLineParser, check_address, port_number, who_can_connect
 from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
@@ -360,6 +360,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
     stop = _prepare_stop_signals()  # before any thread exists: all inherit the mask
     limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
+    one_blas_thread()
     app = None
     code = 0
     try:
