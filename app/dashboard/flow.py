@@ -12,7 +12,8 @@ connect callback (queued behind it) did not run for more than 30 s.
   only replaces its arguments (only the newest matters). A tab can therefore
   queue at most one call per callback, whatever it sends.
 - :class:`FairSlots`: the compute slots are handed out first come, first served,
-  so a tab that keeps computing cannot take a slot back before a waiting tab.
+  so a tab that keeps computing cannot take a slot back before a waiting tab; a cheap
+  turn (only drawing left: a word length change) goes first, and has a slot of its own.
 - :data:`READ_BYTES`: the event loop reads at most this much of one tab's socket at a time
   (:func:`app.dashboard.viserfix.limit_reads`). viser turns every message read into tasks before the
   loop does anything else; one 256 KiB read of a flooding client (thousands of messages) made every
@@ -122,64 +123,101 @@ class TabCallbacks:
             self._lock.notify_all()
 
 
+class _Turn:
+    """A waiting caller: set when a slot is handed over, with the lane it got."""
+
+    __slots__ = ("event", "lane")
+
+    def __init__(self) -> None:
+        self.event, self.lane = threading.Event(), ""
+
+
 class FairSlots:
-    """At most ``n`` holders at once, handed out in the order they were asked for (a context manager).
+    """At most ``n`` holders at once, handed out in the order they were asked for (a context manager),
+    plus ``fast`` slots that only cheap turns may use.
+
+    A cheap turn (a change whose results are cached: only drawing is left, a fraction of a second) may use a
+    free ordinary slot or a fast one, and a freed ordinary slot goes to a waiting cheap turn first: a word
+    length change does not wait behind other tabs' data changes. Cheap turns are short, so ordinary ones
+    wait for them at most a few of those fractions.
 
     :meth:`turn` is the same with a report: a caller that has to wait is told, and told again whenever its
-    place changes, how many tabs are ahead of it (those holding a slot and those waiting before it).
+    place changes, how many tabs are ahead of it (those holding a slot it may use and those waiting before it).
     """
 
     #: Seconds between two looks at a waiting caller's place in the queue.
     REPORT_EVERY = 0.25
 
-    def __init__(self, n: int):
-        self.n = max(1, int(n))
-        self._free = self.n
+    def __init__(self, n: int, fast: int = 0):
+        self.n, self.fast = max(1, int(n)), max(0, int(fast))
+        self._free, self._fast_free = self.n, self.fast
         self._lock = threading.Lock()
-        self._waiting: deque = deque()
+        self._waiting: deque[_Turn] = deque()  # ordinary turns
+        self._cheap: deque[_Turn] = deque()  # cheap turns
 
-    def acquire(self, on_wait: Callable[[int], None] | None = None) -> None:
+    def acquire(self, on_wait: Callable[[int], None] | None = None, cheap: bool = False) -> str:
+        """Wait for a slot; returns its lane (``"slot"`` or ``"fast"``), which :meth:`release` takes back."""
         with self._lock:
-            if self._free > 0 and not self._waiting:
+            if cheap and not self._cheap:
+                if self._free > 0 and not self._waiting:
+                    self._free -= 1
+                    return "slot"
+                if self._fast_free > 0:
+                    self._fast_free -= 1
+                    return "fast"
+            elif not cheap and self._free > 0 and not self._waiting and not self._cheap:
                 self._free -= 1
-                return
-            turn = threading.Event()
-            self._waiting.append(turn)
-            ahead = self._ahead(turn)
+                return "slot"
+            turn = _Turn()
+            (self._cheap if cheap else self._waiting).append(turn)
+            ahead = self._ahead(turn, cheap)
         if on_wait is None:
-            turn.wait()  # release() hands its slot over directly: nobody can barge in between
-            return
+            turn.event.wait()  # release() hands its slot over directly: nobody can barge in between
+            return turn.lane
         on_wait(ahead)
-        while not turn.wait(self.REPORT_EVERY):
+        while not turn.event.wait(self.REPORT_EVERY):
             with self._lock:
-                now = self._ahead(turn)
-            if now != ahead and not turn.is_set():
+                now = self._ahead(turn, cheap)
+            if now != ahead and not turn.event.is_set():
                 ahead = now
                 on_wait(ahead)
+        return turn.lane
 
-    def _ahead(self, turn: threading.Event) -> int:
-        """Callers ahead of ``turn`` (which is waiting): the holders plus those queued before it (lock held)."""
+    def _ahead(self, turn: _Turn, cheap: bool) -> int:
+        """Callers ahead of waiting ``turn``: holders of the slots it may use plus those served before it
+        (lock held)."""
+        queue = self._cheap if cheap else self._waiting
         try:
-            before = self._waiting.index(turn)
-        except ValueError:  # handed a slot meanwhile
+            before = next(i for i, t in enumerate(queue) if t is turn)
+        except StopIteration:  # handed a slot meanwhile
             return 0
-        return self.n - self._free + before
+        if cheap:
+            return (self.n - self._free) + (self.fast - self._fast_free) + before
+        return (self.n - self._free) + len(self._cheap) + before
 
-    def release(self) -> None:
+    def release(self, lane: str = "slot") -> None:
         with self._lock:
-            if self._waiting:
-                self._waiting.popleft().set()
+            if self._cheap:  # a cheap turn takes whichever slot is freed
+                turn = self._cheap.popleft()
+            elif lane == "slot" and self._waiting:
+                turn = self._waiting.popleft()
             else:
-                self._free += 1
+                if lane == "fast":
+                    self._fast_free += 1
+                else:
+                    self._free += 1
+                return
+            turn.lane = lane
+            turn.event.set()
 
     @contextlib.contextmanager
-    def turn(self, on_wait: Callable[[int], None] | None = None):
+    def turn(self, on_wait: Callable[[int], None] | None = None, cheap: bool = False):
         """``with slots.turn(report):`` holds a slot for the block; ``report(n)`` while ``n`` callers are ahead."""
-        self.acquire(on_wait)
+        lane = self.acquire(on_wait, cheap)
         try:
             yield self
         finally:
-            self.release()
+            self.release(lane)
 
     def __enter__(self) -> FairSlots:
         self.acquire()

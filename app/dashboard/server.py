@@ -96,7 +96,7 @@ class DashboardApp:
             self.defaults = self.defaults.replace(presenter=True)
         self.views = ViewStore(views_file)  # view codes -> settings (links that survive a reload)
         self.cache = SharedCache(cache_bytes)
-        self.slots = FairSlots(slots)  # (4) at most `slots` tabs compute at once, first come first served
+        self.slots = FairSlots(slots, fast=1)  # (4) at most `slots` tabs compute at once, in turn; cheap turns first
         self.workers = max(0, int(workers))
         self.tasks = max(1, self.workers)
         self._lock = threading.Lock()  # (5) guards `sessions` and `_gone`
