@@ -12,8 +12,9 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
    at most one computation per ``MIN_GAP`` seconds (a burst of changes: only the newest is computed;
    a tab flooded with changes faster than any person makes them waits longer, up to ``MAX_GAP``).
 3. the helper thread of :func:`iter_frames` (:mod:`.stages`, one per computation): quantizes the
-   next chunk of word lengths while the worker runs closed loops, and runs the
-   second estimator's closed loops beside the first.
+   next chunk of word lengths while the worker runs closed loops; once every word length is quantized,
+   one ``qsid-loops`` thread per estimator submits its closed loops to the pool while the worker computes
+   the rows' other parts (assumptions, a-posteriori bounds).
 4. ``DashboardApp.slots`` (server, :class:`~app.dashboard.flow.FairSlots`): at most a few tabs compute at
    once, served in the order they asked; a change that only redraws cached results (:data:`DISPLAY_ONLY`)
    goes first and has one slot of its own.

@@ -57,13 +57,19 @@ class _Ahead:
         return len(self.futures) == len(self.parts) and all(f.done() for f in self.futures)
 
 
-def _loops_all(helper: ThreadPoolExecutor, job, rows: dict, bits: list) -> None:
-    """Closed loops at ``bits`` for every estimator: the second one's in the helper thread, side by side."""
-    first, *others = job.estimators
-    futs = [(e, helper.submit(job.ex.closed_loops_many, bits, e)) for e in others]
-    fill_rows(job, rows, first, bits, job.ex.closed_loops_many(bits, first))
-    for e, f in futs:
-        fill_rows(job, rows, e, bits, f.result())
+def _loops_all(job, rows: dict, bits: list) -> None:
+    """Closed loops at ``bits`` for every estimator, each estimator's submitted to the pool from a thread of its
+    own; meanwhile this thread computes what the rows need besides the loops (Theorem 1's assumptions, the
+    a-posteriori bounds), so the server's share of the work overlaps the pool's."""
+    with ThreadPoolExecutor(len(job.estimators), thread_name_prefix="qsid-loops") as submitters:
+        futs = {e: submitters.submit(job.ex.closed_loops_many, bits, e) for e in job.estimators}
+        for x in bits:  # first what needs no model: the loop threads identify meanwhile
+            job.ex.assumptions(x)
+        for e in job.estimators:
+            for x in bits:
+                job.ex.realized_bound(x, e)
+        for e, f in futs.items():
+            fill_rows(job, rows, e, bits, f.result())
 
 
 def iter_frames(
@@ -133,7 +139,7 @@ def iter_frames(
             if executor is not None and ahead.finished:
                 # every b quantized (or cached): spread all remaining closed loops over the executor at once
                 part, k = [x for p in parts[k:] for x in p], len(parts)
-                _loops_all(helper, job, rows, part)
+                _loops_all(job, rows, part)
             else:
                 # closed loops here, side by side with the quantization of the next chunk in the helper
                 part, k = parts[k], k + 1
