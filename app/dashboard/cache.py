@@ -15,7 +15,11 @@ from collections.abc import MutableMapping
 
 import numpy as np
 
-__all__ = ["SharedCache"]
+__all__ = ["SharedCache", "DEFAULT_MB"]
+
+#: Default budget (MB). It holds one paper-scale tab's results (~94 MB) or the changes of a class; measured with
+#: 30 tabs of a class (benchmarks/bench_class.py): 256 MB took server + workers to ~1.08 GB, 128 MB to ~0.95 GB.
+DEFAULT_MB = 128
 
 
 def _nbytes(obj, depth: int = 0) -> int:
@@ -46,7 +50,7 @@ def _nbytes(obj, depth: int = 0) -> int:
 
 
 class SharedCache(MutableMapping):
-    """A thread-safe LRU mapping bounded by an estimate of its memory (default 256 MB).
+    """A thread-safe LRU mapping bounded by an estimate of its memory (default :data:`DEFAULT_MB` MB).
 
     Passed as ``Experiment(..., cache=shared)`` by every browser tab, so equal
     settings share the data, moments, models and closed loops. The least
@@ -54,7 +58,7 @@ class SharedCache(MutableMapping):
     dropped (the engine reads an entry right after storing it).
     """
 
-    def __init__(self, max_bytes: int = 256 * 2**20, keep: int = 64):
+    def __init__(self, max_bytes: int = DEFAULT_MB * 2**20, keep: int = 64):
         self.max_bytes = int(max_bytes)
         self.keep = int(keep)
         self._d: OrderedDict = OrderedDict()

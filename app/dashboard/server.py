@@ -24,7 +24,7 @@ from app.procs import release_ipc
 from qsid_core.errors import QsidError
 from qsid_core.version import __version__
 
-from .cache import SharedCache
+from .cache import DEFAULT_MB, SharedCache
 from .flow import READ_BYTES, FairSlots
 from .lessons import get_lesson, lesson_names, lesson_values
 from .memory import limit_arenas, one_blas_thread, trim
@@ -78,7 +78,7 @@ class DashboardApp:
         slots: int = 2,
         scale: str = "interactive",
         verbose: bool = False,
-        cache_bytes: int = 256 * 2**20,
+        cache_bytes: int = DEFAULT_MB * 2**20,
         settings: Values | None = None,
         lesson: str | None = None,
         task_timeout: float = DEFAULT_TIMEOUT,
@@ -256,9 +256,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--cache-mb",
         type=int,
-        default=256,
+        default=DEFAULT_MB,
         metavar="MB",
-        help="memory budget of the results cache shared by all tabs (default 256)",
+        help=f"memory budget of the results cache shared by all tabs (default {DEFAULT_MB})",
     )
     p.add_argument(
         "--settings",
