@@ -149,7 +149,7 @@ def pct(xs: list[float], q: float) -> float:
     return xs[min(len(xs) - 1, int(round(q * (len(xs) - 1))))] if xs else float("nan")
 
 
-def main(argv=None) -> dict:
+def _main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tabs", type=int, default=30)
     ap.add_argument("--duration", type=float, default=600.0, help="seconds of changes (default 600)")
@@ -232,6 +232,13 @@ def report(students: list[Student], samples: list) -> dict:
         flush=True,
     )
     return out
+
+
+def main(argv=None) -> dict:
+    """Run the benchmark; ``--save FILE`` also writes the printed output to FILE (header first)."""
+    import _tee
+
+    return _tee.run(_main, argv)
 
 
 if __name__ == "__main__":

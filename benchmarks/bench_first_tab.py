@@ -54,7 +54,7 @@ def one(cache: str) -> tuple[float, float, int]:
     return start, ready, left
 
 
-def main(argv=None) -> None:
+def _main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=2)
     a = ap.parse_args(argv)
@@ -73,6 +73,13 @@ def main(argv=None) -> None:
         f"first tab empty/warm ratio {med(cold, 1) / med(warm, 1):.2f} (target <= 1.3); "
         f"server processes left after SIGTERM: {left}"
     )
+
+
+def main(argv=None) -> None:
+    """Run the benchmark; ``--save FILE`` also writes the printed output to FILE (header first)."""
+    import _tee
+
+    return _tee.run(_main, argv)
 
 
 if __name__ == "__main__":

@@ -163,7 +163,7 @@ def _fmt(runs: list, key: str, unit: str = "s") -> str:
     return f"{key} {statistics.median(xs):.2f} {unit} ({min(xs):.2f}-{max(xs):.2f})"
 
 
-def main(argv=None) -> int:
+def _main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=3, help="server starts (each: a first and a second tab)")
     p.add_argument("--workers", type=int, default=2, help="the server's --workers")
@@ -215,6 +215,13 @@ def main(argv=None) -> int:
             f"{statistics.median(r['plots'] for r in runs):.0f} plotly plots"
         )
     return 0
+
+
+def main(argv=None) -> int:
+    """Run the benchmark; ``--save FILE`` also writes the printed output to FILE (header first)."""
+    import _tee
+
+    return _tee.run(_main, argv)
 
 
 if __name__ == "__main__":
