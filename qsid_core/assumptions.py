@@ -235,12 +235,8 @@ def clipping_effect(
         signal) and the shift of the noise-free clipped LS from ``[A, B]`` (what BCLS recovers).
     """
     n = G.shape[0]
-    exact = np.asarray(eps, dtype=float) <= 0
-    levels = 2.0 ** np.asarray(bits, dtype=float)
-    lo_l = np.where(exact, -np.inf, lo_q + eps / 2)
-    hi_l = np.where(exact, np.inf, lo_q + eps * (levels - 0.5))
-    inside = np.all(Psi.min(axis=1) >= lo_l) and np.all(Psi.max(axis=1) <= hi_l)
-    if inside and np.all(Xp.min(axis=1) >= lo_l[:n]) and np.all(Xp.max(axis=1) <= hi_l[:n]):
+    lo_l, hi_l = _clip_limits(lo_q, eps, bits)
+    if clips_nothing((Psi.min(axis=1), Psi.max(axis=1), Xp.min(axis=1), Xp.max(axis=1)), lo_q, eps, bits):
         return np.zeros_like(G)  # nothing clipped (checked on the extremes, without clipped copies)
     Pc = np.clip(Psi, lo_l[:, None], hi_l[:, None])
     Xc = np.clip(Xp, lo_l[:n, None], hi_l[:n, None])
@@ -256,6 +252,26 @@ def clipping_effect(
         return np.full_like(G, np.inf)
     shift: np.ndarray = np.maximum(np.abs(ls_shift), np.abs(bcls_shift))
     return shift
+
+
+def _clip_limits(lo_q: np.ndarray, eps: np.ndarray, bits: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """The values the quantizer keeps per channel (the centres of its first and last cells; +-inf if exact)."""
+    exact = np.asarray(eps, dtype=float) <= 0
+    levels = 2.0 ** np.asarray(bits, dtype=float)
+    lo_l = np.where(exact, -np.inf, lo_q + eps / 2)
+    hi_l = np.where(exact, np.inf, lo_q + eps * (levels - 0.5))
+    return lo_l, hi_l
+
+
+def clips_nothing(
+    extremes: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], lo_q: np.ndarray, eps: np.ndarray, bits: ArrayLike
+) -> bool:
+    """True if the quantizer clips no sample, judged from the data's extremes ``(Psi_min, Psi_max, Xp_min,
+    Xp_max)`` per channel (:meth:`~qsid_core.data.Dataset.extremes`); see :func:`clipping_effect`."""
+    lo_l, hi_l = _clip_limits(lo_q, eps, bits)
+    p_lo, p_hi, x_lo, x_hi = extremes
+    n = x_lo.shape[0]
+    return bool(np.all(p_lo >= lo_l) and np.all(p_hi <= hi_l) and np.all(x_lo >= lo_l[:n]) and np.all(x_hi <= hi_l[:n]))
 
 
 def range_words(spec: QuantizerSpec, lo: np.ndarray, hi: np.ndarray) -> str:
@@ -353,8 +369,11 @@ def assess(ex, b: int) -> Assumptions:  # ex: an Experiment (its config is not p
     lo_q = np.asarray(prep.lo, dtype=float) - np.array([guard_cells(q.dither, q.guard, int(bb)) for bb in cb]) * eps
     nA, nB = _block_norms(sysm)
     fA, fB = finite_data_fluctuation(sysm.G, prep.exact.PP, eps)
-    Psi, Xp = ex.data.matrices()
-    clip = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, ERROR_VARIANCE.get(q.dither, 1.0 / 12.0))
+    if clips_nothing(ex.data.extremes(), lo_q, eps, cb):  # the usual case: no copy of the data needed
+        clip = np.zeros_like(sysm.G)
+    else:
+        Psi, Xp = ex.data.matrices()
+        clip = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, ERROR_VARIANCE.get(q.dither, 1.0 / 12.0))
     ls = ex.identification(b, "ls")
     known = not bcls_reason(q.dither)
     unknown_sensor_noise = any(v > 0 for v in c.noise) and not c.noise_known

@@ -64,6 +64,23 @@ class Dataset:
         """Number of regression samples (columns of Psi): trajectories * steps."""
         return self.trajectories * self.steps
 
+    def extremes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per channel ``(min, max)`` of Psi's rows, then of X+'s rows: shapes (n+m,), (n+m,), (n,), (n,).
+
+        Computed once per dataset (the assumption checks ask at every word length).
+        """
+        got = self.__dict__.get("_extremes")
+        if got is None:
+            x, xp, u = self.states[:, :-1, :], self.states[:, 1:, :], self.inputs
+            got = (
+                np.concatenate([x.min(axis=(0, 1)), u.min(axis=(0, 1))]),
+                np.concatenate([x.max(axis=(0, 1)), u.max(axis=(0, 1))]),
+                xp.min(axis=(0, 1)),
+                xp.max(axis=(0, 1)),
+            )
+            self.__dict__["_extremes"] = got  # a frozen dataclass: kept beside its fields
+        return got
+
     def matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """``(Psi, X+)`` of the letter's eq. (4), shapes (n+m, T) and (n, T)."""
         X = self.states[:, :-1, :].reshape(-1, self.n)

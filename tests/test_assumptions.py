@@ -58,3 +58,23 @@ def test_fluctuation_scales_like_eps_over_sqrt_T():
     f1 = finite_data_fluctuation(G, PP, eps)
     f2 = finite_data_fluctuation(G, 4 * PP, 2 * eps)  # 4x the samples, twice the cell: same
     assert f1 == pytest.approx(f2)
+
+
+def test_data_extremes_match_the_regression_matrices_and_decide_clipping_alike():
+    from qsid_core.assumptions import clipping_effect, clips_nothing
+    from qsid_core.data import simulate
+    from qsid_core.systems import get_system
+
+    sysm = get_system("dc-motor")
+    data = simulate(sysm, trajectories=7, steps=30, seed=3)
+    Psi, Xp = data.matrices()
+    ext = data.extremes()
+    assert ext is data.extremes()  # computed once
+    for got, want in zip(ext, (Psi.min(axis=1), Psi.max(axis=1), Xp.min(axis=1), Xp.max(axis=1))):
+        np.testing.assert_array_equal(got, want)
+    top = np.maximum(np.abs(Psi).max(axis=1), 1e-9)
+    for scale in (0.3, 0.9, 1.5, 4.0):  # ranges that clip a lot, a little, and not at all
+        lo_q = -scale * top
+        eps = 2 * scale * top / 16
+        shift = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, 4)
+        assert clips_nothing(ext, lo_q, eps, 4) == (not np.any(shift))
