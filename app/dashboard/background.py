@@ -15,6 +15,7 @@ import threading
 from collections.abc import Callable, MutableMapping
 
 from qsid_core.datalength import DEFAULT_SAMPLES, DataLengthConfig, DataLengthResult, run_datalength
+from qsid_core.systems import LTISystem, get_system
 
 from .settings import Values, quantizer_spec, resolve_system
 
@@ -39,7 +40,7 @@ def datalength_config(values: Values) -> DataLengthConfig:
 
 
 def _key(cfg: DataLengthConfig) -> tuple:
-    s = cfg.system
+    s = cfg.system if isinstance(cfg.system, LTISystem) else get_system(cfg.system)
     return (
         "datalength",
         s.name,

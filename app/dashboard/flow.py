@@ -52,7 +52,7 @@ READ_BYTES = 4096
 
 def inline(fn: Callable) -> Callable:
     """Mark an input callback as cheap (it only marks the tab dirty): it runs where the message arrives."""
-    fn.qsid_inline = True
+    fn.__dict__["qsid_inline"] = True
     return fn
 
 

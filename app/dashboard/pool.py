@@ -22,6 +22,7 @@ those ways; everything else (results, exceptions) passes through unchanged.
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
 import pickle
@@ -85,6 +86,10 @@ def _load_shared(path: str):
         while len(_worker_shared) > WORKER_KEEP:
             _worker_shared.popitem(last=False)
     _worker_shared.move_to_end(path)
+    return obj
+
+
+def _same(obj: object) -> object:
     return obj
 
 
@@ -224,10 +229,11 @@ class Pool:
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
             arg = _Shared(path)
+            ref: Callable[[], object]
             try:
                 ref = weakref.ref(obj)
             except TypeError:  # not weakly referenceable: keep it while its file is kept
-                ref = lambda obj=obj: obj  # noqa: E731
+                ref = functools.partial(_same, obj)
             self._shared[id(obj)] = (ref, arg)
             while len(self._shared) > SHARE_KEEP:
                 _, (_, old) = self._shared.popitem(last=False)

@@ -89,7 +89,7 @@ class DashboardApp:
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
-        self.defaults = settings if settings is not None else Values(system=system, **size)
+        self.defaults = settings if settings is not None else Values(system=system).replace(**size)
         if lesson is not None:  # every new tab opens on the lesson (its settings, its text)
             self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
         if presenter:
