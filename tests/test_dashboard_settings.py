@@ -197,3 +197,14 @@ def test_every_values_field_has_one_control():
     fields = set(Values.__dataclass_fields__) - {"log_q", "log_r"}  # the weight sliders follow the system
     fields -= set(VIEW_FIELDS)  # the views' own inputs sit next to the views (plots panel)
     assert set(names) == fields
+
+
+def test_same_results_ignores_only_display_settings():
+    from app.dashboard.settings import DISPLAY_ONLY
+
+    base = Values()
+    shown = base.replace(bits=base.bits + 1, show_bound=not base.show_bound, presenter=not base.presenter)
+    assert base.same_results(shown) and shown.same_results(base)
+    assert not base.same_results(base.replace(data_seed=base.data_seed + 1))
+    assert not base.same_results(base.replace(system="boeing-747"))
+    assert "bits" in DISPLAY_ONLY and "data_seed" not in DISPLAY_ONLY

@@ -16,7 +16,7 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
    one ``qsid-loops`` thread per estimator submits its closed loops to the pool while the worker computes
    the rows' other parts (assumptions, a-posteriori bounds).
 4. ``DashboardApp.slots`` (server, :class:`~app.dashboard.flow.FairSlots`): at most a few tabs compute at
-   once, served in the order they asked; a change that only redraws cached results (:data:`DISPLAY_ONLY`)
+   once, served in the order they asked; a change that only redraws cached results (:data:`~app.dashboard.settings.DISPLAY_ONLY`)
    goes first and has one slot of its own.
 5. ``DashboardApp._lock`` (server): the tab registry.
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
@@ -65,9 +65,6 @@ MAX_GAP = 2.0
 FLOOD_CHANGES, FLOOD_RATE = 20, 200.0
 #: Seconds before a computation that failed with an internal error is tried once more.
 RETRY_AFTER = 0.2
-#: Settings that only change what is drawn from results already computed for the others: a change of these
-#: alone, after a complete frame, is cheap (the fast lane of :class:`~app.dashboard.flow.FairSlots`).
-DISPLAY_ONLY = ("bits", "axes", "show_bound", "view_channel", "presenter", "compare_bits")
 
 
 class Session:
@@ -313,7 +310,8 @@ class Session:
                 c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
 
         c.status.content = "computing …"
-        cheap = self._cheap(values)
+        last = self.last_frame  # only drawing left if just display settings changed since a complete frame
+        cheap = last is not None and last.complete and values.same_results(last.values)
         frames = iter_frames(
             values,
             self.app.cache,
@@ -357,14 +355,6 @@ class Session:
         finally:
             frames.close()
         return gen
-
-    def _cheap(self, values: Values) -> bool:
-        """True if ``values`` differ from the last complete frame's only in :data:`DISPLAY_ONLY` settings
-        (its results are in the shared cache: only drawing is left)."""
-        last = self.last_frame
-        if last is None or not last.complete:
-            return False
-        return values.replace(**{k: getattr(last.values, k) for k in DISPLAY_ONLY}) == last.values
 
     def _show_error(self, text: str) -> None:
         self.last_error = text

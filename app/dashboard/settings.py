@@ -79,6 +79,11 @@ class InputError(QsidError):
     """A value typed or chosen in the panel cannot be used; the message says why, in plain words."""
 
 
+#: Settings that only change what is drawn from results already computed for the others: a change of these
+#: alone, after a complete frame, is cheap (the fast lane of :class:`~app.dashboard.flow.FairSlots`).
+DISPLAY_ONLY = ("bits", "axes", "show_bound", "view_channel", "presenter", "compare_bits")
+
+
 @dataclass(frozen=True)
 class Values:
     """Everything set in one browser tab's panel (defaults = the engine's, at the interactive data size).
@@ -137,6 +142,10 @@ class Values:
 
     def replace(self, **kw) -> Values:
         return dataclasses.replace(self, **kw)
+
+    def same_results(self, other: Values) -> bool:
+        """True if ``self`` and ``other`` differ at most in :data:`DISPLAY_ONLY` settings (same results)."""
+        return self.replace(**{k: getattr(other, k) for k in DISPLAY_ONLY}) == other
 
 
 @dataclass(frozen=True)
