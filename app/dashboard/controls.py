@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +21,9 @@ from qsid_core.quantize import DITHERS, RANGE_MODES
 from qsid_core.systems import LTISystem
 
 from .flow import inline
+
+if TYPE_CHECKING:
+    import viser
 from .lessons import NONE, lesson_markdown, lesson_names, lesson_values
 from .settings import (
     ALL_BITS,
@@ -403,24 +407,25 @@ class GuiElements:
     ``r_sliders`` are the log10 weight sliders (rebuilt when the system changes).
     """
 
-    gui: object
-    inputs: dict
-    progress: object
-    status: object
-    error: object
-    summary: object
-    system_note: object
-    weights_note: object
-    lesson_text: object
-    play: object
-    q_folder: object
-    r_folder: object
+    gui: viser.GuiApi
+    inputs: dict[str, Any]  # handles of several kinds (slider, dropdown, text, ...)
+    # viser's stubs make a progress bar's ``value`` read-only (its setter is not next to its getter)
+    progress: Any
+    status: viser.GuiMarkdownHandle
+    error: viser.GuiMarkdownHandle
+    summary: viser.GuiMarkdownHandle
+    system_note: viser.GuiMarkdownHandle
+    weights_note: viser.GuiMarkdownHandle
+    lesson_text: viser.GuiMarkdownHandle
+    play: viser.GuiButtonHandle
+    q_folder: viser.GuiFolderHandle
+    r_folder: viser.GuiFolderHandle
     on_change: Callable[..., None]
-    q_sliders: list = field(default_factory=list)
-    r_sliders: list = field(default_factory=list)
-    system_key: tuple | None = None
+    q_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
+    r_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
+    system_key: tuple[Any, ...] | None = None
 
-    def __getitem__(self, name: str):
+    def __getitem__(self, name: str) -> Any:
         return self.inputs[name]
 
 
@@ -431,6 +436,7 @@ def _initial(c: Control, v: Values, system: LTISystem):
     if c.name == "b_text":
         return v.b_text or matrix_text(system.B)
     if c.name == "x0":
+        assert system.x0 is not None  # LTISystem fills x0 in __post_init__
         return v.x0 or ", ".join(f"{x:g}" for x in system.x0)
     if c.name == "axes":
         opts = axes_options(system.state_names)
@@ -579,6 +585,7 @@ def set_system(el: GuiElements, system: LTISystem, log_q=(), log_r=(), reset: bo
     if not custom:
         h["a_text"].value = matrix_text(system.A)
         h["b_text"].value = matrix_text(system.B)
+    assert system.Q is not None and system.R is not None and system.x0 is not None  # filled in __post_init__
     lq = tuple(log_q) if len(log_q) == system.n else log_from_weights(np.diag(system.Q))
     lr = tuple(log_r) if len(log_r) == system.m else log_from_weights(np.diag(system.R))
     for s in el.q_sliders + el.r_sliders:
@@ -619,7 +626,7 @@ def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
     for s, x in zip(
         el.q_sliders + el.r_sliders, log_from_weights(np.diag(system.Q)) + log_from_weights(np.diag(system.R))
     ):
-        s.value = x
+        s.value = x  # type: ignore[misc]  # viser's ``value`` setter is not seen (not next to its getter)
     for c in CONTROLS:
         if c.name in ("lesson", "system", "a_text", "b_text", "axes", "presenter"):  # presenter: the room's choice
             continue

@@ -56,6 +56,7 @@ def check_value(c: Control, value, options=None) -> None:
     """Raise :class:`InputError` unless ``value`` is allowed for control ``c`` (``options``: a dropdown's now)."""
     lab = c.label
     if c.kind == "slider":
+        assert c.lo is not None and c.hi is not None  # every slider has a range
         x = _number(lab, value, c.convert is int)
         if not c.lo - 1e-9 <= x <= c.hi + 1e-9:
             raise InputError(f"{lab}: {value:g} is outside the slider's range {c.lo:g} … {c.hi:g}")

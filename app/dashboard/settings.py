@@ -51,6 +51,10 @@ __all__ = [
 
 _SWEEP = SweepConfig(mpc=None)  # the engine's defaults (no system is built: "dc-motor" stays a name)
 _MPC = MPCConfig()
+# MPCConfig() holds one input bound per input (a tuple after its checks) and a verification horizon.
+assert isinstance(_MPC.u_max, tuple) and _MPC.verify_steps is not None
+_U_MAX: float = _MPC.u_max[0]
+_VERIFY_STEPS: int = _MPC.verify_steps
 _QUANT = QuantizerSpec()
 
 #: Word lengths every curve is drawn over (the engine's default sweep).
@@ -104,7 +108,7 @@ class Values:
     horizon: int = _MPC.horizon
     log_q: tuple = ()
     log_r: tuple = ()
-    u_max: float = _MPC.u_max[0]
+    u_max: float = _U_MAX
     x0: str = ""
     mpc_steps: int = _MPC.steps
     theta: float = _SWEEP.theta
@@ -126,7 +130,7 @@ class Values:
     feedback_bits: int = 0  # the MPC measures the state through this many bits per state (0 = exact)
     feedback_noise: float = 0.0  # sensor noise on that measurement (standard deviation)
     loop_seed: int = 0  # seed of the loop's disturbance, feedback dither and sensor noise
-    verify_steps: int = _MPC.verify_steps  # extra closed-loop steps allowed to judge each loop
+    verify_steps: int = _VERIFY_STEPS  # extra closed-loop steps allowed to judge each loop
     target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
     cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
     input_bits: str = "same"  # inputs' word length: "same" (= b), "exact", one number, or one per input
@@ -230,11 +234,16 @@ def resolve_system(v: Values) -> SystemChoice:
     return SystemChoice(sysm, notes)
 
 
-def parse_vector(text: str, name: str, k: int, what: str = "") -> tuple | None:
+def parse_vector(text: str, name: str, k: int, what: str = "") -> tuple[float, ...] | None:
     """``k`` numbers typed as ``"1, 0, 0"`` (spaces or commas); empty text -> None (use the default)."""
     s = (text or "").strip()
     if not s:
         return None
+    return _numbers(s, name, k, what)
+
+
+def _numbers(s: str, name: str, k: int, what: str) -> tuple[float, ...]:
+    """The ``k`` numbers of the non-empty stripped text ``s`` (see :func:`parse_vector`)."""
     try:
         if s.startswith("[") and not s[1:].lstrip().startswith("["):  # a flat JSON list: one row
             s = f"[{s}]"
@@ -308,13 +317,13 @@ def estimators(choice: str) -> tuple:
     return IDENT_CHOICES[choice]
 
 
-def _state_box(text: str, n: int, names: str, what: str = "x_max") -> tuple | None:
+def _state_box(text: str, n: int, names: str, what: str = "x_max") -> tuple[float, ...] | None:
     """A state box typed in the panel: one bound for every state or one per state ("" = no box)."""
     s = (text or "").strip()
     if not s:
         return None
     k = len(s.replace(",", " ").replace(";", " ").split())
-    box = parse_vector(s, what, 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
+    box = _numbers(s, what, 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
     if not all(np.isfinite(x) and x > 0 for x in box):
         raise InputError(f"{what}: every bound must be a positive number; got {s!r}")
     return box if len(box) == n else box * n
@@ -334,6 +343,7 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     if qf_text.lower() in ("", "dare"):
         Qf = None
     elif qf_text == "Q":
+        assert system.Q is not None  # LTISystem fills Q in __post_init__
         Qf = Q if Q is not None else tuple(float(x) for x in np.diag(system.Q))
     else:
         k = len(qf_text.replace(",", " ").replace(";", " ").split())
