@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 import plotly.graph_objects as go
@@ -10,6 +11,9 @@ import plotly.graph_objects as go
 from .palette import COLORS, color
 from .raw import arr, figure
 from .view import CURRENT, View
+
+if TYPE_CHECKING:
+    from app.dashboard.frames import Frame
 
 __all__ = ["eigen_figure", "VIEW"]
 
@@ -72,7 +76,7 @@ def eigen_figure(
     )
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: Frame) -> go.Figure:
     eigs = {lab: frame.idents[lab].eigenvalues for lab in frame.labels}
     return eigen_figure(eigs, frame.system.eigenvalues, height=300, title=f"eigenvalues of Â at b = {frame.bits}")
 
