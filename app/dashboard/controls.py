@@ -10,7 +10,7 @@ and redraws. Choices and ranges come from the engine (via
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -429,7 +429,7 @@ class GuiElements:
         return self.inputs[name]
 
 
-def _initial(c: Control, v: Values, system: LTISystem):
+def _initial(c: Control, v: Values, system: LTISystem) -> Any:
     """The first value of control ``c`` (empty texts show the system's matrices and x0)."""
     if c.name == "a_text":
         return v.a_text or matrix_text(system.A)
@@ -444,24 +444,24 @@ def _initial(c: Control, v: Values, system: LTISystem):
     return c.convert(getattr(v, c.name))
 
 
-def _add(gui, c: Control, value, system: LTISystem, custom: bool):
+def _add(gui: viser.GuiApi, c: Control, value: Any, system: LTISystem, custom: bool) -> Any:
     """The viser handle of control ``c`` (kind-specific arguments; visibility and locks set here)."""
-    kw = {} if c.hint is None else {"hint": c.hint}
     if c.kind == "slider":
-        return gui.add_slider(c.label, c.lo, c.hi, c.step, value, **kw)
+        assert c.lo is not None and c.hi is not None and c.step is not None  # every slider has a range and step
+        return gui.add_slider(c.label, c.lo, c.hi, c.step, value, hint=c.hint)
     if c.kind == "number":
-        return gui.add_number(c.label, value, min=c.lo, step=c.step, **kw)
+        return gui.add_number(c.label, value, min=c.lo, step=c.step, hint=c.hint)
     if c.kind == "checkbox":
-        return gui.add_checkbox(c.label, value, **kw)
+        return gui.add_checkbox(c.label, value, hint=c.hint)
     if c.kind == "dropdown":
-        choices = c.choices or tuple(axes_options(system.state_names))
-        return gui.add_dropdown(c.label, choices, initial_value=value, **kw)
+        choices: tuple[str, ...] = c.choices or tuple(axes_options(system.state_names))
+        return gui.add_dropdown(c.label, choices, initial_value=value, hint=c.hint)
     if c.name in ("a_text", "b_text"):
-        return gui.add_text(c.label, value, multiline=True, disabled=not custom, **kw)
-    return gui.add_text(c.label, value, **kw)
+        return gui.add_text(c.label, value, multiline=True, disabled=not custom, hint=c.hint)
+    return gui.add_text(c.label, value, hint=c.hint)
 
 
-def _extras_after(gui, name: str, values: Values, handles: dict, extra: dict) -> None:
+def _extras_after(gui: viser.GuiApi, name: str, values: Values, handles: dict[str, Any], extra: dict[str, Any]) -> None:
     """The panel's non-input parts (notes, weight folders, scale buttons), placed after control ``name``."""
     if name == "b_text":
         extra["system_note"] = gui.add_markdown(_system_note(values.system))
@@ -488,7 +488,9 @@ def _extras_after(gui, name: str, values: Values, handles: dict, extra: dict) ->
         extra["weights_note"] = gui.add_markdown("")
 
 
-def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callable[..., None]) -> GuiElements:
+def make_gui_elements(
+    gui: viser.GuiApi, values: Values, system: LTISystem, on_change: Callable[..., None]
+) -> GuiElements:
     """Build the whole panel of a tab in ``gui`` (``client.gui``); every input calls ``on_change(user)``,
     ``user`` True when the change came from the browser."""
     gui.add_markdown("**qsid** · quantized data → identified model → MPC")
@@ -548,7 +550,9 @@ def set_scale(handles: dict, scale: dict) -> None:
         handles[name].value = scale[name]
 
 
-def _weight_sliders(el: GuiElements, folder, kind: str, names, logs) -> list:
+def _weight_sliders(
+    el: GuiElements, folder: viser.GuiFolderHandle, kind: str, names: Iterable[str], logs: Iterable[float]
+) -> list[viser.GuiSliderHandle[float]]:
     with folder:
         sliders = [
             el.gui.add_slider(
@@ -566,7 +570,9 @@ def _weight_sliders(el: GuiElements, folder, kind: str, names, logs) -> list:
     return sliders
 
 
-def set_system(el: GuiElements, system: LTISystem, log_q=(), log_r=(), reset: bool = True) -> bool:
+def set_system(
+    el: GuiElements, system: LTISystem, log_q: Sequence[float] = (), log_r: Sequence[float] = (), reset: bool = True
+) -> bool:
     """Adapt the inputs to ``system``: A/B boxes, Q/R sliders, x0, 3-D axes. True if anything changed.
 
     Called by the tab's worker; the value changes it makes mark the tab dirty like
@@ -607,7 +613,7 @@ def show_weights(el: GuiElements) -> None:
     el.weights_note.content = f"{format_weights('Q', q)}, {format_weights('R', r)}"
 
 
-def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
+def apply_lesson(el: GuiElements, name: str, resolve: Callable[[Values], LTISystem]) -> bool:
     """Set the panel to lesson ``name`` (system first, then every other input) and show its text.
 
     ``resolve(values) -> LTISystem`` builds the lesson's system. Returns True if inputs were set
@@ -623,6 +629,7 @@ def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
     h["system"].value = v.system
     system = resolve(v)
     set_system(el, system, reset=True)
+    assert system.Q is not None and system.R is not None and system.x0 is not None  # filled in __post_init__
     for s, x in zip(
         el.q_sliders + el.r_sliders, log_from_weights(np.diag(system.Q)) + log_from_weights(np.diag(system.R))
     ):

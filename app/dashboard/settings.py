@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -139,7 +141,7 @@ class Values:
     noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
     presenter: bool = False  # lecture-hall layout: large text, thick lines, a wide 3-D scene (display only)
 
-    def replace(self, **kw) -> Values:
+    def replace(self, **kw: Any) -> Values:
         return dataclasses.replace(self, **kw)
 
 
@@ -160,12 +162,15 @@ def matrix_text(M: np.ndarray) -> str:
     return "\n".join(" ".join(_fmt(float(v)) for v in row) for row in np.atleast_2d(M))
 
 
-def _build_quietly(fn):
+_T = TypeVar("_T")
+
+
+def _build_quietly(fn: Callable[[], _T]) -> tuple[_T, tuple[str, ...]]:
     """Call ``fn()``; return (result, notes) with an UncontrollableWarning turned into a note."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UncontrollableWarning)
         out = fn()
-    notes = []
+    notes: list[str] = []
     for w in caught:
         if issubclass(w.category, UncontrollableWarning):
             notes.append(f"{w.message}. Identification still works.")
@@ -292,12 +297,12 @@ def quantizer_spec(v: Values, n: int, m: int) -> QuantizerSpec:
         raise InputError(str(exc)) from None
 
 
-def weights_from_log(logs) -> tuple:
+def weights_from_log(logs: Iterable[float]) -> tuple[float, ...]:
     """Slider positions (log10 of the weight) -> weights, rounded to 4 significant digits."""
     return tuple(float(f"{10.0 ** float(x):.4g}") for x in logs)
 
 
-def log_from_weights(diag) -> tuple:
+def log_from_weights(diag: Iterable[float]) -> tuple[float, ...]:
     """Weights -> slider positions (log10, clipped to the slider range, 0 weights at the bottom)."""
     out = []
     for w in np.asarray(diag, dtype=float).reshape(-1):
@@ -306,7 +311,7 @@ def log_from_weights(diag) -> tuple:
     return tuple(out)
 
 
-def format_weights(name: str, diag) -> str:
+def format_weights(name: str, diag: Iterable[float]) -> str:
     return f"{name} = diag({', '.join(f'{w:.3g}' for w in diag)})"
 
 

@@ -22,10 +22,9 @@ from qsid_core.stability import data_rate_bits
 from .palette import COLORS, color
 from .raw import figure, hline, stacked_axes
 from .traces import BITS_AXIS, Series, mark_bits
-from .view import CURVES, View
+from .view import CURVES, FrameView, View
 
 if TYPE_CHECKING:
-    from app.dashboard.frames import Frame
     from qsid_core.experiment import Experiment
 
 __all__ = ["bits_figure", "answers", "VIEW"]
@@ -200,7 +199,7 @@ def answers(
     return out
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     v = frame.values
     assert frame.ex is not None  # a frame the views draw holds its experiment
     ans = answers(frame.series(), frame.true_cost, frame.ex, float(v.target), float(v.cost_gap))

@@ -10,7 +10,7 @@ Both bounds hold only as t -> inf and assume the reference x_ref = 0 (caption).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import plotly.graph_objects as go
@@ -22,10 +22,7 @@ from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .raw import figure, hline
 from .traces import BITS_AXIS, Rows, Series, hline_note, mark_bits, xy
-from .view import CURVES, View
-
-if TYPE_CHECKING:
-    from app.dashboard.frames import Frame
+from .view import CURVES, FrameView, View
 
 __all__ = ["bound_figure", "VIEW", "CAPTION"]
 
@@ -259,7 +256,7 @@ def _off_axis(data: list[dict[str, Any]], rng: list[float]) -> list[dict[str, An
     return out
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     r0 = float(np.linalg.norm(frame.x0))
     floor = CONVERGED_REL_FLOOR * (r0 if r0 > 0 else 1.0)
     return bound_figure(

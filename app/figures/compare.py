@@ -11,7 +11,7 @@
 from __future__ import annotations
 
 from collections.abc import Container
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import plotly.graph_objects as go
@@ -20,10 +20,7 @@ from numpy.typing import NDArray
 from .palette import COLORS, color
 from .phase_scene import axes_indices
 from .raw import arr, figure
-from .view import CURVES, View
-
-if TYPE_CHECKING:
-    from app.dashboard.frames import Frame
+from .view import CURVES, FrameView, View
 
 __all__ = ["PINNED_VIEWS", "overlay_pinned", "parse_bits", "portraits_figure", "VIEW"]
 
@@ -137,7 +134,7 @@ def portraits_figure(
     return figure(data, layout)
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     ex = frame.ex
     assert ex is not None  # a frame the views draw holds its experiment
     bits, bad = parse_bits(frame.values.compare_bits, ex.config.bits)

@@ -9,17 +9,14 @@ without a result the view says how to start it.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import plotly.graph_objects as go
 
 from .palette import COLORS, color
 from .raw import arr, figure
-from .view import CURRENT, View
-
-if TYPE_CHECKING:
-    from app.dashboard.frames import Frame
+from .view import CURRENT, FrameView, View
 
 __all__ = ["datalength_figure", "VIEW"]
 
@@ -134,7 +131,7 @@ def datalength_figure(result: dict[str, Any] | None, bits: int, height: int = 34
     return figure(data, layout)
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     res = frame.datalength
     return datalength_figure(None if res is None else res.to_dict(), frame.bits)
 

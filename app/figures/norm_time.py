@@ -19,12 +19,11 @@ from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .raw import arr, figure, hline
 from .traces import hline_note
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
-    from app.dashboard.frames import Frame
     from qsid_core.stage_results import ClosedLoops
 
 __all__ = ["norm_time_figure", "VIEW"]
@@ -160,7 +159,7 @@ def _g(y: float | None) -> str:
     return f"{y:.3g}" if y is not None and np.isfinite(y) else ""
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     first = frame.rows[frame.labels[0]][frame.bits]
     realized = {lab: frame.rows[lab][frame.bits].get("ultimate_bound_realized") for lab in frame.labels}
     return norm_time_figure(

@@ -9,15 +9,13 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .palette import vertex_rgb
-
-if TYPE_CHECKING:
-    from app.dashboard.frames import Frame
+from .view import FrameView
 
 __all__ = ["CLIP", "SPHERE_CAP", "TIME", "SceneView", "scene_view", "axes_options", "axes_indices", "circles"]
 
@@ -154,7 +152,7 @@ def _interleave(parts: list[NDArray[Any]], per_loop: int) -> NDArray[Any]:
     return np.concatenate(parts)
 
 
-def _reference_path(frame: Frame, dims: Dims, scale: float, start: NDArray[np.float64]) -> NDArray[np.float32]:
+def _reference_path(frame: FrameView, dims: Dims, scale: float, start: NDArray[np.float64]) -> NDArray[np.float32]:
     """Display segments of a time-varying reference over the drawn loop (empty when it is constant)."""
     mpc = frame.ex.config.mpc if frame.ex is not None else None
     if mpc is None or mpc.reference is None:
@@ -214,7 +212,7 @@ def circles(radius: float, dims: Dims, k: int = 48) -> NDArray[np.float32]:
     return np.concatenate(segs).astype(np.float32)
 
 
-def _bounds(frame: Frame, dims: Dims, scale: float) -> dict[str, Any]:
+def _bounds(frame: FrameView, dims: Dims, scale: float) -> dict[str, Any]:
     """The two bounds: circles drawn to scale when they fit, else words only."""
     first = frame.rows[frame.labels[0]].get(frame.bits, {})
     d0 = frame.theory.delta
@@ -257,7 +255,7 @@ def _spread(marks: NDArray[np.float64], gap: float = MARK_GAP) -> NDArray[np.flo
     return marks[keep]
 
 
-def scene_view(frame: Frame, axes: str | None = None) -> SceneView:
+def scene_view(frame: FrameView, axes: str | None = None) -> SceneView:
     """What the 3-D phase portrait draws for ``frame``: closed loops at the current b, the
     true-model loop with time markers, the start point, and the two bounds as outlines.
 

@@ -22,10 +22,9 @@ from qsid_core.quantizer_demo import QuantizerDemo, channel_demo
 
 from .palette import COLORS
 from .raw import arr, figure, stacked_axes
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
 
 if TYPE_CHECKING:
-    from app.dashboard.frames import Frame
     from qsid_core.systems import LTISystem
 
 __all__ = ["quantizer_figure", "demo_text", "dependence_text", "VIEW"]
@@ -182,14 +181,14 @@ def channel_names(system: LTISystem) -> tuple[str, ...]:
     return tuple(f"x: {s}" for s in system.state_names) + tuple(f"u: {u}" for u in system.input_names)
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     k = min(max(int(frame.values.view_channel), 0), frame.system.n + frame.system.m - 1)
     d = channel_demo(frame.ex, k, frame.bits, window=120)
     d.label = channel_names(frame.system)[k]  # "x: angle" rather than the engine's "x1"
     return quantizer_figure(d)
 
 
-def _key(frame: Frame) -> tuple[int, int, int | None]:
+def _key(frame: FrameView) -> tuple[int, int, int | None]:
     return (frame.bits, frame.values.view_channel, id(frame.ex.prepared) if frame.ex is not None else None)
 
 

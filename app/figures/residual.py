@@ -18,10 +18,9 @@ import plotly.graph_objects as go
 from .palette import COLORS, color
 from .raw import figure, hline
 from .traces import BITS_AXIS, Series, hline_note, mark_bits, xy
-from .view import CURVES, View
+from .view import CURVES, FrameView, View
 
 if TYPE_CHECKING:
-    from app.dashboard.frames import Frame
     from qsid_core.mpc import MPCConfig
 
 __all__ = ["residual_figure", "VIEW"]
@@ -108,7 +107,7 @@ def causes_text(mpc: MPCConfig | None) -> str:
     return ", ".join(out)
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     tl = frame.true_loop
     true_err = float(tl.steady_state_error[0]) if tl is not None else None
     mpc = frame.ex.config.mpc if frame.ex is not None else None

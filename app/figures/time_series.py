@@ -17,12 +17,11 @@ from qsid_core.timeseries import TimeSeries, time_series
 
 from .palette import COLORS, color
 from .raw import arr, figure, hline, stacked_axes
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from app.dashboard.frames import Frame
     from qsid_core.stage_results import ClosedLoops
 
 __all__ = ["time_series_figure", "VIEW", "MAX_LINES"]
@@ -204,7 +203,7 @@ def time_series_figure(
     return figure(data, layout)
 
 
-def mpc_arrays(frame: Frame) -> dict[str, Any]:
+def mpc_arrays(frame: FrameView) -> dict[str, Any]:
     """The frame's MPC settings as arrays (``u_max``, ``x_ref``, ``x_max``; empty without an MPC)."""
     mpc = frame.ex.config.mpc if frame.ex is not None else None
     if mpc is None:
@@ -214,7 +213,7 @@ def mpc_arrays(frame: Frame) -> dict[str, Any]:
     return {"u_max": w.u_max, "x_ref": ref, "x_max": w.x_max}
 
 
-def loop_series(frame: Frame) -> tuple[dict[str, TimeSeries], TimeSeries | None]:
+def loop_series(frame: FrameView) -> tuple[dict[str, TimeSeries], TimeSeries | None]:
     """The frame's closed loops at the current b as :class:`~qsid_core.timeseries.TimeSeries` (label -> ts, true)."""
     u_max = mpc_arrays(frame).get("u_max")
     ts = {lab: time_series(frame.loops[lab], frame.x0, u_max) for lab in frame.labels}
@@ -247,7 +246,7 @@ def failure_text(loops: dict[str, ClosedLoops]) -> str:
     return ", ".join(out)
 
 
-def _build(frame: Frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     ts, true = loop_series(frame)
     rm = mpc_arrays(frame)
     x_ref, x_max = rm.get("x_ref"), rm.get("x_max")
@@ -266,7 +265,7 @@ def _build(frame: Frame) -> go.Figure:
     )
 
 
-def _key(frame: Frame) -> tuple[int, tuple[int, ...], int]:
+def _key(frame: FrameView) -> tuple[int, tuple[int, ...], int]:
     return (frame.bits, tuple(id(frame.loops[lab]) for lab in frame.labels), id(frame.true_loop))
 
 
