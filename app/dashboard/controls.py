@@ -76,10 +76,10 @@ class Control:
     lo: float | None = None
     hi: float | None = None
     step: float | None = None
-    choices: tuple = ()
+    choices: tuple[str, ...] = ()
     hint: str | None = None
     folder: str | None = None
-    convert: Callable = str
+    convert: Callable[[Any], Any] = str
 
 
 _R = "Dither realizations"
