@@ -4,10 +4,16 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import TYPE_CHECKING
 
 from .output import dumps, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, config, executor, input_files, out_file, system_from_args, write_text
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from .runner import Reporter
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "format_bits"]
 
@@ -32,7 +38,7 @@ def _fraction(text: str) -> float:
     return v
 
 
-def add_arguments(p) -> None:
+def add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
     a = p.add_argument_group("the answer")
     a.add_argument(
@@ -59,14 +65,14 @@ def add_arguments(p) -> None:
     )
 
 
-def _check(args) -> None:
+def _check(args: argparse.Namespace) -> None:
     if not 0 < args.target <= 1:
         raise UsageError(f"argument --target: must be in (0, 1] (or 0%..100%); got {args.target:g}")
     if not 0 <= args.cost_gap <= 1e6:
         raise UsageError(f"argument --cost-gap: must be >= 0 (a relative gap, 0.01 = 1%); got {args.cost_gap:g}")
 
 
-def _pct(x) -> str:
+def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x + 0.0:.1f}%".replace("-0.0%", "0.0%")
 
 
@@ -115,7 +121,7 @@ def format_bits(d: dict) -> str:
         )
     widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
 
-    def fmt(cells):
+    def fmt(cells: Sequence[str]) -> str:
         return "  ".join(c.rjust(w) for c, w in zip(cells, widths))
 
     s = d["settings"]
@@ -131,15 +137,15 @@ def format_bits(d: dict) -> str:
     return "\n".join(lines)
 
 
-def _yn(v) -> str:
+def _yn(v: bool | None) -> str:
     return "-" if v is None else ("yes" if v else "no")
 
 
-def _b(v) -> str:
+def _b(v: int | None) -> str:
     return "none" if v is None else str(v)
 
 
-def run(args, rep) -> int:
+def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core import Experiment
     from qsid_core.bits import bits_needed
 

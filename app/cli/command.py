@@ -10,18 +10,25 @@ gives back an equal config (tested round trip).
 from __future__ import annotations
 
 import shlex
+from typing import TYPE_CHECKING
 
 from .parser import bits_spec, floats_spec, limits_spec
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+    from qsid_core.experiment import SweepConfig
+    from qsid_core.systems import LTISystem
 
 __all__ = ["sweep_argv", "sweep_command", "bits_command", "system_text"]
 
 
-def system_text(M) -> str:
+def system_text(M: Iterable[Iterable[float]]) -> str:
     """A matrix as the ``--A``/``--B`` text: rows separated by '; ', entries exact."""
     return "; ".join(" ".join(repr(float(v)) for v in row) for row in M)
 
 
-def _system_args(system, system_source: str | None) -> list:
+def _system_args(system: LTISystem, system_source: str | None) -> list[str]:
     from qsid_core.systems import PRESETS
 
     if system_source is not None:
@@ -31,19 +38,19 @@ def _system_args(system, system_source: str | None) -> list:
     return [f"--A={system_text(system.A)}", f"--B={system_text(system.B)}"]
 
 
-def _mpc_args(cfg, system) -> list:
+def _mpc_args(cfg: SweepConfig, system: LTISystem) -> list[str]:
     from qsid_core import MPCConfig
 
     m, d = cfg.mpc, MPCConfig()
     if m is None:
         return ["--no-mpc"]
-    out = []
+    out: list[str] = []
     if m.horizon != d.horizon:
         out.append(f"--horizon={m.horizon}")
     if m.steps != d.steps:
         out.append(f"--mpc-steps={m.steps}")
     if m.u_max != d.u_max:
-        out.append(f"--u-max={floats_spec(m.u_max)}")
+        out.append(f"--u-max={floats_spec(m.u_max if isinstance(m.u_max, tuple) else (m.u_max,))}")
     if m.reference is not None:
         if not isinstance(m.reference, str):
             raise ValueError(
@@ -75,15 +82,15 @@ def _mpc_args(cfg, system) -> list:
         ("--Q", m.Q),
         ("--R", m.R),
     ):
-        if v is not None:
-            out.append(f"{flag}={floats_spec(v)}")
+        if v is not None:  # MPCConfig's checks turn numbers into tuples
+            out.append(f"{flag}={floats_spec(v if isinstance(v, tuple) else (v,))}")
     unsupported = [k for k in ("eps", "max_iter") if getattr(m, k) != getattr(d, k)]
     if unsupported:
         raise ValueError(f"the command line has no flag for MPC setting(s) {', '.join(unsupported)}")
     return out
 
 
-def sweep_argv(cfg, system_source: str | None = None) -> list:
+def sweep_argv(cfg: SweepConfig, system_source: str | None = None) -> list[str]:
     """``qsid sweep`` arguments (after ``sweep``) that rebuild ``cfg``.
 
     Parameters
@@ -123,10 +130,13 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
     if cfg.input_bits is not None:
         ib = cfg.input_bits
         out.append(f"--input-bits={','.join(map(str, ib)) if isinstance(ib, tuple) else ib}")
-    if cfg.state_bits is not None:
-        out.append(f"--state-bits={','.join(map(str, cfg.state_bits))}")
-    if any(v > 0 for v in cfg.noise):
-        out.append(f"--noise={floats_spec(cfg.noise)}")
+    # SweepConfig's checks turn state_bits and noise into tuples
+    state_bits, noise = cfg.state_bits, cfg.noise
+    assert (state_bits is None or isinstance(state_bits, tuple)) and isinstance(noise, tuple)
+    if state_bits is not None:
+        out.append(f"--state-bits={','.join(map(str, state_bits))}")
+    if any(v > 0 for v in noise):
+        out.append(f"--noise={floats_spec(noise)}")
     if cfg.noise_known:
         out.append("--noise-known")
     out += _mpc_args(cfg, system)
@@ -137,12 +147,14 @@ def sweep_argv(cfg, system_source: str | None = None) -> list:
     return out
 
 
-def sweep_command(cfg, system_source: str | None = None) -> str:
+def sweep_command(cfg: SweepConfig, system_source: str | None = None) -> str:
     """The whole shell line ``qsid sweep ...`` (quoted for a POSIX shell)."""
     return shlex.join(["qsid", "sweep", *sweep_argv(cfg, system_source)])
 
 
-def bits_command(cfg, target: float = 0.95, cost_gap: float = 0.01, system_source: str | None = None) -> str:
+def bits_command(
+    cfg: SweepConfig, target: float = 0.95, cost_gap: float = 0.01, system_source: str | None = None
+) -> str:
     """The shell line ``qsid bits ...`` for ``cfg`` and the answer's thresholds (defaults left out)."""
     extra = ([] if target == 0.95 else [f"--target={target!r}"]) + (
         [] if cost_gap == 0.01 else [f"--cost-gap={cost_gap!r}"]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import TYPE_CHECKING
 
 from .output import dumps, g
 from .parser import (
@@ -20,6 +21,11 @@ from .parser import (
     pos_int,
 )
 from .runner import _quantizer, executor, input_files, out_file, resolve_system, write_text
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from .runner import Reporter
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -47,7 +53,7 @@ def _samples(text: str) -> tuple[int, ...]:
     return tuple(out)
 
 
-def add_arguments(p) -> None:
+def add_arguments(p: argparse.ArgumentParser) -> None:
     from qsid_core.datalength import DEFAULT_SAMPLES, DataLengthConfig
 
     d = DataLengthConfig()
@@ -128,7 +134,7 @@ def format_table(d: dict) -> str:
     ]
     widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
 
-    def fmt(cells):
+    def fmt(cells: Sequence[str]) -> str:
         return "  ".join(cell.rjust(w) for cell, w in zip(cells, widths))
 
     eps = d["eps"]
@@ -149,7 +155,7 @@ def format_table(d: dict) -> str:
     return "\n".join(lines)
 
 
-def run(args, rep) -> int:
+def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core.datalength import DataLengthConfig, run_datalength, runs_and_steps
 
     system = resolve_system(args.system)

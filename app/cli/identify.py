@@ -6,9 +6,15 @@ the numbers are :func:`qsid_core.recorded.identify_recorded`'s.
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
 from .output import dumps
 from .parser import _nonneg_int, add_quantizer_options, engine, pos_int
 from .runner import UsageError, _quantizer, out_file, resolve_system, write_text
+
+if TYPE_CHECKING:
+    from .runner import Reporter
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -20,7 +26,7 @@ DESCRIPTION = (
 )
 
 
-def add_arguments(p) -> None:
+def add_arguments(p: argparse.ArgumentParser) -> None:
     q0 = engine().quant
     g = p.add_argument_group("data")
     g.add_argument("--data", required=True, metavar="FILE", help="the recorded data, .npz or .csv")
@@ -74,7 +80,7 @@ def format_table(d: dict) -> str:
     return "\n".join(lines)
 
 
-def run(args, rep) -> int:
+def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core.recorded import identify_recorded, load_recorded
 
     rep.enabled = not args.quiet

@@ -9,11 +9,12 @@ a traceback. Warnings (e.g. an uncontrollable custom system) are one line
 
 from __future__ import annotations
 
+import argparse
 import signal
 import sys
 import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures.process import BrokenProcessPool
 
 from . import bits, datalength, identify, parser, reproduce, sweep, systems
@@ -32,7 +33,7 @@ COMMANDS = {
 }
 
 
-def build_parser(only: str | None = "*"):
+def build_parser(only: str | None = "*") -> argparse.ArgumentParser:
     """The ``qsid`` argument parser (errors raise :class:`~app.cli.parser.UsageError`); ``only``: see
     :func:`app.cli.parser.build_parser`."""
     return parser.build_parser(COMMANDS, only)
@@ -81,7 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(sig, handler)
 
 
-def _main(argv, rep: Reporter, fail) -> int:
+def _main(argv: Sequence[str] | None, rep: Reporter, fail: Callable[..., int]) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         warnings.showwarning = rep.warning

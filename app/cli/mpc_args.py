@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .parser import UsageError
+
+if TYPE_CHECKING:
+    from qsid_core import MPCConfig
+    from qsid_core.systems import LTISystem
 
 __all__ = ["mpc_config"]
 
 
-def _reference(text: str | None, system):
+def _reference(text: str | None, system: LTISystem) -> str | tuple[tuple[float, ...], ...] | None:
     """``--reference``: a text form (checked against the system's states) or the samples of a CSV file."""
     if text is None:
         return None
@@ -40,7 +46,7 @@ def _reference(text: str | None, system):
     return tuple(tuple(r) for r in data.tolist())
 
 
-def mpc_config(args, system):
+def mpc_config(args: argparse.Namespace, system: LTISystem) -> MPCConfig:
     """The engine's :class:`~qsid_core.MPCConfig` for parsed arguments (shapes checked before any work)."""
     from qsid_core import MPCConfig
 
@@ -52,6 +58,7 @@ def mpc_config(args, system):
     qf = getattr(args, "qf", None)
     if qf == "Q":  # the stage weight as the terminal weight
         Q = system.Q
+        assert Q is not None  # LTISystem fills Q in __post_init__
         if args.q_diag is None and abs(Q).sum() != abs(Q.diagonal()).sum():
             raise UsageError(f"argument --Qf: Q of system {system.name!r} is not diagonal; give Qf as numbers")
         qf = args.q_diag if args.q_diag is not None else tuple(float(x) for x in Q.diagonal())

@@ -5,7 +5,11 @@ from __future__ import annotations
 import enum
 import json
 import math
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from qsid_core.sweep import SweepResult
 
 __all__ = ["clean", "dumps", "g", "format_table", "sweep_dict", "assumptions_lines"]
 
@@ -29,7 +33,7 @@ def dumps(obj: Any, indent: int | None = 2) -> str:
     return json.dumps(clean(obj), indent=indent, allow_nan=False)
 
 
-def sweep_dict(res) -> dict:
+def sweep_dict(res: SweepResult) -> dict[str, Any]:
     """``res.to_dict()`` with the MPC's resolved settings (x0, x_ref, x_max, Q and R diagonals) in its config."""
     d = res.to_dict()
     mcfg = res.config.mpc
@@ -51,7 +55,8 @@ def sweep_dict(res) -> dict:
 
 def _bits_list(bits: list) -> str:
     """``[1, 2, 3, 5]`` -> ``"1..3, 5"``."""
-    out, run = [], []
+    out: list[str] = []
+    run: list[int] = []
     for b in bits:
         if run and b == run[-1] + 1:
             run.append(b)
@@ -125,7 +130,7 @@ def _flags(r: dict) -> str:
     return f"{t1}/{'yes' if a['bcls_holds'] else 'no'}"
 
 
-def g(v, fmt: str = ".3g", none: str = "-") -> str:
+def g(v: float | None, fmt: str = ".3g", none: str = "-") -> str:
     return none if v is None else format(v, fmt)
 
 
@@ -295,7 +300,7 @@ def format_table(d: dict) -> str:
     widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
     left = {1}
 
-    def fmt(cells):
+    def fmt(cells: Sequence[str]) -> str:
         return "  ".join(c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
 
     c = d["config"]

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Mapping
-from types import ModuleType
-from typing import Any
+from collections.abc import Callable, Iterable, Mapping
+from types import ModuleType, SimpleNamespace
+from typing import TYPE_CHECKING, Any, NoReturn
+
+if TYPE_CHECKING:
+    from qsid_core.experiment import SweepConfig
 
 __all__ = [
     "PROG",
@@ -30,7 +33,7 @@ __all__ = [
 PROG = "qsid"
 
 
-def engine():
+def engine() -> SimpleNamespace:
     """The engine's defaults and choices, imported on first use (``qsid --help`` never loads numpy).
 
     Returns a namespace with ``sweep`` (``SweepConfig(mpc=None)``), ``mpc`` (``MPCConfig()``), ``quant``
@@ -39,8 +42,6 @@ def engine():
     """
     global _ENGINE
     if _ENGINE is None:
-        from types import SimpleNamespace
-
         from qsid_core.experiment import SweepConfig
         from qsid_core.identify import ESTIMATORS
         from qsid_core.mpc import MPCConfig
@@ -58,7 +59,7 @@ def engine():
     return _ENGINE
 
 
-_ENGINE = None
+_ENGINE: SimpleNamespace | None = None
 
 
 class UsageError(Exception):
@@ -68,13 +69,13 @@ class UsageError(Exception):
 class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one line (raised, so ``main(argv)`` can return 2)."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         if message.endswith("expected one argument"):
             message += " (a value that starts with '-' needs '=', e.g. --limits=-20,20 or --x0=-1,0,0)"
         raise UsageError(message)
 
 
-def _int_type(name: str, lo: int):
+def _int_type(name: str, lo: int) -> Callable[[str], int]:
     def conv(text: str) -> int:
         try:
             v = int(text)
@@ -163,7 +164,7 @@ def _feedback_bits(text: str) -> int | None:
     return v
 
 
-def _qf_spec(text: str):
+def _qf_spec(text: str) -> str | tuple[float, ...] | None:
     """``dare`` (None: each model's DARE solution), ``Q`` (the stage weight) or a diagonal ``F1,F2,..``."""
     t = text.strip()
     if t.lower() == "dare":
@@ -181,7 +182,7 @@ def _qf_spec(text: str):
 def _limits(text: str) -> tuple[tuple[float, float], ...]:
     """``LO,HI`` (every channel) or ``LO,HI;LO,HI;...`` (one pair per channel: states, then inputs)."""
     what = "must be 'LO,HI' or 'LO,HI;LO,HI;...' (one pair per channel, states then inputs)"
-    pairs = []
+    pairs: list[tuple[float, float]] = []
     for part in text.split(";"):
         nums = part.split(",")
         if len(nums) != 2:
@@ -199,12 +200,12 @@ def _matrix_text(text: str) -> str:
     return text
 
 
-def limits_spec(pairs) -> str:
+def limits_spec(pairs: Iterable[tuple[float, float]]) -> str:
     """Fixed ranges as the ``--limits`` text (inverse of the parser's type)."""
     return ";".join(f"{lo!r},{hi!r}" for lo, hi in pairs)
 
 
-def floats_spec(values) -> str:
+def floats_spec(values: Iterable[float]) -> str:
     """Numbers as a comma list, exactly (``repr``), for the command a dashboard shows."""
     return ",".join(repr(float(v)) for v in values)
 
@@ -213,15 +214,15 @@ pos_int = _int_type("positive integer", 1)
 _nonneg_int = _int_type("non-negative integer", 0)
 
 
-def bits_spec(bits) -> str:
+def bits_spec(bits: Iterable[int]) -> str:
     """Word lengths as the ``--bits`` text (``(1, ..., 16)`` -> ``"1:16"``)."""
-    bits = list(bits)
-    if len(bits) > 1 and bits == list(range(bits[0], bits[-1] + 1)):
-        return f"{bits[0]}:{bits[-1]}"
-    return ",".join(map(str, bits))
+    b = list(bits)
+    if len(b) > 1 and b == list(range(b[0], b[-1] + 1)):
+        return f"{b[0]}:{b[-1]}"
+    return ",".join(map(str, b))
 
 
-def _g(v) -> str:
+def _g(v: float) -> str:
     return format(v, "g")
 
 
@@ -229,7 +230,7 @@ def _onoff(v: bool) -> str:
     return "on" if v else "off"
 
 
-def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -> None:
+def add_data_options(p: argparse.ArgumentParser, base: SweepConfig | None = None, seed: bool = True) -> None:
     """System, data and quantizer options; defaults from ``base`` (a SweepConfig; default the engine's)."""
     e = engine()
     base = e.sweep if base is None else base
@@ -322,7 +323,7 @@ def add_data_options(p: argparse.ArgumentParser, base=None, seed: bool = True) -
     )
 
 
-def add_run_options(p: argparse.ArgumentParser, base=None) -> None:
+def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None) -> None:
     """Options shared by ``sweep`` and ``reproduce`` (defaults from ``base``: the engine's or the letter's)."""
     e = engine()
     base = e.sweep if base is None else base

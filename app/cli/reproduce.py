@@ -10,15 +10,28 @@ only lays out and writes figures (the builders are :mod:`app.figures`).
 
 from __future__ import annotations
 
+import argparse
 import html
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from .figure_out import check_formats, save_panels
 from .output import dumps, format_table, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, check_writable, config, input_files, system_from_args, write_text
 from .runner import run as run_sweep
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import plotly.graph_objects as go
+    from numpy.typing import NDArray
+
+    from qsid_core.experiment import Experiment, SweepConfig
+    from qsid_core.systems import LTISystem
+
+    from .runner import Reporter
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "PORTRAIT_BITS"]
 
@@ -52,7 +65,7 @@ body {{ font-family: system-ui, sans-serif; margin: 1em 2em; color: #222; }}
 """
 
 
-def add_arguments(p) -> None:
+def add_arguments(p: argparse.ArgumentParser) -> None:
     from qsid_core.experiment import SweepConfig
 
     add_run_options(p, base=SweepConfig.letter())  # defaults: the letter's settings (no guard band)
@@ -72,7 +85,7 @@ def add_arguments(p) -> None:
     )
 
 
-def letter_note(cfg, system) -> str:
+def letter_note(cfg: SweepConfig, system: LTISystem) -> str:
     """One stderr line: the letter's settings this run keeps, and what the options changed."""
     from qsid_core.experiment import SweepConfig
 
@@ -85,7 +98,7 @@ def letter_note(cfg, system) -> str:
         f"{'a' if lq.guard else 'no'} guard band, {letter.estimator.upper()}"
     )
     changed = []
-    for name, a, b in (
+    settings: tuple[tuple[str, Any, Any], ...] = (
         ("bits", cfg.bits, letter.bits),
         ("realizations", cfg.realizations, letter.realizations),
         ("trajectories", cfg.trajectories, letter.trajectories),
@@ -95,7 +108,8 @@ def letter_note(cfg, system) -> str:
         ("range", q.range_mode, lq.range_mode),
         ("guard", q.guard, lq.guard),
         ("estimator", cfg.estimator, letter.estimator),
-    ):
+    )
+    for name, a, b in settings:
         if a != b:
             shown = bits_text(a) if name == "bits" else ("on" if a else "off") if name == "guard" else a
             changed.append(f"{name} {shown}")
@@ -104,7 +118,7 @@ def letter_note(cfg, system) -> str:
     )
 
 
-def _split_error_panel(fig, col: int):
+def _split_error_panel(fig: go.Figure, col: int) -> go.Figure:
     """One panel (col 1: A, col 2: B) of :func:`app.figures.error_figure` as its own figure."""
     import plotly.graph_objects as go
 
@@ -129,7 +143,7 @@ def portrait_dims(n: int) -> tuple:
     return tuple(i if i < n else None for i in range(3))
 
 
-def _portrait_title(tag: str, system, b: int, R: int) -> str:
+def _portrait_title(tag: str, system: LTISystem, b: int, R: int) -> str:
     which = ""
     if system.n == 2:
         which = "; time (step k) on the third axis"
@@ -165,12 +179,15 @@ def _curve_panels(d: dict, label: str, R: int) -> list:
     ]
 
 
-def _portrait_panels(ex, system, label: str, R: int) -> tuple[list, dict, object]:
+def _portrait_panels(
+    ex: Experiment, system: LTISystem, label: str, R: int
+) -> tuple[list[tuple[str, str, go.Figure]], dict[str, dict[str, Any]], NDArray[Any]]:
     """Panels (d)-(f), the portraits' data for data.json, and the true-model states."""
     from app.figures import phase_portrait_figure
 
     true_states = ex.true_model_loop().states[0]
-    panels, portraits = [], {}
+    panels: list[tuple[str, str, go.Figure]] = []
+    portraits: dict[str, dict[str, Any]] = {}
     for tag, b in zip("def", PORTRAIT_BITS):
         loops = ex.closed_loops(b)
         fig = phase_portrait_figure(
@@ -192,7 +209,7 @@ def _portrait_panels(ex, system, label: str, R: int) -> tuple[list, dict, object
     return panels, portraits, true_states
 
 
-def _index_html(d: dict, system, panels: list) -> str:
+def _index_html(d: dict[str, Any], system: LTISystem, panels: list[tuple[str, str, go.Figure]]) -> str:
     import plotly.graph_objects as go
     import plotly.io as pio
 
@@ -224,7 +241,7 @@ def _index_html(d: dict, system, panels: list) -> str:
     )
 
 
-def _out_dir(text: str, force: bool, inputs=()) -> Path:
+def _out_dir(text: str, force: bool, inputs: Sequence[Path] = ()) -> Path:
     if not text.strip():
         raise UsageError(f"argument --out: give a directory name; got {text!r}")
     outdir = Path(text)
@@ -246,7 +263,7 @@ def _out_dir(text: str, force: bool, inputs=()) -> Path:
     return outdir
 
 
-def run(args, rep) -> int:
+def run(args: argparse.Namespace, rep: Reporter) -> int:
     from plotly.offline import get_plotlyjs
 
     system = system_from_args(args)

@@ -6,6 +6,7 @@ Commands import this module (and :mod:`app.cli.output`), never each other.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import shutil
@@ -13,15 +14,21 @@ import signal
 import sys
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, Any, Protocol, TextIO
 
 from app.procs import end_with_parent, kill_workers
 
 from .mpc_args import mpc_config
 from .parser import PROG, UsageError
+
+if TYPE_CHECKING:
+    from qsid_core import QuantizerSpec
+    from qsid_core.experiment import Experiment, SweepConfig
+    from qsid_core.sweep import SweepResult
+    from qsid_core.systems import LTISystem
 
 __all__ = [
     "UsageError",
@@ -40,6 +47,19 @@ __all__ = [
 ]
 
 
+class Channels(Protocol):
+    """What :func:`_quantizer` reads of a system: its name and channel counts."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def n(self) -> int: ...
+
+    @property
+    def m(self) -> int: ...
+
+
 def one_line(text: object) -> str:
     return " ".join(str(text).split())
 
@@ -54,8 +74,8 @@ class Reporter:
             self.tty = bool(self.stream.isatty())
         except (AttributeError, ValueError):
             self.tty = False
-        self._bar = None  # the running stage's bar (terminal only)
-        self._seen: set = set()
+        self._bar: Any = None  # the running stage's tqdm bar (terminal only; tqdm is untyped)
+        self._seen: set[tuple[type[Warning], str]] = set()
         self._last = time.monotonic()
         self.after_stage: dict[str, str] = {}  # stage -> line to announce once it is complete
 
@@ -102,7 +122,15 @@ class Reporter:
         if done >= total and stage in self.after_stage:
             self.line(self.after_stage.pop(stage))
 
-    def warning(self, message, category, filename, lineno, file=None, line=None) -> None:
+    def warning(
+        self,
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
         """A ``warnings.showwarning`` replacement: one line, each message once."""
         text = one_line(message)
         key = (category, text)
@@ -123,7 +151,7 @@ def _worker_init(parent: int | None = None) -> None:
         end_with_parent(parent)
 
 
-def resolve_system(spec: str):
+def resolve_system(spec: str) -> LTISystem:
     """A preset name or a system file (``--system``); every bad file is one :class:`UsageError` line."""
     from qsid_core.systems import get_system
 
@@ -135,7 +163,7 @@ def resolve_system(spec: str):
     return get_system(spec)  # a bad file is a SystemDefinitionError (a ValueError: one line from main)
 
 
-def system_from_args(args):
+def system_from_args(args: argparse.Namespace) -> LTISystem:
     """The true system: ``--A``/``--B`` typed inline (a custom system), else ``--system``."""
     a_text, b_text = getattr(args, "a_text", None), getattr(args, "b_text", None)
     if a_text is None and b_text is None:
@@ -148,7 +176,7 @@ def system_from_args(args):
     return LTISystem("custom", A, B, description="typed on the command line")
 
 
-def _quantizer(args, system):
+def _quantizer(args: argparse.Namespace, system: Channels) -> QuantizerSpec:
     from qsid_core import QuantizerSpec
 
     fixed = args.limits
@@ -170,7 +198,7 @@ def _quantizer(args, system):
     )
 
 
-def config(args, system, mpc: bool):
+def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfig:
     """The engine's :class:`~qsid_core.SweepConfig` for parsed arguments (shapes checked before any work)."""
     from qsid_core import SweepConfig, parse_bits
     from qsid_core.validate import MAX_MAGNITUDE
@@ -180,11 +208,11 @@ def config(args, system, mpc: bool):
         raise UsageError(f"argument --rho: must be > 0 and at most {MAX_MAGNITUDE:g}; got {args.rho:g}")
     defaults = SweepConfig(mpc=None)
     seed = getattr(args, "seed", None)
-    seeds = {
+    seeds: dict[str, Any] = {
         "data_seed": next(v for v in (args.data_seed, seed, defaults.data_seed) if v is not None),
         "dither_seed": next(v for v in (args.dither_seed, seed, defaults.dither_seed) if v is not None),
     }
-    extra = {}
+    extra: dict[str, Any] = {}
     if getattr(args, "input_bits", None) is not None:
         extra["input_bits"] = args.input_bits
     if getattr(args, "state_bits", None) is not None:
@@ -212,18 +240,20 @@ def config(args, system, mpc: bool):
     return cfg
 
 
-def check_channels(cfg, system) -> None:
+def check_channels(cfg: SweepConfig, system: LTISystem) -> None:
     """Per-channel settings against the system's shape (one line, before any work)."""
     from qsid_core.quantize import channel_bits
 
-    channel_bits(cfg.bits[0], system.n, system.m, cfg.input_bits, cfg.state_bits)
-    if len(cfg.noise) not in (1, system.n):
-        raise UsageError(
-            f"argument --noise: give 1 or {system.n} values for system {system.name!r}; got {len(cfg.noise)}"
-        )
+    # SweepConfig types these as object; its checks make them None, a bit count or tuples
+    input_bits: Any = cfg.input_bits
+    state_bits: Any = cfg.state_bits
+    noise: Any = cfg.noise
+    channel_bits(cfg.bits[0], system.n, system.m, input_bits, state_bits)
+    if len(noise) not in (1, system.n):
+        raise UsageError(f"argument --noise: give 1 or {system.n} values for system {system.name!r}; got {len(noise)}")
 
 
-def workers(args, rep: Reporter) -> int:
+def workers(args: argparse.Namespace, rep: Reporter) -> int:
     """``--workers``, capped at the machine's CPU count (said on stderr when it is)."""
     cpus = os.cpu_count() or 1
     if args.workers > cpus:
@@ -243,7 +273,7 @@ def _executor(workers: int, threads: int = 1) -> Executor:
 
 
 @contextlib.contextmanager
-def executor(args, rep: Reporter):
+def executor(args: argparse.Namespace, rep: Reporter) -> Iterator[tuple[Executor, int]]:
     """The executor of a run and its task count: ``--dask`` (a dask.distributed cluster), else ``--workers``."""
     spec = getattr(args, "dask", None)
     if spec is not None:
@@ -257,14 +287,14 @@ def executor(args, rep: Reporter):
         return
     nw = workers(args, rep)
     threads = 1 if nw > 1 else min(getattr(args, "threads", 1), os.cpu_count() or 1)
-    pool = _executor(nw, threads)
+    local = _executor(nw, threads)
     try:
-        yield pool, max(nw, threads)
+        yield local, max(nw, threads)
     except BaseException:  # interrupted or failed: running tasks are not waited for
-        kill_workers(pool)
+        kill_workers(local)
         raise
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        local.shutdown(wait=True, cancel_futures=True)
 
 
 def _plural(k: int, word: str) -> str:
@@ -272,13 +302,20 @@ def _plural(k: int, word: str) -> str:
 
 
 def bits_text(bits: Sequence[int]) -> str:
-    bits = list(bits)
-    if len(bits) > 2 and bits == list(range(bits[0], bits[-1] + 1)):
-        return f"{bits[0]}..{bits[-1]}"
-    return ",".join(map(str, bits))
+    b = list(bits)
+    if len(b) > 2 and b == list(range(b[0], b[-1] + 1)):
+        return f"{b[0]}..{b[-1]}"
+    return ",".join(map(str, b))
 
 
-def run(args, system, mpc: bool, rep: Reporter, extra_bits: Sequence[int] = (), cfg=None):
+def run(
+    args: argparse.Namespace,
+    system: LTISystem,
+    mpc: bool,
+    rep: Reporter,
+    extra_bits: Sequence[int] = (),
+    cfg: SweepConfig | None = None,
+) -> tuple[SweepResult, Experiment]:
     """Run the sweep (and the closed loops at ``extra_bits``); returns (SweepResult, Experiment).
 
     ``cfg`` (e.g. from :func:`config_from_file`) replaces the settings built from ``args``.
@@ -320,7 +357,7 @@ def check_writable(directory: Path, flag: str = "--out") -> None:
         raise UsageError(f"argument {flag}: cannot write into {str(directory)!r} (permission denied)")
 
 
-def input_files(args) -> list:
+def input_files(args: argparse.Namespace) -> list[Path]:
     """Files the run reads (an ``--out`` must never be one of them)."""
     p = Path(args.system)
     return [p] if getattr(args, "a_text", None) is None and p.is_file() else []
@@ -333,7 +370,7 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
-def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs=()) -> Path | None:
+def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs: Sequence[str | Path] = ()) -> Path | None:
     """Check an output file before any work: a name, not a directory, not an input, writable.
 
     An existing file is replaced, and that is said on stderr (before the run).

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from .runner import UsageError, check_channels, one_line
+
+if TYPE_CHECKING:
+    from qsid_core.experiment import SweepConfig
 
 __all__ = ["config_from_file"]
 
@@ -41,7 +46,7 @@ _MPC_FLAGS = {
 }
 
 
-def config_from_file(args, defaults, mpc: bool):
+def config_from_file(args: argparse.Namespace, defaults: argparse.Namespace, mpc: bool) -> SweepConfig:
     """The SweepConfig of ``--config FILE`` (JSON result or TOML), with flags that differ from ``defaults``.
 
     ``defaults`` is the parsed namespace of the bare command. ``--dither``, ``--range``, ``--limits`` and
@@ -71,7 +76,7 @@ def config_from_file(args, defaults, mpc: bool):
             f"({one_line(exc)})"
         ) from None
     cfg = SweepConfig.from_dict(data)
-    changes = {}
+    changes: dict[str, Any] = {}
     for flag, fieldname in _OVERRIDES.items():
         v = getattr(args, flag, None)
         if v != getattr(defaults, flag, None):

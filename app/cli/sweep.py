@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING
+
 from .figure_out import add_figure_arguments, check_figure, write_figure
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
 from .runner import UsageError, input_files, out_file, system_from_args, write_text
 from .runner import run as run_sweep
+
+if TYPE_CHECKING:
+    from .runner import Reporter
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -17,7 +23,7 @@ DESCRIPTION = (
 )
 
 
-def add_arguments(p) -> None:
+def add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
     p.add_argument(
         "--config",
@@ -45,7 +51,7 @@ def add_arguments(p) -> None:
     add_figure_arguments(p)
 
 
-def run(args, rep) -> int:
+def run(args: argparse.Namespace, rep: Reporter) -> int:
     cfg = None
     inputs = input_files(args)
     if args.config is not None:

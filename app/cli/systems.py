@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import TYPE_CHECKING, Any
+
 from .output import dumps
+
+if TYPE_CHECKING:
+    from .runner import Reporter
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
 
@@ -10,14 +16,14 @@ HELP = "list the preset systems"
 DESCRIPTION = "List the preset systems (name, states n, inputs m, description)."
 
 
-def add_arguments(p) -> None:
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
 
-def run(args, rep) -> int:
+def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core.systems import PRESETS
 
-    items = []
+    items: list[dict[str, Any]] = []
     for name, make in PRESETS.items():
         s = make()
         items.append(

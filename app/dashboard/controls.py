@@ -10,8 +10,9 @@ and redraws. Choices and ranges come from the engine (via
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +21,9 @@ from qsid_core.quantize import DITHERS, RANGE_MODES
 from qsid_core.systems import LTISystem
 
 from .flow import inline
+
+if TYPE_CHECKING:
+    import viser
 from .lessons import NONE, lesson_markdown, lesson_names, lesson_values
 from .settings import (
     ALL_BITS,
@@ -72,10 +76,10 @@ class Control:
     lo: float | None = None
     hi: float | None = None
     step: float | None = None
-    choices: tuple = ()
+    choices: tuple[str, ...] = ()
     hint: str | None = None
     folder: str | None = None
-    convert: Callable = str
+    convert: Callable[[Any], Any] = str
 
 
 _R = "Dither realizations"
@@ -403,34 +407,36 @@ class GuiElements:
     ``r_sliders`` are the log10 weight sliders (rebuilt when the system changes).
     """
 
-    gui: object
-    inputs: dict
-    progress: object
-    status: object
-    error: object
-    summary: object
-    system_note: object
-    weights_note: object
-    lesson_text: object
-    play: object
-    q_folder: object
-    r_folder: object
+    gui: viser.GuiApi
+    inputs: dict[str, Any]  # handles of several kinds (slider, dropdown, text, ...)
+    # viser's stubs make a progress bar's ``value`` read-only (its setter is not next to its getter)
+    progress: Any
+    status: viser.GuiMarkdownHandle
+    error: viser.GuiMarkdownHandle
+    summary: viser.GuiMarkdownHandle
+    system_note: viser.GuiMarkdownHandle
+    weights_note: viser.GuiMarkdownHandle
+    lesson_text: viser.GuiMarkdownHandle
+    play: viser.GuiButtonHandle
+    q_folder: viser.GuiFolderHandle
+    r_folder: viser.GuiFolderHandle
     on_change: Callable[..., None]
-    q_sliders: list = field(default_factory=list)
-    r_sliders: list = field(default_factory=list)
-    system_key: tuple | None = None
+    q_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
+    r_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
+    system_key: tuple[Any, ...] | None = None
 
-    def __getitem__(self, name: str):
+    def __getitem__(self, name: str) -> Any:
         return self.inputs[name]
 
 
-def _initial(c: Control, v: Values, system: LTISystem):
+def _initial(c: Control, v: Values, system: LTISystem) -> Any:
     """The first value of control ``c`` (empty texts show the system's matrices and x0)."""
     if c.name == "a_text":
         return v.a_text or matrix_text(system.A)
     if c.name == "b_text":
         return v.b_text or matrix_text(system.B)
     if c.name == "x0":
+        assert system.x0 is not None  # LTISystem fills x0 in __post_init__
         return v.x0 or ", ".join(f"{x:g}" for x in system.x0)
     if c.name == "axes":
         opts = axes_options(system.state_names)
@@ -438,24 +444,24 @@ def _initial(c: Control, v: Values, system: LTISystem):
     return c.convert(getattr(v, c.name))
 
 
-def _add(gui, c: Control, value, system: LTISystem, custom: bool):
+def _add(gui: viser.GuiApi, c: Control, value: Any, system: LTISystem, custom: bool) -> Any:
     """The viser handle of control ``c`` (kind-specific arguments; visibility and locks set here)."""
-    kw = {} if c.hint is None else {"hint": c.hint}
     if c.kind == "slider":
-        return gui.add_slider(c.label, c.lo, c.hi, c.step, value, **kw)
+        assert c.lo is not None and c.hi is not None and c.step is not None  # every slider has a range and step
+        return gui.add_slider(c.label, c.lo, c.hi, c.step, value, hint=c.hint)
     if c.kind == "number":
-        return gui.add_number(c.label, value, min=c.lo, step=c.step, **kw)
+        return gui.add_number(c.label, value, min=c.lo, step=c.step, hint=c.hint)
     if c.kind == "checkbox":
-        return gui.add_checkbox(c.label, value, **kw)
+        return gui.add_checkbox(c.label, value, hint=c.hint)
     if c.kind == "dropdown":
-        choices = c.choices or tuple(axes_options(system.state_names))
-        return gui.add_dropdown(c.label, choices, initial_value=value, **kw)
+        choices: tuple[str, ...] = c.choices or tuple(axes_options(system.state_names))
+        return gui.add_dropdown(c.label, choices, initial_value=value, hint=c.hint)
     if c.name in ("a_text", "b_text"):
-        return gui.add_text(c.label, value, multiline=True, disabled=not custom, **kw)
-    return gui.add_text(c.label, value, **kw)
+        return gui.add_text(c.label, value, multiline=True, disabled=not custom, hint=c.hint)
+    return gui.add_text(c.label, value, hint=c.hint)
 
 
-def _extras_after(gui, name: str, values: Values, handles: dict, extra: dict) -> None:
+def _extras_after(gui: viser.GuiApi, name: str, values: Values, handles: dict[str, Any], extra: dict[str, Any]) -> None:
     """The panel's non-input parts (notes, weight folders, scale buttons), placed after control ``name``."""
     if name == "b_text":
         extra["system_note"] = gui.add_markdown(_system_note(values.system))
@@ -482,7 +488,9 @@ def _extras_after(gui, name: str, values: Values, handles: dict, extra: dict) ->
         extra["weights_note"] = gui.add_markdown("")
 
 
-def make_gui_elements(gui, values: Values, system: LTISystem, on_change: Callable[..., None]) -> GuiElements:
+def make_gui_elements(
+    gui: viser.GuiApi, values: Values, system: LTISystem, on_change: Callable[..., None]
+) -> GuiElements:
     """Build the whole panel of a tab in ``gui`` (``client.gui``); every input calls ``on_change(user)``,
     ``user`` True when the change came from the browser."""
     gui.add_markdown("**qsid** · quantized data → identified model → MPC")
@@ -542,7 +550,9 @@ def set_scale(handles: dict, scale: dict) -> None:
         handles[name].value = scale[name]
 
 
-def _weight_sliders(el: GuiElements, folder, kind: str, names, logs) -> list:
+def _weight_sliders(
+    el: GuiElements, folder: viser.GuiFolderHandle, kind: str, names: Iterable[str], logs: Iterable[float]
+) -> list[viser.GuiSliderHandle[float]]:
     with folder:
         sliders = [
             el.gui.add_slider(
@@ -560,7 +570,9 @@ def _weight_sliders(el: GuiElements, folder, kind: str, names, logs) -> list:
     return sliders
 
 
-def set_system(el: GuiElements, system: LTISystem, log_q=(), log_r=(), reset: bool = True) -> bool:
+def set_system(
+    el: GuiElements, system: LTISystem, log_q: Sequence[float] = (), log_r: Sequence[float] = (), reset: bool = True
+) -> bool:
     """Adapt the inputs to ``system``: A/B boxes, Q/R sliders, x0, 3-D axes. True if anything changed.
 
     Called by the tab's worker; the value changes it makes mark the tab dirty like
@@ -579,6 +591,7 @@ def set_system(el: GuiElements, system: LTISystem, log_q=(), log_r=(), reset: bo
     if not custom:
         h["a_text"].value = matrix_text(system.A)
         h["b_text"].value = matrix_text(system.B)
+    assert system.Q is not None and system.R is not None and system.x0 is not None  # filled in __post_init__
     lq = tuple(log_q) if len(log_q) == system.n else log_from_weights(np.diag(system.Q))
     lr = tuple(log_r) if len(log_r) == system.m else log_from_weights(np.diag(system.R))
     for s in el.q_sliders + el.r_sliders:
@@ -600,7 +613,7 @@ def show_weights(el: GuiElements) -> None:
     el.weights_note.content = f"{format_weights('Q', q)}, {format_weights('R', r)}"
 
 
-def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
+def apply_lesson(el: GuiElements, name: str, resolve: Callable[[Values], LTISystem]) -> bool:
     """Set the panel to lesson ``name`` (system first, then every other input) and show its text.
 
     ``resolve(values) -> LTISystem`` builds the lesson's system. Returns True if inputs were set
@@ -616,10 +629,11 @@ def apply_lesson(el: GuiElements, name: str, resolve) -> bool:
     h["system"].value = v.system
     system = resolve(v)
     set_system(el, system, reset=True)
+    assert system.Q is not None and system.R is not None and system.x0 is not None  # filled in __post_init__
     for s, x in zip(
         el.q_sliders + el.r_sliders, log_from_weights(np.diag(system.Q)) + log_from_weights(np.diag(system.R))
     ):
-        s.value = x
+        s.value = x  # type: ignore[misc]  # viser's ``value`` setter is not seen (not next to its getter)
     for c in CONTROLS:
         if c.name in ("lesson", "system", "a_text", "b_text", "axes", "presenter"):  # presenter: the room's choice
             continue

@@ -8,12 +8,16 @@ arranges them for the views (:mod:`app.figures`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, MutableMapping
+from collections.abc import Iterable, Mapping, MutableMapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
+from qsid_core.datalength import DataLengthResult
 from qsid_core.experiment import Experiment
+from qsid_core.stage_results import BitsIdentification, ClosedLoops, TheoryAtBits
 from qsid_core.sweep import summary_row
 from qsid_core.systems import LTISystem
 
@@ -21,16 +25,21 @@ from .settings import LABELS, Values, estimators, mpc_config, resolve_system, sw
 
 __all__ = ["Frame", "Job", "start", "fill_rows", "row"]
 
+#: Summary rows per estimator label and word length: ``{label: {b: row dict}}``.
+Rows = dict[str, dict[int, dict[str, Any]]]
 
-def row(r) -> dict:
+
+def row(r: Any) -> dict[str, Any]:
     """One engine summary row as the JSON-ready dict the views read (``to_dict()`` of a typed row)."""
     return r.to_dict() if hasattr(r, "to_dict") else dict(r)
 
 
-def full_row(ex: Experiment, est: str, b: int, lp) -> dict:
+def full_row(ex: Experiment, est: str, b: int, lp: ClosedLoops) -> dict[str, Any]:
     """The engine's complete row at ``b`` (closed loops ``lp``, the a-posteriori bound, the assumptions,
     the saturated steps), as the dict the views read."""
-    u_max = ex.config.mpc.resolve(ex.system).u_max
+    mpc = ex.config.mpc
+    assert mpc is not None, "the dashboard's experiments always have an MPC"
+    u_max = mpc.resolve(ex.system).u_max
     return row(
         summary_row(
             ex.system.n,
@@ -86,27 +95,27 @@ class Frame:
     values: Values
     system: LTISystem
     bits: int
-    labels: tuple
-    rows: dict
+    labels: tuple[str, ...]
+    rows: Rows
     done: int
     total: int
-    loops: dict
-    true_loop: object
-    theory: object
-    idents: dict
-    x0: np.ndarray
-    notes: tuple = ()
+    loops: dict[str, ClosedLoops]
+    true_loop: ClosedLoops | None
+    theory: TheoryAtBits
+    idents: dict[str, BitsIdentification]
+    x0: NDArray[np.float64]
+    notes: tuple[str, ...] = ()
     elapsed: float = 0.0
-    timings: dict = field(default_factory=dict)
-    ex: object = None
-    pinned: object = None
-    datalength: object = None
+    timings: dict[str, float] = field(default_factory=dict)
+    ex: Experiment | None = None
+    pinned: Frame | None = None
+    datalength: DataLengthResult | None = None
 
     @property
     def complete(self) -> bool:
         return self.done >= self.total
 
-    def series(self) -> dict:
+    def series(self) -> dict[str, list[dict[str, Any]]]:
         """``{label: [rows sorted by b]}`` for :mod:`app.figures`."""
         return {lab: [r[b] for b in sorted(r)] for lab, r in self.rows.items()}
 
@@ -123,17 +132,17 @@ class Job:
     """One computation for a tab: the engine experiment and what the frames share."""
 
     ex: Experiment
-    estimators: tuple
+    estimators: tuple[str, ...]
     bits: int
-    all_bits: tuple
-    common: dict  # Frame fields that stay fixed while the curves fill
+    all_bits: tuple[int, ...]
+    common: dict[str, Any]  # Frame fields that stay fixed while the curves fill
 
     @property
     def n(self) -> int:
         return self.common["system"].n
 
 
-def start(values: Values, cache: MutableMapping | None, executor, tasks: int) -> tuple[Job, dict]:
+def start(values: Values, cache: MutableMapping[Any, Any] | None, executor: Any, tasks: int) -> tuple[Job, Rows]:
     """Resolve ``values`` and compute the current b in full; returns the job and its rows {label: {b: row}}.
 
     Raises
@@ -168,7 +177,9 @@ def start(values: Values, cache: MutableMapping | None, executor, tasks: int) ->
     return Job(ex, ests, b, cfg.bits, common), rows
 
 
-def fill_rows(job: Job, rows: dict, est: str, bits, loops: Mapping | None = None) -> None:
+def fill_rows(
+    job: Job, rows: Rows, est: str, bits: Iterable[int], loops: Mapping[int, ClosedLoops] | None = None
+) -> None:
     """Add the summary rows of ``est`` at ``bits`` to ``rows`` (closed loops from ``loops`` or computed here)."""
     ex = job.ex
     for x in bits:
@@ -176,7 +187,7 @@ def fill_rows(job: Job, rows: dict, est: str, bits, loops: Mapping | None = None
         rows[LABELS[est]][x] = full_row(ex, est, x, lp)
 
 
-def make_frame(job: Job, stage: str, rows: dict, done: int, elapsed: float, timings: dict) -> Frame:
+def make_frame(job: Job, stage: str, rows: Rows, done: int, elapsed: float, timings: dict[str, float]) -> Frame:
     """A frame with a copy of ``rows`` (the caller keeps filling its own)."""
     return Frame(
         stage,

@@ -11,11 +11,18 @@ from __future__ import annotations
 
 import math
 import numbers
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .controls import CONTROLS, Control
 from .settings import LOG_MAX, LOG_MIN, InputError
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from .controls import GuiElements
+    from .frames import Frame
 
 __all__ = ["check_panel", "check_value", "unusable", "MAX_TEXT", "MAX_NESTING", "NUMBER_MAX"]
 
@@ -27,7 +34,7 @@ MAX_NESTING = 4
 NUMBER_MAX = {"dither_seed": 2**32 - 1, "data_seed": 2**32 - 1, "rho": 1e6}
 
 
-def _number(c_label: str, value, integer: bool) -> float:
+def _number(c_label: str, value: object, integer: bool) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise InputError(f"{c_label}: expected a number, got {type(value).__name__}")
     try:
@@ -52,10 +59,11 @@ def _nesting(text: str) -> int:
     return deepest
 
 
-def check_value(c: Control, value, options=None) -> None:
+def check_value(c: Control, value: Any, options: Sequence[str] | None = None) -> None:
     """Raise :class:`InputError` unless ``value`` is allowed for control ``c`` (``options``: a dropdown's now)."""
     lab = c.label
     if c.kind == "slider":
+        assert c.lo is not None and c.hi is not None  # every slider has a range
         x = _number(lab, value, c.convert is int)
         if not c.lo - 1e-9 <= x <= c.hi + 1e-9:
             raise InputError(f"{lab}: {value:g} is outside the slider's range {c.lo:g} … {c.hi:g}")
@@ -84,7 +92,7 @@ def check_value(c: Control, value, options=None) -> None:
             )
 
 
-def check_panel(el) -> None:
+def check_panel(el: GuiElements) -> None:
     """Check every input of one tab's panel (``GuiElements``) as it is now.
 
     Raises
@@ -105,7 +113,7 @@ def check_panel(el) -> None:
                 )
 
 
-def unusable(frame) -> str | None:
+def unusable(frame: Frame) -> str | None:
     """Why a "current" frame must not be shown as a result (every identification failed, ε not finite), or None."""
     if frame.stage != "current":
         return None

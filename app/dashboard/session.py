@@ -330,8 +330,9 @@ class Session:
                     frame = next(frames, None)
                 if frame is None or self._stale(gen):
                     return gen
-                if unusable(frame):  # all identifications failed, eps not finite: never 'ready'
-                    self._show_error(unusable(frame))
+                why = unusable(frame)
+                if why:  # all identifications failed, eps not finite: never 'ready'
+                    self._show_error(why)
                     return gen
                 if not self._draw(frame, gen):
                     return gen

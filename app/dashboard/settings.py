@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -51,6 +53,10 @@ __all__ = [
 
 _SWEEP = SweepConfig(mpc=None)  # the engine's defaults (no system is built: "dc-motor" stays a name)
 _MPC = MPCConfig()
+# MPCConfig() holds one input bound per input (a tuple after its checks) and a verification horizon.
+assert isinstance(_MPC.u_max, tuple) and _MPC.verify_steps is not None
+_U_MAX: float = _MPC.u_max[0]
+_VERIFY_STEPS: int = _MPC.verify_steps
 _QUANT = QuantizerSpec()
 
 #: Word lengths every curve is drawn over (the engine's default sweep).
@@ -109,7 +115,7 @@ class Values:
     horizon: int = _MPC.horizon
     log_q: tuple = ()
     log_r: tuple = ()
-    u_max: float = _MPC.u_max[0]
+    u_max: float = _U_MAX
     x0: str = ""
     mpc_steps: int = _MPC.steps
     theta: float = _SWEEP.theta
@@ -131,7 +137,7 @@ class Values:
     feedback_bits: int = 0  # the MPC measures the state through this many bits per state (0 = exact)
     feedback_noise: float = 0.0  # sensor noise on that measurement (standard deviation)
     loop_seed: int = 0  # seed of the loop's disturbance, feedback dither and sensor noise
-    verify_steps: int = _MPC.verify_steps  # extra closed-loop steps allowed to judge each loop
+    verify_steps: int = _VERIFY_STEPS  # extra closed-loop steps allowed to judge each loop
     target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
     cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
     input_bits: str = "same"  # inputs' word length: "same" (= b), "exact", one number, or one per input
@@ -140,7 +146,7 @@ class Values:
     noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
     presenter: bool = False  # lecture-hall layout: large text, thick lines, a wide 3-D scene (display only)
 
-    def replace(self, **kw) -> Values:
+    def replace(self, **kw: Any) -> Values:
         return dataclasses.replace(self, **kw)
 
     def same_results(self, other: Values) -> bool:
@@ -165,12 +171,15 @@ def matrix_text(M: np.ndarray) -> str:
     return "\n".join(" ".join(_fmt(float(v)) for v in row) for row in np.atleast_2d(M))
 
 
-def _build_quietly(fn):
+_T = TypeVar("_T")
+
+
+def _build_quietly(fn: Callable[[], _T]) -> tuple[_T, tuple[str, ...]]:
     """Call ``fn()``; return (result, notes) with an UncontrollableWarning turned into a note."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UncontrollableWarning)
         out = fn()
-    notes = []
+    notes: list[str] = []
     for w in caught:
         if issubclass(w.category, UncontrollableWarning):
             notes.append(f"{w.message}. Identification still works.")
@@ -239,11 +248,16 @@ def resolve_system(v: Values) -> SystemChoice:
     return SystemChoice(sysm, notes)
 
 
-def parse_vector(text: str, name: str, k: int, what: str = "") -> tuple | None:
+def parse_vector(text: str, name: str, k: int, what: str = "") -> tuple[float, ...] | None:
     """``k`` numbers typed as ``"1, 0, 0"`` (spaces or commas); empty text -> None (use the default)."""
     s = (text or "").strip()
     if not s:
         return None
+    return _numbers(s, name, k, what)
+
+
+def _numbers(s: str, name: str, k: int, what: str) -> tuple[float, ...]:
+    """The ``k`` numbers of the non-empty stripped text ``s`` (see :func:`parse_vector`)."""
     try:
         if s.startswith("[") and not s[1:].lstrip().startswith("["):  # a flat JSON list: one row
             s = f"[{s}]"
@@ -292,12 +306,12 @@ def quantizer_spec(v: Values, n: int, m: int) -> QuantizerSpec:
         raise InputError(str(exc)) from None
 
 
-def weights_from_log(logs) -> tuple:
+def weights_from_log(logs: Iterable[float]) -> tuple[float, ...]:
     """Slider positions (log10 of the weight) -> weights, rounded to 4 significant digits."""
     return tuple(float(f"{10.0 ** float(x):.4g}") for x in logs)
 
 
-def log_from_weights(diag) -> tuple:
+def log_from_weights(diag: Iterable[float]) -> tuple[float, ...]:
     """Weights -> slider positions (log10, clipped to the slider range, 0 weights at the bottom)."""
     out = []
     for w in np.asarray(diag, dtype=float).reshape(-1):
@@ -306,7 +320,7 @@ def log_from_weights(diag) -> tuple:
     return tuple(out)
 
 
-def format_weights(name: str, diag) -> str:
+def format_weights(name: str, diag: Iterable[float]) -> str:
     return f"{name} = diag({', '.join(f'{w:.3g}' for w in diag)})"
 
 
@@ -317,13 +331,13 @@ def estimators(choice: str) -> tuple:
     return IDENT_CHOICES[choice]
 
 
-def _state_box(text: str, n: int, names: str, what: str = "x_max") -> tuple | None:
+def _state_box(text: str, n: int, names: str, what: str = "x_max") -> tuple[float, ...] | None:
     """A state box typed in the panel: one bound for every state or one per state ("" = no box)."""
     s = (text or "").strip()
     if not s:
         return None
     k = len(s.replace(",", " ").replace(";", " ").split())
-    box = parse_vector(s, what, 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
+    box = _numbers(s, what, 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
     if not all(np.isfinite(x) and x > 0 for x in box):
         raise InputError(f"{what}: every bound must be a positive number; got {s!r}")
     return box if len(box) == n else box * n
@@ -343,6 +357,7 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     if qf_text.lower() in ("", "dare"):
         Qf = None
     elif qf_text == "Q":
+        assert system.Q is not None  # LTISystem fills Q in __post_init__
         Qf = Q if Q is not None else tuple(float(x) for x in np.diag(system.Q))
     else:
         k = len(qf_text.replace(",", " ").replace(";", " ").split())

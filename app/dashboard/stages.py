@@ -12,7 +12,7 @@ word length by word length.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, MutableMapping
+from collections.abc import Callable, Generator, MutableMapping
 from concurrent.futures import Future, ThreadPoolExecutor
 
 from .flow import pool_tasks
@@ -81,7 +81,7 @@ def iter_frames(
     chunk: int = len(ALL_BITS) - 1,
     min_interval: float = 0.3,
     on_progress: Callable[[int, int, str], None] | None = None,
-) -> Iterator[Frame]:
+) -> Generator[Frame, None, None]:
     """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames.
 
     Parameters

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from app.figures.hypotheses import CAPTION, bcls_reasons, fits_reasons, line_holds, theorem1_reasons
@@ -10,14 +12,19 @@ from qsid_core.summary import saturated_steps
 
 from .frames import Frame
 
+if TYPE_CHECKING:
+    from qsid_core.stage_results import ClosedLoops
+
+    from .settings import Values
+
 __all__ = ["summary_markdown"]
 
 
-def _g(x, fmt=".3g") -> str:
+def _g(x: float | None, fmt: str = ".3g") -> str:
     return "–" if x is None else format(x, fmt)
 
 
-def _failures(row: dict, lp) -> str:
+def _failures(row: dict[str, Any], lp: ClosedLoops) -> str:
     """How the closed loops ended on the true plant: all converged, or the counts of each verdict."""
     mc = row.get("mpc_cost") or {}
     oc = row.get("closed_loop_outcomes") or {}
@@ -36,14 +43,14 @@ def _failures(row: dict, lp) -> str:
     return f"{k}/{total} ({kinds})"
 
 
-def _real_loop(frame: Frame) -> list:
+def _real_loop(frame: Frame) -> list[str]:
     """With a disturbance or a quantized/noisy measurement: the residual per estimator and the true model's."""
     from app.figures.residual import causes_text
     from qsid_core.stability import data_rate_bits
 
-    mc = frame.ex.config.mpc
+    mc = frame.ex.config.mpc if frame.ex is not None else None
     causes = causes_text(mc)
-    out = []
+    out: list[str] = []
     if mc is not None and mc.reference is not None and frame.true_loop is not None:
         per = " · ".join(
             f"{lab} {_g((frame.rows[lab][frame.bits].get('tracking_error') or {}).get('mean'))}" for lab in frame.labels
@@ -54,7 +61,7 @@ def _real_loop(frame: Frame) -> list:
             f"RMS ‖x_t − r_t‖ {per} · true model {_g(float(frame.true_loop.tracking_error[0]))} "
             "(δ(ε) assumes regulation to 0; the verdicts judge the same MPC regulating to 0)",
         ]
-    if not causes or frame.true_loop is None:
+    if not causes or frame.true_loop is None or mc is None:
         return out
     per = " · ".join(
         f"{lab} {_g((frame.rows[lab][frame.bits].get('steady_state_error') or {}).get('mean'))}" for lab in frame.labels
@@ -72,7 +79,7 @@ def _real_loop(frame: Frame) -> list:
     return out + ["", text]
 
 
-def _bounds(frame: Frame, first: dict) -> str:
+def _bounds(frame: Frame, first: dict[str, Any]) -> str:
     """The two ultimate bounds at the current b, the rho they used, and what they mean."""
     rho = first.get("rho")
     rho_text = f"ρ = {_g(rho)} ({'automatic' if frame.values.rho_auto else 'set in the panel'})"
@@ -94,7 +101,7 @@ def _bounds(frame: Frame, first: dict) -> str:
     return "**Ultimate bound** · " + " · ".join(parts) + f" · {rho_text}.  \n*{CAPTION}.*"
 
 
-def _overload(first: dict) -> str:
+def _overload(first: dict[str, Any]) -> str:
     """The share of overloaded samples and, from the engine, whether its predicted effect on the estimate matters."""
     a = first.get("assumptions") or {}
     head = f"overload: {100 * first['overload_fraction']:.2f} % of samples"
@@ -113,7 +120,7 @@ def _overload(first: dict) -> str:
     return f"{head} clipped by {a.get('overload_range', 'the range')}; {eff}: {verdict}"
 
 
-def _bound_lesson(frame: Frame, first: dict) -> list:
+def _bound_lesson(frame: Frame, first: dict[str, Any]) -> list[str]:
     """The bound lesson's reading at the current b: how loose each δ is against the measured ‖x_T‖, δ vs ρ and ‖x0‖."""
     from qsid_core.timeseries import CONVERGED_REL_FLOOR
 
@@ -152,7 +159,7 @@ def _bound_lesson(frame: Frame, first: dict) -> list:
     return [f"**Bound lesson, b = {frame.bits}**: {loose}. " + "; ".join(checks) + ".", ""]
 
 
-def _hypotheses(frame: Frame) -> list:
+def _hypotheses(frame: Frame) -> list[str]:
     """Which hypotheses of Theorem 1 and BCLS fail at the current b, and why (the engine's flags)."""
     b = frame.bits
     first = frame.rows[frame.labels[0]][b]
@@ -197,7 +204,7 @@ def _saturation(frame: Frame) -> str:
     return "saturated inputs (|u| at its bound): " + ", ".join(parts)
 
 
-def _lesson_changes(values) -> list:
+def _lesson_changes(values: Values) -> list[str]:
     """A line when a lesson is open but its own settings were changed since (its text describes those)."""
     from .lessons import NONE, get_lesson, lesson_values
 
@@ -285,7 +292,8 @@ def summary_markdown(frame: Frame) -> str:
         msgs = sorted({m for m in frame.loops[lab].messages if m})
         if msgs:
             notes.append(f"{lab} MPC: " + "; ".join(msgs[:2]) + (" …" if len(msgs) > 2 else ""))
-    if frame.values.x_ref.strip() and any(float(x) for x in frame.ex.config.mpc.x_ref or ()):
+    mpc = frame.ex.config.mpc if frame.ex is not None else None
+    if frame.values.x_ref.strip() and mpc is not None and any(float(x) for x in mpc.x_ref or ()):
         notes.append(
             "tracking x_ref ≠ 0: δ(ε) and the bound sphere assume x_ref = 0 (regulation); the loops "
             "settle near x_ref instead"

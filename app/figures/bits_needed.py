@@ -11,6 +11,8 @@ small-gain certificate for Theorem 1's predicted model) and ``b_letter``
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import plotly.graph_objects as go
 
@@ -20,7 +22,10 @@ from qsid_core.stability import data_rate_bits
 from .palette import COLORS, color
 from .raw import figure, hline, stacked_axes
 from .traces import BITS_AXIS, Series, mark_bits
-from .view import CURVES, View
+from .view import CURVES, FrameView, View
+
+if TYPE_CHECKING:
+    from qsid_core.experiment import Experiment
 
 __all__ = ["bits_figure", "answers", "VIEW"]
 
@@ -28,7 +33,9 @@ __all__ = ["bits_figure", "answers", "VIEW"]
 DASH = {"b_observed": "solid", "b_robust": "dash", "b_letter": "dot"}
 
 
-def bits_figure(answers: dict, current_bits: int | None = None, height: int = 420, partial: str = "") -> go.Figure:
+def bits_figure(
+    answers: dict[str, BitsAnswer], current_bits: int | None = None, height: int = 420, partial: str = ""
+) -> go.Figure:
     """The figure of ``{label: BitsAnswer}`` (the first answer's three word lengths are marked)."""
     lay, (y1, y2) = stacked_axes(2, gap=0.08, x_title=BITS_AXIS["title"]["text"])
     data, shapes, notes = [], mark_bits(current_bits, (("x", y1), ("x", y2))), []
@@ -167,10 +174,12 @@ def _wrap(text: str, width: int = 95) -> str:
     return "<br>".join(out + [line])
 
 
-def answers(series: Series, true_cost, ex, target: float, cost_gap: float) -> dict:
+def answers(
+    series: Series, true_cost: float | None, ex: Experiment, target: float, cost_gap: float
+) -> dict[str, BitsAnswer]:
     """``{label: BitsAnswer}`` from the rows computed so far (the predicted small-gain test from ``ex``)."""
-    out = {}
-    robust = None
+    out: dict[str, BitsAnswer] = {}
+    robust: dict[int, Any] | None = None
     for lab, rows in series.items():
         rows = [r for r in rows if r.get("closed_loop_outcomes")]
         if not rows:
@@ -190,8 +199,9 @@ def answers(series: Series, true_cost, ex, target: float, cost_gap: float) -> di
     return out
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     v = frame.values
+    assert frame.ex is not None  # a frame the views draw holds its experiment
     ans = answers(frame.series(), frame.true_cost, frame.ex, float(v.target), float(v.cost_gap))
     partial = "" if frame.done >= frame.total else f"<br><i>(so far {frame.done} of {frame.total} word lengths)</i>"
     return bits_figure(ans, current_bits=frame.bits, height=420, partial=partial)

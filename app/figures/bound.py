@@ -10,6 +10,8 @@ Both bounds hold only as t -> inf and assume the reference x_ref = 0 (caption).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import plotly.graph_objects as go
 
@@ -19,18 +21,18 @@ from .axes import top_log_range
 from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .raw import figure, hline
-from .traces import BITS_AXIS, Series, hline_note, mark_bits, xy
-from .view import CURVES, View
+from .traces import BITS_AXIS, Rows, Series, hline_note, mark_bits, xy
+from .view import CURVES, FrameView, View
 
 __all__ = ["bound_figure", "VIEW", "CAPTION"]
 
 
-def _realized(rows, label: str, c: str, dash: str = "solid") -> list:
+def _realized(rows: Rows, label: str, c: str, dash: str = "solid") -> list[dict[str, Any]]:
     """Trace dicts: median line and median..max band of the a-posteriori bound of one estimator."""
     mx, my = xy(rows, "ultimate_bound_realized", "median")
     if not mx:
         return []
-    out = []
+    out: list[dict[str, Any]] = []
     top = dict(zip(*xy(rows, "ultimate_bound_realized", "max")))
     bx = [b for b in mx if b in top]
     if bx:
@@ -64,16 +66,16 @@ def _realized(rows, label: str, c: str, dash: str = "solid") -> list:
     return out
 
 
-def _floored(ys: list, floor: float | None) -> tuple[list, bool]:
+def _floored(ys: list[float], floor: float | None) -> tuple[list[float], bool]:
     if floor is None:
         return ys, False
     return [max(y, floor) for y in ys], any(y < floor for y in ys)
 
 
-def _no_bound(rows) -> tuple[list, list]:
+def _no_bound(rows: Rows) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Shapes and notes shading the b where the letter's delta >= rho (its proof then gives no bound)."""
     bad = sorted(r["bits"] for r in rows if r.get("bound_self_consistent") is False)
-    runs: list = []
+    runs: list[list[int]] = []
     for b in bad:
         if runs and b == runs[-1][1] + 1:
             runs[-1][1] = b
@@ -129,7 +131,9 @@ def bound_figure(
     The letter's delta is the first series' unless ``theory_per_series``: then every series whose
     delta differs gets its own dashed line in its colour (equal ones are drawn once).
     """
-    data, conv, drawn = [], False, []
+    data: list[dict[str, Any]] = []
+    conv = False
+    drawn: list[tuple[list[int], list[float]]] = []
     several = theory_per_series and len({repr(xy(rows, "ultimate_bound")) for rows in series.values()}) > 1
     for i, (label, rows) in enumerate(series.items()):
         c = color(label, i)
@@ -172,7 +176,7 @@ def bound_figure(
     shade, shade_notes = _no_bound(first_rows)
     shapes += shade
     caption = CAPTION + ("" if steps is None else f" · ‖x_T‖: last state of the drawn loops, T = {steps} steps")
-    notes = [
+    notes: list[dict[str, Any]] = [
         dict(
             text=caption,
             showarrow=False,
@@ -192,14 +196,14 @@ def bound_figure(
         data.append(
             dict(type="scatter", x=[None], y=[float(x0_norm)], mode="lines", showlegend=False, hoverinfo="skip")
         )
-    yaxis = dict(type="log", title=dict(text="norm"), exponentformat="power")
+    yaxis: dict[str, Any] = dict(type="log", title=dict(text="norm"), exponentformat="power")
     # the bounds always show; final norms off the axis sit on its edge, marked (_off_axis)
     bounds = [v for tr in data if "δ" in tr.get("name", "") for v in tr["y"]]
     rng = top_log_range([v for tr in data for v in tr["y"]], keep=bounds)
     if rng is not None:
         yaxis.update(range=rng, autorange=False)
         data += _off_axis(data, rng)
-    if conv and (rng is None or np.log10(floor) >= rng[0]):
+    if conv and floor is not None and (rng is None or np.log10(floor) >= rng[0]):
         shapes.append(hline(float(floor), "y", COLORS["ref"], "dot", 1.0))
         notes.append(hline_note(floor, "converged (‖x_T‖ ≤ 1e-12‖x0‖)", where="bottom", size=9))
     return figure(
@@ -216,12 +220,12 @@ def bound_figure(
     )
 
 
-def _off_axis(data: list, rng: list) -> list:
+def _off_axis(data: list[dict[str, Any]], rng: list[float]) -> list[dict[str, Any]]:
     """The ``‖x_T‖`` points outside the axis range (decades), drawn on its edge as open triangles.
 
     Below: converged loops; above: diverged ones. The hover text gives the true value.
     """
-    out = []
+    out: list[dict[str, Any]] = []
     for tr in data:
         if "‖x_T‖" not in tr.get("name", ""):
             continue
@@ -252,7 +256,7 @@ def _off_axis(data: list, rng: list) -> list:
     return out
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     r0 = float(np.linalg.norm(frame.x0))
     floor = CONVERGED_REL_FLOOR * (r0 if r0 > 0 else 1.0)
     return bound_figure(

@@ -10,13 +10,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Container
+from typing import Any
+
 import numpy as np
 import plotly.graph_objects as go
+from numpy.typing import NDArray
 
 from .palette import COLORS, color
 from .phase_scene import axes_indices
 from .raw import arr, figure
-from .view import CURVES, View
+from .view import CURVES, FrameView, View
 
 __all__ = ["PINNED_VIEWS", "overlay_pinned", "parse_bits", "portraits_figure", "VIEW"]
 
@@ -46,9 +50,10 @@ def overlay_pinned(fig: go.Figure, pinned_fig: go.Figure, label: str) -> go.Figu
     return fig
 
 
-def parse_bits(text: str, allowed) -> tuple[tuple, tuple]:
+def parse_bits(text: str, allowed: Container[int]) -> tuple[tuple[int, ...], tuple[str, ...]]:
     """Word lengths typed as "2, 4, 6": (those in ``allowed``, the tokens ignored)."""
-    ok, bad = [], []
+    ok: list[int] = []
+    bad: list[str | int] = []
     for tok in str(text).replace(";", ",").replace(" ", ",").split(","):
         if not tok:
             continue
@@ -61,7 +66,9 @@ def parse_bits(text: str, allowed) -> tuple[tuple, tuple]:
     return tuple(ok), tuple(str(x) for x in bad)
 
 
-def _lines(states: np.ndarray, i: int, j: int, xa: str, ya: str, c: str, name: str, legend: bool, w=1.0) -> dict:
+def _lines(
+    states: NDArray[np.float64], i: int, j: int, xa: str, ya: str, c: str, name: str, legend: bool, w: float = 1.0
+) -> dict[str, Any]:
     R = states.shape[0]
     gap = np.full((R, 1), np.nan)
     xs = np.hstack([states[:, :, i], gap]).reshape(-1)
@@ -82,7 +89,12 @@ def _lines(states: np.ndarray, i: int, j: int, xa: str, ya: str, c: str, name: s
 
 
 def portraits_figure(
-    loops: dict, true_states: np.ndarray | None, dims: tuple, names: tuple, height: int = 320, note: str = ""
+    loops: dict[int, dict[str, NDArray[np.float64]]],
+    true_states: NDArray[np.float64] | None,
+    dims: tuple[int, int],
+    names: tuple[str, str],
+    height: int = 320,
+    note: str = "",
 ) -> go.Figure:
     """Side-by-side phase portraits.
 
@@ -99,7 +111,8 @@ def portraits_figure(
     k = max(1, len(loops))
     gap = 0.06
     w = (1 - gap * (k - 1)) / k
-    data, layout = [], {}
+    data: list[dict[str, Any]] = []
+    layout: dict[str, Any] = {}
     for p, (b, per) in enumerate(loops.items()):
         xa, ya = ("x", "y") if p == 0 else (f"x{p + 1}", f"y{p + 1}")
         lo = p * (w + gap)
@@ -121,20 +134,22 @@ def portraits_figure(
     return figure(data, layout)
 
 
-def _build(frame) -> go.Figure:
-    bits, bad = parse_bits(frame.values.compare_bits, frame.ex.config.bits)
+def _build(frame: FrameView) -> go.Figure:
+    ex = frame.ex
+    assert ex is not None  # a frame the views draw holds its experiment
+    bits, bad = parse_bits(frame.values.compare_bits, ex.config.bits)
     if not bits:  # nothing usable typed: the letter's word lengths, and the note says what was ignored
-        bits = tuple(b for b in DEFAULT_BITS if b in frame.ex.config.bits) or tuple(frame.ex.config.bits[:1])
+        bits = tuple(b for b in DEFAULT_BITS if b in ex.config.bits) or tuple(ex.config.bits[:1])
     names = frame.system.state_names
     i, j, _ = axes_indices(frame.values.axes, names)
     j = j if j is not None else i
     note = "phase portraits at b = " + ", ".join(map(str, bits))
     if bad:
-        note += f" (ignored: {', '.join(bad)}; b must be one of {frame.ex.config.bits[0]}..{frame.ex.config.bits[-1]})"
+        note += f" (ignored: {', '.join(bad)}; b must be one of {ex.config.bits[0]}..{ex.config.bits[-1]})"
     if not frame.complete:
         return portraits_figure({}, None, (i, j), (names[i], names[j]), note="waiting for every b to finish …")
     # closed loops of every b were computed for the curves: these are cache reads (label "LS" = estimator "ls")
-    loops = {b: {lab: frame.ex.closed_loops(b, lab.lower()).states for lab in frame.labels} for b in bits}
+    loops = {b: {lab: ex.closed_loops(b, lab.lower()).states for lab in frame.labels} for b in bits}
     true = frame.true_loop.states[0] if frame.true_loop is not None else None
     return portraits_figure(loops, true, (i, j), (names[i], names[j]), note=note)
 

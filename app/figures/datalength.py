@@ -9,19 +9,21 @@ without a result the view says how to start it.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import plotly.graph_objects as go
 
 from .palette import COLORS, color
 from .raw import arr, figure
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
 
 __all__ = ["datalength_figure", "VIEW"]
 
 
-def _panel(rows: list, key: str, xa: str, ya: str, legend: bool) -> list:
+def _panel(rows: list[dict[str, Any]], key: str, xa: str, ya: str, legend: bool) -> list[dict[str, Any]]:
     T = np.array([r["samples"] for r in rows], dtype=float)
-    data = []
+    data: list[dict[str, Any]] = []
     for i, est in enumerate(("ls", "bcls")):
         lab = est.upper()
         m = np.array([np.nan if r[est][key]["mean"] is None else r[est][key]["mean"] for r in rows], dtype=float)
@@ -91,9 +93,10 @@ def _panel(rows: list, key: str, xa: str, ya: str, legend: bool) -> list:
     return data
 
 
-def datalength_figure(result: dict | None, bits: int, height: int = 340, note: str = "") -> go.Figure:
+def datalength_figure(result: dict[str, Any] | None, bits: int, height: int = 340, note: str = "") -> go.Figure:
     """Two log-log panels (‖ΔA‖/‖A‖, ‖ΔB‖/‖B‖) against T from ``result`` (``DataLengthResult.to_dict()``)."""
-    rows = (result or {}).get("rows") or []
+    res = result or {}
+    rows = res.get("rows") or []
     layout = dict(
         xaxis=dict(domain=[0, 0.46], type="log", title=dict(text="samples T"), anchor="y", exponentformat="power"),
         xaxis2=dict(domain=[0.54, 1], type="log", title=dict(text="samples T"), anchor="y2", exponentformat="power"),
@@ -117,10 +120,10 @@ def datalength_figure(result: dict | None, bits: int, height: int = 340, note: s
         layout["title"] = dict(text=f"error vs data length at b = {bits}", font=dict(size=11))
         return figure([], layout)
     data = _panel(rows, "err_A", "x", "y", True) + _panel(rows, "err_B", "x2", "y2", False)
-    cfg = result.get("config", {})
+    cfg = res.get("config", {})
     layout["title"] = dict(
         text=(
-            f"error vs data length at b = {result.get('bits', bits)} · "
+            f"error vs data length at b = {res.get('bits', bits)} · "
             f"{cfg.get('realizations', '?')} realizations · {note}"
         ).rstrip(" ·"),
         font=dict(size=11),
@@ -128,7 +131,7 @@ def datalength_figure(result: dict | None, bits: int, height: int = 340, note: s
     return figure(data, layout)
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     res = frame.datalength
     return datalength_figure(None if res is None else res.to_dict(), frame.bits)
 

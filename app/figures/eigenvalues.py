@@ -9,7 +9,7 @@ import plotly.graph_objects as go
 
 from .palette import COLORS, color
 from .raw import arr, figure
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
 
 __all__ = ["eigen_figure", "VIEW"]
 
@@ -72,7 +72,7 @@ def eigen_figure(
     )
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     eigs = {lab: frame.idents[lab].eigenvalues for lab in frame.labels}
     return eigen_figure(eigs, frame.system.eigenvalues, height=300, title=f"eigenvalues of Â at b = {frame.bits}")
 

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Any
+
 import numpy as np
 import plotly.graph_objects as go
 
@@ -10,22 +13,24 @@ from qsid_core.sweep import fit_slope
 from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, short, theorem1_reasons
 from .palette import COLORS, color
 from .raw import figure
-from .traces import BITS_AXIS, Series, band, get, mark_bits, xy
+from .traces import BITS_AXIS, Rows, Series, band, get, mark_bits, xy
 from .view import CURVES, View
 
 __all__ = ["error_figure", "slope_text", "LETTER_SLOPES", "VIEW"]
 
 
-def _holds(rows, key: str = "theorem1_holds") -> dict:
+def _holds(rows: Rows, key: str = "theorem1_holds") -> dict[int, bool]:
     """b -> whether the engine says the hypotheses hold (True where the row has no assumptions)."""
     return {r["bits"]: bool((flags(r) or {}).get(key, True)) for r in rows}
 
 
-def _axes(col: int) -> dict:
+def _axes(col: int) -> dict[str, str]:
     return dict(xaxis="x" if col == 1 else f"x{col}", yaxis="y" if col == 1 else f"y{col}")
 
 
-def _theorem1(rows, key: str, col: int, name: str = "Theorem 1", line_color: str = COLORS["theory"]) -> list:
+def _theorem1(
+    rows: Rows, key: str, col: int, name: str = "Theorem 1", line_color: str = COLORS["theory"]
+) -> list[dict[str, Any]]:
     """Theorem 1's line for this panel's block: dashed where it applies (or fits), faded and dotted elsewhere."""
     tx, ty = xy(rows, f"{key}_theory")
     ok = {r["bits"]: line_holds(r, key[-1]) for r in rows}
@@ -70,7 +75,7 @@ def _theorem1(rows, key: str, col: int, name: str = "Theorem 1", line_color: str
     return out
 
 
-def _bcls_marks(rows, key: str, col: int) -> list:
+def _bcls_marks(rows: Rows, key: str, col: int) -> list[dict[str, Any]]:
     """Open crosses on the BCLS mean where its known-noise model fails (no dither, overload)."""
     ok = _holds(rows, "bcls_holds")
     pts = [(r["bits"], get(r, key, "mean")) for r in rows if not ok[r["bits"]]]
@@ -92,7 +97,9 @@ def _bcls_marks(rows, key: str, col: int) -> list:
     ]
 
 
-def _theory_and_reference(rows, key: str, col: int, ref_slope: float, name: str = "Theorem 1") -> list:
+def _theory_and_reference(
+    rows: Rows, key: str, col: int, ref_slope: float, name: str = "Theorem 1"
+) -> list[dict[str, Any]]:
     """Theorem 1's prediction (dashed / faded) and a ``ref_slope``/bit line through the first mean (dotted)."""
     out = _theorem1(rows, key, col, name=name)
     mx, my = xy(rows, key, "mean")
@@ -121,7 +128,7 @@ _PANELS = (("‖A−Â‖/‖A‖", [0.0, 0.44]), ("‖B−B̂‖/‖B‖", [0.5
 LETTER_SLOPES = (-0.301, -0.322)
 
 
-def slope_text(rows, key: str, letter: float) -> str:
+def slope_text(rows: Rows, key: str, letter: float) -> str:
     """'slope −0.30/bit (letter −0.301)': the fitted log10 slope of the mean over the rows' b ('' if < 3 b)."""
     bx, by = xy(rows, key, "mean")
     if len(bx) < 3:
@@ -130,7 +137,7 @@ def slope_text(rows, key: str, letter: float) -> str:
     return f"slope {s:+.2f}/bit (letter {letter:+.3f})".replace("-", "−")
 
 
-def _theory_values(rows) -> tuple:
+def _theory_values(rows: Rows) -> tuple[tuple[int, float | None, float | None], ...]:
     """The series' Theorem 1 predictions (b, A, B), to tell series with the same prediction apart."""
     return tuple(
         (r["bits"], r.get("err_A_theory"), r.get("err_B_theory")) for r in sorted(rows, key=lambda r: r["bits"])
@@ -143,7 +150,7 @@ def error_figure(
     ref_slope: float = -0.301,
     height: int = 330,
     theory_per_series: bool = False,
-    bcls=None,
+    bcls: Iterable[str] | None = None,
 ) -> go.Figure:
     """Relative errors of A^ and B^ against b (two panels, log y).
 
@@ -216,7 +223,7 @@ def error_figure(
                 font=dict(size=9, color="#555555"),
             )
         )
-    layout = dict(annotations=annotations, shapes=mark_bits(current_bits, (("x", "y"), ("x2", "y2"))))
+    layout: dict[str, Any] = dict(annotations=annotations, shapes=mark_bits(current_bits, (("x", "y"), ("x2", "y2"))))
     for col, (_, dom) in enumerate(_PANELS, start=1):
         ax = _axes(col)
         layout["xaxis" if col == 1 else f"xaxis{col}"] = dict(BITS_AXIS, anchor=ax["yaxis"], domain=dom)

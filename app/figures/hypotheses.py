@@ -74,12 +74,12 @@ def line_holds(row: Mapping, block: str | None = None) -> bool:
 def _engine_words(rows: Sequence[Mapping], key: str, bad: Sequence[int]) -> str:
     """The engine's own sentence for ``key`` at the largest failing b (it names the range and the share clipped)."""
     if key == "no_overload":
-        a = flags(next(r for r in rows if r["bits"] == bad[-1]))
+        a = flags(next(r for r in rows if r["bits"] == bad[-1])) or {}
         note = next((x for x in a.get("notes", ()) if x.startswith("overload:")), None)
         if note:
             return note
     if key == "stationary":
-        return _stationary_words(flags(next(r for r in rows if r["bits"] == bad[0])))
+        return _stationary_words(flags(next(r for r in rows if r["bits"] == bad[0])) or {})
     return _WHY[key]
 
 
@@ -135,7 +135,7 @@ def fits_reasons(rows: Sequence[Mapping]) -> list[str]:
         bad = [
             r["bits"]
             for r in rows
-            if flags(r) is not None and flags(r).get(f"fits_{k}") and not flags(r).get(f"theorem1_holds_{k}", True)
+            if (a := flags(r)) is not None and a.get(f"fits_{k}") and not a.get(f"theorem1_holds_{k}", True)
         ]
         if bad:
             out.append(

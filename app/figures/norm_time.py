@@ -7,6 +7,8 @@ the engine's :mod:`qsid_core.timeseries` floor) are drawn at the floor.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import plotly.graph_objects as go
 
@@ -17,12 +19,26 @@ from .hypotheses import CAPTION
 from .palette import COLORS, color
 from .raw import arr, figure, hline
 from .traces import hline_note
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from qsid_core.stage_results import ClosedLoops
 
 __all__ = ["norm_time_figure", "VIEW"]
 
 
-def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: float = 1.5, where: str = "top") -> None:
+def _hline(
+    shapes: list[dict[str, Any]],
+    notes: list[dict[str, Any]],
+    y: float | None,
+    name: str,
+    c: str,
+    dash: str,
+    width: float = 1.5,
+    where: str = "top",
+) -> None:
     """A labelled horizontal line at ``y`` (skipped unless finite and > 0: the y axis is log)."""
     if y is None or not np.isfinite(y) or y <= 0:
         return
@@ -32,11 +48,11 @@ def _hline(shapes: list, notes: list, y, name: str, c: str, dash: str, width: fl
 
 
 def norm_time_figure(
-    loops: dict,
-    x0,
-    true_loop=None,
+    loops: dict[str, ClosedLoops],
+    x0: ArrayLike,
+    true_loop: ClosedLoops | None = None,
     letter_delta: float | None = None,
-    realized: dict | None = None,
+    realized: dict[str, dict[str, float] | None] | None = None,
     bits: int | None = None,
     height: int = 300,
 ) -> go.Figure:
@@ -56,7 +72,9 @@ def norm_time_figure(
 
     Built from plain dicts (:mod:`.raw`): this view is redrawn on every b change.
     """
-    data, shapes, notes = [], [], []
+    data: list[dict[str, Any]] = []
+    shapes: list[dict[str, Any]] = []
+    notes: list[dict[str, Any]] = []
     floor = None
     for i, (label, lp) in enumerate(loops.items()):
         ts = time_series(lp, x0)
@@ -113,7 +131,7 @@ def norm_time_figure(
     if converged:  # the floor line only when some loop reached it (else it stretched the axis for nothing)
         _hline(shapes, notes, floor, "converged (1e-12‖x0‖)", COLORS["ref"], "dot", 1.0, where="bottom")
     title = CAPTION + (f" · b = {bits}" if bits is not None else "")
-    yaxis = dict(type="log", title=dict(text="‖x_t‖"), exponentformat="power")
+    yaxis: dict[str, Any] = dict(type="log", title=dict(text="‖x_t‖"), exponentformat="power")
     # top-anchored: the start of the loops and both bounds always show (axes.top_log_range)
     rng = top_log_range(ys + [s["y0"] for s in shapes])
     if rng is not None:
@@ -137,11 +155,11 @@ def norm_time_figure(
     )
 
 
-def _g(y) -> str:
+def _g(y: float | None) -> str:
     return f"{y:.3g}" if y is not None and np.isfinite(y) else ""
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     first = frame.rows[frame.labels[0]][frame.bits]
     realized = {lab: frame.rows[lab][frame.bits].get("ultimate_bound_realized") for lab in frame.labels}
     return norm_time_figure(

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import plotly.graph_objects as go
+from numpy.typing import NDArray
 
 from .palette import COLORS, color
 
@@ -20,7 +21,12 @@ __all__ = ["phase_portrait_figure"]
 TIME_TITLE = "step k (time)"
 
 
-def _with_time(states, true_states, names, dims):
+def _with_time(
+    states: NDArray[np.float64],
+    true_states: NDArray[np.float64] | None,
+    names: list[str],
+    dims: tuple[int | None, ...],
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, list[str], tuple[int | None, ...]]:
     """Append the step k as an extra 'state' and draw it on the first missing axis."""
     R, T1, n = states.shape
     k = np.broadcast_to(np.arange(T1, dtype=float)[None, :, None], (R, T1, 1))
@@ -36,9 +42,18 @@ def _with_time(states, true_states, names, dims):
     return states, true_states, [*names, TIME_TITLE], (dims[0], None, None) if pos != 0 else (n, None, None)
 
 
-def _time_figure(states, true_states, names, d: int, title: str, height: int, label: str) -> go.Figure:
+def _time_figure(
+    states: NDArray[np.float64],
+    true_states: NDArray[np.float64] | None,
+    names: Sequence[str],
+    d: int,
+    title: str,
+    height: int,
+    label: str,
+) -> go.Figure:
     """A 1-state system: every realization's x1 against the step k (2-D), the true model in black."""
-    xs, ys = [], []
+    xs: list[int | None] = []
+    ys: list[float | None] = []
     for tr in states:
         ok = np.isfinite(tr[:, d])
         if ok.any():
@@ -75,7 +90,7 @@ def _time_figure(states, true_states, names, d: int, title: str, height: int, la
 def phase_portrait_figure(
     states: np.ndarray,
     true_states: np.ndarray | None = None,
-    dims=(0, 1, 2),
+    dims: Sequence[int | None] = (0, 1, 2),
     names: Sequence[str] | None = None,
     title: str = "",
     height: int = 520,
@@ -95,8 +110,10 @@ def phase_portrait_figure(
     if None in dims:
         states, true_states, names, dims = _with_time(states, true_states, names, dims)
     if dims[1] is None:
+        assert dims[0] is not None  # the drawn state (or the step k) is on the first axis
         return _time_figure(states, true_states, names, dims[0], title, height, label)
     i, j, k = dims
+    assert i is not None and j is not None and k is not None  # the step k fills a missing axis
     xs, ys, zs = [], [], []
     for tr in states:
         ok = np.all(np.isfinite(tr[:, [i, j, k]]), axis=1)

@@ -7,11 +7,15 @@ pushes a SceneView into a tab's scene nodes.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .palette import vertex_rgb
+from .view import FrameView
 
 __all__ = ["CLIP", "SPHERE_CAP", "TIME", "SceneView", "scene_view", "axes_options", "axes_indices", "circles"]
 
@@ -25,6 +29,9 @@ TIME = 1.2
 TIME_MARKS = 10
 #: time markers closer than this (box units) to the previous one are not drawn (dots 0.035 wide; ~20 px apart)
 MARK_GAP = 0.15
+
+#: The state drawn on each display axis (x, y, z); None marks an axis without a state.
+Dims = tuple[int, int | None, int | None]
 
 
 @dataclass
@@ -83,7 +90,7 @@ class SceneView:
     show_bound: bool
     sphere_radius: float
     sphere_capped: bool
-    axis_names: tuple
+    axis_names: tuple[str, ...]
     failed: int
     clipped: int
     polylines: int
@@ -93,7 +100,7 @@ class SceneView:
     ref_segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3), dtype=np.float32))
 
 
-def axes_options(names) -> list:
+def axes_options(names: Iterable[str]) -> list[str]:
     """3-D view choices: every set of three states (the first is the default); fewer than 3 states -> one."""
     names = list(names)
     if len(names) <= 3:
@@ -101,7 +108,7 @@ def axes_options(names) -> list:
     return [", ".join(c) for c in itertools.combinations(names, 3)]
 
 
-def axes_indices(choice: str, names) -> tuple:
+def axes_indices(choice: str, names: Iterable[str]) -> Dims:
     """Indices of the states drawn on the x, y, z axes (None pads systems with fewer than 3 states)."""
     names = list(names)
     opts = axes_options(names)
@@ -113,15 +120,16 @@ def axes_indices(choice: str, names) -> tuple:
         idx = list(
             next(c for c in itertools.combinations(range(len(names)), 3) if ", ".join(names[i] for i in c) == choice)
         )
-    return tuple(idx + [None] * (3 - len(idx)))
+    pad: list[int | None] = [*idx, None, None]
+    return (idx[0], pad[1], pad[2])
 
 
-def _time_axis(dims: tuple) -> int | None:
+def _time_axis(dims: Dims) -> int | None:
     """The display axis that shows time (the first unused one) for 1- and 2-state systems."""
     return dims.index(None) if None in dims else None
 
 
-def _points(states: np.ndarray, dims: tuple, scale: float) -> np.ndarray:
+def _points(states: NDArray[np.float64], dims: Dims, scale: float) -> NDArray[np.float64]:
     """(R, T+1, n) states -> (R, T+1, 3) display points (time on the free axis of small systems)."""
     R, T1, _ = states.shape
     P = np.zeros((R, T1, 3))
@@ -134,7 +142,7 @@ def _points(states: np.ndarray, dims: tuple, scale: float) -> np.ndarray:
     return P
 
 
-def _interleave(parts: list, per_loop: int) -> np.ndarray:
+def _interleave(parts: list[NDArray[Any]], per_loop: int) -> NDArray[Any]:
     """Concatenate per-estimator segment arrays, alternating loop by loop (``per_loop`` segments each) when
     they are equally long, so that neither estimator's loops are all drawn over the other's."""
     p0 = parts[0]
@@ -144,17 +152,22 @@ def _interleave(parts: list, per_loop: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def _reference_path(frame, dims: tuple, scale: float, start: np.ndarray) -> np.ndarray:
+def _reference_path(frame: FrameView, dims: Dims, scale: float, start: NDArray[np.float64]) -> NDArray[np.float32]:
     """Display segments of a time-varying reference over the drawn loop (empty when it is constant)."""
     mpc = frame.ex.config.mpc if frame.ex is not None else None
     if mpc is None or mpc.reference is None:
         return np.zeros((0, 2, 3), dtype=np.float32)
-    ref = mpc.resolve(frame.system).reference[: mpc.steps + 1]
+    path = mpc.resolve(frame.system).reference
+    if path is None:
+        return np.zeros((0, 2, 3), dtype=np.float32)
+    ref = path[: mpc.steps + 1]
     seg, _, _ = _to_segments(ref[None], dims, scale, start)
     return np.clip(seg, -CLIP, CLIP).astype(np.float32)
 
 
-def _to_segments(states: np.ndarray, dims: tuple, scale: float, start: np.ndarray) -> tuple:
+def _to_segments(
+    states: NDArray[np.float64], dims: Dims, scale: float, start: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], int, int]:
     """(R, T+1, n) trajectories -> (R*T, 2, 3) display segments, #failed, #clipped."""
     R = states.shape[0]
     P = _points(states, dims, scale)
@@ -166,7 +179,7 @@ def _to_segments(states: np.ndarray, dims: tuple, scale: float, start: np.ndarra
     return seg, int(bad.sum()), clipped
 
 
-def _display_scale(true_states: np.ndarray, x0: np.ndarray, sel: list) -> float:
+def _display_scale(true_states: NDArray[np.float64], x0: NDArray[np.float64], sel: list[int]) -> float:
     """Largest |state| of the true-model loop on the drawn axes (else of x0, else 1)."""
     ref = true_states[:, sel]
     ref = ref[np.all(np.isfinite(ref), axis=1)]
@@ -177,7 +190,7 @@ def _display_scale(true_states: np.ndarray, x0: np.ndarray, sel: list) -> float:
     return scale
 
 
-def circles(radius: float, dims: tuple, k: int = 48) -> np.ndarray:
+def circles(radius: float, dims: Dims, k: int = 48) -> NDArray[np.float32]:
     """Outline of a ball of ``radius`` (box units) around the origin: one circle per pair of state axes
     ((K, 2, 3) segments); small systems: in the state plane (or a segment for n = 1) at the last time."""
     state_axes = [j for j, d in enumerate(dims) if d is not None]
@@ -199,16 +212,17 @@ def circles(radius: float, dims: tuple, k: int = 48) -> np.ndarray:
     return np.concatenate(segs).astype(np.float32)
 
 
-def _bounds(frame, dims: tuple, scale: float) -> dict:
+def _bounds(frame: FrameView, dims: Dims, scale: float) -> dict[str, Any]:
     """The two bounds: circles drawn to scale when they fit, else words only."""
     first = frame.rows[frame.labels[0]].get(frame.bits, {})
-    d = frame.theory.delta
-    d = float(d) if d is not None and np.isfinite(d) and d > 0 else None
-    rb = (first.get("ultimate_bound_realized") or {}).get("median")
-    rb = float(rb) if rb is not None and np.isfinite(rb) and rb > 0 else None
+    d0 = frame.theory.delta
+    d = float(d0) if d0 is not None and np.isfinite(d0) and d0 > 0 else None
+    rb0 = (first.get("ultimate_bound_realized") or {}).get("median")
+    rb = float(rb0) if rb0 is not None and np.isfinite(rb0) and rb0 > 0 else None
     show = bool(getattr(frame.values, "show_bound", True))
     empty = np.zeros((0, 2, 3), dtype=np.float32)
-    out, words = {}, []
+    out: dict[str, Any] = {}
+    words: list[str] = []
     for key, val, name in (("bound_circles", d, "letter's δ(ε)"), ("realized_circles", rb, "a-posteriori δ")):
         r = val / scale if val is not None else 0.0
         fits = 0 < r <= SPHERE_CAP
@@ -229,7 +243,7 @@ def _bounds(frame, dims: tuple, scale: float) -> dict:
     return out
 
 
-def _spread(marks: np.ndarray, gap: float = MARK_GAP) -> np.ndarray:
+def _spread(marks: NDArray[np.float64], gap: float = MARK_GAP) -> NDArray[np.float64]:
     """Drop time markers closer than ``gap`` (box units) to the last one kept: once the loop has converged
     its markers all sit on one point, where they piled into one black blob over the origin."""
     if marks.shape[0] == 0:
@@ -241,7 +255,7 @@ def _spread(marks: np.ndarray, gap: float = MARK_GAP) -> np.ndarray:
     return marks[keep]
 
 
-def scene_view(frame, axes: str | None = None) -> SceneView:
+def scene_view(frame: FrameView, axes: str | None = None) -> SceneView:
     """What the 3-D phase portrait draws for ``frame``: closed loops at the current b, the
     true-model loop with time markers, the start point, and the two bounds as outlines.
 
@@ -251,11 +265,14 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
     """
     names = frame.system.state_names
     dims = axes_indices(axes if axes is not None else frame.values.axes, names)
+    assert frame.true_loop is not None  # a frame the views draw has the true-model loop
     ts = frame.true_loop.states[0]
     x0 = np.asarray(frame.x0, dtype=float)  # the engine's start state (also if loops failed)
     scale = _display_scale(ts, x0, [d for d in dims if d is not None])
     start = _points(x0[None, None, :], dims, scale)[0, 0]
-    segs, cols, failed, clipped, poly, total, stuck = [], [], 0, 0, 0, 0, 0
+    segs: list[NDArray[np.float64]] = []
+    cols: list[NDArray[np.uint8]] = []
+    failed, clipped, poly, total, stuck = 0, 0, 0, 0, 0
     for i, lab in enumerate(frame.labels):
         st = frame.loops[lab].states
         s, f, c = _to_segments(st, dims, scale, start)
@@ -266,7 +283,8 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
         oc = frame.loops[lab].outcome_counts()
         stuck += oc.get("bounded", 0) + oc.get("diverged", 0)
         total += st.shape[0]
-        poly += min(st.shape[0], int(getattr(frame.idents.get(lab), "effective_realizations", st.shape[0])))
+        ident = frame.idents.get(lab)
+        poly += min(st.shape[0], ident.effective_realizations if ident is not None else st.shape[0])
     tseg, _, _ = _to_segments(ts[None], dims, scale, start)
     every = max(1, (ts.shape[0] - 1) // TIME_MARKS)
     marks = np.clip(_points(ts[None, ::every], dims, scale)[0], -CLIP, CLIP)
@@ -278,10 +296,10 @@ def scene_view(frame, axes: str | None = None) -> SceneView:
     labels = [names[d] if d is not None else "" for d in dims]
     if ta is not None:
         labels[ta] = "time"
-    segs, cols = _interleave(segs, ts.shape[0] - 1), _interleave(cols, ts.shape[0] - 1)
+    seg_all, col_all = _interleave(list(segs), ts.shape[0] - 1), _interleave(list(cols), ts.shape[0] - 1)
     return SceneView(
-        segments=segs.astype(np.float32),
-        colors=np.ascontiguousarray(cols),
+        segments=seg_all.astype(np.float32),
+        colors=np.ascontiguousarray(col_all),
         true_segments=tseg.astype(np.float32),
         time_marks=marks.astype(np.float32),
         start=start,

@@ -13,6 +13,8 @@ numbers are :func:`qsid_core.quantizer_demo.channel_demo`'s; this module draws.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import plotly.graph_objects as go
 
@@ -20,7 +22,10 @@ from qsid_core.quantizer_demo import QuantizerDemo, channel_demo
 
 from .palette import COLORS
 from .raw import arr, figure, stacked_axes
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
+
+if TYPE_CHECKING:
+    from qsid_core.systems import LTISystem
 
 __all__ = ["quantizer_figure", "demo_text", "dependence_text", "VIEW"]
 
@@ -69,7 +74,7 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
     layout["yaxis"]["title"] = dict(text=d.label or "signal", font=dict(size=10))
     layout["yaxis2"]["title"] = dict(text="error x − x̃", font=dict(size=10))
     layout["yaxis3"]["title"] = dict(text="density", font=dict(size=10))
-    data = [
+    data: list[dict[str, Any]] = [
         dict(
             type="scatter",
             x=arr(d.t),
@@ -171,19 +176,19 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
     return figure(data, layout)
 
 
-def channel_names(system) -> tuple:
+def channel_names(system: LTISystem) -> tuple[str, ...]:
     """The channels the view offers: states, then inputs (``channel_demo``'s numbering)."""
     return tuple(f"x: {s}" for s in system.state_names) + tuple(f"u: {u}" for u in system.input_names)
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     k = min(max(int(frame.values.view_channel), 0), frame.system.n + frame.system.m - 1)
     d = channel_demo(frame.ex, k, frame.bits, window=120)
     d.label = channel_names(frame.system)[k]  # "x: angle" rather than the engine's "x1"
     return quantizer_figure(d)
 
 
-def _key(frame) -> tuple:
+def _key(frame: FrameView) -> tuple[int, int, int | None]:
     return (frame.bits, frame.values.view_channel, id(frame.ex.prepared) if frame.ex is not None else None)
 
 

@@ -9,11 +9,13 @@ Only use it for figures whose keys are known to be valid (the tests build them).
 from __future__ import annotations
 
 from functools import cache
+from typing import Any
 
 import numpy as np
 import orjson
 import plotly.graph_objects as go
 import plotly.io as pio
+from numpy.typing import ArrayLike
 
 __all__ = ["figure", "stacked_axes", "arr", "hline", "to_json", "Wire"]
 
@@ -25,10 +27,10 @@ def _template(name: str) -> dict:
     return pio.templates[name].to_plotly_json()
 
 
-def arr(a) -> list:
+def arr(a: ArrayLike) -> list[float | None]:
     """A numeric array as a JSON-ready list (NaN -> None: a gap in a line)."""
-    a = np.asarray(a, dtype=float)
-    return [None if not np.isfinite(v) else float(v) for v in a.reshape(-1)]
+    x = np.asarray(a, dtype=float)
+    return [None if not np.isfinite(v) else float(v) for v in x.reshape(-1)]
 
 
 def figure(data: list, layout: dict, template: str = "plotly_white") -> go.Figure:
@@ -36,10 +38,11 @@ def figure(data: list, layout: dict, template: str = "plotly_white") -> go.Figur
     return go.Figure(dict(data=data, layout={"template": _template(template), **layout}), _validate=False)
 
 
-def stacked_axes(rows: int, gap: float = 0.02, x_title: str = "") -> tuple[dict, list]:
+def stacked_axes(rows: int, gap: float = 0.02, x_title: str = "") -> tuple[dict[str, Any], list[str]]:
     """Layout of ``rows`` subplots stacked over one shared x axis; returns (layout dict, y-axis ids "y", "y2", ...)."""
     h = (1.0 - gap * (rows - 1)) / rows
-    lay, ids = {}, []
+    lay: dict[str, Any] = {}
+    ids: list[str] = []
     for k in range(rows):
         top = 1.0 - k * (h + gap)
         name = "yaxis" if k == 0 else f"yaxis{k + 1}"
@@ -56,7 +59,7 @@ def hline(y: float, yaxis: str, color: str, dash: str = "dash", width: float = 1
     )
 
 
-def _json_default(o):
+def _json_default(o: object) -> Any:
     if isinstance(o, np.ndarray):  # non-contiguous or of a dtype orjson does not take
         return o.tolist()
     if isinstance(o, np.generic):
@@ -94,5 +97,5 @@ class Wire:
     def to_json(self) -> str:
         return to_json(self.figure)
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:
         return getattr(self.figure, name)

@@ -10,13 +10,18 @@ transient after the drawn number of steps.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import plotly.graph_objects as go
 
 from .palette import COLORS, color
 from .raw import figure, hline
 from .traces import BITS_AXIS, Series, hline_note, mark_bits, xy
-from .view import CURVES, View
+from .view import CURVES, FrameView, View
+
+if TYPE_CHECKING:
+    from qsid_core.mpc import MPCConfig
 
 __all__ = ["residual_figure", "VIEW"]
 
@@ -86,7 +91,7 @@ def residual_figure(
     )
 
 
-def causes_text(mpc) -> str:
+def causes_text(mpc: MPCConfig | None) -> str:
     """The loop's residual causes in words ('' for a clean loop)."""
     if mpc is None:
         return ""
@@ -102,10 +107,10 @@ def causes_text(mpc) -> str:
     return ", ".join(out)
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     tl = frame.true_loop
     true_err = float(tl.steady_state_error[0]) if tl is not None else None
-    mpc = frame.ex.config.mpc
+    mpc = frame.ex.config.mpc if frame.ex is not None else None
     tracking = mpc is not None and mpc.reference is not None
     true_tr = float(tl.tracking_error[0]) if (tl is not None and tracking) else None
     return residual_figure(

@@ -7,14 +7,22 @@ draws them. With few realizations every loop is a thin line; with more than
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import plotly.graph_objects as go
+from numpy.typing import NDArray
 
 from qsid_core.timeseries import TimeSeries, time_series
 
 from .palette import COLORS, color
 from .raw import arr, figure, hline, stacked_axes
-from .view import CURRENT, View
+from .view import CURRENT, FrameView, View
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from qsid_core.stage_results import ClosedLoops
 
 __all__ = ["time_series_figure", "VIEW", "MAX_LINES"]
 
@@ -22,7 +30,15 @@ __all__ = ["time_series_figure", "VIEW", "MAX_LINES"]
 MAX_LINES = 8
 
 
-def _lines(t, Y, ok, c: str, name: str, yaxis: str, legend: bool) -> list:
+def _lines(
+    t: NDArray[np.float64],
+    Y: NDArray[np.float64],
+    ok: NDArray[np.bool_],
+    c: str,
+    name: str,
+    yaxis: str,
+    legend: bool,
+) -> list[dict[str, Any]]:
     """One trace holding every successful loop (NaN-separated: one plotly trace, not R)."""
     Y = Y[ok]
     if Y.shape[0] == 0:
@@ -47,7 +63,15 @@ def _lines(t, Y, ok, c: str, name: str, yaxis: str, legend: bool) -> list:
     ]
 
 
-def _band(t, m, s, c: str, name: str, yaxis: str, legend: bool) -> list:
+def _band(
+    t: NDArray[np.float64],
+    m: NDArray[np.float64],
+    s: NDArray[np.float64],
+    c: str,
+    name: str,
+    yaxis: str,
+    legend: bool,
+) -> list[dict[str, Any]]:
     if not np.all(np.isfinite(m)):
         return []
     return [
@@ -80,7 +104,9 @@ def _band(t, m, s, c: str, name: str, yaxis: str, legend: bool) -> list:
     ]
 
 
-def _channel(ts: TimeSeries, k: int, n: int):
+def _channel(
+    ts: TimeSeries, k: int, n: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """(t, every loop (R, T), mean, std) of channel k (states first, then inputs)."""
     if k < n:
         return ts.t, ts.states[..., k], ts.state_mean[:, k], ts.state_std[:, k]
@@ -88,12 +114,12 @@ def _channel(ts: TimeSeries, k: int, n: int):
 
 
 def time_series_figure(
-    series: dict,
+    series: dict[str, TimeSeries],
     true: TimeSeries | None,
-    state_names,
-    input_names,
-    x_ref=None,
-    x_max=None,
+    state_names: Sequence[str],
+    input_names: Sequence[str],
+    x_ref: NDArray[np.float64] | None = None,
+    x_max: NDArray[np.float64] | None = None,
     height: int = 520,
     title: str = "",
 ) -> go.Figure:
@@ -112,7 +138,8 @@ def time_series_figure(
     """
     n, m = len(state_names), len(input_names)
     layout, yax = stacked_axes(n + m, x_title="closed-loop step t")
-    data, shapes = [], []
+    data: list[dict[str, Any]] = []
+    shapes: list[dict[str, Any]] = []
     for i, (label, ts) in enumerate(series.items()):
         c, many = color(label, i), int(ts.ok.sum()) > MAX_LINES
         for k in range(n + m):
@@ -176,7 +203,7 @@ def time_series_figure(
     return figure(data, layout)
 
 
-def mpc_arrays(frame) -> dict:
+def mpc_arrays(frame: FrameView) -> dict[str, Any]:
     """The frame's MPC settings as arrays (``u_max``, ``x_ref``, ``x_max``; empty without an MPC)."""
     mpc = frame.ex.config.mpc if frame.ex is not None else None
     if mpc is None:
@@ -186,7 +213,7 @@ def mpc_arrays(frame) -> dict:
     return {"u_max": w.u_max, "x_ref": ref, "x_max": w.x_max}
 
 
-def loop_series(frame) -> tuple[dict, TimeSeries | None]:
+def loop_series(frame: FrameView) -> tuple[dict[str, TimeSeries], TimeSeries | None]:
     """The frame's closed loops at the current b as :class:`~qsid_core.timeseries.TimeSeries` (label -> ts, true)."""
     u_max = mpc_arrays(frame).get("u_max")
     ts = {lab: time_series(frame.loops[lab], frame.x0, u_max) for lab in frame.labels}
@@ -194,17 +221,17 @@ def loop_series(frame) -> tuple[dict, TimeSeries | None]:
     return ts, true
 
 
-def saturation_text(ts: dict) -> str:
+def saturation_text(ts: dict[str, TimeSeries]) -> str:
     """'LS 12 steps in 3/20 loops, BCLS ...' (steps with an input on its bound)."""
     return ", ".join(
         f"{lab} {s.saturated_steps} steps in {s.saturated_loops}/{len(s.ok)} loops" for lab, s in ts.items()
     )
 
 
-def failure_text(loops: dict) -> str:
+def failure_text(loops: dict[str, ClosedLoops]) -> str:
     """'LS 5/5 failed (infeasible; not drawn)' and 'LS 48/50 did not converge (48 bounded)' per estimator
     ('' if every loop converged): failed loops are not drawn, loops that did not converge are."""
-    out = []
+    out: list[str] = []
     for lab, lp in loops.items():
         kinds = [str(getattr(f, "value", f)) for f in lp.failure if f]
         if kinds:
@@ -219,7 +246,7 @@ def failure_text(loops: dict) -> str:
     return ", ".join(out)
 
 
-def _build(frame) -> go.Figure:
+def _build(frame: FrameView) -> go.Figure:
     ts, true = loop_series(frame)
     rm = mpc_arrays(frame)
     x_ref, x_max = rm.get("x_ref"), rm.get("x_max")
@@ -238,7 +265,7 @@ def _build(frame) -> go.Figure:
     )
 
 
-def _key(frame) -> tuple:
+def _key(frame: FrameView) -> tuple[int, tuple[int, ...], int]:
     return (frame.bits, tuple(id(frame.loops[lab]) for lab in frame.labels), id(frame.true_loop))
 
 

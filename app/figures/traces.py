@@ -10,6 +10,7 @@ The only arithmetic here is reshaping for display.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import plotly.graph_objects as go
@@ -18,17 +19,17 @@ from .palette import COLORS
 
 __all__ = ["Rows", "Series", "get", "xy", "band", "mark_bits", "hline_note", "move_current_bits", "BITS_AXIS"]
 
-Rows = Sequence[Mapping]
+Rows = Sequence[Mapping[str, Any]]
 Series = Mapping[str, Rows]
 #: x axis of every plot against the word length.
-BITS_AXIS = dict(title=dict(text="word length b [bits]"), dtick=2)
+BITS_AXIS: dict[str, Any] = dict(title=dict(text="word length b [bits]"), dtick=2)
 #: name of the current-b marker shapes (the only vertical lines a b change moves)
 CURRENT_B = "current b"
 
 
-def get(row: Mapping, *path):
+def get(row: Mapping[str, Any], *path: str) -> Any:
     """``row[path[0]][path[1]]...``, None where a level is missing."""
-    v = row
+    v: Any = row
     for p in path:
         if v is None:
             return None
@@ -36,9 +37,10 @@ def get(row: Mapping, *path):
     return v
 
 
-def xy(rows: Rows, *path) -> tuple[list, list]:
+def xy(rows: Rows, *path: str) -> tuple[list[int], list[float]]:
     """(b, value) of every row whose value at ``path`` is finite and positive (log axes), sorted by b."""
-    xs, ys = [], []
+    xs: list[int] = []
+    ys: list[float] = []
     for r in sorted(rows, key=lambda r: r["bits"]):
         v = get(r, *path)
         if v is not None and np.isfinite(v) and v > 0:
@@ -93,7 +95,7 @@ def band(
     ]
 
 
-def mark_bits(current_bits: int | None, axes=(("x", "y"),)) -> list:
+def mark_bits(current_bits: int | None, axes: Sequence[tuple[str, str]] = (("x", "y"),)) -> list[dict[str, Any]]:
     """Shape dicts: a dotted vertical line at the current word length on each (x, y) axis pair ([] if None)."""
     if current_bits is None:
         return []

@@ -12,18 +12,68 @@ for the current settings, or None).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import plotly.graph_objects as go
 
-__all__ = ["View", "CURVES", "CURRENT"]
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from qsid_core.datalength import DataLengthResult
+    from qsid_core.experiment import Experiment
+    from qsid_core.stage_results import BitsIdentification, ClosedLoops, TheoryAtBits
+    from qsid_core.systems import LTISystem
+
+__all__ = ["View", "FrameView", "CURVES", "CURRENT"]
 
 #: The view draws every b (rebuilt when rows change; a b change only moves its marker).
 CURVES = "curves"
 #: The view draws the current b only (rebuilt when b or the models at b change).
 CURRENT = "current"
+
+
+class FrameView(Protocol):
+    """The attributes of a frame the views read (:class:`app.dashboard.frames.Frame` has them).
+
+    ``values`` are the tab's panel values (:class:`app.dashboard.settings.Values`).
+    """
+
+    @property
+    def values(self) -> Any: ...
+    @property
+    def system(self) -> LTISystem: ...
+    @property
+    def bits(self) -> int: ...
+    @property
+    def labels(self) -> tuple[str, ...]: ...
+    @property
+    def rows(self) -> Mapping[str, Mapping[int, Mapping[str, Any]]]: ...
+    @property
+    def done(self) -> int: ...
+    @property
+    def total(self) -> int: ...
+    @property
+    def loops(self) -> Mapping[str, ClosedLoops]: ...
+    @property
+    def true_loop(self) -> ClosedLoops | None: ...
+    @property
+    def theory(self) -> TheoryAtBits: ...
+    @property
+    def idents(self) -> Mapping[str, BitsIdentification]: ...
+    @property
+    def x0(self) -> NDArray[np.float64]: ...
+    @property
+    def ex(self) -> Experiment | None: ...
+    @property
+    def datalength(self) -> DataLengthResult | None: ...
+    @property
+    def complete(self) -> bool: ...
+    @property
+    def true_cost(self) -> float | None: ...
+    def series(self) -> Mapping[str, list[dict[str, Any]]]: ...
 
 
 @dataclass(frozen=True)
