@@ -62,6 +62,7 @@ class WsTab:
         )
         self.uuids: dict[str, str] = {}  # input label -> uuid
         self.markdown: dict[str, str] = {}  # markdown uuid -> content
+        self.values: dict[str, object] = {}  # input uuid -> its value as the server last said
         self.received = 0
         self.closed = False
         self.statuses: list[tuple[float, str]] = []  # (monotonic time, text) of every status line received
@@ -92,8 +93,12 @@ class WsTab:
                 self.markdown[m["uuid"]] = props.get("_markdown", props.get("content", ""))
             elif typ.startswith("Gui") and isinstance(m.get("props"), dict) and "label" in m["props"]:
                 self.uuids[m["props"]["label"]] = m["uuid"]
+                if "value" in m:  # viser 1.x sends an input's initial value beside its props
+                    self.values[m["uuid"]] = m["value"]
             elif typ == "GuiUpdateMessage":
                 up = m.get("updates", {})
+                if "value" in up:
+                    self.values[m["uuid"]] = up["value"]
                 for key in _TEXT_KEYS:  # viser 1.x sends a markdown's text as "_markdown"
                     if key in up:
                         self.markdown[m["uuid"]] = up[key]
@@ -152,9 +157,19 @@ class WsTab:
             time.sleep(0.01)
         raise TimeoutError(f"no answer within {timeout} s (status: {self.status!r})")
 
+    def value(self, label: str) -> object:
+        """The value of input ``label`` as the server last said (None if unknown)."""
+        with self._lock:
+            return self.values.get(self.uuids.get(label, ""))
+
     def send(self, label: str, value) -> None:
-        """Set input ``label`` to ``value`` exactly as a browser does (no range check on this side)."""
+        """Set input ``label`` to ``value`` exactly as a browser does (no range check on this side).
+
+        viser calls no callback for a value equal to the one it holds: such a send changes nothing.
+        """
         uuid = self.uuids.get(label) or self.wait_for(label)
+        with self._lock:
+            self.values[uuid] = value
         self.ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}}))
 
     def close(self) -> None:

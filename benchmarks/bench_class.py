@@ -120,8 +120,12 @@ class Student:
         if kind == "Q/R":
             sliders = [x for x in self.tab.labels("Q ") + self.tab.labels("R ") if "diagonal" not in x]  # no folder
             label = self.rnd.choice(sliders)
-            return kind, label, round(self.rnd.uniform(-1.5, 1.5), 2)
-        self.bound = self.rnd.choice([x for x in (1.0, 0.3, 0.2) if x != self.bound])
+            value, now = round(self.rnd.uniform(-1.5, 1.5), 2), self.tab.value(label)
+            while now is not None and abs(value - float(now)) < 1e-9:  # viser ignores a send of the same value
+                value = round(self.rnd.uniform(-1.5, 1.5), 2)
+            return kind, label, value
+        now = self.tab.value("input bound")
+        self.bound = self.rnd.choice([x for x in (1.0, 0.3, 0.2) if x != (self.bound if now is None else now)])
         return kind, "input bound", self.bound
 
     def run(self, end: float) -> None:
@@ -141,7 +145,7 @@ class Student:
             if not self.final_ok:
                 self.why = status
         except Exception as exc:  # no answer within the hang guard, or the connection closed
-            self.died, self.why = True, f"{type(exc).__name__}: {exc}; waiting after {self.pending}"
+            self.died, self.why = True, f"waiting after {self.pending}: {type(exc).__name__}: {exc}"
 
 
 def pct(xs: list[float], q: float) -> float:
@@ -159,6 +163,7 @@ def _main(argv=None) -> dict:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--server-args", default="", help="extra options of qsid-dashboard")
     ap.add_argument("--json", type=Path, help="write the summary and samples here")
+    ap.add_argument("--server-log", type=Path, help="write the server's stderr (its log, tracebacks included) here")
     a = ap.parse_args(argv)
     print(f"machine: {os.cpu_count()} cores; load average before the start {os.getloadavg()}", flush=True)
     server = Server("--workers", str(a.workers), *a.server_args.split())
@@ -196,6 +201,10 @@ def _main(argv=None) -> dict:
             s.tab.close()
         out["stop_s"] = round(server.stop(), 2)
         out["server_tracebacks"] = sum("Traceback" in line for line in server.errors)
+        if out["server_tracebacks"]:
+            out["server_stderr_tail"] = "".join(server.errors)[-6000:]
+        if a.server_log:
+            a.server_log.write_text("".join(server.errors), encoding="utf-8")
     print(json.dumps({k: v for k, v in out.items() if k != "samples"}, indent=1))
     if a.json:
         a.json.write_text(json.dumps(dict(out, samples=samples), indent=1))
@@ -215,7 +224,7 @@ def report(students: list[Student], samples: list) -> dict:
     out["all"] = {"n": len(allx), "p50": round(pct(allx, 0.5), 3), "p95": round(pct(allx, 0.95), 3)}
     out["tabs_final_view"] = sum(s.final_ok for s in students)
     out["tabs_died"] = [s.index for s in students if s.died]
-    out["not_final"] = {s.index: s.why[:120] for s in students if not s.final_ok}
+    out["not_final"] = {s.index: s.why[:240] for s in students if not s.final_ok}
     out["changes_answered_with_error"] = sum(len(s.errors) for s in students)
     out["changes_that_said_queued"] = sum(s.queued_seen for s in students)
     out["most_tabs_ahead"] = max((s.queued_max for s in students), default=0)

@@ -27,3 +27,36 @@ def test_eight_tabs_for_a_minute():
     mem = out["memory_mb"]
     # not a limit on size, only on growth: the second half of the run holds no more than half again the first's
     assert out["memory_median_second_half_mb"] <= 1.5 * out["memory_median_first_half_mb"], mem
+
+
+def test_a_student_never_sends_the_value_a_slider_already_holds():
+    """viser calls no callback for an unchanged value: such a send would never be answered (a false 'dead tab')."""
+    import random
+
+    import bench_class
+
+    class FakeTab:
+        def __init__(self):
+            self.held = {"Q w": -1.0, "Q q": -1.0, "R thrust": 0.0, "input bound": 1.0}
+
+        def labels(self, prefix):
+            return sorted(k for k in self.held if k.startswith(prefix))
+
+        def value(self, label):
+            return self.held.get(label)
+
+    st = bench_class.Student.__new__(bench_class.Student)
+    st.saturated, st.tab, st.b, st.seed, st.bound = True, FakeTab(), 4, 0, 1.0
+    for seed in range(200):
+        st.rnd = random.Random(seed)
+        for _ in range(20):
+            kind, label, value = st.pick()
+            if kind in ("Q/R", "saturated"):
+                assert value != st.tab.held[label], (seed, label, value)
+                st.tab.held[label] = value
+    # the draws that would repeat a held value are redrawn, not skipped: a held -1.0 is drawn sometimes
+    st.rnd = random.Random(0)
+    st.rnd.uniform = lambda lo, hi, _v=iter([-1.0, -1.0, 0.5]): next(_v)
+    st.rnd.choice = lambda xs: "Q/R" if "Q/R" in xs else ("Q w" if "Q w" in xs else xs[0])
+    st.tab.held["Q w"] = -1.0
+    assert st.pick() == ("Q/R", "Q w", 0.5)
