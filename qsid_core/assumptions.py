@@ -211,6 +211,8 @@ def clipping_effect(
     eps: np.ndarray,
     bits: ArrayLike,
     variance: float = 1.0 / 12.0,
+    extremes: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None,
+    grams: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Predicted absolute change of ``[A^, B^]`` caused by the quantizer clipping the data.
 
@@ -227,6 +229,12 @@ def clipping_effect(
         Word length (per channel).
     variance : float
         The dither's error variance in units of ``eps**2`` (1/12 subtractive, 1/4 tpdf).
+    extremes : tuple of ndarray, optional
+        ``(Psi_min, Psi_max, Xp_min, Xp_max)`` per channel if known
+        (:meth:`~qsid_core.data.Dataset.extremes`); otherwise computed from ``Psi`` and ``Xp``.
+    grams : tuple of ndarray, optional
+        ``(Psi Psi^T, Xp Psi^T)``, shapes (n+m, n+m) and (n, n+m), if known (the prepared data's exact
+        moments); otherwise computed.
 
     Returns
     -------
@@ -236,17 +244,19 @@ def clipping_effect(
     """
     n = G.shape[0]
     lo_l, hi_l = _clip_limits(lo_q, eps, bits)
-    if clips_nothing((Psi.min(axis=1), Psi.max(axis=1), Xp.min(axis=1), Xp.max(axis=1)), lo_q, eps, bits):
+    if extremes is None:
+        extremes = (Psi.min(axis=1), Psi.max(axis=1), Xp.min(axis=1), Xp.max(axis=1))
+    if clips_nothing(extremes, lo_q, eps, bits):
         return np.zeros_like(G)  # nothing clipped (checked on the extremes, without clipped copies)
+    # an extreme beyond a limit: that sample, at least, is clipped
     Pc = np.clip(Psi, lo_l[:, None], hi_l[:, None])
     Xc = np.clip(Xp, lo_l[:n, None], hi_l[:n, None])
-    if np.array_equal(Pc, Psi) and np.array_equal(Xc, Xp):
-        return np.zeros_like(G)
     T = Psi.shape[1]
     D = np.diag(np.asarray(eps, dtype=float) ** 2 * variance) * T
     PPc, XPc = Pc @ Pc.T, Xc @ Pc.T
     try:
-        ls_shift = np.linalg.solve(PPc + D, XPc.T).T - np.linalg.solve(Psi @ Psi.T + D, Psi @ Xp.T).T
+        PP, XP = grams if grams is not None else (Psi @ Psi.T, Xp @ Psi.T)
+        ls_shift = np.linalg.solve(PPc + D, XPc.T).T - np.linalg.solve(PP + D, XP.T).T
         bcls_shift = np.linalg.solve(PPc, XPc.T).T - G
     except np.linalg.LinAlgError:
         return np.full_like(G, np.inf)
@@ -373,7 +383,9 @@ def assess(ex, b: int) -> Assumptions:  # ex: an Experiment (its config is not p
         clip = np.zeros_like(sysm.G)
     else:
         Psi, Xp = ex.data.matrices()
-        clip = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, ERROR_VARIANCE.get(q.dither, 1.0 / 12.0))
+        variance = ERROR_VARIANCE.get(q.dither, 1.0 / 12.0)
+        grams = (prep.exact.PP, prep.exact.XP)
+        clip = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, variance, ex.data.extremes(), grams)
     ls = ex.identification(b, "ls")
     known = not bcls_reason(q.dither)
     unknown_sensor_noise = any(v > 0 for v in c.noise) and not c.noise_known

@@ -78,3 +78,5 @@ def test_data_extremes_match_the_regression_matrices_and_decide_clipping_alike()
         eps = 2 * scale * top / 16
         shift = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, 4)
         assert clips_nothing(ext, lo_q, eps, 4) == (not np.any(shift))
+        given = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, 4, 1 / 12, ext, (Psi @ Psi.T, Xp @ Psi.T))
+        np.testing.assert_allclose(given, shift, rtol=1e-9, atol=1e-12)  # known extremes and Grams: same effect
