@@ -363,9 +363,27 @@ def _notes(a: dict[str, Any], c: SweepConfig) -> list[str]:
     return notes
 
 
+def overload_effect(ex, b: int) -> np.ndarray:  # ex: an Experiment
+    """:func:`clipping_effect` at word length ``b`` for an :class:`~qsid_core.experiment.Experiment`, shape
+    (n, n+m); zeros when nothing clips. Needs the data and the quantizer only (no quantized data)."""
+    from .quantize import ERROR_VARIANCE, channel_bits, channel_eps, guard_cells
+
+    c, sysm, prep, q = ex.config, ex.system, ex.prepared, ex.config.quantizer
+    chan = channel_bits(b, sysm.n, sysm.m, c.input_bits, c.state_bits)
+    eps = channel_eps(prep.lo, prep.hi, chan, q.guard, q.dither)  # 0 where a channel is recorded exactly
+    cb = np.array([bb if bb is not None else 1 for bb in chan], dtype=float)
+    lo_q = np.asarray(prep.lo, dtype=float) - np.array([guard_cells(q.dither, q.guard, int(bb)) for bb in cb]) * eps
+    if clips_nothing(ex.data.extremes(), lo_q, eps, cb):  # the usual case: no copy of the data needed
+        return np.zeros_like(sysm.G)
+    Psi, Xp = ex.data.matrices()
+    variance = ERROR_VARIANCE.get(q.dither, 1.0 / 12.0)
+    grams = (prep.exact.PP, prep.exact.XP)
+    return clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, variance, ex.data.extremes(), grams)
+
+
 def assess(ex, b: int) -> Assumptions:  # ex: an Experiment (its config is not precisely typed yet)
     """The hypotheses at word length ``b`` for an :class:`~qsid_core.experiment.Experiment`."""
-    from .quantize import ERROR_VARIANCE, bcls_reason, channel_bits, guard_cells
+    from .quantize import bcls_reason
 
     c, sysm = ex.config, ex.system
     n = sysm.n
@@ -374,18 +392,9 @@ def assess(ex, b: int) -> Assumptions:  # ex: an Experiment (its config is not p
     th = ex.theory(b)
     prep = ex.prepared
     eps = np.asarray(moms[0].eps, dtype=float)  # per channel (0 where a channel is recorded exactly)
-    chan = channel_bits(b, n, sysm.m, c.input_bits, c.state_bits)
-    cb = np.array([bb if bb is not None else 1 for bb in chan], dtype=float)
-    lo_q = np.asarray(prep.lo, dtype=float) - np.array([guard_cells(q.dither, q.guard, int(bb)) for bb in cb]) * eps
     nA, nB = _block_norms(sysm)
     fA, fB = finite_data_fluctuation(sysm.G, prep.exact.PP, eps)
-    if clips_nothing(ex.data.extremes(), lo_q, eps, cb):  # the usual case: no copy of the data needed
-        clip = np.zeros_like(sysm.G)
-    else:
-        Psi, Xp = ex.data.matrices()
-        variance = ERROR_VARIANCE.get(q.dither, 1.0 / 12.0)
-        grams = (prep.exact.PP, prep.exact.XP)
-        clip = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, variance, ex.data.extremes(), grams)
+    clip = ex.overload_effect(b)
     ls = ex.identification(b, "ls")
     known = not bcls_reason(q.dither)
     unknown_sensor_noise = any(v > 0 for v in c.noise) and not c.noise_known

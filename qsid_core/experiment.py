@@ -325,6 +325,18 @@ class Experiment:
                 )
         return self._cache[k]
 
+    def overload_effect(self, b: int) -> np.ndarray:
+        """Predicted change of ``[A^, B^]`` caused by the quantizer clipping the data at ``b``, shape (n, n+m)
+        (zeros when nothing clips; :func:`qsid_core.assumptions.overload_effect`). Needs no quantized data, so
+        it can be computed while the data are being quantized."""
+        from .assumptions import overload_effect
+
+        c = self.config
+        k = ("overload-effect", b, c.quantizer.dither, c.input_bits, c.state_bits) + self._key_prep()
+        if k not in self._cache:
+            self._cache[k] = overload_effect(self, b)
+        return self._cache[k]
+
     def assumptions(self, b: int) -> Assumptions:
         """Which hypotheses of Theorem 1 and of BCLS hold at ``b`` (see :mod:`qsid_core.assumptions`)."""
         from .assumptions import assess

@@ -80,3 +80,19 @@ def test_data_extremes_match_the_regression_matrices_and_decide_clipping_alike()
         assert clips_nothing(ext, lo_q, eps, 4) == (not np.any(shift))
         given = clipping_effect(sysm.G, Psi, Xp, lo_q, eps, 4, 1 / 12, ext, (Psi @ Psi.T, Xp @ Psi.T))
         np.testing.assert_allclose(given, shift, rtol=1e-9, atol=1e-12)  # known extremes and Grams: same effect
+
+
+def test_overload_effect_needs_no_quantized_data_and_matches_the_assessment():
+    from qsid_core.config import QuantizerSpec, SweepConfig
+    from qsid_core.experiment import Experiment
+
+    for q in (QuantizerSpec(guard=False, range_mode="fixed", fixed_range=(-1.0, 1.0)), QuantizerSpec()):
+        ex = Experiment(SweepConfig(trajectories=6, steps=40, realizations=2, mpc=None, quantizer=q))
+        for b in (2, 5):
+            effect = ex.overload_effect(b)  # before any quantization
+            assert effect is ex.overload_effect(b)  # cached
+            a = ex.assumptions(b)
+            nA = np.linalg.norm(ex.system.A)
+            assert a.overload_effect_A == pytest.approx(np.linalg.norm(effect[:, : ex.system.n]) / nA)
+            if q.range_mode == "fixed":
+                assert np.any(effect)  # +-1 clips the motor's data
