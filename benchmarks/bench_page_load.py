@@ -67,7 +67,7 @@ def start_server(workers: int, system: str) -> tuple[subprocess.Popen, str, floa
         text=True,
     )
     for line in proc.stdout:
-        if "http://" in line:
+        if line.startswith("qsid dashboard: http://"):  # its ready line (viser prints its own address earlier)
             return proc, f"http://127.0.0.1:{port}", time.perf_counter() - t
     stop_server(proc)
     raise RuntimeError("the dashboard did not start")

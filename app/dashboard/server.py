@@ -36,7 +36,7 @@ from .share import load_settings_file
 from .viewcodes import ViewStore, default_store_path, open_view
 from .viserfix import check_request_hook, connection_request, limit_reads, refuse_share_requests
 from .viserfix import install as _install_viser_fix
-from .warm import COMPILE_SECONDS, needs_compiling, warm
+from .warm import COMPILE_SECONDS, fetch_page, needs_compiling, prefill, warm
 
 _install_viser_fix()  # before any server exists: every message buffer is made thread-safe
 
@@ -310,6 +310,16 @@ def _prepare_stop_signals() -> threading.Event:
     return stop
 
 
+def _prepare_first_tab(app: DashboardApp) -> None:
+    """Fetch the page once and compute + draw a new tab's view once, so the first tab is served like later ones."""
+    fetch_page(app.host, app.port)
+    try:
+        prefill(app.defaults, app.cache, app.executor, app.tasks)
+    except Exception as exc:  # the tab itself reports what these settings raise; the server starts anyway
+        why = str(exc) if isinstance(exc, QsidError) else f"{type(exc).__name__}: {exc}"
+        print(f"qsid dashboard: the first view was not precomputed ({why})", flush=True)
+
+
 def _wait_for_stop_signal(stop: threading.Event) -> None:
     """Block until a stop signal is pending (taken here) or was handled by a handler (``stop`` set)."""
     while not stop.is_set():
@@ -383,6 +393,7 @@ def main(argv: list[str] | None = None) -> int:
         if app.views.load_note:
             print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
         warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
+        _prepare_first_tab(app)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         note = who_can_connect(args.host, app.port)
         if note:
