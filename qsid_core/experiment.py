@@ -127,6 +127,30 @@ class Experiment:
         q = self.config.quantizer
         return self._key_data() + (q.range_mode, q.guard, q.fixed_range, self.config.noise)
 
+    def _memo(self, key, make):
+        """``cache[key]``, or ``make()`` stored there and returned.
+
+        The value is returned from here, never read back: a shared, bounded cache (the dashboard's)
+        may drop any entry at any moment while other threads store theirs.
+        """
+        try:
+            return self._cache[key]
+        except KeyError:
+            pass
+        value = make()
+        self._cache[key] = value
+        return value
+
+    def _cached(self, keys: dict) -> dict:
+        """``{b: cache[keys[b]]}`` for the keys the cache holds now."""
+        out = {}
+        for b, key in keys.items():
+            try:
+                out[b] = self._cache[key]
+            except KeyError:
+                pass
+        return out
+
     def _key_mom(self, b):
         c, q = self.config, self.config.quantizer
         return self._key_prep() + (
@@ -150,11 +174,11 @@ class Experiment:
     @property
     def data(self) -> Dataset:
         """The unquantized data set (simulated once)."""
-        k = ("data",) + self._key_data()
-        if k not in self._cache:
-            c = self.config
-            self._cache[k] = simulate(self.system, c.trajectories, c.steps, c.data_seed, c.input_amplitude)
-        return self._cache[k]
+        c = self.config
+        return self._memo(
+            ("data",) + self._key_data(),
+            lambda: simulate(self.system, c.trajectories, c.steps, c.data_seed, c.input_amplitude),
+        )
 
     @property
     def prepared(self) -> PreparedData:
@@ -162,17 +186,15 @@ class Experiment:
 
         Its ``exact`` moments are those of the noise-free data (Theorem 1's ``Sigma``).
         """
-        k = ("prep",) + self._key_prep()
-        if k not in self._cache:
-            c = self.config
-            if any(v > 0 for v in c.noise):
-                self._noise_variance()  # wrong number of values: one clear error
-                rec = with_sensor_noise(self.data, c.noise, c.data_seed)
-                prep = replace(prepare(rec, c.quantizer), exact=prepare(self.data, c.quantizer).exact)
-            else:
-                prep = prepare(self.data, c.quantizer)
-            self._cache[k] = prep
-        return self._cache[k]
+        return self._memo(("prep",) + self._key_prep(), self._prepare)
+
+    def _prepare(self) -> PreparedData:
+        c = self.config
+        if any(v > 0 for v in c.noise):
+            self._noise_variance()  # wrong number of values: one clear error
+            rec = with_sensor_noise(self.data, c.noise, c.data_seed)
+            return replace(prepare(rec, c.quantizer), exact=prepare(self.data, c.quantizer).exact)
+        return prepare(self.data, c.quantizer)
 
     @property
     def Sigma(self) -> np.ndarray:
@@ -184,7 +206,9 @@ class Experiment:
     def moments(self, bits, progress: Progress | None = None) -> dict[int, list[Moments]]:
         """Quantized Gram matrices per b and realization (computes only what is not cached)."""
         bits = parse_bits(bits)
-        todo = tuple(b for b in bits if ("mom",) + self._key_mom(b) not in self._cache)
+        keys = {b: ("mom",) + self._key_mom(b) for b in bits}
+        out = self._cached(keys)
+        todo = tuple(b for b in bits if b not in out)
         if todo:
             c = self.config
             prep = self.prepared
@@ -205,48 +229,49 @@ class Experiment:
                 if progress:
                     progress(i + 1, len(futs), "quantize + identify")
             for j, b in enumerate(todo):
-                self._cache[("mom",) + self._key_mom(b)] = [pr[j] for pr in per_real]
-        return {b: self._cache[("mom",) + self._key_mom(b)] for b in bits}
+                out[b] = [pr[j] for pr in per_real]
+                self._cache[keys[b]] = out[b]
+        return {b: out[b] for b in bits}
 
     def identification(self, b: int, estimator: str | None = None) -> BitsIdentification:
         """Identified models at word length ``b`` for every realization."""
         est = estimator or self.config.estimator
         check_choice("estimator", est, ESTIMATORS)
-        k = ("ident", est) + self._key_mom(b)
-        if k not in self._cache:
-            moms = self.moments([b])[b]
-            if self.config.noise_known and any(v > 0 for v in self.config.noise):
-                extra = self._noise_variance()
-                moms = [replace(mo, D=mo.noise_variance + extra) for mo in moms]
-            sysA, sysB = self.system.A, self.system.B
-            n, m = sysB.shape
-            ids: list = []
-            notes: set = set()
-            for mo in moms:
-                try:
-                    ids.append(identify(mo, est))
-                except ValueError as exc:  # singular data of one realization: record, don't abort
-                    ids.append(None)
-                    notes.add(f"identification failed: {exc}")
-            nan_A, nan_B = np.full((n, n), np.nan), np.full((n, m), np.nan)
-            A_hat = np.stack([i.A if i is not None else nan_A for i in ids])
-            B_hat = np.stack([i.B if i is not None else nan_B for i in ids])
-            errs = np.array([relative_errors(a, bm, sysA, sysB) for a, bm in zip(A_hat, B_hat)])
-            notes |= {i.note for i in ids if i is not None and i.note}
-            self._cache[k] = BitsIdentification(
-                bits=b,
-                eps=moms[0].eps,
-                A_hat=A_hat,
-                B_hat=B_hat,
-                err_A=errs[:, 0],
-                err_B=errs[:, 1],
-                overload=np.array([mo.overload_fraction for mo in moms]),
-                fallback=np.array([i is not None and i.fallback for i in ids]),
-                notes=sorted(notes),
-                failed=np.array([i is None for i in ids]),
-                dither=self.config.quantizer.dither,
-            )
-        return self._cache[k]
+        return self._memo(("ident", est) + self._key_mom(b), lambda: self._identify(b, est))
+
+    def _identify(self, b: int, est: str) -> BitsIdentification:
+        moms = self.moments([b])[b]
+        if self.config.noise_known and any(v > 0 for v in self.config.noise):
+            extra = self._noise_variance()
+            moms = [replace(mo, D=mo.noise_variance + extra) for mo in moms]
+        sysA, sysB = self.system.A, self.system.B
+        n, m = sysB.shape
+        ids: list = []
+        notes: set = set()
+        for mo in moms:
+            try:
+                ids.append(identify(mo, est))
+            except ValueError as exc:  # singular data of one realization: record, don't abort
+                ids.append(None)
+                notes.add(f"identification failed: {exc}")
+        nan_A, nan_B = np.full((n, n), np.nan), np.full((n, m), np.nan)
+        A_hat = np.stack([i.A if i is not None else nan_A for i in ids])
+        B_hat = np.stack([i.B if i is not None else nan_B for i in ids])
+        errs = np.array([relative_errors(a, bm, sysA, sysB) for a, bm in zip(A_hat, B_hat)])
+        notes |= {i.note for i in ids if i is not None and i.note}
+        return BitsIdentification(
+            bits=b,
+            eps=moms[0].eps,
+            A_hat=A_hat,
+            B_hat=B_hat,
+            err_A=errs[:, 0],
+            err_B=errs[:, 1],
+            overload=np.array([mo.overload_fraction for mo in moms]),
+            fallback=np.array([i is not None and i.fallback for i in ids]),
+            notes=sorted(notes),
+            failed=np.array([i is None for i in ids]),
+            dither=self.config.quantizer.dither,
+        )
 
     # ----- theory ----------------------------------------------------------------------
     def theory(self, b: int) -> TheoryAtBits:
@@ -267,10 +292,13 @@ class Experiment:
             c.input_bits,
             c.state_bits,
         ) + self._key_prep()
-        if k in self._cache:
-            return self._cache[k]
+        return self._memo(k, lambda: self._theory(b))
+
+    def _theory(self, b: int) -> TheoryAtBits:
         from .quantize import channel_bits, channel_eps
 
+        c = self.config
+        mcfg = c.mpc or MPCConfig()
         prep = self.prepared
         sysm = self.system
         n = sysm.n
@@ -294,9 +322,7 @@ class Experiment:
             delta, note = float("inf"), "no bound: the Riccati recursion of the predicted model is singular"
         except ConfigError as exc:
             delta, note = float("nan"), str(exc)
-        res = TheoryAtBits(b, Gp, eA, eB, delta, note, ub)
-        self._cache[k] = res
-        return res
+        return TheoryAtBits(b, Gp, eA, eB, delta, note, ub)
 
     def realized_bound(self, b: int, estimator: str | None = None) -> RealizedBounds:
         """A-posteriori ultimate bound per realization at ``b``: its own model error and its own ``P``.
@@ -308,10 +334,11 @@ class Experiment:
         mcfg = c.mpc or MPCConfig()
         est = estimator or c.estimator
         k = ("realized-bound", est, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0) + self._key_mom(b)
-        if k not in self._cache:
+
+        def make() -> RealizedBounds:
             w = mcfg.resolve(self.system)
             with single_threaded_blas():
-                self._cache[k] = realized_bounds(
+                return realized_bounds(
                     self.identification(b, est).models,
                     self.system.A,
                     self.system.B,
@@ -323,7 +350,8 @@ class Experiment:
                     rho=c.rho,
                     x0=w.x0,
                 )
-        return self._cache[k]
+
+        return self._memo(k, make)
 
     def overload_effect(self, b: int) -> np.ndarray:
         """Predicted change of ``[A^, B^]`` caused by the quantizer clipping the data at ``b``, shape (n, n+m)
@@ -333,18 +361,13 @@ class Experiment:
 
         c = self.config
         k = ("overload-effect", b, c.quantizer.dither, c.input_bits, c.state_bits) + self._key_prep()
-        if k not in self._cache:
-            self._cache[k] = overload_effect(self, b)
-        return self._cache[k]
+        return self._memo(k, lambda: overload_effect(self, b))
 
     def assumptions(self, b: int) -> Assumptions:
         """Which hypotheses of Theorem 1 and of BCLS hold at ``b`` (see :mod:`qsid_core.assumptions`)."""
         from .assumptions import assess
 
-        k = ("assumptions",) + self._key_mom(b)
-        if k not in self._cache:
-            self._cache[k] = assess(self, b)
-        return self._cache[k]
+        return self._memo(("assumptions",) + self._key_mom(b), lambda: assess(self, b))
 
     # ----- MPC -------------------------------------------------------------------------
     def feedback_range(self) -> tuple | None:
@@ -361,13 +384,17 @@ class Experiment:
         if cfg is None:
             raise ConfigError("this experiment has MPC switched off (mpc=None)")
         est = estimator or self.config.estimator
-        k = ("loops", est, cfg) + self._key_mom(b)
-        if k not in self._cache:
-            ident = self.identification(b, est)
-            self._cache[k] = run_closed_loops(
-                ident.models, self.system.A, self.system.B, cfg, self.system, self.feedback_range()
-            )
-        return self._cache[k]
+        return self._memo(
+            ("loops", est, cfg) + self._key_mom(b),
+            lambda: run_closed_loops(
+                self.identification(b, est).models,
+                self.system.A,
+                self.system.B,
+                cfg,
+                self.system,
+                self.feedback_range(),
+            ),
+        )
 
     def closed_loops_many(self, bits, estimator: str | None = None, progress: Progress | None = None) -> dict:
         """:meth:`closed_loops` for several b, mapped through the executor."""
@@ -377,7 +404,8 @@ class Experiment:
         est = estimator or self.config.estimator
         bits = parse_bits(bits)
         keys = {b: ("loops", est, cfg) + self._key_mom(b) for b in bits}
-        todo = [b for b in bits if keys[b] not in self._cache]
+        out = self._cached(keys)
+        todo = [b for b in bits if b not in out]
         futs = {
             b: self.executor.submit(
                 _loops_task,
@@ -391,10 +419,11 @@ class Experiment:
             for b in todo
         }
         for i, (b, f) in enumerate(futs.items()):
-            self._cache[keys[b]] = f.result()
+            out[b] = f.result()
+            self._cache[keys[b]] = out[b]
             if progress:
                 progress(i + 1, len(futs), "MPC closed loops")
-        return {b: self._cache[keys[b]] for b in bits}
+        return {b: out[b] for b in bits}
 
     def true_model_loop(self) -> ClosedLoops:
         """The MPC built on the true (A, B): the reference every quantized model is compared to."""
@@ -402,8 +431,9 @@ class Experiment:
         if cfg is None:
             raise ConfigError("this experiment has MPC switched off (mpc=None)")
         k = ("true-loop", cfg) + (self._key_prep() if cfg.feedback_bits is not None else self._key_data()[:7])
-        if k not in self._cache:
-            self._cache[k] = run_closed_loops(
+        return self._memo(
+            k,
+            lambda: run_closed_loops(
                 [(self.system.A, self.system.B)], self.system.A, self.system.B, cfg, self.system, self.feedback_range()
-            )
-        return self._cache[k]
+            ),
+        )

@@ -108,6 +108,42 @@ def test_cache_reuse_between_stages():
     assert ex.with_config(SweepConfig(bits=(6,), **SMALL)).data is ex.data
 
 
+class _Forgetful(dict):
+    """A cache that drops every entry as soon as it is stored (what a shared, bounded cache may do at any moment
+    while other tabs store theirs)."""
+
+    def __setitem__(self, key, value):
+        pass
+
+
+class _DropsAfterCheck(dict):
+    """Holds entries, but one found by ``in`` is dropped before it can be read (evicted in between)."""
+
+    def __contains__(self, key):
+        return self.pop(key, None) is not None
+
+
+@pytest.mark.parametrize("cache", [_Forgetful, _DropsAfterCheck])
+def test_results_never_depend_on_the_cache_keeping_an_entry(cache):
+    from qsid_core.bits import predicted_small_gain
+
+    cfg = SweepConfig(bits=(3, 5), mpc=MPCConfig(steps=10), **SMALL)
+    ref = Experiment(cfg)
+    ex = Experiment(cfg, cache=cache())
+    for _ in range(2):  # the second pass reads what the first stored (or finds it gone)
+        moms = ex.moments([3, 5])
+        assert sorted(moms) == [3, 5] and len(moms[5]) == SMALL["realizations"]
+        np.testing.assert_array_equal(ex.identification(5).A_hat, ref.identification(5).A_hat)
+        assert ex.theory(3).delta == ref.theory(3).delta
+        ex.realized_bound(5)
+        ex.overload_effect(3)
+        ex.assumptions(5)
+        np.testing.assert_array_equal(ex.closed_loops(5).states, ref.closed_loops(5).states)
+        assert sorted(ex.closed_loops_many([3, 5])) == [3, 5]
+        ex.true_model_loop()
+        assert predicted_small_gain(ex, 3) == predicted_small_gain(ref, 3)
+
+
 def test_progress_is_reported():
     calls = []
     run_sweep(SweepConfig(bits="2:3", **SMALL), progress=lambda d, t, s: calls.append((d, t, s)))

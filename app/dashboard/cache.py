@@ -55,7 +55,8 @@ class SharedCache(MutableMapping):
     Passed as ``Experiment(..., cache=shared)`` by every browser tab, so equal
     settings share the data, moments, models and closed loops. The least
     recently used entries are dropped first; the newest ``keep`` entries are never
-    dropped (the engine reads an entry right after storing it).
+    dropped (a tab usually reads its newest results again at once). Any other entry may
+    go while a tab computes: the engine never reads back what it stored.
     """
 
     def __init__(self, max_bytes: int = DEFAULT_MB * 2**20, keep: int = 64):
