@@ -9,6 +9,7 @@ follows every markdown's content, so it can tell when the tab says "ready".
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -17,7 +18,7 @@ import viser
 import zstandard
 from websockets.sync.client import connect
 
-__all__ = ["WsTab", "rss_mb"]
+__all__ = ["WsTab", "rss_mb", "family", "family_rss"]
 
 _CAMERA = {
     "type": "ViewerCameraMessage",
@@ -177,3 +178,31 @@ class WsTab:
             self.ws.close()
         except Exception:
             pass
+
+
+def family(pid: int) -> list[int]:
+    """``pid`` and all its descendants (from /proc)."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        try:
+            for task in os.listdir(f"/proc/{p}/task"):
+                with open(f"/proc/{p}/task/{task}/children") as f:
+                    todo.extend(int(c) for c in f.read().split())
+        except OSError:
+            pass
+    return out
+
+
+def family_rss(pid: int) -> tuple[float, float]:
+    """(server RSS, workers' RSS) in MB."""
+    rest = 0.0
+    for p in family(pid)[1:]:
+        try:
+            mb = rss_mb(p)
+        except OSError:  # ended meanwhile
+            continue
+        if mb == mb:  # a zombie (a replaced worker not yet reaped) has no resident memory
+            rest += mb
+    return rss_mb(pid), rest

@@ -37,39 +37,11 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from _wsclient import WsTab, rss_mb  # noqa: E402
+from _wsclient import WsTab, family_rss  # noqa: E402
 from bench_soak import Server  # noqa: E402
 
 KINDS = ("word length", "data", "Q/R", "saturated")
 SATURATED_SETUP = (("system", "boeing747"), ("x0", "20, 20, 0, 0"))
-
-
-def family(pid: int) -> list[int]:
-    """``pid`` and all its descendants (from /proc)."""
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        try:
-            for task in os.listdir(f"/proc/{p}/task"):
-                with open(f"/proc/{p}/task/{task}/children") as f:
-                    todo.extend(int(c) for c in f.read().split())
-        except OSError:
-            pass
-    return out
-
-
-def family_rss(pid: int) -> tuple[float, float]:
-    """(server RSS, workers' RSS) in MB."""
-    rest = 0.0
-    for p in family(pid)[1:]:
-        try:
-            mb = rss_mb(p)
-        except OSError:  # ended meanwhile
-            continue
-        if mb == mb:  # a zombie (a replaced worker not yet reaped) has no resident memory
-            rest += mb
-    return rss_mb(pid), rest
 
 
 class Student:

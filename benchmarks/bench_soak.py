@@ -5,12 +5,14 @@ plain websocket clients (:mod:`_wsclient`, what a browser sends):
 
 1. ``--storm-clients`` clients (default 10) at ``--storm-rate`` changes/s each for ``--storm-seconds``;
 2. the soak: ``--clients`` clients (default 3) at ``--rate`` changes/s each for ``--minutes`` (default 10);
-3. all clients close; RSS is read again after ``--settle`` seconds;
+3. all clients close; RSS is read again over ``--settle`` seconds (default 45: a server with no tab
+   left gives its results and the workers' data back after 20 s, :mod:`app.dashboard.idle`);
 4. optionally (``--flood SECONDS``) ``--flood-clients`` clients (default 5, in a process of their own)
    send changes as fast as they can while a new tab connects: seconds until it says "ready", the
    flood's rate, and whether the flooding clients stayed connected.
 
-Prints one line per sample (``t, phase, RSS MB``) and a JSON summary (``--json``).
+Prints one line per sample (``t``, phase, RSS of the server and of its pool workers) and a JSON
+summary (``--json FILE`` writes it with every sample; ``--save FILE`` writes the printed output).
 Example: ``python benchmarks/bench_soak.py --minutes 3 --flood 20``.
 """
 
@@ -30,7 +32,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from _wsclient import WsTab, rss_mb  # noqa: E402
+from _wsclient import WsTab, family_rss, rss_mb  # noqa: E402
 
 #: What the clients change: panel label -> a random value in the panel's own range.
 CHANGES = (
@@ -126,12 +128,13 @@ def phase(server: Server, name: str, seconds: float, every: float, t0: float, sa
     end = time.monotonic() + seconds
     while True:
         now = time.monotonic()
-        row = {"t": round(now - t0, 1), "phase": name, "rss_mb": round(server.rss, 1)}
+        srv, workers = family_rss(server.pid)
+        row = {"t": round(now - t0, 1), "phase": name, "rss_mb": round(srv, 1), "workers_mb": round(workers, 1)}
         if clients is not None:
             row["sent"] = clients.sent
         samples.append(row)
         print(
-            f"{row['t']:8.1f} s  {name:8s} RSS {row['rss_mb']:7.1f} MB"
+            f"{row['t']:8.1f} s  {name:8s} RSS server {row['rss_mb']:7.1f} MB + workers {row['workers_mb']:6.1f} MB"
             + (f"  changes sent {clients.sent}" if clients is not None else ""),
             flush=True,
         )
@@ -183,6 +186,16 @@ def flood(url: str, clients: int, seconds: float, settle: float = 2.0) -> dict:
 
 
 def main(argv=None) -> dict:
+    """Run it; ``--save FILE`` also writes the printed output to FILE (header first)."""
+    import _tee
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    path = _tee.pop_save(argv)
+    with _tee.saved(path, argv):
+        return _main(argv)
+
+
+def _main(argv) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0, help="soak length (default 10)")
     ap.add_argument("--clients", type=int, default=3)
@@ -190,7 +203,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--storm-clients", type=int, default=10)
     ap.add_argument("--storm-rate", type=float, default=30.0)
     ap.add_argument("--storm-seconds", type=float, default=60.0)
-    ap.add_argument("--settle", type=float, default=20.0, help="seconds after the clients closed")
+    ap.add_argument(
+        "--settle", type=float, default=45.0, help="seconds after the clients closed (the server releases after 20)"
+    )
     ap.add_argument("--every", type=float, default=30.0, help="seconds between RSS samples in the soak")
     ap.add_argument("--flood", type=float, default=0.0, metavar="SECONDS", help="also flood (0: no)")
     ap.add_argument("--flood-clients", type=int, default=5, help="clients sending as fast as they can")
@@ -201,7 +216,8 @@ def main(argv=None) -> dict:
     server = Server("--workers", str(args.workers), *args.server_args.split())
     samples: list = []
     t0 = time.monotonic()
-    out: dict = {"start_rss_mb": round(server.rss, 1)}
+    srv, workers = family_rss(server.pid)
+    out: dict = {"start_rss_mb": round(srv, 1), "start_workers_mb": round(workers, 1)}
     try:
         if args.storm_seconds > 0 and args.storm_clients > 0:
             c = Clients(server.url, args.storm_clients, args.storm_rate)
@@ -217,9 +233,13 @@ def main(argv=None) -> dict:
             out["flood"] = flood(server.url, args.flood_clients, args.flood)
             print(f"flood: {out['flood']}", flush=True)
         soak = [s["rss_mb"] for s in samples if s["phase"] == "soak"]
+        closed = [s for s in samples if s["phase"] == "closed"]
         out.update(
             samples=samples,
-            end_rss_mb=samples[-1]["rss_mb"],
+            closed_rss_mb=closed[0]["rss_mb"],
+            closed_workers_mb=closed[0]["workers_mb"],
+            end_rss_mb=closed[-1]["rss_mb"],
+            end_workers_mb=closed[-1]["workers_mb"],
             peak_rss_mb=max(s["rss_mb"] for s in samples),
             soak_first_mb=soak[0],
             soak_last_mb=soak[-1],

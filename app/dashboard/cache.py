@@ -102,6 +102,13 @@ class SharedCache(MutableMapping):
             del self._d[key]
             self._total -= self._size.pop(key)
 
+    def clear(self) -> None:
+        """Drop every entry."""
+        with self._lock:
+            self._d.clear()
+            self._size.clear()
+            self._total = 0
+
     def __iter__(self):
         with self._lock:
             return iter(list(self._d))

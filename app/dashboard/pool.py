@@ -23,6 +23,7 @@ those ways; everything else (results, exceptions) passes through unchanged.
 from __future__ import annotations
 
 import functools
+import gc
 import multiprocessing
 import os
 import pickle
@@ -39,7 +40,7 @@ from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, T
 from concurrent.futures.process import BrokenProcessPool
 
 from app import tracker
-from app.procs import end_with_parent, kill_workers
+from app.procs import end_with_parent, kill_workers, worker_pids
 from qsid_core.errors import QsidError
 
 from .memory import one_blas_thread, trim
@@ -87,6 +88,14 @@ def _load_shared(path: str):
             _worker_shared.popitem(last=False)
     _worker_shared.move_to_end(path)
     return obj
+
+
+def _release_worker() -> int:
+    """In a pool worker: drop the data kept from earlier tasks and hand free pages back; returns the pid."""
+    _worker_shared.clear()
+    gc.collect()
+    trim()
+    return os.getpid()
 
 
 def _same(obj: object) -> object:
@@ -242,6 +251,27 @@ class Pool:
                 except OSError:
                     pass
             return arg
+
+    def release(self, timeout: float = 30.0) -> int:
+        """Forget every shared object (the server's files, each worker's copy) and have each worker hand its free
+        pages back; returns how many workers did. Tasks that still need an object fail with a plain message."""
+        with self._slock:
+            self._shared.clear()
+            if self._share_dir is not None:
+                shutil.rmtree(self._share_dir, ignore_errors=True)
+                self._share_dir = None
+        ex = self.current
+        if ex is None:
+            return 0
+        want, seen = set(worker_pids(ex)), set()
+        try:
+            for _ in range(10):  # a worker may take two tasks of a round: ask until each answered once
+                seen |= {f.result(timeout=timeout) for f in [ex.submit(_release_worker) for _ in want]}
+                if want <= seen:
+                    break
+        except Exception:  # a pool being replaced or shut down meanwhile: its workers are going anyway
+            pass
+        return len(want & seen)
 
     def replace(self, broken) -> bool:
         """Replace the pool if ``broken`` is still the current one (its workers are killed); True if replaced."""

@@ -10,6 +10,7 @@ cannot exhaust the machine. Threading is described in :mod:`app.dashboard.sessio
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import signal
 import sys
@@ -26,6 +27,7 @@ from qsid_core.version import __version__
 
 from .cache import DEFAULT_MB, SharedCache
 from .flow import READ_BYTES, FairSlots
+from .idle import IdleRelease
 from .lessons import get_lesson, lesson_names, lesson_values
 from .memory import limit_arenas, one_blas_thread, trim
 from .netcheck import OneLineParser, check_address, port_number, who_can_connect
@@ -101,6 +103,7 @@ class DashboardApp:
         self.tasks = max(1, self.workers)
         self._lock = threading.Lock()  # (5) guards `sessions` and `_gone`
         self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog
+        self.idle = IdleRelease(self._release_memory)  # (10) memory back once no tab is left for a while
         self.sessions: dict[int, Session] = {}
         self.max_tabs = max_tabs
         self._admitted: set = set()  # client ids holding one of the max_tabs places (built or being built)
@@ -135,6 +138,7 @@ class DashboardApp:
         return f"http://{self.host}:{self.port}"
 
     def _connect(self, client) -> None:
+        self.idle.cancel()
         limit_reads(self.server, client.client_id, READ_BYTES)  # a flooding tab cannot make the event loop's turns long
         with self._lock:
             full = self.max_tabs is not None and len(self._admitted) >= self.max_tabs
@@ -178,6 +182,30 @@ class DashboardApp:
             s.close(wait=False)  # never block viser's callback threads; the worker ends at its next check
             self.views.flush()
             trim()
+        with self._lock:
+            idle = not self.sessions and not self._admitted
+        if idle:
+            self.idle.schedule()
+
+    def prefill(self) -> str | None:
+        """Compute and draw a new tab's view once (see :func:`.warm.prefill`); returns why not, or None."""
+        try:
+            prefill(self.defaults, self.cache, self.executor, self.tasks)
+        except Exception as exc:  # the tab itself reports what these settings raise
+            return str(exc) if isinstance(exc, QsidError) else f"{type(exc).__name__}: {exc}"
+        return None
+
+    def _release_memory(self) -> None:
+        """No tab for a while: the results, the workers' data and free pages go back to the system; the
+        default view is computed again, so the next first tab is as quick as the first one was."""
+        with self._lock:
+            if self.sessions or self._admitted:
+                return
+        self.cache.clear()
+        self.pool.release()
+        gc.collect()
+        trim()
+        self.prefill()
 
     def wait_for_sessions(self, count: int, timeout: float = 30.0) -> list:
         end = time.monotonic() + timeout
@@ -190,6 +218,7 @@ class DashboardApp:
 
     def stop(self, wait: bool = True) -> None:
         """Close every tab, the server and the pool (``wait=False``: do not wait for the tabs' workers)."""
+        self.idle.cancel()
         with self._lock:
             sessions = list(self.sessions.values())
             self.sessions.clear()
@@ -313,10 +342,8 @@ def _prepare_stop_signals() -> threading.Event:
 def _prepare_first_tab(app: DashboardApp) -> None:
     """Fetch the page once and compute + draw a new tab's view once, so the first tab is served like later ones."""
     fetch_page(app.host, app.port)
-    try:
-        prefill(app.defaults, app.cache, app.executor, app.tasks)
-    except Exception as exc:  # the tab itself reports what these settings raise; the server starts anyway
-        why = str(exc) if isinstance(exc, QsidError) else f"{type(exc).__name__}: {exc}"
+    why = app.prefill()
+    if why:  # the server starts anyway
         print(f"qsid dashboard: the first view was not precomputed ({why})", flush=True)
 
 

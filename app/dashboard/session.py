@@ -25,6 +25,8 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 8. signals (server ``main``): SIGINT/SIGTERM blocked in every thread, taken by ``sigwait`` in main.
 9. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
    demand, in-process; cancelled when the tab's generation changes (any new change).
+10. ``DashboardApp.idle`` (server, :class:`~app.dashboard.idle.IdleRelease`): one timer thread once the
+    last tab closed; it clears the shared cache and the workers' data unless a tab opened meanwhile.
 """
 
 from __future__ import annotations
