@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 
 import numpy as np
@@ -69,3 +70,22 @@ def test_tabs_with_equal_settings_share_results():
     assert ex.identification(9, "ls") is a.idents["LS"] and ex.closed_loops(9, "bcls") is a.loops["BCLS"]
     b = frames(v.replace(data_seed=3), cache)[0]  # other data: other models
     assert b.idents["LS"] is not a.idents["LS"]
+
+
+def test_a_word_length_change_reuses_the_rows_and_they_equal_fresh_ones():
+    from app.dashboard.frames import full_row
+
+    cache = SharedCache()
+    v = Values(system="dc-motor", bits=4, **SMALL)
+    first = frames(v, cache)[-1]
+    again = frames(v.replace(bits=7), cache)[-1]
+    for lab in first.rows:
+        for b, r in first.rows[lab].items():
+            assert again.rows[lab][b] is r  # built once, shared
+    fresh = frames(v.replace(bits=7), None)[-1]  # no cache at all: built from scratch
+    assert fresh.rows == again.rows
+    ex = again.ex
+    lp = ex.closed_loops(7, "ls")
+    assert full_row(ex, "ls", 7, lp, cache) is again.rows["LS"][7]
+    other = dataclasses.replace(lp)  # equal numbers, another object: never taken for the cached one
+    assert full_row(ex, "ls", 7, other, cache) is not again.rows["LS"][7]
