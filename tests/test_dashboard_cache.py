@@ -72,20 +72,23 @@ def test_tabs_with_equal_settings_share_results():
     assert b.idents["LS"] is not a.idents["LS"]
 
 
-def test_a_word_length_change_reuses_the_rows_and_they_equal_fresh_ones():
+def test_a_word_length_change_reuses_the_tabs_rows_and_they_equal_fresh_ones():
     from app.dashboard.frames import full_row
 
-    cache = SharedCache()
+    cache, memo = SharedCache(), {}
     v = Values(system="dc-motor", bits=4, **SMALL)
-    first = frames(v, cache)[-1]
-    again = frames(v.replace(bits=7), cache)[-1]
+    first = list(iter_frames(v, cache, memo=memo))[-1]
+    again = list(iter_frames(v.replace(bits=7), cache, memo=memo))[-1]
     for lab in first.rows:
         for b, r in first.rows[lab].items():
-            assert again.rows[lab][b] is r  # built once, shared
+            assert again.rows[lab][b] is r  # built once, reused
+    assert not any(k[0] == "view-row" for k in cache)  # the tab's own, not in the shared budget
     fresh = frames(v.replace(bits=7), None)[-1]  # no cache at all: built from scratch
     assert fresh.rows == again.rows
     ex = again.ex
     lp = ex.closed_loops(7, "ls")
-    assert full_row(ex, "ls", 7, lp, cache) is again.rows["LS"][7]
+    assert full_row(ex, "ls", 7, lp, memo) is again.rows["LS"][7]
     other = dataclasses.replace(lp)  # equal numbers, another object: never taken for the cached one
-    assert full_row(ex, "ls", 7, other, cache) is not again.rows["LS"][7]
+    assert full_row(ex, "ls", 7, other, memo) is not again.rows["LS"][7]
+    q = list(iter_frames(v.replace(log_q=(0.3, 0.3, 0.3)), cache, memo=memo))[-1]  # new closed loops: new rows
+    assert q.rows["LS"][7] is not again.rows["LS"][7]

@@ -36,27 +36,22 @@ def row(r: Any) -> dict[str, Any]:
 
 
 def full_row(
-    ex: Experiment, est: str, b: int, lp: ClosedLoops, cache: MutableMapping[Any, Any] | None = None
+    ex: Experiment, est: str, b: int, lp: ClosedLoops, memo: MutableMapping[Any, Any] | None = None
 ) -> dict[str, Any]:
     """The engine's complete row at ``b`` (closed loops ``lp``, the a-posteriori bound, the assumptions,
-    the saturated steps), as the dict the views read (read-only: it may be shared).
+    the saturated steps), as the dict the views read (read-only: it may be reused).
 
-    With ``cache``, a row built from the very same result objects is reused: a word-length change
-    redraws every b's row from cached results, and building them again was ~30 % of its CPU time. The
-    entry holds weak references to those objects and is used only if each still *is* the object
-    passed now (a new object at a reused ``id`` never matches).
+    With ``memo`` (one tab's own mapping, ``(est, b)`` -> the row and what it was built from), a row
+    built from the very same result objects is reused: a word-length change redraws every b's row
+    from cached results, and building them again was ~30 % of its CPU time. The entry holds weak
+    references to those objects and is used only if each still *is* the object passed now.
     """
     mpc = ex.config.mpc
     assert mpc is not None, "the dashboard's experiments always have an MPC"
     parts = (ex.identification(b, est), ex.theory(b), lp, ex.realized_bound(b, est), ex.assumptions(b))
-    key = ("view-row", est, b) + tuple(id(p) for p in parts)
-    if cache is not None:
-        try:
-            refs, held = cache[key]
-            if all(r() is p for r, p in zip(refs, parts)):
-                return held
-        except KeyError:
-            pass
+    held = memo.get((est, b)) if memo is not None else None
+    if held is not None and all(r() is p for r, p in zip(held[0], parts)):
+        return held[1]
     ident, th, _, realized, assumptions = parts
     out = row(
         summary_row(
@@ -69,9 +64,9 @@ def full_row(
             assumptions=assumptions,
         )
     )
-    if cache is not None:
+    if memo is not None:
         try:
-            cache[key] = (tuple(weakref.ref(p) for p in parts), out)
+            memo[(est, b)] = (tuple(weakref.ref(p) for p in parts), out)
         except TypeError:  # a result type without weak references: not reused
             pass
     return out
@@ -160,14 +155,20 @@ class Job:
     bits: int
     all_bits: tuple[int, ...]
     common: dict[str, Any]  # Frame fields that stay fixed while the curves fill
-    cache: MutableMapping[Any, Any] | None = None  # the tab's shared cache (rows are reused through it)
+    memo: MutableMapping[Any, Any] | None = None  # the tab's rows, reused when built from the same results
 
     @property
     def n(self) -> int:
         return self.common["system"].n
 
 
-def start(values: Values, cache: MutableMapping[Any, Any] | None, executor: Any, tasks: int) -> tuple[Job, Rows]:
+def start(
+    values: Values,
+    cache: MutableMapping[Any, Any] | None,
+    executor: Any,
+    tasks: int,
+    memo: MutableMapping[Any, Any] | None = None,
+) -> tuple[Job, Rows]:
     """Resolve ``values`` and compute the current b in full; returns the job and its rows {label: {b: row}}.
 
     Raises
@@ -184,7 +185,7 @@ def start(values: Values, cache: MutableMapping[Any, Any] | None, executor: Any,
     idents = {LABELS[e]: ex.identification(b, e) for e in ests}
     th = ex.theory(b)
     loops = {LABELS[e]: ex.closed_loops(b, e) for e in ests}
-    rows = {LABELS[e]: {b: full_row(ex, e, b, loops[LABELS[e]], cache)} for e in ests}
+    rows = {LABELS[e]: {b: full_row(ex, e, b, loops[LABELS[e]], memo)} for e in ests}
     mc = mpc_config(values, system)
     x0 = np.asarray(mc.x0 if mc.x0 is not None else system.x0, dtype=float)
     common = dict(
@@ -199,7 +200,7 @@ def start(values: Values, cache: MutableMapping[Any, Any] | None, executor: Any,
         x0=x0,
         notes=tuple(choice.notes),
     )
-    return Job(ex, ests, b, cfg.bits, common, cache), rows
+    return Job(ex, ests, b, cfg.bits, common, memo), rows
 
 
 def fill_rows(
@@ -209,7 +210,7 @@ def fill_rows(
     ex = job.ex
     for x in bits:
         lp = loops[x] if loops is not None else ex.closed_loops(x, est)
-        rows[LABELS[est]][x] = full_row(ex, est, x, lp, job.cache)
+        rows[LABELS[est]][x] = full_row(ex, est, x, lp, job.memo)
 
 
 def make_frame(job: Job, stage: str, rows: Rows, done: int, elapsed: float, timings: dict[str, float]) -> Frame:

@@ -90,6 +90,7 @@ class Session:
         self.last_frame: Frame | None = None
         self.last_error: str | None = None
         self.timings: dict = {}
+        self.rows_memo: dict = {}  # (estimator, b) -> this tab's last row and what it was built from
         gui = client.gui
         # (1) this tab's callbacks: cheap ones at once, others in one thread of its own, never queued twice
         self.callbacks = TabCallbacks(str(client.client_id))
@@ -321,6 +322,7 @@ class Session:
             self.app.tasks,
             should_stop=lambda: self._stale(gen),
             on_progress=progress,
+            memo=self.rows_memo,
         )
         try:
             while True:

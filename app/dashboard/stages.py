@@ -81,6 +81,7 @@ def iter_frames(
     chunk: int = len(ALL_BITS) - 1,
     min_interval: float = 0.3,
     on_progress: Callable[[int, int, str], None] | None = None,
+    memo: MutableMapping | None = None,
 ) -> Generator[Frame, None, None]:
     """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames.
 
@@ -101,6 +102,9 @@ def iter_frames(
         A "curves" frame is yielded when this many seconds passed since the last one, and at the end.
     on_progress : callable(done, total, text), optional
         Called before each chunk ("computing b=5..9 (6/16)").
+    memo : mapping, optional
+        The tab's own rows from earlier computations (:func:`~app.dashboard.frames.full_row`): a row built
+        from the same results is reused. Used by one thread at a time.
 
     Raises
     ------
@@ -118,6 +122,7 @@ def iter_frames(
         cache,
         executor,
         pool_tasks(samples, int(values.realizations), 1, tasks) if executor is not None else tasks,
+        memo,
     )
     timings = {"current": time.perf_counter() - t0}
     yield make_frame(job, "current", rows, 1, timings["current"], timings)
