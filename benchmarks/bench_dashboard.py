@@ -71,13 +71,14 @@ from app.dashboard.settings import (  # noqa: E402
 BREAKDOWN: Breakdown | None = None
 
 
-def update(values: Values, cache, renderer: Renderer, executor, tasks: int) -> dict:
-    """One change of settings, as a tab's worker handles it; returns seconds to the current b and to all curves."""
+def update(values: Values, cache, renderer: Renderer, executor, tasks: int, memo: dict | None = None) -> dict:
+    """One change of settings, as a tab's worker handles it (``renderer`` and ``memo``: the tab's); returns
+    seconds to the current b and to all curves."""
     if BREAKDOWN is not None:
         BREAKDOWN.reset()
     t0, c0 = time.perf_counter(), time.process_time()
     out = {"load": os.getloadavg()[0]}
-    for frame in iter_frames(values, cache, executor, tasks):
+    for frame in iter_frames(values, cache, executor, tasks, memo=memo):
         r = renderer.render(frame, values.axes)
         for fig in r.figures.values():
             fig.to_json()
@@ -145,13 +146,13 @@ def _row(name: str, runs: list, target: str, limit_ms: float | None = None) -> N
 SATURATED = dict(system="boeing747", x0="20, 20, 0, 0")
 
 
-def saturated_runs(base: Values, cache, renderer: Renderer, executor, tasks: int, repeat: int) -> list:
+def saturated_runs(base: Values, cache, renderer: Renderer, executor, tasks: int, repeat: int, memo=None) -> list:
     """Bound 1 -> 0.3 and 1 -> 0.2 on the Boeing from x0 = 20*[1,1,0,0], each a fresh data seed (no cache help)."""
     runs = []
     for i in range(repeat):
         v = base.replace(**SATURATED, u_max=1.0, data_seed=300 + i)
-        update(v, cache, renderer, executor, tasks)  # the unsaturated view the person starts from
-        runs.append(update(v.replace(u_max=(0.3, 0.2)[i % 2]), cache, renderer, executor, tasks))
+        update(v, cache, renderer, executor, tasks, memo)  # the unsaturated view the person starts from
+        runs.append(update(v.replace(u_max=(0.3, 0.2)[i % 2]), cache, renderer, executor, tasks, memo))
     return runs
 
 
@@ -194,12 +195,12 @@ def _main(argv=None) -> int:
         f"{'all curves [ms]: median':>8} {'min':>4} {'max':>8}   {'CPU ms':>6}   {'load':>9}  target"
     )
     cache = SharedCache()
-    ren = Renderer()
+    ren, memo = Renderer(), {}  # one tab's renderer and summary rows
     base = Values(system=a.system, identification=a.identification, **INTERACTIVE)
-    cold = [update(base, cache, ren, ex, tasks)]
+    cold = [update(base, cache, ren, ex, tasks, memo)]
     _row("interactive: first view (cold cache)", cold, "-")
     bits = [5, 6, 3, 7, 4, 8, 2, 9, 10, 11]
-    runs = [update(base.replace(bits=b), cache, ren, ex, tasks) for b in bits[: a.repeat]]
+    runs = [update(base.replace(bits=b), cache, ren, ex, tasks, memo) for b in bits[: a.repeat]]
     _row("interactive: b change", runs, "<= 100 ms (all, dashboard issue); issue 9: <= 500 ms", 100)
     pinned = list(iter_frames(base.replace(dither="none"), cache, ex, tasks))[-1]
     for label, pin in (("", None), (" + pinned overlay", pinned)):
@@ -215,19 +216,21 @@ def _main(argv=None) -> int:
     for i in range(a.repeat):  # move the first Q and the last R slider, as a person would
         d = 0.1 * (i + 1)
         runs.append(
-            update(v.replace(log_q=(lq[0] + d,) + lq[1:], log_r=lr[:-1] + (lr[-1] - d,)), cache, ren, ex, tasks)
+            update(v.replace(log_q=(lq[0] + d,) + lq[1:], log_r=lr[:-1] + (lr[-1] - d,)), cache, ren, ex, tasks, memo)
         )
     _row("interactive: Q/R change", runs, "<= 500 ms (all)", 500)
-    runs = [update(v.replace(data_seed=100 + i), cache, ren, ex, tasks) for i in range(a.repeat)]
+    runs = [update(v.replace(data_seed=100 + i), cache, ren, ex, tasks, memo) for i in range(a.repeat)]
     _row("interactive: data change (seed)", runs, "<= 500 ms (all)", 500)
-    runs = saturated_runs(base, cache, ren, ex, tasks, a.repeat)
+    runs = saturated_runs(base, cache, ren, ex, tasks, a.repeat, memo)
     _row("interactive: saturated MPC (boeing |u|<=.3/.2)", runs, "<= 500 ms (all)", 500)
     if not a.no_paper:
         paper = base.replace(**PAPER_SCALE)
-        update(paper, cache, ren, ex, tasks)  # the dashboard's paper-scale button, once
-        runs = [update(paper.replace(data_seed=200 + i), cache, ren, ex, tasks) for i in range(max(2, a.repeat // 2))]
+        update(paper, cache, ren, ex, tasks, memo)  # the dashboard's paper-scale button, once
+        runs = [
+            update(paper.replace(data_seed=200 + i), cache, ren, ex, tasks, memo) for i in range(max(2, a.repeat // 2))
+        ]
         _row("paper scale: data change (seed)", runs, "<= 1500 ms (all)", 1500)
-        runs = [update(paper.replace(data_seed=200, bits=b), cache, ren, ex, tasks) for b in bits[: a.repeat]]
+        runs = [update(paper.replace(data_seed=200, bits=b), cache, ren, ex, tasks, memo) for b in bits[: a.repeat]]
         _row("paper scale: b change", runs, "-")
     print(f"cache: {len(cache)} entries, ~{cache.nbytes / 2**20:.0f} MB, {cache.kinds()}")
     if a.datalength:
