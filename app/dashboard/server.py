@@ -216,8 +216,11 @@ class DashboardApp:
             time.sleep(0.05)
         raise TimeoutError(f"{count} browser tab(s) did not connect within {timeout} s")
 
-    def stop(self, wait: bool = True) -> None:
-        """Close every tab, the server and the pool (``wait=False``: do not wait for the tabs' workers)."""
+    def halt(self) -> list:
+        """Tell every tab to stop, kill the pool and save the view codes; the web server keeps running.
+
+        Returns the closed sessions (their workers may still be finishing).
+        """
         self.idle.cancel()
         with self._lock:
             sessions = list(self.sessions.values())
@@ -226,6 +229,11 @@ class DashboardApp:
             s.close(wait=False)
         self.pool.shutdown()  # workers killed: a tab's pending task fails at once
         self.views.flush()
+        return sessions
+
+    def stop(self, wait: bool = True) -> None:
+        """Close every tab, the server and the pool (``wait=False``: do not wait for the tabs' workers)."""
+        sessions = self.halt()
         if wait:
             for s in sessions:
                 s.close()
@@ -354,9 +362,28 @@ def _wait_for_stop_signal(stop: threading.Event) -> None:
             return
 
 
-def _shutdown(app) -> None:
-    app.stop(wait=False)
+#: Seconds the stop waits for the pool's semaphores to be released. Leaving while their finalizers run would
+#: unlink a semaphore without unregistering it: the resource tracker then warns of a "leaked" one.
+RELEASE_WAIT = 20.0
+#: Seconds the stop gives the web server (and the tabs' workers) in all before the process leaves.
+STOP_WAIT = 2.0
+
+
+def _shutdown(app, released: threading.Event) -> None:
+    app.halt()
     release_ipc()
+    released.set()
+    app.server.stop()
+
+
+def _stop_app(app) -> None:
+    """Stop ``app`` from the main thread: the pool and its semaphores always, the web server within ``STOP_WAIT``."""
+    t0 = time.monotonic()
+    released = threading.Event()
+    stopper = threading.Thread(target=_shutdown, args=(app, released), name="qsid-stop", daemon=True)
+    stopper.start()
+    released.wait(RELEASE_WAIT)
+    stopper.join(max(0.0, STOP_WAIT - (time.monotonic() - t0)))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -432,9 +459,7 @@ def main(argv: list[str] | None = None) -> int:
         code = 2
     finally:
         if app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
-            stopper = threading.Thread(target=_shutdown, args=(app,), daemon=True)
-            stopper.start()
-            stopper.join(2.0)
+            _stop_app(app)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)
