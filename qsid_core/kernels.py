@@ -71,14 +71,32 @@ def _dot_py(x, y, k):
     return acc
 
 
+def _accumulate_block_py(V, nr, r1, M, C, sums, j):
+    """Add one block's sums at word length ``j``: ``sums += sum_r v_r``, ``M += sum_r v_r v_r'`` (upper
+    triangle) and ``C += sum_r v_{r-1} v_r[:n]'`` over rows ``r1 + 1 .. nr`` (``v_r = V[:, r]``, ``V[:, 0]``
+    the row before the block). Any number of channels; :mod:`qsid_core.unrolled` writes the same sums
+    unrolled for one number of channels and states."""
+    p = V.shape[0]
+    n = C.shape[2]
+    for a in range(p):
+        Va = V[a, 1 : nr + 1]
+        acc = 0.0
+        for r in range(nr):
+            acc += Va[r]
+        sums[j, a] += acc
+        for b in range(a, p):
+            M[j, a, b] += _dot(Va, V[b, 1 : nr + 1], nr)
+    for a in range(p):
+        for b in range(n):
+            C[j, a, b] += _dot(V[a, r1:nr], V[b, r1 + 1 : nr + 1], nr - r1)
+
+
 def _accumulate_chunk_py(y, u, sub, quant, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first):
     """Quantize rows ``y`` at every word length and accumulate (see :func:`accumulate_chunk`)."""
     rows, p = y.shape
-    n = C.shape[2]
     V = np.empty((p, BLOCK + 1))  # V[:, 0] = v of the row before the block, V[:, 1 + r] = v of row r
     yT = np.empty((p, BLOCK))  # the block's samples and draws channel by channel (contiguous loops)
     uT = np.empty((p, BLOCK))
-    ones = np.ones(BLOCK)
     for s0 in range(0, rows, BLOCK):  # block outer, word length inner: the block's y and u stay in L1 cache
         nr = min(BLOCK, rows - s0)
         g0 = row0 + s0  # global index of the block's first row
@@ -104,17 +122,8 @@ def _accumulate_chunk_py(y, u, sub, quant, scale, half, row0, S1, M, C, sums, ov
                     for r in range(nr):
                         va[r] = ya[r] * s_j
             over[j] += cnt
-            # sums += sum_r v_r;  M += sum_r v_r v_r' (upper triangle)
-            for a in range(p):
-                Va = V[a, 1 : nr + 1]
-                sums[j, a] += _dot(Va, ones, nr)
-                for b in range(a, p):
-                    M[j, a, b] += _dot(Va, V[b, 1 : nr + 1], nr)
-            # C += sum_g v_{g-1} v_g[:n]' over consecutive global rows (none before global row 0)
-            r1 = 0 if g0 > 0 else 1
-            for a in range(p):
-                for b in range(n):
-                    C[j, a, b] += _dot(V[a, r1:nr], V[b, r1 + 1 : nr + 1], nr - r1)
+            # the block's sums (no pair of consecutive rows before global row 0)
+            _accumulate_block(V, nr, 0 if g0 > 0 else 1, M, C, sums, j)
             for a in range(p):
                 prev[j, a] = V[a, nr]
             # v at the last / first row of every run in the block (g % S1 == S1 - 1 / == 0)
@@ -230,6 +239,7 @@ if AVAILABLE:
     _pdas_one = _numba.njit(cache=True, nogil=True)(_pdas_one_py)
     _box_qp_pdas_nb = _numba.njit(cache=True, nogil=True)(_box_qp_pdas_py)
     _dot = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_dot_py)
+    _accumulate_block = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_accumulate_block_py)
     _accumulate_chunk_nb = _numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_accumulate_chunk_py)
     # "reassoc" lets LLVM vectorise the sums (their order changes: rounding only, ~1e-16 relative);
     # no "contract": y * scale + u stays two roundings, so every quantized sample equals numpy's
@@ -238,11 +248,12 @@ else:  # pragma: no cover
     _pdas_one = _pdas_one_py
     _box_qp_pdas_nb = None
     _dot = _dot_py
+    _accumulate_block = _accumulate_block_py
     _accumulate_chunk_nb = None
 
 
 def accumulate_chunk(
-    y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first, sub: float = 1.0, quant=None
+    y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first, sub: float = 1.0, quant=None, kernel=None
 ) -> None:
     """Quantize a chunk of normalised samples at every word length and accumulate, in place.
 
@@ -280,6 +291,9 @@ def accumulate_chunk(
         1.0: the dither is subtracted after quantization; 0.0: it is not.
     quant : ndarray of bool, shape (p,), optional
         False for a channel recorded exactly (no quantization: ``v = y * scale``); default all True.
+    kernel : compiled function, optional
+        The same kernel specialised to ``p`` channels and ``n`` states (:func:`qsid_core.unrolled.kernel`);
+        default the generic one.
     """
     if not AVAILABLE:
         raise RuntimeError(f"compiled kernels unavailable: {REASON}")
@@ -289,9 +303,8 @@ def accumulate_chunk(
     )
     half2 = np.ascontiguousarray(np.broadcast_to(np.asarray(half, dtype=float).reshape(len(half), -1), (len(half), p)))
     q = np.ones(p, dtype=np.bool_) if quant is None else np.asarray(quant, dtype=np.bool_)
-    _accumulate_chunk_nb(
-        y, u, float(sub), q, scale2, half2, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first
-    )
+    fn = kernel or _accumulate_chunk_nb
+    fn(y, u, float(sub), q, scale2, half2, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first)
 
 
 def box_qp_pdas(H, g, ub, upper, lower, iters: int = 8, tol: float = 1e-12):

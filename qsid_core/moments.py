@@ -317,7 +317,7 @@ def quantized_moments(
     of ``g`` cells, :func:`~qsid_core.quantize.guard_cells`); the quantized value is
     ``a + eps * v`` (see :func:`_gram`). Only sums over ``v`` are accumulated.
     """
-    from . import kernels
+    from . import kernels, unrolled
 
     check_choice("engine", engine, ENGINES)
     if engine == "numba" and not kernels.AVAILABLE:
@@ -337,6 +337,7 @@ def quantized_moments(
         [[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch] for ch in chans]
     )
     acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
+    fast = unrolled.kernel(p, prep.n) if compiled else None  # None: the generic kernel
     for start in range(0, N, CHUNK_ROWS):
         y = yc[start : start + CHUNK_ROWS]
         u = draw_dither_units(rng, y.shape, spec.dither) if dithered and rng is not None else None
@@ -357,6 +358,7 @@ def quantized_moments(
                 acc.v_first,
                 sub=sub,
                 quant=quant,
+                kernel=fast,
             )
         else:
             _chunk_numpy(y, u, sub, scale, half, quant, start, S1, acc)

@@ -23,6 +23,8 @@ def _modules(package: str = "app") -> dict:
     """module name -> (path, parsed tree) of every module of ``package``."""
     out = {}
     for p in sorted((ROOT / package).rglob("*.py")):
+        if "__pycache__" in p.parts:  # generated at run time (qsid_core.unrolled), not the project's code
+            continue
         rel = p.relative_to(ROOT).with_suffix("")
         name = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
         out[name] = (p, ast.parse(p.read_text(encoding="utf-8")))

@@ -42,12 +42,12 @@ def start_and_stop(cache: str) -> list[str]:
 
 
 def test_compiles_once_before_ready_then_loads_quietly(tmp_path):
-    from app.dashboard.warm import KERNELS
+    from app.dashboard.warm import kernel_names
 
     first = start_and_stop(str(tmp_path))
     assert first[0].startswith("qsid dashboard: compiling the kernels once"), first
     assert first[-1].startswith("qsid dashboard: http://")
     cached = {p.name.split("-")[0] for p in tmp_path.rglob("*.nbi")}
-    assert cached == set(KERNELS)  # every kernel compiled before the URL
+    assert cached == set(kernel_names())  # every kernel compiled before the URL
     second = start_and_stop(str(tmp_path))
     assert len(second) == 1 and second[0].startswith("qsid dashboard: http://"), second

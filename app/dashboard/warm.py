@@ -19,19 +19,19 @@ import urllib.request
 
 from app.procs import worker_pids
 
-__all__ = ["needs_compiling", "warm", "warm_here", "prefill", "fetch_page", "COMPILE_SECONDS"]
+__all__ = ["needs_compiling", "kernel_names", "warm", "warm_here", "prefill", "fetch_page", "COMPILE_SECONDS"]
 
-#: What the first compile of all kernels takes (measured: 8.4 s cold vs 2.1 s cached for this warm-up on a loaded
+#: What the first compile of all kernels takes (measured: 15.1 s cold vs 1.0 s cached for this warm-up on a quiet
 #: 2-CPU machine; rounded up for slower ones).
-COMPILE_SECONDS = 10
+COMPILE_SECONDS = 20
 
 #: The compiled kernels as ``module.function`` (numba names their cache index files after them):
-#: :mod:`qsid_core.kernels` and the compiled closed loop of :mod:`qsid_core.loop_kernel`.
+#: :mod:`qsid_core.kernels`' box QP and the compiled closed loop of :mod:`qsid_core.loop_kernel`
+#: (the generic quantize-and-accumulate kernel serves only systems of more than
+#: :data:`qsid_core.unrolled.MAX_CHANNELS` channels, and is compiled when one is used).
 KERNELS = (
-    "kernels._accumulate_chunk_py",
     "kernels._box_qp_pdas_py",
     "kernels._chol_solve_py",
-    "kernels._dot_py",
     "kernels._pdas_one_py",
     "loop_kernel._box_loop_py",
     "loop_kernel._guess_py",
@@ -41,6 +41,20 @@ KERNELS = (
 )
 
 
+def _preset_sizes() -> list[tuple[int, int]]:
+    """``(channels, states)`` of every preset system."""
+    from qsid_core.systems import PRESETS
+
+    return sorted({(s.n + s.m, s.n) for s in (make() for make in PRESETS.values())})
+
+
+def kernel_names() -> list[str]:
+    """Every kernel :func:`warm_here` compiles, as numba names its cache index files: :data:`KERNELS` and
+    :mod:`qsid_core.unrolled`'s kernel for every preset system's size."""
+    gen = [f"qsid_accumulate_p{p}_n{n}._accumulate_chunk_py" for p, n in _preset_sizes()]
+    return [*KERNELS, *gen]
+
+
 def needs_compiling() -> bool:
     """True if some kernel has no machine code in numba's cache yet (the first run after an install)."""
     from qsid_core import kernels
@@ -48,7 +62,7 @@ def needs_compiling() -> bool:
     if not kernels.AVAILABLE:
         return False
     d = kernels.cache_dir()
-    return not all(glob.glob(os.path.join(d, "**", f"{k}-*.nbi"), recursive=True) for k in KERNELS)
+    return not all(glob.glob(os.path.join(d, "**", f"{k}-*.nbi"), recursive=True) for k in kernel_names())
 
 
 def warm_here() -> int:
@@ -62,7 +76,36 @@ def warm_here() -> int:
     for _ in iter_frames(v, SharedCache(16 * 2**20), None, 1):
         pass
     _warm_box_qp()
+    _warm_sizes()
     return os.getpid()
+
+
+def _warm_sizes() -> None:
+    """The quantize-and-accumulate kernel for every preset system's size (:mod:`qsid_core.unrolled`)."""
+    import numpy as np
+
+    from qsid_core import kernels, unrolled
+
+    if not kernels.AVAILABLE:
+        return
+    for p, n in _preset_sizes():
+        y, nb, fn = np.zeros((4, p)), 1, unrolled.kernel(p, n)
+        kernels.accumulate_chunk(
+            y,
+            y,
+            np.ones(nb),
+            np.ones(nb),
+            0,
+            2,
+            np.zeros((nb, p, p)),
+            np.zeros((nb, p, n)),
+            np.zeros((nb, p)),
+            np.zeros(nb, dtype=np.int64),
+            np.zeros((nb, p)),
+            np.zeros((nb, 2, p)),
+            np.zeros((nb, 2, p)),
+            kernel=fn,
+        )
 
 
 def _warm_box_qp() -> None:
