@@ -42,6 +42,10 @@ class _Ahead:
         while len(self.futures) <= min(k, len(self.parts) - 1):
             self.futures.append(self.helper.submit(self._task, self.parts[len(self.futures)]))
 
+    def start(self, k: int) -> None:
+        """Start quantizing part ``k`` (and part k + 1) unless started."""
+        self._submit_through(k + 1)
+
     def wait(self, k: int) -> None:
         """Return once part ``k`` is quantized (re-raises the helper's error); part k + 1 starts meanwhile."""
         self._submit_through(k + 1)
@@ -140,6 +144,11 @@ def iter_frames(
                 return
             if on_progress:
                 on_progress(done, total, f"computing b={parts[k][0]}..{parts[k][-1]} ({done + 1}/{total})")
+            ahead.start(k)
+            for x in parts[k]:  # needs no quantized data: computed here while the pool quantizes
+                if stop():
+                    return
+                job.ex.overload_effect(x)
             ahead.wait(k)
             if executor is not None and ahead.finished:
                 # every b quantized (or cached): spread all remaining closed loops over the executor at once
