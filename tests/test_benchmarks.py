@@ -110,7 +110,13 @@ def test_bench_mpc_quick_main_prints_result(capsys, tmp_path):
 
 @pytest.mark.parametrize(
     "name",
-    ["bench_mpc.txt", "bench_dashboard.txt", "bench_dashboard_inprocess.txt", "bench_dashboard_inprocess_before.txt"],
+    [
+        "bench_mpc.txt",
+        "bench_dashboard.txt",
+        "bench_dashboard_inprocess.txt",
+        "bench_dashboard_inprocess_before.txt",
+        "bench_kernels.txt",
+    ],
 )
 def test_the_benchmark_outputs_in_the_docs_were_saved_by_the_benchmarks(name):
     # docs/performance.rst includes these files verbatim: each is a benchmark's own --save output
@@ -118,6 +124,22 @@ def test_the_benchmark_outputs_in_the_docs_were_saved_by_the_benchmarks(name):
     text = path.read_text(encoding="utf-8")
     assert text.startswith("# qsid benchmark output: bench_") and "load average at start" in text
     assert f"perf/{name}" in (ROOT / "docs" / "performance.rst").read_text(encoding="utf-8")
+
+
+def test_bench_kernels_times_both_kernels_on_the_same_sums(capsys):
+    import bench_kernels
+
+    from qsid_core import kernels
+
+    if not kernels.AVAILABLE:
+        pytest.skip(kernels.REASON)
+    assert bench_kernels.main(["--repeat", "1"]) == 0
+    rows = [r.split() for r in capsys.readouterr().out.splitlines()[2:]]
+    assert [r[0] for r in rows] == [name for name, _, _ in bench_kernels.SIZES]
+    for r in rows:  # generic median, generated median, ratio, largest relative difference of the sums
+        generic, generated, ratio, diff = float(r[3]), float(r[5]), float(r[7]), float(r[8])
+        assert generic > 0 and generated > 0 and ratio == pytest.approx(generated / generic, abs=0.006)
+        assert diff < 1e-12
 
 
 def test_blas_helper_reports_and_limits_threads():

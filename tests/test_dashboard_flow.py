@@ -88,6 +88,9 @@ def test_pool_tasks_last_a_fraction_of_a_second_and_use_every_worker():
     assert pool_tasks(400 * 2000, 100, 15, 2) > pool_tasks(400 * 2000, 100, 1, 2)  # a pass over more b
     assert pool_tasks(10**8, 3, 15, 2) == 3  # never more tasks than realizations
     assert pool_tasks(10, 1, 1, 4) == 1
+    # as many tasks per worker: the paper scale's pass over 15 b (estimated 5 tasks) is split into 6
+    assert pool_tasks(200 * 1000 * 5 // 4, 50, 15, 2) == 6
+    assert all(pool_tasks(s, 50, b, 2) % 2 == 0 for s in (10**4, 10**5, 10**6) for b in (1, 8, 15))
 
 
 def _sum(a):

@@ -231,8 +231,13 @@ def pool_tasks(samples: int, realizations: int, bits: int, workers: int, target:
     """How many pool tasks to split ``realizations`` into for one pass over ``bits`` word lengths.
 
     Each task should last about ``target`` seconds (estimated from ``samples`` = trajectories x
-    steps x channels / 4); at least one task per worker, at most one per realization.
+    steps x channels / 4); at least one task per worker, at most one per realization, and a multiple
+    of ``workers`` where possible, so that every worker gets as many tasks of about the same size (5
+    tasks on 2 workers took three rounds of the largest; 6 take three rounds of smaller ones).
     """
     per_real = _SAMPLE_SECONDS * samples * (1.0 + 0.11 * (max(1, bits) - 1))
     per_task = max(1, int(target // per_real)) if per_real > 0 else realizations
-    return int(min(max(workers, math.ceil(realizations / per_task)), max(1, realizations)))
+    n = max(workers, math.ceil(realizations / per_task))
+    if workers > 0:
+        n = math.ceil(n / workers) * workers
+    return int(min(n, max(1, realizations)))

@@ -9,7 +9,7 @@ arranges them for the views (:mod:`app.figures`).
 from __future__ import annotations
 
 import weakref
-from collections.abc import Iterable, Mapping, MutableMapping
+from collections.abc import Callable, Iterable, Mapping, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -168,8 +168,12 @@ def start(
     executor: Any,
     tasks: int,
     memo: MutableMapping[Any, Any] | None = None,
+    quantized: Callable[[Experiment], None] | None = None,
 ) -> tuple[Job, Rows]:
     """Resolve ``values`` and compute the current b in full; returns the job and its rows {label: {b: row}}.
+
+    ``quantized(ex)``, if given, is called once the current b is quantized (before its models, loops and
+    bounds), e.g. to start quantizing the other word lengths meanwhile.
 
     Raises
     ------
@@ -182,6 +186,9 @@ def start(
     ests = estimators(values.identification)
     ex = Experiment(cfg, executor=executor, tasks=tasks, cache=cache)
     b = int(values.bits)
+    if quantized is not None:
+        ex.moments([b])
+        quantized(ex)
     idents = {LABELS[e]: ex.identification(b, e) for e in ests}
     th = ex.theory(b)
     loops = {LABELS[e]: ex.closed_loops(b, e) for e in ests}

@@ -121,36 +121,44 @@ def iter_frames(
     if on_progress:
         on_progress(0, total, f"computing b={b} (1/{total})")
     samples = int(values.trajectories) * int(values.steps)
-    job, rows = start(
-        values,
-        cache,
-        executor,
-        pool_tasks(samples, int(values.realizations), 1, tasks) if executor is not None else tasks,
-        memo,
-    )
-    timings = {"current": time.perf_counter() - t0}
-    yield make_frame(job, "current", rows, 1, timings["current"], timings)
-    rest = [x for x in job.all_bits if x != b]
-    parts = [rest[i : i + chunk] for i in range(0, len(rest), chunk)]
-    if executor is not None and parts:  # tasks of a fraction of a second: abandoned work never holds the pool long
-        channels = job.n + job.common["system"].m
-        job.ex.tasks = pool_tasks(samples * channels // 4, int(values.realizations), len(parts[0]), tasks)
     helper = ThreadPoolExecutor(1, thread_name_prefix="qsid-helper")
-    ahead = _Ahead(helper, job.ex, parts, stop)
-    last, done, k = time.perf_counter(), 1, 0
+    ahead: list[_Ahead] = []
+
+    def quantize_the_rest(ex) -> None:
+        """The current b is quantized: the helper starts on the other word lengths while its rows are built."""
+        rest = [x for x in ex.config.bits if x != b]
+        parts = [rest[i : i + chunk] for i in range(0, len(rest), chunk)]
+        if executor is not None and parts:  # tasks of a fraction of a second: abandoned work never holds the pool
+            channels = ex.system.n + ex.system.m
+            ex.tasks = pool_tasks(samples * channels // 4, int(values.realizations), len(parts[0]), tasks)
+        ahead.append(_Ahead(helper, ex, parts, stop))
+        ahead[0].start(0)
+
     try:
+        job, rows = start(
+            values,
+            cache,
+            executor,
+            pool_tasks(samples, int(values.realizations), 1, tasks) if executor is not None else tasks,
+            memo,
+            quantize_the_rest,
+        )
+        timings = {"current": time.perf_counter() - t0}
+        yield make_frame(job, "current", rows, 1, timings["current"], timings)
+        parts = ahead[0].parts
+        last, done, k = time.perf_counter(), 1, 0
         while k < len(parts):
             if stop():
                 return
             if on_progress:
                 on_progress(done, total, f"computing b={parts[k][0]}..{parts[k][-1]} ({done + 1}/{total})")
-            ahead.start(k)
+            ahead[0].start(k)
             for x in parts[k]:  # needs no quantized data: computed here while the pool quantizes
                 if stop():
                     return
                 job.ex.overload_effect(x)
-            ahead.wait(k)
-            if executor is not None and ahead.finished:
+            ahead[0].wait(k)
+            if executor is not None and ahead[0].finished:
                 # every b quantized (or cached): spread all remaining closed loops over the executor at once
                 part, k = [x for p in parts[k:] for x in p], len(parts)
                 _loops_all(job, rows, part)
