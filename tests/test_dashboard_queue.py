@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import threading
 
+import pytest
 from support import HANG_S, open_tab, wait_until
 
 from app.dashboard import DashboardApp
@@ -107,6 +108,8 @@ def test_cheap_turns_go_first_and_have_a_slot_of_their_own():
     assert slots._free == 1 and slots._fast_free == 1  # every slot back
 
 
+# slow (~4 s): another tab's computation is slowed on purpose
+@pytest.mark.slow
 def test_a_word_length_change_is_not_queued_behind_another_tabs_slow_computation(monkeypatch):
     """One compute slot held by tab A's slow computation; tab B's word length change redraws from the cache
     on the fast slot at once, while A still holds its slot."""

@@ -7,6 +7,7 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
 import viser
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,6 +90,8 @@ async def _make_event(loop):
     return LoopEvent(loop)
 
 
+# slow (~8 s): three changes computed and drawn in a real tab
+@pytest.mark.slow
 def test_a_tab_whose_draw_raises_recovers(monkeypatch):
     """An exception inside a draw (as viser's race raised it) is retried at once; failing twice it is one error
     line, and the tab follows its next change."""

@@ -6,11 +6,14 @@ import gc
 import time
 import weakref
 
+import pytest
 from support import SMALL, Tab
 
 from app.dashboard import DashboardApp
 
 
+# slow (~6 s): three tabs computed, closed and collected one after the other
+@pytest.mark.slow
 def test_closed_tabs_leave_nothing_behind():
     app = DashboardApp(host="127.0.0.1", port=0, workers=0)
     refs, threads = [], []

@@ -70,6 +70,8 @@ def test_word_length_change_moves_sphere_lines_and_marker(tab):
     assert tab.frame.bits == 10 and "b = **10** bits" in tab.summary
 
 
+# slow (~3 s): a tab's view computed in full twice
+@pytest.mark.slow
 def test_weight_change_redraws_cost_not_identification(tab):
     cost = tab.session.plots["cost"].figure.to_json()
     idents = dict(tab.frame.idents)
@@ -80,6 +82,8 @@ def test_weight_change_redraws_cost_not_identification(tab):
     assert all(tab.frame.idents[k] is idents[k] for k in idents)  # the same models, from the shared cache
 
 
+# slow (~8 s): the custom system computed in full before the typo
+@pytest.mark.slow
 def test_a_typo_in_a_custom_matrix_is_explained_and_the_last_view_stays(tab):
     tab.set(system="custom")
     assert tab.controls["a_text"].disabled is False and tab.error is None  # a copy of the preset, editable
@@ -89,6 +93,8 @@ def test_a_typo_in_a_custom_matrix_is_explained_and_the_last_view_stays(tab):
     assert tab.session.portrait.view is view  # the last good view stays
 
 
+# slow (~3 s): the custom system computed in full first
+@pytest.mark.slow
 def test_an_unstable_custom_system_is_explained(tab):
     tab.set(system="custom")
     tab.set(trajectories=2, steps=2000, a_text="1.5 0 0\n0 1 0\n0 0 1")
@@ -108,6 +114,8 @@ def test_a_bad_x0_is_explained_and_a_good_one_clears_it(tab):
     assert tab.error is None
 
 
+# slow (~4 s): 100-step loops of an unstable plant until they diverge
+@pytest.mark.slow
 def test_failing_mpc_is_reported_per_realization(tab):
     tab.set(system="custom")
     # an unstable plant and a tiny input bound: no MPC can hold it, the loops fail one by one
@@ -187,6 +195,8 @@ def test_worker_survives_unexpected_errors(tab, monkeypatch):
     assert tab.error is None and tab.frame.bits == 7
 
 
+# slow (~4 s): starts the command line as a process
+@pytest.mark.slow
 def test_command_line_prints_url_and_stops_cleanly_on_ctrl_c():
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     p = subprocess.Popen(

@@ -39,13 +39,15 @@ class _SlowApp:
 
 
 def test_the_semaphores_are_released_even_when_that_outlasts_the_stop_bound(monkeypatch):
-    app = _SlowApp(release_s=server.STOP_WAIT + 1.0, server_s=0.0)
+    monkeypatch.setattr(server, "STOP_WAIT", 0.2)
+    app = _SlowApp(release_s=0.7, server_s=0.0)
     monkeypatch.setattr(server, "release_ipc", app.release)
     server._stop_app(app)
     assert app.steps[:2] == ["halted", "released"]
 
 
 def test_a_web_server_that_does_not_stop_does_not_hold_the_process(monkeypatch):
+    monkeypatch.setattr(server, "STOP_WAIT", 0.2)
     block = threading.Event()
     app = _SlowApp(release_s=0.0, server_s=0.0)
     app.server.stop = block.wait  # never returns until the test ends
