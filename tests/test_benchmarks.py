@@ -138,7 +138,9 @@ def test_bench_kernels_times_both_kernels_on_the_same_sums(capsys):
     assert [r[0] for r in rows] == [name for name, _, _ in bench_kernels.SIZES]
     for r in rows:  # generic median, generated median, ratio, largest relative difference of the sums
         generic, generated, ratio, diff = float(r[3]), float(r[5]), float(r[7]), float(r[8])
-        assert generic > 0 and generated > 0 and ratio == pytest.approx(generated / generic, abs=0.006)
+        # the ratio is printed to 0.01 from the unrounded medians, the times to 0.1 ms
+        slack = 0.005 + (generated / generic) * (0.05 / generated + 0.05 / generic) + 1e-9
+        assert generic > 0 and generated > 0 and ratio == pytest.approx(generated / generic, abs=slack)
         assert diff < 1e-12
 
 
