@@ -33,23 +33,14 @@ if str(ROOT) not in sys.path:
 import numpy as np  # noqa: E402
 
 from qsid_core import kernels, unrolled  # noqa: E402
-from qsid_core.moments import CHUNK_ROWS  # noqa: E402
+from qsid_core.moments import CHUNK_ROWS, _Sums  # noqa: E402
 
 #: (name, channels p, states n): the preset systems' sizes
 SIZES = (("dc-motor", 5, 3), ("boeing747", 6, 4), ("mass-spring-damper", 3, 2))
 
 
-def _one(fn, y, u, scale, half, n, S1, runs) -> tuple[float, list]:
-    nb, p = scale.shape
-    out = [
-        np.zeros((nb, p, p)),
-        np.zeros((nb, p, n)),
-        np.zeros((nb, p)),
-        np.zeros(nb, dtype=np.int64),
-        np.zeros((nb, p)),
-        np.zeros((nb, runs, p)),
-        np.zeros((nb, runs, p)),
-    ]
+def _one(fn, y, u, scale, half, n, S1, runs) -> tuple[float, tuple]:
+    out = _Sums.zeros(scale.shape[0], scale.shape[1], n, runs).arrays()
     t = time.perf_counter()
     for s in range(0, len(y), CHUNK_ROWS):
         kernels.accumulate_chunk(y[s : s + CHUNK_ROWS], u[s : s + CHUNK_ROWS], scale, half, s, S1, *out, kernel=fn)

@@ -168,6 +168,10 @@ class _Sums:
             np.zeros((nb, runs, p)),
         )
 
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(M, C, sums, over, prev, v_last, v_first)``: the kernel's in-place arguments, in its order."""
+        return (self.M, self.C, self.sums, self.over, self.prev, self.v_last, self.v_first)
+
 
 def _chunk_numpy(
     y: np.ndarray,
@@ -349,13 +353,7 @@ def quantized_moments(
                 half,
                 start,
                 S1,
-                acc.M,
-                acc.C,
-                acc.sums,
-                acc.over,
-                acc.prev,
-                acc.v_last,
-                acc.v_first,
+                *acc.arrays(),
                 sub=sub,
                 quant=quant,
                 kernel=fast,

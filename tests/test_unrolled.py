@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from qsid_core import kernels, unrolled
+from qsid_core.moments import _Sums
 
 needs_numba = pytest.mark.skipif(not kernels.AVAILABLE, reason=f"numba kernels unavailable: {kernels.REASON}")
 
@@ -22,16 +23,7 @@ def _inputs(p: int, n: int, rows: int, S1: int, nb: int, seed: int):
 
 
 def _run(fn, y, u, sub, quant, scale, half, row0, S1, n, runs):
-    nb, p = scale.shape
-    out = [
-        np.zeros((nb, p, p)),
-        np.zeros((nb, p, n)),
-        np.zeros((nb, p)),
-        np.zeros(nb, dtype=np.int64),
-        np.zeros((nb, p)),
-        np.zeros((nb, runs, p)),
-        np.zeros((nb, runs, p)),
-    ]
+    out = _Sums.zeros(scale.shape[0], scale.shape[1], n, runs).arrays()
     for start in range(0, len(y), 700):  # several calls: the previous row is carried between them
         fn(y[start : start + 700], u[start : start + 700], sub, quant, scale, half, row0 + start, S1, *out)
     return out
@@ -60,18 +52,11 @@ def test_the_generated_kernel_computes_the_generic_sums(p, n, sub, row0):
 def test_accumulate_chunk_runs_the_generated_kernel_it_is_given():
     p, n = 5, 3
     y, u, scale, half, runs = _inputs(p, n, rows=900, S1=300, nb=2, seed=1)
-    M, C = np.zeros((2, p, p)), np.zeros((2, p, n))
-    rest = (
-        np.zeros((2, p)),
-        np.zeros(2, dtype=np.int64),
-        np.zeros((2, p)),
-        np.zeros((2, runs, p)),
-        np.zeros((2, runs, p)),
-    )
-    kernels.accumulate_chunk(y, u, scale, half, 0, 300, M, C, *rest, kernel=unrolled.kernel(p, n))
+    out = _Sums.zeros(2, p, n, runs).arrays()
+    kernels.accumulate_chunk(y, u, scale, half, 0, 300, *out, kernel=unrolled.kernel(p, n))
     assert unrolled.kernel(p, n) is not None and (p, n) not in unrolled.NOT_USED
     ref = _run(kernels._accumulate_chunk_nb, y, u, 1.0, np.ones(p, dtype=np.bool_), scale, half, 0, 300, n, runs)
-    np.testing.assert_allclose(M, ref[0], rtol=1e-12)
+    np.testing.assert_allclose(out[0], ref[0], rtol=1e-12)
 
 
 @needs_numba
