@@ -252,26 +252,37 @@ class Pool:
                     pass
             return arg
 
-    def release(self, timeout: float = 30.0) -> int:
-        """Forget every shared object (the server's files, each worker's copy) and have each worker hand its free
-        pages back; returns how many workers did. Tasks that still need an object fail with a plain message."""
+    def _drop_shared(self) -> None:
+        """Forget every shared object and delete the server's files of them."""
         with self._slock:
             self._shared.clear()
             if self._share_dir is not None:
                 shutil.rmtree(self._share_dir, ignore_errors=True)
                 self._share_dir = None
+
+    def each_worker(self, fn, timeout: float, rounds: int = 20) -> int:
+        """Run ``fn()`` (returns its worker's pid) in every worker of the current pool; returns how many ran it.
+
+        Raises what ``fn`` or the pool raises (e.g. a timeout).
+        """
         ex = self.current
         if ex is None:
             return 0
         want, seen = set(worker_pids(ex)), set()
-        try:
-            for _ in range(10):  # a worker may take two tasks of a round: ask until each answered once
-                seen |= {f.result(timeout=timeout) for f in [ex.submit(_release_worker) for _ in want]}
-                if want <= seen:
-                    break
-        except Exception:  # a pool being replaced or shut down meanwhile: its workers are going anyway
-            pass
+        for _ in range(rounds):  # a worker may take two tasks of a round: ask until each answered once
+            seen |= {f.result(timeout=timeout) for f in [ex.submit(fn) for _ in want]}
+            if want <= seen:
+                break
         return len(want & seen)
+
+    def release(self, timeout: float = 30.0) -> int:
+        """Forget every shared object (the server's files, each worker's copy) and have each worker hand its free
+        pages back; returns how many workers did. Tasks that still need an object fail with a plain message."""
+        self._drop_shared()
+        try:
+            return self.each_worker(_release_worker, timeout, rounds=10)
+        except Exception:  # a pool being replaced or shut down meanwhile: its workers are going anyway
+            return 0
 
     def replace(self, broken) -> bool:
         """Replace the pool if ``broken`` is still the current one (its workers are killed); True if replaced."""
@@ -293,11 +304,7 @@ class Pool:
             kill_workers(ex)
             ex.shutdown(wait=False, cancel_futures=True)
         self._spawner.shutdown(wait=False)
-        with self._slock:
-            self._shared.clear()
-            if self._share_dir is not None:
-                shutil.rmtree(self._share_dir, ignore_errors=True)
-                self._share_dir = None
+        self._drop_shared()
 
     # ----- watchdog -------------------------------------------------------------------------
     def _track(self, entry: list) -> None:

@@ -17,8 +17,6 @@ import glob
 import os
 import urllib.request
 
-from app.procs import worker_pids
-
 __all__ = ["needs_compiling", "kernel_names", "warm", "warm_here", "prefill", "fetch_page", "COMPILE_SECONDS"]
 
 #: What the first compile of all kernels takes (measured: 15.1 s cold vs 1.0 s cached for this warm-up on a quiet
@@ -41,17 +39,18 @@ KERNELS = (
 )
 
 
-def _preset_sizes() -> list[tuple[int, int]]:
-    """``(channels, states)`` of every preset system."""
+def _one_preset_per_size() -> dict:
+    """``(channels, states)`` -> a preset system of that size, for every size among the presets (sorted)."""
     from qsid_core.systems import PRESETS
 
-    return sorted({(s.n + s.m, s.n) for s in (make() for make in PRESETS.values())})
+    by_size = {(s.n + s.m, s.n): s for s in (make() for make in PRESETS.values())}
+    return dict(sorted(by_size.items(), key=lambda item: item[0]))
 
 
 def kernel_names() -> list[str]:
     """Every kernel :func:`warm_here` compiles, as numba names its cache index files: :data:`KERNELS` and
     :mod:`qsid_core.unrolled`'s kernel for every preset system's size."""
-    gen = [f"qsid_accumulate_p{p}_n{n}._accumulate_chunk_py" for p, n in _preset_sizes()]
+    gen = [f"qsid_accumulate_p{p}_n{n}._accumulate_chunk_py" for p, n in _one_preset_per_size()]
     return [*KERNELS, *gen]
 
 
@@ -81,31 +80,17 @@ def warm_here() -> int:
 
 
 def _warm_sizes() -> None:
-    """The quantize-and-accumulate kernel for every preset system's size (:mod:`qsid_core.unrolled`)."""
+    """The quantize-and-accumulate kernel for every preset system's size (:mod:`qsid_core.unrolled`), through
+    the engine's own path on a tiny data set of one system per size."""
     import numpy as np
 
-    from qsid_core import kernels, unrolled
+    from qsid_core import QuantizerSpec, kernels, prepare, quantized_moments, simulate
 
     if not kernels.AVAILABLE:
         return
-    for p, n in _preset_sizes():
-        y, nb, fn = np.zeros((4, p)), 1, unrolled.kernel(p, n)
-        kernels.accumulate_chunk(
-            y,
-            y,
-            np.ones(nb),
-            np.ones(nb),
-            0,
-            2,
-            np.zeros((nb, p, p)),
-            np.zeros((nb, p, n)),
-            np.zeros((nb, p)),
-            np.zeros(nb, dtype=np.int64),
-            np.zeros((nb, p)),
-            np.zeros((nb, 2, p)),
-            np.zeros((nb, 2, p)),
-            kernel=fn,
-        )
+    spec = QuantizerSpec()
+    for system in _one_preset_per_size().values():
+        quantized_moments(prepare(simulate(system, 2, 5, seed=0), spec), [4], spec, np.random.default_rng(0))
 
 
 def _warm_box_qp() -> None:
@@ -123,15 +108,7 @@ def _warm_box_qp() -> None:
 def warm(pool) -> None:
     """Warm this process, then every worker of ``pool`` (a :class:`~app.dashboard.pool.Pool`)."""
     warm_here()
-    ex = pool.current
-    if ex is None:
-        return
-    want = set(worker_pids(ex))
-    seen: set = set()
-    for _ in range(20):  # a worker may take two tasks of a round: ask until each answered once
-        seen |= {f.result(timeout=300) for f in [ex.submit(warm_here) for _ in range(len(want))]}
-        if want <= seen:
-            return
+    pool.each_worker(warm_here, timeout=300)
 
 
 def prefill(values, cache, executor=None, tasks: int = 1) -> int:
