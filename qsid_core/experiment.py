@@ -385,15 +385,18 @@ class Experiment:
             raise ConfigError("this experiment has MPC switched off (mpc=None)")
         est = estimator or self.config.estimator
         return self._memo(
-            ("loops", est, cfg) + self._key_mom(b),
-            lambda: run_closed_loops(
-                self.identification(b, est).models,
-                self.system.A,
-                self.system.B,
-                cfg,
-                self.system,
-                self.feedback_range(),
-            ),
+            ("loops", est, cfg) + self._key_mom(b), lambda: run_closed_loops(*self._loop_args(b, est, cfg))
+        )
+
+    def _loop_args(self, b: int, est: str, cfg: MPCConfig) -> tuple:
+        """``run_closed_loops``' arguments for the models identified by ``est`` at ``b``."""
+        return (
+            self.identification(b, est).models,
+            self.system.A,
+            self.system.B,
+            cfg,
+            self.system,
+            self.feedback_range(),
         )
 
     def closed_loops_many(self, bits, estimator: str | None = None, progress: Progress | None = None) -> dict:
@@ -406,18 +409,7 @@ class Experiment:
         keys = {b: ("loops", est, cfg) + self._key_mom(b) for b in bits}
         out = self._cached(keys)
         todo = [b for b in bits if b not in out]
-        futs = {
-            b: self.executor.submit(
-                _loops_task,
-                self.identification(b, est).models,
-                self.system.A,
-                self.system.B,
-                cfg,
-                self.system,
-                self.feedback_range(),
-            )
-            for b in todo
-        }
+        futs = {b: self.executor.submit(_loops_task, *self._loop_args(b, est, cfg)) for b in todo}
         for i, (b, f) in enumerate(futs.items()):
             out[b] = f.result()
             self._cache[keys[b]] = out[b]
