@@ -48,7 +48,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from app.procs import descendants, kill_new_descendants
-from qsid_core.errors import ConfigError, QsidError
+from qsid_core import ConfigError, QsidError
 
 __all__ = ["ClusterError", "DaskSpec", "DaskExecutor", "parse_dask_spec", "make_executor", "MAX_LOCAL_WORKERS"]
 

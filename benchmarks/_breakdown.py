@@ -16,18 +16,18 @@ from collections import defaultdict
 
 CATEGORIES = {
     "identification (quantize + estimate)": [
-        ("qsid_core.experiment", "Experiment", "moments"),
-        ("qsid_core.experiment", "Experiment", "identification"),
+        ("qsid_core.studies.experiment", "Experiment", "moments"),
+        ("qsid_core.studies.experiment", "Experiment", "identification"),
     ],
     "closed loops (MPC + verdicts)": [
-        ("qsid_core.experiment", "Experiment", "closed_loops"),
-        ("qsid_core.experiment", "Experiment", "closed_loops_many"),
-        ("qsid_core.experiment", "Experiment", "true_model_loop"),
+        ("qsid_core.studies.experiment", "Experiment", "closed_loops"),
+        ("qsid_core.studies.experiment", "Experiment", "closed_loops_many"),
+        ("qsid_core.studies.experiment", "Experiment", "true_model_loop"),
     ],
     "bounds and assumptions (theory)": [
-        ("qsid_core.experiment", "Experiment", "theory"),
-        ("qsid_core.experiment", "Experiment", "realized_bound"),
-        ("qsid_core.experiment", "Experiment", "assumptions"),
+        ("qsid_core.studies.experiment", "Experiment", "theory"),
+        ("qsid_core.studies.experiment", "Experiment", "realized_bound"),
+        ("qsid_core.studies.experiment", "Experiment", "assumptions"),
     ],
     "figure building": [("app.dashboard.render", "Renderer", "render")],
     "serialisation (figure JSON)": [("app.figures.raw", "Wire", "to_json")],

@@ -12,7 +12,7 @@ median of ``repeats`` (the per-step OSQP loops fewer times):
 * ``engine, solver=osqp``: :func:`run_closed_loops` with the previous engine's OSQP path;
 * ``engine, batched active set``: the default engine with the compiled loop switched
   off (the fast path ahead in numpy batches, the constrained steps' box QPs batched);
-* ``engine, compiled loop``: the default (:mod:`qsid_core.loop_kernel`).
+* ``engine, compiled loop``: the default (:mod:`qsid_core.control.loop_kernel`).
 
 All four include building the controllers (DARE, gains, QP setup); no verdicts
 (``verify_steps=None``; the last row adds them to show their cost). Agreement: max
@@ -27,9 +27,8 @@ import time
 
 import numpy as np
 
-import qsid_core.closed_loop as closed_loop
-from qsid_core import Experiment, MPCConfig, SweepConfig
-from qsid_core.closed_loop import run_closed_loops
+import qsid_core.control.closed_loop as closed_loop
+from qsid_core import Experiment, MPCConfig, SweepConfig, run_closed_loops
 
 SATURATED = dict(u_max=0.3, x0=(20.0, 20.0, 0.0, 0.0), horizon=10, steps=50)
 PAPER = dict(trajectories=200, steps=1000, bits=tuple(range(1, 17)))

@@ -1,6 +1,6 @@
 """A minimal viser websocket client: what a browser tab sends and reads, without a browser.
 
-Used by the soak/flood tests (``tests/test_dashboard_load.py``) and ``benchmarks/bench_soak.py``.
+Used by the soak/flood tests (``tests/system/test_dashboard_load.py``) and ``benchmarks/bench_soak.py``.
 Speaks viser's wire protocol: msgpack messages to the server; from the server, frames of
 ``[8 B size][8 B zstd size][zstd msgpack {"messages": [...]}][binary buffers]``.
 It learns each input's uuid from the server's ``Gui*Message`` (by label) and

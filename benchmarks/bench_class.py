@@ -37,8 +37,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from _wsclient import WsTab, family_rss  # noqa: E402
-from bench_soak import Server  # noqa: E402
+from _wsclient import WsTab, family_rss
+from bench_soak import Server
 
 KINDS = ("word length", "data", "Q/R", "saturated")
 SATURATED_SETUP = (("system", "boeing747"), ("x0", "20, 20, 0, 0"))

@@ -53,13 +53,13 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
-from _breakdown import Breakdown, line  # noqa: E402
+import numpy as np
+from _breakdown import Breakdown, line
 
-from app.dashboard.cache import SharedCache  # noqa: E402
-from app.dashboard.render import Renderer  # noqa: E402
-from app.dashboard.session import iter_frames  # noqa: E402
-from app.dashboard.settings import (  # noqa: E402
+from app.dashboard.cache import SharedCache
+from app.dashboard.render import Renderer
+from app.dashboard.session import iter_frames
+from app.dashboard.settings import (
     INTERACTIVE,
     PAPER_SCALE,
     Values,
@@ -235,7 +235,7 @@ def _main(argv=None) -> int:
     print(f"cache: {len(cache)} entries, ~{cache.nbytes / 2**20:.0f} MB, {cache.kinds()}")
     if a.datalength:
         from app.dashboard.background import datalength_config
-        from qsid_core.datalength import run_datalength
+        from qsid_core import run_datalength
 
         cfg = datalength_config(base)
         t = time.perf_counter()

@@ -35,9 +35,9 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from threadpoolctl import threadpool_limits  # noqa: E402
+from threadpoolctl import threadpool_limits
 
-from qsid_core import Experiment, InlineExecutor, SweepConfig, run_sweep  # noqa: E402
+from qsid_core import Experiment, InlineExecutor, SweepConfig, run_sweep
 
 
 def set_blas_threads(n: int = 1) -> None:

@@ -24,10 +24,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from qsid_core import Experiment, QuantizerSpec, SweepConfig, identify, kernels  # noqa: E402
-from qsid_core.moments import quantized_moments  # noqa: E402
+from qsid_core import Experiment, QuantizerSpec, SweepConfig, identify, quantized_moments
+from qsid_core.quantization import kernels
 
 PAPER = dict(trajectories=200, steps=1000, bits=tuple(range(1, 17)))
 QUICK = dict(trajectories=10, steps=200, bits=(2, 6, 10))

@@ -20,8 +20,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _wsclient import WsTab  # noqa: E402
-from bench_page_load import stop_server  # noqa: E402
+from _wsclient import WsTab
+from bench_page_load import stop_server
 
 
 def one(cache: str) -> tuple[float, float, int]:

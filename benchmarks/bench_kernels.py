@@ -1,9 +1,9 @@
 """The quantize-and-accumulate kernel: generic against the one generated for the system's size.
 
-Times :func:`qsid_core.kernels.accumulate_chunk` over one realization of the
-paper-scale data (200 runs x 1000 steps, chunks of ``qsid_core.moments.CHUNK_ROWS``
+Times :func:`qsid_core.quantization.kernels.accumulate_chunk` over one realization of the
+paper-scale data (200 runs x 1000 steps, chunks of ``qsid_core.quantization.moments.CHUNK_ROWS``
 rows, all 16 word lengths in one pass) with the generic kernel and with
-:func:`qsid_core.unrolled.kernel` for the preset systems' sizes, interleaved
+:func:`qsid_core.quantization.unrolled.kernel` for the preset systems' sizes, interleaved
 (generic, generated, generic, ...) so both see the same machine load; prints
 the median and spread of each and the ratio of the medians. The dither draws
 are made once beforehand (not timed). Both compute the same sums (the largest
@@ -30,10 +30,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from qsid_core import kernels, unrolled  # noqa: E402
-from qsid_core.moments import CHUNK_ROWS, _Sums  # noqa: E402
+from qsid_core.quantization import CHUNK_ROWS, kernels, unrolled
+from qsid_core.quantization.moments import _Sums
 
 #: (name, channels p, states n): the preset systems' sizes
 SIZES = (("dc-motor", 5, 3), ("boeing747", 6, 4), ("mass-spring-damper", 3, 2))

@@ -13,10 +13,10 @@ letter's x0, Q and R, horizon 10, 50 closed-loop steps, ``|u| <= u_max``,
 
 Solvers, each timed per closed loop (best and median of ``--repeats``):
 
-* ``engine run_closed_loops``: :func:`qsid_core.closed_loop.run_closed_loops` on the single
+* ``engine run_closed_loops``: :func:`qsid_core.control.closed_loop.run_closed_loops` on the single
   model, *including* building the controller (DARE, Riccati gains, condensing, DAQP setup);
 * ``engine run_closed_loops, solver=osqp``: the same with the previous engine's OSQP path;
-* ``engine MPCController.solve``: build :class:`qsid_core.mpc.MPCController`, then
+* ``engine MPCController.solve``: build :class:`qsid_core.control.mpc.MPCController`, then
   ``solve(x)`` per step (also included);
 * ``cvxpy + OSQP``: the QP built once with a Parameter for x0 (build and first
   compile reported separately, *not* included), solved every step with
@@ -51,15 +51,18 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from dataclasses import replace  # noqa: E402
+from dataclasses import replace
 
-import numpy as np  # noqa: E402
-from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
+import numpy as np
+from threadpoolctl import threadpool_info, threadpool_limits
 
-from qsid_core.closed_loop import run_closed_loops  # noqa: E402
-from qsid_core.mpc import MPCConfig, MPCController  # noqa: E402
-from qsid_core.riccati import dare_stabilizing  # noqa: E402
-from qsid_core.systems import get_system  # noqa: E402
+from qsid_core import (
+    MPCConfig,
+    MPCController,
+    get_system,
+    run_closed_loops,
+)
+from qsid_core.control import dare_stabilizing
 
 
 def blas_threads() -> dict:

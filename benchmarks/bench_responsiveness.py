@@ -12,7 +12,7 @@
 The server runs as ``python -m app.dashboard`` on 127.0.0.1 with a pool of ``--workers`` processes, driven
 by plain websocket tabs (:mod:`_wsclient`). Numbers are printed (and written with ``--json``), never
 asserted: on a shared, busy machine they are what they are. The tests
-(``tests/test_dashboard_load.py``, ``tests/test_dashboard_process.py``, ``tests/test_dashboard_faults.py``)
+(``tests/system/test_dashboard_load.py``, ``tests/system/test_dashboard_process.py``, ``tests/dashboard/test_dashboard_faults.py``)
 check the same behaviour without a clock.
 
 Usage::
@@ -35,8 +35,8 @@ ROOT = HERE.parent
 for _p in (str(ROOT), str(HERE)):
     if _p not in sys.path:
         sys.path.insert(0, _p)
-from _wsclient import WsTab  # noqa: E402
-from bench_soak import Server  # noqa: E402
+from _wsclient import WsTab
+from bench_soak import Server
 
 #: The largest settings the panel allows (panel label -> value).
 HEAVY = {"realizations": 100, "trajectories": 400, "steps": 2000, "horizon": 50, "closed-loop steps": 300}

@@ -32,7 +32,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from _wsclient import WsTab, family_rss, rss_mb  # noqa: E402
+from _wsclient import WsTab, family_rss, rss_mb
 
 #: What the clients change: panel label -> a random value in the panel's own range.
 CHANGES = (

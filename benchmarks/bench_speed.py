@@ -8,7 +8,7 @@
    engine (``solver="osqp"``), interleaved. Target: >= 25x.
 2. **Identification per (b, realization)**, dc-motor paper scale (200 x 1000):
    the engine (quantized moments + LS + errors) against the fused kernel alone
-   (:func:`qsid_core.kernels.accumulate_chunk` on pre-drawn dither: the floor),
+   (:func:`qsid_core.quantization.kernels.accumulate_chunk` on pre-drawn dither: the floor),
    and the numpy reference. Target: engine <= 1.5x the floor.
 3. **numba costs**: ``import numba``, first call with an empty cache (compile),
    first call in a fresh process with the cache filled (load), each in a new process.
@@ -34,11 +34,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from qsid_core import Experiment, MPCConfig, SweepConfig, identify, kernels, relative_errors  # noqa: E402
-from qsid_core.closed_loop import run_closed_loops  # noqa: E402
-from qsid_core.moments import CHUNK_ROWS, quantized_moments  # noqa: E402
+from qsid_core import Experiment, MPCConfig, SweepConfig, identify, quantized_moments, relative_errors, run_closed_loops
+from qsid_core.quantization import CHUNK_ROWS, kernels
 
 PAPER = dict(trajectories=200, steps=1000, realizations=50, bits=tuple(range(1, 17)))
 QUICK = dict(trajectories=20, steps=200, realizations=4, bits=(2, 6, 10, 14))
@@ -135,8 +134,8 @@ def identification(scale: dict, repeats: int, realizations: int) -> dict:
 
 _PROBE = (
     "import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
-    "import numpy as np; from qsid_core import kernels, QuantizerSpec, prepare, quantized_moments, simulate; "
-    "from qsid_core.systems import dc_motor; d = simulate(dc_motor(), 2, 50, seed=0); s = QuantizerSpec(); "
+    "import numpy as np; from qsid_core import QuantizerSpec, dc_motor, prepare, quantized_moments, simulate; from qsid_core.quantization import kernels; "
+    "d = simulate(dc_motor(), 2, 50, seed=0); s = QuantizerSpec(); "
     "p = prepare(d, s); t2 = time.perf_counter(); quantized_moments(p, [4], s, np.random.default_rng(0)); "
     "kernels.box_qp_pdas(np.eye(2)[None], np.ones((1, 2)), np.ones(2), np.zeros((1, 2), bool), "
     "np.zeros((1, 2), bool)); t3 = time.perf_counter(); print(t1 - t0, t3 - t2)"

@@ -15,7 +15,7 @@ b, least squares, and for every identified model an MPC closed loop of 50 steps
   pool's first, cold run -- which pays for starting the workers -- is reported too.
 * **naive**: the same numbers computed the straightforward way -- for each b, for
   each realization: draw the unit dither for the whole data set, quantize states
-  and inputs with the reference :func:`qsid_core.quantize.quantize`, build X, X+,
+  and inputs with the reference :func:`qsid_core.quantization.quantize.quantize`, build X, X+,
   U and Psi explicitly, ``G = X+ Psi^T (Psi Psi^T)^-1`` (letter, eq. (7)), then the
   MPC closed loop with OSQP at every step, set up once per model (the stronger
   baseline) and, separately, once per step. It is timed on
@@ -46,17 +46,20 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
-import scipy.linalg as sla  # noqa: E402
-import scipy.sparse as sp  # noqa: E402
-from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+from threadpoolctl import threadpool_info, threadpool_limits
 
-from qsid_core.data import simulate  # noqa: E402
-from qsid_core.experiment import SweepConfig  # noqa: E402
-from qsid_core.mpc import MPCConfig, MPCWeights  # noqa: E402
-from qsid_core.quantize import quantize  # noqa: E402
-from qsid_core.sweep import run_sweep  # noqa: E402
-from qsid_core.systems import get_system  # noqa: E402
+from qsid_core import (
+    MPCConfig,
+    MPCWeights,
+    SweepConfig,
+    get_system,
+    quantize,
+    run_sweep,
+    simulate,
+)
 
 
 def blas_threads() -> dict:

@@ -5,8 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qsid_core import QuantizerSpec, identify_recorded, load_recorded, simulate
-from qsid_core.systems import boeing747
+from qsid_core import QuantizerSpec, boeing747, identify_recorded, load_recorded, simulate
 
 rec = simulate(boeing747(), 40, 300, seed=7)
 with tempfile.TemporaryDirectory() as d:

@@ -1,94 +1,154 @@
 """qsid_core: quantized system identification and the MPC built on it (the QSID-MPC letter).
 
-Pure numerics: no GUI, no plotting, no printing, no global state. Modules:
-``systems``, ``data``, ``quantize``, ``moments``, ``identify``, ``theory``,
-``riccati``, ``mpc``, ``closed_loop``, ``config``, ``executors``, ``experiment``,
-``sweep``, ``summary`` (typed per-b rows), ``assumptions`` (which hypotheses of
-Theorem 1 and BCLS hold), ``datalength`` (error against data length),
-``quantizer_demo`` (one signal quantized with and without dither),
-``timeseries`` (closed loops as x(t), u(t), ||x_t||), ``records`` (one row per
-b, estimator and realization: CSV, columns or a pandas DataFrame) and ``interop``
-(python-control ``StateSpace`` in and out; python-control and pandas are imported
-only when those functions run).
+Pure numerics: no GUI, no plotting, no printing, no global state. Subpackages by concept, each with one
+public ``__all__``, in the order they build on each other:
+
+- :mod:`qsid_core.plant`: LTI systems, presets and system files, python-control interop, training runs;
+- :mod:`qsid_core.quantization`: the quantizer and its dither, quantized moments (compiled kernels);
+- :mod:`qsid_core.identification`: LS and BCLS, Theorem 1's large-data prediction;
+- :mod:`qsid_core.control`: the MPC, closed loops on the true plant, verdicts, certificates, bounds;
+- :mod:`qsid_core.studies`: configurations, the experiment, sweeps, summaries, records, "how many bits".
+
+Beside them: :mod:`qsid_core.errors` (the exceptions, all ``ValueError`` subclasses naming the field),
+:mod:`qsid_core.validate` (checks every entry point shares) and :mod:`qsid_core.version`.
+This module re-exports the names most users need; every other public name is in a subpackage's ``__all__``.
 """
 
-from .assumptions import Assumptions
-from .closed_loop import ClosedLoops, run_closed_loops
-from .config import SweepConfig, parse_bits
-from .data import Dataset, simulate
-from .datalength import DataLengthConfig, DataLengthResult, run_datalength
-from .errors import ConfigError, DataOverflowError, IdentificationError, QsidError, SystemDefinitionError
-from .executors import InlineExecutor, single_threaded_blas
-from .experiment import Experiment
-from .identify import Identified, identify, relative_errors
-from .interop import identified_statespaces, model_to_statespace, system_from_statespace, system_to_statespace
-from .moments import Moments, prepare, quantized_moments
-from .mpc import FailureKind, MPCConfig, MPCController, MPCFailure, MPCWeights
-from .quantize import LETTER_QUANTIZER, QuantizerSpec, quantize
-from .quantizer_demo import QuantizerDemo, channel_demo, quantizer_demo
-from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded
-from .records import COLUMNS as RECORD_COLUMNS
-from .records import RealizationRecord, experiment_records, realization_records, to_columns, to_pandas, write_csv
-from .riccati import LQParts
-from .sweep import SummaryRow, SweepResult, fit_slope, load_result, run_sweep, summarize, summary_row
-from .systems import (
+from __future__ import annotations
+
+from .control import (
+    ClosedLoops,
+    LQParts,
+    MPCConfig,
+    MPCController,
+    MPCWeights,
+    RealizedBounds,
+    TimeSeries,
+    realized_bounds,
+    riccati_finite,
+    run_closed_loops,
+    time_series,
+    ultimate_bound,
+)
+from .errors import (
+    ConfigError,
+    DataOverflowError,
+    FailureKind,
+    IdentificationError,
+    MPCFailure,
+    QsidError,
+    SystemDefinitionError,
+)
+from .identification import Identified, identify, relative_errors, theorem1_prediction
+from .plant import (
     PRESETS,
+    Dataset,
     LTISystem,
     UncontrollableWarning,
     boeing747,
     dc_motor,
     dc_motor_physical,
     get_system,
+    identified_statespaces,
     load_system,
+    model_to_statespace,
+    simulate,
+    system_from_statespace,
+    system_to_statespace,
 )
-from .theory import RealizedBounds, realized_bounds, riccati_finite, theorem1_prediction, ultimate_bound
-from .timeseries import TimeSeries, time_series
+from .quantization import (
+    LETTER_QUANTIZER,
+    Moments,
+    QuantizerDemo,
+    QuantizerSpec,
+    channel_demo,
+    prepare,
+    quantize,
+    quantized_moments,
+    quantizer_demo,
+)
+from .studies import COLUMNS as RECORD_COLUMNS
+from .studies import (
+    Assumptions,
+    DataLengthConfig,
+    DataLengthResult,
+    Experiment,
+    InlineExecutor,
+    RealizationRecord,
+    RecordedResult,
+    SummaryRow,
+    SweepConfig,
+    SweepResult,
+    dataset_from_arrays,
+    experiment_records,
+    fit_slope,
+    identify_recorded,
+    load_recorded,
+    load_result,
+    parse_bits,
+    realization_records,
+    run_datalength,
+    run_sweep,
+    single_threaded_blas,
+    summarize,
+    summary_row,
+    to_columns,
+    to_pandas,
+    write_csv,
+)
 from .version import __version__
 
 __all__ = [
     "Assumptions",
+    "boeing747",
+    "channel_demo",
     "ClosedLoops",
     "ConfigError",
     "DataLengthConfig",
     "DataLengthResult",
     "DataOverflowError",
     "Dataset",
+    "dataset_from_arrays",
+    "dc_motor",
+    "dc_motor_physical",
     "Experiment",
-    "Identified",
+    "experiment_records",
+    "FailureKind",
+    "fit_slope",
+    "get_system",
     "IdentificationError",
+    "Identified",
+    "identified_statespaces",
+    "identify",
+    "identify_recorded",
     "InlineExecutor",
     "LETTER_QUANTIZER",
+    "load_recorded",
+    "load_result",
+    "load_system",
+    "LQParts",
     "LTISystem",
+    "model_to_statespace",
+    "Moments",
     "MPCConfig",
     "MPCController",
     "MPCFailure",
-    "Moments",
-    "PRESETS",
-    "QsidError",
-    "QuantizerDemo",
-    "QuantizerSpec",
-    "RealizedBounds",
-    "SummaryRow",
-    "SweepConfig",
-    "SweepResult",
-    "SystemDefinitionError",
-    "TimeSeries",
-    "UncontrollableWarning",
-    "boeing747",
-    "channel_demo",
-    "dc_motor",
-    "dc_motor_physical",
-    "fit_slope",
-    "get_system",
-    "identify",
-    "load_result",
-    "load_system",
+    "MPCWeights",
     "parse_bits",
     "prepare",
+    "PRESETS",
+    "QsidError",
     "quantize",
     "quantized_moments",
     "quantizer_demo",
+    "QuantizerDemo",
+    "QuantizerSpec",
+    "realization_records",
+    "RealizationRecord",
     "realized_bounds",
+    "RealizedBounds",
+    "RECORD_COLUMNS",
+    "RecordedResult",
     "relative_errors",
     "riccati_finite",
     "run_closed_loops",
@@ -98,19 +158,19 @@ __all__ = [
     "single_threaded_blas",
     "summarize",
     "summary_row",
+    "SummaryRow",
+    "SweepConfig",
+    "SweepResult",
+    "system_from_statespace",
+    "system_to_statespace",
+    "SystemDefinitionError",
     "theorem1_prediction",
     "time_series",
-    "ultimate_bound",
-]
-__all__ += ["FailureKind", "LQParts", "MPCWeights"]
-__all__ += [
-    "RECORD_COLUMNS",
-    "RealizationRecord",
-    "experiment_records",
-    "realization_records",
+    "TimeSeries",
     "to_columns",
     "to_pandas",
+    "ultimate_bound",
+    "UncontrollableWarning",
+    "__version__",
     "write_csv",
 ]
-__all__ += ["RecordedResult", "dataset_from_arrays", "identify_recorded", "load_recorded", "__version__"]
-__all__ += ["identified_statespaces", "model_to_statespace", "system_from_statespace", "system_to_statespace"]

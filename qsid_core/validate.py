@@ -21,7 +21,6 @@ from .errors import ConfigError, SystemDefinitionError, short_repr
 __all__ = [
     "MAX_MAGNITUDE",
     "MAX_ENTRIES",
-    "short_repr",
     "as_float_array",
     "check_bool",
     "check_text",
@@ -198,7 +197,7 @@ def check_quantizer_range(name: str, lo: np.ndarray, hi: np.ndarray) -> None:
 
 
 def checked_signal(x: Any, lo: Any, hi: Any, unit_dither: Any, rng: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The arguments of :func:`qsid_core.quantize.quantize` checked: ``(x, lo, hi)`` as float arrays.
+    """The arguments of :func:`qsid_core.quantization.quantize.quantize` checked: ``(x, lo, hi)`` as float arrays.
 
     ``x`` finite numbers of any shape; ``lo``/``hi`` broadcasting against it with a
     usable range (see :func:`check_quantizer_range`); ``unit_dither`` finite with

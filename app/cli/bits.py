@@ -147,7 +147,7 @@ def _b(v: int | None) -> str:
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core import Experiment
-    from qsid_core.bits import bits_needed
+    from qsid_core.studies import bits_needed
 
     _check(args)
     system = system_from_args(args)

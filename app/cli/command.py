@@ -17,8 +17,7 @@ from .parser import bits_spec, floats_spec, limits_spec
 if TYPE_CHECKING:
     from collections.abc import Iterable
 
-    from qsid_core.experiment import SweepConfig
-    from qsid_core.systems import LTISystem
+    from qsid_core import LTISystem, SweepConfig
 
 __all__ = ["sweep_argv", "sweep_command", "bits_command", "system_text"]
 
@@ -29,7 +28,7 @@ def system_text(M: Iterable[Iterable[float]]) -> str:
 
 
 def _system_args(system: LTISystem, system_source: str | None) -> list[str]:
-    from qsid_core.systems import PRESETS
+    from qsid_core import PRESETS
 
     if system_source is not None:
         return [f"--system={system_source}"]
@@ -96,13 +95,12 @@ def sweep_argv(cfg: SweepConfig, system_source: str | None = None) -> list[str]:
     Parameters
     ----------
     cfg : SweepConfig
-        With ``system`` an :class:`~qsid_core.systems.LTISystem` (or a preset name).
+        With ``system`` an :class:`~qsid_core.plant.systems.LTISystem` (or a preset name).
     system_source : str, optional
         Give ``--system`` this way (a file name); default: the preset's name, or an
         inline ``--A``/``--B`` for any other system.
     """
-    from qsid_core import SweepConfig
-    from qsid_core.systems import get_system
+    from qsid_core import SweepConfig, get_system
 
     system = get_system(cfg.system)
     d, q, dq = SweepConfig(mpc=None), cfg.quantizer, SweepConfig(mpc=None).quantizer

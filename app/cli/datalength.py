@@ -2,7 +2,7 @@
 
 Finite data give an O(eps) error that falls with T; large data meet Theorem 1's
 O(eps^2) bias floor (LS), which BCLS removes where its hypotheses hold. The
-numbers are :func:`qsid_core.datalength.run_datalength`'s; this module parses,
+numbers are :func:`qsid_core.studies.datalength.run_datalength`'s; this module parses,
 reports progress on stderr, and prints a table (or JSON) on stdout.
 """
 
@@ -54,7 +54,8 @@ def _samples(text: str) -> tuple[int, ...]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from qsid_core.datalength import DEFAULT_SAMPLES, DataLengthConfig
+    from qsid_core import DataLengthConfig
+    from qsid_core.studies import DEFAULT_SAMPLES
 
     d = DataLengthConfig()
     q0 = d.quantizer
@@ -156,7 +157,8 @@ def format_table(d: dict) -> str:
 
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
-    from qsid_core.datalength import DataLengthConfig, run_datalength, runs_and_steps
+    from qsid_core import DataLengthConfig, run_datalength
+    from qsid_core.studies import runs_and_steps
 
     system = resolve_system(args.system)
     out = out_file(args.out, rep, inputs=input_files(args))

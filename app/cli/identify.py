@@ -1,7 +1,7 @@
 """``qsid identify --data FILE``: your own recorded data, quantized at each b, identified by LS and BCLS.
 
 The errors are against the LS estimate from the unquantized data (or ``--system``'s A and B);
-the numbers are :func:`qsid_core.recorded.identify_recorded`'s.
+the numbers are :func:`qsid_core.studies.recorded.identify_recorded`'s.
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ def format_table(d: dict) -> str:
 
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
-    from qsid_core.recorded import identify_recorded, load_recorded
+    from qsid_core import identify_recorded, load_recorded
 
     rep.enabled = not args.quiet
     out = out_file(args.out, rep, inputs=[args.data])

@@ -41,7 +41,7 @@ def build_parser(only: str | None = "*") -> argparse.ArgumentParser:
 
 def _dispatch(argv: list, rep: Reporter) -> int:
     if argv[:1] == ["--version"]:
-        from qsid_core.version import __version__
+        from qsid_core import __version__
 
         print(f"{parser.PROG} {__version__}")
         return 0

@@ -9,8 +9,7 @@ from typing import TYPE_CHECKING
 from .parser import UsageError
 
 if TYPE_CHECKING:
-    from qsid_core import MPCConfig
-    from qsid_core.systems import LTISystem
+    from qsid_core import LTISystem, MPCConfig
 
 __all__ = ["mpc_config"]
 
@@ -19,7 +18,7 @@ def _reference(text: str | None, system: LTISystem) -> str | tuple[tuple[float, 
     """``--reference``: a text form (checked against the system's states) or the samples of a CSV file."""
     if text is None:
         return None
-    from qsid_core.reference import KINDS, parse_reference
+    from qsid_core.control import KINDS, parse_reference
 
     if text.split(":", 1)[0].strip().lower() in KINDS:
         parse_reference(text, system.state_names)  # one clear error now, before any work

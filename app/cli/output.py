@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from qsid_core.sweep import SweepResult
+    from qsid_core import SweepResult
 
 __all__ = ["clean", "dumps", "g", "format_table", "sweep_dict", "assumptions_lines"]
 

@@ -14,7 +14,7 @@ from types import ModuleType, SimpleNamespace
 from typing import TYPE_CHECKING, Any, NoReturn
 
 if TYPE_CHECKING:
-    from qsid_core.experiment import SweepConfig
+    from qsid_core import SweepConfig
 
 __all__ = [
     "PROG",
@@ -42,10 +42,9 @@ def engine() -> SimpleNamespace:
     """
     global _ENGINE
     if _ENGINE is None:
-        from qsid_core.experiment import SweepConfig
-        from qsid_core.identify import ESTIMATORS
-        from qsid_core.mpc import MPCConfig
-        from qsid_core.quantize import DITHERS, RANGE_MODES, QuantizerSpec
+        from qsid_core import MPCConfig, QuantizerSpec, SweepConfig
+        from qsid_core.identification import ESTIMATORS
+        from qsid_core.quantization import DITHERS, RANGE_MODES
 
         _ENGINE = SimpleNamespace(
             sweep=SweepConfig(mpc=None),

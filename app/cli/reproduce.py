@@ -28,8 +28,7 @@ if TYPE_CHECKING:
     import plotly.graph_objects as go
     from numpy.typing import NDArray
 
-    from qsid_core.experiment import Experiment, SweepConfig
-    from qsid_core.systems import LTISystem
+    from qsid_core import Experiment, LTISystem, SweepConfig
 
     from .runner import Reporter
 
@@ -66,7 +65,7 @@ body {{ font-family: system-ui, sans-serif; margin: 1em 2em; color: #222; }}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from qsid_core.experiment import SweepConfig
+    from qsid_core import SweepConfig
 
     add_run_options(p, base=SweepConfig.letter())  # defaults: the letter's settings (no guard band)
     p.add_argument(
@@ -87,7 +86,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def letter_note(cfg: SweepConfig, system: LTISystem) -> str:
     """One stderr line: the letter's settings this run keeps, and what the options changed."""
-    from qsid_core.experiment import SweepConfig
+    from qsid_core import SweepConfig
 
     letter = SweepConfig.letter(system)
     q, lq = cfg.quantizer, letter.quantizer

@@ -25,10 +25,7 @@ from .mpc_args import mpc_config
 from .parser import PROG, UsageError
 
 if TYPE_CHECKING:
-    from qsid_core import QuantizerSpec
-    from qsid_core.experiment import Experiment, SweepConfig
-    from qsid_core.sweep import SweepResult
-    from qsid_core.systems import LTISystem
+    from qsid_core import Experiment, LTISystem, QuantizerSpec, SweepConfig, SweepResult
 
 __all__ = [
     "UsageError",
@@ -153,7 +150,7 @@ def _worker_init(parent: int | None = None) -> None:
 
 def resolve_system(spec: str) -> LTISystem:
     """A preset name or a system file (``--system``); every bad file is one :class:`UsageError` line."""
-    from qsid_core.systems import get_system
+    from qsid_core import get_system
 
     p = Path(spec)
     if p.is_dir():
@@ -170,7 +167,8 @@ def system_from_args(args: argparse.Namespace) -> LTISystem:
         return resolve_system(args.system)
     if a_text is None or b_text is None:
         raise UsageError("an inline system needs both --A and --B")
-    from qsid_core.systems import LTISystem, parse_matrix
+    from qsid_core import LTISystem
+    from qsid_core.validate import parse_matrix
 
     A, B = parse_matrix(a_text, "A"), parse_matrix(b_text, "B")
     return LTISystem("custom", A, B, description="typed on the command line")
@@ -242,7 +240,7 @@ def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfi
 
 def check_channels(cfg: SweepConfig, system: LTISystem) -> None:
     """Per-channel settings against the system's shape (one line, before any work)."""
-    from qsid_core.quantize import channel_bits
+    from qsid_core.quantization import channel_bits
 
     # SweepConfig types these as object; its checks make them None, a bit count or tuples
     input_bits: Any = cfg.input_bits
@@ -409,6 +407,6 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs: Seque
 def write_text(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically: a temporary file beside it, renamed over it when complete
     (an interrupted run never leaves a half-written file, and an existing one stays until then)."""
-    from qsid_core.records import replace_atomically
+    from qsid_core.studies import replace_atomically
 
     replace_atomically(Path(path), text)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 from .runner import UsageError, check_channels, one_line
 
 if TYPE_CHECKING:
-    from qsid_core.experiment import SweepConfig
+    from qsid_core import SweepConfig
 
 __all__ = ["config_from_file"]
 

@@ -77,7 +77,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     res, _ = run_sweep(args, system, not args.no_mpc, rep, cfg=cfg)
     d = sweep_dict(res)
     if csv_out is not None:
-        from qsid_core.records import write_csv
+        from qsid_core import write_csv
 
         rows = write_csv(res, csv_out)
         rep.stage(f"{rows} rows (b x realizations) written to {csv_out}")

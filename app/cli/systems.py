@@ -21,7 +21,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
-    from qsid_core.systems import PRESETS
+    from qsid_core import PRESETS
 
     items: list[dict[str, Any]] = []
     for name, make in PRESETS.items():

@@ -1,6 +1,6 @@
 """The data-length study of a tab, on demand, in one background thread (mechanism (8) of :mod:`.session`).
 
-The study (:func:`qsid_core.datalength.run_datalength`) simulates up to 10^6
+The study (:func:`qsid_core.studies.datalength.run_datalength`) simulates up to 10^6
 samples per realization, seconds to a minute: it runs only when the person
 presses its button, in its own thread and in-process (not in the shared process
 pool, so the other views and tabs never wait behind it), one realization per
@@ -14,8 +14,8 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, MutableMapping
 
-from qsid_core.datalength import DEFAULT_SAMPLES, DataLengthConfig, DataLengthResult, run_datalength
-from qsid_core.systems import LTISystem, get_system
+from qsid_core import DataLengthConfig, DataLengthResult, LTISystem, get_system, run_datalength
+from qsid_core.studies import DEFAULT_SAMPLES
 
 from .settings import Values, quantizer_spec, resolve_system
 

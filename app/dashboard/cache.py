@@ -1,6 +1,6 @@
 """The bounded, thread-safe cache that every browser tab passes to the engine.
 
-Each tab's :class:`~qsid_core.experiment.Experiment` gets ``cache=`` the app's one
+Each tab's :class:`~qsid_core.studies.experiment.Experiment` gets ``cache=`` the app's one
 :class:`SharedCache`, so tabs with equal settings share data, moments, models and
 closed loops, and memory stays bounded.
 """

@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from app.figures.phase_scene import axes_options
-from qsid_core.quantize import DITHERS, RANGE_MODES
-from qsid_core.systems import LTISystem
+from qsid_core import LTISystem
+from qsid_core.quantization import DITHERS, RANGE_MODES
 
 from .flow import inline
 

@@ -2,7 +2,7 @@
 
 :func:`app.dashboard.session.iter_frames` calls :func:`start` once (the current b
 in full), then :func:`fill_rows` chunk by chunk for the other word lengths. All
-numbers come from :class:`qsid_core.experiment.Experiment`; this module only
+numbers come from :class:`qsid_core.studies.experiment.Experiment`; this module only
 arranges them for the views (:mod:`app.figures`).
 """
 
@@ -16,11 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from qsid_core.datalength import DataLengthResult
-from qsid_core.experiment import Experiment
-from qsid_core.stage_results import BitsIdentification, ClosedLoops, TheoryAtBits
-from qsid_core.sweep import summary_row
-from qsid_core.systems import LTISystem
+from qsid_core import ClosedLoops, DataLengthResult, Experiment, LTISystem, summary_row
+from qsid_core.studies import BitsIdentification, TheoryAtBits
 
 from .settings import LABELS, Values, estimators, mpc_config, resolve_system, sweep_config
 
@@ -88,7 +85,7 @@ class Frame:
     labels : tuple of str
         Estimator labels shown (``"LS"``, ``"BCLS"``).
     rows : dict label -> {b: summary row dict}
-        :func:`qsid_core.sweep.summary_row` per estimator label and word length.
+        :func:`qsid_core.studies.sweep.summary_row` per estimator label and word length.
     done, total : int
         Word lengths computed so far, of all.
     loops : dict label -> ClosedLoops at the current b

@@ -2,14 +2,14 @@
 
 Each :class:`Lesson` sets panel values (fields of :class:`~app.dashboard.settings.Values`)
 and shows 2-4 sentences. Every claim a lesson's text makes is asserted on the numbers the
-dashboard computes for those settings (``tests/test_dashboard_lessons.py``).
+dashboard computes for those settings (``tests/dashboard/test_dashboard_lessons.py``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from qsid_core.quantize import LETTER_QUANTIZER
+from qsid_core import LETTER_QUANTIZER
 
 from .settings import NO_LESSON, PAPER_SCALE, Values
 

@@ -43,7 +43,7 @@ def one_blas_thread() -> None:
     """Run BLAS with one thread in this whole process, from now on (the dashboard server and its workers).
 
     The engine's matrices are tiny and its parallelism comes from the tabs and the pool: extra BLAS threads
-    only oversubscribe the cores. Set once, the engine's :func:`~qsid_core.executors.single_threaded_blas`
+    only oversubscribe the cores. Set once, the engine's :func:`~qsid_core.studies.executors.single_threaded_blas`
     has nothing left to do on each call (it scanned every loaded library each time).
     """
     from threadpoolctl import threadpool_limits

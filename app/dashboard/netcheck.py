@@ -6,7 +6,7 @@ import argparse
 import ipaddress
 import socket
 
-from qsid_core.errors import ConfigError
+from qsid_core import ConfigError
 
 __all__ = ["OneLineParser", "check_address", "port_number", "who_can_connect"]
 

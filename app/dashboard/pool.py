@@ -41,7 +41,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from app import tracker
 from app.procs import end_with_parent, kill_workers, worker_pids
-from qsid_core.errors import QsidError
+from qsid_core import QsidError
 
 from .memory import one_blas_thread, trim
 

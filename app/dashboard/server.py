@@ -22,8 +22,7 @@ from collections import OrderedDict
 import viser
 
 from app.procs import release_ipc
-from qsid_core.errors import QsidError
-from qsid_core.version import __version__
+from qsid_core import QsidError, __version__
 
 from .cache import DEFAULT_MB, SharedCache
 from .flow import READ_BYTES, FairSlots

@@ -36,8 +36,7 @@ import threading
 import time
 import traceback
 
-from qsid_core.errors import QsidError
-from qsid_core.systems import PRESETS, get_system
+from qsid_core import PRESETS, QsidError, get_system
 
 from .background import DataLengthRunner
 from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights

@@ -2,7 +2,7 @@
 
 Everything the dashboard shows is computed by :mod:`qsid_core`; this module only
 turns what a person set in the panel (:class:`Values`) into the engine's
-:class:`~qsid_core.experiment.SweepConfig` / :class:`~qsid_core.mpc.MPCConfig`,
+:class:`~qsid_core.studies.experiment.SweepConfig` / :class:`~qsid_core.control.mpc.MPCConfig`,
 and explains bad input in plain words (:class:`InputError`). Defaults and
 choices are the engine's (``SweepConfig()``, ``MPCConfig()``, ``QuantizerSpec()``,
 ``ESTIMATORS``); only the dashboard's own choices (interactive data size, the
@@ -19,12 +19,19 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from qsid_core.errors import QsidError, SystemDefinitionError
-from qsid_core.experiment import SweepConfig
-from qsid_core.identify import ESTIMATORS
-from qsid_core.mpc import MPCConfig
-from qsid_core.quantize import QuantizerSpec
-from qsid_core.systems import PRESETS, LTISystem, UncontrollableWarning, get_system, parse_matrix
+from qsid_core import (
+    PRESETS,
+    LTISystem,
+    MPCConfig,
+    QsidError,
+    QuantizerSpec,
+    SweepConfig,
+    SystemDefinitionError,
+    UncontrollableWarning,
+    get_system,
+)
+from qsid_core.identification import ESTIMATORS
+from qsid_core.validate import parse_matrix
 
 __all__ = [
     "ALL_BITS",
@@ -365,7 +372,7 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     reference = (v.reference or "").strip() or None
     try:
         if reference is not None:
-            from qsid_core.reference import parse_reference
+            from qsid_core.control import parse_reference
 
             parse_reference(reference, system.state_names)
         return MPCConfig(
@@ -394,8 +401,8 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
 
 def _what_ifs(v: Values, system: LTISystem) -> tuple:
     """The panel's input word length and sensor noise as engine values (InputError in plain words)."""
-    from qsid_core.config import parse_input_bits, parse_noise, parse_state_bits
-    from qsid_core.quantize import channel_bits
+    from qsid_core.quantization import channel_bits
+    from qsid_core.studies import parse_input_bits, parse_noise, parse_state_bits
 
     try:
         ib, sb = parse_input_bits(v.input_bits), parse_state_bits(v.state_bits)

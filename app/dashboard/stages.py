@@ -95,7 +95,7 @@ def iter_frames(
     cache : mapping, optional
         Shared :class:`~app.dashboard.cache.SharedCache` (anything a change does not touch is reused).
     executor, tasks
-        Passed to :class:`~qsid_core.experiment.Experiment` (e.g. the dashboard's process pool).
+        Passed to :class:`~qsid_core.studies.experiment.Experiment` (e.g. the dashboard's process pool).
     should_stop : callable, optional
         Polled between chunks; True ends the iteration (newer settings arrived).
     chunk : int

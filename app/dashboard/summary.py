@@ -7,13 +7,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from app.figures.hypotheses import CAPTION, bcls_reasons, fits_reasons, line_holds, theorem1_reasons
-from qsid_core.assumptions import OVERLOAD_EFFECT_RATIO
-from qsid_core.summary import saturated_steps
+from qsid_core.control import saturated_steps
+from qsid_core.studies import OVERLOAD_EFFECT_RATIO
 
 from .frames import Frame
 
 if TYPE_CHECKING:
-    from qsid_core.stage_results import ClosedLoops
+    from qsid_core import ClosedLoops
 
     from .settings import Values
 
@@ -46,7 +46,7 @@ def _failures(row: dict[str, Any], lp: ClosedLoops) -> str:
 def _real_loop(frame: Frame) -> list[str]:
     """With a disturbance or a quantized/noisy measurement: the residual per estimator and the true model's."""
     from app.figures.residual import causes_text
-    from qsid_core.stability import data_rate_bits
+    from qsid_core.control import data_rate_bits
 
     mc = frame.ex.config.mpc if frame.ex is not None else None
     causes = causes_text(mc)
@@ -122,7 +122,7 @@ def _overload(first: dict[str, Any]) -> str:
 
 def _bound_lesson(frame: Frame, first: dict[str, Any]) -> list[str]:
     """The bound lesson's reading at the current b: how loose each δ is against the measured ‖x_T‖, δ vs ρ and ‖x0‖."""
-    from qsid_core.timeseries import CONVERGED_REL_FLOOR
+    from qsid_core.control import CONVERGED_REL_FLOOR
 
     if getattr(frame.values, "lesson", "") != "bound":
         return []

@@ -6,7 +6,7 @@ per turn, no "share URL" tunnel, and a smaller plotly.js bundle. Each hook below
 a comment saying which private names it relies on and why; the rest of the dashboard calls only
 these functions. A hook returns True when it is in place; when this viser lacks what the hook relies
 on it changes nothing, returns False and warns once (:class:`ViserHookWarning`), so a viser upgrade
-cannot switch a protection off silently. ``tests/test_dashboard_viserfix.py`` installs every hook
+cannot switch a protection off silently. ``tests/dashboard/test_dashboard_viserfix.py`` installs every hook
 against the installed viser and checks each one reports a missing attribute.
 
 The message-buffer hook (:func:`install`): ``AsyncMessageBuffer.push``

@@ -1,7 +1,7 @@
 """Kernels compiled (or loaded from numba's disk cache) before the server says it is ready.
 
 numba compiles a kernel the first time it is called in a process unless its machine code is in the
-cache (:func:`qsid_core.kernels.cache_dir`). Without this, the first tab after an install paid the
+cache (:func:`qsid_core.studies.kernel_cache_dir`). Without this, the first tab after an install paid the
 compiler, and every pool worker loaded the kernels on its first task. :func:`warm` runs a tiny
 computation through the same path a tab uses (so the same kernel signatures are compiled), in this
 process and then in every pool worker (which then only loads what this process wrote to the cache).
@@ -13,9 +13,11 @@ figures of a process took ~0.5 s more than later ones), and the page already com
 
 from __future__ import annotations
 
-import glob
 import os
 import urllib.request
+
+from qsid_core.studies import compile_kernels, kernels_cached
+from qsid_core.studies import kernel_names as engine_kernel_names
 
 __all__ = ["needs_compiling", "kernel_names", "warm", "warm_here", "prefill", "fetch_page", "COMPILE_SECONDS"]
 
@@ -23,45 +25,21 @@ __all__ = ["needs_compiling", "kernel_names", "warm", "warm_here", "prefill", "f
 #: 2-CPU machine; rounded up for slower ones).
 COMPILE_SECONDS = 20
 
-#: The compiled kernels as ``module.function`` (numba names their cache index files after them):
-#: :mod:`qsid_core.kernels`' box QP and the compiled closed loop of :mod:`qsid_core.loop_kernel`
-#: (the generic quantize-and-accumulate kernel serves only systems of more than
-#: :data:`qsid_core.unrolled.MAX_CHANNELS` channels, and is compiled when one is used).
-KERNELS = (
-    "kernels._box_qp_pdas_py",
-    "kernels._chol_solve_py",
-    "kernels._pdas_one_py",
-    "loop_kernel._box_loop_py",
-    "loop_kernel._guess_py",
-    "loop_kernel._move_py",
-    "loop_kernel._predict_py",
-    "loop_kernel._stage_py",
-)
 
+def _presets() -> list:
+    from qsid_core import PRESETS
 
-def _one_preset_per_size() -> dict:
-    """``(channels, states)`` -> a preset system of that size, for every size among the presets (sorted)."""
-    from qsid_core.systems import PRESETS
-
-    by_size = {(s.n + s.m, s.n): s for s in (make() for make in PRESETS.values())}
-    return dict(sorted(by_size.items(), key=lambda item: item[0]))
+    return [make() for make in PRESETS.values()]
 
 
 def kernel_names() -> list[str]:
-    """Every kernel :func:`warm_here` compiles, as numba names its cache index files: :data:`KERNELS` and
-    :mod:`qsid_core.unrolled`'s kernel for every preset system's size."""
-    gen = [f"qsid_accumulate_p{p}_n{n}._accumulate_chunk_py" for p, n in _one_preset_per_size()]
-    return [*KERNELS, *gen]
+    """Every kernel :func:`warm_here` compiles, as numba names its cache index files (every preset's size)."""
+    return engine_kernel_names(_presets())
 
 
 def needs_compiling() -> bool:
     """True if some kernel has no machine code in numba's cache yet (the first run after an install)."""
-    from qsid_core import kernels
-
-    if not kernels.AVAILABLE:
-        return False
-    d = kernels.cache_dir()
-    return not all(glob.glob(os.path.join(d, "**", f"{k}-*.nbi"), recursive=True) for k in kernel_names())
+    return not kernels_cached(_presets())
 
 
 def warm_here() -> int:
@@ -74,35 +52,8 @@ def warm_here() -> int:
     v = Values(system="dc-motor", trajectories=4, steps=30, realizations=2, bits=4, mpc_steps=5, u_max=1e-3)
     for _ in iter_frames(v, SharedCache(16 * 2**20), None, 1):
         pass
-    _warm_box_qp()
-    _warm_sizes()
+    compile_kernels(_presets())
     return os.getpid()
-
-
-def _warm_sizes() -> None:
-    """The quantize-and-accumulate kernel for every preset system's size (:mod:`qsid_core.unrolled`), through
-    the engine's own path on a tiny data set of one system per size."""
-    import numpy as np
-
-    from qsid_core import QuantizerSpec, kernels, prepare, quantized_moments, simulate
-
-    if not kernels.AVAILABLE:
-        return
-    spec = QuantizerSpec()
-    for system in _one_preset_per_size().values():
-        quantized_moments(prepare(simulate(system, 2, 5, seed=0), spec), [4], spec, np.random.default_rng(0))
-
-
-def _warm_box_qp() -> None:
-    """The box-QP kernel with the argument types the closed loops pass (they reach it only when saturated)."""
-    import numpy as np
-
-    from qsid_core.condensed_qp import box_qp_batch
-
-    H = np.eye(2)[None] * 2.0
-    g = np.array([[3.0, -3.0]])
-    upper, lower = np.array([[True, False]]), np.array([[False, True]])
-    box_qp_batch(H, g, np.ones(2), upper, lower)
 
 
 def warm(pool) -> None:

@@ -6,7 +6,7 @@ closed-loop cost to the true-model MPC (log scale, absolute value) and the
 allowed gap. Vertical lines: ``b_observed`` (solid), ``b_robust`` (dashed, the
 small-gain certificate for Theorem 1's predicted model) and ``b_letter``
 (dotted, the letter's bound below rho and below ||x0||); the sentence of
-:class:`qsid_core.bits.BitsAnswer` is the title.
+:class:`qsid_core.studies.bits.BitsAnswer` is the title.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import plotly.graph_objects as go
 
-from qsid_core.bits import BitsAnswer, answer_from_rows, predicted_small_gain
-from qsid_core.stability import data_rate_bits
+from qsid_core.control import data_rate_bits
+from qsid_core.studies import BitsAnswer, answer_from_rows, predicted_small_gain
 
 from .palette import COLORS, color
 from .raw import figure, hline, stacked_axes
@@ -25,7 +25,7 @@ from .traces import BITS_AXIS, Series, mark_bits
 from .view import CURVES, FrameView, View
 
 if TYPE_CHECKING:
-    from qsid_core.experiment import Experiment
+    from qsid_core import Experiment
 
 __all__ = ["bits_figure", "answers", "VIEW"]
 

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import plotly.graph_objects as go
 
-from qsid_core.timeseries import CONVERGED_REL_FLOOR
+from qsid_core.control import CONVERGED_REL_FLOOR
 
 from .axes import top_log_range
 from .hypotheses import CAPTION

@@ -2,7 +2,7 @@
 
 LS and BCLS mean +- std over dither realizations, Theorem 1's large-data
 prediction (the floor LS levels off on), and a T^-1/2 reference through the
-first LS point. The rows are :func:`qsid_core.datalength.run_datalength`'s
+first LS point. The rows are :func:`qsid_core.studies.datalength.run_datalength`'s
 (``DataLengthRow.to_dict()``); the study runs on demand (button in the tab), so
 without a result the view says how to start it.
 """

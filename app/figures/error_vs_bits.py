@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import plotly.graph_objects as go
 
-from qsid_core.sweep import fit_slope
+from qsid_core import fit_slope
 
 from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, short, theorem1_reasons
 from .palette import COLORS, color

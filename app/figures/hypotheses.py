@@ -1,6 +1,6 @@
 """The hypotheses of Theorem 1 and of BCLS in plain words, from the engine's per-b ``assumptions`` rows.
 
-The engine decides (:mod:`qsid_core.assumptions`); this module only words its
+The engine decides (:mod:`qsid_core.studies.assumptions`); this module only words its
 flags for the plots' notes and the summary.
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from qsid_core.assumptions import FIT_TOLERANCE
+from qsid_core.studies import FIT_TOLERANCE
 
 __all__ = ["flags", "theorem1_reasons", "bcls_reasons", "fits_reasons", "line_holds", "bits_text", "short", "CAPTION"]
 

@@ -2,7 +2,7 @@
 
 The bounds hold only as t -> inf (and assume x_ref = 0): the lines show where the
 loops must end up, not a limit at every t. Converged norms (below ``1e-12 ||x0||``,
-the engine's :mod:`qsid_core.timeseries` floor) are drawn at the floor.
+the engine's :mod:`qsid_core.control.timeseries` floor) are drawn at the floor.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import plotly.graph_objects as go
 
-from qsid_core.timeseries import time_series
+from qsid_core import time_series
 
 from .axes import top_log_range
 from .hypotheses import CAPTION
@@ -24,7 +24,7 @@ from .view import CURRENT, FrameView, View
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
-    from qsid_core.stage_results import ClosedLoops
+    from qsid_core import ClosedLoops
 
 __all__ = ["norm_time_figure", "VIEW"]
 

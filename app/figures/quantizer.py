@@ -8,7 +8,7 @@ Bottom: histograms of the two errors (density) against the uniform density
 ``1/ε`` on ``±ε/2`` (alike with and without dither: the histogram cannot show
 the difference, the middle panel does). The title gives the
 measured error variance next to ``ε²/12`` and the overload fraction. The
-numbers are :func:`qsid_core.quantizer_demo.channel_demo`'s; this module draws.
+numbers are :func:`qsid_core.quantization.quantizer_demo.channel_demo`'s; this module draws.
 """
 
 from __future__ import annotations
@@ -18,14 +18,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import plotly.graph_objects as go
 
-from qsid_core.quantizer_demo import QuantizerDemo, channel_demo
+from qsid_core import QuantizerDemo, channel_demo
 
 from .palette import COLORS
 from .raw import arr, figure, stacked_axes
 from .view import CURRENT, FrameView, View
 
 if TYPE_CHECKING:
-    from qsid_core.systems import LTISystem
+    from qsid_core import LTISystem
 
 __all__ = ["quantizer_figure", "demo_text", "dependence_text", "VIEW"]
 

@@ -2,7 +2,7 @@
 
 The steady-state error is the RMS of ``||x_t - x_ref||`` over the last half of each
 loop. With a disturbance or a quantized / noisy measurement in the loop
-(:mod:`qsid_core.loop_noise`) the true-model loop keeps a residual too: that part
+(:mod:`qsid_core.control.loop_noise`) the true-model loop keeps a residual too: that part
 is the disturbance and the measurement alone, the rest is the model error (the
 only cause the letter's delta covers). Without them it is what is left of the
 transient after the drawn number of steps.
@@ -21,7 +21,7 @@ from .traces import BITS_AXIS, Series, hline_note, mark_bits, xy
 from .view import CURVES, FrameView, View
 
 if TYPE_CHECKING:
-    from qsid_core.mpc import MPCConfig
+    from qsid_core import MPCConfig
 
 __all__ = ["residual_figure", "VIEW"]
 

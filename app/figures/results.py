@@ -131,8 +131,8 @@ def _stabilized(series: dict[str, list[dict[str, Any]]], dicts: list[dict[str, A
     """The bits view; the small-gain test of Theorem 1's predicted model is recomputed from each result's
     configuration (its data are simulated again; no closed loop runs)."""
     from qsid_core import Experiment, SweepConfig
-    from qsid_core.bits import answer_from_rows, predicted_small_gain
-    from qsid_core.stability import data_rate_bits
+    from qsid_core.control import data_rate_bits
+    from qsid_core.studies import answer_from_rows, predicted_small_gain
 
     from .bits_needed import bits_figure
 

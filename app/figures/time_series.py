@@ -1,6 +1,6 @@
 """View: x_i(t) and u_j(t) of the closed loops at the current b (true model, LS, BCLS), input bounds drawn.
 
-The arrays come from :func:`qsid_core.timeseries.time_series`; this module only
+The arrays come from :func:`qsid_core.control.timeseries.time_series`; this module only
 draws them. With few realizations every loop is a thin line; with more than
 :data:`MAX_LINES` the mean and a mean +- std band are drawn instead.
 """
@@ -13,7 +13,7 @@ import numpy as np
 import plotly.graph_objects as go
 from numpy.typing import NDArray
 
-from qsid_core.timeseries import TimeSeries, time_series
+from qsid_core import TimeSeries, time_series
 
 from .palette import COLORS, color
 from .raw import arr, figure, hline, stacked_axes
@@ -22,7 +22,7 @@ from .view import CURRENT, FrameView, View
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
-    from qsid_core.stage_results import ClosedLoops
+    from qsid_core import ClosedLoops
 
 __all__ = ["time_series_figure", "VIEW", "MAX_LINES"]
 
@@ -214,7 +214,7 @@ def mpc_arrays(frame: FrameView) -> dict[str, Any]:
 
 
 def loop_series(frame: FrameView) -> tuple[dict[str, TimeSeries], TimeSeries | None]:
-    """The frame's closed loops at the current b as :class:`~qsid_core.timeseries.TimeSeries` (label -> ts, true)."""
+    """The frame's closed loops at the current b as :class:`~qsid_core.control.timeseries.TimeSeries` (label -> ts, true)."""
     u_max = mpc_arrays(frame).get("u_max")
     ts = {lab: time_series(frame.loops[lab], frame.x0, u_max) for lab in frame.labels}
     true = time_series(frame.true_loop, frame.x0, u_max) if frame.true_loop is not None else None

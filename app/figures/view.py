@@ -5,7 +5,7 @@ one moment; a view reads only these attributes of it: ``series()`` (label ->
 rows of every b computed so far), ``bits`` (the current word length),
 ``true_cost``, ``labels``, ``idents`` (label -> identified models at the current
 b), ``system``, ``loops``/``true_loop`` (closed loops at the current b), ``ex``
-(the engine's cached :class:`~qsid_core.experiment.Experiment`), ``pinned`` (a
+(the engine's cached :class:`~qsid_core.studies.experiment.Experiment`), ``pinned`` (a
 pinned earlier frame or None) and ``datalength`` (a finished data-length study
 for the current settings, or None).
 """
@@ -22,10 +22,8 @@ if TYPE_CHECKING:
     import numpy as np
     from numpy.typing import NDArray
 
-    from qsid_core.datalength import DataLengthResult
-    from qsid_core.experiment import Experiment
-    from qsid_core.stage_results import BitsIdentification, ClosedLoops, TheoryAtBits
-    from qsid_core.systems import LTISystem
+    from qsid_core import ClosedLoops, DataLengthResult, Experiment, LTISystem
+    from qsid_core.studies import BitsIdentification, TheoryAtBits
 
 __all__ = ["View", "FrameView", "CURVES", "CURRENT"]
 

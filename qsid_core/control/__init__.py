@@ -1,0 +1,87 @@
+"""Control: the MPC on an identified model, many closed loops on the true plant at once, their verdicts, stability certificates and the letter's ultimate bound.
+
+Every public name of this subpackage is listed in ``__all__``; import from here, not from its modules."""
+
+from __future__ import annotations
+
+from .bound import RealizedBounds, UltimateBound, realized_bounds, riccati_finite, ultimate_bound
+from .closed_loop import run_closed_loops
+from .condensed_qp import CondensedQP, DaqpMPC, condense
+from .controllers import build_controllers
+from .loop_kernel import PDAS_ITERS, eligible, run_compiled
+from .loop_noise import DISTURBANCES, LoopNoise, loop_noise
+from .loop_results import ClosedLoops
+from .mpc import FAILURE_KINDS, SOLVERS, TRACKING, MPCConfig, MPCController
+from .mpc_weights import MPCWeights
+from .reference import KINDS, parse_reference, reference_samples
+from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
+from .sparse_qp import OsqpMPC
+from .stability import (
+    certify,
+    certify_batch,
+    complex_stability_radius,
+    controllability_margin,
+    data_rate_bits,
+    lyapunov_batch,
+    lyapunov_gains,
+    small_gain_holds,
+    small_gain_margin,
+    spectral_radius,
+)
+from .timeseries import CONVERGED_REL_FLOOR, TimeSeries, saturated_steps, time_series
+from .tracking import Preview
+from .verdicts import OUTCOMES, STALL, WINDOW, judge
+
+__all__ = [
+    "CONVERGED_REL_FLOOR",
+    "ClosedLoops",
+    "CondensedQP",
+    "DISTURBANCES",
+    "DaqpMPC",
+    "FAILURE_KINDS",
+    "KINDS",
+    "LQParts",
+    "LoopNoise",
+    "MPCConfig",
+    "MPCController",
+    "MPCWeights",
+    "OUTCOMES",
+    "OsqpMPC",
+    "PDAS_ITERS",
+    "Preview",
+    "RealizedBounds",
+    "SOLVERS",
+    "STALL",
+    "TRACKING",
+    "TimeSeries",
+    "UltimateBound",
+    "WINDOW",
+    "build_controllers",
+    "certify",
+    "certify_batch",
+    "complex_stability_radius",
+    "condense",
+    "controllability_margin",
+    "dare_batch",
+    "dare_stabilizing",
+    "data_rate_bits",
+    "eligible",
+    "judge",
+    "loop_noise",
+    "lq_parts",
+    "lyapunov_batch",
+    "lyapunov_gains",
+    "parse_reference",
+    "realized_bounds",
+    "reference_samples",
+    "riccati_finite",
+    "run_closed_loops",
+    "run_compiled",
+    "saturated_steps",
+    "small_gain_holds",
+    "small_gain_margin",
+    "spectral_radius",
+    "state_box",
+    "time_series",
+    "ultimate_bound",
+]

@@ -1,0 +1,38 @@
+"""The plant: LTI systems, presets and system files, python-control interop, and the training runs it produces.
+
+Every public name of this subpackage is listed in ``__all__``; import from here, not from its modules."""
+
+from __future__ import annotations
+
+from .data import OVERFLOW_LIMIT, Dataset, simulate
+from .interop import (
+    OUTPUT_RULES,
+    identified_statespaces,
+    model_to_statespace,
+    system_from_statespace,
+    system_to_statespace,
+)
+from .lti import MAX_INPUTS, MAX_STATES, LTISystem, UncontrollableWarning
+from .systems import PRESETS, boeing747, dc_motor, dc_motor_physical, get_system, load_system, system_from_dict
+
+__all__ = [
+    "Dataset",
+    "LTISystem",
+    "MAX_INPUTS",
+    "MAX_STATES",
+    "OUTPUT_RULES",
+    "OVERFLOW_LIMIT",
+    "PRESETS",
+    "UncontrollableWarning",
+    "boeing747",
+    "dc_motor",
+    "dc_motor_physical",
+    "get_system",
+    "identified_statespaces",
+    "load_system",
+    "model_to_statespace",
+    "simulate",
+    "system_from_dict",
+    "system_from_statespace",
+    "system_to_statespace",
+]

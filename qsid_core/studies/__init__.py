@@ -1,0 +1,122 @@
+"""Studies: configurations, the staged and cached experiment, sweeps over word lengths, summaries and records, "how many bits", data length and recorded data.
+
+Every public name of this subpackage is listed in ``__all__``; import from here, not from its modules."""
+
+from __future__ import annotations
+
+from .assumptions import (
+    FIT_TOLERANCE,
+    LARGE_DATA_RATIO,
+    OVERLOAD_EFFECT_RATIO,
+    STATIONARITY_MARGIN,
+    Assumptions,
+    assess,
+    clipping_effect,
+    finite_data_fluctuation,
+    range_words,
+)
+from .bits import (
+    BitsAnswer,
+    BitsRow,
+    answer_from_rows,
+    bits_needed,
+    from_on,
+    predicted_small_gain,
+    realized_small_gain,
+    wilson_interval,
+)
+from .config import SweepConfig, parse_bits, parse_input_bits, parse_noise, parse_state_bits
+from .config_checks import check_run_args, check_sweep_parts
+from .datalength import (
+    DEFAULT_SAMPLES,
+    DataLengthConfig,
+    DataLengthResult,
+    DataLengthRow,
+    run_datalength,
+    runs_and_steps,
+)
+from .executors import InlineExecutor, single_threaded_blas
+from .experiment import Experiment
+from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded
+from .records import (
+    COLUMNS,
+    RealizationRecord,
+    experiment_records,
+    realization_records,
+    replace_atomically,
+    to_columns,
+    to_pandas,
+    write_csv,
+)
+from .stage_results import BitsIdentification, TheoryAtBits
+from .summary import Stats, SummaryRow, build_row, json_clean
+from .sweep import RESULT_FORMAT, StoredRow, SweepResult, fit_slope, load_result, run_sweep, summarize, summary_row
+from .warmup import COMPILED_KERNELS, compile_kernels, kernel_cache_dir, kernel_names, kernels_cached, one_per_size
+
+__all__ = [
+    "Assumptions",
+    "BitsAnswer",
+    "BitsIdentification",
+    "BitsRow",
+    "COLUMNS",
+    "COMPILED_KERNELS",
+    "DEFAULT_SAMPLES",
+    "DataLengthConfig",
+    "DataLengthResult",
+    "DataLengthRow",
+    "Experiment",
+    "FIT_TOLERANCE",
+    "InlineExecutor",
+    "LARGE_DATA_RATIO",
+    "OVERLOAD_EFFECT_RATIO",
+    "RESULT_FORMAT",
+    "RealizationRecord",
+    "RecordedResult",
+    "STATIONARITY_MARGIN",
+    "Stats",
+    "StoredRow",
+    "SummaryRow",
+    "SweepConfig",
+    "SweepResult",
+    "TheoryAtBits",
+    "answer_from_rows",
+    "assess",
+    "bits_needed",
+    "build_row",
+    "check_run_args",
+    "check_sweep_parts",
+    "clipping_effect",
+    "compile_kernels",
+    "dataset_from_arrays",
+    "experiment_records",
+    "finite_data_fluctuation",
+    "fit_slope",
+    "from_on",
+    "identify_recorded",
+    "json_clean",
+    "kernel_cache_dir",
+    "kernel_names",
+    "kernels_cached",
+    "load_recorded",
+    "load_result",
+    "one_per_size",
+    "parse_bits",
+    "parse_input_bits",
+    "parse_noise",
+    "parse_state_bits",
+    "predicted_small_gain",
+    "range_words",
+    "realization_records",
+    "realized_small_gain",
+    "replace_atomically",
+    "run_datalength",
+    "run_sweep",
+    "runs_and_steps",
+    "single_threaded_blas",
+    "summarize",
+    "summary_row",
+    "to_columns",
+    "to_pandas",
+    "wilson_interval",
+    "write_csv",
+]

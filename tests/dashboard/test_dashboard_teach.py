@@ -1,0 +1,327 @@
+"""Presenter mode, auto-play over b, and view codes (links that survive a reload), without a browser.
+
+Tabs here are websocket clients of an in-process server (``tests/support.py``); a change "made in the browser"
+is a ``GuiUpdateMessage`` over the tab's websocket, exactly as viser's client sends it. The browser walkthrough
+(fonts, widths, reload) is ``tests/system/test_dashboard_teach_browser.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+
+import msgspec
+import pytest
+from support import CAMERA, HANG_S, ROOT, SMALL, Tab, wait_until
+
+from app.dashboard.presenter import LEFT_WIDTH, RIGHT_WIDTH
+from app.dashboard.settings import InputError, Values
+from app.dashboard.viewcodes import (
+    CODE_LETTERS,
+    ViewStore,
+    code_from_path,
+    normalize_code,
+    open_view,
+    view_link,
+)
+from app.figures.presenter import PLOT_FONT, presenter_figure
+
+# slow: each test starts a dashboard and waits for drawn frames (auto-play steps b once a second)
+pytestmark = pytest.mark.slow
+
+
+# ----- view codes: the store and the parsing ---------------------------------------------------------------------
+def test_codes_parse_from_typed_text_links_and_websocket_paths():
+    assert normalize_code(" KQbxtr ") == "kqbxtr"
+    assert normalize_code(view_link("10.0.0.5:8080", "kqbxtr")) == "kqbxtr"
+    assert code_from_path("/v/kqbxtr") == "kqbxtr" and code_from_path("/") is None
+    assert code_from_path("/v/kqb") is None and code_from_path("/x/kqbxtr") is None
+    for bad in ("", "abc", "abcdefg", "abc12d", "abcdel"):  # 'l' is left out (read as 1 off a projector)
+        if not bad:
+            continue
+        with pytest.raises(InputError, match="is not a code: a code is 6 letters") as exc:
+            normalize_code(bad)
+        assert "\n" not in str(exc.value)
+    assert set(ViewStore().new_code()) <= set(CODE_LETTERS)
+
+
+def test_the_store_keeps_the_newest_settings_bounded_and_in_its_file(tmp_path):
+    path = tmp_path / "cache" / "views.json"
+    store = ViewStore(path, max_views=3)
+    for i, code in enumerate(["aaaaaa", "bbbbbb", "cccccc"]):
+        store.put(code, Values(bits=i + 2))
+    assert store.get("aaaaaa").bits == 2  # used: now the newest
+    store.put("dddddd", Values(bits=9, presenter=True))
+    assert len(store) == 3 and "bbbbbb" not in store  # the least recently used was dropped
+    store.flush()
+    doc = json.loads(path.read_text())
+    assert doc["kind"] == "qsid-view-codes" and set(doc["views"]) == {"aaaaaa", "cccccc", "dddddd"}
+    again = ViewStore(path, max_views=3)  # a restarted server reads them back
+    assert again.get("dddddd") == Values(bits=9, presenter=True) and again.load_note is None
+
+
+def test_a_broken_store_file_is_one_note_and_an_empty_store(tmp_path):
+    path = tmp_path / "views.json"
+    path.write_text("{not json")
+    store = ViewStore(path)
+    assert len(store) == 0 and "not read" in store.load_note
+    path.write_text(json.dumps({"kind": "qsid-view-codes", "views": {"aaaaaa": "{}", "zz": "x"}}))
+    assert len(ViewStore(path)) == 0  # entries the dashboard would refuse are dropped, one by one
+
+
+def test_open_view_says_why_a_link_gave_defaults():
+    store = ViewStore()
+    store.put("kqbxtr", Values(bits=11))
+    v, view = open_view(store, "/v/kqbxtr", "h:1", Values())
+    assert v.bits == 11 and view.code == "kqbxtr" and not view.fresh and view.note == ""
+    v, view = open_view(store, "/v/zzzzzz", "h:1", Values(bits=5))
+    assert v.bits == 5 and view.code == "zzzzzz" and "is not known on this server" in view.note
+    v, view = open_view(store, "/v/12", "h:1", Values())
+    assert view.fresh and "holds no view code" in view.note and view.code != "12"
+    v, view = open_view(store, "/", "h:1", Values())
+    assert view.fresh and view.note == ""
+
+
+# ----- view codes in a live tab -------------------------------------------------------------------------------------
+class PathTab(Tab):
+    """A tab whose websocket is opened at ``path`` (what the link's ``?websocket=ws://host/v/CODE`` does)."""
+
+    def __init__(self, app, path: str):
+        import viser
+        from websockets.sync.client import connect
+
+        before = set(app.sessions)
+        self.app, self.received = app, 0
+        self.ws = connect(
+            app.url.replace("http://", "ws://") + path,
+            subprotocols=[f"viser-v{viser.__version__}"],
+            max_size=None,
+            open_timeout=120,
+        )
+        import threading
+
+        self.thread = threading.Thread(target=self._read, daemon=True)
+        self.thread.start()
+        self.ws.send(msgspec.msgpack.encode(CAMERA))
+        sessions = app.wait_for_sessions(len(before) + 1, timeout=HANG_S)
+        self.session = next(s for s in sessions if s.client.client_id not in before)
+        self.controls = self.session.controls
+
+
+def test_a_link_opens_the_settings_its_tab_had_last(dashboard, tab):
+    tab.set(bits=9, dither="tpdf")
+    code = tab.session.codes.view.code
+    assert dashboard.views.get(code).bits == 9
+    assert f"view code **{code}**" in tab.session.codes.line.content
+    assert view_link(f"127.0.0.1:{dashboard.port}", code) in tab.session.codes.line.content
+    tab.close()  # a reload: the same link opens a new connection at /v/CODE
+    wait_until(lambda: tab.session.client.client_id not in dashboard.sessions, "the closed tab is gone")
+    again = PathTab(dashboard, f"/v/{code}").wait()
+    try:
+        assert again.session.codes.view.code == code and not again.session.codes.view.fresh
+        assert again.frame.values.bits == 9 and again.frame.values.dither == "tpdf"
+        assert again.frame.values.trajectories == SMALL["trajectories"]
+        assert not again.session.codes.status.visible
+    finally:
+        again.close()
+
+
+def test_an_unknown_code_in_a_link_is_one_line_in_the_panel(dashboard):
+    t = PathTab(dashboard, "/v/qqqqqq").wait()
+    try:
+        st = t.session.codes.status
+        assert st.visible and "**qqqqqq** is not known on this server" in st.content and "\n" not in st.content
+        t.set(bits=7)
+        assert dashboard.views.get("qqqqqq").bits == 7  # the link works from now on
+    finally:
+        t.close()
+
+
+@pytest.mark.parametrize(
+    "typed,expect",
+    [("12ab", "is not a code: a code is 6 letters"), ("zzzzzz", "**zzzzzz** is not known on this server")],
+)
+def test_a_bad_code_typed_is_one_clear_line(tab, typed, expect):
+    bits = tab.frame.values.bits
+    tab.session.codes.box.value = typed
+    st = tab.session.codes.status
+    wait_until(lambda: st.visible, "the status line shows")
+    assert expect in st.content and "\n" not in st.content
+    assert tab.wait().frame.values.bits == bits  # nothing else changed
+
+
+def test_a_code_typed_by_a_student_applies_that_view(dashboard, tab):
+    tab.set(bits=12, identification="LS")
+    code = tab.session.codes.view.code
+    other = Tab(dashboard).set(mpc_steps=15, **SMALL)
+    try:
+        assert other.session.codes.view.code != code and other.frame.values.bits != 12
+        other.session.codes.box.value = code.upper()
+        wait_until(lambda: other.session.codes.status.visible, "the status line shows")
+        wait_until(lambda: other.wait().frame.values.bits == 12, "the view's settings applied")
+        assert other.frame.values.identification == "LS"
+        assert f"Loaded view **{code}**" in other.session.codes.status.content
+    finally:
+        other.close()
+
+
+# ----- presenter mode -----------------------------------------------------------------------------------------------
+def _font_sizes(fig) -> list:
+    d = fig.to_plotly_json()["layout"]
+    d.pop("template", None)
+    out = []
+
+    def walk(node, font=False):
+        if isinstance(node, dict):
+            for k, v in node.items():
+                if font and k == "size":
+                    out.append(v)
+                walk(v, k == "font" or k.endswith("font"))
+        elif isinstance(node, list):
+            for v in node:
+                walk(v)
+
+    walk(d)
+    return out
+
+
+def test_presenter_mode_enlarges_every_plot_and_thickens_lines(tab):
+    small = {name: h.figure for name, h in tab.session.plots.items()}
+    assert min(s for f in small.values() for s in _font_sizes(f)) < PLOT_FONT  # the normal style is smaller
+    tab.set(presenter=True)
+    s = tab.session
+    assert s.presenter.on and s.portrait.traj.thickness > 2.0 and s.portrait.true.thickness > 5.0
+    assert s.presenter.style.visible and "font-size:max(16px" in s.presenter.style.content
+    for name, h in s.plots.items():
+        sizes = _font_sizes(h.figure)
+        assert sizes and min(sizes) >= PLOT_FONT, name
+        assert h.figure.layout.font.size >= PLOT_FONT
+    err = s.plots["error"].figure
+    widths = [t.line.width for t in err.data if t.mode and "lines" in t.mode and t.line.width]
+    assert widths and min(widths) >= 3.0
+    tab.set(presenter=False)
+    assert not s.presenter.on and s.portrait.traj.thickness == 2.0 and not s.presenter.style.visible
+    assert min(x for x in _font_sizes(s.plots["error"].figure)) < PLOT_FONT
+
+
+def test_presenter_figure_raises_inline_font_spans():
+    import plotly.graph_objects as go
+
+    fig = go.Figure(layout=dict(title=dict(text="a <span style='font-size:12px'>b</span>")))
+    assert "font-size:18px" in presenter_figure(fig).layout.title.text
+    assert "font-size:12px" in fig.layout.title.text  # the original is left alone
+
+
+def test_presenter_is_a_settings_key_and_survives_a_lesson(tab):
+    from app.dashboard.share import settings_json, values_from_json
+
+    assert values_from_json(settings_json(Values(presenter=True))).presenter is True
+    tab.set(presenter=True)
+    tab.set(lesson="fig1")
+    assert tab.controls["presenter"].value is True and tab.frame.values.presenter is True
+    assert tab.frame.values.lesson == "fig1"
+
+
+def test_dashboard_app_presenter_with_lesson():
+    from app.dashboard import DashboardApp
+    from app.dashboard.server import _parser
+
+    args = _parser().parse_args(["--presenter", "--lesson", "fig2"])
+    assert args.presenter and args.lesson == "fig2"
+    app = DashboardApp(host="127.0.0.1", port=0, workers=0, presenter=True, lesson="fig2")
+    try:
+        assert app.defaults.presenter is True and app.defaults.lesson == "fig2"
+        assert app.defaults.system == "boeing747"
+    finally:
+        app.stop()
+
+
+def test_presenter_with_a_bad_lesson_is_one_line_and_exit_2():
+    r = subprocess.run(
+        [sys.executable, "-m", "app.dashboard", "--presenter", "--lesson", "nope", "--port", "0"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=HANG_S,
+        env={**__import__("os").environ, "PYTHONPATH": str(ROOT)},
+    )
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "unknown lesson 'nope'" in r.stderr, r.stderr
+
+
+def test_presenter_widths_leave_the_scene_more_than_half_of_1366():
+    assert 1366 - LEFT_WIDTH - RIGHT_WIDTH - 4 > 1366 / 2
+
+
+# ----- auto-play ----------------------------------------------------------------------------------------------------
+def _send(tab, handle, value):
+    tab.ws.send(
+        msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid, "updates": {"value": value}})
+    )
+
+
+def test_auto_play_steps_b_from_1_one_drawn_frame_at_a_time_and_stops_at_a_user_change(tab, monkeypatch):
+    import app.dashboard.presenter as presenter_module
+
+    monkeypatch.setattr(presenter_module, "STEP_SECONDS", 2.0)  # room for the test's own steps on a busy machine
+    s = tab.session
+    drawn: list = []
+    draw = s._draw
+
+    def spy(frame, gen):  # which b each drawn frame showed, and whether every earlier b was drawn
+        ok = draw(frame, gen)
+        if ok and frame.stage == "current":
+            drawn.append(frame.bits)
+        return ok
+
+    s._draw = spy
+    tab.set(bits=8)
+    s.play.press()
+    assert s.play.state == "playing"
+    wait_until(lambda: 4 in drawn, "auto-play drew b = 4")
+    steps = [b for b in drawn if b <= 4]
+    assert steps[-4:] == [1, 2, 3, 4]  # from 1, each b drawn before the next was set
+    assert s.controls.play.label.startswith("■ pause")
+    _send(tab, tab.controls["theta"], 0.3)  # the person moves another input in the browser
+    wait_until(lambda: s.play.state == "paused", "the auto-play stopped")
+    b = tab.wait().frame.values.bits
+    assert s.play.stopped_by_user and s.play.wait_time() is None
+    wait_until(lambda: "stopped by your change" in s.controls.play.label, "the button says so")
+    time.sleep(2.5 * presenter_module.STEP_SECONDS)
+    assert s.controls["bits"].value == b  # paused: b stays put
+    s.play.press()  # resume: from the b shown, to 16, then off
+    wait_until(lambda: s.play.state == "off", "the auto-play ran to b = 16")
+    assert tab.wait().frame.values.bits == 16 and s.controls.play.label.startswith("▶ auto-play")
+    assert drawn[-(16 - b) :] == list(range(b + 1, 17))
+
+
+def test_the_request_path_hook_reads_the_live_path_and_fails_loudly_without_it(dashboard):
+    from types import SimpleNamespace
+
+    from app.dashboard.viserfix import check_request_hook, connection_request
+
+    check_request_hook(dashboard.server)  # this viser keeps the raw connections where the hook reads them
+    t = PathTab(dashboard, "/v/kqbxtr")
+    try:
+        path, host = connection_request(dashboard.server, t.session.client.client_id)
+        assert path == "/v/kqbxtr" and host == f"127.0.0.1:{dashboard.port}"
+    finally:
+        t.close()
+    with pytest.raises(RuntimeError, match="viser internals changed"):
+        check_request_hook(SimpleNamespace(_websock_server=SimpleNamespace()))
+
+
+def test_the_teaching_page_lists_every_lesson_and_shows_committed_screenshots():
+    import re
+
+    from app.dashboard.lessons import LESSONS
+
+    text = (ROOT / "docs" / "teaching.rst").read_text(encoding="utf-8")
+    for les in LESSONS:
+        assert f"``{les.name}``" in text, les.name
+    images = re.findall(r"\.\. image:: \.\./(assets/[\w.-]+\.png)", text)
+    assert len(images) >= 3
+    for img in images:
+        assert (ROOT / img).is_file(), img

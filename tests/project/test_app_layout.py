@@ -1,0 +1,159 @@
+"""The layout rules of app/ and qsid_core/: small modules and functions, no import cycles; commands and views
+stay independent of each other.
+
+Size is counted in *logical* lines (statements, as the tokenizer ends them), not physical ones, so that the
+formatter spreading one call over several lines does not change it: no module over 300, no function over 60.
+"""
+
+from __future__ import annotations
+
+import ast
+import io
+import tokenize
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+APP = ROOT / "app"
+PACKAGES = ("app", "qsid_core")
+
+
+def _modules(package: str = "app") -> dict:
+    """module name -> (path, parsed tree) of every module of ``package``."""
+    out = {}
+    for p in sorted((ROOT / package).rglob("*.py")):
+        if "__pycache__" in p.parts:  # generated at run time (qsid_core.quantization.unrolled), not the project's code
+            continue
+        rel = p.relative_to(ROOT).with_suffix("")
+        name = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
+        out[name] = (p, ast.parse(p.read_text(encoding="utf-8")))
+    return out
+
+
+def _imports(name: str, path: Path, tree: ast.AST, known: set) -> set:
+    """app modules ``name`` imports (a package import also runs the package's __init__)."""
+    deps = set()
+    pkg = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            base = (
+                ".".join(pkg[: len(pkg) - node.level + 1] + [node.module or ""]).strip(".")
+                if node.level
+                else node.module
+            )
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names]
+        elif isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        else:
+            continue
+        for t in targets:
+            parts = t.split(".")
+            for i in range(1, len(parts) + 1):  # the target and every parent package
+                m = ".".join(parts[:i])
+                if m in known and m != name and not name.startswith(m + "."):
+                    deps.add(m)
+    return deps
+
+
+def _cycles(graph: dict) -> list:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _logical_line_ends(source: str) -> list[int]:
+    """The physical line on which each logical line (statement) of ``source`` ends."""
+    tokens = tokenize.generate_tokens(io.StringIO(source).readline)
+    return [t.start[0] for t in tokens if t.type == tokenize.NEWLINE]
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_module_over_300_statements_no_function_over_60(package):
+    too_long = []
+    for name, (path, tree) in _modules(package).items():
+        ends = _logical_line_ends(path.read_text(encoding="utf-8"))
+        if len(ends) > 300:
+            too_long.append(f"{name}: {len(ends)} logical lines")
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                k = sum(1 for e in ends if node.lineno <= e <= node.end_lineno)
+                if k > 60:
+                    too_long.append(f"{name}.{node.name}: {k} logical lines")
+    assert too_long == []
+
+
+def test_the_size_rule_counts_statements_not_physical_lines():
+    one_call_spread = "f(\n    1,\n    2,\n)\nx = 1\n"
+    assert len(_logical_line_ends(one_call_spread)) == 2
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_import_cycles(package):
+    mods = _modules(package)
+    graph = {name: _imports(name, p, t, set(mods)) for name, (p, t) in mods.items()}
+    if package == "app":
+        assert graph["app.cli.reproduce"] >= {"app.cli.runner"}  # the check sees relative imports
+    else:
+        assert graph["qsid_core.studies.sweep"] >= {"qsid_core.studies.experiment"}
+    assert _cycles(graph) == []
+
+
+def test_the_cycle_check_finds_a_cycle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_commands_import_the_runner_never_each_other():
+    mods = _modules()
+    commands = {"app.cli.systems", "app.cli.sweep", "app.cli.reproduce"}
+    for name in commands:
+        deps = _imports(name, *mods[name], set(mods))
+        assert not deps & commands, name
+
+
+def test_every_view_module_is_registered_and_imports_no_other_view():
+    from app.figures import registry
+
+    mods = _modules()
+    view_modules = {f"app.figures.{v.build.__module__.rsplit('.', 1)[-1]}" for v in registry.VIEWS}
+    assert view_modules == {
+        "app.figures.error_vs_bits",
+        "app.figures.cost",
+        "app.figures.bound",
+        "app.figures.eigenvalues",
+        "app.figures.time_series",
+        "app.figures.quantizer",
+        "app.figures.datalength",
+        "app.figures.compare",
+        "app.figures.norm_time",
+        "app.figures.bits_needed",
+        "app.figures.residual",
+    }
+    for name in view_modules:
+        assert not _imports(name, *mods[name], set(mods)) & view_modules, name
