@@ -18,6 +18,7 @@ __all__ = [
     "MPCFailure",
     "FailureKind",
     "IdentificationError",
+    "OutputPathError",
     "short_repr",
     "check_choice",
     "check_int",
@@ -43,6 +44,10 @@ class DataOverflowError(QsidError):
 
 class IdentificationError(QsidError):
     """Identification is impossible from these (quantized) data; sweeps record it per realization."""
+
+
+class OutputPathError(QsidError):
+    """An output path is not a regular file or a new name (a directory, a device, a FIFO, a socket)."""
 
 
 class FailureKind(str, Enum):

@@ -397,6 +397,13 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs: Seque
     except OSError as exc:
         raise UsageError(f"argument {flag}: cannot create {str(parent)!r}: {exc.strerror or exc}") from None
     check_writable(parent, flag)
+    from qsid_core.errors import OutputPathError
+    from qsid_core.studies import output_target
+
+    try:
+        output_target(out)
+    except OutputPathError as exc:
+        raise UsageError(f"argument {flag}: {exc}") from None
     if out.exists():
         if not os.access(out, os.W_OK):
             raise UsageError(f"argument {flag}: {text!r} exists and is not writable")

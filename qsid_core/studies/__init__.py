@@ -37,13 +37,13 @@ from .datalength import (
 )
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
+from .outputs import output_target, replace_atomically
 from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded
 from .records import (
     COLUMNS,
     RealizationRecord,
     experiment_records,
     realization_records,
-    replace_atomically,
     to_columns,
     to_pandas,
     write_csv,
@@ -100,6 +100,7 @@ __all__ = [
     "load_recorded",
     "load_result",
     "one_per_size",
+    "output_target",
     "parse_bits",
     "parse_input_bits",
     "parse_noise",

@@ -15,12 +15,9 @@ and empty cells in the CSV.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import math
-import os
-import tempfile
 from collections.abc import Iterable
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
@@ -30,6 +27,7 @@ import numpy as np
 
 from ..errors import ConfigError, check_choice
 from ..identification.identify import ESTIMATORS
+from .outputs import replace_atomically
 
 if TYPE_CHECKING:
     from ..control.loop_results import ClosedLoops
@@ -48,7 +46,6 @@ __all__ = [
     "to_columns",
     "to_pandas",
     "write_csv",
-    "replace_atomically",
 ]
 
 
@@ -263,24 +260,3 @@ def write_csv(records_or_result: Records, path: str | Path) -> int:
         w.writerow([_cell(v) for v in astuple(r)])
     replace_atomically(Path(path), buf.getvalue())
     return len(recs)
-
-
-def replace_atomically(path: Path, text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` through a temporary file beside it and ``os.replace``; the file keeps
-    its permission bits (a new one gets the umask's)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        try:
-            mode = os.stat(path).st_mode & 0o7777
-        except OSError:
-            mask = os.umask(0)
-            os.umask(mask)
-            mode = 0o666 & ~mask
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from support import HANG_S
 
-from qsid_core.studies.records import COLUMNS, replace_atomically, write_csv
+from qsid_core.studies import COLUMNS, replace_atomically, write_csv
 
 # slow: interrupts real qsid processes mid-write
 pytestmark = pytest.mark.slow
@@ -24,7 +24,7 @@ SMALL_SWEEP = ["sweep", "--bits", "4", "--realizations", "2", "--trajectories", 
 
 
 def test_a_failed_csv_write_keeps_the_old_file_and_leaves_no_temporary_file(tmp_path, monkeypatch):
-    import qsid_core.studies.records as records
+    import qsid_core.studies.outputs as records
 
     path = tmp_path / "rows.csv"
     path.write_text("old rows\n")
@@ -52,7 +52,7 @@ def test_replace_keeps_the_permission_bits(tmp_path):
 CHILD = textwrap.dedent(
     """
     import os, sys, time
-    import qsid_core.studies.records as records
+    import qsid_core.studies.outputs as records
     real = os.fdopen
 
     class Halfway:
