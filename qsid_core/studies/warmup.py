@@ -62,6 +62,8 @@ def kernels_cached(systems: Iterable[LTISystem]) -> bool:
     if not kernels.AVAILABLE:
         return True
     d = kernels.cache_dir()
+    if d.endswith("__pycache__"):  # numba's default: a __pycache__ beside each kernel's own module
+        d = os.path.dirname(os.path.dirname(os.path.dirname(kernels.__file__)))
     return all(glob.glob(os.path.join(d, "**", f"{k}-*.nbi"), recursive=True) for k in kernel_names(systems))
 
 
