@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import numbers
+import os
 from collections.abc import Mapping
 from typing import Any, SupportsInt, cast
 
@@ -145,6 +146,27 @@ def as_float_array(
             f"{(arr[idx] if idx else arr.item()):g}"
         )
     return arr
+
+
+def physical_memory() -> int | None:
+    """This machine's physical memory in bytes (None where the OS does not say)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def check_memory(what: str, nbytes: float, advice: str, error: type = ConfigError) -> None:
+    """Refuse work whose arrays alone would take more than 3/4 of this machine's physical memory.
+
+    The message says how large they would be, so a front end can show it as one line.
+    """
+    total = physical_memory()
+    if total is not None and nbytes > 0.75 * total:
+        raise error(
+            f"{what} would need {nbytes / 2**30:.1f} GiB of memory for its arrays, more than this machine can "
+            f"give ({total / 2**30:.1f} GiB in all); {advice}"
+        )
 
 
 def check_bool(name: str, value: Any) -> bool:

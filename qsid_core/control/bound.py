@@ -36,13 +36,15 @@ Both bound ``||x_t||`` only as t -> inf, and assume ``x_ref = 0``.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import ConfigError, check_float
+from ..errors import ConfigError, FailureKind, MPCFailure, check_float, check_int
+from ..validate import as_float_array
 
 __all__ = ["riccati_finite", "UltimateBound", "ultimate_bound", "RealizedBounds", "realized_bounds"]
 
@@ -50,12 +52,41 @@ __all__ = ["riccati_finite", "UltimateBound", "ultimate_bound", "RealizedBounds"
 def riccati_finite(
     A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray, horizon: int
 ) -> np.ndarray:
-    """``P_0`` of ``P_{k-1} = A'P_kA - A'P_kB(R + B'P_kB)^-1 B'P_kA + Q``, ``P_Th = Qf`` (letter, proof of Thm. 3)."""
-    P = np.array(Qf, dtype=float)
-    for _ in range(horizon):
-        BtP = B.T @ P
-        P = A.T @ P @ A - (BtP @ A).T @ np.linalg.solve(R + BtP @ B, BtP @ A) + Q
-        P = (P + P.T) / 2
+    """``P_0`` of ``P_{k-1} = A'P_kA - A'P_kB(R + B'P_kB)^-1 B'P_kA + Q``, ``P_Th = Qf`` (letter, proof of Thm. 3).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n); B : ndarray, shape (n, m)
+    Q, Qf : ndarray, shape (n, n); R : ndarray, shape (m, m)
+    horizon : int, >= 0
+
+    Raises
+    ------
+    ConfigError
+        Non-finite or mis-shaped matrices, a negative horizon.
+    MPCFailure
+        ``R + B'PB`` is singular at some step (input weights negligible against an input the model says
+        moves nothing), or the recursion overflows: there is no bound for this model.
+    """
+    A, B = as_float_array("A", A, max_abs=None), as_float_array("B", B, max_abs=None)
+    Q, R = as_float_array("Q", Q, max_abs=None), as_float_array("R", R, max_abs=None)
+    P = np.array(as_float_array("Qf", Qf, max_abs=None), dtype=float)
+    horizon = check_int("horizon", horizon, 0)
+    n, m = B.shape if B.ndim == 2 else (0, 0)
+    if A.shape != (n, n) or Q.shape != (n, n) or P.shape != (n, n) or R.shape != (m, m):
+        raise ConfigError(f"riccati_finite needs A, Q, Qf (n, n), B (n, m), R (m, m); got B {B.shape}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(horizon):
+            BtP = B.T @ P
+            try:
+                P = A.T @ P @ A - (BtP @ A).T @ np.linalg.solve(R + BtP @ B, BtP @ A) + Q
+            except np.linalg.LinAlgError:
+                raise MPCFailure(
+                    FailureKind.SOLVER, "no bound: R + B'PB is singular in the Riccati recursion"
+                ) from None
+            P = (P + P.T) / 2
+    if not np.all(np.isfinite(P)):
+        raise MPCFailure(FailureKind.SOLVER, "no bound: the Riccati recursion overflows the floating-point range")
     return P
 
 
@@ -250,16 +281,32 @@ def _bounds_batch(
 def _riccati_finite_batch(
     A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, Qf: np.ndarray, horizon: int
 ) -> np.ndarray:
-    """:func:`riccati_finite` for a batch: A (L, n, n), B (L, n, m), Qf (L, n, n) -> P_0 (L, n, n)."""
+    """:func:`riccati_finite` for a batch: A (L, n, n), B (L, n, m), Qf (L, n, n) -> P_0 (L, n, n).
+
+    A problem whose ``R + B'PB`` becomes singular (input weights negligible against a model with a
+    zero input direction) gets a NaN ``P_0``: it has no bound; the others are unaffected.
+    """
     P = np.array(Qf, dtype=float)
     At = np.swapaxes(A, 1, 2)
     Bt = np.swapaxes(B, 1, 2)
     for _ in range(horizon):
         BtP = Bt @ P
         BtPA = BtP @ A
-        P = At @ P @ A - np.swapaxes(BtPA, 1, 2) @ np.linalg.solve(R + BtP @ B, BtPA) + Q
+        P = At @ P @ A - np.swapaxes(BtPA, 1, 2) @ _solve_each(R + BtP @ B, BtPA) + Q
         P = (P + np.swapaxes(P, 1, 2)) / 2
     return P
+
+
+def _solve_each(M: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``M^-1 Y`` for a batch (L, m, m), (L, m, k); NaN for the problems whose ``M`` is singular."""
+    try:
+        return np.asarray(np.linalg.solve(M, Y))
+    except np.linalg.LinAlgError:
+        out = np.full(Y.shape, np.nan)
+        for i in range(M.shape[0]):
+            with contextlib.suppress(np.linalg.LinAlgError):
+                out[i] = np.linalg.solve(M[i], Y[i])
+        return out
 
 
 @dataclass
@@ -376,6 +423,11 @@ def realized_bounds(
             np.stack([settled[i] for i in todo]),
             horizon,
         )
+        finite = np.all(np.isfinite(P), axis=(1, 2))  # a singular recursion: no bound for that model
+        delta[[i for i, f in zip(todo, finite) if not f]] = np.inf
+        todo = [i for i, f in zip(todo, finite) if f]
+        P = P[finite]
+    if todo:
         dA = A - np.stack([models[i][0] for i in todo])
         dB = B - np.stack([models[i][1] for i in todo])
         d, r, odd = _bounds_batch(P, Q, R, dA, dB, theta, rho, x0)

@@ -63,6 +63,11 @@ def _peak(states: np.ndarray, x_ref: np.ndarray) -> float:
     return float(d.max()) if d.size else float("nan")
 
 
+def _stalled(peak: float, before: float) -> bool:
+    """The peak of a window is within :data:`STALL` of the window's before it (relative)."""
+    return before > 0.0 and abs(peak / before - 1.0) < STALL
+
+
 class _Judge:
     """The verdict state of every loop of one :func:`judge` call."""
 
@@ -119,9 +124,9 @@ class _Judge:
         ``cert``: whether its last state is certified to converge)."""
         peaks = self.peaks[i]
         peaks.append(_peak(states, x_ref))
-        if cert:
+        if cert or peaks[-1] == 0.0:  # certified, or sitting exactly on the reference for a whole window
             self.outcome[i] = "converged"
-        elif len(peaks) >= 3 and all(abs(peaks[-k] / peaks[-k - 1] - 1.0) < STALL for k in (1, 2)):
+        elif len(peaks) >= 3 and all(_stalled(peaks[-k], peaks[-k - 1]) for k in (1, 2)):
             self.outcome[i] = "bounded"
         elif last:
             growing = len(peaks) >= 2 and peaks[-1] > peaks[-2] * (1.0 + STALL)

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import check_choice
+from ..errors import ConfigError, check_choice, short_repr
+from ..validate import as_float_array
 
 __all__ = ["noise_covariance", "theorem1_prediction"]
 
@@ -55,8 +56,24 @@ def theorem1_prediction(
     -------
     ndarray, shape (n, n+m): the predicted ``[A^, B^]``.
     """
+    G = as_float_array("G", G, max_abs=None)
+    Sigma = as_float_array("Sigma", Sigma, max_abs=None)
     p = Sigma.shape[0]
-    eps = np.broadcast_to(np.asarray(eps, dtype=float), (p,))
-    M = Sigma + noise_covariance(eps, dither, np.broadcast_to(np.asarray(extra, dtype=float), (p,)))
+    if Sigma.shape != (p, p) or G.ndim != 2 or G.shape[1] != p:
+        raise ConfigError(f"G must be (n, p) and Sigma (p, p) with the same p; got {G.shape} and {Sigma.shape}")
+    e = as_float_array("eps", eps, ndim_max=1, max_abs=None)
+    if e.size not in (1, p) or np.any(e <= 0):
+        raise ConfigError(f"eps must be one positive cell width or one per channel ({p}); got {short_repr(e.tolist())}")
+    x = as_float_array("extra", extra, ndim_max=1, max_abs=None)
+    if x.size not in (1, p) or np.any(x < 0):
+        raise ConfigError(f"extra must be one variance >= 0 or one per channel ({p}); got {short_repr(x.tolist())}")
+    M = Sigma + noise_covariance(np.broadcast_to(e, (p,)), dither, np.broadcast_to(x, (p,)))
     # G Sigma M^-1 = (M^-1 Sigma G^T)^T (M, Sigma symmetric)
-    return np.linalg.solve(M, Sigma @ G.T).T
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            out = np.linalg.solve(M, Sigma @ G.T).T
+        except np.linalg.LinAlgError:
+            raise ConfigError("Sigma + D is singular: no large-data limit exists for these moments") from None
+    if not np.all(np.isfinite(out)):
+        raise ConfigError("Theorem 1's prediction overflows the floating-point range for these magnitudes")
+    return np.asarray(out)

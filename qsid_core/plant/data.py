@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, DataOverflowError, check_float, check_int
+from ..validate import check_memory
 from .lti import LTISystem
 
 __all__ = ["Dataset", "simulate", "OVERFLOW_LIMIT"]
@@ -133,6 +134,11 @@ def simulate(
             f"trajectories*steps = {trajectories * steps} samples cannot identify {n}+{m} unknowns per row; "
             f"use at least {n + m} samples"
         )
+    check_memory(
+        f"simulate({trajectories} trajectories x {steps} steps)",
+        8.0 * trajectories * ((steps + 1) * n + steps * (m + n)),
+        "use fewer trajectories or steps",
+    )
     rng = np.random.default_rng(seed)
     states = np.empty((trajectories, steps + 1, n))
     inputs = rng.uniform(-1.0, 1.0, size=(trajectories, steps, m))

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, check_int
+from ..errors import ConfigError, check_float, check_int
+from ..validate import MAX_MAGNITUDE
 from .quantize import MAX_BITS, effective_ranges, quantize
 
 __all__ = ["QuantizerDemo", "quantizer_demo", "channel_demo", "SCATTER_POINTS", "CELL_BINS"]
@@ -180,6 +181,13 @@ def quantizer_demo(
     x = np.asarray(signal, dtype=float).ravel()
     if x.size < 2 or not np.all(np.isfinite(x)):
         raise ConfigError("the quantizer demo needs a finite signal of at least 2 samples")
+    lo = check_float("lo", lo, -MAX_MAGNITUDE, MAX_MAGNITUDE)
+    hi = check_float("hi", hi, -MAX_MAGNITUDE, MAX_MAGNITUDE)
+    if np.abs(x).max() > MAX_MAGNITUDE:
+        raise ConfigError(
+            f"the quantizer demo needs the signal within ±{MAX_MAGNITUDE:g} (its error variance "
+            "eps²/12 must stay a number)"
+        )
     bits = check_int("bits", bits, 1, MAX_BITS)
     window = check_int("window", window, 1)
     start = check_int("start", start, 0, x.size - 1)
