@@ -129,7 +129,9 @@ def _report():
 
 def test_a_loop_sitting_on_its_reference_with_a_negligible_q_is_judged_not_divided_by_zero():
     res = run_sweep(
-        SweepConfig(system=dc_motor(), bits=(4,), realizations=2, trajectories=5, steps=30, mpc=MPCConfig(Q=1e-100, x0=0.0))
+        SweepConfig(
+            system=dc_motor(), bits=(4,), realizations=2, trajectories=5, steps=30, mpc=MPCConfig(Q=1e-100, x0=0.0)
+        )
     )
     out = res.loops[4].outcome
     assert list(out) == ["converged", "converged"]  # x stays exactly at x_ref = 0
