@@ -62,8 +62,10 @@ def theorem1_prediction(
     if Sigma.shape != (p, p) or G.ndim != 2 or G.shape[1] != p:
         raise ConfigError(f"G must be (n, p) and Sigma (p, p) with the same p; got {G.shape} and {Sigma.shape}")
     e = as_float_array("eps", eps, ndim_max=1, max_abs=None)
-    if e.size not in (1, p) or np.any(e <= 0):
-        raise ConfigError(f"eps must be one positive cell width or one per channel ({p}); got {short_repr(e.tolist())}")
+    if e.size not in (1, p) or np.any(e < 0):
+        raise ConfigError(
+            f"eps must be one cell width >= 0 (0: not quantized) or one per channel ({p}); got {short_repr(e.tolist())}"
+        )
     x = as_float_array("extra", extra, ndim_max=1, max_abs=None)
     if x.size not in (1, p) or np.any(x < 0):
         raise ConfigError(f"extra must be one variance >= 0 or one per channel ({p}); got {short_repr(x.tolist())}")
