@@ -156,16 +156,30 @@ def physical_memory() -> int | None:
         return None
 
 
+def available_memory() -> int | None:
+    """Memory the OS can give a process now, in bytes (Linux ``MemAvailable``; None where unknown)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def check_memory(what: str, nbytes: float, advice: str, error: type = ConfigError) -> None:
-    """Refuse work whose arrays alone would take more than 3/4 of this machine's physical memory.
+    """Refuse work whose arrays alone would take more than 3/4 of the memory this machine can give now
+    (available memory where the OS says, else physical memory).
 
     The message says how large they would be, so a front end can show it as one line.
     """
-    total = physical_memory()
-    if total is not None and nbytes > 0.75 * total:
+    total, free = physical_memory(), available_memory()
+    limit = min(x for x in (total, free, float("inf")) if x is not None)
+    if nbytes > 0.75 * limit:
         raise error(
             f"{what} would need {nbytes / 2**30:.1f} GiB of memory for its arrays, more than this machine can "
-            f"give ({total / 2**30:.1f} GiB in all); {advice}"
+            f"give now ({limit / 2**30:.1f} GiB); {advice}"
         )
 
 

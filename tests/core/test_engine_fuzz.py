@@ -211,17 +211,15 @@ def small_system(draw):
 @given(
     s=small_system(),
     trajectories=st.sampled_from([1, 2, 5, 100_000, 10**9, 0, -1]),
-    steps=st.sampled_from([1, 3, 20, 6593, 10**7, 0]),
+    steps=st.sampled_from([1, 3, 20, 1_000_000, 10**7, 0]),
     amplitude=st.sampled_from([1.0, 1e-300, 1e12, 0.0, float("nan")]),
 )
 @pytest.mark.slow
 def test_fuzz_simulate(s, trajectories, steps, amplitude):
     if s is None:
         return
-    if 0 < trajectories * steps * (s.n + s.m) < 2e7 or trajectories * steps <= 0:  # small enough to run
-        d = _call("simulate", simulate, s, trajectories, steps, 0, amplitude)
-    else:  # too big to allocate here: must be refused before allocating
-        d = _call("simulate", simulate, s, trajectories, steps, 0, amplitude)
+    d = _call("simulate", simulate, s, trajectories, steps, 0, amplitude)
+    if trajectories * steps >= 10**11:  # terabytes: refused before anything is allocated
         assert d is None
     if d is not None:
         _no_nan("simulate", d.states, d.inputs)
