@@ -8,10 +8,12 @@ Validated on construction (shapes, finite entries, ``Q`` positive semidefinite,
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError, SystemDefinitionError, check_float, short_repr
 from ..validate import MAX_MAGNITUDE, as_float_array, as_matrix, check_text, weight_matrix
@@ -28,7 +30,7 @@ MAX_STATES = 100
 MAX_INPUTS = 100
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class LTISystem:
     """A true discrete-time LTI plant and its default regulation task.
 
@@ -63,76 +65,53 @@ class LTISystem:
     """
 
     name: str
-    A: np.ndarray
-    B: np.ndarray
-    x0: np.ndarray | None = None
-    Q: np.ndarray | None = None
-    R: np.ndarray | None = None
+    A: NDArray[np.float64]
+    B: NDArray[np.float64]
+    x0: NDArray[np.float64]
+    Q: NDArray[np.float64]
+    R: NDArray[np.float64]
     dt: float = 1.0
     description: str = ""
     state_names: tuple[str, ...] = field(default=())
     input_names: tuple[str, ...] = field(default=())
 
-    def __post_init__(self) -> None:
-        check_text("system name", self.name, SystemDefinitionError)
-        check_text("description", self.description, SystemDefinitionError)
+    def __init__(
+        self,
+        name: str,
+        A: ArrayLike,
+        B: ArrayLike,
+        x0: ArrayLike | None = None,
+        Q: ArrayLike | None = None,
+        R: ArrayLike | None = None,
+        dt: float = 1.0,
+        description: str = "",
+        state_names: Sequence[str] = (),
+        input_names: Sequence[str] = (),
+    ) -> None:
+        check_text("system name", name, SystemDefinitionError)
+        check_text("description", description, SystemDefinitionError)
         try:
-            object.__setattr__(self, "dt", check_float("dt", self.dt, 0.0, lo_open=True))
+            dt = check_float("dt", dt, 0.0, lo_open=True)
         except ConfigError:
             raise SystemDefinitionError(
-                f"dt (the sample time) must be a positive, finite number of seconds; got {short_repr(self.dt)}"
+                f"dt (the sample time) must be a positive, finite number of seconds; got {short_repr(dt)}"
             ) from None
-        A = as_matrix("A", self.A, (None, None))
-        n = A.shape[0]
-        if A.shape != (n, n):
-            raise SystemDefinitionError(f"A must be square; got shape {A.shape}")
-        if n > MAX_STATES:
-            raise SystemDefinitionError(f"A: at most {MAX_STATES} states; got {n}")
-        B = as_matrix("B", self.B, (n, None))
-        m = B.shape[1]
-        if m > MAX_INPUTS:
-            raise SystemDefinitionError(f"B: at most {MAX_INPUTS} inputs; got {m}")
-        if max(np.abs(A).max(), np.abs(B).max()) < 1.0 / MAX_MAGNITUDE:
-            raise SystemDefinitionError(
-                f"A and B are both (nearly) all zeros (every entry below {1.0 / MAX_MAGNITUDE:g} in magnitude): "
-                "there is nothing to identify and relative model errors are undefined"
-            )
-        if self.x0 is None:
-            x0 = np.eye(n)[0]
-        else:
-            x0 = as_float_array(
-                "x0", self.x0, ndim_max=2, error=SystemDefinitionError, what=f"a list of {n} numbers"
-            ).reshape(-1)
-        if x0.shape != (n,):
-            raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {short_repr(self.x0)}")
-        Q = np.eye(n) if self.Q is None else weight_matrix("Q", self.Q, n)
-        R = np.eye(m) if self.R is None else weight_matrix("R", self.R, m)
-        if np.linalg.eigvalsh(Q).min() < -1e-12:
-            raise SystemDefinitionError("Q must be positive semidefinite")
-        if np.linalg.eigvalsh(R).min() <= 0:
-            raise SystemDefinitionError("R must be positive definite")
-        for arr in (A, B, x0, Q, R):
+        Am, Bm = _plant_matrices(A, B)
+        x0v, Qm, Rm = _task(x0, Q, R, Am.shape[0], Bm.shape[1])
+        names, inames = _names(state_names, input_names, Am.shape[0], Bm.shape[1])
+        for arr in (Am, Bm, x0v, Qm, Rm):
             arr.setflags(write=False)
-        object.__setattr__(self, "A", A)
-        object.__setattr__(self, "B", B)
-        object.__setattr__(self, "x0", x0)
-        object.__setattr__(self, "Q", Q)
-        object.__setattr__(self, "R", R)
-        try:
-            names = tuple(self.state_names) or tuple(f"x{i + 1}" for i in range(n))
-            inames = tuple(self.input_names) or tuple(f"u{i + 1}" for i in range(m))
-        except TypeError:
-            raise SystemDefinitionError("state_names and input_names must be sequences of texts") from None
-        if len(names) != n or len(inames) != m or not all(isinstance(x, str) for x in names + inames):
-            raise SystemDefinitionError(f"state_names must have {n} and input_names {m} entries (texts)")
+        values = dict(name=name, A=Am, B=Bm, x0=x0v, Q=Qm, R=Rm, dt=dt, description=description)
+        for key, value in values.items():
+            object.__setattr__(self, key, value)
         object.__setattr__(self, "state_names", names)
         object.__setattr__(self, "input_names", inames)
         if not self.controllable:
             warnings.warn(
                 f"system {self.name!r}: (A, B) is not controllable (rank of the controllability "
-                f"matrix {self.controllability_rank} < n = {n}); MPC may fail to regulate",
+                f"matrix {self.controllability_rank} < n = {self.n}); MPC may fail to regulate",
                 UncontrollableWarning,
-                stacklevel=3,
+                stacklevel=2,
             )
 
     @property
@@ -184,8 +163,63 @@ class LTISystem:
             "name": self.name,
             "A": self.A.tolist(),
             "B": self.B.tolist(),
-            "x0": np.asarray(self.x0).tolist(),  # never None after __post_init__
-            "Q": np.asarray(self.Q).tolist(),
-            "R": np.asarray(self.R).tolist(),
+            "x0": self.x0.tolist(),
+            "Q": self.Q.tolist(),
+            "R": self.R.tolist(),
             "dt": self.dt,
         }
+
+
+def _plant_matrices(A: ArrayLike, B: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(A, B)`` checked: A square (n, n), B (n, m), sizes within the limits, not both (nearly) zero."""
+    Am = as_matrix("A", A, (None, None))
+    n = Am.shape[0]
+    if Am.shape != (n, n):
+        raise SystemDefinitionError(f"A must be square; got shape {Am.shape}")
+    if n > MAX_STATES:
+        raise SystemDefinitionError(f"A: at most {MAX_STATES} states; got {n}")
+    Bm = as_matrix("B", B, (n, None))
+    m = Bm.shape[1]
+    if m > MAX_INPUTS:
+        raise SystemDefinitionError(f"B: at most {MAX_INPUTS} inputs; got {m}")
+    if max(np.abs(Am).max(), np.abs(Bm).max()) < 1.0 / MAX_MAGNITUDE:
+        raise SystemDefinitionError(
+            f"A and B are both (nearly) all zeros (every entry below {1.0 / MAX_MAGNITUDE:g} in magnitude): "
+            "there is nothing to identify and relative model errors are undefined"
+        )
+    return Am, Bm
+
+
+def _task(
+    x0: ArrayLike | None, Q: ArrayLike | None, R: ArrayLike | None, n: int, m: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The regulation task ``(x0, Q, R)`` checked, shapes (n,), (n, n), (m, m); defaults: the first unit
+    vector, identities."""
+    if x0 is None:
+        x0v = np.eye(n)[0]
+    else:
+        x0v = as_float_array("x0", x0, ndim_max=2, error=SystemDefinitionError, what=f"a list of {n} numbers")
+        x0v = x0v.reshape(-1)
+    if x0v.shape != (n,):
+        raise SystemDefinitionError(f"x0 must be {n} finite numbers; got {short_repr(x0)}")
+    Qm = np.eye(n) if Q is None else weight_matrix("Q", Q, n)
+    Rm = np.eye(m) if R is None else weight_matrix("R", R, m)
+    if np.linalg.eigvalsh(Qm).min() < -1e-12:
+        raise SystemDefinitionError("Q must be positive semidefinite")
+    if np.linalg.eigvalsh(Rm).min() <= 0:
+        raise SystemDefinitionError("R must be positive definite")
+    return x0v, Qm, Rm
+
+
+def _names(
+    state_names: Sequence[str], input_names: Sequence[str], n: int, m: int
+) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The states' and inputs' names (default ``x1..xn``, ``u1..um``), checked."""
+    try:
+        names = tuple(state_names) or tuple(f"x{i + 1}" for i in range(n))
+        inames = tuple(input_names) or tuple(f"u{i + 1}" for i in range(m))
+    except TypeError:
+        raise SystemDefinitionError("state_names and input_names must be sequences of texts") from None
+    if len(names) != n or len(inames) != m or not all(isinstance(x, str) for x in names + inames):
+        raise SystemDefinitionError(f"state_names must have {n} and input_names {m} entries (texts)")
+    return names, inames

@@ -31,6 +31,7 @@ import dataclasses
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -234,9 +235,9 @@ def predicted_small_gain(ex: Experiment, b: int) -> tuple[float, float]:
 
     mcfg = ex.config.mpc or MPCConfig()
     th = ex.theory(b)
-    k = ("small-gain", b, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, th.G_pred.tobytes())
+    k = ex.keys.small_gain(b, th.G_pred)
     try:
-        return ex._cache[k]
+        return cast("tuple[float, float]", ex.cache.mapping[k])
     except KeyError:  # (a shared, bounded cache may also have dropped it: computed again)
         pass
     sysm = ex.system
@@ -253,7 +254,7 @@ def predicted_small_gain(ex: Experiment, b: int) -> tuple[float, float]:
         res = small_gain_margin(sysm.A, sysm.B, Ah, Bh, K) if np.all(np.isfinite(K)) else (math.inf, 0.0)
     except (MPCFailure, np.linalg.LinAlgError):
         res = (math.inf, 0.0)
-    ex._cache[k] = res
+    ex.cache.store([(k, res)])
     return res
 
 

@@ -210,7 +210,7 @@ class SweepConfig:
     """
 
     system: str | LTISystem = "dc-motor"
-    bits: tuple = tuple(range(1, 17))
+    bits: tuple[int, ...] = tuple(range(1, 17))
     realizations: int = 50
     trajectories: int = 200
     steps: int = 1000
@@ -222,9 +222,9 @@ class SweepConfig:
     theta: float = 0.5
     rho: float | None = None
     input_amplitude: float = 1.0
-    input_bits: object = None
-    noise: object = 0.0
-    state_bits: object = None
+    input_bits: None | str | int | tuple[int | str, ...] = None
+    noise: tuple[float, ...] = (0.0,)
+    state_bits: tuple[int | str, ...] | None = None
     noise_known: bool = False
 
     def to_dict(self, system: LTISystem | None = None) -> dict:

@@ -12,60 +12,42 @@ client's executor can run big sweeps.
 
 Stages are separate so front ends can cache them: :class:`Experiment` keeps the
 data, the normalised data and the identified models, and recomputes only what
-a change of settings touches.
+a change of settings touches. The stages live by responsibility beside it:
+``stage_cache`` (where results are kept and every cache key), ``identification_stage``,
+``theory_stage`` and ``loop_stages``; this class is their one front.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, MutableMapping
+from collections.abc import Iterable, MutableMapping
 from concurrent.futures import Executor
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+from numpy.typing import NDArray
 
-from ..control.bound import RealizedBounds, realized_bounds, riccati_finite, ultimate_bound
+from ..control.bound import RealizedBounds
 from ..control.closed_loop import run_closed_loops
 from ..control.loop_results import ClosedLoops
-from ..control.mpc import MPCConfig
-from ..control.riccati import dare_stabilizing
-from ..errors import ConfigError, MPCFailure, check_choice, check_int
-from ..identification.identify import ESTIMATORS, identify, relative_errors
-from ..identification.theorem1 import theorem1_prediction
+from ..errors import ConfigError, check_choice, check_int
+from ..identification.identify import ESTIMATORS
 from ..plant.data import Dataset, simulate, with_sensor_noise
-from ..plant.lti import LTISystem
 from ..plant.systems import get_system
-from ..quantization.moments import Moments, PreparedData, prepare, quantized_moments
-from ..quantization.quantize import QuantizerSpec
+from ..quantization.moments import Moments, PreparedData, prepare
 from .config import SweepConfig, parse_bits
 from .config_checks import check_run_args
-from .executors import InlineExecutor, single_threaded_blas
+from .executors import InlineExecutor
+from .identification_stage import Progress, compute_moments, identify_at
+from .loop_stages import FeedbackRange, feedback_range, loop_args, loops_task, mpc_of, true_loop_args
+from .stage_cache import Key, StageCache, StageKeys
 from .stage_results import BitsIdentification, TheoryAtBits
+from .theory_stage import realized_bound_at, theory_at
 
 if TYPE_CHECKING:
     from .assumptions import Assumptions
 
-__all__ = ["Experiment"]
-
-Progress = Callable[[int, int, str], None]
-
-
-def _moments_task(
-    prep: PreparedData, bits: tuple, spec: QuantizerSpec, seeds: list, input_bits=None, state_bits=None
-) -> list[list[Moments]]:
-    """Quantized moments for a chunk of realizations (module level: picklable for process pools)."""
-    out = []
-    with single_threaded_blas():
-        for ss in seeds:
-            rng = np.random.default_rng(ss) if spec.dither != "none" else None
-            out.append(quantized_moments(prep, list(bits), spec, rng, input_bits=input_bits, state_bits=state_bits))
-    return out
-
-
-def _loops_task(models, A, B, cfg: MPCConfig, system: LTISystem, feedback_range=None) -> ClosedLoops:
-    with single_threaded_blas():
-        return run_closed_loops(models, A, B, cfg, system, feedback_range)
+__all__ = ["Experiment", "Progress"]
 
 
 class Experiment:
@@ -84,6 +66,13 @@ class Experiment:
         Where stage results are kept (default: a private dict). Pass one shared,
         bounded mapping to let several experiments (browser tabs) share results.
 
+    Attributes
+    ----------
+    keys : StageKeys
+        The cache key of every stage (:mod:`qsid_core.studies.stage_cache`).
+    cache : StageCache
+        The stage results, in ``cache.mapping``.
+
     Notes
     -----
     Every expensive product is cached by the settings it depends on:
@@ -98,67 +87,23 @@ class Experiment:
         config: SweepConfig,
         executor: Executor | None = None,
         tasks: int = 4,
-        cache: MutableMapping | None = None,
-    ):
+        cache: MutableMapping[Key, object] | None = None,
+    ) -> None:
         check_run_args(config, SweepConfig, executor, None)
         self.config = config
         self.system = get_system(config.system)
-        self.executor = executor or InlineExecutor()
+        self.executor: Executor = executor or InlineExecutor()
         self.tasks = check_int("tasks", tasks, 1, 1024)
         # keys start with the system's matrices, so one mapping can serve many experiments
-        self._cache: MutableMapping = {} if cache is None else cache
+        self.cache = StageCache(cache)
+        self.keys = StageKeys(config, self.system)
 
-    # ----- caching ----------------------------------------------------------------------
     def with_config(self, config: SweepConfig) -> Experiment:
         """An experiment for ``config`` that reuses this one's still-valid cache entries."""
-        return Experiment(config, self.executor, self.tasks, self._cache)
+        return Experiment(config, self.executor, self.tasks, self.cache.mapping)
 
-    def _key_data(self):
-        c, s = self.config, self.system
-        sysk = (s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(), s.x0.tobytes(), s.Q.tobytes(), s.R.tobytes())
-        return sysk + (c.trajectories, c.steps, c.data_seed, c.input_amplitude)
-
-    def _key_prep(self):
-        q = self.config.quantizer
-        return self._key_data() + (q.range_mode, q.guard, q.fixed_range, self.config.noise)
-
-    def _memo(self, key, make):
-        """``cache[key]``, or ``make()`` stored there and returned.
-
-        The value is returned from here, never read back: a shared, bounded cache (the dashboard's)
-        may drop any entry at any moment while other threads store theirs.
-        """
-        try:
-            return self._cache[key]
-        except KeyError:
-            pass
-        value = make()
-        self._cache[key] = value
-        return value
-
-    def _cached(self, keys: dict) -> dict:
-        """``{b: cache[keys[b]]}`` for the keys the cache holds now."""
-        out = {}
-        for b, key in keys.items():
-            try:
-                out[b] = self._cache[key]
-            except KeyError:
-                pass
-        return out
-
-    def _key_mom(self, b):
-        c, q = self.config, self.config.quantizer
-        return self._key_prep() + (
-            b,
-            q.dither,
-            c.dither_seed,
-            c.realizations,
-            c.input_bits,
-            c.noise_known,
-            c.state_bits,
-        )
-
-    def _noise_variance(self) -> np.ndarray:
+    # ----- data ----------------------------------------------------------------------------
+    def noise_variance(self) -> NDArray[np.float64]:
         """Sensor noise variance per channel of ``Psi``, shape (n + m,) (0 for the inputs)."""
         n, m = self.system.n, self.system.m
         s = np.asarray(self.config.noise, dtype=float)
@@ -170,9 +115,8 @@ class Experiment:
     def data(self) -> Dataset:
         """The unquantized data set (simulated once)."""
         c = self.config
-        return self._memo(
-            ("data",) + self._key_data(),
-            lambda: simulate(self.system, c.trajectories, c.steps, c.data_seed, c.input_amplitude),
+        return self.cache.memo(
+            self.keys.data(), lambda: simulate(self.system, c.trajectories, c.steps, c.data_seed, c.input_amplitude)
         )
 
     @property
@@ -181,143 +125,49 @@ class Experiment:
 
         Its ``exact`` moments are those of the noise-free data (Theorem 1's ``Sigma``).
         """
-        return self._memo(("prep",) + self._key_prep(), self._prepare)
+        return self.cache.memo(self.keys.prepared(), self._prepare)
 
     def _prepare(self) -> PreparedData:
         c = self.config
         if any(v > 0 for v in c.noise):
-            self._noise_variance()  # wrong number of values: one clear error
+            self.noise_variance()  # wrong number of values: one clear error
             rec = with_sensor_noise(self.data, c.noise, c.data_seed)
             return replace(prepare(rec, c.quantizer), exact=prepare(self.data, c.quantizer).exact)
         return prepare(self.data, c.quantizer)
 
     @property
-    def Sigma(self) -> np.ndarray:
-        """``Psi_uqz Psi_uqz^T / T`` of the unquantized data."""
+    def Sigma(self) -> NDArray[np.float64]:
+        """``Psi_uqz Psi_uqz^T / T`` of the unquantized data, shape (n+m, n+m)."""
         ex = self.prepared.exact
         return ex.PP / ex.T
 
-    # ----- identification --------------------------------------------------------------
-    def moments(self, bits, progress: Progress | None = None) -> dict[int, list[Moments]]:
+    # ----- identification ------------------------------------------------------------------
+    def moments(self, bits: str | int | Iterable[int], progress: Progress | None = None) -> dict[int, list[Moments]]:
         """Quantized Gram matrices per b and realization (computes only what is not cached)."""
         bits = parse_bits(bits)
-        keys = {b: ("mom",) + self._key_mom(b) for b in bits}
-        out = self._cached(keys)
+        keys = {b: self.keys.moments(b) for b in bits}
+        out = cast(dict[int, list[Moments]], self.cache.cached(keys))
         todo = tuple(b for b in bits if b not in out)
         if todo:
-            c = self.config
-            prep = self.prepared
-            seeds = np.random.SeedSequence(c.dither_seed).spawn(c.realizations)
-            nt = min(self.tasks, c.realizations)
-            size = math.ceil(c.realizations / nt)
-            chunks = [seeds[i : i + size] for i in range(0, c.realizations, size)]
-            # an executor with a ``share`` hook (e.g. app.distributed.DaskExecutor) sends the data once per worker
-            share = getattr(self.executor, "share", None)
-            prep_arg = share(prep) if callable(share) else prep
-            futs = [
-                self.executor.submit(_moments_task, prep_arg, todo, c.quantizer, ch, c.input_bits, c.state_bits)
-                for ch in chunks
-            ]
-            per_real: list[list[Moments]] = []
-            for i, f in enumerate(futs):
-                per_real.extend(f.result())
-                if progress:
-                    progress(i + 1, len(futs), "quantize + identify")
-            for j, b in enumerate(todo):
-                out[b] = [pr[j] for pr in per_real]
-                self._cache[keys[b]] = out[b]
+            new = compute_moments(self, todo, progress)
+            self.cache.store((keys[b], v) for b, v in new.items())
+            out.update(new)
         return {b: out[b] for b in bits}
+
+    def _estimator(self, estimator: str | None) -> str:
+        est = estimator or self.config.estimator
+        check_choice("estimator", est, ESTIMATORS)
+        return est
 
     def identification(self, b: int, estimator: str | None = None) -> BitsIdentification:
         """Identified models at word length ``b`` for every realization."""
-        est = estimator or self.config.estimator
-        check_choice("estimator", est, ESTIMATORS)
-        return self._memo(("ident", est) + self._key_mom(b), lambda: self._identify(b, est))
+        est = self._estimator(estimator)
+        return self.cache.memo(self.keys.identification(b, est), lambda: identify_at(self, b, est))
 
-    def _identify(self, b: int, est: str) -> BitsIdentification:
-        moms = self.moments([b])[b]
-        if self.config.noise_known and any(v > 0 for v in self.config.noise):
-            extra = self._noise_variance()
-            moms = [replace(mo, D=mo.noise_variance + extra) for mo in moms]
-        sysA, sysB = self.system.A, self.system.B
-        n, m = sysB.shape
-        ids: list = []
-        notes: set = set()
-        for mo in moms:
-            try:
-                ids.append(identify(mo, est))
-            except ValueError as exc:  # singular data of one realization: record, don't abort
-                ids.append(None)
-                notes.add(f"identification failed: {exc}")
-        nan_A, nan_B = np.full((n, n), np.nan), np.full((n, m), np.nan)
-        A_hat = np.stack([i.A if i is not None else nan_A for i in ids])
-        B_hat = np.stack([i.B if i is not None else nan_B for i in ids])
-        errs = np.array([relative_errors(a, bm, sysA, sysB) for a, bm in zip(A_hat, B_hat)])
-        notes |= {i.note for i in ids if i is not None and i.note}
-        return BitsIdentification(
-            bits=b,
-            eps=moms[0].eps,
-            A_hat=A_hat,
-            B_hat=B_hat,
-            err_A=errs[:, 0],
-            err_B=errs[:, 1],
-            overload=np.array([mo.overload_fraction for mo in moms]),
-            fallback=np.array([i is not None and i.fallback for i in ids]),
-            notes=sorted(notes),
-            failed=np.array([i is None for i in ids]),
-            dither=self.config.quantizer.dither,
-        )
-
-    # ----- theory ----------------------------------------------------------------------
+    # ----- theory --------------------------------------------------------------------------
     def theory(self, b: int) -> TheoryAtBits:
         """Theorem 1 prediction and the ultimate bound delta(eps) at word length ``b``."""
-        c = self.config
-        mcfg = c.mpc or MPCConfig()
-        k = (
-            "theory",
-            b,
-            c.theta,
-            c.rho,
-            mcfg.horizon,
-            mcfg.Q,
-            mcfg.R,
-            mcfg.Qf,
-            mcfg.x0,
-            c.quantizer.dither,
-            c.input_bits,
-            c.state_bits,
-        ) + self._key_prep()
-        return self._memo(k, lambda: self._theory(b))
-
-    def _theory(self, b: int) -> TheoryAtBits:
-        from ..quantization.quantize import channel_bits, channel_eps
-
-        c = self.config
-        mcfg = c.mpc or MPCConfig()
-        prep = self.prepared
-        sysm = self.system
-        n = sysm.n
-        q = c.quantizer
-        chan = channel_bits(b, n, sysm.m, c.input_bits, c.state_bits)
-        eps = channel_eps(prep.lo, prep.hi, chan, q.guard, q.dither)
-        # the LS limit with white sensor noise on the states: Sigma (noise-free) + D + sigma^2
-        Gp = theorem1_prediction(sysm.G, self.Sigma, eps, q.dither, self._noise_variance())
-        eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], sysm.A, sysm.B)
-        w = mcfg.resolve(sysm)
-        note, ub = "", None
-        try:
-            Qf = w.Qf if w.Qf is not None else dare_stabilizing(Gp[:, :n], Gp[:, n:], w.Q, w.R)
-            P = riccati_finite(Gp[:, :n], Gp[:, n:], w.Q, w.R, Qf, mcfg.horizon)
-            ub = ultimate_bound(P, w.Q, w.R, sysm.A - Gp[:, :n], sysm.B - Gp[:, n:], theta=c.theta, rho=c.rho, x0=w.x0)
-            delta = ub.delta
-            note = ub.note
-        except MPCFailure as exc:
-            delta, note = float("inf"), str(exc)
-        except np.linalg.LinAlgError:
-            delta, note = float("inf"), "no bound: the Riccati recursion of the predicted model is singular"
-        except ConfigError as exc:
-            delta, note = float("nan"), str(exc)
-        return TheoryAtBits(b, Gp, eA, eB, delta, note, ub)
+        return self.cache.memo(self.keys.theory(b), lambda: theory_at(self, b))
 
     def realized_bound(self, b: int, estimator: str | None = None) -> RealizedBounds:
         """A-posteriori ultimate bound per realization at ``b``: its own model error and its own ``P``.
@@ -325,102 +175,52 @@ class Experiment:
         See :func:`qsid_core.control.bound.realized_bounds`; the MPC settings are the
         config's (or the defaults when MPC is off).
         """
-        c = self.config
-        mcfg = c.mpc or MPCConfig()
-        est = estimator or c.estimator
-        k = ("realized-bound", est, c.theta, c.rho, mcfg.horizon, mcfg.Q, mcfg.R, mcfg.Qf, mcfg.x0) + self._key_mom(b)
+        est = estimator or self.config.estimator
+        return self.cache.memo(self.keys.realized_bound(b, est), lambda: realized_bound_at(self, b, est))
 
-        def make() -> RealizedBounds:
-            w = mcfg.resolve(self.system)
-            with single_threaded_blas():
-                return realized_bounds(
-                    self.identification(b, est).models,
-                    self.system.A,
-                    self.system.B,
-                    w.Q,
-                    w.R,
-                    w.Qf,
-                    mcfg.horizon,
-                    theta=c.theta,
-                    rho=c.rho,
-                    x0=w.x0,
-                )
-
-        return self._memo(k, make)
-
-    def overload_effect(self, b: int) -> np.ndarray:
+    def overload_effect(self, b: int) -> NDArray[np.float64]:
         """Predicted change of ``[A^, B^]`` caused by the quantizer clipping the data at ``b``, shape (n, n+m)
         (zeros when nothing clips; :func:`qsid_core.studies.assumptions.overload_effect`). Needs no quantized data, so
         it can be computed while the data are being quantized."""
         from .assumptions import overload_effect
 
-        c = self.config
-        k = ("overload-effect", b, c.quantizer.dither, c.input_bits, c.state_bits) + self._key_prep()
-        return self._memo(k, lambda: overload_effect(self, b))
+        return self.cache.memo(self.keys.overload_effect(b), lambda: overload_effect(self, b))
 
     def assumptions(self, b: int) -> Assumptions:
         """Which hypotheses of Theorem 1 and of BCLS hold at ``b`` (see :mod:`qsid_core.studies.assumptions`)."""
         from .assumptions import assess
 
-        return self._memo(("assumptions",) + self._key_mom(b), lambda: assess(self, b))
+        return self.cache.memo(self.keys.assumptions(b), lambda: assess(self, b))
 
-    # ----- MPC -------------------------------------------------------------------------
-    def feedback_range(self) -> tuple | None:
+    # ----- MPC -----------------------------------------------------------------------------
+    def feedback_range(self) -> FeedbackRange | None:
         """``(lo, hi, guard)`` of the training data's states, for a quantized measurement in the loop (else None)."""
-        cfg = self.config.mpc
-        if cfg is None or cfg.feedback_bits is None:
-            return None
-        prep = self.prepared
-        return prep.lo, prep.hi, self.config.quantizer.guard
+        return feedback_range(self)
 
     def closed_loops(self, b: int, estimator: str | None = None) -> ClosedLoops:
         """Closed loops on the true system of the MPC built on each realization's model at ``b``."""
-        cfg = self.config.mpc
-        if cfg is None:
-            raise ConfigError("this experiment has MPC switched off (mpc=None)")
+        cfg = mpc_of(self)
         est = estimator or self.config.estimator
-        return self._memo(
-            ("loops", est, cfg) + self._key_mom(b), lambda: run_closed_loops(*self._loop_args(b, est, cfg))
-        )
+        return self.cache.memo(self.keys.loops(b, est, cfg), lambda: run_closed_loops(*loop_args(self, b, est, cfg)))
 
-    def _loop_args(self, b: int, est: str, cfg: MPCConfig) -> tuple:
-        """``run_closed_loops``' arguments for the models identified by ``est`` at ``b``."""
-        return (
-            self.identification(b, est).models,
-            self.system.A,
-            self.system.B,
-            cfg,
-            self.system,
-            self.feedback_range(),
-        )
-
-    def closed_loops_many(self, bits, estimator: str | None = None, progress: Progress | None = None) -> dict:
+    def closed_loops_many(
+        self, bits: str | int | Iterable[int], estimator: str | None = None, progress: Progress | None = None
+    ) -> dict[int, ClosedLoops]:
         """:meth:`closed_loops` for several b, mapped through the executor."""
-        cfg = self.config.mpc
-        if cfg is None:
-            raise ConfigError("this experiment has MPC switched off (mpc=None)")
+        cfg = mpc_of(self)
         est = estimator or self.config.estimator
         bits = parse_bits(bits)
-        keys = {b: ("loops", est, cfg) + self._key_mom(b) for b in bits}
-        out = self._cached(keys)
-        todo = [b for b in bits if b not in out]
-        futs = {b: self.executor.submit(_loops_task, *self._loop_args(b, est, cfg)) for b in todo}
+        keys = {b: self.keys.loops(b, est, cfg) for b in bits}
+        out = cast(dict[int, ClosedLoops], self.cache.cached(keys))
+        futs = {b: self.executor.submit(loops_task, loop_args(self, b, est, cfg)) for b in bits if b not in out}
         for i, (b, f) in enumerate(futs.items()):
             out[b] = f.result()
-            self._cache[keys[b]] = out[b]
+            self.cache.store([(keys[b], out[b])])
             if progress:
                 progress(i + 1, len(futs), "MPC closed loops")
         return {b: out[b] for b in bits}
 
     def true_model_loop(self) -> ClosedLoops:
         """The MPC built on the true (A, B): the reference every quantized model is compared to."""
-        cfg = self.config.mpc
-        if cfg is None:
-            raise ConfigError("this experiment has MPC switched off (mpc=None)")
-        k = ("true-loop", cfg) + (self._key_prep() if cfg.feedback_bits is not None else self._key_data()[:7])
-        return self._memo(
-            k,
-            lambda: run_closed_loops(
-                [(self.system.A, self.system.B)], self.system.A, self.system.B, cfg, self.system, self.feedback_range()
-            ),
-        )
+        cfg = mpc_of(self)
+        return self.cache.memo(self.keys.true_loop(cfg), lambda: run_closed_loops(*true_loop_args(self, cfg)))
