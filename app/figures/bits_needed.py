@@ -43,100 +43,11 @@ def bits_figure(
     for i, (lab, ans) in enumerate(answers.items()):
         first = first or ans
         c = color(lab, i)
-        rows = [r for r in ans.rows if r.stabilized_fraction is not None]
-        b = [r.bits for r in rows]
-        f = np.array([100 * r.stabilized_fraction for r in rows])
-        lo = np.array([100 * r.interval[0] for r in rows])
-        hi = np.array([100 * r.interval[1] for r in rows])
-        data.append(
-            dict(
-                type="scatter",
-                x=b,
-                y=f.tolist(),
-                mode="lines+markers",
-                name=f"{lab} stabilized",
-                legendgroup=lab,
-                line=dict(color=c),
-                yaxis=y1,
-                error_y=dict(
-                    type="data",
-                    symmetric=False,
-                    array=(hi - f).tolist(),
-                    arrayminus=(f - lo).tolist(),
-                    color=c,
-                    thickness=1,
-                ),
-                hovertemplate="b = %{x}: %{y:.0f} % converged<extra>" + lab + "</extra>",
-            )
-        )
-        gap = [(r.bits, abs(r.cost_gap)) for r in rows if r.cost_gap is not None and abs(r.cost_gap) > 0]
-        if gap:
-            data.append(
-                dict(
-                    type="scatter",
-                    x=[g[0] for g in gap],
-                    y=[100 * g[1] for g in gap],
-                    mode="lines+markers",
-                    name=f"{lab} cost gap",
-                    legendgroup=lab,
-                    showlegend=False,
-                    line=dict(color=c, dash="dash"),
-                    yaxis=y2,
-                    hovertemplate="b = %{x}: |gap| %{y:.3g} %<extra>" + lab + "</extra>",
-                )
-            )
+        data += _answer_traces(lab, ans, c, y1, y2)
     if first is not None:
-        t, g = first.settings["target"], first.settings["cost_gap"]
-        shapes.append(hline(100 * t, y1, COLORS["ref"], "dash"))
-        notes.append(
-            dict(
-                text=f"target {100 * t:g} %",
-                x=0,
-                xref="x domain",
-                y=100 * t,
-                yref=y1,
-                showarrow=False,
-                xanchor="left",
-                yanchor="bottom",
-                font=dict(size=10, color=COLORS["ref"]),
-            )
-        )
-        if g > 0:
-            shapes.append(hline(100 * g, y2, COLORS["ref"], "dash"))
-        at: dict = {}  # b -> the answers marked there (one label, not several on top of each other)
-        for key, dash in DASH.items():
-            bk = getattr(first, key)
-            if bk is None:
-                continue
-            at.setdefault(bk, []).append(key.replace("b_", ""))
-            for ya in (y1, y2):
-                shapes.append(
-                    dict(
-                        type="line",
-                        x0=bk,
-                        x1=bk,
-                        xref="x",
-                        y0=0,
-                        y1=1,
-                        yref=f"{ya} domain",
-                        line=dict(color=COLORS["theory"], dash=dash, width=2),
-                    )
-                )
-        for bk, names in at.items():
-            notes.append(
-                dict(
-                    text=", ".join(names) + f" {bk}",
-                    x=bk,
-                    xref="x",
-                    y=1,
-                    yref=f"{y1} domain",
-                    showarrow=False,
-                    xanchor="left",
-                    yanchor="top",
-                    textangle=-90,
-                    font=dict(size=10, color=COLORS["theory"]),
-                )
-            )
+        marks, labels = _target_marks(first, y1, y2)
+        shapes += marks
+        notes += labels
     title = "<br>".join(_wrap(f"{lab}: {a.sentence}") for lab, a in answers.items()) + partial
     lay[y1.replace("y", "yaxis")] = {
         **lay[y1.replace("y", "yaxis")],
@@ -160,6 +71,112 @@ def bits_figure(
             **lay,
         ),
     )
+
+
+def _answer_traces(lab: str, ans: BitsAnswer, c: str, y1: str, y2: str) -> list[dict]:
+    """One answer's traces: the stabilized fraction with its interval (axis ``y1``), the cost gap (``y2``)."""
+    data: list[dict] = []
+    rows = [r for r in ans.rows if r.stabilized_fraction is not None]
+    b = [r.bits for r in rows]
+    f = np.array([100 * r.stabilized_fraction for r in rows])
+    lo = np.array([100 * r.interval[0] for r in rows])
+    hi = np.array([100 * r.interval[1] for r in rows])
+    data.append(
+        dict(
+            type="scatter",
+            x=b,
+            y=f.tolist(),
+            mode="lines+markers",
+            name=f"{lab} stabilized",
+            legendgroup=lab,
+            line=dict(color=c),
+            yaxis=y1,
+            error_y=dict(
+                type="data",
+                symmetric=False,
+                array=(hi - f).tolist(),
+                arrayminus=(f - lo).tolist(),
+                color=c,
+                thickness=1,
+            ),
+            hovertemplate="b = %{x}: %{y:.0f} % converged<extra>" + lab + "</extra>",
+        )
+    )
+    gap = [(r.bits, abs(r.cost_gap)) for r in rows if r.cost_gap is not None and abs(r.cost_gap) > 0]
+    if gap:
+        data.append(
+            dict(
+                type="scatter",
+                x=[g[0] for g in gap],
+                y=[100 * g[1] for g in gap],
+                mode="lines+markers",
+                name=f"{lab} cost gap",
+                legendgroup=lab,
+                showlegend=False,
+                line=dict(color=c, dash="dash"),
+                yaxis=y2,
+                hovertemplate="b = %{x}: |gap| %{y:.3g} %<extra>" + lab + "</extra>",
+            )
+        )
+    return data
+
+
+def _target_marks(first: BitsAnswer, y1: str, y2: str) -> tuple[list[dict], list[dict]]:
+    """``(shapes, annotations)``: the targets and the first answer's word lengths, marked on both axes."""
+    shapes: list[dict] = []
+    notes: list[dict] = []
+    t, g = first.settings["target"], first.settings["cost_gap"]
+    shapes.append(hline(100 * t, y1, COLORS["ref"], "dash"))
+    notes.append(
+        dict(
+            text=f"target {100 * t:g} %",
+            x=0,
+            xref="x domain",
+            y=100 * t,
+            yref=y1,
+            showarrow=False,
+            xanchor="left",
+            yanchor="bottom",
+            font=dict(size=10, color=COLORS["ref"]),
+        )
+    )
+    if g > 0:
+        shapes.append(hline(100 * g, y2, COLORS["ref"], "dash"))
+    at: dict = {}  # b -> the answers marked there (one label, not several on top of each other)
+    for key, dash in DASH.items():
+        bk = getattr(first, key)
+        if bk is None:
+            continue
+        at.setdefault(bk, []).append(key.replace("b_", ""))
+        for ya in (y1, y2):
+            shapes.append(
+                dict(
+                    type="line",
+                    x0=bk,
+                    x1=bk,
+                    xref="x",
+                    y0=0,
+                    y1=1,
+                    yref=f"{ya} domain",
+                    line=dict(color=COLORS["theory"], dash=dash, width=2),
+                )
+            )
+    for bk, names in at.items():
+        notes.append(
+            dict(
+                text=", ".join(names) + f" {bk}",
+                x=bk,
+                xref="x",
+                y=1,
+                yref=f"{y1} domain",
+                showarrow=False,
+                xanchor="left",
+                yanchor="top",
+                textangle=-90,
+                font=dict(size=10, color=COLORS["theory"]),
+            )
+        )
+    return shapes, notes
 
 
 def _wrap(text: str, width: int = 95) -> str:

@@ -153,43 +153,14 @@ def bound_figure(
             drawn.append((bx, by))
         # every a-posteriori δ in the bound colour (not the estimator's: BCLS δ and BCLS ‖x_T‖ looked alike)
         data += _realized(rows, label, COLORS["realized"], "solid" if i == 0 else "dot")
-        mx, my = xy(rows, "final_state_norm", "mean")
-        my, c1 = _floored(my, floor)
-        data.append(
-            dict(type="scatter", x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean", line=dict(color=c))
-        )
-        xx, xy_ = xy(rows, "final_state_norm", "max")
-        xy_, c2 = _floored(xy_, floor)
-        conv = conv or c1 or c2
-        data.append(
-            dict(
-                type="scatter",
-                x=xx,
-                y=xy_,
-                mode="markers",
-                name=f"{label} ‖x_T‖ max",
-                marker=dict(color=c, symbol="triangle-up"),
-            )
-        )
+        norms, floored = _final_norms(rows, label, c, floor)
+        data += norms
+        conv = conv or floored
     shapes = mark_bits(current_bits)
     first_rows = next(iter(series.values()), [])
     shade, shade_notes = _no_bound(first_rows)
     shapes += shade
-    caption = CAPTION + ("" if steps is None else f" · ‖x_T‖: last state of the drawn loops, T = {steps} steps")
-    notes: list[dict[str, Any]] = [
-        dict(
-            text=caption,
-            showarrow=False,
-            x=0,
-            y=1.02,
-            xref="paper",
-            yref="paper",
-            xanchor="left",
-            yanchor="bottom",
-            font=dict(size=10, color=COLORS["ref"]),
-        ),
-        *shade_notes,
-    ]
+    notes = [_caption(steps), *shade_notes]
     if x0_norm is not None and x0_norm > 0:
         shapes.append(hline(float(x0_norm), "y", COLORS["true"], "dashdot", 1.0))
         notes.append(hline_note(x0_norm, f"‖x0‖ = {x0_norm:.3g}", x=0.0, size=9))
@@ -217,6 +188,41 @@ def bound_figure(
             xaxis=dict(BITS_AXIS),
             yaxis=yaxis,
         ),
+    )
+
+
+def _final_norms(rows: Rows, label: str, c: str, floor: float | None) -> tuple[list[dict[str, Any]], bool]:
+    """``(traces, floored)``: the mean (line) and max (triangles) of ``‖x_T‖`` per b, and whether a value
+    was below ``floor`` (converged: drawn at the floor)."""
+    mx, my = xy(rows, "final_state_norm", "mean")
+    my, c1 = _floored(my, floor)
+    xx, xy_ = xy(rows, "final_state_norm", "max")
+    xy_, c2 = _floored(xy_, floor)
+    mean = dict(type="scatter", x=mx, y=my, mode="lines+markers", name=f"{label} ‖x_T‖ mean", line=dict(color=c))
+    top = dict(
+        type="scatter",
+        x=xx,
+        y=xy_,
+        mode="markers",
+        name=f"{label} ‖x_T‖ max",
+        marker=dict(color=c, symbol="triangle-up"),
+    )
+    return [mean, top], c1 or c2
+
+
+def _caption(steps: int | None) -> dict[str, Any]:
+    """The caption above the plot (what the letter's δ is; the loops' length when known)."""
+    caption = CAPTION + ("" if steps is None else f" · ‖x_T‖: last state of the drawn loops, T = {steps} steps")
+    return dict(
+        text=caption,
+        showarrow=False,
+        x=0,
+        y=1.02,
+        xref="paper",
+        yref="paper",
+        xanchor="left",
+        yanchor="bottom",
+        font=dict(size=10, color=COLORS["ref"]),
     )
 
 

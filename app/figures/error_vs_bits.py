@@ -186,43 +186,11 @@ def error_figure(
     notes += [f"Theorem 1 kept: {w}" for w in fits_reasons(first)]
     for lab in [lab for lab in series if lab in bcls][:1]:
         notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series[lab])]
-    titles = [
-        t + (f"<span style='font-size:12px'>  {s}</span>" if s else "")
-        for (t, _), s in zip(_PANELS, (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), LETTER_SLOPES)))
-    ]
-    annotations = [
-        dict(
-            text=t,
-            x=sum(dom) / 2,
-            xanchor="center",
-            xref="paper",
-            y=1.0,
-            yanchor="bottom",
-            yref="paper",
-            showarrow=False,
-            font=dict(size=16),
-        )
-        for t, (_, dom) in zip(titles, _PANELS)
-    ]
+    annotations = _panel_titles(first)
     shown = ""
     if notes:  # a few words each (the plot keeps its height); the full sentences on hover and in the summary
         shown = _wrap(" · ".join(_short(t) for t in notes) + " (hover: why)")
-        annotations.append(
-            dict(
-                text=shown,
-                hovertext="<br>".join(_wrap(t) for t in notes),
-                xref="paper",
-                yref="paper",
-                x=0,
-                y=1.0,
-                yanchor="bottom",
-                xanchor="left",
-                yshift=22,
-                showarrow=False,
-                align="left",
-                font=dict(size=9, color="#555555"),
-            )
-        )
+        annotations.append(_notes_line(shown, notes))
     layout: dict[str, Any] = dict(annotations=annotations, shapes=mark_bits(current_bits, (("x", "y"), ("x2", "y2"))))
     for col, (_, dom) in enumerate(_PANELS, start=1):
         ax = _axes(col)
@@ -239,6 +207,46 @@ def error_figure(
             margin=dict(l=50, r=10, t=top, b=40),
             legend=dict(orientation="h", y=-0.25),
         ),
+    )
+
+
+def _panel_titles(first: Rows) -> list[dict[str, Any]]:
+    """Each panel's title with the first series' fitted slope beside it."""
+    titles = [
+        t + (f"<span style='font-size:12px'>  {s}</span>" if s else "")
+        for (t, _), s in zip(_PANELS, (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), LETTER_SLOPES)))
+    ]
+    return [
+        dict(
+            text=t,
+            x=sum(dom) / 2,
+            xanchor="center",
+            xref="paper",
+            y=1.0,
+            yanchor="bottom",
+            yref="paper",
+            showarrow=False,
+            font=dict(size=16),
+        )
+        for t, (_, dom) in zip(titles, _PANELS)
+    ]
+
+
+def _notes_line(shown: str, notes: list[str]) -> dict[str, Any]:
+    """The short notes above the panels (``shown``), the full sentences on hover."""
+    return dict(
+        text=shown,
+        hovertext="<br>".join(_wrap(t) for t in notes),
+        xref="paper",
+        yref="paper",
+        x=0,
+        y=1.0,
+        yanchor="bottom",
+        xanchor="left",
+        yshift=22,
+        showarrow=False,
+        align="left",
+        font=dict(size=9, color="#555555"),
     )
 
 

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import plotly.graph_objects as go
 
-from qsid_core import time_series
+from qsid_core import TimeSeries, time_series
 
 from .axes import top_log_range
 from .hypotheses import CAPTION
@@ -79,36 +79,7 @@ def norm_time_figure(
     for i, (label, lp) in enumerate(loops.items()):
         ts = time_series(lp, x0)
         floor = ts.norm_floor
-        d = ts.norms_display[ts.ok]
-        if d.size == 0:
-            continue
-        t = ts.t.tolist()
-        c = color(label, i)
-        data.append(
-            dict(
-                type="scatter",
-                x=t + t[::-1],
-                y=arr(np.nanmax(d, 0)) + arr(np.nanmin(d, 0)[::-1]),
-                fill="toself",
-                fillcolor=c,
-                opacity=0.15,
-                line=dict(width=0),
-                hoverinfo="skip",
-                showlegend=False,
-                legendgroup=label,
-            )
-        )
-        data.append(
-            dict(
-                type="scatter",
-                x=t,
-                y=arr(np.nanmedian(d, 0)),
-                mode="lines",
-                legendgroup=label,
-                name=f"{label} ‖x_t‖ (median; band: min..max)",
-                line=dict(color=c),
-            )
-        )
+        data += _band(ts, label, color(label, i))
     if true_loop is not None:
         ts = time_series(true_loop, x0)
         if ts.ok[0]:
@@ -153,6 +124,36 @@ def norm_time_figure(
             xaxis=dict(title=dict(text="closed-loop step t")),
         ),
     )
+
+
+def _band(ts: TimeSeries, label: str, c: str) -> list[dict[str, Any]]:
+    """The min..max band and the median of ``||x_t||`` over the loops that ran (none when no loop ran)."""
+    d = ts.norms_display[ts.ok]
+    if d.size == 0:
+        return []
+    t = ts.t.tolist()
+    band = dict(
+        type="scatter",
+        x=t + t[::-1],
+        y=arr(np.nanmax(d, 0)) + arr(np.nanmin(d, 0)[::-1]),
+        fill="toself",
+        fillcolor=c,
+        opacity=0.15,
+        line=dict(width=0),
+        hoverinfo="skip",
+        showlegend=False,
+        legendgroup=label,
+    )
+    median = dict(
+        type="scatter",
+        x=t,
+        y=arr(np.nanmedian(d, 0)),
+        mode="lines",
+        legendgroup=label,
+        name=f"{label} ‖x_t‖ (median; band: min..max)",
+        line=dict(color=c),
+    )
+    return [band, median]
 
 
 def _g(y: float | None) -> str:

@@ -74,7 +74,35 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
     layout["yaxis"]["title"] = dict(text=d.label or "signal", font=dict(size=10))
     layout["yaxis2"]["title"] = dict(text="error x − x̃", font=dict(size=10))
     layout["yaxis3"]["title"] = dict(text="density", font=dict(size=10))
-    data: list[dict[str, Any]] = [
+    data = _signal_traces(d, y1) + _error_traces(d, y2) + _histogram_traces(d, y3)
+    top2 = layout["yaxis2"]["domain"][1]
+    note = dict(
+        text=dependence_text(d),
+        xref="paper",
+        yref="paper",
+        x=0,
+        y=top2,
+        xanchor="left",
+        yanchor="bottom",
+        showarrow=False,
+        align="left",
+        font=dict(size=10, color="#444444"),
+    )
+    layout.update(
+        height=height,
+        barmode="overlay",
+        bargap=0,
+        margin=dict(l=60, r=10, t=50, b=40),
+        annotations=[note],
+        title=dict(text=demo_text(d), font=dict(size=11)),
+        legend=dict(orientation="h", y=-0.12),
+    )
+    return figure(data, layout)
+
+
+def _signal_traces(d: QuantizerDemo, y1: str) -> list[dict[str, Any]]:
+    """Top panel (axis ``y1``): the signal window, quantized with subtractive dither and without."""
+    return [
         dict(
             type="scatter",
             x=arr(d.t),
@@ -106,6 +134,11 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
             line=dict(color=PLAIN, width=1, shape="hv"),
         ),
     ]
+
+
+def _error_traces(d: QuantizerDemo, y2: str) -> list[dict[str, Any]]:
+    """Middle panel (axis ``y2``): the quantization error against the signal value, with and without dither."""
+    data: list[dict[str, Any]] = []
     for name, e, c, sym in (
         ("error vs x, dithered", d.scatter_dithered, DITHERED, "circle"),
         ("error vs x, no dither", d.scatter_plain, PLAIN, "diamond"),
@@ -122,6 +155,12 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
                 marker=dict(color=c, size=3, opacity=0.6, symbol=sym),
             )
         )
+    return data
+
+
+def _histogram_traces(d: QuantizerDemo, y3: str) -> list[dict[str, Any]]:
+    """Bottom panel (axis ``y3``): histograms of both errors against the uniform density ``1/eps``."""
+    data: list[dict[str, Any]] = []
     centers = 0.5 * (d.hist_edges[1:] + d.hist_edges[:-1])
     width = float(np.diff(d.hist_edges).mean())
     for name, h, c in (("error, dithered", d.hist_dithered, DITHERED), ("error, no dither", d.hist_plain, PLAIN)):
@@ -151,29 +190,7 @@ def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
             line=dict(color=COLORS["theory"], dash="dash", width=2),
         )
     )
-    top2 = layout["yaxis2"]["domain"][1]
-    note = dict(
-        text=dependence_text(d),
-        xref="paper",
-        yref="paper",
-        x=0,
-        y=top2,
-        xanchor="left",
-        yanchor="bottom",
-        showarrow=False,
-        align="left",
-        font=dict(size=10, color="#444444"),
-    )
-    layout.update(
-        height=height,
-        barmode="overlay",
-        bargap=0,
-        margin=dict(l=60, r=10, t=50, b=40),
-        annotations=[note],
-        title=dict(text=demo_text(d), font=dict(size=11)),
-        legend=dict(orientation="h", y=-0.12),
-    )
-    return figure(data, layout)
+    return data
 
 
 def channel_names(system: LTISystem) -> tuple[str, ...]:

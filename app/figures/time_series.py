@@ -168,27 +168,9 @@ def time_series_figure(
     for j in range(m):
         if umax is not None and np.isfinite(umax[j]):
             shapes += [hline(s * float(umax[j]), yax[n + j], COLORS["ref"]) for s in (1, -1)]
-    ref = None if x_ref is None else np.asarray(x_ref, dtype=float)
-    for k in range(n):
-        if ref is not None and ref.ndim == 2 and np.any(ref[:, k] != 0):  # time-varying: the path, dashed
-            data.append(
-                dict(
-                    type="scatter",
-                    x=list(range(ref.shape[0])),
-                    y=arr(ref[:, k]),
-                    mode="lines",
-                    name="reference",
-                    legendgroup="ref",
-                    showlegend=k == 0,
-                    xaxis="x",
-                    yaxis=yax[k],
-                    line=dict(color=COLORS["theory"], dash="dash", width=2),
-                )
-            )
-        elif ref is not None and ref.ndim == 1 and ref[k] != 0:
-            shapes.append(hline(float(ref[k]), yax[k], COLORS["theory"], dash="dot"))
-        if x_max is not None and np.isfinite(x_max[k]):
-            shapes += [hline(s * float(x_max[k]), yax[k], COLORS["ref"]) for s in (1, -1)]
+    ref_traces, ref_shapes = _state_marks(x_ref, x_max, yax[:n])
+    data += ref_traces
+    shapes += ref_shapes
     names = [f"x: {s}" for s in state_names] + [f"u: {u}" for u in input_names]
     for k, nm in enumerate(names):
         layout["yaxis" if k == 0 else f"yaxis{k + 1}"]["title"] = dict(text=nm, font=dict(size=10))
@@ -201,6 +183,37 @@ def time_series_figure(
     if title:
         layout["title"] = dict(text=title, font=dict(size=12))
     return figure(data, layout)
+
+
+def _state_marks(
+    x_ref: NDArray[np.float64] | None, x_max: NDArray[np.float64] | None, yaxes: Sequence[str]
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """``(traces, shapes)`` on the state rows ``yaxes``: the reference (a time-varying one, shape (T+1, n), as a
+    dashed path; a constant one, shape (n,), dotted) and the state box ``x_max`` (dashed)."""
+    data: list[dict[str, Any]] = []
+    shapes: list[dict[str, Any]] = []
+    ref = None if x_ref is None else np.asarray(x_ref, dtype=float)
+    for k, ya in enumerate(yaxes):
+        if ref is not None and ref.ndim == 2 and np.any(ref[:, k] != 0):  # time-varying: the path, dashed
+            data.append(
+                dict(
+                    type="scatter",
+                    x=list(range(ref.shape[0])),
+                    y=arr(ref[:, k]),
+                    mode="lines",
+                    name="reference",
+                    legendgroup="ref",
+                    showlegend=k == 0,
+                    xaxis="x",
+                    yaxis=ya,
+                    line=dict(color=COLORS["theory"], dash="dash", width=2),
+                )
+            )
+        elif ref is not None and ref.ndim == 1 and ref[k] != 0:
+            shapes.append(hline(float(ref[k]), ya, COLORS["theory"], dash="dot"))
+        if x_max is not None and np.isfinite(x_max[k]):
+            shapes += [hline(s * float(x_max[k]), ya, COLORS["ref"]) for s in (1, -1)]
+    return data, shapes
 
 
 def mpc_arrays(frame: FrameView) -> dict[str, Any]:
