@@ -2,7 +2,7 @@
 
 For box-only MPC (input bounds, no state box), exact state feedback, no
 disturbance and a constant reference, :func:`run_compiled` runs every loop of a
-:class:`qsid_core.control.closed_loop._Loops` for all its steps inside one compiled
+:class:`qsid_core.control.loop_state.LoopState` for all its steps inside one compiled
 kernel, step by step, with the same law as the batched numpy path:
 
 * the unconstrained LQ optimum ``z = F x + f`` (the fast path) where it meets the box;
@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 from ..errors import FailureKind, MPCFailure
 from ..quantization import kernels
+from .loop_state import LoopState
 
 __all__ = ["eligible", "run_compiled", "PDAS_ITERS"]
 
@@ -41,9 +42,6 @@ _DONE, _NEED_QP, _UNSETTLED, _DIVERGED = 0, 1, 2, 3
 _Floats = NDArray[np.float64]
 _Ints = NDArray[np.int64]
 _Bools = NDArray[np.bool_]
-#: a :class:`qsid_core.control.closed_loop._Loops`; that module imports this one, so naming the class here (even for
-#: the type checker only) would be an import cycle
-_LoopsT = Any
 
 
 def _predict_py(F: _Floats, f: _Floats, bound: _Floats, r: int, xs: _Floats, z: _Floats) -> bool:
@@ -176,7 +174,7 @@ else:  # pragma: no cover
     _box_loop = None
 
 
-def eligible(loops: _LoopsT) -> bool:
+def eligible(loops: LoopState) -> bool:
     """Whether :func:`run_compiled` can run ``loops``: numba present, DAQP on box-only problems,
     exact state feedback, no disturbance, no time-varying reference."""
     return kernels.AVAILABLE and loops.guess and loops.noise is None and loops.preview is None
@@ -191,7 +189,7 @@ def _own(a: ArrayLike, dtype: DTypeLike = float) -> NDArray[Any]:
 class _Kernel:
     """The kernel's arguments for the live models of ``loops`` (the condensed QPs once built)."""
 
-    def __init__(self, loops: _LoopsT, diverged: float) -> None:
+    def __init__(self, loops: LoopState, diverged: float) -> None:
         self.loops, self.diverged = loops, float(diverged)
         w = loops.w
         self.F, self.f = _own(loops.F), _own(loops.f)
@@ -207,8 +205,7 @@ class _Kernel:
 
     def need_qp(self) -> None:
         if self.qp is None:
-            self.loops.condensed(attach=False)
-            cq = self.loops.cq
+            cq = self.loops.qps()
             self.qp = (_own(cq.H), _own(cq.Gx), _own(cq.g0))
 
     def run(self, idx: _Ints, t0: _Ints) -> tuple[_Ints, _Ints, NDArray[np.int8], _Floats]:
@@ -235,7 +232,7 @@ class _Kernel:
         return status, tstop, first, U0
 
 
-def run_compiled(loops: _LoopsT, active: NDArray[np.integer[Any]], diverged: float, first_costs: bool) -> None:
+def run_compiled(loops: LoopState, active: NDArray[np.integer[Any]], diverged: float, first_costs: bool) -> None:
     """Run the loops ``active`` of ``loops`` for ``loops.steps`` steps in the compiled kernel.
 
     Fills ``loops.out`` (states, inputs, ``qp_steps``, failures, and ``J0`` when
@@ -265,18 +262,18 @@ def run_compiled(loops: _LoopsT, active: NDArray[np.integer[Any]], diverged: flo
         idx, t0 = np.array(go_on, dtype=np.int64), np.array(at, dtype=np.int64)
 
 
-def _first_costs(loops: _LoopsT, idx: _Ints, t0: _Ints, first: NDArray[np.int8], U0: _Floats) -> None:
+def _first_costs(loops: LoopState, idx: _Ints, t0: _Ints, first: NDArray[np.int8], U0: _Floats) -> None:
     """``J*(x0)`` of the loops whose first step the kernel took: the unconstrained optimal cost where
     the fast path held, else the condensed QP's cost ``U'HU + 2 g'U + c(x0)`` of the active-set solution."""
     x0, out, w = loops.w.x0, loops.out, loops.w
     fast = idx[(t0 == 0) & (first == 1)]
     if fast.size:
-        parts = [loops.ctrls[i].parts for i in fast]
+        parts = [loops.ctrl(i).parts for i in fast]
         P0, p0 = np.stack([p.P0 for p in parts]), np.stack([p.p0 for p in parts])
         out.J0[fast] = np.einsum("i,lij,j->l", x0, P0, x0) + 2 * p0 @ x0 + np.array([p.c0 for p in parts])
     sel = np.flatnonzero((t0 == 0) & (first == 2))
     if sel.size:
-        cq, j, U = loops.cq, loops.rows(idx[sel]), U0[sel]
+        cq, j, U = loops.qps(), loops.rows(idx[sel]), U0[sel]
         g = cq.Gx[j] @ x0 + cq.g0[j]
         e = cq.Sx[j] @ x0 - np.tile(w.x_ref, cq.Sx.shape[1] // x0.size)
         d0 = x0 - w.x_ref
@@ -288,9 +285,9 @@ def _first_costs(loops: _LoopsT, idx: _Ints, t0: _Ints, first: NDArray[np.int8],
         )
 
 
-def _daqp_step(loops: _LoopsT, i: int, t: int, diverged: float, first_costs: bool) -> bool:
+def _daqp_step(loops: LoopState, i: int, t: int, diverged: float, first_costs: bool) -> bool:
     """Step ``t`` of loop ``i`` by its DAQP solver (warm-started); False if the loop failed there."""
-    c, out = loops.ctrls[i], loops.out
+    c, out = loops.ctrl(i), loops.out
     loops.attach(i)
     x = loops.x[i].copy()
     out.qp_steps += 1

@@ -333,7 +333,7 @@ class MPCController:
             parts = batch.model(0)
         self.parts = parts
         self.F, self.f, self.bound = parts.F, parts.f, parts.bound
-        self._qp = None
+        self._qp: DaqpMPC | None = None
         self._osqp = None
 
     # ----- fast path -----------------------------------------------------------------
@@ -358,6 +358,16 @@ class MPCController:
                 cq, k, self.Q, self.x_ref, self.u_max, state_box(self.n, self.N, self.x_max, self.xf_max), self.max_iter
             )
 
+    def daqp(self) -> DaqpMPC:
+        """The condensed problem DAQP solves for this model (condensed alone on first use, unless a batch
+        handed it over through :meth:`use_condensed`)."""
+        if self._qp is None:
+            cq = condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N)
+            self._qp = DaqpMPC(
+                cq, 0, self.Q, self.x_ref, self.u_max, state_box(self.n, self.N, self.x_max, self.xf_max), self.max_iter
+            )
+        return self._qp
+
     def solve_qp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
         """Solve the constrained QP from state ``x`` with the configured solver; returns ``(u_0, J*)``.
 
@@ -374,19 +384,11 @@ class MPCController:
 
     def solve_daqp(self, x: np.ndarray) -> np.ndarray:
         """The optimal input sequence ``U = [u_0; ...; u_{N-1}]``, shape (N*m,), by DAQP (no clipping)."""
-        if self._qp is None:
-            self.use_condensed(
-                condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N), 0
-            )
-        return self._qp.solve(x)
+        return self.daqp().solve(x)
 
     def qp_cost(self, x: np.ndarray, U: np.ndarray) -> float:
         """MPC cost ``J(U; x)`` of the input sequence ``U`` (shape (N*m,)) from state ``x`` (condensed form)."""
-        if self._qp is None:
-            self.use_condensed(
-                condense(self.A[None], self.B[None], self.Q, self.R, self.Qf[None], self.x_ref, self.N), 0
-            )
-        return self._qp.cost(np.asarray(x, dtype=float), U)
+        return self.daqp().cost(np.asarray(x, dtype=float), U)
 
     def solve_osqp(self, x: np.ndarray) -> tuple[np.ndarray, float]:
         """Solve the QP with OSQP on the sparse formulation (the previous engine); ``(u_0, J*)``."""

@@ -35,12 +35,13 @@ run itself; only their verdicts are kept, not the extra trajectories.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import FailureKind
+from .loop_state import LoopState
 from .stability import certify_batch, lyapunov_batch, spectral_radius
 
 if TYPE_CHECKING:
@@ -71,7 +72,7 @@ def _stalled(peak: float, before: float) -> bool:
 class _Judge:
     """The verdict state of every loop of one :func:`judge` call."""
 
-    def __init__(self, loops: Any) -> None:  # a closed_loop._Loops (closed_loop imports this module)
+    def __init__(self, loops: LoopState) -> None:
         self.loops = loops
         out = loops.out
         Rn, m = len(loops.ctrls), loops.m
@@ -136,14 +137,14 @@ class _Judge:
 
 
 def judge(
-    loops: Any, budget: int, extend: Callable[[np.ndarray, int, Sequence[int]], tuple[ClosedLoops, np.ndarray]]
+    loops: LoopState, budget: int, extend: Callable[[np.ndarray, int, Sequence[int]], tuple[ClosedLoops, np.ndarray]]
 ) -> None:
     """Give every loop of a finished run its verdict (fills ``outcome``, ``spectral_radius``, ``verdict_steps``,
     ``gains`` of ``loops.out``).
 
     Parameters
     ----------
-    loops : qsid_core.control.closed_loop._Loops
+    loops : qsid_core.control.loop_state.LoopState
         The run, after :func:`qsid_core.control.closed_loop.advance`; ``loops.out`` receives the verdicts.
     budget : int
         At most this many extra closed-loop steps per loop.

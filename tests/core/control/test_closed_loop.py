@@ -6,6 +6,7 @@ from scipy.optimize import lsq_linear
 
 import qsid_core.control.closed_loop as closed_loop
 import qsid_core.control.loop_kernel as loop_kernel
+import qsid_core.control.loop_steps as loop_steps
 from qsid_core import FailureKind, LTISystem, MPCConfig, run_closed_loops
 from qsid_core.control.riccati import dare_stabilizing
 from qsid_core.plant.systems import boeing747, dc_motor
@@ -72,7 +73,7 @@ def test_daqp_alone_equals_the_exact_reference(path, monkeypatch):
     if path == "batched":
         monkeypatch.setattr(closed_loop, "eligible", lambda loops: False)
         monkeypatch.setattr(
-            closed_loop,
+            loop_steps,
             "box_qp_batch",
             lambda H, g, ub, hi, lo: (np.full(g.shape, np.nan), np.zeros(len(g), dtype=bool)),
         )

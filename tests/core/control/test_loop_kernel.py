@@ -8,6 +8,7 @@ import pytest
 
 import qsid_core.control.closed_loop as closed_loop
 import qsid_core.control.loop_kernel as loop_kernel
+import qsid_core.control.loop_steps as loop_steps
 from qsid_core import LTISystem, MPCConfig, run_closed_loops
 from qsid_core.quantization import kernels
 
@@ -22,7 +23,7 @@ def _exact(models, s, cfg, monkeypatch):
     """The same loops with every constrained step solved by DAQP alone (no compiled loop, no active-set guess)."""
     with monkeypatch.context() as mp:
         mp.setattr(closed_loop, "eligible", lambda loops: False)
-        mp.setattr(closed_loop, "box_qp_batch", _no_active_set)
+        mp.setattr(loop_steps, "box_qp_batch", _no_active_set)
         return run_closed_loops(models, s.A, s.B, cfg, s)
 
 
