@@ -16,7 +16,7 @@ Solvers, each timed per closed loop (best and median of ``--repeats``):
 * ``engine run_closed_loops``: :func:`qsid_core.control.closed_loop.run_closed_loops` on the single
   model, *including* building the controller (DARE, Riccati gains, condensing, DAQP setup);
 * ``engine run_closed_loops, solver=osqp``: the same with the previous engine's OSQP path;
-* ``engine MPCController.solve``: build :class:`qsid_core.control.mpc.MPCController`, then
+* ``engine MPCController.solve``: build :class:`qsid_core.control.controller.MPCController`, then
   ``solve(x)`` per step (also included);
 * ``cvxpy + OSQP``: the QP built once with a Parameter for x0 (build and first
   compile reported separately, *not* included), solved every step with

@@ -7,11 +7,12 @@ from __future__ import annotations
 from .bound import RealizedBounds, UltimateBound, realized_bounds, riccati_finite, ultimate_bound
 from .closed_loop import run_closed_loops
 from .condensed_qp import CondensedQP, DaqpMPC, condense
+from .controller import MPCController
 from .controllers import build_controllers
 from .loop_kernel import PDAS_ITERS, eligible, run_compiled
 from .loop_noise import DISTURBANCES, LoopNoise, loop_noise
 from .loop_results import ClosedLoops
-from .mpc import FAILURE_KINDS, SOLVERS, TRACKING, MPCConfig, MPCController
+from .mpc import FAILURE_KINDS, SOLVERS, TRACKING, MPCConfig
 from .mpc_weights import MPCWeights
 from .reference import KINDS, parse_reference, reference_samples
 from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box

@@ -7,7 +7,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import MPCFailure
-from .mpc import MPCConfig, MPCController
+from .controller import MPCController
+from .mpc import MPCConfig
 from .mpc_weights import MPCWeights
 from .riccati import LQParts, dare_batch, lq_parts
 

@@ -17,9 +17,9 @@ from numpy.typing import NDArray
 
 from ..errors import FailureKind
 from .condensed_qp import CondensedQP, condense
+from .controller import MPCController
 from .loop_noise import LoopNoise
 from .loop_results import ClosedLoops
-from .mpc import MPCController
 from .mpc_weights import MPCWeights
 from .tracking import Preview
 

@@ -2,7 +2,7 @@
 
 Variables ``z = [x_0; ...; x_N; u_0; ...; u_{N-1}]``; the dynamics are equality
 rows, the initial-state row's bounds are set to the measured state each step and
-OSQP warm-starts from the previous solution. :class:`qsid_core.control.mpc.MPCController`
+OSQP warm-starts from the previous solution. :class:`qsid_core.control.controller.MPCController`
 uses it for ``solver="osqp"``; the default is DAQP on the condensed problem
 (:mod:`qsid_core.control.condensed_qp`), which is exact and about 10x faster per solve.
 
