@@ -85,7 +85,7 @@ class Frame:
     labels : tuple of str
         Estimator labels shown (``"LS"``, ``"BCLS"``).
     rows : dict label -> {b: summary row dict}
-        :func:`qsid_core.studies.sweep.summary_row` per estimator label and word length.
+        :func:`qsid_core.studies.summary.summary_row` per estimator label and word length.
     done, total : int
         Word lengths computed so far, of all.
     loops : dict label -> ClosedLoops at the current b

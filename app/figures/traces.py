@@ -1,7 +1,7 @@
 """Helpers shared by the plot builders: reading rows, mean +- std bands, the current-b marker.
 
 Inputs are plain data: *rows* are the JSON-ready per-b summaries of
-:func:`qsid_core.studies.sweep.summary_row` (the ``results`` entries of
+:func:`qsid_core.studies.summary.summary_row` (the ``results`` entries of
 ``qsid sweep --json``); a *series* maps a label (``"LS"``, ``"BCLS"``) to a list
 of rows. Missing values (``None``) are skipped, so partially filled sweeps draw.
 The only arithmetic here is reshaping for display.

@@ -16,11 +16,14 @@ The settings are :class:`MPCConfig`; the controller that solves the problem for 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError, FailureKind, check_choice, check_float, check_int
+from ..plant.lti import LTISystem
 from ..validate import as_float_array
 from .mpc_weights import MPCWeights
 from .reference import reference_samples
@@ -35,7 +38,7 @@ SOLVERS = ("daqp", "osqp")
 TRACKING = ("letter", "offset-free")
 
 
-def _vec(name: str, v, k: int | None, positive: bool = False) -> tuple[float, ...] | None:
+def _vec(name: str, v: ArrayLike | None, k: int | None, positive: bool = False) -> tuple[float, ...] | None:
     if v is None:
         return None
     arr = np.atleast_1d(as_float_array(name, v, ndim_max=1)).reshape(-1)  # finite, <= MAX_MAGNITUDE, not empty
@@ -46,7 +49,7 @@ def _vec(name: str, v, k: int | None, positive: bool = False) -> tuple[float, ..
     return tuple(arr.tolist())
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class MPCConfig:
     """MPC settings (unset weights and x0 come from the system's defaults).
 
@@ -107,14 +110,14 @@ class MPCConfig:
 
     horizon: int = 10
     steps: int = 50
-    u_max: float | tuple = 1.0
-    x_max: float | tuple | None = None
-    xf_max: float | tuple | None = None
-    Q: tuple | None = None
-    R: tuple | None = None
-    Qf: tuple | None = None
-    x0: tuple | None = None
-    x_ref: tuple | None = None
+    u_max: tuple[float, ...] = (1.0,)
+    x_max: tuple[float, ...] | None = None
+    xf_max: tuple[float, ...] | None = None
+    Q: tuple[float, ...] | None = None
+    R: tuple[float, ...] | None = None
+    Qf: tuple[float, ...] | None = None
+    x0: tuple[float, ...] | None = None
+    x_ref: tuple[float, ...] | None = None
     eps: float = 1e-9
     max_iter: int = 20000
     solver: str = "daqp"
@@ -124,8 +127,43 @@ class MPCConfig:
     feedback_bits: int | None = None
     feedback_noise: float = 0.0
     loop_seed: int = 0
-    reference: str | tuple | None = None
+    reference: str | tuple[tuple[float, ...], ...] | None = None
     tracking: str = "letter"
+
+    def __init__(
+        self,
+        horizon: int = 10,
+        steps: int = 50,
+        u_max: float | Sequence[float] = 1.0,
+        x_max: float | Sequence[float] | None = None,
+        xf_max: float | Sequence[float] | None = None,
+        Q: float | Sequence[float] | None = None,
+        R: float | Sequence[float] | None = None,
+        Qf: float | Sequence[float] | None = None,
+        x0: float | Sequence[float] | None = None,
+        x_ref: float | Sequence[float] | None = None,
+        eps: float = 1e-9,
+        max_iter: int = 20000,
+        solver: str = "daqp",
+        verify_steps: int | None = 20000,
+        disturbance: float = 0.0,
+        disturbance_kind: str = "gaussian",
+        feedback_bits: int | None = None,
+        feedback_noise: float = 0.0,
+        loop_seed: int = 0,
+        reference: str | Sequence[Sequence[float]] | None = None,
+        tracking: str = "letter",
+    ) -> None:
+        # the arguments as given; __post_init__ checks them and stores what the fields hold (tuples of floats)
+        given: dict[str, object] = dict(
+            horizon=horizon, steps=steps, u_max=u_max, x_max=x_max, xf_max=xf_max, Q=Q, R=R, Qf=Qf, x0=x0
+        )
+        given.update(x_ref=x_ref, eps=eps, max_iter=max_iter, solver=solver, verify_steps=verify_steps)
+        given.update(disturbance=disturbance, disturbance_kind=disturbance_kind, feedback_bits=feedback_bits)
+        given.update(feedback_noise=feedback_noise, loop_seed=loop_seed, reference=reference, tracking=tracking)
+        for name, value in given.items():
+            object.__setattr__(self, name, value)
+        self.__post_init__()
 
     def nominal(self) -> MPCConfig:
         """The same MPC law regulating to the constant ``x_ref`` in the letter's form, with exact state
@@ -179,7 +217,7 @@ class MPCConfig:
         if self.R is not None and min(self.R) <= 0:
             raise ConfigError(f"R diagonal must be > 0; got {self.R}")
 
-    def resolve(self, system) -> MPCWeights:
+    def resolve(self, system: LTISystem) -> MPCWeights:
         """Weights, bounds and x0 as arrays for ``system`` (shapes checked).
 
         Raises
@@ -189,9 +227,7 @@ class MPCConfig:
         """
         n, m = system.n, system.m
 
-        def full(name, v, k, default):
-            if v is None:
-                return default
+        def full(name: str, v: tuple[float, ...], k: int) -> NDArray[np.float64]:
             arr = np.asarray(v, dtype=float)
             if arr.size == 1:
                 arr = np.repeat(arr, k)
@@ -199,22 +235,22 @@ class MPCConfig:
                 raise ConfigError(f"{name} must have 1 or {k} entries for system {system.name!r}; got {arr.size}")
             return arr
 
-        Q = np.diag(full("Q", self.Q, n, None)) if self.Q is not None else np.array(system.Q, dtype=float)
-        R = np.diag(full("R", self.R, m, None)) if self.R is not None else np.array(system.R, dtype=float)
-        x_ref = full("x_ref", self.x_ref, n, np.zeros(n))
+        Q = np.diag(full("Q", self.Q, n)) if self.Q is not None else np.array(system.Q, dtype=float)
+        R = np.diag(full("R", self.R, m)) if self.R is not None else np.array(system.R, dtype=float)
+        x_ref = full("x_ref", self.x_ref, n) if self.x_ref is not None else np.zeros(n)
         return MPCWeights(
             Q=Q,
             R=R,
-            Qf=None if self.Qf is None else np.diag(full("Qf", self.Qf, n, None)),
-            x0=full("x0", self.x0, n, np.array(system.x0, dtype=float)),
+            Qf=None if self.Qf is None else np.diag(full("Qf", self.Qf, n)),
+            x0=full("x0", self.x0, n) if self.x0 is not None else np.array(system.x0, dtype=float),
             x_ref=x_ref if self.tracking == "letter" else np.zeros(n),
-            u_max=full("u_max", self.u_max, m, None),
-            x_max=None if self.x_max is None else full("x_max", self.x_max, n, None),
-            xf_max=None if self.xf_max is None else full("xf_max", self.xf_max, n, None),
+            u_max=full("u_max", self.u_max, m),
+            x_max=None if self.x_max is None else full("x_max", self.x_max, n),
+            xf_max=None if self.xf_max is None else full("xf_max", self.xf_max, n),
             reference=self._reference_samples(system, x_ref),
         )
 
-    def _reference_samples(self, system, x_ref: np.ndarray) -> np.ndarray | None:
+    def _reference_samples(self, system: LTISystem, x_ref: NDArray[np.float64]) -> NDArray[np.float64] | None:
         """The time-varying reference (a constant x_ref too in the offset-free form), or None."""
         length = self.steps + self.horizon + 1
         if self.reference is not None:

@@ -49,8 +49,9 @@ from .records import (
     write_csv,
 )
 from .stage_results import BitsIdentification, TheoryAtBits
-from .summary import Stats, SummaryRow, build_row, json_clean
-from .sweep import RESULT_FORMAT, StoredRow, SweepResult, fit_slope, load_result, run_sweep, summarize, summary_row
+from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
+from .sweep import run_sweep, summarize
+from .sweep_result import RESULT_FORMAT, StoredRow, SweepResult, load_result
 from .warmup import COMPILED_KERNELS, compile_kernels, kernel_cache_dir, kernel_names, kernels_cached, one_per_size
 
 __all__ = [

@@ -40,7 +40,8 @@ from ..errors import ConfigError, check_float
 from .config import SweepConfig
 from .experiment import Experiment, Progress
 from .summary import json_clean
-from .sweep import SweepResult, run_sweep
+from .sweep import run_sweep
+from .sweep_result import SweepResult
 
 __all__ = [
     "BitsRow",

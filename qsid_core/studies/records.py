@@ -2,7 +2,7 @@
 
 The summary JSON keeps mean/std per word length; researchers doing their own
 statistics need every realization. :func:`realization_records` turns a
-:class:`~qsid_core.studies.sweep.SweepResult` into a list of :class:`RealizationRecord`;
+:class:`~qsid_core.studies.sweep_result.SweepResult` into a list of :class:`RealizationRecord`;
 :func:`experiment_records` does the same for several estimators of one
 :class:`~qsid_core.studies.experiment.Experiment` (LS and BCLS on the same quantized data).
 The table leaves as plain columns (:func:`to_columns`), a CSV file
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from ..control.loop_results import ClosedLoops
     from .experiment import Experiment, Progress
     from .stage_results import BitsIdentification
-    from .sweep import SweepResult
+    from .sweep_result import SweepResult
 
     #: What the table functions take: a finished sweep or a list of records.
     Records: TypeAlias = "SweepResult | Iterable[RealizationRecord]"

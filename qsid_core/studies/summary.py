@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from .assumptions import Assumptions
     from .stage_results import BitsIdentification, TheoryAtBits
 
-__all__ = ["Stats", "SummaryRow", "build_row", "json_clean"]
+__all__ = ["Stats", "SummaryRow", "build_row", "fit_slope", "json_clean", "summary_row"]
 
 
 def _num(x: float | None) -> float | None:
@@ -325,3 +325,42 @@ def build_row(
         assumptions=assumptions,
         **kw,
     )
+
+
+def fit_slope(bits: ArrayLike, values: ArrayLike) -> float:
+    """Least-squares slope of ``log10(values)`` against ``bits`` (NaN if fewer than 2 usable points)."""
+    b = np.asarray(bits, dtype=float)
+    v = np.asarray(values, dtype=float)
+    ok = np.isfinite(v) & (v > 0)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(b[ok], np.log10(v[ok]), 1)[0])
+
+
+def summary_row(
+    n: int,
+    ident: BitsIdentification,
+    th: TheoryAtBits,
+    lp: ClosedLoops | None,
+    *,
+    u_max: Any = _UNKNOWN,
+    realized: RealizedBounds | None = None,
+    assumptions: Assumptions | None = None,
+) -> SummaryRow:
+    """Typed summary of one word length (:class:`~qsid_core.studies.summary.SummaryRow`; ``.to_dict()`` is its JSON).
+
+    Parameters
+    ----------
+    n : int
+        Number of states (splits eps into states and inputs).
+    ident, th, lp
+        Results of :meth:`Experiment.identification`, :meth:`Experiment.theory` and
+        :meth:`Experiment.closed_loops` (``lp`` may be None when MPC is off).
+    u_max : array_like or None, optional
+        Input bounds, for the count of saturated closed-loop steps.
+    realized : RealizedBounds, optional
+        The a-posteriori bound (:meth:`Experiment.realized_bound`).
+    assumptions : Assumptions, optional
+        (:meth:`Experiment.assumptions`).
+    """
+    return build_row(n, ident, th, lp, u_max=u_max, realized=realized, assumptions=assumptions)

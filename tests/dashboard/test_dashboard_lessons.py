@@ -12,7 +12,7 @@ from app.dashboard.lessons import LESSONS, get_lesson, lesson_names, lesson_valu
 from app.dashboard.settings import resolve_system, sweep_config
 from app.figures import registry
 from qsid_core import Experiment
-from qsid_core.studies.sweep import fit_slope
+from qsid_core.studies import fit_slope
 
 # slow: computes every lesson at its own (often paper-scale) settings
 pytestmark = pytest.mark.slow
@@ -216,7 +216,7 @@ def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
 
 def _ls_rows(ex: Experiment, bits) -> list:
     from app.dashboard.frames import row
-    from qsid_core.studies.sweep import summary_row
+    from qsid_core.studies import summary_row
 
     return [
         row(summary_row(ex.system.n, ex.identification(b, "ls"), ex.theory(b), None, assumptions=ex.assumptions(b)))

@@ -133,7 +133,7 @@ def test_summarize_matches_sweep_row():
 
 def test_result_json_has_its_format_and_format_1_files_load_with_the_renamed_key(tmp_path):
     from qsid_core import ConfigError, load_result
-    from qsid_core.studies.sweep import RESULT_FORMAT
+    from qsid_core.studies import RESULT_FORMAT
 
     res = run_sweep(SweepConfig(bits=(3,), mpc=MPCConfig(steps=10, u_max=(0.2,)), **SMALL))
     d = json.loads(json.dumps(res.to_dict()))
