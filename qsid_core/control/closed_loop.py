@@ -14,13 +14,16 @@ engine's OSQP path instead. Failures are recorded per model, never raised.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import numpy as np
 
 from ..errors import FailureKind
+from ..plant.lti import LTISystem
 from .controllers import build_controllers
 from .loop_fast import speculate
 from .loop_kernel import eligible, run_compiled
-from .loop_noise import loop_noise
+from .loop_noise import FeedbackRange, loop_noise
 from .loop_results import ClosedLoops
 from .loop_state import DIVERGED, LoopState
 from .loop_steps import step, step_small
@@ -32,9 +35,17 @@ __all__ = ["run_closed_loops"]
 #: at most this many models are stepped model by model (numpy's per-call overhead dominates tiny batches)
 SMALL = 4
 
+#: ``extend(x, k, active)``: the loops ``active`` run on from states ``x`` for ``k`` more steps
+Extend = Callable[[np.ndarray, int, Sequence[int]], tuple[ClosedLoops, np.ndarray]]
+
 
 def run_closed_loops(
-    models, A_true: np.ndarray, B_true: np.ndarray, cfg: MPCConfig, system, feedback_range: tuple | None = None
+    models: Sequence[tuple[np.ndarray, np.ndarray]],
+    A_true: np.ndarray,
+    B_true: np.ndarray,
+    cfg: MPCConfig,
+    system: LTISystem,
+    feedback_range: FeedbackRange | None = None,
 ) -> ClosedLoops:
     """Run the MPC built on each model ``(A^, B^)`` in closed loop on the true system.
 
@@ -101,14 +112,14 @@ def run_closed_loops(
     return out
 
 
-def _extender(loops: LoopState):
+def _extender(loops: LoopState) -> Extend:
     """``extend(x, k, active)``: run the loops ``active`` on from states ``x`` for ``k`` more steps.
 
     Returns the extra steps' :class:`ClosedLoops` and the states reached; the
     condensed QPs are shared with ``loops`` (built once).
     """
 
-    def extend(x: np.ndarray, k: int, active: list) -> tuple[ClosedLoops, np.ndarray]:
+    def extend(x: np.ndarray, k: int, active: Sequence[int]) -> tuple[ClosedLoops, np.ndarray]:
         scratch = ClosedLoops.empty(len(loops.ctrls), k, loops.n, loops.m)
         ext = LoopState(loops.ctrls, loops.w, loops.A, loops.B, k, scratch, x_start=x, cq=loops.cq)
         advance(ext, np.array(active))

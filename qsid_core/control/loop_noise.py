@@ -31,10 +31,14 @@ from ..quantization.quantize import effective_ranges
 if TYPE_CHECKING:
     from .mpc import MPCConfig
 
-__all__ = ["DISTURBANCES", "LoopNoise", "loop_noise"]
+__all__ = ["DISTURBANCES", "FeedbackRange", "LoopNoise", "loop_noise"]
 
 #: distributions of the process disturbance
 DISTURBANCES = ("gaussian", "uniform")
+
+
+#: ``(lo, hi, guard)`` of the training data's channels: the range of a quantized measurement in the loop.
+FeedbackRange = tuple[ArrayLike, ArrayLike, bool]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,9 +78,7 @@ class LoopNoise:
         return y
 
 
-def loop_noise(
-    cfg: MPCConfig, n: int, steps: int, feedback_range: tuple[ArrayLike, ArrayLike, bool] | None = None
-) -> LoopNoise | None:
+def loop_noise(cfg: MPCConfig, n: int, steps: int, feedback_range: FeedbackRange | None = None) -> LoopNoise | None:
     """The draws of ``cfg`` (an :class:`~qsid_core.control.mpc.MPCConfig`) for ``steps`` steps (None: a clean loop).
 
     Parameters

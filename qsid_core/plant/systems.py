@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError, SystemDefinitionError, check_float, short_repr
 from ..validate import MAX_MAGNITUDE
@@ -127,7 +128,7 @@ def boeing747() -> LTISystem:
     )
 
 
-def _zoh(Ac, Bc, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def _zoh(Ac: ArrayLike, Bc: ArrayLike, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold discretisation: ``expm([[Ac, Bc], [0, 0]] dt) = [[Ad, Bd], [0, I]]``."""
     from scipy.linalg import expm
 
@@ -170,8 +171,8 @@ def inverted_pendulum() -> LTISystem:
     the default ``|u| <= 1`` N the upright can be caught from there), Q = diag(10, 1, 1, 1), R = 1.
     """
     M, m, l, g = 2.0, 0.1, 0.5, 9.81
-    Ac = [[0, 1, 0, 0], [(M + m) * g / (M * l), 0, 0, 0], [0, 0, 0, 1], [-m * g / M, 0, 0, 0]]
-    Bc = [[0], [-1 / (M * l)], [0], [1 / M]]
+    Ac: list[list[float]] = [[0, 1, 0, 0], [(M + m) * g / (M * l), 0, 0, 0], [0, 0, 0, 1], [-m * g / M, 0, 0, 0]]
+    Bc: list[list[float]] = [[0], [-1 / (M * l)], [0], [1 / M]]
     A, B = _zoh(Ac, Bc, 0.05)
     return LTISystem(
         "inverted-pendulum",
@@ -194,7 +195,7 @@ def mass_spring_damper() -> LTISystem:
     e.g. Ogata, *Modern Control Engineering*, Sec. 2-3). States: position [m],
     velocity; input: force [N]. x0 = [1, 0], Q = I, R = 1.
     """
-    A, B = _zoh([[0, 1], [-1.0, -0.2]], [[0], [1.0]], 0.1)
+    A, B = _zoh([[0.0, 1.0], [-1.0, -0.2]], [[0.0], [1.0]], 0.1)
     return LTISystem(
         "mass-spring-damper",
         A,

@@ -74,6 +74,7 @@ if TYPE_CHECKING:
     from ..plant.lti import LTISystem
     from ..quantization.quantize import QuantizerSpec
     from .config import SweepConfig
+    from .stage_cache import Staged
 
 __all__ = [
     "Assumptions",
@@ -363,7 +364,7 @@ def _notes(a: dict[str, Any], c: SweepConfig) -> list[str]:
     return notes
 
 
-def overload_effect(ex, b: int) -> np.ndarray:  # ex: an Experiment
+def overload_effect(ex: Staged, b: int) -> np.ndarray:
     """:func:`clipping_effect` at word length ``b`` for an :class:`~qsid_core.studies.experiment.Experiment`, shape
     (n, n+m); zeros when nothing clips. Needs the data and the quantizer only (no quantized data)."""
     from ..quantization.quantize import ERROR_VARIANCE, channel_bits, channel_eps, guard_cells
@@ -381,7 +382,7 @@ def overload_effect(ex, b: int) -> np.ndarray:  # ex: an Experiment
     return clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, variance, ex.data.extremes(), grams)
 
 
-def assess(ex, b: int) -> Assumptions:  # ex: an Experiment (its config is not precisely typed yet)
+def assess(ex: Staged, b: int) -> Assumptions:
     """The hypotheses at word length ``b`` for an :class:`~qsid_core.studies.experiment.Experiment`."""
     from ..quantization.quantize import bcls_reason
 
@@ -398,7 +399,7 @@ def assess(ex, b: int) -> Assumptions:  # ex: an Experiment (its config is not p
     ls = ex.identification(b, "ls")
     known = not bcls_reason(q.dither)
     unknown_sensor_noise = any(v > 0 for v in c.noise) and not c.noise_known
-    a = dict(
+    a: dict[str, Any] = dict(
         bits=b,
         subtractive_dither=q.dither == "subtractive",
         known_noise=known,

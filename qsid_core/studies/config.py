@@ -7,7 +7,7 @@ defaults differ from them only in the quantizer's guard band (on by default, see
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
@@ -24,7 +24,7 @@ from .config_checks import check_sweep_parts
 __all__ = ["SweepConfig", "parse_bits", "parse_input_bits", "parse_noise", "parse_state_bits"]
 
 
-def parse_bits(spec: str | int | list | tuple | range) -> tuple[int, ...]:
+def parse_bits(spec: str | int | Sequence[int] | range) -> tuple[int, ...]:
     """Word lengths from ``"2:12"`` (inclusive), ``"2:12:2"``, ``"2,4,6"``, ``"8"``, an int, or a sequence of ints.
 
     Raises

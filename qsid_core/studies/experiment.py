@@ -19,7 +19,7 @@ a change of settings touches. The stages live by responsibility beside it:
 
 from __future__ import annotations
 
-from collections.abc import Iterable, MutableMapping
+from collections.abc import MutableMapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import replace
 from typing import TYPE_CHECKING, cast
@@ -142,7 +142,7 @@ class Experiment:
         return ex.PP / ex.T
 
     # ----- identification ------------------------------------------------------------------
-    def moments(self, bits: str | int | Iterable[int], progress: Progress | None = None) -> dict[int, list[Moments]]:
+    def moments(self, bits: str | int | Sequence[int], progress: Progress | None = None) -> dict[int, list[Moments]]:
         """Quantized Gram matrices per b and realization (computes only what is not cached)."""
         bits = parse_bits(bits)
         keys = {b: self.keys.moments(b) for b in bits}
@@ -204,7 +204,7 @@ class Experiment:
         return self.cache.memo(self.keys.loops(b, est, cfg), lambda: run_closed_loops(*loop_args(self, b, est, cfg)))
 
     def closed_loops_many(
-        self, bits: str | int | Iterable[int], estimator: str | None = None, progress: Progress | None = None
+        self, bits: str | int | Sequence[int], estimator: str | None = None, progress: Progress | None = None
     ) -> dict[int, ClosedLoops]:
         """:meth:`closed_loops` for several b, mapped through the executor."""
         cfg = mpc_of(self)

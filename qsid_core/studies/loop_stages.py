@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..control.closed_loop import run_closed_loops
+from ..control.loop_noise import FeedbackRange
 from ..control.loop_results import ClosedLoops
 from ..control.mpc import MPCConfig
 from ..errors import ConfigError
@@ -17,9 +18,6 @@ from .executors import single_threaded_blas
 from .stage_cache import Staged
 
 __all__ = ["FeedbackRange", "LoopArgs", "feedback_range", "loop_args", "loops_task", "mpc_of", "true_loop_args"]
-
-#: ``(lo, hi, guard)`` of the training data's channels: the range of a quantized measurement in the loop.
-FeedbackRange = tuple[np.ndarray, np.ndarray, bool]
 
 #: ``run_closed_loops``' arguments: models, true A, true B, the MPC, the system, the feedback range.
 LoopArgs = tuple[

@@ -10,7 +10,7 @@ experiment the stage modules use, so they need not import the experiment that ca
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Iterable, Mapping, MutableMapping
+from collections.abc import Callable, Hashable, Iterable, Mapping, MutableMapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Protocol, TypeVar, cast
@@ -23,7 +23,7 @@ from ..plant.data import Dataset
 from ..plant.lti import LTISystem
 from ..quantization.moments import Moments, PreparedData
 from .config import SweepConfig
-from .stage_results import BitsIdentification
+from .stage_results import BitsIdentification, TheoryAtBits
 
 __all__ = ["Key", "StageCache", "StageKeys", "Staged"]
 
@@ -208,8 +208,14 @@ class Staged(Protocol):
     def noise_variance(self) -> NDArray[np.float64]:
         """Sensor noise variance per channel, shape (n+m,)."""
 
-    def moments(self, bits: str | int | Iterable[int]) -> dict[int, list[Moments]]:
+    def moments(self, bits: str | int | Sequence[int]) -> dict[int, list[Moments]]:
         """Quantized Gram matrices per b and realization."""
 
     def identification(self, b: int, estimator: str | None = None) -> BitsIdentification:
         """Identified models at ``b`` for every realization."""
+
+    def theory(self, b: int) -> TheoryAtBits:
+        """Theorem 1's prediction and the ultimate bound at ``b``."""
+
+    def overload_effect(self, b: int) -> NDArray[np.float64]:
+        """The predicted effect of the quantizer clipping the data at ``b``, shape (n, n+m)."""
