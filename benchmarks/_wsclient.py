@@ -1,6 +1,7 @@
 """A minimal viser websocket client: what a browser tab sends and reads, without a browser.
 
-Used by the soak/flood tests (``tests/system/test_dashboard_load.py``) and ``benchmarks/bench_soak.py``.
+Used by the soak/flood tests (``tests/system/test_dashboard_load.py``) and ``benchmarks/bench_soak.py``; the
+camera message, the connection and the process helpers are :mod:`_support`'s (shared with the tests).
 Speaks viser's wire protocol: msgpack messages to the server; from the server, frames of
 ``[8 B size][8 B zstd size][zstd msgpack {"messages": [...]}][binary buffers]``.
 It learns each input's uuid from the server's ``Gui*Message`` (by label) and
@@ -9,30 +10,14 @@ follows every markdown's content, so it can tell when the tab says "ready".
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 
 import msgspec
-import viser
 import zstandard
-from websockets.sync.client import connect
+from _support import CAMERA, connect_ws, family, family_rss, rss_mb
 
-__all__ = ["WsTab", "rss_mb", "family", "family_rss"]
-
-_CAMERA = {
-    "type": "ViewerCameraMessage",
-    "wxyz": [1.0, 0.0, 0.0, 0.0],
-    "position": [3.0, 0.0, 0.0],
-    "fov": 1.0,
-    "near": 0.01,
-    "far": 1000.0,
-    "image_height": 900,
-    "image_width": 1400,
-    "look_at": [0.0, 0.0, 0.0],
-    "up_direction": [0.0, 0.0, 1.0],
-}
-
+__all__ = ["WsTab", "rss_mb", "family", "family_rss"]  # the process helpers are _support's
 
 #: How the tab's status line starts (any other markdown is not the status).
 STATUS_STARTS = ("ready", "computing", "error", "starting", "queued")
@@ -41,26 +26,11 @@ STATUS_STARTS = ("ready", "computing", "error", "starting", "queued")
 _TEXT_KEYS = ("_markdown", "content")
 
 
-def rss_mb(pid: int) -> float:
-    """Resident memory of process ``pid`` (MB), from /proc."""
-    with open(f"/proc/{pid}/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    return float("nan")
-
-
 class WsTab:
     """One tab over the websocket: ``send(label, value)`` as a browser would; ``ready`` when it says so."""
 
     def __init__(self, url: str, timeout: float = 30.0):
-        self.ws = connect(
-            url.replace("http://", "ws://"),
-            subprotocols=[f"viser-v{viser.__version__}"],
-            max_size=None,
-            open_timeout=timeout,
-            close_timeout=2,
-        )
+        self.ws = connect_ws(url, open_timeout=timeout, close_timeout=2)
         self.uuids: dict[str, str] = {}  # input label -> uuid
         self.markdown: dict[str, str] = {}  # markdown uuid -> content
         self.values: dict[str, object] = {}  # input uuid -> its value as the server last said
@@ -71,7 +41,7 @@ class WsTab:
         self._lock = threading.Lock()
         self.thread = threading.Thread(target=self._read, daemon=True)
         self.thread.start()
-        self.ws.send(msgspec.msgpack.encode(_CAMERA))  # viser counts a client once it reports its camera
+        self.ws.send(msgspec.msgpack.encode(CAMERA))  # viser counts a client once it reports its camera
 
     def _read(self) -> None:
         try:
@@ -178,31 +148,3 @@ class WsTab:
             self.ws.close()
         except Exception:
             pass
-
-
-def family(pid: int) -> list[int]:
-    """``pid`` and all its descendants (from /proc)."""
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        try:
-            for task in os.listdir(f"/proc/{p}/task"):
-                with open(f"/proc/{p}/task/{task}/children") as f:
-                    todo.extend(int(c) for c in f.read().split())
-        except OSError:
-            pass
-    return out
-
-
-def family_rss(pid: int) -> tuple[float, float]:
-    """(server RSS, workers' RSS) in MB."""
-    rest = 0.0
-    for p in family(pid)[1:]:
-        try:
-            mb = rss_mb(p)
-        except OSError:  # ended meanwhile
-            continue
-        if mb == mb:  # a zombie (a replaced worker not yet reaped) has no resident memory
-            rest += mb
-    return rss_mb(pid), rest

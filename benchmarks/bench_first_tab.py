@@ -12,38 +12,22 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
+from _support import DashboardProcess
 from _wsclient import WsTab
 from bench_page_load import stop_server
 
 
 def one(cache: str) -> tuple[float, float, int]:
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(ROOT))
-    t0 = time.perf_counter()
-    p = subprocess.Popen(
-        [sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "2"],
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-    )
-    url = None
-    for line in p.stdout:
-        if line.startswith("qsid dashboard: http://"):
-            url = line.split()[2]
-            break
-    start = time.perf_counter() - t0
+    srv = DashboardProcess("--workers", "2", env=env)
+    p, url, start = srv.p, srv.url, srv.started_s
     try:
-        if url is None:
-            raise RuntimeError("the dashboard did not start")
         tab = WsTab(url)
         try:
             ready = tab.wait_ready(300)

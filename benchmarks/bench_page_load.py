@@ -35,6 +35,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT / "benchmarks") not in sys.path:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+from _support import DashboardProcess, stop_tree  # noqa: E402
+
 CHROMIUM = "/usr/bin/chromium"
 ARGS = [
     "--no-sandbox",
@@ -58,66 +62,13 @@ def _free_port() -> int:
 def start_server(workers: int, system: str) -> tuple[subprocess.Popen, str, float]:
     """``python -m app.dashboard`` on a free port; returns (process, url, seconds until it printed its URL)."""
     port = _free_port()
-    t = time.perf_counter()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.dashboard", "--port", str(port), "--workers", str(workers), "--system", system],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    for line in proc.stdout:
-        if line.startswith("qsid dashboard: http://"):  # its ready line (viser prints its own address earlier)
-            return proc, f"http://127.0.0.1:{port}", time.perf_counter() - t
-    stop_server(proc)
-    raise RuntimeError("the dashboard did not start")
-
-
-def _descendants(pid: int) -> list[int]:
-    """Every process below ``pid``, from /proc."""
-    kids: dict[int, list[int]] = {}
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                with open(f"/proc/{d}/stat") as f:
-                    kids.setdefault(int(f.read().rsplit(")", 1)[1].split()[1]), []).append(int(d))
-            except (OSError, ValueError, IndexError):
-                pass
-    stack, out = [pid], []
-    while stack:
-        for c in kids.get(stack.pop(), []):
-            out.append(c)
-            stack.append(c)
-    return out
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
+    srv = DashboardProcess("--workers", str(workers), "--system", system, port=port)
+    return srv.p, f"http://127.0.0.1:{port}", srv.started_s
 
 
 def stop_server(proc: subprocess.Popen) -> int:
     """SIGTERM the server (its graceful stop); returns how many of its processes outlived it by 30 s (killed)."""
-    desc = _descendants(proc.pid)
-    proc.terminate()
-    try:
-        proc.wait(timeout=30)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(10)
-    end = time.monotonic() + 30
-    while time.monotonic() < end and any(_alive(p) for p in desc):
-        time.sleep(0.2)
-    left = [p for p in desc if _alive(p)]
-    for p in left:
-        try:
-            os.kill(p, signal.SIGKILL)
-        except OSError:
-            pass
-    return len(left)
+    return stop_tree(proc, signal.SIGTERM, 30.0)[1]
 
 
 def open_tab(browser, url: str) -> dict:

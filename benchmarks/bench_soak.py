@@ -20,10 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import random
-import signal
-import subprocess
 import sys
 import threading
 import time
@@ -32,7 +29,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from _wsclient import WsTab, family_rss, rss_mb
+from _support import DashboardProcess, family_rss, rss_mb
+from _wsclient import WsTab
 
 #: What the clients change: panel label -> a random value in the panel's own range.
 CHANGES = (
@@ -44,46 +42,15 @@ CHANGES = (
 )
 
 
-class Server:
-    """``python -m app.dashboard --port 0`` (loopback) with extra options; ``url``, ``pid``, ``stop()``."""
+class Server(DashboardProcess):
+    """``python -m app.dashboard --port 0`` (loopback) with extra options; ``url``, ``pid``, ``rss``, ``stop()``."""
 
     def __init__(self, *args: str):
-        env = dict(os.environ, PYTHONPATH=str(ROOT))
-        self.p = subprocess.Popen(
-            [sys.executable, "-m", "app.dashboard", "--port", "0", *args],
-            cwd=ROOT,
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        line, end = "", time.time() + 120
-        while not line.startswith("qsid dashboard: http") and time.time() < end and self.p.poll() is None:
-            line = self.p.stdout.readline()
-        if not line.startswith("qsid dashboard: http"):
-            self.stop()
-            raise RuntimeError(f"the server did not start: {self.p.stderr.read()[-2000:]}")
-        self.url = line.split()[2]
-        self.pid = self.p.pid
-        threading.Thread(target=self.p.stdout.read, daemon=True).start()  # keep the pipes drained
-        self.errors: list[str] = []
-        threading.Thread(target=lambda: self.errors.extend(self.p.stderr), daemon=True).start()
+        super().__init__(*args, timeout=120)
 
     @property
     def rss(self) -> float:
         return rss_mb(self.pid)
-
-    def stop(self, grace: float = 15.0) -> float:
-        """SIGINT; seconds until the process ended (killed after ``grace`` s)."""
-        t0 = time.monotonic()
-        if self.p.poll() is None:
-            self.p.send_signal(signal.SIGINT)
-            try:
-                self.p.wait(grace)
-            except subprocess.TimeoutExpired:
-                self.p.kill()
-                self.p.wait(5)
-        return time.monotonic() - t0
 
 
 class Clients:

@@ -3,7 +3,10 @@
 * :class:`Tab` and :func:`open_tab`: a websocket client of an in-process dashboard server plus the
   server-side session viser built for it (the ``dashboard`` and ``tab`` fixtures of ``conftest.py``
   use them);
-* :func:`dask_cluster` and :func:`need_distributed`: a real dask scheduler and workers on 127.0.0.1.
+* :func:`dask_cluster` and :func:`need_distributed`: a real dask scheduler and workers on 127.0.0.1;
+* from ``benchmarks/_support.py`` (shared with the benchmarks, which must not need pytest): the camera
+  message, the websocket connection, the process tree (:func:`descendants`, :func:`alive`, ...) and
+  :class:`DashboardProcess`, the server as a child process.
 
 Every wait here is a liveness guard against a hang, never a speed claim: :data:`HANG_S` is minutes,
 so a busy machine only makes a test slower, never red.
@@ -25,6 +28,10 @@ import msgspec
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT / "benchmarks") not in sys.path:  # the helpers the benchmarks share with the tests
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+import _support  # noqa: E402
+from _support import CAMERA, DashboardProcess, alive, children, descendants, gone_within  # noqa: E402,F401
 
 #: Seconds any single wait may take before the test calls it a hang (not a speed target).
 HANG_S = 300.0
@@ -32,33 +39,10 @@ HANG_S = 300.0
 #: A small data size: every view of a tab is drawn in well under a second on a quiet machine.
 SMALL = dict(trajectories=10, steps=60, realizations=4)
 
-#: What a browser sends first; viser counts a client as connected once it reports its camera.
-CAMERA = {
-    "type": "ViewerCameraMessage",
-    "wxyz": [1.0, 0.0, 0.0, 0.0],
-    "position": [3.0, 0.0, 0.0],
-    "fov": 1.0,
-    "near": 0.01,
-    "far": 1000.0,
-    "image_height": 900,
-    "image_width": 1400,
-    "look_at": [0.0, 0.0, 0.0],
-    "up_direction": [0.0, 0.0, 1.0],
-}
-
 
 def connect_ws(app, **kwargs):
-    """A raw websocket to ``app`` speaking viser's protocol (nothing sent yet)."""
-    import viser
-    from websockets.sync.client import connect
-
-    return connect(
-        app.url.replace("http://", "ws://"),
-        subprotocols=[f"viser-v{viser.__version__}"],
-        max_size=None,
-        open_timeout=kwargs.pop("open_timeout", 120),
-        **kwargs,
-    )
+    """A raw websocket to the in-process server ``app`` speaking viser's protocol (nothing sent yet)."""
+    return _support.connect_ws(app.url, **kwargs)
 
 
 class Tab:
@@ -229,42 +213,3 @@ def dask_cluster(tmp: Path, workers: int = 2):
     finally:
         for p in reversed(procs):
             kill_group(p)
-
-
-def children(pid: int) -> list[int]:
-    out = []
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                with open(f"/proc/{d}/stat") as f:
-                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
-                        out.append(int(d))
-            except (OSError, ValueError, IndexError):
-                pass
-    return out
-
-
-def alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
-def descendants(pid: int) -> list[int]:
-    """Every process below ``pid`` (children, their children, ...), read from /proc."""
-    out, todo = [], [pid]
-    while todo:
-        kids = children(todo.pop())
-        out += kids
-        todo += kids
-    return out
-
-
-def gone_within(pids: list[int], seconds: float) -> list[int]:
-    """The pids still alive after waiting up to ``seconds`` (polling; not a speed assertion)."""
-    end = time.monotonic() + seconds
-    while time.monotonic() < end and any(alive(p) for p in pids):
-        time.sleep(0.2)
-    return [p for p in pids if alive(p)]

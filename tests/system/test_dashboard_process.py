@@ -11,10 +11,11 @@ import signal
 import subprocess
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import pytest
-from support import HANG_S, alive, children, descendants, gone_within, wait_until
+from support import HANG_S, DashboardProcess, alive, children, descendants, gone_within, wait_until
 
 # slow: starts qsid-dashboard as a real process
 pytestmark = pytest.mark.slow
@@ -37,28 +38,8 @@ def run(*args, timeout=HANG_S):
     )
 
 
-class Server:
-    """``python -m app.dashboard`` on a free loopback port; ``url`` once it printed it."""
-
-    def __init__(self, *args):
-        self.p = subprocess.Popen(
-            [sys.executable, "-m", "app.dashboard", "--port", "0", *args],
-            cwd=ROOT,
-            env=ENV,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        line, end = "", time.time() + HANG_S
-        while not line.startswith("qsid dashboard:") and time.time() < end and self.p.poll() is None:
-            line = self.p.stdout.readline()
-        assert line.startswith("qsid dashboard: http://"), line
-        self.url = line.split()[2]
-
-    def kill(self):
-        if self.p.poll() is None:
-            self.p.kill()
-            self.p.wait(HANG_S)
+#: ``python -m app.dashboard`` on a free loopback port; ``url`` once it printed it.
+Server = partial(DashboardProcess, env=ENV, timeout=HANG_S)
 
 
 @pytest.mark.parametrize("port", ["70000", "-1", "http"])
@@ -85,7 +66,7 @@ def test_listening_beyond_loopback_warns():
     s = Server("--host", "0.0.0.0", "--workers", "0")
     try:
         s.p.send_signal(signal.SIGINT)
-        out, err = s.p.communicate(timeout=HANG_S)
+        err = s.stderr(HANG_S)
     finally:
         s.kill()
     assert "anyone who can reach it on the network can use the dashboard" in err
@@ -144,7 +125,7 @@ def test_every_signal_leaves_no_descendant(sig):
         assert len(desc) >= 3, desc  # two pool workers and the resource tracker
         s.p.send_signal(sig)
         s.p.wait(timeout=60)
-        out, err = s.p.communicate(timeout=10)
+        out, err = s.stdout(10), s.stderr(10)
         left = gone_within(desc, 60)
     finally:
         if tab is not None:
