@@ -200,6 +200,7 @@ def channel_names(system: LTISystem) -> tuple[str, ...]:
 
 def _build(frame: FrameView) -> go.Figure:
     k = min(max(int(frame.values.view_channel), 0), frame.system.n + frame.system.m - 1)
+    assert frame.ex is not None  # a frame the views draw holds its experiment
     d = channel_demo(frame.ex, k, frame.bits, window=120)
     d.label = channel_names(frame.system)[k]  # "x: angle" rather than the engine's "x1"
     return quantizer_figure(d)

@@ -128,6 +128,19 @@ def _auto_rho(P: np.ndarray, pmin: float, pmax: float, x0: ArrayLike | None) -> 
     return float(np.sqrt(pmax / pmin))
 
 
+def _delta(
+    pmin: float, pmax: float, rho: float, alpha1: float, alpha2: float, theta: float, dA: np.ndarray, dB: np.ndarray
+) -> tuple[np.float64, np.float64, np.float64, np.float64, np.float64]:
+    """``(delta, omega_v, ||dA||, ||dB||, C)`` of the proof of Theorem 3, in numpy scalars: an overflow gives inf
+    (explained by the caller), never OverflowError/ZeroDivisionError."""
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        omega_v = np.float64(2.0) * pmax * rho
+        na, nb = np.float64(np.linalg.norm(dA)), np.float64(np.linalg.norm(dB))
+        C = omega_v**2 * (na**2 / (2 * np.float64(alpha1)) + nb**2 / (2 * np.float64(alpha2)))
+        delta = np.sqrt(pmax / np.float64(pmin) * 2 * C / (np.float64(theta) * alpha1))
+    return delta, omega_v, na, nb, C
+
+
 def ultimate_bound(
     P: np.ndarray,
     Q: np.ndarray,
@@ -179,9 +192,7 @@ def ultimate_bound(
         If theta is not in (0, 1), rho <= 0, or Q / R are not positive definite.
     """
     theta = check_float("theta", theta, 0.0, 1.0, lo_open=True, hi_open=True)
-    eq = np.linalg.eigvalsh(Q)
-    er = np.linalg.eigvalsh(R)
-    alpha1, alpha2 = float(eq.min()), float(er.min())
+    alpha1, alpha2 = float(np.linalg.eigvalsh(Q).min()), float(np.linalg.eigvalsh(R).min())
     if alpha1 <= 0 or alpha2 <= 0:
         raise ConfigError("the ultimate bound needs Q and R positive definite (letter, Assumption 4)")
     ep = np.linalg.eigvalsh((P + P.T) / 2)
@@ -205,12 +216,7 @@ def ultimate_bound(
             x0_norm=x0_norm,
         )
     rho = check_float("rho", _auto_rho(P, pmin, pmax, x0) if rho is None else rho, 0.0, lo_open=True)
-    # numpy scalars: an overflow gives inf (explained in the note), never OverflowError/ZeroDivisionError
-    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        omega_v = np.float64(2.0) * pmax * rho
-        na, nb = np.float64(np.linalg.norm(dA)), np.float64(np.linalg.norm(dB))
-        C = omega_v**2 * (na**2 / (2 * np.float64(alpha1)) + nb**2 / (2 * np.float64(alpha2)))
-        delta = np.sqrt(pmax / np.float64(pmin) * 2 * C / (np.float64(theta) * alpha1))
+    delta, omega_v, na, nb, C = _delta(pmin, pmax, rho, alpha1, alpha2, theta, dA, dB)
     note = ""
     if not np.isfinite(delta):
         delta = np.float64(np.inf)

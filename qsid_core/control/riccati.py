@@ -189,6 +189,27 @@ class LQParts:
         return ok
 
 
+def _prediction_maps(
+    A: np.ndarray, B: np.ndarray, K: np.ndarray, kf: np.ndarray
+) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """``(Fu, fu, Fx, fx)``: per step k the affine maps ``u_k = Fu[k] x0 + fu[k]`` and ``x_{k+1} = Fx[k] x0 + fx[k]``
+    of the law ``u_k = -K_k x_k - kf_k`` (shapes (L, m, n), (L, m), (L, n, n), (L, n))."""
+    L, n, _ = B.shape
+    Mx = np.broadcast_to(np.eye(n), (L, n, n))
+    mx = np.zeros((L, n))
+    Fu, fu, Fx, fx = [], [], [], []
+    for k in range(K.shape[1]):
+        Fk = -K[:, k] @ Mx
+        fk = -np.einsum("lij,lj->li", K[:, k], mx) - kf[:, k]
+        Mx = A @ Mx + B @ Fk
+        mx = np.einsum("lij,lj->li", A, mx) + np.einsum("lij,lj->li", B, fk)
+        Fu.append(Fk)
+        fu.append(fk)
+        Fx.append(Mx)
+        fx.append(mx)
+    return Fu, fu, Fx, fx
+
+
 def lq_parts(
     A: np.ndarray,
     B: np.ndarray,
@@ -242,18 +263,7 @@ def lq_parts(
         P = Q + At @ P @ A - np.swapaxes(BtP @ A, 1, 2) @ Kk
         P = (P + np.swapaxes(P, 1, 2)) / 2
         K[:, k], kf[:, k] = Kk, kk
-    Mx = np.broadcast_to(np.eye(n), (L, n, n))
-    mx = np.zeros((L, n))
-    Fu, fu, Fx, fx = [], [], [], []
-    for k in range(N):
-        Fk = -K[:, k] @ Mx
-        fk = -np.einsum("lij,lj->li", K[:, k], mx) - kf[:, k]
-        Mx = A @ Mx + B @ Fk
-        mx = np.einsum("lij,lj->li", A, mx) + np.einsum("lij,lj->li", B, fk)
-        Fu.append(Fk)
-        fu.append(fk)
-        Fx.append(Mx)
-        fx.append(mx)
+    Fu, fu, Fx, fx = _prediction_maps(A, B, K, kf)
     F, f, bound = list(Fu), list(fu), [np.asarray(u_max, dtype=float)] * N
     xb = state_box(n, N, x_max, xf_max)
     if xb is not None:

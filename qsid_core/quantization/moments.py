@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..errors import ConfigError, check_choice
 from ..plant.data import Dataset
@@ -273,6 +274,20 @@ def _gram(
     )
 
 
+def _cell_counts(
+    chans: Sequence[tuple[int | None, ...]], spec: QuantizerSpec
+) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]:
+    """``(quant, half, scale)`` for the channel word lengths ``chans`` (one tuple per b; None: exact):
+    which channels are quantized (p,), half the cell count ``2^(b-1)`` and the cells the range spans
+    (``2^b`` less the guard band), both (len(chans), p), 1 for exact channels."""
+    quant = np.array([c is not None for c in chans[0]])
+    half = np.array([[2.0 ** (c - 1) if c is not None else 1.0 for c in ch] for ch in chans])
+    scale = np.array(
+        [[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch] for ch in chans]
+    )
+    return quant, half, scale
+
+
 def quantized_moments(
     prep: PreparedData,
     bits: list[int] | tuple[int, ...],
@@ -335,11 +350,7 @@ def quantized_moments(
     N, p = yc.shape
     S1 = prep.steps + 1
     chans = [channel_bits(b, prep.n, prep.m, input_bits, state_bits) for b in bits]
-    quant = np.array([c is not None for c in chans[0]])
-    half = np.array([[2.0 ** (c - 1) if c is not None else 1.0 for c in ch] for ch in chans])
-    scale = np.array(
-        [[2.0**c - 2.0 * guard_cells(spec.dither, spec.guard, c) if c is not None else 1.0 for c in ch] for ch in chans]
-    )
+    quant, half, scale = _cell_counts(chans, spec)
     acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
     fast = unrolled.kernel(p, prep.n) if compiled else None  # None: the generic kernel
     for start in range(0, N, CHUNK_ROWS):

@@ -19,12 +19,17 @@ signal; for a coarse quantizer or a slowly varying signal it is correlated with 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol, TypedDict
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError, check_float, check_int
+from ..plant.data import Dataset
+from ..plant.lti import LTISystem
 from ..validate import MAX_MAGNITUDE
-from .quantize import MAX_BITS, effective_ranges, quantize
+from .moments import PreparedData
+from .quantize import MAX_BITS, QuantizerSpec, effective_ranges, quantize
 
 __all__ = ["QuantizerDemo", "quantizer_demo", "channel_demo", "SCATTER_POINTS", "CELL_BINS"]
 
@@ -141,8 +146,43 @@ def _corr(e: np.ndarray, x: np.ndarray) -> float:
     return float(np.mean((e - e.mean()) * (x - x.mean())) / (se * sx))
 
 
+class _ErrorStats(TypedDict):
+    var_dithered: float
+    var_plain: float
+    var_theory: float
+    var_sampling_std: float
+    mean_dithered: float
+    mean_plain: float
+    corr_dithered: float
+    corr_plain: float
+    cell_dependence_dithered: float
+    cell_dependence_plain: float
+    outside_dithered: float
+    outside_plain: float
+
+
+def _error_stats(x: np.ndarray, ed: np.ndarray, ep: np.ndarray, lo_q: float, eps: float) -> _ErrorStats:
+    """The statistics of the errors with dither ``ed`` and without ``ep`` (shape (N,)) of signal ``x``."""
+    tol = 1e-12 * max(eps, 1.0)
+    pos = np.mod((x - lo_q) / eps, 1.0)
+    return _ErrorStats(
+        var_dithered=float(ed.var()),
+        var_plain=float(ep.var()),
+        var_theory=eps**2 / 12.0,
+        var_sampling_std=float(eps**2 / np.sqrt(180.0 * x.size)),
+        mean_dithered=float(ed.mean()),
+        mean_plain=float(ep.mean()),
+        corr_dithered=_corr(ed, x),
+        corr_plain=_corr(ep, x),
+        cell_dependence_dithered=_cell_dependence(ed, pos),
+        cell_dependence_plain=_cell_dependence(ep, pos),
+        outside_dithered=float(np.mean(np.abs(ed) > eps / 2 + tol)),
+        outside_plain=float(np.mean(np.abs(ep) > eps / 2 + tol)),
+    )
+
+
 def quantizer_demo(
-    signal,
+    signal: ArrayLike,
     lo: float,
     hi: float,
     bits: int,
@@ -195,21 +235,19 @@ def quantizer_demo(
     rng = np.random.default_rng(seed)
     qd = quantize(x, lo, hi, bits, dither="subtractive", guard=guard, rng=rng)
     qp = quantize(x, lo, hi, bits, dither="none", guard=guard)
-    lo_q, eps = effective_ranges(np.float64(lo), np.float64(hi), bits, guard)
-    eps = float(eps)
+    lo_arr, eps_arr = effective_ranges(np.array([lo], dtype=float), np.array([hi], dtype=float), bits, guard)
+    lo_q, eps = float(lo_arr[0]), float(eps_arr[0])
     ed, ep = x - qd.values, x - qp.values
     edges = np.linspace(-eps / 2, eps / 2, bins + 1)
     N = x.size
     hd = np.histogram(ed, bins=edges)[0] / (N * np.diff(edges))
     hp = np.histogram(ep, bins=edges)[0] / (N * np.diff(edges))
-    tol = 1e-12 * max(eps, 1.0)
     sl = slice(start, min(start + window, N))
-    pos = np.mod((x - float(lo_q)) / eps, 1.0)
     pick = np.unique(np.linspace(0, N - 1, min(N, SCATTER_POINTS)).astype(int))
     return QuantizerDemo(
         bits=bits,
         eps=eps,
-        lo_q=float(lo_q),
+        lo_q=lo_q,
         hi_q=float(lo_q + 2.0**bits * eps),
         samples=N,
         t=np.arange(N)[sl],
@@ -222,29 +260,43 @@ def quantizer_demo(
         hist_dithered=hd,
         hist_plain=hp,
         uniform_density=1.0 / eps,
-        var_dithered=float(ed.var()),
-        var_plain=float(ep.var()),
-        var_theory=eps**2 / 12.0,
-        var_sampling_std=eps**2 / np.sqrt(180.0 * N),
-        mean_dithered=float(ed.mean()),
-        mean_plain=float(ep.mean()),
-        corr_dithered=_corr(ed, x),
-        corr_plain=_corr(ep, x),
-        cell_dependence_dithered=_cell_dependence(ed, pos),
-        cell_dependence_plain=_cell_dependence(ep, pos),
+        **_error_stats(x, ed, ep, lo_q, eps),
         scatter_x=x[pick],
         scatter_dithered=ed[pick],
         scatter_plain=ep[pick],
         overload_dithered=qd.overload_fraction,
         overload_plain=qp.overload_fraction,
-        outside_dithered=float(np.mean(np.abs(ed) > eps / 2 + tol)),
-        outside_plain=float(np.mean(np.abs(ep) > eps / 2 + tol)),
         label=label,
     )
 
 
+class _Recorded(Protocol):
+    """What :func:`channel_demo` reads of an experiment (:class:`~qsid_core.studies.experiment.Experiment`)."""
+
+    @property
+    def system(self) -> LTISystem: ...
+    @property
+    def data(self) -> Dataset: ...
+    @property
+    def prepared(self) -> PreparedData: ...
+    @property
+    def config(self) -> _WithQuantizer: ...
+
+
+class _WithQuantizer(Protocol):
+    @property
+    def quantizer(self) -> QuantizerSpec: ...
+
+
 def channel_demo(
-    ex, channel: int, bits: int, *, window: int = 200, max_samples: int = 100_000, bins: int = 30, seed: int | None = 0
+    ex: _Recorded,
+    channel: int,
+    bits: int,
+    *,
+    window: int = 200,
+    max_samples: int = 100_000,
+    bins: int = 30,
+    seed: int | None = 0,
 ) -> QuantizerDemo:
     """:func:`quantizer_demo` for one channel of an experiment's training data, with its quantizer range.
 
