@@ -11,7 +11,6 @@ from .assumptions import (
     STATIONARITY_MARGIN,
     Assumptions,
     assess,
-    clipping_effect,
     finite_data_fluctuation,
     range_words,
 )
@@ -25,6 +24,7 @@ from .bits import (
     realized_small_gain,
     wilson_interval,
 )
+from .clipping import clipping_effect
 from .config import SweepConfig, parse_bits, parse_input_bits, parse_noise, parse_state_bits
 from .config_checks import check_run_args, check_sweep_parts
 from .datalength import (

@@ -216,6 +216,29 @@ def _prefix(data: Dataset, runs: int, steps: int) -> Dataset:
     return Dataset(data.states[:runs, : steps + 1], data.inputs[:runs, :steps], data.seed, data.input_amplitude)
 
 
+def _row(
+    runs: int, steps: int, res: np.ndarray, prep: PreparedData, system: LTISystem, eps: np.ndarray, dither: str
+) -> DataLengthRow:
+    """The row of one data length from the realizations' results ``res`` (R, 6) and Theorem 1's prediction for
+    the data ``prep``."""
+    n = system.n
+    Gp = theorem1_prediction(system.G, prep.exact.PP / prep.exact.T, eps, dither)
+    tA, tB = relative_errors(Gp[:, :n], Gp[:, n:], system.A, system.B)
+    return DataLengthRow(
+        runs * steps,
+        runs,
+        steps,
+        Stats.of(res[:, 0]),
+        Stats.of(res[:, 1]),
+        Stats.of(res[:, 2]),
+        Stats.of(res[:, 3]),
+        tA,
+        tB,
+        float(res[:, 5].mean()),
+        int(res[:, 4].sum()),
+    )
+
+
 def run_datalength(
     config: DataLengthConfig,
     executor: Executor | None = None,
@@ -274,25 +297,7 @@ def run_datalength(
                 progress(done, total, f"T = {runs * steps} ({runs} x {steps})")
         if cancelled:
             break
-        res = np.vstack(parts)
-        Sig = prep.exact.PP / prep.exact.T
-        Gp = theorem1_prediction(system.G, Sig, eps, q.dither)
-        tA, tB = relative_errors(Gp[:, :n], Gp[:, n:], system.A, system.B)
-        rows.append(
-            DataLengthRow(
-                runs * steps,
-                runs,
-                steps,
-                Stats.of(res[:, 0]),
-                Stats.of(res[:, 1]),
-                Stats.of(res[:, 2]),
-                Stats.of(res[:, 3]),
-                tA,
-                tB,
-                float(res[:, 5].mean()),
-                int(res[:, 4].sum()),
-            )
-        )
+        rows.append(_row(runs, steps, np.vstack(parts), prep, system, eps, q.dither))
     if cancelled:
         for fl in futs:
             for f in fl:

@@ -238,6 +238,36 @@ def _bound_flags(th: TheoryAtBits, realized: RealizedBounds | None) -> dict[str,
     return out
 
 
+def _loop_fields(lp: ClosedLoops, u_max: Any) -> dict[str, Any]:
+    """The closed loops' fields of a :class:`SummaryRow`: cost, final norms, QP steps, errors, saturation
+    (when ``u_max`` is known) and verdicts."""
+    kw: dict[str, Any] = {}
+    failed = lp.failed
+    fsn = lp.final_state_norm[~failed]
+    kinds: dict[str, int] = {}
+    for f in lp.failure:
+        if f:
+            kinds[f] = kinds.get(f, 0) + 1
+    kw["mpc_cost"] = {**Stats.of(lp.cost).to_dict(), "failed": int(failed.sum()), "failures": kinds}
+    kw["final_state_norm"] = {
+        "mean": float(fsn.mean()) if fsn.size else None,
+        "max": float(fsn.max()) if fsn.size else None,
+    }
+    kw["qp_steps"] = lp.qp_steps
+    for key, vals in (("steady_state_error", lp.steady_state_error), ("tracking_error", lp.tracking_error)):
+        ok = vals[np.isfinite(vals)]
+        kw[key] = {"mean": float(ok.mean()) if ok.size else None, "max": float(ok.max()) if ok.size else None}
+    if u_max is not _UNKNOWN:
+        k, loops = saturated_steps(lp.inputs, u_max)
+        kw["saturated_steps"] = {
+            "steps": k,
+            "loops": loops,
+            "of_steps": int(lp.inputs.shape[0] * lp.inputs.shape[1]),
+        }
+    kw.update(_loop_verdicts(lp))
+    return kw
+
+
 def build_row(
     n: int,
     ident: BitsIdentification,
@@ -265,31 +295,7 @@ def build_row(
     assumptions : Assumptions, optional
         From :meth:`Experiment.assumptions`.
     """
-    kw: dict[str, Any] = {}
-    if lp is not None:
-        failed = lp.failed
-        fsn = lp.final_state_norm[~failed]
-        kinds: dict[str, int] = {}
-        for f in lp.failure:
-            if f:
-                kinds[f] = kinds.get(f, 0) + 1
-        kw["mpc_cost"] = {**Stats.of(lp.cost).to_dict(), "failed": int(failed.sum()), "failures": kinds}
-        kw["final_state_norm"] = {
-            "mean": float(fsn.mean()) if fsn.size else None,
-            "max": float(fsn.max()) if fsn.size else None,
-        }
-        kw["qp_steps"] = lp.qp_steps
-        for key, vals in (("steady_state_error", lp.steady_state_error), ("tracking_error", lp.tracking_error)):
-            ok = vals[np.isfinite(vals)]
-            kw[key] = {"mean": float(ok.mean()) if ok.size else None, "max": float(ok.max()) if ok.size else None}
-        if u_max is not _UNKNOWN:
-            k, loops = saturated_steps(lp.inputs, u_max)
-            kw["saturated_steps"] = {
-                "steps": k,
-                "loops": loops,
-                "of_steps": int(lp.inputs.shape[0] * lp.inputs.shape[1]),
-            }
-        kw.update(_loop_verdicts(lp))
+    kw: dict[str, Any] = _loop_fields(lp, u_max) if lp is not None else {}
     kw.update(_bound_flags(th, realized))
     cm = ident.controllability
     cm_ok = cm[np.isfinite(cm)]

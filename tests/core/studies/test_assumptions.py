@@ -63,7 +63,7 @@ def test_fluctuation_scales_like_eps_over_sqrt_T():
 def test_data_extremes_match_the_regression_matrices_and_decide_clipping_alike():
     from qsid_core.plant.data import simulate
     from qsid_core.plant.systems import get_system
-    from qsid_core.studies.assumptions import clipping_effect, clips_nothing
+    from qsid_core.studies.clipping import clipping_effect, clips_nothing
 
     sysm = get_system("dc-motor")
     data = simulate(sysm, trajectories=7, steps=30, seed=3)
