@@ -86,7 +86,7 @@ def transport_probe(prep, workers: int, k: int) -> dict:
     The task is the builtin ``id`` (importable on every worker): its time is the
     cost of getting the data to the worker and the result back.
     """
-    from app.distributed import make_executor
+    from app.dask_cluster import make_executor
 
     out = {}
     with make_executor(f"local:{workers}") as ex:
@@ -128,7 +128,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--tasks", type=int, default=4, help="chunks the realizations are split into")
     ap.add_argument("--probe-tasks", type=int, default=20, help="tasks of the transport probe")
     a = ap.parse_args(argv)
-    from app.distributed import make_executor
+    from app.dask_cluster import make_executor
 
     cfg = SweepConfig(**QUICK) if a.quick else SweepConfig()
     prep = Experiment(cfg).prepared

@@ -6,9 +6,10 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
+from .files import input_files, out_file, write_text
 from .output import dumps, g
 from .parser import add_run_options
-from .runner import UsageError, bits_text, config, executor, input_files, out_file, system_from_args, write_text
+from .runner import UsageError, bits_text, config, executor, system_from_args
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

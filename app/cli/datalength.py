@@ -12,6 +12,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
+from .files import input_files, out_file, write_text
 from .output import dumps, g
 from .parser import (
     _float_type,
@@ -20,7 +21,7 @@ from .parser import (
     add_running_options,
     pos_int,
 )
-from .runner import _quantizer, executor, input_files, out_file, resolve_system, write_text
+from .runner import _quantizer, executor, resolve_system
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

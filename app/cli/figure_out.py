@@ -12,7 +12,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .runner import Reporter, UsageError, out_file
+from .files import out_file
+from .runner import Reporter, UsageError
 
 if TYPE_CHECKING:
     import plotly.graph_objects as go

@@ -9,9 +9,10 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from .files import out_file, write_text
 from .output import dumps
 from .parser import _nonneg_int, add_quantizer_options, engine, pos_int
-from .runner import UsageError, _quantizer, out_file, resolve_system, write_text
+from .runner import UsageError, _quantizer, resolve_system
 
 if TYPE_CHECKING:
     from .runner import Reporter

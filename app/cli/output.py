@@ -248,6 +248,74 @@ def _what_if_lines(c: dict) -> list:
     return ["; ".join(parts)] if parts else []
 
 
+def _table_row(r: dict[str, Any], noisy: bool, tracking: bool) -> list[str]:
+    """The cells of one b's row of :func:`format_table`."""
+    eps = list(r["eps_x"]) + list(r["eps_u"])
+    cost = r.get("mpc_cost")
+    cost_s = "-" if cost is None else f"{g(cost.get('mean'), '.4g')} ({cost.get('failed', 0)})"
+    fsn = r.get("final_state_norm")
+    row = [
+        str(r["bits"]),
+        f"{min(eps):.2e}..{max(eps):.2e}",
+        _pm(r["err_A"]),
+        g(r["err_A_theory"], ".3e"),
+        _pm(r["err_B"]),
+        g(r["err_B_theory"], ".3e"),
+        f"{100 * r['overload_fraction']:.2f}%",
+        cost_s,
+        _stabilized(r),
+        g(r["ultimate_bound"], ".3e") + ("" if r.get("bound_self_consistent") is not False else "*"),
+        "-" if fsn is None else g(fsn.get("mean"), ".2e"),
+        _flags(r),
+    ]
+    if noisy:
+        row.insert(10, g((r.get("steady_state_error") or {}).get("mean"), ".3e"))
+    if tracking:
+        row.insert(10, g((r.get("tracking_error") or {}).get("mean"), ".4e"))
+    return row
+
+
+def _settings_line(system: str, c: dict[str, Any]) -> str:
+    """The first line of :func:`format_table`: the sweep's settings."""
+    return (
+        f"system {system}: {c['trajectories']} x {c['steps']} samples, {c['realizations']} realizations, "
+        f"range {c['range']}{_limits_text(c)}{' + guard' if c['guard'] else ', no guard'}, "
+        f"inputs U[-{c.get('input_amplitude', 1):g}, {c.get('input_amplitude', 1):g}], dither {c['dither']}, estimator {c['estimator']}"
+        + (
+            ""
+            if c["mpc"] is None
+            else f", MPC horizon {c['mpc']['horizon']}, {c['mpc']['steps']} steps, u_max "
+            f"{','.join(format(u, 'g') for u in c['mpc']['u_max'])}"
+        )
+    )
+
+
+def _closing_lines(d: dict[str, Any], c: dict[str, Any], noisy: bool) -> list[str]:
+    """The lines under the table: MPC failures, the noisy loop, verdicts, bounds, assumptions, BCLS."""
+    lines: list[str] = []
+    fails: dict[str, int] = {}
+    for r in d["results"]:
+        for kind, k in ((r.get("mpc_cost") or {}).get("failures") or {}).items():
+            fails[kind] = fails.get(kind, 0) + k
+    if fails:
+        lines.append("MPC failures by kind: " + ", ".join(f"{k} {v}" for k, v in sorted(fails.items())))
+    if noisy:
+        lines.append(real_loop_line(d))
+    lines.extend(verdict_lines(d["results"]))
+    lines.extend(bound_lines(d["results"]))
+    lines.extend(assumptions_lines(d["results"]))
+    bc = d.get("bcls") or {}
+    if bc.get("reason"):
+        lines.append(
+            f"BCLS not applicable with {c.get('dither')} dither: {bc['reason']}"
+            + ("; BCLS used a nominal D = eps^2/12" if c.get("estimator") == "bcls" else "")
+        )
+    fb = sum(r.get("bcls_fallbacks", 0) for r in d["results"])
+    if fb:
+        lines.append(f"BCLS fell back to LS in {fb} realization(s) (corrected Gram matrix not positive definite)")
+    return lines
+
+
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = [
@@ -270,32 +338,7 @@ def format_table(d: dict) -> str:
         head.insert(10, "steady err")
     if m.get("reference"):
         head.insert(10, "tracking err")
-    rows = []
-    for r in d["results"]:
-        eps = list(r["eps_x"]) + list(r["eps_u"])
-        cost = r.get("mpc_cost")
-        cost_s = "-" if cost is None else f"{g(cost.get('mean'), '.4g')} ({cost.get('failed', 0)})"
-        fsn = r.get("final_state_norm")
-        rows.append(
-            [
-                str(r["bits"]),
-                f"{min(eps):.2e}..{max(eps):.2e}",
-                _pm(r["err_A"]),
-                g(r["err_A_theory"], ".3e"),
-                _pm(r["err_B"]),
-                g(r["err_B_theory"], ".3e"),
-                f"{100 * r['overload_fraction']:.2f}%",
-                cost_s,
-                _stabilized(r),
-                g(r["ultimate_bound"], ".3e") + ("" if r.get("bound_self_consistent") is not False else "*"),
-                "-" if fsn is None else g(fsn.get("mean"), ".2e"),
-                _flags(r),
-            ]
-        )
-        if noisy:
-            rows[-1].insert(10, g((r.get("steady_state_error") or {}).get("mean"), ".3e"))
-        if m.get("reference"):
-            rows[-1].insert(10, g((r.get("tracking_error") or {}).get("mean"), ".4e"))
+    rows = [_table_row(r, noisy, bool(m.get("reference"))) for r in d["results"]]
     # hand-written rather than rich.Table: this exact plain-text layout is the documented, diff-able stdout
     widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
     left = {1}
@@ -305,15 +348,7 @@ def format_table(d: dict) -> str:
 
     c = d["config"]
     lines = [
-        f"system {d['system']}: {c['trajectories']} x {c['steps']} samples, {c['realizations']} realizations, "
-        f"range {c['range']}{_limits_text(c)}{' + guard' if c['guard'] else ', no guard'}, "
-        f"inputs U[-{c.get('input_amplitude', 1):g}, {c.get('input_amplitude', 1):g}], dither {c['dither']}, estimator {c['estimator']}"
-        + (
-            ""
-            if c["mpc"] is None
-            else f", MPC horizon {c['mpc']['horizon']}, {c['mpc']['steps']} steps, u_max "
-            f"{','.join(format(u, 'g') for u in c['mpc']['u_max'])}"
-        ),
+        _settings_line(d["system"], c),
         *_what_if_lines(c),
         fmt(head),
         fmt(["-" * w for w in widths]),
@@ -327,24 +362,5 @@ def format_table(d: dict) -> str:
     true_cost = "MPC off" if c["mpc"] is None else f"true-model MPC cost {g(d.get('mpc_cost_true_model'), '.4g')}"
     timing = "time " + ", ".join(f"{k} {v:.2f} s" for k, v in t.items())
     lines.append(f"{slope}; {true_cost}; {timing}")
-    fails: dict = {}
-    for r in d["results"]:
-        for kind, k in ((r.get("mpc_cost") or {}).get("failures") or {}).items():
-            fails[kind] = fails.get(kind, 0) + k
-    if fails:
-        lines.append("MPC failures by kind: " + ", ".join(f"{k} {v}" for k, v in sorted(fails.items())))
-    if noisy:
-        lines.append(real_loop_line(d))
-    lines.extend(verdict_lines(d["results"]))
-    lines.extend(bound_lines(d["results"]))
-    lines.extend(assumptions_lines(d["results"]))
-    bc = d.get("bcls") or {}
-    if bc.get("reason"):
-        lines.append(
-            f"BCLS not applicable with {c.get('dither')} dither: {bc['reason']}"
-            + ("; BCLS used a nominal D = eps^2/12" if c.get("estimator") == "bcls" else "")
-        )
-    fb = sum(r.get("bcls_fallbacks", 0) for r in d["results"])
-    if fb:
-        lines.append(f"BCLS fell back to LS in {fb} realization(s) (corrected Gram matrix not positive definite)")
+    lines += _closing_lines(d, c, noisy)
     return "\n".join(lines)

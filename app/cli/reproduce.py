@@ -17,9 +17,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .figure_out import check_formats, save_panels
+from .files import check_writable, input_files, write_text
 from .output import dumps, format_table, g
 from .parser import add_run_options
-from .runner import UsageError, bits_text, check_writable, config, input_files, system_from_args, write_text
+from .runner import UsageError, bits_text, config, system_from_args
 from .runner import run as run_sweep
 
 if TYPE_CHECKING:

@@ -6,9 +6,10 @@ import argparse
 from typing import TYPE_CHECKING
 
 from .figure_out import add_figure_arguments, check_figure, write_figure
+from .files import input_files, out_file, write_text
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
-from .runner import UsageError, input_files, out_file, system_from_args, write_text
+from .runner import UsageError, system_from_args
 from .runner import run as run_sweep
 
 if TYPE_CHECKING:

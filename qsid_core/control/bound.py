@@ -141,6 +141,35 @@ def _delta(
     return delta, omega_v, na, nb, C
 
 
+def _no_lyapunov(
+    pmin: float,
+    pmax: float,
+    alpha1: float,
+    alpha2: float,
+    theta: float,
+    dA: np.ndarray,
+    dB: np.ndarray,
+    x0_norm: float,
+) -> UltimateBound:
+    """No bound: ``P`` is not positive definite, so ``V(x) = x'Px`` is no Lyapunov function."""
+    return UltimateBound(
+        float("inf"),
+        pmin,
+        pmax,
+        alpha1,
+        alpha2,
+        float("inf"),
+        float("nan"),
+        theta,
+        float(np.linalg.norm(dA)),
+        float(np.linalg.norm(dB)),
+        float("inf"),
+        note=f"no bound: the Riccati matrix P is not positive definite "
+        f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function",
+        x0_norm=x0_norm,
+    )
+
+
 def ultimate_bound(
     P: np.ndarray,
     Q: np.ndarray,
@@ -199,22 +228,7 @@ def ultimate_bound(
     pmin, pmax = float(ep.min()), float(ep.max())
     x0_norm = float(np.linalg.norm(x0)) if x0 is not None else float("nan")
     if not (pmin > 0 and np.isfinite(pmax)):
-        return UltimateBound(
-            float("inf"),
-            pmin,
-            pmax,
-            alpha1,
-            alpha2,
-            float("inf"),
-            float("nan"),
-            theta,
-            float(np.linalg.norm(dA)),
-            float(np.linalg.norm(dB)),
-            float("inf"),
-            note=f"no bound: the Riccati matrix P is not positive definite "
-            f"(lambda_min(P) = {pmin:.3g}), so V(x) = x'Px is no Lyapunov function",
-            x0_norm=x0_norm,
-        )
+        return _no_lyapunov(pmin, pmax, alpha1, alpha2, theta, dA, dB, x0_norm)
     rho = check_float("rho", _auto_rho(P, pmin, pmax, x0) if rho is None else rho, 0.0, lo_open=True)
     delta, omega_v, na, nb, C = _delta(pmin, pmax, rho, alpha1, alpha2, theta, dA, dB)
     note = ""

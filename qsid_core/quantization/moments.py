@@ -357,18 +357,8 @@ def quantized_moments(
         y = yc[start : start + CHUNK_ROWS]
         u = draw_dither_units(rng, y.shape, spec.dither) if dithered and rng is not None else None
         if compiled:
-            kernels.accumulate_chunk(
-                y,
-                np.zeros_like(y) if u is None else u,
-                scale,
-                half,
-                start,
-                S1,
-                *acc.arrays(),
-                sub=sub,
-                quant=quant,
-                kernel=fast,
-            )
+            u0 = np.zeros_like(y) if u is None else u
+            kernels.accumulate_chunk(y, u0, scale, half, start, S1, *acc.arrays(), sub=sub, quant=quant, kernel=fast)
         else:
             _chunk_numpy(y, u, sub, scale, half, quant, start, S1, acc)
     return [_gram(prep, ch, scale[j], spec, acc, j, compiled) for j, ch in enumerate(chans)]

@@ -2,7 +2,7 @@
 
 The cluster tests start ``dask scheduler`` and ``dask worker`` as separate
 processes on 127.0.0.1 (random ports, no dashboards, one thread per worker),
-run tiny sweeps through :func:`app.distributed.make_executor` and compare the
+run tiny sweeps through :func:`app.dask_cluster.make_executor` and compare the
 JSON with the in-process run (timings excluded). They skip only when the
 ``distributed`` package is missing; with ``QSID_REQUIRE_DISTRIBUTED=1`` (set by
 .ci/run) a missing package fails instead.
@@ -20,7 +20,8 @@ import pytest
 from support import HANG_S, dask_cluster, wait_until
 from support import need_distributed as _need_distributed
 
-from app.distributed import ClusterError, DaskExecutor, make_executor, parse_dask_spec
+from app.dask_cluster import make_executor
+from app.distributed import ClusterError, DaskExecutor, parse_dask_spec
 from qsid_core import SweepConfig, run_sweep
 from qsid_core.errors import ConfigError
 
