@@ -309,7 +309,7 @@ def test_osqp_setup_rejection_is_a_recorded_mpc_failure():
 
 
 def test_theory_singular_riccati_is_recorded_not_raised(monkeypatch):
-    import qsid_core.studies.experiment as exp
+    import qsid_core.studies.theory_stage as exp
 
     def singular(*a, **k):
         raise np.linalg.LinAlgError("Singular matrix")
