@@ -54,3 +54,12 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.get_closest_marker("browser") or item.get_closest_marker("cluster"):
             item.add_marker(pytest.mark.slow)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """``QSID_FUZZ_REPORT=FILE``: what every fuzzed engine call gave, per entry point (support.fuzz_call)."""
+    path = os.environ.get("QSID_FUZZ_REPORT")
+    if path:
+        from support import write_fuzz_report
+
+        write_fuzz_report(path)

@@ -6,7 +6,9 @@
 * :func:`dask_cluster` and :func:`need_distributed`: a real dask scheduler and workers on 127.0.0.1;
 * from ``benchmarks/_support.py`` (shared with the benchmarks, which must not need pytest): the camera
   message, the websocket connection, the process tree (:func:`descendants`, :func:`alive`, ...) and
-  :class:`DashboardProcess`, the server as a child process.
+  :class:`DashboardProcess`, the server as a child process;
+* :func:`fuzz_call` and :func:`fuzz_no_nan`: an engine call watched for non-engine exceptions, hangs and
+  unflagged NaN, counted per entry point (``QSID_FUZZ_REPORT``; benchmarks/fuzz_engine.py).
 
 Every wait here is a liveness guard against a hang, never a speed claim: :data:`HANG_S` is minutes,
 so a busy machine only makes a test slower, never red.
@@ -22,6 +24,9 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
+from collections import Counter, defaultdict
+from contextlib import contextmanager
 from pathlib import Path
 
 import msgspec
@@ -213,3 +218,75 @@ def dask_cluster(tmp: Path, workers: int = 2):
     finally:
         for p in reversed(procs):
             kill_group(p)
+
+
+# ------------------------------------------------------------------------------------------------
+# fuzzing the engine's entry points
+# ------------------------------------------------------------------------------------------------
+
+#: Seconds one call may run before it counts as a hang (a liveness guard, not a speed claim).
+FUZZ_HANG_S = 120.0
+
+#: entry point -> outcome -> count, written to ``QSID_FUZZ_REPORT`` at the end of the session.
+FUZZ_OUTCOMES: dict[str, Counter[str]] = defaultdict(Counter)
+
+
+class Hang(Exception):
+    """A call ran past :data:`FUZZ_HANG_S`."""
+
+
+@contextmanager
+def _watch(seconds: float):
+    def alarm(signum, frame):
+        raise Hang(f"no answer within {seconds:.0f} s")
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def fuzz_call(name, fn, *a, **k):
+    """Run ``fn``: its result, or None for a QsidError with a message; anything else fails the test."""
+    from qsid_core.errors import QsidError
+
+    with warnings.catch_warnings(), _watch(FUZZ_HANG_S):
+        warnings.simplefilter("ignore")
+        try:
+            out = fn(*a, **k)
+        except QsidError as exc:
+            FUZZ_OUTCOMES[name]["engine error"] += 1
+            assert str(exc).strip(), "an engine error must say what is wrong"
+            return None
+        except Hang:
+            FUZZ_OUTCOMES[name]["hang"] += 1
+            raise
+        except Exception:
+            FUZZ_OUTCOMES[name]["other exception"] += 1
+            raise
+    FUZZ_OUTCOMES[name]["result"] += 1
+    return out
+
+
+def fuzz_no_nan(name, *arrays, flagged=None):
+    """Every number finite where not ``flagged`` (a boolean mask of rows flagged as failed)."""
+    import numpy as np
+
+    for a in arrays:
+        a = np.asarray(a, dtype=float)
+        if flagged is not None:
+            a = a[~np.asarray(flagged)]
+        if not np.all(np.isfinite(a)):
+            FUZZ_OUTCOMES[name]["unflagged NaN"] += 1
+            raise AssertionError(f"{name}: a non-finite number that is not flagged")
+
+
+def write_fuzz_report(path: str) -> None:
+    """Add :data:`FUZZ_OUTCOMES` to the JSON counts in ``path`` (``QSID_FUZZ_REPORT``; see benchmarks/fuzz_engine.py)."""
+    old = json.loads(Path(path).read_text()) if Path(path).exists() else {}
+    for k, c in FUZZ_OUTCOMES.items():
+        old[k] = dict(Counter(old.get(k, {})) + c)
+    Path(path).write_text(json.dumps(old, indent=1, sort_keys=True))

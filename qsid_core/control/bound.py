@@ -329,6 +329,19 @@ def _solve_each(M: np.ndarray, Y: np.ndarray) -> np.ndarray:
         return out
 
 
+def _weights(Q: ArrayLike, R: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``Q`` symmetric positive semidefinite and ``R`` symmetric positive definite, as float arrays."""
+    Qa, Ra = as_float_array("Q", Q, max_abs=None), as_float_array("R", R, max_abs=None)
+    for name, W, strict in (("Q", Qa, False), ("R", Ra, True)):
+        if W.ndim != 2 or W.shape[0] != W.shape[1] or not np.allclose(W, W.T):
+            raise ConfigError(f"{name} must be a symmetric square matrix; got shape {W.shape}")
+        low = float(np.linalg.eigvalsh(W).min())
+        if low < 0 or (strict and low <= 0):
+            need = "positive definite" if strict else "positive semidefinite"
+            raise ConfigError(f"{name} must be {need}; its smallest eigenvalue is {low:g}")
+    return Qa, Ra
+
+
 @dataclass
 class RealizedBounds:
     """A-posteriori ultimate bounds, one per realization (see :func:`realized_bounds`).
@@ -416,6 +429,7 @@ def realized_bounds(
     from ..errors import MPCFailure
     from .riccati import dare_batch, dare_stabilizing
 
+    Q, R = _weights(Q, R)
     Rn = len(models)
     delta = np.full(Rn, np.nan)
     rhos = np.full(Rn, np.nan)

@@ -2,7 +2,7 @@
 
 A hypothesis test per entry point not already fuzzed in ``test_engine_inputs.py``, and the three findings of
 the issue's 78,000-example hunt as plain regression tests. Each call is watched: an exception that is not a
-:class:`~qsid_core.errors.QsidError` fails, a call that runs past :data:`HANG_S` fails as a hang, and a result
+:class:`~qsid_core.errors.QsidError` fails, a call that runs past :data:`support.FUZZ_HANG_S` fails as a hang, and a result
 with a NaN that is not flagged fails.
 
 ``QSID_FUZZ_EXAMPLES=N QSID_FUZZ_RANDOM=1`` runs a longer, randomized hunt; ``QSID_FUZZ_REPORT=FILE`` writes
@@ -14,15 +14,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import signal
-import warnings
-from collections import Counter, defaultdict
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support import fuzz_call, fuzz_no_nan
 
 from qsid_core import (
     DataLengthConfig,
@@ -53,74 +50,6 @@ FUZZ = settings(
     database=None,
     suppress_health_check=list(HealthCheck),
 )
-
-#: Seconds one call may run before it counts as a hang (a liveness guard, not a speed claim).
-HANG_S = 120.0
-
-#: entry point -> outcome -> count, written to ``QSID_FUZZ_REPORT`` at the end of the session.
-OUTCOMES: dict[str, Counter[str]] = defaultdict(Counter)
-
-
-class Hang(Exception):
-    """A call ran past :data:`HANG_S`."""
-
-
-@contextmanager
-def _watch(seconds: float):
-    def alarm(signum, frame):
-        raise Hang(f"no answer within {seconds:.0f} s")
-
-    old = signal.signal(signal.SIGALRM, alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-
-
-def _call(name, fn, *a, **k):
-    """Run ``fn``: its result, or None for a QsidError with a message; anything else fails the test."""
-    with warnings.catch_warnings(), _watch(HANG_S):
-        warnings.simplefilter("ignore")
-        try:
-            out = fn(*a, **k)
-        except QsidError as exc:
-            OUTCOMES[name]["engine error"] += 1
-            assert str(exc).strip(), "an engine error must say what is wrong"
-            return None
-        except Hang:
-            OUTCOMES[name]["hang"] += 1
-            raise
-        except Exception:
-            OUTCOMES[name]["other exception"] += 1
-            raise
-    OUTCOMES[name]["result"] += 1
-    return out
-
-
-def _no_nan(name, *arrays, flagged=None):
-    """Every number finite where not ``flagged`` (a boolean mask of rows flagged as failed)."""
-    for a in arrays:
-        a = np.asarray(a, dtype=float)
-        if flagged is not None:
-            a = a[~np.asarray(flagged)]
-        if not np.all(np.isfinite(a)):
-            OUTCOMES[name]["unflagged NaN"] += 1
-            raise AssertionError(f"{name}: a non-finite number that is not flagged")
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _report():
-    yield
-    path = os.environ.get("QSID_FUZZ_REPORT")
-    if path:
-        old = json.loads(open(path).read()) if os.path.exists(path) else {}
-        for k, c in OUTCOMES.items():
-            old[k] = dict(Counter(old.get(k, {})) + c)
-        with open(path, "w") as f:
-            json.dump(old, f, indent=1, sort_keys=True)
-
 
 # ------------------------------------------------------------------------------------------------
 # the issue's three findings
@@ -204,7 +133,7 @@ def small_system(draw):
         kw["R"] = [draw(weight)] * m
     if draw(st.booleans()):
         kw["x0"] = [draw(st.sampled_from([0.0, 1.0, -3.0, 1e-300]))] * n
-    return _call("LTISystem", LTISystem, "fuzz", A, B, **kw)
+    return fuzz_call("LTISystem", LTISystem, "fuzz", A, B, **kw)
 
 
 @FUZZ
@@ -218,11 +147,11 @@ def small_system(draw):
 def test_fuzz_simulate(s, trajectories, steps, amplitude):
     if s is None:
         return
-    d = _call("simulate", simulate, s, trajectories, steps, 0, amplitude)
+    d = fuzz_call("simulate", simulate, s, trajectories, steps, 0, amplitude)
     if trajectories * steps >= 10**11:  # terabytes: refused before anything is allocated
         assert d is None
     if d is not None:
-        _no_nan("simulate", d.states, d.inputs)
+        fuzz_no_nan("simulate", d.states, d.inputs)
 
 
 @FUZZ
@@ -238,8 +167,8 @@ def test_fuzz_simulate(s, trajectories, steps, amplitude):
 def test_fuzz_moments_and_identify(s, bits, dither, range_mode, fixed, estimator):
     if s is None:
         return
-    d = _call("simulate", simulate, s, 3, 20, 0)
-    spec = _call(
+    d = fuzz_call("simulate", simulate, s, 3, 20, 0)
+    spec = fuzz_call(
         "QuantizerSpec",
         QuantizerSpec,
         dither=dither,
@@ -248,12 +177,12 @@ def test_fuzz_moments_and_identify(s, bits, dither, range_mode, fixed, estimator
     )
     if d is None or spec is None:
         return
-    prep = _call("prepare", prepare, d, spec)
+    prep = fuzz_call("prepare", prepare, d, spec)
     if prep is None:
         return
-    moms = _call("quantized_moments", quantized_moments, prep, bits, spec, np.random.default_rng(0))
+    moms = fuzz_call("quantized_moments", quantized_moments, prep, bits, spec, np.random.default_rng(0))
     for mom in moms or []:
-        ident = _call("identify", identify, mom, estimator)
+        ident = fuzz_call("identify", identify, mom, estimator)
         if ident is not None:
             G = np.hstack([ident.A, ident.B])
             assert np.all(np.isfinite(G)) or ident.note, "a non-finite model without a note"
@@ -268,9 +197,9 @@ def test_fuzz_moments_and_identify(s, bits, dither, range_mode, fixed, estimator
 )
 @pytest.mark.slow
 def test_fuzz_theorem1_prediction(G, sigma, eps, dither):
-    out = _call("theorem1_prediction", theorem1_prediction, np.array(G), sigma * np.eye(3), np.array(eps), dither)
+    out = fuzz_call("theorem1_prediction", theorem1_prediction, np.array(G), sigma * np.eye(3), np.array(eps), dither)
     if out is not None:
-        _no_nan("theorem1_prediction", out)
+        fuzz_no_nan("theorem1_prediction", out)
 
 
 @FUZZ
@@ -288,9 +217,9 @@ def test_fuzz_bounds(a, b, q, r, horizon, theta, with_qf):
     A = np.array(a).reshape(2, 2)
     B = np.array(b).reshape(2, 2)
     Q, R = q * np.eye(2), r * np.eye(2)
-    _call("riccati_finite", riccati_finite, A, B, Q, R, np.eye(2), horizon)
+    fuzz_call("riccati_finite", riccati_finite, A, B, Q, R, np.eye(2), horizon)
     models = [(A, B), (0.9 * A, B)]
-    rb = _call(
+    rb = fuzz_call(
         "realized_bounds",
         realized_bounds,
         models,
@@ -317,7 +246,7 @@ def test_fuzz_bounds(a, b, q, r, horizon, theta, with_qf):
 def test_fuzz_run_datalength(s, bits, samples, realizations):
     if s is None:
         return
-    cfg = _call(
+    cfg = fuzz_call(
         "DataLengthConfig",
         DataLengthConfig,
         system=s,
@@ -328,7 +257,7 @@ def test_fuzz_run_datalength(s, bits, samples, realizations):
         min_runs=1,
     )
     if cfg is not None:
-        res = _call("run_datalength", run_datalength, cfg)
+        res = fuzz_call("run_datalength", run_datalength, cfg)
         if res is not None:
             json.dumps(res.to_dict(), allow_nan=False)
 
@@ -343,9 +272,9 @@ def test_fuzz_run_datalength(s, bits, samples, realizations):
 )
 @pytest.mark.slow
 def test_fuzz_quantizer_demo(signal_, lo, hi, bits, window):
-    out = _call("quantizer_demo", quantizer_demo, np.array(signal_), lo, hi, bits, window=window)
+    out = fuzz_call("quantizer_demo", quantizer_demo, np.array(signal_), lo, hi, bits, window=window)
     if out is not None:
-        _no_nan("quantizer_demo", out.var_dithered, out.var_plain)
+        fuzz_no_nan("quantizer_demo", out.var_dithered, out.var_plain)
 
 
 @FUZZ
@@ -364,9 +293,9 @@ def test_fuzz_recorded(T, n, m, fill, bits, realizations):
     u = rng.uniform(-1, 1, (T, m))
     if T:
         x[T // 2, 0] = fill
-    data = _call("dataset_from_arrays", dataset_from_arrays, x, u)
+    data = fuzz_call("dataset_from_arrays", dataset_from_arrays, x, u)
     if data is not None:
-        res = _call("identify_recorded", identify_recorded, data, bits=bits, realizations=realizations)
+        res = fuzz_call("identify_recorded", identify_recorded, data, bits=bits, realizations=realizations)
         if res is not None:
             json.dumps(res.to_dict(), allow_nan=False)
 
@@ -384,10 +313,10 @@ def test_fuzz_recorded(T, n, m, fill, bits, realizations):
 def test_fuzz_run_sweep_degenerate_weights(s, q, r, x0, estimator, u_max):
     if s is None:
         return
-    mpc = _call("MPCConfig", MPCConfig, horizon=3, steps=8, Q=q, R=r, x0=x0, u_max=u_max)
+    mpc = fuzz_call("MPCConfig", MPCConfig, horizon=3, steps=8, Q=q, R=r, x0=x0, u_max=u_max)
     if mpc is None:
         return
-    cfg = _call(
+    cfg = fuzz_call(
         "SweepConfig",
         SweepConfig,
         system=s,
@@ -400,6 +329,6 @@ def test_fuzz_run_sweep_degenerate_weights(s, q, r, x0, estimator, u_max):
     )
     if cfg is None:
         return
-    res = _call("run_sweep", run_sweep, cfg)
+    res = fuzz_call("run_sweep", run_sweep, cfg)
     if res is not None:
         json.dumps(res.to_dict(), allow_nan=False)

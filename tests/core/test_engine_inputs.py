@@ -22,12 +22,12 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support import fuzz_call
 
 from qsid_core import (
     ConfigError,
     LTISystem,
     MPCConfig,
-    QsidError,
     QuantizerSpec,
     SweepConfig,
     SystemDefinitionError,
@@ -412,14 +412,8 @@ def _finite(*arrs) -> bool:
 
 
 def _call(fn, *a, **k):
-    """Run ``fn``: a QsidError is fine (returns None); any other exception fails the test."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            return fn(*a, **k)
-        except QsidError as exc:
-            assert str(exc).strip(), "an error must say what is wrong"
-            return None
+    """Run ``fn``: a QsidError is fine (returns None); any other exception fails the test (see support.fuzz_call)."""
+    return fuzz_call(getattr(fn, "__name__", type(fn).__name__), fn, *a, **k)
 
 
 @FUZZ

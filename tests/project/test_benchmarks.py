@@ -177,3 +177,14 @@ def test_bench_bits_quick_prints_its_measured_ratio(capsys):
     line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("RESULT ")][-1]
     r = json.loads(line[len("RESULT ") :])["results"][0]
     assert r["ratio_bits_to_sweep"] == r["median_s"]["bits"] / r["median_s"]["sweep"] > 0
+
+
+@pytest.mark.slow
+def test_fuzz_engine_counts_every_call_and_passes(capsys):
+    import fuzz_engine
+
+    code = fuzz_engine.main(["--examples", "3", "-k", "theorem1 or quantizer_demo"])
+    out = capsys.readouterr().out
+    data = json.loads(out.splitlines()[-1].removeprefix("RESULT "))
+    assert code == 0 and data["bad"] == {"other exception": 0, "hang": 0, "unflagged NaN": 0}
+    assert sum(data["counts"]["theorem1_prediction"].values()) >= 3
