@@ -10,7 +10,9 @@ cannot exhaust the machine. Threading is described in :mod:`app.dashboard.sessio
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
+import io
 import os
 import signal
 import sys
@@ -107,7 +109,11 @@ class DashboardApp:
         self.max_tabs = max_tabs
         self._admitted: set = set()  # client ids holding one of the max_tabs places (built or being built)
         self._gone: OrderedDict = OrderedDict()  # client ids that closed before their tab was built
-        self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
+        # viser prints its own box with the URL as soon as its port opens, before the warm-up: the one URL a
+        # person sees is qsid's ready line (printed by main once a tab is served at once), so the box goes
+        # nowhere (rich writes to sys.stdout at print time; only this constructor's output is redirected)
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
         cam = self.server.initial_camera  # every new tab starts looking at the unit box from here

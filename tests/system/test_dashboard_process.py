@@ -158,3 +158,38 @@ def test_every_signal_leaves_no_descendant(sig):
     assert s.p.returncode == 0, (s.p.returncode, err)
     assert out.count("stopping") == 1, out
     assert "Traceback" not in err and "leaked" not in err, err
+
+
+def test_one_url_shown_and_only_once_the_page_answers():
+    """viser's own URL box (printed as its port opens, before the warm-up) is not shown: the output holds one
+    URL line, qsid's ready line, and the page answers at the moment it appears."""
+    import re
+    import urllib.request
+
+    p = subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard", "--port", "0"],
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        before, line, end = [], "", time.time() + HANG_S
+        while not re.search(r"\w+://", line) and time.time() < end and p.poll() is None:
+            line = p.stdout.readline()
+            before.append(line)
+        assert line.startswith("qsid dashboard: http://"), before
+        opener = urllib.request.build_opener(urllib.request.ProxyHandler({}))
+        with opener.open(line.split()[2], timeout=5) as resp:  # asked at once: the server is ready
+            assert resp.status == 200 and b"<html" in resp.read().lower()
+        p.send_signal(signal.SIGTERM)
+        out, err = p.communicate(timeout=HANG_S)
+        lines = before + out.splitlines()
+        assert [ln for ln in lines if re.search(r"\w+://", ln)] == [line], lines
+        assert not any("Websocket" in ln or "╭" in ln for ln in lines), lines  # viser's box
+        assert not re.search(r"\w+://", err), err
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(HANG_S)
