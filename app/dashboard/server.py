@@ -19,6 +19,7 @@ import sys
 import threading
 import time
 import traceback
+import warnings
 from collections import OrderedDict
 
 import viser
@@ -42,6 +43,23 @@ from .viserfix import install as _install_viser_fix
 from .warm import COMPILE_SECONDS, fetch_page, needs_compiling, prefill, warm
 
 _install_viser_fix()  # before any server exists: every message buffer is made thread-safe
+
+#: viser's warning for a message pushed to a tab whose connection is closed (see :func:`drop_late_draws`)
+CLOSED_CONNECTION = r"Queued a \w+ on a closed connection"
+
+
+def drop_late_draws() -> None:
+    """Drop, quietly and by design, what a tab's worker pushes after its browser tab closed.
+
+    A tab's worker checks that its tab is open before each draw, but the tab can close between that check
+    and the draw's last message (viser closes the connection before it calls ``on_client_disconnect``, so
+    no lock of ours can order the two). viser discards such messages (they would never be delivered) and
+    warns once per connection; for the dashboard that is the expected end of a draw, not a leak: the
+    worker stops at its next check and the tab's handles are released with it. Only that warning is
+    ignored (a ``warnings`` filter on its text).
+    """
+    warnings.filterwarnings("ignore", message=CLOSED_CONNECTION, category=UserWarning)
+
 
 __all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
 
@@ -97,6 +115,7 @@ class DashboardApp:
             self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
         if presenter:
             self.defaults = self.defaults.replace(presenter=True)
+        drop_late_draws()  # a draw that a closing tab cuts short is dropped without a warning
         self.views = ViewStore(views_file)  # view codes -> settings (links that survive a reload)
         self.cache = SharedCache(cache_bytes)
         self.slots = FairSlots(slots, fast=1)  # (4) at most `slots` tabs compute at once, in turn; cheap turns first
