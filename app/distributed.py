@@ -354,10 +354,6 @@ def make_executor(
     say = progress or (lambda _msg: None)
     before = set(descendants(os.getpid())) if parsed.local else None
     clusters = _clusters()
-    if before is not None:
-        from app.tracker import ensure_tolerant
-
-        ensure_tolerant()  # the cluster's processes share this program's tracker; killing them must not make it talk
     try:
         with _cluster_executor(
             parsed, say, connect_timeout, worker_timeout, stall_timeout, retries, share_data, quiet
@@ -386,11 +382,18 @@ def _clusters() -> set:
 
 
 def _resource_tracker() -> set[int]:
-    """multiprocessing's resource tracker (shared by the whole program: never killed here)."""
-    from multiprocessing import resource_tracker
-
-    pid = getattr(getattr(resource_tracker, "_resource_tracker", None), "_pid", None)
-    return {pid} if pid else set()
+    """multiprocessing's resource tracker, started for the cluster's processes (it unlinks their semaphores
+    once the program ends: never killed here). Found by its command line (Linux ``/proc``), as CPython
+    starts it: ``-c 'from multiprocessing.resource_tracker import main;main(FD)'``."""
+    out = set()
+    for pid in descendants(os.getpid()):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                if b"multiprocessing.resource_tracker" in f.read():
+                    out.add(pid)
+        except OSError:
+            continue
+    return out
 
 
 @contextlib.contextmanager

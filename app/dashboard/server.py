@@ -24,7 +24,6 @@ from collections import OrderedDict
 
 import viser
 
-from app.procs import release_ipc
 from qsid_core import QsidError, __version__
 
 from .cache import DEFAULT_MB, SharedCache
@@ -346,16 +345,12 @@ def _prepare_stop_signals() -> threading.Event:
 
     Returns the event that is set when one of them arrives. Call before any thread exists.
 
-    The multiprocessing resource tracker is started first: its launch *unblocks* SIGINT and SIGTERM in
-    the thread that starts it, which would undo the mask below. Then the three signals are blocked in
-    this thread, so every thread started afterwards inherits the mask and they stay pending until
-    :func:`_wait_for_stop_signal` takes them with ``sigtimedwait`` (a library that swaps the SIGINT
-    handler from a worker thread, as OSQP does on every solve, cannot swallow them). Python handlers are
-    installed as well: if a thread unblocks them again (a relaunched resource tracker), the signal
-    delivered there still only sets the event instead of killing the process by the default action.
+    The three signals are blocked in this thread, so every thread started afterwards inherits the mask
+    and they stay pending until :func:`_wait_for_stop_signal` takes them with ``sigtimedwait`` (a library
+    that swaps the SIGINT handler from a worker thread, as OSQP does on every solve, cannot swallow them).
+    Python handlers are installed as well: if a thread unblocks them again, the signal delivered there
+    still only sets the event instead of killing the process by the default action.
     """
-    from multiprocessing import resource_tracker
-
     stop = threading.Event()
 
     def handler(signum, frame):
@@ -363,10 +358,6 @@ def _prepare_stop_signals() -> threading.Event:
 
     for sig in _STOP_SIGNALS:
         signal.signal(sig, handler)
-    try:
-        resource_tracker.ensure_running()
-    except Exception:  # no tracker (e.g. no /dev/shm): the pool reports its own problem later
-        pass
     signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
     return stop
 
@@ -386,22 +377,20 @@ def _wait_for_stop_signal(stop: threading.Event) -> None:
             return
 
 
-#: Seconds the stop waits for the pool's semaphores to be released. Leaving while their finalizers run would
-#: unlink a semaphore without unregistering it: the resource tracker then warns of a "leaked" one.
+#: Seconds the stop waits for the pool's workers to be killed and reaped (they take milliseconds).
 RELEASE_WAIT = 20.0
 #: Seconds the stop gives the web server (and the tabs' workers) in all before the process leaves.
 STOP_WAIT = 2.0
 
 
 def _shutdown(app, released: threading.Event) -> None:
-    app.halt()
-    release_ipc()
+    app.halt()  # the tabs told to stop, the pool's workers killed and reaped
     released.set()
     app.server.stop()
 
 
 def _stop_app(app) -> None:
-    """Stop ``app`` from the main thread: the pool and its semaphores always, the web server within ``STOP_WAIT``."""
+    """Stop ``app`` from the main thread: the pool always, the web server within ``STOP_WAIT``."""
     t0 = time.monotonic()
     released = threading.Event()
     stopper = threading.Thread(target=_shutdown, args=(app, released), name="qsid-stop", daemon=True)
