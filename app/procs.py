@@ -227,8 +227,14 @@ class ProcessPool(Executor):
         for _ in self._workers:
             self._queue.put(None)
 
+    @property
+    def broken(self) -> bool:
+        """True once a worker died (every later :meth:`submit` raises ``BrokenProcessPool``)."""
+        return self._broken is not None
+
     def _next(self, w: _Worker):
-        """The next task of worker ``w``: one asked of it by :meth:`each`, else one of the shared queue."""
+        """The next task of worker ``w``: one asked of it by :meth:`each`, else one of the shared queue; None
+        when the worker died while idle (the pool is then broken at once, not at its next task)."""
         while True:
             try:
                 return w.extra.get_nowait()
@@ -237,7 +243,9 @@ class ProcessPool(Executor):
             try:
                 return self._queue.get(timeout=0.1)
             except queue.Empty:
-                continue
+                if w.proc.poll() is not None and not self._shutdown:
+                    self._break(f"a worker process (pid {w.pid}) died (killed or out of memory)")
+                    return None
 
     def _run_worker(self, w: _Worker) -> None:
         """(one thread per worker) hand it tasks one at a time and settle their futures."""

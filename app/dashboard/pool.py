@@ -334,8 +334,12 @@ class Pool:
                     self.replace(guard.executor)
 
     def _check_stopped(self, entries: list) -> None:
-        """Replace the current pool at once if it has unfinished work and a stopped worker."""
+        """Replace the current pool at once if a worker died (even while idle: the next tab's work then finds a
+        whole pool), or if it has unfinished work and a stopped worker."""
         ex = self.current
+        if isinstance(ex, ProcessPool) and ex.broken:
+            self.replace(ex)
+            return
         if ex is None or not any(e[2].executor is ex and not e[1].done() for e in entries):
             return
         pids = stopped_workers(ex)

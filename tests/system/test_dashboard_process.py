@@ -50,7 +50,7 @@ class Server:
             text=True,
         )
         line, end = "", time.time() + HANG_S
-        while not line.startswith("qsid dashboard:") and time.time() < end and self.p.poll() is None:
+        while not line.startswith("qsid dashboard: http") and time.time() < end and self.p.poll() is None:
             line = self.p.stdout.readline()
         assert line.startswith("qsid dashboard: http://"), line
         self.url = line.split()[2]

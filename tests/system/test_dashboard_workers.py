@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from support import HANG_S, descendants, gone_within
+from support import HANG_S, descendants, gone_within, wait_until
 
 # slow: starts a real dashboard process and kills one of its workers
 pytestmark = pytest.mark.slow
@@ -62,8 +62,10 @@ def test_only_pool_workers_and_a_killed_one_is_replaced():
             tab.send("word length b", b)
             _, text = tab.answer_after(start, HANG_S)
             assert text.startswith("ready") and f"b = {b} " in text, text
+        # the dead worker's pool is replaced at once (also while idle): two new workers, the old ones reaped
+        wait_until(lambda: not set(descendants(p.pid)) & set(workers), "the old workers gone")
         desc = descendants(p.pid)
-        assert len(desc) == 2 and not set(desc) & set(workers), desc  # two new workers, the old ones reaped
+        assert len(desc) == 2 and all(b"from app.procs import serve" in _cmdline(x) for x in desc), desc
     finally:
         if tab is not None:
             tab.close()
