@@ -40,67 +40,20 @@ import concurrent.futures as cf
 import contextlib
 import logging
 import os
-import re
 import time
 import uuid
 import warnings
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 
-from app.procs import descendants, kill_new_descendants
+from app.daskspec import MAX_LOCAL_WORKERS, DaskSpec, parse_dask_spec
+from app.procs import descendants, kill_new_descendants, resource_trackers
 from qsid_core import ConfigError, QsidError
 
 __all__ = ["ClusterError", "DaskSpec", "DaskExecutor", "parse_dask_spec", "make_executor", "MAX_LOCAL_WORKERS"]
 
-MAX_LOCAL_WORKERS = 256
-_FORMS = "use 'local', 'local:N' (N worker processes here) or 'tcp://HOST:PORT' (a running dask scheduler)"
-
 
 class ClusterError(QsidError):
     """The dask cluster failed during a run (no workers, scheduler gone, workers dying)."""
-
-
-@dataclass(frozen=True)
-class DaskSpec:
-    """A parsed ``--dask`` value: ``workers`` for a local cluster, else the scheduler ``address``."""
-
-    address: str | None = None
-    workers: int | None = None
-
-    @property
-    def local(self) -> bool:
-        return self.address is None
-
-
-def parse_dask_spec(spec: str) -> DaskSpec:
-    """Parse ``'local'``, ``'local:N'`` or ``'tcp://HOST:PORT'``.
-
-    Raises
-    ------
-    ConfigError
-        For anything else (one line naming the accepted forms).
-    """
-    s = str(spec).strip()
-    if s == "local":
-        return DaskSpec(
-            workers=max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
-        )
-    m = re.fullmatch(r"local:(\S+)", s)
-    if m:
-        try:
-            n = int(m.group(1))
-        except ValueError:
-            raise ConfigError(f"dask: worker count in {s!r} must be an integer; {_FORMS}") from None
-        if not 1 <= n <= MAX_LOCAL_WORKERS:
-            raise ConfigError(f"dask: local worker count must be between 1 and {MAX_LOCAL_WORKERS}; got {n}")
-        return DaskSpec(workers=n)
-    m = re.fullmatch(r"tcp://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):(\d+)", s)
-    if m:
-        port = int(m.group(2))
-        if not 1 <= port <= 65535:
-            raise ConfigError(f"dask: port must be between 1 and 65535; got {port} in {s!r}")
-        return DaskSpec(address=s)
-    raise ConfigError(f"dask: cannot read {s!r}; {_FORMS}")
 
 
 def _import_distributed():
@@ -361,7 +314,7 @@ def make_executor(
             yield ex
     except BaseException as exc:  # interrupted (a signal) at any moment, start-up included: no cluster process left
         if before is not None:
-            kill_new_descendants(before, keep=_resource_tracker())
+            kill_new_descendants(before, keep=resource_trackers(os.getpid()))
         if isinstance(exc, KeyboardInterrupt):
             # the program is stopping: the cluster's half-started tasks end with "Task exception was never
             # retrieved" tracebacks from asyncio and dask when they are collected; the interrupt says it all
@@ -379,21 +332,6 @@ def _clusters() -> set:
     from distributed.deploy.spec import SpecCluster
 
     return set(SpecCluster._instances)
-
-
-def _resource_tracker() -> set[int]:
-    """multiprocessing's resource tracker, started for the cluster's processes (it unlinks their semaphores
-    once the program ends: never killed here). Found by its command line (Linux ``/proc``), as CPython
-    starts it: ``-c 'from multiprocessing.resource_tracker import main;main(FD)'``."""
-    out = set()
-    for pid in descendants(os.getpid()):
-        try:
-            with open(f"/proc/{pid}/cmdline", "rb") as f:
-                if b"multiprocessing.resource_tracker" in f.read():
-                    out.add(pid)
-        except OSError:
-            continue
-    return out
 
 
 @contextlib.contextmanager

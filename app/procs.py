@@ -32,6 +32,7 @@ __all__ = [
     "worker_pids",
     "descendants",
     "kill_new_descendants",
+    "resource_trackers",
 ]
 
 _HEADER = struct.Struct("!Q")  # the length of one pickled message
@@ -374,3 +375,18 @@ def kill_new_descendants(before: set[int], keep: frozenset[int] | set[int] = fro
         except (ChildProcessError, OSError):
             pass
     return found
+
+
+def resource_trackers(pid: int) -> set[int]:
+    """The multiprocessing resource trackers below process ``pid`` (started for processes that use
+    multiprocessing, e.g. a local dask cluster's; each unlinks their semaphores once its program ends, so it
+    is never killed with them). Found by the command line CPython starts them with (Linux ``/proc``)."""
+    out = set()
+    for p in descendants(pid):
+        try:
+            with open(f"/proc/{p}/cmdline", "rb") as f:
+                if b"multiprocessing.resource_tracker" in f.read():
+                    out.add(p)
+        except OSError:
+            continue
+    return out

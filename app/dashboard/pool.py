@@ -2,18 +2,15 @@
 
 Threading (see the list in :mod:`app.dashboard.session`):
 
-- ``Pool._lock`` guards the swap of :attr:`Pool.current`. A pool is only ever
-  replaced by :meth:`Pool.replace` *for the executor that failed*: a tab that
-  saw the old pool break does not shut down the new one another tab already
-  installed (that was "cannot schedule new futures after shutdown").
-- one watchdog thread (``qsid-pool-watch``) looks at every pending task a few
-  times a second: a task whose tab has newer settings is abandoned at once
-  (:class:`Superseded`; queued work is cancelled; a worker still busy with it after ``SUPERSEDED_GRACE``
-  seconds is replaced with its pool), a task running longer than
-  ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced
-  (the hung worker is killed), and a pool one of whose workers is stopped (SIGSTOP, job control) is
-  replaced as soon as it has work: a stopped worker never finishes its task, and one stopped while idle
-  may hold the lock of the pool's task queue, so no other worker gets a task either. Tasks of the
+- ``Pool._lock`` guards the swap of :attr:`Pool.current`. A pool is only ever replaced by
+  :meth:`Pool.replace` *for the executor that failed*: a tab that saw the old pool break does not shut
+  down the new one another tab already installed.
+- one watchdog thread (``qsid-pool-watch``) looks at every pending task a few times a second: a task
+  whose tab has newer settings is abandoned at once (:class:`Superseded`; queued work is cancelled; a
+  worker still busy with it after ``SUPERSEDED_GRACE`` seconds is replaced with its pool), a task running
+  longer than ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced (the hung worker
+  is killed), a pool one of whose workers died is replaced at once, and one with a stopped worker
+  (SIGSTOP, job control) as soon as it has work: a stopped worker never finishes its task. Tasks of the
   replaced pool that are not superseded fail with :class:`PoolBroken` (their tab retries once).
 
 The engine only sees :class:`Guarded`, an executor whose futures settle in one of

@@ -14,12 +14,10 @@ import contextlib
 import gc
 import io
 import os
-import signal
 import sys
 import threading
 import time
 import traceback
-import warnings
 from collections import OrderedDict
 
 import viser
@@ -36,29 +34,14 @@ from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
+from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
+from .tabview import drop_late_draws
 from .viewcodes import ViewStore, default_store_path, open_view
 from .viserfix import check_request_hook, connection_request, limit_reads, refuse_share_requests
 from .viserfix import install as _install_viser_fix
-from .warm import COMPILE_SECONDS, fetch_page, needs_compiling, prefill, warm
+from .warm import COMPILE_SECONDS, first_tab, needs_compiling, prefill, warm
 
 _install_viser_fix()  # before any server exists: every message buffer is made thread-safe
-
-#: viser's warning for a message pushed to a tab whose connection is closed (see :func:`drop_late_draws`)
-CLOSED_CONNECTION = r"Queued a \w+ on a closed connection"
-
-
-def drop_late_draws() -> None:
-    """Drop, quietly and by design, what a tab's worker pushes after its browser tab closed.
-
-    A tab's worker checks that its tab is open before each draw, but the tab can close between that check
-    and the draw's last message (viser closes the connection before it calls ``on_client_disconnect``, so
-    no lock of ours can order the two). viser discards such messages (they would never be delivered) and
-    warns once per connection; for the dashboard that is the expected end of a draw, not a leak: the
-    worker stops at its next check and the tab's handles are released with it. Only that warning is
-    ignored (a ``warnings`` filter on its text).
-    """
-    warnings.filterwarnings("ignore", message=CLOSED_CONNECTION, category=UserWarning)
-
 
 __all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
 
@@ -337,68 +320,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
-
-
-def _prepare_stop_signals() -> threading.Event:
-    """Route Ctrl-C, SIGTERM (kill, systemd, docker stop) and SIGHUP (terminal closed) to one stop path.
-
-    Returns the event that is set when one of them arrives. Call before any thread exists.
-
-    The three signals are blocked in this thread, so every thread started afterwards inherits the mask
-    and they stay pending until :func:`_wait_for_stop_signal` takes them with ``sigtimedwait`` (a library
-    that swaps the SIGINT handler from a worker thread, as OSQP does on every solve, cannot swallow them).
-    Python handlers are installed as well: if a thread unblocks them again, the signal delivered there
-    still only sets the event instead of killing the process by the default action.
-    """
-    stop = threading.Event()
-
-    def handler(signum, frame):
-        stop.set()
-
-    for sig in _STOP_SIGNALS:
-        signal.signal(sig, handler)
-    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
-    return stop
-
-
-def _prepare_first_tab(app: DashboardApp) -> None:
-    """Fetch the page once and compute + draw a new tab's view once, so the first tab is served like later ones."""
-    fetch_page(app.host, app.port)
-    why = app.prefill()
-    if why:  # the server starts anyway
-        print(f"qsid dashboard: the first view was not precomputed ({why})", flush=True)
-
-
-def _wait_for_stop_signal(stop: threading.Event) -> None:
-    """Block until a stop signal is pending (taken here) or was handled by a handler (``stop`` set)."""
-    while not stop.is_set():
-        if signal.sigtimedwait(_STOP_SIGNALS, 0.5) is not None:
-            return
-
-
-#: Seconds the stop waits for the pool's workers to be killed and reaped (they take milliseconds).
-RELEASE_WAIT = 20.0
-#: Seconds the stop gives the web server (and the tabs' workers) in all before the process leaves.
-STOP_WAIT = 2.0
-
-
-def _shutdown(app, released: threading.Event) -> None:
-    app.halt()  # the tabs told to stop, the pool's workers killed and reaped
-    released.set()
-    app.server.stop()
-
-
-def _stop_app(app) -> None:
-    """Stop ``app`` from the main thread: the pool always, the web server within ``STOP_WAIT``."""
-    t0 = time.monotonic()
-    released = threading.Event()
-    stopper = threading.Thread(target=_shutdown, args=(app, released), name="qsid-stop", daemon=True)
-    stopper.start()
-    released.wait(RELEASE_WAIT)
-    stopper.join(max(0.0, STOP_WAIT - (time.monotonic() - t0)))
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
     args = _parser().parse_args(argv)
@@ -435,7 +356,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if warning:
         print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
-    stop = _prepare_stop_signals()  # before any thread exists: all inherit the mask
+    stop = prepare_stop_signals()  # before any thread exists: all inherit the mask
     limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
     one_blas_thread()
     app = None
@@ -460,19 +381,19 @@ def main(argv: list[str] | None = None) -> int:
         if app.views.load_note:
             print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
         warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
-        _prepare_first_tab(app)
+        first_tab(app)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         note = who_can_connect(args.host, app.port)
         if note:
             print(f"qsid dashboard: {note}", flush=True)
-        _wait_for_stop_signal(stop)
+        wait_for_stop_signal(stop)
         print("\nqsid dashboard: stopping", flush=True)
     except (QsidError, OSError) as exc:
         print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
         code = 2
     finally:
         if app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
-            _stop_app(app)
+            stop_app(app)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)

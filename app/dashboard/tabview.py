@@ -9,6 +9,7 @@ settings to the frames), driven by the tab's worker (:class:`app.dashboard.sessi
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -24,7 +25,23 @@ from .share import ShareHandles, add_share_panel, apply_values
 from .viewcodes import CodePanel, ViewOpen, ViewStore, add_code_panel
 from .viewpanel import PANEL_WIDTH, ViewPanel
 
-__all__ = ["TabView"]
+__all__ = ["TabView", "drop_late_draws", "CLOSED_CONNECTION"]
+
+#: viser's warning for a message pushed to a tab whose connection is closed (see :func:`drop_late_draws`)
+CLOSED_CONNECTION = r"Queued a \w+ on a closed connection"
+
+
+def drop_late_draws() -> None:
+    """Drop, quietly and by design, what a tab's worker pushes after its browser tab closed.
+
+    A tab's worker checks that its tab is open before each draw, but the tab can close between that check
+    and the draw's last message (viser closes the connection before it calls ``on_client_disconnect``, so
+    no lock of ours can order the two). viser discards such messages (they would never be delivered) and
+    warns once per connection; for the dashboard that is the expected end of a draw, not a leak: the
+    worker stops at its next check and the tab's handles are released with it. Only that warning is
+    ignored (a ``warnings`` filter on its text).
+    """
+    warnings.filterwarnings("ignore", message=CLOSED_CONNECTION, category=UserWarning)
 
 
 class TabView:
