@@ -37,18 +37,23 @@ def run(*args, timeout=HANG_S):
     )
 
 
+def dashboard_process(*args) -> subprocess.Popen:
+    """``python -m app.dashboard --port 0 ARGS`` with its output readable as text."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard", "--port", "0", *args],
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
 class Server:
     """``python -m app.dashboard`` on a free loopback port; ``url`` once it printed it."""
 
     def __init__(self, *args):
-        self.p = subprocess.Popen(
-            [sys.executable, "-m", "app.dashboard", "--port", "0", *args],
-            cwd=ROOT,
-            env=ENV,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        self.p = dashboard_process(*args)
         line, end = "", time.time() + HANG_S
         while not line.startswith("qsid dashboard: http") and time.time() < end and self.p.poll() is None:
             line = self.p.stdout.readline()
@@ -166,14 +171,7 @@ def test_one_url_shown_and_only_once_the_page_answers():
     import re
     import urllib.request
 
-    p = subprocess.Popen(
-        [sys.executable, "-m", "app.dashboard", "--port", "0"],
-        cwd=ROOT,
-        env=ENV,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    p = dashboard_process()
     try:
         before, line, end = [], "", time.time() + HANG_S
         while not re.search(r"\w+://", line) and time.time() < end and p.poll() is None:
