@@ -184,6 +184,8 @@ class ProcessPool(Executor):
 
     def each(self, fn: Callable[[], object], timeout: float) -> list:
         """Run ``fn()`` once in every worker (ahead of queued tasks); returns the results in worker order."""
+        if self._broken is not None:
+            raise BrokenProcessPool(self._broken)
         futs = []
         for w in self._workers:
             fut: Future = Future()
