@@ -57,6 +57,8 @@ class Server:
         line, end = "", time.time() + HANG_S
         while not line.startswith("qsid dashboard: http") and time.time() < end and self.p.poll() is None:
             line = self.p.stdout.readline()
+        if not line.startswith("qsid dashboard: http://"):
+            self.kill()  # no server left behind by a failed start
         assert line.startswith("qsid dashboard: http://"), line
         self.url = line.split()[2]
 
