@@ -107,7 +107,7 @@ class Session:
         )
         self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
         self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes
-        self.portrait, self.presenter = self.ui.portrait, self.ui.presenter
+        self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
