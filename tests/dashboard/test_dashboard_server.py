@@ -210,7 +210,7 @@ def test_command_line_prints_url_and_stops_cleanly_on_ctrl_c():
     try:
         line = ""
         deadline = time.time() + HANG_S
-        while not line.startswith("qsid dashboard:") and time.time() < deadline:  # after viser's own banner
+        while not line.startswith("qsid dashboard: http") and time.time() < deadline:  # past the compiling note
             line = p.stdout.readline()
         assert line.startswith("qsid dashboard: http://127.0.0.1:"), line
         time.sleep(0.5)
