@@ -11,7 +11,7 @@ import warnings
 from collections.abc import Callable, Iterator
 
 from app.distributed import ClusterError, DaskExecutor, _import_distributed, parse_dask_spec
-from app.procs import descendants, kill_new_descendants
+from app.procs import descendants, kill_new_descendants, resource_trackers
 from qsid_core import ConfigError
 
 __all__ = ["make_executor"]
@@ -90,10 +90,6 @@ def make_executor(
     say = progress or (lambda _msg: None)
     before = set(descendants(os.getpid())) if parsed.local else None
     clusters = _clusters()
-    if before is not None:
-        from app.tracker import ensure_tolerant
-
-        ensure_tolerant()  # the cluster's processes share this program's tracker; killing them must not make it talk
     try:
         with _cluster_executor(
             parsed, say, connect_timeout, worker_timeout, stall_timeout, retries, share_data, quiet
@@ -101,7 +97,7 @@ def make_executor(
             yield ex
     except BaseException as exc:  # interrupted (a signal) at any moment, start-up included: no cluster process left
         if before is not None:
-            kill_new_descendants(before, keep=_resource_tracker())
+            kill_new_descendants(before, keep=resource_trackers(os.getpid()))
         if isinstance(exc, KeyboardInterrupt):
             # the program is stopping: the cluster's half-started tasks end with "Task exception was never
             # retrieved" tracebacks from asyncio and dask when they are collected; the interrupt says it all
@@ -119,14 +115,6 @@ def _clusters() -> set:
     from distributed.deploy.spec import SpecCluster
 
     return set(SpecCluster._instances)
-
-
-def _resource_tracker() -> set[int]:
-    """multiprocessing's resource tracker (shared by the whole program: never killed here)."""
-    from multiprocessing import resource_tracker
-
-    pid = getattr(getattr(resource_tracker, "_resource_tracker", None), "_pid", None)
-    return {pid} if pid else set()
 
 
 @contextlib.contextmanager

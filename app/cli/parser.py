@@ -509,7 +509,7 @@ def add_running_options(p: argparse.ArgumentParser) -> None:
         type=pos_int,
         default=1,
         metavar="N",
-        help="processes (N > 1 uses a ProcessPoolExecutor; at most the machine's CPU count; default: 1, in-process)",
+        help="processes (N > 1 starts N worker processes; at most the machine's CPU count; default: 1, in-process)",
     )
     r.add_argument(
         "--threads",

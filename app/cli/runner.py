@@ -15,11 +15,11 @@ import sys
 import time
 import warnings
 from collections.abc import Iterator, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Executor, ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TextIO
 
-from app.procs import end_with_parent, kill_workers
+from app.procs import ProcessPool, end_with_parent, kill_workers
 
 from .mpc_args import mpc_config
 from .parser import PROG, UsageError
@@ -260,7 +260,7 @@ def _executor(workers: int, threads: int = 1) -> Executor:
     from qsid_core import InlineExecutor
 
     if workers > 1:
-        return ProcessPoolExecutor(max_workers=workers, initializer=_worker_init, initargs=(os.getpid(),))
+        return ProcessPool(workers, initializer=_worker_init, initargs=(os.getpid(),))
     if threads > 1:  # one process; the numba kernels release the GIL (results equal the inline run's, tested)
         return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="qsid")
     return InlineExecutor()

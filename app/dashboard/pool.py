@@ -2,18 +2,15 @@
 
 Threading (see the list in :mod:`app.dashboard.session`):
 
-- ``Pool._lock`` guards the swap of :attr:`Pool.current`. A pool is only ever
-  replaced by :meth:`Pool.replace` *for the executor that failed*: a tab that
-  saw the old pool break does not shut down the new one another tab already
-  installed (that was "cannot schedule new futures after shutdown").
-- one watchdog thread (``qsid-pool-watch``) looks at every pending task a few
-  times a second: a task whose tab has newer settings is abandoned at once
-  (:class:`Superseded`; queued work is cancelled; a worker still busy with it after ``SUPERSEDED_GRACE``
-  seconds is replaced with its pool), a task running longer than
-  ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced
-  (the hung worker is killed), and a pool one of whose workers is stopped (SIGSTOP, job control) is
-  replaced as soon as it has work: a stopped worker never finishes its task, and one stopped while idle
-  may hold the lock of the pool's task queue, so no other worker gets a task either. Tasks of the
+- ``Pool._lock`` guards the swap of :attr:`Pool.current`. A pool is only ever replaced by
+  :meth:`Pool.replace` *for the executor that failed*: a tab that saw the old pool break does not shut
+  down the new one another tab already installed.
+- one watchdog thread (``qsid-pool-watch``) looks at every pending task a few times a second: a task
+  whose tab has newer settings is abandoned at once (:class:`Superseded`; queued work is cancelled; a
+  worker still busy with it after ``SUPERSEDED_GRACE`` seconds is replaced with its pool), a task running
+  longer than ``timeout`` seconds fails with :class:`PoolTimeout` and its pool is replaced (the hung worker
+  is killed), a pool one of whose workers died is replaced at once, and one with a stopped worker
+  (SIGSTOP, job control) as soon as it has work: a stopped worker never finishes its task. Tasks of the
   replaced pool that are not superseded fail with :class:`PoolBroken` (their tab retries once).
 
 The engine only sees :class:`Guarded`, an executor whose futures settle in one of
@@ -24,7 +21,6 @@ from __future__ import annotations
 
 import functools
 import gc
-import multiprocessing
 import os
 import pickle
 import shutil
@@ -36,11 +32,10 @@ import time
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
-from concurrent.futures import Future, InvalidStateError, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Future, InvalidStateError, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
-from app import tracker
-from app.procs import end_with_parent, kill_workers, worker_pids
+from app.procs import ProcessPool, end_with_parent, kill_workers, worker_pids
 from qsid_core import QsidError
 
 from .memory import one_blas_thread, trim
@@ -149,9 +144,8 @@ def _stopped(pid: int) -> bool:
 
 
 def stopped_workers(ex) -> list[int]:
-    """The process ids of the workers of ``ProcessPoolExecutor`` ``ex`` that are stopped (SIGSTOP)."""
-    procs = getattr(ex, "_processes", None) or {}
-    return [pid for pid in list(procs) if _stopped(pid)]
+    """The process ids of the workers of :class:`~app.procs.ProcessPool` ``ex`` that are stopped (SIGSTOP)."""
+    return [pid for pid in worker_pids(ex) if _stopped(pid)]
 
 
 class Superseded(Exception):
@@ -197,17 +191,14 @@ class Pool:
         return self._spawner.submit(self._start).result()
 
     def _start(self):
-        pool = ProcessPoolExecutor(
-            self.workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_worker_init,
-            initargs=(os.getpid(),),
-        )
+        pool = None
         try:
-            for f in [pool.submit(abs, 0) for _ in range(self.workers)]:  # start the workers now
-                f.result(timeout=120)
-        except Exception as exc:  # e.g. started from a script without a __main__ guard
-            pool.shutdown(wait=False, cancel_futures=True)
+            pool = ProcessPool(self.workers, initializer=_worker_init, initargs=(os.getpid(),))
+            pool.each(os.getpid, timeout=120)  # every worker answers (imports done) before the pool is used
+        except Exception as exc:  # e.g. no processes allowed here
+            if pool is not None:
+                pool.kill()
+                pool.shutdown(wait=False, cancel_futures=True)
             print(
                 f"qsid-dashboard: no worker processes ({type(exc).__name__}: {exc}); computing in-process",
                 file=sys.stderr,
@@ -260,7 +251,7 @@ class Pool:
                 shutil.rmtree(self._share_dir, ignore_errors=True)
                 self._share_dir = None
 
-    def each_worker(self, fn, timeout: float, rounds: int = 20) -> int:
+    def each_worker(self, fn, timeout: float) -> int:
         """Run ``fn()`` (returns its worker's pid) in every worker of the current pool; returns how many ran it.
 
         Raises what ``fn`` or the pool raises (e.g. a timeout).
@@ -268,19 +259,14 @@ class Pool:
         ex = self.current
         if ex is None:
             return 0
-        want, seen = set(worker_pids(ex)), set()
-        for _ in range(rounds):  # a worker may take two tasks of a round: ask until each answered once
-            seen |= {f.result(timeout=timeout) for f in [ex.submit(fn) for _ in want]}
-            if want <= seen:
-                break
-        return len(want & seen)
+        return len(set(ex.each(fn, timeout)))
 
     def release(self, timeout: float = 30.0) -> int:
         """Forget every shared object (the server's files, each worker's copy) and have each worker hand its free
         pages back; returns how many workers did. Tasks that still need an object fail with a plain message."""
         self._drop_shared()
         try:
-            return self.each_worker(_release_worker, timeout, rounds=10)
+            return self.each_worker(_release_worker, timeout)
         except Exception:  # a pool being replaced or shut down meanwhile: its workers are going anyway
             return 0
 
@@ -296,13 +282,13 @@ class Pool:
         return True
 
     def shutdown(self) -> None:
-        """Stop at once: kill the workers (nothing waits for them)."""
+        """Stop at once: kill the workers and reap them (milliseconds: nothing waits for their tasks)."""
         with self._lock:
             self._closed = True
             ex, self.current = self.current, None
         if ex is not None:
             kill_workers(ex)
-            ex.shutdown(wait=False, cancel_futures=True)
+            ex.shutdown(wait=True, cancel_futures=True)
         self._spawner.shutdown(wait=False)
         self._drop_shared()
 
@@ -312,15 +298,12 @@ class Pool:
             self._pending.append(entry)
 
     def _watchdog(self) -> None:
-        last_trim = last_tracker = time.monotonic()
+        last_trim = time.monotonic()
         while True:
             time.sleep(0.1)
             if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
                 trim()
                 last_trim = time.monotonic()
-            if time.monotonic() - last_tracker > 1.0:  # a dead resource tracker: reaped and replaced, one line
-                tracker.check(lambda text: print(f"qsid-dashboard: {text}", file=sys.stderr, flush=True))
-                last_tracker = time.monotonic()
             with self._plock:  # a superseded task still running stays watched until its worker is free
                 entries = [e for e in self._pending if not (e[0].done() and e[1].done())]
                 self._pending = entries
@@ -348,8 +331,12 @@ class Pool:
                     self.replace(guard.executor)
 
     def _check_stopped(self, entries: list) -> None:
-        """Replace the current pool at once if it has unfinished work and a stopped worker."""
+        """Replace the current pool at once if a worker died (even while idle: the next tab's work then finds a
+        whole pool), or if it has unfinished work and a stopped worker."""
         ex = self.current
+        if isinstance(ex, ProcessPool) and ex.broken:
+            self.replace(ex)
+            return
         if ex is None or not any(e[2].executor is ex and not e[1].done() for e in entries):
             return
         pids = stopped_workers(ex)

@@ -10,9 +10,10 @@ cannot exhaust the machine. Threading is described in :mod:`app.dashboard.sessio
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
+import io
 import os
-import signal
 import sys
 import threading
 import time
@@ -21,7 +22,6 @@ from collections import OrderedDict
 
 import viser
 
-from app.procs import release_ipc
 from qsid_core import QsidError, __version__
 
 from .cache import DEFAULT_MB, SharedCache
@@ -34,10 +34,12 @@ from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file
+from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
+from .tabview import drop_late_draws
 from .viewcodes import ViewStore, default_store_path, open_view
 from .viserfix import check_request_hook, connection_request, limit_reads, refuse_share_requests
 from .viserfix import install as _install_viser_fix
-from .warm import COMPILE_SECONDS, fetch_page, needs_compiling, prefill, warm
+from .warm import COMPILE_SECONDS, first_tab, needs_compiling, prefill, warm
 
 _install_viser_fix()  # before any server exists: every message buffer is made thread-safe
 
@@ -95,6 +97,7 @@ class DashboardApp:
             self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
         if presenter:
             self.defaults = self.defaults.replace(presenter=True)
+        drop_late_draws()  # a draw that a closing tab cuts short is dropped without a warning
         self.views = ViewStore(views_file)  # view codes -> settings (links that survive a reload)
         self.cache = SharedCache(cache_bytes)
         self.slots = FairSlots(slots, fast=1)  # (4) at most `slots` tabs compute at once, in turn; cheap turns first
@@ -107,7 +110,11 @@ class DashboardApp:
         self.max_tabs = max_tabs
         self._admitted: set = set()  # client ids holding one of the max_tabs places (built or being built)
         self._gone: OrderedDict = OrderedDict()  # client ids that closed before their tab was built
-        self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
+        # viser prints its own box with the URL as soon as its port opens, before the warm-up: the one URL a
+        # person sees is qsid's ready line (printed by main once a tab is served at once), so the box goes
+        # nowhere (rich writes to sys.stdout at print time; only this constructor's output is redirected)
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
         cam = self.server.initial_camera  # every new tab starts looking at the unit box from here
@@ -313,78 +320,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
-
-
-def _prepare_stop_signals() -> threading.Event:
-    """Route Ctrl-C, SIGTERM (kill, systemd, docker stop) and SIGHUP (terminal closed) to one stop path.
-
-    Returns the event that is set when one of them arrives. Call before any thread exists.
-
-    The multiprocessing resource tracker is started first: its launch *unblocks* SIGINT and SIGTERM in
-    the thread that starts it, which would undo the mask below. Then the three signals are blocked in
-    this thread, so every thread started afterwards inherits the mask and they stay pending until
-    :func:`_wait_for_stop_signal` takes them with ``sigtimedwait`` (a library that swaps the SIGINT
-    handler from a worker thread, as OSQP does on every solve, cannot swallow them). Python handlers are
-    installed as well: if a thread unblocks them again (a relaunched resource tracker), the signal
-    delivered there still only sets the event instead of killing the process by the default action.
-    """
-    from multiprocessing import resource_tracker
-
-    stop = threading.Event()
-
-    def handler(signum, frame):
-        stop.set()
-
-    for sig in _STOP_SIGNALS:
-        signal.signal(sig, handler)
-    try:
-        resource_tracker.ensure_running()
-    except Exception:  # no tracker (e.g. no /dev/shm): the pool reports its own problem later
-        pass
-    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
-    return stop
-
-
-def _prepare_first_tab(app: DashboardApp) -> None:
-    """Fetch the page once and compute + draw a new tab's view once, so the first tab is served like later ones."""
-    fetch_page(app.host, app.port)
-    why = app.prefill()
-    if why:  # the server starts anyway
-        print(f"qsid dashboard: the first view was not precomputed ({why})", flush=True)
-
-
-def _wait_for_stop_signal(stop: threading.Event) -> None:
-    """Block until a stop signal is pending (taken here) or was handled by a handler (``stop`` set)."""
-    while not stop.is_set():
-        if signal.sigtimedwait(_STOP_SIGNALS, 0.5) is not None:
-            return
-
-
-#: Seconds the stop waits for the pool's semaphores to be released. Leaving while their finalizers run would
-#: unlink a semaphore without unregistering it: the resource tracker then warns of a "leaked" one.
-RELEASE_WAIT = 20.0
-#: Seconds the stop gives the web server (and the tabs' workers) in all before the process leaves.
-STOP_WAIT = 2.0
-
-
-def _shutdown(app, released: threading.Event) -> None:
-    app.halt()
-    release_ipc()
-    released.set()
-    app.server.stop()
-
-
-def _stop_app(app) -> None:
-    """Stop ``app`` from the main thread: the pool and its semaphores always, the web server within ``STOP_WAIT``."""
-    t0 = time.monotonic()
-    released = threading.Event()
-    stopper = threading.Thread(target=_shutdown, args=(app, released), name="qsid-stop", daemon=True)
-    stopper.start()
-    released.wait(RELEASE_WAIT)
-    stopper.join(max(0.0, STOP_WAIT - (time.monotonic() - t0)))
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
     args = _parser().parse_args(argv)
@@ -421,7 +356,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if warning:
         print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
-    stop = _prepare_stop_signals()  # before any thread exists: all inherit the mask
+    stop = prepare_stop_signals()  # before any thread exists: all inherit the mask
     limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
     one_blas_thread()
     app = None
@@ -446,19 +381,19 @@ def main(argv: list[str] | None = None) -> int:
         if app.views.load_note:
             print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
         warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
-        _prepare_first_tab(app)
+        first_tab(app)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         note = who_can_connect(args.host, app.port)
         if note:
             print(f"qsid dashboard: {note}", flush=True)
-        _wait_for_stop_signal(stop)
+        wait_for_stop_signal(stop)
         print("\nqsid dashboard: stopping", flush=True)
     except (QsidError, OSError) as exc:
         print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
         code = 2
     finally:
         if app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
-            _stop_app(app)
+            stop_app(app)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)

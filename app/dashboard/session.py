@@ -36,23 +36,20 @@ import threading
 import time
 import traceback
 
-from qsid_core import PRESETS, QsidError, get_system
+from qsid_core import QsidError
 
 from .background import DataLengthRunner
-from .controls import apply_lesson, make_gui_elements, read_values, set_system, show_weights
+from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .frames import Frame
 from .inputs import check_panel, unusable
 from .lessons import get_lesson, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
-from .presenter import AutoPlay, PresenterLayout
-from .render import Renderer
-from .scene import PhasePortrait
 from .settings import InputError, Values, resolve_system
-from .share import add_share_panel, apply_pending, show_frame
+from .share import show_frame
 from .stages import iter_frames
-from .viewcodes import ViewOpen, add_code_panel, remember
-from .viewpanel import PANEL_WIDTH, ViewPanel
+from .tabview import TabView
+from .viewcodes import ViewOpen, remember
 from .viserfix import guard_updates, set_callback_executor
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
@@ -87,7 +84,6 @@ class Session:
         self._last_start, self._gap, self._touches = 0.0, MIN_GAP, 0
         self.frames_drawn = 0
         self.last_frame: Frame | None = None
-        self.last_error: str | None = None
         self.timings: dict = {}
         self.rows_memo: dict = {}  # (estimator, b) -> this tab's last row and what it was built from
         gui = client.gui
@@ -95,30 +91,26 @@ class Session:
         self.callbacks = TabCallbacks(str(client.client_id))
         set_callback_executor(gui, self.callbacks)
         guard_updates(gui, self._show_error)  # a value viser refuses is explained, not dropped
-        gui.configure_theme(show_share_button=False, control_width="large", show_logo=False)
-        # place the panels before filling them: moving a filled panel re-mounts its plots
-        gui.main_panel.dock_left()
-        self.plots_panel = gui.add_panel()
-        self.plots_panel.dock_right()
-        self.plots_panel.set_width(PANEL_WIDTH)
-        system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
-        self.controls = make_gui_elements(gui, values, system, self.touch)
-        self.play = AutoPlay(self.controls.play, self.controls["bits"], self.touch)
-        self.controls.play.on_click(lambda _e: self.play.press())
-        self.codes = None if view is None else add_code_panel(self, view, self.controls.play)
         self._lesson = values.lesson  # the lesson whose settings the panel was given
-        self.share = add_share_panel(self)  # keep & share: settings file, command line, exports
-        self.pinned: Frame | None = None  # a frame kept for comparison (Compare tab)
-        self.views = ViewPanel(
-            gui, self.plots_panel, values, system, self.touch, self.pin, self.unpin, self.start_datalength
+        self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
+        #: the tab's panels (viser): built once, then only drawn into by this tab's worker
+        self.ui = TabView(
+            client,
+            values,
+            self.touch,
+            view,
+            app.views,
+            lambda: self.last_frame,
+            self.pin,
+            self.unpin,
+            self.start_datalength,
         )
+        self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
+        self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes
+        self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
-        self.plots = self.views.plots
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
-        self.renderer = Renderer()
-        self.portrait = PhasePortrait(client.scene)
-        self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH)
         # (2) the tab's one worker
         self.thread = threading.Thread(target=self._loop, name=f"qsid-tab-{client.client_id}", daemon=True)
         self.thread.start()
@@ -174,6 +166,11 @@ class Session:
     def _datalength_progress(self, fraction: float, text: str) -> None:
         self.views.dl_progress.value = 100.0 * fraction
         self.views.dl_status.content = text
+
+    @property
+    def last_error(self) -> str | None:
+        """The error line the tab shows (None: none)."""
+        return self.ui.last_error
 
     @property
     def generation(self) -> int:
@@ -267,7 +264,7 @@ class Session:
     def _run(self, gen: int) -> int:
         """Check, compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
-        apply_pending(self)  # settings uploaded since the last run
+        self.ui.apply_pending()  # settings loaded (a file, a view code) since the last run
         try:
             check_panel(c)  # every raw value (anything can come over the websocket) before it is converted
         except InputError as exc:
@@ -301,8 +298,7 @@ class Session:
 
         def progress(done: int, total: int, text: str) -> None:
             if not self._stale(gen):
-                c.progress.value = 100.0 * done / total
-                c.status.content = text
+                self.ui.show_progress(done / total, text)
 
         waited: list = []
 
@@ -361,36 +357,17 @@ class Session:
         return gen
 
     def _show_error(self, text: str) -> None:
-        self.last_error = text
-        c = self.controls
-        c.error.content = f"⚠️ **Cannot update:** {text}  \n*The view still shows the last good result.*"
-        c.error.visible = True
-        c.status.content = "error – see below"
-        c.progress.value = 0.0
+        self.ui.show_error(text)
 
     def _draw(self, frame: Frame, gen: int) -> bool:
         """Push ``frame`` to the tab unless newer settings arrived meanwhile; True if drawn."""
-        c = self.controls
         frame.pinned = self.pinned
         frame.datalength = self.datalength.lookup(frame.values)
-        if self._stale(gen):
+        if not self.ui.draw(frame, lambda: self._stale(gen)):
             return False
-        r = self.renderer.render(frame, c["axes"].value)
-        if self._stale(gen):  # never draw an older result over a newer one
-            self.renderer = Renderer()  # it remembered figures that were not pushed
-            return False
-        with self.client.atomic():
-            if c.error.visible:
-                c.error.visible = False
-                self.last_error = None
-            if r.scene is not None:
-                self.portrait.draw(r.scene)
-            if r.summary is not None:
-                c.summary.content = r.summary
-            for name, fig in r.figures.items():
-                self.plots[name].figure = fig
         self.last_frame = frame
-        show_frame(self, frame)
-        remember(self)
+        show_frame(self.share, frame)
+        if self.codes is not None:
+            remember(self.codes, self.app.views, self.ui.panel_values())
         self.frames_drawn += 1
         return True

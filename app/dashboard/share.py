@@ -2,8 +2,9 @@
 ``qsid sweep`` line that reproduces the numbers, and exports of the current curves (CSV, JSON) and figures
 (one standalone offline HTML page).
 
-The pure functions (settings <-> JSON, command, exports) are tested directly; :func:`add_share_panel` and
-:func:`show_frame` are the session's two hooks.
+The pure functions (settings <-> JSON, command, exports) are tested directly; :func:`add_share_panel` builds
+the tab's folder from what it needs (the last frame, the panel's values, a way to send a file and to hand
+loaded settings back) and :func:`show_frame` shows the command of a frame drawn.
 """
 
 from __future__ import annotations
@@ -14,13 +15,18 @@ import html
 import io
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from app.cli.command import bits_command, sweep_command
 from app.cli.output import dumps
 
-from .controls import CONTROLS, read_values
+from .controls import CONTROLS
 from .settings import InputError, Values, estimators, resolve_system, sweep_config
+
+if TYPE_CHECKING:
+    from .frames import Frame
 
 __all__ = [
     "SETTINGS_KIND",
@@ -35,10 +41,8 @@ __all__ = [
     "apply_values",
     "add_share_panel",
     "show_frame",
-    "apply_pending",
     "frame_html",
     "ShareHandles",
-    "panel_values",
 ]
 
 #: The "kind" tag of a settings file (and its format version).
@@ -268,8 +272,8 @@ def frame_html(frame) -> str:
 class ShareHandles:
     """The "Keep & share" folder of one tab: command text, status line, and a settings upload waiting."""
 
-    command: object
-    status: object
+    command: Any  # viser markdown handles
+    status: Any
     pending: Values | None = None
     shown: Values | None = None
 
@@ -290,9 +294,15 @@ def apply_values(el, v: Values) -> None:
         h["axes"].value = axes
 
 
-def _download(session, name: str, make, needs_frame: bool = True) -> None:
-    sh = session.share
-    frame = session.last_frame
+def _download(
+    sh: ShareHandles,
+    frame: Frame | None,
+    send: Callable[[str, bytes], None],
+    name: str,
+    make: Callable[[Frame | None], str],
+    needs_frame: bool = True,
+) -> None:
+    """Send the file ``name`` made by ``make(frame)`` to the tab; the outcome in one line of ``sh.status``."""
     if needs_frame and frame is None:
         sh.status.content = "Nothing computed yet: wait for the first view."
         return
@@ -301,26 +311,43 @@ def _download(session, name: str, make, needs_frame: bool = True) -> None:
     except Exception as exc:  # an export must never take the tab down
         sh.status.content = f"⚠️ Export failed ({type(exc).__name__}: {exc})"
         return
-    # save_immediately: one click saves the file (otherwise viser shows a link to click a second time)
-    session.client.send_file_download(name, text.encode("utf-8"), save_immediately=True)
+    send(name, text.encode("utf-8"))
     sh.status.content = f"Sent **{name}** ({len(text) / 1024:.0f} KiB)."
 
 
-def _uploaded(session, name: str, content: bytes) -> None:
-    sh = session.share
+def _uploaded(sh: ShareHandles, receive: Callable[[Values], None], name: str, content: bytes) -> None:
+    """A settings file arrived: checked, then handed to ``receive`` (or one line saying why not)."""
     try:
         v = values_from_json(content)
     except InputError as exc:
         sh.status.content = f"⚠️ **Cannot load {html.escape(name)}:** {exc}"
         return
-    sh.pending = v
     sh.status.content = f"Loaded settings from **{html.escape(name)}**."
-    session.touch()
+    receive(v)
 
 
-def add_share_panel(session) -> ShareHandles:
-    """The "Keep & share" folder at the end of a tab's panel (built once, in the session's constructor)."""
-    gui = session.client.gui
+def add_share_panel(
+    gui: Any,
+    last_frame: Callable[[], Frame | None],
+    panel_values: Callable[[], Values],
+    send: Callable[[str, bytes], None],
+    receive: Callable[[Values], None],
+) -> ShareHandles:
+    """The "Save, load & export" folder at the end of a tab's panel (built once per tab).
+
+    Parameters
+    ----------
+    gui : viser.GuiApi
+        The tab's GUI.
+    last_frame : callable() -> Frame or None
+        The frame the tab drew last (what the exports save).
+    panel_values : callable() -> Values
+        Everything set in the tab now (what "Download settings" saves).
+    send : callable(name, data)
+        Sends a file to the browser.
+    receive : callable(Values)
+        Settings loaded from a file (the tab applies them at its next run).
+    """
     with gui.add_folder("Save, load & export", expand_by_default=False):
         down = gui.add_button("Download settings (JSON)", hint="Save every setting of this panel to a file")
         up = gui.add_upload_button(
@@ -335,46 +362,24 @@ def add_share_panel(session) -> ShareHandles:
         html_b = gui.add_button("Export figures (HTML, offline)")
         status = gui.add_markdown("")
     sh = ShareHandles(command=command, status=status)
-    stem = lambda: session.last_frame.system.name if session.last_frame else "qsid"  # noqa: E731
+
+    def export(kind: str, make: Callable[[Frame | None], str]) -> None:
+        frame = last_frame()
+        _download(sh, frame, send, f"{frame.system.name if frame else 'qsid'}-{kind}", make)
+
     down.on_click(
-        lambda _: _download(session, "qsid-settings.json", lambda _f: settings_json(panel_values(session)), False)
+        lambda _: _download(sh, None, send, "qsid-settings.json", lambda _f: settings_json(panel_values()), False)
     )
-    csv_b.on_click(lambda _: _download(session, f"{stem()}-curves.csv", curves_csv))
-    json_b.on_click(lambda _: _download(session, f"{stem()}-curves.json", curves_json))
-    html_b.on_click(lambda _: _download(session, f"{stem()}-figures.html", frame_html))
-    up.on_upload(lambda e: _uploaded(session, e.target.value.name, e.target.value.content))
+    csv_b.on_click(lambda _: export("curves.csv", curves_csv))
+    json_b.on_click(lambda _: export("curves.json", curves_json))
+    html_b.on_click(lambda _: export("figures.html", frame_html))
+    up.on_upload(lambda e: _uploaded(sh, receive, e.target.value.name, e.target.value.content))
     return sh
 
 
-def panel_values(session) -> Values:
-    """Everything set in a tab: the controls and the view panel's own fields (channel, compared b)."""
-    v = read_values(session.controls)
-    views = getattr(session, "views", None)
-    return v.replace(**views.values()) if views is not None else v
-
-
-def _apply_views(views, v: Values) -> None:
-    names = list(views.channel.options)
-    views.channel.value = names[min(max(int(v.view_channel), 0), len(names) - 1)]
-    views.compare_bits.value = v.compare_bits
-
-
-def apply_pending(session) -> None:
-    """Hook at the start of the tab worker's run: apply settings uploaded since the last run."""
-    sh = getattr(session, "share", None)
-    if sh is not None and sh.pending is not None:
-        v, sh.pending = sh.pending, None
-        apply_values(session.controls, v)
-        views = getattr(session, "views", None)
-        if views is not None:
-            views.set_system(resolve_system(v).system)
-            _apply_views(views, v)
-
-
-def show_frame(session, frame) -> None:
-    """Hook after a frame is drawn: the command line for the settings it was computed with."""
-    sh = getattr(session, "share", None)
-    if sh is None or frame.values == sh.shown:
+def show_frame(sh: ShareHandles, frame: Frame) -> None:
+    """After a frame is drawn: the command line for the settings it was computed with."""
+    if frame.values == sh.shown:
         return
     sh.shown = frame.values
     try:

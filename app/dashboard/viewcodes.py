@@ -24,12 +24,13 @@ import secrets
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from .settings import InputError, Values
-from .share import panel_values, settings_json, values_from_json
+from .share import settings_json, values_from_json
 
 __all__ = [
     "ViewStore",
@@ -266,29 +267,32 @@ def _say(panel: CodePanel, text: str) -> None:
     panel.status.visible = bool(text)
 
 
-def load_code(session, text: str) -> None:
-    """The "load view code" box: apply the settings of the code (or link) typed, or say in one line why not."""
-    panel = session.codes
+def load_code(panel: CodePanel, store: ViewStore, text: str, receive: Callable[[Values], None]) -> None:
+    """The "load view code" box: hand the settings of the code (or link) typed to ``receive``, or say in one
+    line why not."""
     if not str(text or "").strip():
         _say(panel, "")
         return
     try:
         code = normalize_code(text)
-        v = session.app.views.get(code)
+        v = store.get(code)
     except InputError as exc:
         _say(panel, f"⚠️ {exc}")
         return
     if v is None:
         _say(panel, f"⚠️ view code **{code}** is not known on this server (ask for the link or check the letters)")
         return
-    session.share.pending = v
     _say(panel, f"Loaded view **{code}** (this tab keeps its own code **{panel.view.code}**).")
-    session.touch()
+    receive(v)
 
 
-def add_code_panel(session, view: ViewOpen, after) -> CodePanel:
-    """The code line and the load box, placed right after the panel element ``after`` (built once per tab)."""
-    gui = session.client.gui
+def add_code_panel(
+    gui: Any, view: ViewOpen, after: Any, store: ViewStore, receive: Callable[[Values], None]
+) -> CodePanel:
+    """The code line and the load box, placed right after the panel element ``after`` (built once per tab).
+
+    ``gui`` is the tab's ``viser.GuiApi``; a code typed in the box hands its settings to ``receive``.
+    """
     link = view_link(view.host, view.code)
     order = float(after.order)
     line = gui.add_markdown(
@@ -304,12 +308,10 @@ def add_code_panel(session, view: ViewOpen, after) -> CodePanel:
     status = gui.add_markdown(view.note, visible=bool(view.note), order=order + 0.003)
     url = gui.add_html(url_script(link, 1) if view.fresh else "", visible=view.fresh, order=order + 0.004)
     panel = CodePanel(view, line, box, status, url)
-    box.on_update(lambda e: load_code(session, e.target.value))
+    box.on_update(lambda e: load_code(panel, store, e.target.value, receive))
     return panel
 
 
-def remember(session) -> None:
+def remember(panel: CodePanel, store: ViewStore, values: Values) -> None:
     """After a frame is drawn: the tab's code keeps its newest settings."""
-    panel = getattr(session, "codes", None)
-    if panel is not None:
-        session.app.views.put(panel.view.code, panel_values(session))
+    store.put(panel.view.code, values)

@@ -1,4 +1,9 @@
-"""The plots panel of a tab: one tab per :data:`app.figures.registry.TABS`, each with its views and their inputs.
+"""The plots panel of a tab: one group per :data:`app.figures.registry.TABS`, each with its views and their inputs.
+
+The panel shows one group at a time, chosen in its "show" dropdown. The server owns that choice: a lesson
+brings its group forward by setting the dropdown (:meth:`ViewPanel.show`), which hides the other groups'
+elements through viser's public ``visible`` property. (viser has no server call that activates one of a
+panel's client-side tabs, so the groups are not panel tabs; nothing is run in the page to press one.)
 
 The views' own inputs live next to the views: the quantizer's channel, the word
 lengths of the side-by-side portraits, the pin buttons (Compare) and the
@@ -9,7 +14,7 @@ inputs, a change only marks the tab dirty; :meth:`ViewPanel.values` gives the
 
 from __future__ import annotations
 
-import json
+import threading
 from collections.abc import Callable
 
 import plotly.graph_objects as go
@@ -19,7 +24,7 @@ from app.figures.quantizer import channel_names
 
 from .plotlyjs import send_basic_bundle
 
-__all__ = ["ViewPanel", "blank_figure", "show_tab_html", "PANEL_WIDTH", "VIEW_FIELDS"]
+__all__ = ["ViewPanel", "blank_figure", "PANEL_WIDTH", "VIEW_FIELDS"]
 
 #: The :class:`~app.dashboard.settings.Values` fields set by the views' own inputs (not :data:`CONTROLS`).
 VIEW_FIELDS = ("view_channel", "compare_bits")
@@ -41,25 +46,8 @@ def blank_figure() -> go.Figure:
     return fig
 
 
-def show_tab_html(tab: str, nonce: int) -> str:
-    """HTML whose image fails to load at once (an empty data URL) and so runs a script that presses Enter on
-    the plots panel's tab ``tab`` (the tab strip that also holds "Identification"), the keyboard way the
-    dock activates a tab. ``nonce`` makes each call new content, so the browser runs it again."""
-    first = json.dumps(registry.TABS[0])
-    script = (
-        "var t=[].slice.call(document.querySelectorAll('[role=tab]'));"
-        f"var s=t.filter(function(e){{return e.title=={first};}}).map(function(e){{return e.parentElement;}})[0];"
-        f"var g=s&&[].slice.call(s.querySelectorAll('[role=tab]')).filter(function(e){{return e.title=={json.dumps(tab)};}})[0];"
-        "if(g){g.dispatchEvent(new KeyboardEvent('keydown',{key:'Enter',bubbles:true}));}"
-    )
-    return (
-        f'<img alt="" data-qsid-tab="{nonce}" src="data:," style="display:none" '
-        f'onerror="{script.replace(chr(34), "&quot;")}">'
-    )
-
-
 class ViewPanel:
-    """Tabs of plots (``plots``: view name -> plotly handle) and the views' inputs.
+    """Groups of plots (``plots``: view name -> plotly handle) and the views' inputs, one group shown at a time.
 
     Parameters
     ----------
@@ -87,63 +75,105 @@ class ViewPanel:
         self.system_names: tuple = ()
         #: None: plotly.js's basic bundle was sent (1.2 MB, not 4.8 MB); else why viser's full one goes
         self.plotly_js_note = send_basic_bundle(gui)
-        for tab in registry.TABS:
-            with panel.add_tab(tab):
-                if tab == "Quantizer":
-                    self.channel = gui.add_dropdown(
-                        "channel",
-                        ("x",),
-                        hint="The signal quantized below: a state or an input of the training data (dither seed 0)",
-                    )
-                    self.channel.on_update(lambda _e: on_change())
-                elif tab == "Data length":
-                    self.dl_button = gui.add_button(
-                        "Compute error vs data length",
-                        hint="10 lengths from 10³ to 10⁶ samples at the current b; any change cancels it",
-                    )
-                    self.dl_button.on_click(lambda _e: on_datalength())
-                    self.dl_progress = gui.add_progress_bar(0.0, animated=False)
-                    self.dl_status = gui.add_markdown("Not computed yet (it takes ~10-60 s; other views stay live).")
-                elif tab == "Compare":
-                    self.pin = gui.add_button(
-                        "Pin current result",
-                        hint="Keep the current curves: the error, cost and bound plots show them dashed until unpinned",
-                    )
-                    self.unpin = gui.add_button("Unpin", disabled=True)
-                    self.pin.on_click(lambda _e: on_pin())
-                    self.unpin.on_click(lambda _e: on_unpin())
-                    self.pin_note = gui.add_markdown("Nothing pinned.")
-                    self.compare_bits = gui.add_text(
-                        "portraits at b",
-                        values.compare_bits,
-                        hint="Word lengths side by side, e.g. '2, 4, 6' (the letter's figures (d)-(f))",
-                    )
-                    self.compare_bits.on_update(lambda _e: on_change())
-                for v in (v for v in registry.VIEWS if v.tab == tab):
-                    self.plots[v.name] = gui.add_plotly(blank_figure(), aspect=v.aspect)
-        #: runs the one-line script of :func:`show_tab_html` (viser has no server call that activates a tab)
-        self.tab_switch = gui.add_html("", visible=False)
-        self._switches = 0
+        #: the elements of each group (registry tab name -> handles), visible only while the group is chosen
+        self.groups: dict[str, list] = {}
+        self._show_lock = threading.RLock()
+        self._shown = registry.TABS[0]
+        with panel.add_tab("Plots"):  # one tab: viser draws it as the panel's plain header
+            #: which group the panel shows (the person picks any; a lesson's is set by the server)
+            self.group = gui.add_dropdown(
+                "show",
+                registry.TABS,
+                initial_value=registry.TABS[0],
+                hint="Which plots this panel shows (a lesson picks its own)",
+            )
+            for tab in registry.TABS:
+                self.groups[tab] = self._add_group(gui, tab, values, on_change, on_pin, on_unpin, on_datalength)
+        self.group.on_update(lambda _e: self.show(str(self.group.value)))
+        self.show(registry.TABS[0])
         self._orders: dict = {}
         self.set_system(system, int(values.view_channel))
 
+    def _add_group(self, gui, tab: str, values, on_change, on_pin, on_unpin, on_datalength) -> list:
+        """The inputs and plots of group ``tab`` (built hidden; :meth:`show` reveals one group)."""
+        out: list = []
+        if tab == "Quantizer":
+            self.channel = gui.add_dropdown(
+                "channel",
+                ("x",),
+                hint="The signal quantized below: a state or an input of the training data (dither seed 0)",
+                visible=False,
+            )
+            self.channel.on_update(lambda _e: on_change())
+            out.append(self.channel)
+        elif tab == "Data length":
+            self.dl_button = gui.add_button(
+                "Compute error vs data length",
+                hint="10 lengths from 10³ to 10⁶ samples at the current b; any change cancels it",
+                visible=False,
+            )
+            self.dl_button.on_click(lambda _e: on_datalength())
+            self.dl_progress = gui.add_progress_bar(0.0, animated=False, visible=False)
+            self.dl_status = gui.add_markdown(
+                "Not computed yet (it takes ~10-60 s; other views stay live).", visible=False
+            )
+            out += [self.dl_button, self.dl_progress, self.dl_status]
+        elif tab == "Compare":
+            self.pin = gui.add_button(
+                "Pin current result",
+                hint="Keep the current curves: the error, cost and bound plots show them dashed until unpinned",
+                visible=False,
+            )
+            self.unpin = gui.add_button("Unpin", disabled=True, visible=False)
+            self.pin.on_click(lambda _e: on_pin())
+            self.unpin.on_click(lambda _e: on_unpin())
+            self.pin_note = gui.add_markdown("Nothing pinned.", visible=False)
+            self.compare_bits = gui.add_text(
+                "portraits at b",
+                values.compare_bits,
+                hint="Word lengths side by side, e.g. '2, 4, 6' (the letter's figures (d)-(f))",
+                visible=False,
+            )
+            self.compare_bits.on_update(lambda _e: on_change())
+            out += [self.pin, self.unpin, self.pin_note, self.compare_bits]
+        for v in (v for v in registry.VIEWS if v.tab == tab):
+            self.plots[v.name] = gui.add_plotly(blank_figure(), aspect=v.aspect, visible=False)
+            out.append(self.plots[v.name])
+        return out
+
+    @property
+    def shown(self) -> str:
+        """The group the panel shows (one of :data:`app.figures.registry.TABS`)."""
+        return self._shown
+
+    def show(self, tab: str) -> None:
+        """Show group ``tab`` and hide the others (from any thread: viser queues the changes in order)."""
+        if tab not in self.groups:
+            tab = registry.TABS[0]
+        with self._show_lock:  # the dropdown's callback thread and the tab's worker (a lesson) both call this
+            self._shown = tab
+            if self.group.value != tab:
+                self.group.value = tab  # its callback calls show again (same thread), which finds it done
+            for name, handles in self.groups.items():
+                for h in handles:
+                    if h.visible != (name == tab):
+                        h.visible = name == tab
+
     def open_lesson(self, plot: str, system, channel: int) -> None:
-        """Show a lesson's key view: its tab brought forward, the view first in it (above the fold), and the
+        """Show a lesson's key view: its group brought forward, the view first in it (above the fold), and the
         quantizer view on ``channel``."""
         tab = next(v.tab for v in registry.VIEWS if v.name == plot)
         if not self._orders:
             self._orders = {name: float(h.order) for name, h in self.plots.items()}
         same = [v.name for v in registry.VIEWS if v.tab == tab]
-        for name, h in self.plots.items():  # the key view just above its tab's first view, the others as built
+        for name, h in self.plots.items():  # the key view just above its group's first view, the others as built
             want = (min(self._orders[n] for n in same) - 0.5) if name == plot else self._orders[name]
             if h.order != want:
                 h.order = want
         self.set_system(system)
         names = self.system_names
         self.channel.value = names[min(max(int(channel), 0), len(names) - 1)]
-        self._switches += 1
-        self.tab_switch.content = show_tab_html(tab, self._switches)
-        self.tab_switch.visible = True
+        self.show(tab)
 
     def set_system(self, system, channel: int | None = None) -> None:
         """Offer the channels of ``system`` (keeps the choice when the names did not change)."""

@@ -25,7 +25,7 @@ LIGHTER = dict(trajectories=20, steps=100, realizations=6)  # milliseconds of wo
 
 
 def _pids(app) -> list[int]:
-    return [p.pid for p in app.executor._processes.values()]
+    return app.executor.pids()
 
 
 def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool = False) -> None:

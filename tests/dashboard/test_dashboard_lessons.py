@@ -304,15 +304,17 @@ def test_one_cell_lesson_plain_fails_dither_rescues():
 def test_choosing_a_lesson_brings_its_plot_forward(tab):
     views = tab.session.views
     tab.set(lesson="bound")
-    assert "title==&quot;Control&quot;" in views.tab_switch.content and views.tab_switch.visible
+    assert views.shown == "Control" and views.group.value == "Control"
+    assert all(h.visible for h in views.groups["Control"])
+    assert not any(h.visible for g in ("Identification", "Quantizer") for h in views.groups[g])
     control = [v.name for v in registry.VIEWS if v.tab == "Control"]
     assert min(control, key=lambda n: views.plots[n].order) == "bound"
     assert "**Bound lesson, b = 8**" in tab.summary and "‖x0‖" in tab.summary
     tab.set(lesson="one-cell")
-    assert "title==&quot;Quantizer&quot;" in views.tab_switch.content
+    assert views.shown == "Quantizer" and views.plots["quantizer"].visible and not views.plots["bound"].visible
     assert views.channel.value == "u: elevator"
     tab.set(lesson="fig1")
-    assert "title==&quot;Identification&quot;" in views.tab_switch.content
+    assert views.shown == "Identification" and views.group.value == "Identification"
     assert min(control, key=lambda n: views.plots[n].order) == control[0]  # the Control tab back in order
 
 
@@ -325,10 +327,24 @@ def test_lesson_flag_opens_on_its_tab(name, tab_name):
     a = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson=name)
     try:
         t = Tab(a)
-        assert f"title==&quot;{tab_name}&quot;" in t.session.views.tab_switch.content
+        assert t.session.views.shown == tab_name and t.session.views.group.value == tab_name
         t.close()
     finally:
         a.stop()
+
+
+def test_the_person_picks_any_group_and_a_lesson_picks_its_own(tab):
+    """The "show" dropdown reveals one group (its inputs and plots) and hides the rest; nothing else changes."""
+    views = tab.session.views
+    gen = tab.session.generation
+    for name in registry.TABS:
+        views.group.value = name
+        assert views.shown == name
+        for group, handles in views.groups.items():
+            assert all(h.visible == (group == name) for h in handles), (name, group)
+    assert tab.session.generation == gen  # picking a group is not a change of settings: nothing recomputed
+    views.show("no such group")
+    assert views.shown == registry.TABS[0] and views.group.value == registry.TABS[0]
 
 
 def test_fig1_and_theorem1_text_agree_with_marks():

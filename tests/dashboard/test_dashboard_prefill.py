@@ -9,10 +9,10 @@ from types import SimpleNamespace
 import pytest
 
 from app.dashboard.cache import SharedCache
-from app.dashboard.server import DashboardApp, _prepare_first_tab
+from app.dashboard.server import DashboardApp
 from app.dashboard.settings import Values
 from app.dashboard.stages import iter_frames
-from app.dashboard.warm import fetch_page, prefill
+from app.dashboard.warm import fetch_page, first_tab, prefill
 from qsid_core.errors import QsidError
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
@@ -38,7 +38,7 @@ def test_the_server_starts_anyway_and_says_why_the_view_was_not_precomputed(caps
     unstable = Values(system="custom", a_text="1.5 0\n0 1.2", b_text="1; 1", trajectories=5, steps=1000)
     app = SimpleNamespace(host="127.0.0.1", port=1, defaults=unstable, cache=SharedCache(), executor=None, tasks=1)
     app.prefill = lambda: DashboardApp.prefill(app)
-    _prepare_first_tab(app)  # port 1: nothing listens; no exception either way
+    first_tab(app)  # port 1: nothing listens; no exception either way
     out = capsys.readouterr().out.strip().splitlines()
     assert len(out) == 1 and out[0].startswith(
         "qsid dashboard: the first view was not precomputed (simulated states exceed"

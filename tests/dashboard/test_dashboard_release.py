@@ -23,7 +23,7 @@ def test_closed_tabs_leave_nothing_behind():
             t.set(mpc_steps=15, **SMALL)
             t.wait(120)
             s = t.session
-            refs += [weakref.ref(s), weakref.ref(s.renderer), weakref.ref(s.views), weakref.ref(s.portrait)]
+            refs += [weakref.ref(x) for x in (s, s.ui, s.ui.renderer, s.views, s.portrait)]
             threads.append(s.thread)
             t.close()
             del t, s

@@ -210,7 +210,7 @@ def test_command_line_prints_url_and_stops_cleanly_on_ctrl_c():
     try:
         line = ""
         deadline = time.time() + HANG_S
-        while not line.startswith("qsid dashboard:") and time.time() < deadline:  # after viser's own banner
+        while not line.startswith("qsid dashboard: http") and time.time() < deadline:  # past the compiling note
             line = p.stdout.readline()
         assert line.startswith("qsid dashboard: http://127.0.0.1:"), line
         time.sleep(0.5)
@@ -237,11 +237,11 @@ def test_command_line_rejects_unknown_system():
 
 @pytest.mark.slow
 def test_default_process_pool_gives_the_same_results():
-    from concurrent.futures import ProcessPoolExecutor
+    from app.procs import ProcessPool
 
     pooled = DashboardApp(host="127.0.0.1", port=0, workers=2)
     try:
-        assert isinstance(pooled.executor, ProcessPoolExecutor) and pooled.tasks == 2
+        assert isinstance(pooled.executor, ProcessPool) and pooled.tasks == 2
         t = open_tab(pooled)
         try:
             t.set(bits=7)

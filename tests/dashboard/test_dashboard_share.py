@@ -195,19 +195,27 @@ def test_download_then_upload_gives_the_same_view(monkeypatch):
         monkeypatch.setattr(
             one.session.client, "send_file_download", lambda name, content, **kw: sent.update({name: content})
         )
+        ui = one.session.ui
         share._download(
-            one.session, "qsid-settings.json", lambda _f: share.settings_json(share.panel_values(one.session)), False
+            ui.share,
+            None,
+            ui._send_file,
+            "qsid-settings.json",
+            lambda _f: share.settings_json(ui.panel_values()),
+            False,
         )
         assert set(sent) == {"qsid-settings.json"}
         two = Tab(app).wait()
         assert two.frame.values != one.frame.values
-        share._uploaded(two.session, "qsid-settings.json", sent["qsid-settings.json"])
+        share._uploaded(two.session.share, two.session.ui.receive, "qsid-settings.json", sent["qsid-settings.json"])
         two.wait()
         assert "Loaded settings" in two.session.share.status.content
         assert two.frame.values == one.frame.values and two.frame.values.log_q[1] == 1.5
         assert two.frame.values.compare_bits == "3, 5" and two.frame.values.x_ref == "0.1, 0, 0, 0"
         assert two.frame.rows == one.frame.rows and two.session.share.command.content.count("qsid sweep") == 2
-        share._uploaded(two.session, "broken.json", b"{")  # a bad file: a note, the view stays
+        share._uploaded(
+            two.session.share, two.session.ui.receive, "broken.json", b"{"
+        )  # a bad file: a note, the view stays
         assert "Cannot load broken.json" in two.session.share.status.content and two.error is None
         for t in (one, two):
             t.close()

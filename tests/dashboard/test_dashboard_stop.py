@@ -1,8 +1,7 @@
-"""The dashboard's stop path: the pool's semaphores are always released before the process leaves.
+"""The dashboard's stop path: the pool's workers are always killed and reaped before the process leaves.
 
 The process leaves ``STOP_WAIT`` seconds after a stop signal whatever the web server is doing, but never
-while the semaphores' finalizers run: a semaphore unlinked and not yet unregistered makes the resource
-tracker warn of a "leaked" semaphore (seen once in a loaded CI run of the SIGHUP test).
+before the pool is halted (its workers killed and reaped), even when that takes longer than ``STOP_WAIT``.
 """
 
 from __future__ import annotations
@@ -10,15 +9,15 @@ from __future__ import annotations
 import threading
 import time
 
-from app.dashboard import server
+from app.dashboard import stopping
 
 
 class _SlowApp:
-    """Records the stop's steps; its pool release and its web server each outlast ``STOP_WAIT``."""
+    """Records the stop's steps; its halt and its web server each may outlast ``STOP_WAIT``."""
 
-    def __init__(self, release_s: float, server_s: float):
+    def __init__(self, halt_s: float, server_s: float):
         self.steps: list[str] = []
-        self.release_s = release_s
+        self.halt_s = halt_s
         self.server_s = server_s
         outer = self
 
@@ -30,40 +29,34 @@ class _SlowApp:
         self.server = _Server()
 
     def halt(self):
+        time.sleep(self.halt_s)
         self.steps.append("halted")
         return []
 
-    def release(self):
-        time.sleep(self.release_s)
-        self.steps.append("released")
 
-
-def test_the_semaphores_are_released_even_when_that_outlasts_the_stop_bound(monkeypatch):
-    monkeypatch.setattr(server, "STOP_WAIT", 0.2)
-    app = _SlowApp(release_s=0.7, server_s=0.0)
-    monkeypatch.setattr(server, "release_ipc", app.release)
-    server._stop_app(app)
-    assert app.steps[:2] == ["halted", "released"]
+def test_the_pool_is_halted_even_when_that_outlasts_the_stop_bound(monkeypatch):
+    monkeypatch.setattr(stopping, "STOP_WAIT", 0.2)
+    app = _SlowApp(halt_s=0.7, server_s=0.0)
+    stopping.stop_app(app)
+    assert app.steps[:1] == ["halted"]
 
 
 def test_a_web_server_that_does_not_stop_does_not_hold_the_process(monkeypatch):
-    monkeypatch.setattr(server, "STOP_WAIT", 0.2)
+    monkeypatch.setattr(stopping, "STOP_WAIT", 0.2)
     block = threading.Event()
-    app = _SlowApp(release_s=0.0, server_s=0.0)
+    app = _SlowApp(halt_s=0.0, server_s=0.0)
     app.server.stop = block.wait  # never returns until the test ends
-    monkeypatch.setattr(server, "release_ipc", app.release)
     try:
-        server._stop_app(app)
-        assert app.steps == ["halted", "released"]
+        stopping.stop_app(app)
+        assert app.steps == ["halted"]
     finally:
         block.set()
 
 
-def test_the_pool_is_released_before_the_web_server_stops(monkeypatch):
-    app = _SlowApp(release_s=0.0, server_s=0.0)
-    monkeypatch.setattr(server, "release_ipc", app.release)
-    server._stop_app(app)
+def test_the_pool_is_halted_before_the_web_server_stops():
+    app = _SlowApp(halt_s=0.0, server_s=0.0)
+    stopping.stop_app(app)
     deadline = time.monotonic() + 60
-    while len(app.steps) < 3 and time.monotonic() < deadline:  # the server's stop may finish after the bound
+    while len(app.steps) < 2 and time.monotonic() < deadline:  # the server's stop may finish after the bound
         time.sleep(0.01)
-    assert app.steps == ["halted", "released", "server stopped"]
+    assert app.steps == ["halted", "server stopped"]

@@ -135,9 +135,10 @@ TAB_TEXTS = {
 
 
 def _open_plot_tab(page, label: str) -> int:
-    """Click tab ``label`` of the plots panel (the right one: the left panel has a 'Quantizer' tab too);
-    wait until a visible plot shows the tab's text; returns how many plots are visible."""
-    page.get_by_role("tab", name=label, exact=True).last.click()
+    """Pick group ``label`` in the plots panel's "show" dropdown as a person does; wait until a visible plot
+    shows the group's text; returns how many plots are visible."""
+    page.get_by_label("show", exact=True).click()
+    page.get_by_role("option", name=label, exact=True).click()
     text = TAB_TEXTS[label]
     page.wait_for_function(
         """(t) => [...document.querySelectorAll('.js-plotly-plot')].some(
@@ -262,10 +263,9 @@ def test_dashboard_in_a_real_browser(dash, tmp_path):
 
 
 _ACTIVE_PLOT_TAB = """() => {
-  const tabs = [...document.querySelectorAll('[role=tab]')];
-  const strip = tabs.filter(e => e.title === 'Identification').map(e => e.parentElement)[0];
-  const on = strip && [...strip.querySelectorAll('[role=tab]')].find(e => e.getAttribute('aria-selected') === 'true');
-  return on ? on.title : null;
+  const label = [...document.querySelectorAll('label')].find(e => e.textContent.trim() === 'show');
+  const input = label && document.getElementById(label.htmlFor);
+  return input ? input.value : null;
 }"""
 
 

@@ -38,6 +38,18 @@ def run(*args, timeout=HANG_S):
     )
 
 
+def dashboard_process(*args) -> subprocess.Popen:
+    """``python -m app.dashboard --port 0 ARGS`` with its output readable as text."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard", "--port", "0", *args],
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
 #: ``python -m app.dashboard`` on a free loopback port; ``url`` once it printed it.
 Server = partial(DashboardProcess, env=ENV, timeout=HANG_S)
 
@@ -113,7 +125,7 @@ def test_ctrl_c_stops_everything_during_concurrent_mpc_work():
     "sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL], ids=["TERM", "HUP", "INT", "KILL"]
 )
 def test_every_signal_leaves_no_descendant(sig):
-    """A tab open, the pool and its resource tracker running: after the signal nothing the server started lives
+    """A tab open, the pool running: after the signal nothing the server started lives
     on; TERM/HUP/INT take the graceful path (one 'stopping' line, exit 0), KILL leaves workers that end by
     themselves (parent-death signal / getppid check)."""
     s = Server("--workers", "2")
@@ -122,7 +134,7 @@ def test_every_signal_leaves_no_descendant(sig):
         tab = WsTab(s.url)
         tab.wait_ready(120)
         desc = descendants(s.p.pid)
-        assert len(desc) >= 3, desc  # two pool workers and the resource tracker
+        assert len(desc) >= 2, desc  # the two pool workers
         s.p.send_signal(sig)
         s.p.wait(timeout=60)
         out, err = s.stdout(10), s.stderr(10)
@@ -139,3 +151,31 @@ def test_every_signal_leaves_no_descendant(sig):
     assert s.p.returncode == 0, (s.p.returncode, err)
     assert out.count("stopping") == 1, out
     assert "Traceback" not in err and "leaked" not in err, err
+
+
+def test_one_url_shown_and_only_once_the_page_answers():
+    """viser's own URL box (printed as its port opens, before the warm-up) is not shown: the output holds one
+    URL line, qsid's ready line, and the page answers at the moment it appears."""
+    import re
+    import urllib.request
+
+    p = dashboard_process()
+    try:
+        before, line, end = [], "", time.time() + HANG_S
+        while not re.search(r"\w+://", line) and time.time() < end and p.poll() is None:
+            line = p.stdout.readline()
+            before.append(line)
+        assert line.startswith("qsid dashboard: http://"), before
+        opener = urllib.request.build_opener(urllib.request.ProxyHandler({}))
+        with opener.open(line.split()[2], timeout=5) as resp:  # asked at once: the server is ready
+            assert resp.status == 200 and b"<html" in resp.read().lower()
+        p.send_signal(signal.SIGTERM)
+        out, err = p.communicate(timeout=HANG_S)
+        lines = before + out.splitlines()
+        assert [ln for ln in lines if re.search(r"\w+://", ln)] == [line], lines
+        assert not any("Websocket" in ln or "╭" in ln for ln in lines), lines  # viser's box
+        assert not re.search(r"\w+://", err), err
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(HANG_S)

@@ -57,11 +57,11 @@ BITS_THUMB = """() => {
   const t = document.querySelector(`[id='${uid}'] [role=slider]`);
   return t ? t.getAttribute('aria-valuenow') : null;
 }"""
+#: The group the plots panel shows (the value of its "show" dropdown).
 ACTIVE_TAB = """() => {
-  const strip = [...document.querySelectorAll('[role=tab]')].filter(e => e.title === 'Identification')
-    .map(e => e.parentElement)[0];
-  const on = strip && [...strip.querySelectorAll('[role=tab]')].find(e => e.getAttribute('aria-selected') === 'true');
-  return on ? on.title : null;
+  const label = [...document.querySelectorAll('label')].find(e => e.textContent.trim() === 'show');
+  const input = label && document.getElementById(label.htmlFor);
+  return input ? input.value : null;
 }"""
 
 

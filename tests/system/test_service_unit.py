@@ -96,7 +96,7 @@ def test_stopping_the_units_command_like_systemd_leaves_no_process():
         tab = WsTab(line.split()[2], timeout=HANG_S)
         tab.wait_ready(HANG_S)
         tab.send("realizations", 30)  # the workers are busy when the stop comes
-        assert len(tagged(tag)) >= 3  # the server, its workers (and the resource tracker)
+        assert len(tagged(tag)) >= 3  # the server and its two workers
         p.send_signal(signal.SIGTERM)  # KillMode=mixed: SIGTERM to the main process only
         p.wait(HANG_S)
     finally:

@@ -1,0 +1,165 @@
+"""The viser side of one browser tab: its panels, and what it shows of a computation (frames, progress, errors).
+
+:class:`TabView` builds the left panel, the plots panel, the 3-D scene and the "Save, load & export" and view-code
+parts once, and then only draws: :meth:`TabView.draw` pushes a :class:`~app.dashboard.frames.Frame`,
+:meth:`TabView.show_error` and :meth:`TabView.show_progress` the state of a computation. It owns no thread and
+computes nothing: the frames come from :func:`app.dashboard.stages.iter_frames` (a pure function from the
+settings to the frames), driven by the tab's worker (:class:`app.dashboard.session.Session`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+from qsid_core import PRESETS, get_system
+
+from .controls import GuiElements, make_gui_elements, read_values
+from .frames import Frame
+from .presenter import AutoPlay, PresenterLayout
+from .render import Renderer
+from .scene import PhasePortrait
+from .settings import Values, resolve_system
+from .share import ShareHandles, add_share_panel, apply_values
+from .viewcodes import CodePanel, ViewOpen, ViewStore, add_code_panel
+from .viewpanel import PANEL_WIDTH, ViewPanel
+
+__all__ = ["TabView", "drop_late_draws", "CLOSED_CONNECTION"]
+
+#: viser's warning for a message pushed to a tab whose connection is closed (see :func:`drop_late_draws`)
+CLOSED_CONNECTION = r"Queued a \w+ on a closed connection"
+
+
+def drop_late_draws() -> None:
+    """Drop, quietly and by design, what a tab's worker pushes after its browser tab closed.
+
+    A tab's worker checks that its tab is open before each draw, but the tab can close between that check
+    and the draw's last message (viser closes the connection before it calls ``on_client_disconnect``, so
+    no lock of ours can order the two). viser discards such messages (they would never be delivered) and
+    warns once per connection; for the dashboard that is the expected end of a draw, not a leak: the
+    worker stops at its next check and the tab's handles are released with it. Only that warning is
+    ignored (a ``warnings`` filter on its text).
+    """
+    warnings.filterwarnings("ignore", message=CLOSED_CONNECTION, category=UserWarning)
+
+
+class TabView:
+    """The panels of one tab (viser handles) and how a frame, a progress or an error is shown in them.
+
+    Parameters
+    ----------
+    client : viser.ClientHandle
+    values : Values
+        The tab's first settings.
+    touch : callable(user=False)
+        Marks the tab dirty (every input's callback calls it).
+    view : ViewOpen, optional
+        The tab's view code (None: no code line).
+    store : ViewStore, optional
+        Where view codes are kept (needed with ``view``).
+    last_frame : callable() -> Frame or None
+        The frame drawn last (for the exports).
+    on_pin, on_unpin, on_datalength : callable()
+        The Compare group's buttons and the Data length group's button.
+    """
+
+    def __init__(
+        self,
+        client: Any,
+        values: Values,
+        touch: Callable[..., None],
+        view: ViewOpen | None,
+        store: ViewStore | None,
+        last_frame: Callable[[], Frame | None],
+        on_pin: Callable[[], None],
+        on_unpin: Callable[[], None],
+        on_datalength: Callable[[], None],
+    ):
+        self.client = client
+        self.touch = touch
+        #: settings that arrived from a file or a view code; the worker applies them at its next run
+        self.pending: Values | None = None
+        gui = client.gui
+        gui.configure_theme(show_share_button=False, control_width="large", show_logo=False)
+        # place the panels before filling them: moving a filled panel re-mounts its plots
+        gui.main_panel.dock_left()
+        self.plots_panel = gui.add_panel()
+        self.plots_panel.dock_right()
+        self.plots_panel.set_width(PANEL_WIDTH)
+        system = get_system(values.system) if values.system in PRESETS else resolve_system(values).system
+        self.controls: GuiElements = make_gui_elements(gui, values, system, touch)
+        self.play = AutoPlay(self.controls.play, self.controls["bits"], touch)
+        self.controls.play.on_click(lambda _e: self.play.press())
+        self.codes: CodePanel | None = None
+        if view is not None and store is not None:
+            self.codes = add_code_panel(gui, view, self.controls.play, store, self.receive)
+        self.share: ShareHandles = add_share_panel(
+            gui, last_frame, self.panel_values, self._send_file, self.receive
+        )  # keep & share: settings file, command line, exports
+        self.views = ViewPanel(gui, self.plots_panel, values, system, touch, on_pin, on_unpin, on_datalength)
+        self.plots = self.views.plots
+        self.renderer = Renderer()
+        self.portrait = PhasePortrait(client.scene)
+        self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH)
+        self.last_error: str | None = None
+
+    # ----- settings in and out ----------------------------------------------------------------------------------
+    def panel_values(self) -> Values:
+        """Everything set in the tab: the controls and the plots panel's own fields (channel, compared b)."""
+        return read_values(self.controls).replace(**self.views.values())
+
+    def receive(self, values: Values) -> None:
+        """Settings loaded from a file or a view code: applied by the worker at its next run."""
+        self.pending = values
+        self.touch()
+
+    def apply_pending(self) -> None:
+        """(worker) Set the panel to settings received since the last run."""
+        v, self.pending = self.pending, None
+        if v is None:
+            return
+        apply_values(self.controls, v)
+        self.views.set_system(resolve_system(v).system)
+        names = list(self.views.channel.options)
+        self.views.channel.value = names[min(max(int(v.view_channel), 0), len(names) - 1)]
+        self.views.compare_bits.value = v.compare_bits
+
+    def _send_file(self, name: str, data: bytes) -> None:
+        # save_immediately: one click saves the file (otherwise viser shows a link to click a second time)
+        self.client.send_file_download(name, data, save_immediately=True)
+
+    # ----- what the tab shows -------------------------------------------------------------------------------------
+    def show_error(self, text: str) -> None:
+        """One line under the panel's inputs; the views keep the last good result."""
+        self.last_error = text
+        c = self.controls
+        c.error.content = f"⚠️ **Cannot update:** {text}  \n*The view still shows the last good result.*"
+        c.error.visible = True
+        c.status.content = "error – see below"
+        c.progress.value = 0.0
+
+    def show_progress(self, fraction: float, text: str) -> None:
+        self.controls.progress.value = 100.0 * fraction
+        self.controls.status.content = text
+
+    def draw(self, frame: Frame, stale: Callable[[], bool]) -> bool:
+        """Push ``frame`` unless ``stale()`` (newer settings arrived) before it is sent; True if drawn."""
+        c = self.controls
+        if stale():
+            return False
+        r = self.renderer.render(frame, c["axes"].value)
+        if stale():  # never draw an older result over a newer one
+            self.renderer = Renderer()  # it remembered figures that were not pushed
+            return False
+        with self.client.atomic():
+            if c.error.visible:
+                c.error.visible = False
+                self.last_error = None
+            if r.scene is not None:
+                self.portrait.draw(r.scene)
+            if r.summary is not None:
+                c.summary.content = r.summary
+            for name, fig in r.figures.items():
+                self.plots[name].figure = fig
+        return True
