@@ -13,6 +13,17 @@ from .interop import (
     system_to_statespace,
 )
 from .lti import MAX_INPUTS, MAX_STATES, LTISystem, UncontrollableWarning
+from .nonlinear import (
+    NONLINEAR_PRESETS,
+    NonlinearDataset,
+    NonlinearSystem,
+    VectorField,
+    get_nonlinear,
+    is_nonlinear,
+    nonlinear_from_dict,
+    rk4_step,
+    simulate_nonlinear,
+)
 from .systems import PRESETS, boeing747, dc_motor, dc_motor_physical, get_system, load_system, system_from_dict
 
 __all__ = [
@@ -20,18 +31,27 @@ __all__ = [
     "LTISystem",
     "MAX_INPUTS",
     "MAX_STATES",
+    "NONLINEAR_PRESETS",
+    "NonlinearDataset",
+    "NonlinearSystem",
     "OUTPUT_RULES",
     "OVERFLOW_LIMIT",
     "PRESETS",
     "UncontrollableWarning",
+    "VectorField",
     "boeing747",
     "dc_motor",
     "dc_motor_physical",
+    "get_nonlinear",
     "get_system",
     "identified_statespaces",
+    "is_nonlinear",
     "load_system",
     "model_to_statespace",
+    "nonlinear_from_dict",
+    "rk4_step",
     "simulate",
+    "simulate_nonlinear",
     "system_from_dict",
     "system_from_statespace",
     "system_to_statespace",
