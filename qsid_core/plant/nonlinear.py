@@ -63,7 +63,7 @@ class NonlinearSystem:
     ----------
     name : str
         Short identifier.
-    field : callable
+    vector_field : callable
         ``f(x, u)`` with x of shape (runs, n) and u of shape (runs, m), returning shape (runs, n).
     n, m : int
         Numbers of states and inputs.
@@ -82,7 +82,7 @@ class NonlinearSystem:
     """
 
     name: str
-    field: VectorField
+    vector_field: VectorField
     n: int
     m: int
     dt: float = 0.05
@@ -96,8 +96,10 @@ class NonlinearSystem:
     input_names: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
-        if not callable(self.field):
-            raise SystemDefinitionError(f"vector field of {self.name!r} must be callable; got {short_repr(self.field)}")
+        if not callable(self.vector_field):
+            raise SystemDefinitionError(
+                f"vector field of {self.name!r} must be callable; got {short_repr(self.vector_field)}"
+            )
         object.__setattr__(self, "n", check_int("states n", self.n, 1, 20))
         object.__setattr__(self, "m", check_int("inputs m", self.m, 1, 20))
         object.__setattr__(self, "dt", check_float("dt", self.dt, 0.0, 1e6, lo_open=True))
@@ -124,7 +126,7 @@ class NonlinearSystem:
             If the callable raises, returns the wrong shape, or returns NaN or inf at a finite state.
         """
         try:
-            out = np.asarray(self.field(x, u), dtype=float)
+            out = np.asarray(self.vector_field(x, u), dtype=float)
         except Exception as exc:  # any failure of user code becomes one line naming the field
             raise SystemDefinitionError(
                 f"vector field of {self.name!r} raised {type(exc).__name__}: {str(exc)[:200]}"
