@@ -134,11 +134,6 @@ def _gram_exponents(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return GE.astype(np.int64), inv.reshape(L, L)
 
 
-def _assemble(SG: np.ndarray, idx: np.ndarray, XU: np.ndarray, UU: np.ndarray) -> np.ndarray:
-    top = np.hstack([SG[idx], XU])
-    return np.vstack([top, np.hstack([XU.T, UU])])
-
-
 def quantized_lifted_moments(
     data: Dataset,
     lifting: Lifting,
@@ -192,25 +187,15 @@ def quantized_lifted_moments(
         return [_rbf_moments(data, lifting, int(b), spec, W, lo, hi, e, T) for b, e in zip(bits, eps, strict=True)]
     GE, idx = _gram_exponents(lifting.exponents)
     Bc = bernoulli_shifted(int(GE.max()))
-    Xs = data.states
-    SGp, SGu, XUp, XUu, UU, CXp, CXu, CUp, CUu, over = accumulate_lifted(
-        Xs, data.inputs, W, lo_q, eps, 2.0 ** np.asarray(bits, dtype=float), np.ones(n + m, bool), sub,
-        lifting.exponents, GE, Bc, unbiased,
-    )  # fmt: skip
+    levels = 2.0 ** np.asarray(bits, dtype=float)
+    PP, XP, PPu, XPu, over = accumulate_lifted(
+        data.states, data.inputs, W, lo_q, eps, levels, sub, lifting.exponents, GE, idx, Bc, unbiased
+    )
     out = []
     for j in range(len(bits)):
-        mom = LiftedMoments(
-            PP=_assemble(SGp[j], idx, XUp[j], UU[j]),
-            XP=np.hstack([CXp[j], CUp[j]]),
-            T=T,
-            eps=eps[j],
-            overload_fraction=float(over[j]) / entries,
-            note=note,
-        )
+        mom = LiftedMoments(PP[j], XP[j], T, eps[j], overload_fraction=float(over[j]) / entries, note=note)
         if unbiased:
-            UUu = UU[j] - np.diag(T * eps[j, n:] ** 2 / 12.0)
-            mom.PPu = _assemble(SGu[j], idx, XUu[j], UUu)
-            mom.XPu = np.hstack([CXu[j], CUu[j]])
+            mom.PPu, mom.XPu = PPu[j], XPu[j]
         out.append(mom)
     return out
 

@@ -25,139 +25,132 @@ import numpy as np
 
 from ..quantization import kernels
 
-__all__ = ["AVAILABLE", "accumulate_lifted"]
+__all__ = ["AVAILABLE", "RUNS_PER_BLOCK", "accumulate_lifted"]
 
 AVAILABLE = kernels.AVAILABLE
 
 
-def _accumulate_lifted_py(
+def _lift_runs_py(
     X: np.ndarray,
     Uin: np.ndarray,
     W: np.ndarray,
     lo_q: np.ndarray,
     eps: np.ndarray,
-    levels: np.ndarray,
+    levels: float,
     quant: np.ndarray,
     sub: float,
     E: np.ndarray,
     GE: np.ndarray,
     Bc: np.ndarray,
     unbiased: bool,
-    out: tuple[np.ndarray, ...],
-) -> None:
-    """Accumulate the lifted sums of every run and word length in place (see the module docstring)."""
-    SGp, SGu, XUp, XUu, UU, CXp, CXu, CUp, CUu, over = out
+    Zp: np.ndarray,
+    Zu: np.ndarray,
+    SGu: np.ndarray,
+) -> int:
+    """Quantize and lift a block of runs at one word length; returns the number of overloaded entries.
+
+    Row ``t`` of run ``r`` of ``Zp`` (``Zu``), shape (runs, steps + 1, L + m), gets the plain (unbiased)
+    features of ``x~_t`` and then ``u~_t`` (zeros in the last row, which has no input); ``SGu`` (G,) gets the
+    unbiased Gram monomials of every regressor sample added."""
     R, S1, n = X.shape
     m = Uin.shape[2]
-    J = lo_q.shape[0]
     L = E.shape[0]
     G = GE.shape[0]
     K = Bc.shape[0] - 1
     P = np.empty((n, K + 1))
     Q = np.empty((n, K + 1))
-    fp = np.empty(L)
-    fu = np.empty(L)
-    gp_prev = np.empty(L)
-    gu_prev = np.empty(L)
-    uq = np.empty(m)
-    uq_prev = np.empty(m)
+    Bm = np.zeros((n, K + 1, K + 1))  # Bm[c, k, i] = Bc[k, i] eps_c^(k - i): the unbiased k-th power's coefficients
+    for c in range(n):
+        for k2 in range(K + 1):
+            for i in range(k2 + 1):
+                Bm[c, k2, i] = Bc[k2, i] * eps[c] ** (k2 - i)
+    cnt = 0
     for r in range(R):
-        for j in range(J):
-            cnt = 0
-            for t in range(S1):
-                # quantize the state (and the input while there is one)
-                for c in range(n):
-                    e = eps[j, c]
-                    x = X[r, t, c]
+        for t in range(S1):
+            for c in range(n):
+                e = eps[c]
+                x = X[r, t, c]
+                if quant[c]:
+                    w = W[r, t, c]
+                    s = (x - lo_q[c]) / e + w
+                    cnt += (s < 0.0) | (s > levels)
+                    k = min(max(math.floor(s), 0.0), levels - 1.0)
+                    x = lo_q[c] + e * (k + 0.5) - sub * e * w
+                P[c, 0] = 1.0
+                for k2 in range(1, K + 1):
+                    P[c, k2] = P[c, k2 - 1] * x
+                if unbiased:
                     if quant[c]:
-                        w = W[r, t, c]
-                        s = (x - lo_q[j, c]) / e + w
-                        cnt += (s < 0.0) | (s > levels[j])
-                        k = min(max(math.floor(s), 0.0), levels[j] - 1.0)
-                        x = lo_q[j, c] + e * (k + 0.5) - sub * e * w
-                    P[c, 0] = 1.0
-                    for k2 in range(1, K + 1):
-                        P[c, k2] = P[c, k2 - 1] * x
-                    if unbiased:
                         for k2 in range(K + 1):
-                            if quant[c]:
-                                acc = 0.0
-                                ek = 1.0
-                                for i in range(k2, -1, -1):  # sum_i Bc[k2, i] x^i e^(k2 - i)
-                                    acc += Bc[k2, i] * P[c, i] * ek
-                                    ek *= e
-                                Q[c, k2] = acc
-                            else:
-                                Q[c, k2] = P[c, k2]
-                if t < S1 - 1:
-                    for a in range(m):
-                        cc = n + a
-                        v = Uin[r, t, a]
-                        if quant[cc]:
-                            e = eps[j, cc]
-                            w = W[r, t, cc]
-                            s = (v - lo_q[j, cc]) / e + w
-                            cnt += (s < 0.0) | (s > levels[j])
-                            k = min(max(math.floor(s), 0.0), levels[j] - 1.0)
-                            v = lo_q[j, cc] + e * (k + 0.5) - sub * e * w
-                        uq[a] = v
+                            acc = 0.0
+                            for i in range(k2, -1, -2):  # B_k(y + 1/2) has the parity of k: every other power
+                                acc += Bm[c, k2, i] * P[c, i]
+                            Q[c, k2] = acc
+                    else:
+                        for k2 in range(K + 1):
+                            Q[c, k2] = P[c, k2]
+            for i in range(L):
+                acc = 1.0
+                for c in range(n):
+                    acc *= P[c, E[i, c]]
+                Zp[r, t, i] = acc
+            if unbiased:
                 for i in range(L):
                     acc = 1.0
                     for c in range(n):
-                        acc *= P[c, E[i, c]]
-                    fp[i] = acc
-                    if unbiased:
-                        acc = 1.0
-                        for c in range(n):
-                            acc *= Q[c, E[i, c]]
-                        fu[i] = acc
-                if t >= 1:  # the pair (x_{t-1}, u_{t-1}) -> x_t
-                    for i in range(L):
-                        for a in range(L):
-                            CXp[j, i, a] += fp[i] * gp_prev[a]
-                        for a in range(m):
-                            CUp[j, i, a] += fp[i] * uq_prev[a]
-                    if unbiased:
-                        for i in range(L):
-                            for a in range(L):
-                                CXu[j, i, a] += fu[i] * gu_prev[a]
-                            for a in range(m):
-                                CUu[j, i, a] += fu[i] * uq_prev[a]
-                if t < S1 - 1:  # x_t, u_t as a regressor
+                        acc *= Q[c, E[i, c]]
+                    Zu[r, t, i] = acc
+            if t == S1 - 1:
+                for a in range(m):
+                    Zp[r, t, L + a] = 0.0
+                    Zu[r, t, L + a] = 0.0
+            else:
+                if unbiased:
                     for g in range(G):
                         acc = 1.0
                         for c in range(n):
-                            acc *= P[c, GE[g, c]]
-                        SGp[j, g] += acc
-                    if unbiased:
-                        for g in range(G):
-                            acc = 1.0
-                            for c in range(n):
-                                acc *= Q[c, GE[g, c]]
-                            SGu[j, g] += acc
-                    for i in range(L):
-                        for a in range(m):
-                            XUp[j, i, a] += fp[i] * uq[a]
-                            if unbiased:
-                                XUu[j, i, a] += fu[i] * uq[a]
-                    for a in range(m):
-                        for b in range(m):
-                            UU[j, a, b] += uq[a] * uq[b]
-                for i in range(L):
-                    gp_prev[i] = fp[i]
-                    gu_prev[i] = fu[i] if unbiased else 0.0
+                            acc *= Q[c, GE[g, c]]
+                        SGu[g] += acc
                 for a in range(m):
-                    uq_prev[a] = uq[a]
-            over[j] += cnt
+                    cc = n + a
+                    v = Uin[r, t, a]
+                    if quant[cc]:
+                        e = eps[cc]
+                        w = W[r, t, cc]
+                        s = (v - lo_q[cc]) / e + w
+                        cnt += (s < 0.0) | (s > levels)
+                        k = min(max(math.floor(s), 0.0), levels - 1.0)
+                        v = lo_q[cc] + e * (k + 0.5) - sub * e * w
+                    Zp[r, t, L + a] = v
+                    Zu[r, t, L + a] = v
+    return cnt
 
 
-_kernel: Callable[..., None]
+_kernel: Callable[..., int]
 if AVAILABLE:
     import numba
 
-    _kernel = numba.njit(cache=True, nogil=True, fastmath={"reassoc"})(_accumulate_lifted_py)
+    _kernel = numba.njit(cache=True, nogil=True)(_lift_runs_py)
 else:  # pragma: no cover
-    _kernel = _accumulate_lifted_py
+    _kernel = _lift_runs_py
+
+#: Runs lifted per block (the block's features stay in cache for the products).
+RUNS_PER_BLOCK = 128
+
+
+def _add_products(Z: np.ndarray, L: int, PP: np.ndarray, XP: np.ndarray) -> None:
+    """Add one block's ``Phi Phi^T`` and ``Z+ Phi^T`` from the lifted rows ``Z`` (runs, steps + 1, L + m), in place.
+
+    ``Z`` read as one table of consecutive rows: the products over all rows (or all neighbouring pairs of
+    rows), less the last row of every run (no regressor: its inputs are 0, so only the feature block) and
+    less the pairs that straddle two runs (their input part is 0 too).
+    """
+    Zf = Z.reshape(-1, Z.shape[2])
+    last, first = Z[:, -1, :L], Z[1:, 0, :L]
+    PP += Zf.T @ Zf
+    PP[:L, :L] -= last.T @ last
+    XP += (Zf[1:].T @ Zf[:-1])[:L]
+    XP[:, :L] -= first.T @ last[:-1]
 
 
 def accumulate_lifted(
@@ -167,14 +160,14 @@ def accumulate_lifted(
     lo_q: np.ndarray,
     eps: np.ndarray,
     levels: np.ndarray,
-    quant: np.ndarray,
     sub: float,
     E: np.ndarray,
     GE: np.ndarray,
+    idx: np.ndarray,
     Bc: np.ndarray,
     unbiased: bool,
-) -> tuple[np.ndarray, ...]:
-    """Quantize, lift and accumulate every run at every word length; returns the sums.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Quantize, lift and accumulate every run at every word length.
 
     Parameters
     ----------
@@ -185,54 +178,58 @@ def accumulate_lifted(
     W : ndarray, shape (runs, steps + 1, n + m)
         Dither in cell units (the input columns of the last row are unused).
     lo_q, eps : ndarray, shape (J, n + m)
-        Quantizer lower bound and cell width per word length and channel.
+        Quantizer lower bound and cell width per word length and channel (``eps`` 0: recorded exactly).
     levels : ndarray, shape (J,)
         ``2**b`` per word length.
-    quant : ndarray of bool, shape (n + m,)
-        False for a channel recorded exactly.
     sub : float
         1.0 subtractive dither, 0.0 non-subtractive.
     E : ndarray of int64, shape (L, n)
         Feature exponents.
     GE : ndarray of int64, shape (G, n)
-        Gram exponents (pairwise sums of rows of ``E``).
+        Gram exponents (the distinct pairwise sums of rows of ``E``).
+    idx : ndarray of int, shape (L, L)
+        ``GE[idx[i, j]] == E[i] + E[j]``.
     Bc : ndarray, shape (K + 1, K + 1)
         :func:`~qsid_core.identification.lifting.bernoulli_shifted` up to ``K = max(GE)``.
     unbiased : bool
-        Also accumulate the unbiased forms.
+        Also form the de-biased moments.
 
     Returns
     -------
-    tuple of ndarray
-        ``SGp, SGu`` (J, G); ``XUp, XUu`` (J, L, m); ``UU`` (J, m, m); ``CXp, CXu`` (J, L, L);
-        ``CUp, CUu`` (J, L, m); ``over`` (J,) int64 (entries that overloaded).
+    PP : ndarray, shape (J, L + m, L + m)
+    XP : ndarray, shape (J, L, L + m)
+    PPu, XPu : ndarray, same shapes (zeros unless ``unbiased``)
+    over : ndarray of int64, shape (J,)
+        Entries whose ``x + w`` left the range.
     """
-    J, L, m, G = lo_q.shape[0], E.shape[0], Uin.shape[2], GE.shape[0]
-    out = (
-        np.zeros((J, G)),
-        np.zeros((J, G)),
-        np.zeros((J, L, m)),
-        np.zeros((J, L, m)),
-        np.zeros((J, m, m)),
-        np.zeros((J, L, L)),
-        np.zeros((J, L, L)),
-        np.zeros((J, L, m)),
-        np.zeros((J, L, m)),
-        np.zeros(J, dtype=np.int64),
-    )
-    _kernel(
-        np.ascontiguousarray(X, dtype=float),
-        np.ascontiguousarray(Uin, dtype=float),
-        np.ascontiguousarray(W, dtype=float),
-        np.ascontiguousarray(lo_q, dtype=float),
-        np.ascontiguousarray(eps, dtype=float),
-        np.ascontiguousarray(levels, dtype=float),
-        np.ascontiguousarray(quant, dtype=np.bool_),
-        float(sub),
-        np.ascontiguousarray(E, dtype=np.int64),
-        np.ascontiguousarray(GE, dtype=np.int64),
-        np.ascontiguousarray(Bc, dtype=float),
-        bool(unbiased),
-        out,
-    )
-    return out
+    R, S1, n = X.shape
+    m = Uin.shape[2]
+    J, L = lo_q.shape[0], E.shape[0]
+    p = L + m
+    PP, XP = np.zeros((J, p, p)), np.zeros((J, L, p))
+    PPu, XPu = np.zeros((J, p, p)), np.zeros((J, L, p))
+    over = np.zeros(J, dtype=np.int64)
+    quant = np.asarray(eps[0] > 0, dtype=np.bool_)
+    E64, GE64 = np.ascontiguousarray(E, dtype=np.int64), np.ascontiguousarray(GE, dtype=np.int64)
+    Bc = np.ascontiguousarray(Bc, dtype=float)
+    SGu = np.zeros((J, GE.shape[0]))
+    for r0 in range(0, R, RUNS_PER_BLOCK):
+        Xb = np.ascontiguousarray(X[r0 : r0 + RUNS_PER_BLOCK], dtype=float)
+        Ub = np.ascontiguousarray(Uin[r0 : r0 + RUNS_PER_BLOCK], dtype=float)
+        Wb = np.ascontiguousarray(W[r0 : r0 + RUNS_PER_BLOCK], dtype=float)
+        rb = Xb.shape[0]
+        Zp = np.empty((rb, S1, p))
+        Zu = np.empty((rb, S1, p) if unbiased else (1, 1, p))
+        for j in range(J):
+            over[j] += _kernel(
+                Xb, Ub, Wb, lo_q[j], eps[j], float(levels[j]), quant, float(sub), E64, GE64, Bc, bool(unbiased),
+                Zp, Zu, SGu[j],
+            )  # fmt: skip
+            _add_products(Zp, L, PP[j], XP[j])
+            if unbiased:
+                _add_products(Zu, L, PPu[j], XPu[j])
+    if unbiased:
+        T = R * (S1 - 1)
+        PPu[:, :L, :L] = SGu[:, idx]
+        PPu[:, L:, L:] = PP[:, L:, L:] - T * np.einsum("ja,ab->jab", eps[:, n:] ** 2 / 12.0, np.eye(m))
+    return PP, XP, PPu, XPu, over
