@@ -139,7 +139,7 @@ def quantized_lifted_moments(
     lifting: Lifting,
     bits: Sequence[int],
     spec: QuantizerSpec | None = None,
-    seed: int = 0,
+    seed: int | np.random.SeedSequence = 0,
     unbiased: bool = True,
 ) -> list[LiftedMoments]:
     """Quantize ``data`` at every word length in ``bits`` (one dither draw shared by all) and lift.
@@ -153,7 +153,7 @@ def quantized_lifted_moments(
         Word lengths (every state and input channel).
     spec : QuantizerSpec, optional
         Dither, range and guard band (default: subtractive, per-channel range, guard band on).
-    seed : int
+    seed : int or numpy SeedSequence
         Seed of the dither draws.
     unbiased : bool
         Also compute the de-biased moments (monomial dictionaries only).
