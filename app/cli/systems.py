@@ -22,6 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core import PRESETS
+    from qsid_core.plant import NONLINEAR_PRESETS
 
     items: list[dict[str, Any]] = []
     for name, make in PRESETS.items():
@@ -37,6 +38,20 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
                 "inputs": list(s.input_names),
             }
         )
+    for name, make_nl in NONLINEAR_PRESETS.items():
+        nl = make_nl()
+        items.append(
+            {
+                "name": name,
+                "n": nl.n,
+                "m": nl.m,
+                "dt": nl.dt,
+                "description": nl.description,
+                "states": list(nl.state_names),
+                "inputs": list(nl.input_names),
+                "nonlinear": True,
+            }
+        )
     if args.json:
         print(dumps(items))
         return 0
@@ -45,4 +60,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     for i in items:
         print(f"{i['name'].ljust(w)}  {i['n']}  {i['m']}  {i['description']}")
     print("custom systems: --system FILE.toml|FILE.json with A, B and optional x0, Q, R, dt")
+    print(
+        f"nonlinear plants (Koopman/EDMD, --lifting poly:D|rbf:K|identity): {', '.join(NONLINEAR_PRESETS)}, "
+        "or FILE.toml|FILE.json with vector_field = 'module:function', n, m and optional dt, x0, Q, R"
+    )
     return 0

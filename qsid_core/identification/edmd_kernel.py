@@ -103,7 +103,8 @@ def _lift_runs_py(
             if t == S1 - 1:
                 for a in range(m):
                     Zp[r, t, L + a] = 0.0
-                    Zu[r, t, L + a] = 0.0
+                    if unbiased:
+                        Zu[r, t, L + a] = 0.0
             else:
                 if unbiased:
                     for g in range(G):
@@ -122,7 +123,8 @@ def _lift_runs_py(
                         k = min(max(math.floor(s), 0.0), levels - 1.0)
                         v = lo_q[cc] + e * (k + 0.5) - sub * e * w
                     Zp[r, t, L + a] = v
-                    Zu[r, t, L + a] = v
+                    if unbiased:
+                        Zu[r, t, L + a] = v
     return cnt
 
 

@@ -27,11 +27,14 @@ x0 ~ U[-a, a]^n (a = 2 by default) and u ~ U[-1, 1]^m i.i.d. A run that leaves t
 from __future__ import annotations
 
 import importlib
+import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomllib
 
 from ..errors import ConfigError, SystemDefinitionError, check_float, check_int, short_repr
 from .data import Dataset
@@ -43,6 +46,8 @@ __all__ = [
     "VectorField",
     "get_nonlinear",
     "is_nonlinear",
+    "is_nonlinear_file",
+    "load_nonlinear",
     "nonlinear_from_dict",
     "rk4_step",
     "simulate_nonlinear",
@@ -226,12 +231,14 @@ NONLINEAR_PRESETS: dict[str, Callable[[], NonlinearSystem]] = {
 
 
 def is_nonlinear(name: object) -> bool:
-    """Whether ``name`` is a nonlinear preset's name or a :class:`NonlinearSystem`."""
-    return isinstance(name, NonlinearSystem) or (isinstance(name, str) and name.strip().lower() in NONLINEAR_PRESETS)
+    """Whether ``name`` is a nonlinear preset's name, a nonlinear plant file or a :class:`NonlinearSystem`."""
+    if isinstance(name, NonlinearSystem):
+        return True
+    return isinstance(name, str) and (name.strip().lower() in NONLINEAR_PRESETS or is_nonlinear_file(name))
 
 
 def get_nonlinear(name: str | NonlinearSystem) -> NonlinearSystem:
-    """A nonlinear preset by name, or a :class:`NonlinearSystem` passed through.
+    """A nonlinear preset by name, a plant file naming a ``vector_field``, or a :class:`NonlinearSystem` passed through.
 
     Raises
     ------
@@ -240,6 +247,8 @@ def get_nonlinear(name: str | NonlinearSystem) -> NonlinearSystem:
     """
     if isinstance(name, NonlinearSystem):
         return name
+    if is_nonlinear_file(name):
+        return load_nonlinear(name)
     key = str(name).strip().lower()
     if key not in NONLINEAR_PRESETS:
         raise ConfigError(f"unknown nonlinear system {short_repr(name)}; choose from {', '.join(NONLINEAR_PRESETS)}")
@@ -289,6 +298,41 @@ def nonlinear_from_dict(d: Mapping[str, Any], name: str = "custom") -> Nonlinear
         if k in d:
             kw[k] = tuple(d[k])
     return NonlinearSystem(str(d.get("name", name)), _resolve(d["vector_field"]), d["n"], d["m"], **kw)
+
+
+def is_nonlinear_file(path: str | Path) -> bool:
+    """Whether ``path`` is an existing .toml/.json plant file that names a ``vector_field``."""
+    p = Path(path)
+    if p.suffix.lower() not in (".toml", ".json") or not p.is_file():
+        return False
+    try:
+        return "vector_field" in _read_table(p)
+    except (OSError, ValueError):
+        return False
+
+
+def _read_table(p: Path) -> dict[str, Any]:
+    text = p.read_text()
+    d = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
+    if not isinstance(d, dict):
+        raise SystemDefinitionError(f"plant file {p.name!r} must hold one table of keys")
+    return d
+
+
+def load_nonlinear(path: str | Path) -> NonlinearSystem:
+    """A nonlinear plant from a .toml or .json file (keys of :func:`nonlinear_from_dict`).
+
+    Raises
+    ------
+    SystemDefinitionError
+        Unreadable or malformed file, or a vector field that cannot be imported.
+    """
+    p = Path(path)
+    try:
+        d = _read_table(p)
+    except (OSError, ValueError) as exc:
+        raise SystemDefinitionError(f"plant file {str(p)!r} cannot be read: {exc}") from None
+    return nonlinear_from_dict(d, p.stem)
 
 
 @dataclass(frozen=True, eq=False)
