@@ -18,7 +18,6 @@ the fallback without numba.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
@@ -56,12 +55,12 @@ def _lift_runs_py(
     m = Uin.shape[2]
     L = E.shape[0]
     G = GE.shape[0]
-    K = Bc.shape[0] - 1
-    P = np.empty((n, K + 1))
-    Q = np.empty((n, K + 1))
-    Bm = np.zeros((n, K + 1, K + 1))  # Bm[c, k, i] = Bc[k, i] eps_c^(k - i): the unbiased k-th power's coefficients
+    K = Bc.shape[0] - 1 if unbiased else E.max()  # LS needs the powers of the features only
+    P = np.empty((n, Bc.shape[0]))
+    Q = np.empty((n, Bc.shape[0]))
+    Bm = np.zeros((n, Bc.shape[0], Bc.shape[0]))  # Bm[c, k, i] = Bc[k, i] eps_c^(k - i): the unbiased k-th power's coefficients
     for c in range(n):
-        for k2 in range(K + 1):
+        for k2 in range(Bc.shape[0]):
             for i in range(k2 + 1):
                 Bm[c, k2, i] = Bc[k2, i] * eps[c] ** (k2 - i)
     cnt = 0
@@ -74,7 +73,7 @@ def _lift_runs_py(
                     w = W[r, t, c]
                     s = (x - lo_q[c]) / e + w
                     cnt += (s < 0.0) | (s > levels)
-                    k = min(max(math.floor(s), 0.0), levels - 1.0)
+                    k = min(max(np.floor(s), 0.0), levels - 1.0)
                     x = lo_q[c] + e * (k + 0.5) - sub * e * w
                 P[c, 0] = 1.0
                 for k2 in range(1, K + 1):
@@ -120,7 +119,7 @@ def _lift_runs_py(
                         w = W[r, t, cc]
                         s = (v - lo_q[cc]) / e + w
                         cnt += (s < 0.0) | (s > levels)
-                        k = min(max(math.floor(s), 0.0), levels - 1.0)
+                        k = min(max(np.floor(s), 0.0), levels - 1.0)
                         v = lo_q[cc] + e * (k + 0.5) - sub * e * w
                     Zp[r, t, L + a] = v
                     if unbiased:

@@ -1,0 +1,103 @@
+"""A paper-scale nonlinear (Koopman/EDMD) sweep against a paper-scale linear sweep, side by side.
+
+* **nonlinear**: :func:`qsid_core.studies.run_koopman_sweep` on Van der Pol, 2000 runs x 100 steps,
+  degree-3 monomials (10 features + 1 input), word lengths b = 1..16, 20 dither realizations;
+* **linear**: :func:`qsid_core.run_sweep` on the DC motor, 200 runs x 1000 steps (the letter's
+  200 000 samples), b = 1..16, 20 realizations.
+
+Both identify only (no MPC closed loops: the hot path is the quantize-and-accumulate of the moments),
+single process, one BLAS thread, for each estimator (``ls``; ``bcls``, which the nonlinear sweep
+computes from the exact unbiased monomials as well), interleaved (linear, nonlinear, linear, ...) so both
+see the same machine load; the median of ``--repeat`` runs is compared. The target (issue 31) is a
+nonlinear sweep within 3x the linear one; the verdict line says whether this run met it.
+
+Usage::
+
+    python benchmarks/bench_koopman.py [--repeat 3] [--save docs/perf/bench_koopman.txt]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from qsid_core import SweepConfig, run_sweep  # noqa: E402
+from qsid_core.studies import KoopmanConfig, run_koopman_sweep  # noqa: E402
+
+BITS = tuple(range(1, 17))
+TARGET = 3.0
+
+
+def _linear(estimator: str) -> float:
+    cfg = SweepConfig(
+        system="dc-motor", trajectories=200, steps=1000, bits=BITS, realizations=20, estimator=estimator, mpc=None
+    )
+    t = time.perf_counter()
+    run_sweep(cfg)
+    return time.perf_counter() - t
+
+
+def _nonlinear(estimator: str) -> float:
+    cfg = KoopmanConfig(
+        system="van-der-pol",
+        lifting="poly:3",
+        estimator=estimator,
+        bits=BITS,
+        trajectories=2000,
+        steps=100,
+        realizations=20,
+        mpc=None,
+    )
+    t = time.perf_counter()
+    run_koopman_sweep(cfg)
+    return time.perf_counter() - t
+
+
+def _main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs of each sweep (default 3)")
+    ap.add_argument("--save", default=None, help="also write the printed lines to this file")
+    a = ap.parse_args(argv)
+    lines = [
+        f"paper-scale sweeps, identification only, 16 word lengths x 20 realizations, {a.repeat} interleaved runs "
+        f"each · {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}",
+        f"{'estimator':<10} {'linear dc-motor 200x1000 [s]':>30} {'nonlinear van-der-pol 2000x100 poly:3 [s]':>44}"
+        f" {'ratio':>7}",
+    ]
+    print(*lines, sep="\n")
+    worst = 0.0
+    for est in ("ls", "bcls"):
+        _linear(est), _nonlinear(est)  # compile or load every kernel before timing
+        tl, tn = [], []
+        for _ in range(a.repeat):
+            tl.append(_linear(est))
+            tn.append(_nonlinear(est))
+        ratio = statistics.median(tn) / statistics.median(tl)
+        worst = max(worst, ratio)
+        line = (
+            f"{est:<10} {statistics.median(tl):>14.2f} ({min(tl):.2f}-{max(tl):.2f})"
+            f"{statistics.median(tn):>26.2f} ({min(tn):.2f}-{max(tn):.2f}){ratio:>15.2f}"
+        )
+        print(line)
+        lines.append(line)
+    verdict = f"target: nonlinear within {TARGET:g}x the linear sweep: {'met' if worst <= TARGET else 'NOT met'} (worst ratio {worst:.2f})"
+    print(verdict)
+    lines.append(verdict)
+    if a.save:
+        Path(a.save).write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())
