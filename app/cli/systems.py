@@ -20,38 +20,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
 
+def _item(name: str, s: Any) -> dict[str, Any]:
+    """One preset's row (a linear or a nonlinear plant: both have n, m, dt, description and names)."""
+    return {
+        "name": name,
+        "n": s.n,
+        "m": s.m,
+        "dt": s.dt,
+        "description": s.description,
+        "states": list(s.state_names),
+        "inputs": list(s.input_names),
+    }
+
+
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core import PRESETS
     from qsid_core.plant import NONLINEAR_PRESETS
 
-    items: list[dict[str, Any]] = []
-    for name, make in PRESETS.items():
-        s = make()
-        items.append(
-            {
-                "name": name,
-                "n": s.n,
-                "m": s.m,
-                "dt": s.dt,
-                "description": s.description,
-                "states": list(s.state_names),
-                "inputs": list(s.input_names),
-            }
-        )
-    for name, make_nl in NONLINEAR_PRESETS.items():
-        nl = make_nl()
-        items.append(
-            {
-                "name": name,
-                "n": nl.n,
-                "m": nl.m,
-                "dt": nl.dt,
-                "description": nl.description,
-                "states": list(nl.state_names),
-                "inputs": list(nl.input_names),
-                "nonlinear": True,
-            }
-        )
+    items = [_item(name, make()) for name, make in PRESETS.items()]
+    items += [{**_item(name, make()), "nonlinear": True} for name, make in NONLINEAR_PRESETS.items()]
     if args.json:
         print(dumps(items))
         return 0

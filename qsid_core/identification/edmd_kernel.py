@@ -58,7 +58,8 @@ def _lift_runs_py(
     K = Bc.shape[0] - 1 if unbiased else E.max()  # LS needs the powers of the features only
     P = np.empty((n, Bc.shape[0]))
     Q = np.empty((n, Bc.shape[0]))
-    Bm = np.zeros((n, Bc.shape[0], Bc.shape[0]))  # Bm[c, k, i] = Bc[k, i] eps_c^(k - i): the unbiased k-th power's coefficients
+    # Bm[c, k, i] = Bc[k, i] eps_c^(k - i): the coefficients of the unbiased k-th power of channel c
+    Bm = np.zeros((n, Bc.shape[0], Bc.shape[0]))
     for c in range(n):
         for k2 in range(Bc.shape[0]):
             for i in range(k2 + 1):
