@@ -181,3 +181,19 @@ def test_rbf_and_non_subtractive_dither_say_there_is_no_exact_correction():
     assert "no exact correction with tpdf" in tk.note
     # the nominal correction leaves a bias with TPDF dither many times the subtractive one's error
     assert lifted_error(tk, ref)[0] > 5 * lifted_error(sub, ref)[0]
+
+
+def test_the_kernel_written_out_for_the_dictionary_equals_the_generic_one(monkeypatch):
+    from qsid_core.identification import edmd_kernel
+
+    s = get_nonlinear("pendulum")
+    d = simulate_nonlinear(s, 40, 30, seed=1)
+    lf = parse_lifting("poly:3", 2)
+    fast = quantized_lifted_moments(d, lf, [2, 5], seed=3)
+    assert not edmd_kernel.NOT_USED
+    monkeypatch.setattr(edmd_kernel, "_specialised", lambda *a: None)
+    slow = quantized_lifted_moments(d, lf, [2, 5], seed=3)
+    for a, b in zip(fast, slow, strict=True):
+        for name in ("PP", "XP", "PPu", "XPu"):
+            np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-9)
+        assert a.overload_fraction == b.overload_fraction
