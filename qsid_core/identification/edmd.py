@@ -109,12 +109,6 @@ class KoopmanModel:
         return np.hstack([self.A, self.B])
 
 
-def _pairs(data: Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(X, U, X+)`` as sample rows: (T, n), (T, m), (T, n)."""
-    n, m = data.n, data.m
-    return data.states[:, :-1].reshape(-1, n), data.inputs.reshape(-1, m), data.states[:, 1:].reshape(-1, n)
-
-
 def _moments(Z: np.ndarray, U: np.ndarray, Zp: np.ndarray, eps: np.ndarray) -> LiftedMoments:
     Phi = np.hstack([Z, U])
     return LiftedMoments(PP=Phi.T @ Phi, XP=Zp.T @ Phi, T=int(Phi.shape[0]), eps=eps)
@@ -122,8 +116,10 @@ def _moments(Z: np.ndarray, U: np.ndarray, Zp: np.ndarray, eps: np.ndarray) -> L
 
 def exact_lifted_moments(data: Dataset, lifting: Lifting) -> LiftedMoments:
     """The lifted moments of unquantized data (the reference every quantized estimate is compared with)."""
-    X, U, Xp = _pairs(data)
-    return _moments(lifting.lift(X), U, lifting.lift(Xp), np.zeros(data.n + data.m))
+    Z = lifting.lift(data.states)  # every state lifted once: (runs, steps + 1, L)
+    L = Z.shape[-1]
+    U = data.inputs.reshape(-1, data.m)
+    return _moments(Z[:, :-1].reshape(-1, L), U, Z[:, 1:].reshape(-1, L), np.zeros(data.n + data.m))
 
 
 def _gram_exponents(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

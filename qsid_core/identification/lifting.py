@@ -107,7 +107,10 @@ class MonomialLifting(Lifting):
     def lift(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=float)
         d = int(self.exponents.max())
-        pw = x[..., None] ** np.arange(d + 1)  # (..., n, d + 1)
+        pw = np.empty(x.shape + (d + 1,))  # (..., n, d + 1): powers by repeated products (no pow calls)
+        pw[..., 0] = 1.0
+        for k in range(1, d + 1):
+            pw[..., k] = pw[..., k - 1] * x
         out = np.ones(x.shape[:-1] + (self.L,))
         for c in range(self.n):
             out *= pw[..., c, :][..., self.exponents[:, c]]
