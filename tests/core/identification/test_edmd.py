@@ -130,6 +130,7 @@ def test_engine_moments_equal_an_independent_brute_force_loop_over_samples():
     np.testing.assert_allclose(mom.XPu, want[True][1], rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_de_biased_moments_average_to_the_unquantized_ones_and_ls_moments_do_not():
     s = get_nonlinear("duffing")
     d = simulate_nonlinear(s, 4, 8, seed=0)
