@@ -12,7 +12,8 @@ power tables of each channel (plain ``x~^k`` and, optionally, the unbiased ``eps
 
 each in the plain form (least squares) and, when asked, the unbiased form (the products of one sample
 are replaced as one monomial; products over two samples factor). No Python runs per sample;
-the products of a block of runs are two matrix products (BLAS) over its consecutive rows.
+the kernel sums the Gram monomials, features times inputs and inputs times inputs itself, and the cross
+moments of a block of runs are one matrix product (BLAS) over its consecutive rows.
 
 The generic kernel (:func:`_lift_runs_py`) reads the exponents from arrays. For each dictionary the same
 kernel is also written out as Python source (:func:`source`: every power, feature and Gram monomial a
@@ -56,17 +57,22 @@ def _lift_runs_py(
     Zp: np.ndarray,
     Zu: np.ndarray,
     SGu: np.ndarray,
+    SGp: np.ndarray,
+    XUp: np.ndarray,
+    XUu: np.ndarray,
+    UU: np.ndarray,
 ) -> int:
     """Quantize and lift a block of runs at one word length; returns the number of overloaded entries.
 
     Row ``t`` of run ``r`` of ``Zp`` (``Zu``), shape (runs, steps + 1, L + m), gets the plain (unbiased)
-    features of ``x~_t`` and then ``u~_t`` (zeros in the last row, which has no input); ``SGu`` (G,) gets the
-    unbiased Gram monomials of every regressor sample added."""
+    features of ``x~_t`` and then ``u~_t`` (zeros in the last row, which has no input). Over the regressor
+    samples (every row but a run's last) it adds the plain (``SGp``) and unbiased (``SGu``) Gram monomials,
+    shape (G,), the features times the inputs (``XUp``, ``XUu``, shape (L, m)) and ``u u'`` (``UU``)."""
     R, S1, n = X.shape
     m = Uin.shape[2]
     L = E.shape[0]
     G = GE.shape[0]
-    K = Bc.shape[0] - 1 if unbiased else E.max()  # LS needs the powers of the features only
+    K = Bc.shape[0] - 1
     P = np.empty((n, Bc.shape[0]))
     Q = np.empty((n, Bc.shape[0]))
     # Bm[c, k, i] = Bc[k, i] eps_c^(k - i): the coefficients of the unbiased k-th power of channel c
@@ -117,6 +123,11 @@ def _lift_runs_py(
                     if unbiased:
                         Zu[r, t, L + a] = 0.0
             else:
+                for g in range(G):
+                    acc = 1.0
+                    for c in range(n):
+                        acc *= P[c, GE[g, c]]
+                    SGp[g] += acc
                 if unbiased:
                     for g in range(G):
                         acc = 1.0
@@ -136,6 +147,14 @@ def _lift_runs_py(
                     Zp[r, t, L + a] = v
                     if unbiased:
                         Zu[r, t, L + a] = v
+                for a in range(m):
+                    v = Zp[r, t, L + a]
+                    for i in range(L):
+                        XUp[i, a] += Zp[r, t, i] * v
+                        if unbiased:
+                            XUu[i, a] += Zu[r, t, i] * v
+                    for b in range(m):
+                        UU[a, b] += v * Zp[r, t, L + b]
     return cnt
 
 
@@ -173,7 +192,7 @@ def source(E: np.ndarray, GE: np.ndarray, K: int, m: int) -> str:
         "",
         "",
         "@numba.njit(cache=True, nogil=True)",
-        "def kernel(X, Uin, W, lo_q, eps, levels, quant, sub, E, GE, Bc, unbiased, Zp, Zu, SGu):",
+        "def kernel(X, Uin, W, lo_q, eps, levels, quant, sub, E, GE, Bc, unbiased, Zp, Zu, SGu, SGp, XUp, XUu, UU):",
         "    R, S1 = X.shape[0], X.shape[1]",
         "    cnt = 0",
     ]
@@ -183,7 +202,11 @@ def source(E: np.ndarray, GE: np.ndarray, K: int, m: int) -> str:
         for k in range(K + 1):
             for i in range(k % 2, k + 1, 2):
                 out.append(f"    b{c}_{k}_{i} = Bc[{k}, {i}] * e{c} ** {k - i}")
-    out += [f"    sg{g} = 0.0" for g in range(GE.shape[0])]
+    G = GE.shape[0]
+    out += [f"    sg{g} = 0.0" for g in range(G)] + [f"    sp{g} = 0.0" for g in range(G)]
+    out += [f"    xp{i}_{a} = 0.0" for i in range(L) for a in range(m)]
+    out += [f"    xu{i}_{a} = 0.0" for i in range(L) for a in range(m)]
+    out += [f"    uu{a}_{b} = 0.0" for a in range(m) for b in range(m)]
     out += ["    for r in range(R):", "        for t in range(S1):"]
 
     def quantized(v: str, c: str, src: str, w: str) -> list[str]:
@@ -200,13 +223,16 @@ def source(E: np.ndarray, GE: np.ndarray, K: int, m: int) -> str:
         out += quantized(f"x{c}", str(c), f"X[r, t, {c}]", f"W[r, t, {c}]")
         out.append(f"            p{c}_1 = x{c}")
         out += [f"            p{c}_{k} = p{c}_{k - 1} * x{c}" for k in range(2, K + 1)]
-    out += [f"            Zp[r, t, {i}] = {_mono('p', E[i])}" for i in range(L)]
+    out += [f"            f{i} = {_mono('p', E[i])}" for i in range(L)]
+    out += [f"            Zp[r, t, {i}] = f{i}" for i in range(L)]
+    out += [f"            g{i} = 0.0" for i in range(L)]
     out.append("            if unbiased:")
     for c in range(n):
         for k in range(1, K + 1):
             terms = " + ".join(f"b{c}_{k}_{i} * p{c}_{i}" if i else f"b{c}_{k}_0" for i in range(k % 2, k + 1, 2))
             out.append(f"                u{c}_{k} = ({terms}) if q{c} else p{c}_{k}")
-    out += [f"                Zu[r, t, {i}] = {_mono('u', E[i])}" for i in range(L)]
+    out += [f"                g{i} = {_mono('u', E[i])}" for i in range(L)]
+    out += [f"                Zu[r, t, {i}] = g{i}" for i in range(L)]
     out.append("            if t == S1 - 1:")
     for a in range(m):
         out += [
@@ -215,17 +241,21 @@ def source(E: np.ndarray, GE: np.ndarray, K: int, m: int) -> str:
             f"                    Zu[r, t, {L + a}] = 0.0",
         ]
     out.append("            else:")
+    out += [f"                sp{g} += {_mono('p', GE[g])}" for g in range(G)]
     out.append("                if unbiased:")
-    out += [f"                    sg{g} += {_mono('u', GE[g])}" for g in range(GE.shape[0])]
+    out += [f"                    sg{g} += {_mono('u', GE[g])}" for g in range(G)]
     for a in range(m):
         c = n + a
-        out += ["    " + ln for ln in quantized("v", str(c), f"Uin[r, t, {a}]", f"W[r, t, {c}]")]
-        out += [
-            f"                Zp[r, t, {L + a}] = v",
-            "                if unbiased:",
-            f"                    Zu[r, t, {L + a}] = v",
-        ]
-    out += [f"    SGu[{g}] += sg{g}" for g in range(GE.shape[0])]
+        out += ["    " + ln for ln in quantized(f"v{a}", str(c), f"Uin[r, t, {a}]", f"W[r, t, {c}]")]
+        out += [f"                Zp[r, t, {L + a}] = v{a}", "                if unbiased:"]
+        out += [f"                    Zu[r, t, {L + a}] = v{a}"]
+        out += [f"                xp{i}_{a} += f{i} * v{a}" for i in range(L)]
+        out += [f"                xu{i}_{a} += g{i} * v{a}" for i in range(L)]
+    out += [f"                uu{a}_{b} += v{a} * v{b}" for a in range(m) for b in range(m)]
+    out += [f"    SGu[{g}] += sg{g}" for g in range(G)] + [f"    SGp[{g}] += sp{g}" for g in range(G)]
+    out += [f"    XUp[{i}, {a}] += xp{i}_{a}" for i in range(L) for a in range(m)]
+    out += [f"    XUu[{i}, {a}] += xu{i}_{a}" for i in range(L) for a in range(m)]
+    out += [f"    UU[{a}, {b}] += uu{a}_{b}" for a in range(m) for b in range(m)]
     out += ["    return cnt", ""]
     return "\n".join(out)
 
@@ -263,19 +293,15 @@ def _specialised(E: np.ndarray, GE: np.ndarray, K: int, m: int) -> Callable[...,
 MAX_UNROLLED = 60
 
 
-def _add_products(Z: np.ndarray, L: int, PP: np.ndarray, XP: np.ndarray) -> None:
-    """Add one block's ``Phi Phi^T`` and ``Z+ Phi^T`` from the lifted rows ``Z`` (runs, steps + 1, L + m), in place.
+def _add_cross(Z: np.ndarray, L: int, XP: np.ndarray) -> None:
+    """Add one block's ``Z+ Phi^T`` from the lifted rows ``Z`` (runs, steps + 1, L + m), in place.
 
-    ``Z`` read as one table of consecutive rows: the products over all rows (or all neighbouring pairs of
-    rows), less the last row of every run (no regressor: its inputs are 0, so only the feature block) and
-    less the pairs that straddle two runs (their input part is 0 too).
+    ``Z`` read as one table of consecutive rows: the products of all neighbouring pairs of rows, less the
+    pairs that straddle two runs (a run's last row has inputs 0, so only their feature block).
     """
     Zf = Z.reshape(-1, Z.shape[2])
-    last, first = Z[:, -1, :L], Z[1:, 0, :L]
-    PP += Zf.T @ Zf
-    PP[:L, :L] -= last.T @ last
     XP += (Zf[1:].T @ Zf[:-1])[:L]
-    XP[:, :L] -= first.T @ last[:-1]
+    XP[:, :L] -= Z[1:, 0, :L].T @ Z[:-1, -1, :L]
 
 
 def accumulate_lifted(
@@ -337,7 +363,9 @@ def accumulate_lifted(
     quant = np.asarray(eps[0] > 0, dtype=np.bool_)
     E64, GE64 = np.ascontiguousarray(E, dtype=np.int64), np.ascontiguousarray(GE, dtype=np.int64)
     Bc = np.ascontiguousarray(Bc, dtype=float)
-    SGu = np.zeros((J, GE.shape[0]))
+    G = GE.shape[0]
+    SGp, SGu = np.zeros((J, G)), np.zeros((J, G))
+    XUp, XUu, UU = np.zeros((J, L, m)), np.zeros((J, L, m)), np.zeros((J, m, m))
     kern = _specialised(E64, GE64, Bc.shape[0] - 1, m) or _kernel
     for r0 in range(0, R, RUNS_PER_BLOCK):
         Xb = np.ascontiguousarray(X[r0 : r0 + RUNS_PER_BLOCK], dtype=float)
@@ -349,13 +377,20 @@ def accumulate_lifted(
         for j in range(J):
             over[j] += kern(
                 Xb, Ub, Wb, lo_q[j], eps[j], float(levels[j]), quant, float(sub), E64, GE64, Bc, bool(unbiased),
-                Zp, Zu, SGu[j],
+                Zp, Zu, SGu[j], SGp[j], XUp[j], XUu[j], UU[j],
             )  # fmt: skip
-            _add_products(Zp, L, PP[j], XP[j])
+            _add_cross(Zp, L, XP[j])
             if unbiased:
-                _add_products(Zu, L, PPu[j], XPu[j])
-    if unbiased:
-        T = R * (S1 - 1)
-        PPu[:, :L, :L] = SGu[:, idx]
-        PPu[:, L:, L:] = PP[:, L:, L:] - T * np.einsum("ja,ab->jab", eps[:, n:] ** 2 / 12.0, np.eye(m))
+                _add_cross(Zu, L, XPu[j])
+    T = R * (S1 - 1)
+    for PPj, SG, XU, UUj in (
+        (PP, SGp, XUp, UU),
+        (PPu, SGu, XUu, UU - T * np.einsum("ja,ab->jab", eps[:, n:] ** 2 / 12.0, np.eye(m))),
+    ):
+        PPj[:, :L, :L] = SG[:, idx]
+        PPj[:, :L, L:] = XU
+        PPj[:, L:, :L] = XU.transpose(0, 2, 1)
+        PPj[:, L:, L:] = UUj
+    if not unbiased:
+        PPu[:] = 0.0
     return PP, XP, PPu, XPu, over
