@@ -26,11 +26,8 @@ forms (both compute the same numbers; a test checks it). Without numba the plain
 from __future__ import annotations
 
 import hashlib
-import importlib.util
-import sys
 import threading
 from collections.abc import Callable, Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -274,15 +271,7 @@ def _specialised(E: np.ndarray, GE: np.ndarray, K: int, m: int) -> Callable[...,
             NOT_USED[name] = f"{E.shape[0]} features: not specialised (at most {MAX_UNROLLED})"
         else:
             try:
-                path = Path(kernels.cache_dir()) / "generated" / f"{name}.py"
-                unrolled._write(path, text)
-                spec = importlib.util.spec_from_file_location(name, path)
-                if spec is None or spec.loader is None:
-                    raise ImportError(f"cannot import {path}")
-                module = importlib.util.module_from_spec(spec)
-                sys.modules[name] = module
-                spec.loader.exec_module(module)
-                fn = module.kernel
+                fn = unrolled.import_generated(name, text).kernel
             except Exception as exc:  # any failure: the generic kernel computes the same sums
                 NOT_USED[name] = f"{type(exc).__name__}: {exc}"
         _LOADED[name] = fn
