@@ -71,16 +71,15 @@ def _nonlinear(estimator: str) -> tuple[float, float]:
 def _main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3, help="timed runs of each sweep (default 3)")
-    ap.add_argument("--save", default=None, help="also write the printed lines to this file")
     a = ap.parse_args(argv)
-    lines = [
+    head = [
         f"paper-scale sweeps, identification only, 16 word lengths x 20 realizations, {a.repeat} interleaved runs "
         f"each · {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}",
         "linear: dc-motor 200 x 1000; nonlinear: van-der-pol 2000 x 100, poly:3 (10 features); "
         "medians, wall (CPU) seconds",
         f"{'estimator':<10} {'linear':>16} {'nonlinear':>18} {'ratio wall':>11} {'ratio CPU':>10}",
     ]
-    print(*lines, sep="\n")
+    print(*head, sep="\n")
     worst = 0.0
     for est in ("ls", "bcls"):
         _linear(est), _nonlinear(est)  # compile or load every kernel before timing
@@ -93,17 +92,20 @@ def _main(argv: list[str] | None = None) -> int:
         worst = max(worst, nc / lc)
         line = f"{est:<10} {lw:>7.2f} ({lc:>6.2f}) {nw:>8.2f} ({nc:>6.2f}) {nw / lw:>11.2f} {nc / lc:>10.2f}"
         print(line)
-        lines.append(line)
     verdict = (
         f"target: nonlinear within {TARGET:g}x the linear sweep (CPU time): "
         f"{'met' if worst <= TARGET else 'NOT met'} (worst CPU ratio {worst:.2f})"
     )
     print(verdict)
-    lines.append(verdict)
-    if a.save:
-        Path(a.save).write_text("\n".join(lines) + "\n")
     return 0
 
 
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; ``--save FILE`` also writes the printed output to FILE (header first)."""
+    import _tee
+
+    return int(_tee.run(_main, argv))
+
+
 if __name__ == "__main__":
-    raise SystemExit(_main())
+    raise SystemExit(main())

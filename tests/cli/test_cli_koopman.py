@@ -70,6 +70,8 @@ def test_nonlinear_defaults_apply_where_no_option_is_typed():
         (["sweep", "--system", "dc-motor", "--lifting", "poly:2"], "only for a nonlinear --system"),
         (["sweep", "--system", "pendulum", "--trajectories", "1", "--steps", "3"], "samples: 3 samples"),
         (["sweep", "--system", "lorenz"], "unknown system"),
+        (["sweep", "--system", "duffing", "--noise", "0.1"], "argument --noise: not available for a nonlinear"),
+        (["sweep", "--system", "duffing", "--csv", "x.csv"], "argument --csv: not available for a nonlinear"),
     ],
 )
 def test_bad_nonlinear_input_is_one_line(capsys, argv, needle):
