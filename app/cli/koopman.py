@@ -56,7 +56,7 @@ def _typed(args: argparse.Namespace) -> set[str]:
 #: The options a nonlinear run uses; any other typed option is refused rather than silently ignored.
 SUPPORTED = frozenset(
     "--system --lifting --estimator --bits --realizations --trajectories --steps --seed --data-seed --dither-seed "
-    "--range --limits --guard --no-guard --dither --horizon --mpc-steps --u-max --x0 --no-mpc --json --out "
+    "--range --limits --guard --no-guard --dither --horizon --mpc-steps --u-max --x0 --Q --R --no-mpc --json --out "
     "--quiet --target --cost-gap".split()
 )
 
@@ -95,6 +95,8 @@ def koopman_config(args: argparse.Namespace) -> KoopmanConfig:
             steps=_pick(args, "--mpc-steps", args.mpc_steps, KOOPMAN_MPC.steps),
             u_max=args.u_max,
             x0=getattr(args, "x0", None),
+            Q=getattr(args, "q_diag", None),
+            R=getattr(args, "r_diag", None),
         )
     return KoopmanConfig(
         system=system,

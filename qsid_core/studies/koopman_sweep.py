@@ -141,6 +141,20 @@ class KoopmanResult:
     runs_used: int
     timing_s: float = 0.0
 
+    def _mpc(self, s: NonlinearSystem) -> dict[str, Any]:
+        """The loops' settings as run (the plant's defaults where the config leaves them unset)."""
+        m = self.config.mpc
+        assert m is not None
+        return {
+            "horizon": m.horizon,
+            "steps": m.steps,
+            "u_max": list(m.u_max) if isinstance(m.u_max, tuple) else [m.u_max],
+            "x0": list(m.x0 or s.x0),
+            "Q": list(m.Q or s.Q),
+            "R": list(m.R or s.R),
+            "terminal_weight": "C'QC" if self.config.lifting != "identity" else "DARE",
+        }
+
     def to_dict(self) -> dict[str, Any]:
         """Strict-JSON-ready summary."""
         c = self.config
@@ -162,7 +176,7 @@ class KoopmanResult:
                 "dither": q.dither,
                 "range": q.range_mode,
                 "guard": q.guard,
-                "mpc": None if c.mpc is None else {"horizon": c.mpc.horizon, "steps": c.mpc.steps, "x0": list(s.x0)},
+                "mpc": None if c.mpc is None else self._mpc(s),
                 "convergence_radius": c.radius,
                 "held_out": dict(zip(("runs", "steps", "horizon"), HELD_OUT, strict=True)),
             },

@@ -60,6 +60,11 @@ def test_nonlinear_defaults_apply_where_no_option_is_typed():
     cfg = koopman_config(args)
     assert (cfg.trajectories, cfg.steps, cfg.realizations, cfg.bits) == (2000, 100, 20, tuple(range(2, 9)))
     assert (cfg.mpc.horizon, cfg.mpc.steps) == (20, 200)
+    argv = ["sweep", "--system", "duffing", "--Q", "2,1", "--R", "0.5", "--horizon", "7"]
+    args = build_parser("sweep").parse_args(argv)
+    args.argv = tuple(argv)
+    mpc = koopman_config(args).mpc
+    assert (mpc.Q, mpc.R, mpc.horizon) == ((2.0, 1.0), (0.5,), 7)
 
 
 @pytest.mark.parametrize(
