@@ -18,9 +18,9 @@ moments of a block of runs are one matrix product (BLAS) over its consecutive ro
 The generic kernel (:func:`_lift_runs_py`) reads the exponents from arrays. For each dictionary the same
 kernel is also written out as Python source (:func:`source`: every power, feature and Gram monomial a
 named local, as :mod:`qsid_core.quantization.unrolled` does for the linear kernel), cached in the numba
-cache directory under a name hashed from its text and compiled with ``cache=True``; on ``poly:3`` with
-two states it takes about a quarter of the generic kernel's time for LS and an eighth with the unbiased
-forms (both compute the same numbers; a test checks it). Without numba the plain Python function runs.
+cache directory under a name hashed from its text and compiled with ``cache=True``, once for LS and once
+with the de-biased forms; it is several times faster than the generic one (``benchmarks/bench_koopman.py``,
+:doc:`/performance`) and computes the same numbers (a test checks it). Without numba the plain Python function runs.
 """
 
 from __future__ import annotations
