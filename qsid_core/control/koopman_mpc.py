@@ -1,7 +1,7 @@
 """Koopman MPC (Korda & Mezic 2018): the letter's MPC on a lifted model, run on the true (nonlinear) plant.
 
 For a lifted predictor ``z+ = A_z z + B_z u``, ``x = C z`` (:class:`~qsid_core.identification.KoopmanModel`)
-the controller is :class:`~qsid_core.control.mpc.MPCController` on ``(A_z, B_z)`` with the output cost
+the controller is :class:`~qsid_core.control.controller.MPCController` on ``(A_z, B_z)`` with the output cost
 ``(x - r)'Q(x - r) = z' C'QC z`` (``r = 0``), the input box and horizon of :class:`MPCConfig`. Every step
 the true state is measured exactly, lifted (``z = psi(x)``), and the first optimal input is applied to the
 true plant for one sample (one RK4 step of a :class:`~qsid_core.plant.NonlinearSystem`, or ``A x + B u``
@@ -24,13 +24,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from types import SimpleNamespace
-from typing import Protocol
+from typing import Protocol, cast
 
 import numpy as np
 
 from ..errors import MPCFailure
 from ..plant import LTISystem, NonlinearSystem
-from .mpc import MPCConfig, MPCController
+from .controller import MPCController
+from .mpc import MPCConfig
 
 __all__ = ["CONVERGED_RADIUS", "KoopmanLoops", "LiftedModel", "run_koopman_loops"]
 
@@ -95,7 +96,7 @@ def _weights(system: LTISystem | NonlinearSystem, cfg: MPCConfig) -> SimpleNames
             name=system.name,
             state_names=system.state_names,
         )
-        w = cfg.resolve(view)
+        w = cfg.resolve(cast(LTISystem, view))  # resolve reads n, m, Q, R, x0, name, state_names only
     else:
         w = cfg.resolve(system)
     return SimpleNamespace(Q=w.Q, R=w.R, Qf=w.Qf, x0=w.x0, u_max=w.u_max, x_ref=w.x_ref)
