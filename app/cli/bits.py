@@ -6,7 +6,9 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
+from . import koopman
 from .files import input_files, out_file, write_text
+from .koopman import add_lifting_option
 from .output import dumps, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, config, executor, system_from_args
@@ -41,6 +43,7 @@ def _fraction(text: str) -> float:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
+    add_lifting_option(p)
     a = p.add_argument_group("the answer")
     a.add_argument(
         "--target",
@@ -151,6 +154,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core.studies import bits_needed
 
     _check(args)
+    if koopman.wanted(args):
+        return koopman.run_bits(args, rep)
     system = system_from_args(args)
     out = out_file(args.out, rep, inputs=input_files(args))
     cfg = config(args, system, True)

@@ -50,6 +50,7 @@ def _dispatch(argv: list, rep: Reporter) -> int:
     if args.command is None:
         raise UsageError(f"give a command: {', '.join(COMMANDS)} (see '{parser.PROG} --help')")
     rep.enabled = not getattr(args, "quiet", False)
+    args.argv = tuple(argv)  # which options were typed (a nonlinear plant has defaults of its own)
     return COMMANDS[args.command].run(args, rep)
 
 

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from . import koopman
 from .figure_out import add_figure_arguments, check_figure, write_figure
 from .files import input_files, out_file, write_text
+from .koopman import add_lifting_option
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
 from .runner import UsageError, system_from_args
@@ -26,6 +28,7 @@ DESCRIPTION = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
+    add_lifting_option(p)
     p.add_argument(
         "--config",
         metavar="FILE",
@@ -53,6 +56,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
+    if koopman.wanted(args):
+        return koopman.run_sweep(args, rep)
     cfg = None
     inputs = input_files(args)
     if args.config is not None:

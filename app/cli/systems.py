@@ -20,23 +20,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
 
+def _item(name: str, s: Any) -> dict[str, Any]:
+    """One preset's row (a linear or a nonlinear plant: both have n, m, dt, description and names)."""
+    return {
+        "name": name,
+        "n": s.n,
+        "m": s.m,
+        "dt": s.dt,
+        "description": s.description,
+        "states": list(s.state_names),
+        "inputs": list(s.input_names),
+    }
+
+
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core import PRESETS
+    from qsid_core.plant import NONLINEAR_PRESETS
 
-    items: list[dict[str, Any]] = []
-    for name, make in PRESETS.items():
-        s = make()
-        items.append(
-            {
-                "name": name,
-                "n": s.n,
-                "m": s.m,
-                "dt": s.dt,
-                "description": s.description,
-                "states": list(s.state_names),
-                "inputs": list(s.input_names),
-            }
-        )
+    items = [_item(name, make()) for name, make in PRESETS.items()]
+    items += [{**_item(name, make()), "nonlinear": True} for name, make in NONLINEAR_PRESETS.items()]
     if args.json:
         print(dumps(items))
         return 0
@@ -45,4 +47,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     for i in items:
         print(f"{i['name'].ljust(w)}  {i['n']}  {i['m']}  {i['description']}")
     print("custom systems: --system FILE.toml|FILE.json with A, B and optional x0, Q, R, dt")
+    print(
+        f"nonlinear plants (Koopman/EDMD, --lifting poly:D|rbf:K|identity): {', '.join(NONLINEAR_PRESETS)}, "
+        "or FILE.toml|FILE.json with vector_field = 'module:function', n, m and optional dt, x0, Q, R"
+    )
     return 0

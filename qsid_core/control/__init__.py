@@ -9,6 +9,7 @@ from .closed_loop import run_closed_loops
 from .condensed_qp import CondensedQP, DaqpMPC, condense
 from .controller import MPCController
 from .controllers import build_controllers
+from .koopman_mpc import CONVERGED_RADIUS, KoopmanLoops, LiftedModel, run_koopman_loops
 from .loop_kernel import PDAS_ITERS, eligible, run_compiled
 from .loop_noise import DISTURBANCES, LoopNoise, loop_noise
 from .loop_results import ClosedLoops
@@ -34,6 +35,7 @@ from .tracking import Preview
 from .verdicts import OUTCOMES, STALL, WINDOW, judge
 
 __all__ = [
+    "CONVERGED_RADIUS",
     "CONVERGED_REL_FLOOR",
     "ClosedLoops",
     "CondensedQP",
@@ -41,7 +43,9 @@ __all__ = [
     "DaqpMPC",
     "FAILURE_KINDS",
     "KINDS",
+    "KoopmanLoops",
     "LQParts",
+    "LiftedModel",
     "LoopNoise",
     "MPCConfig",
     "MPCController",
@@ -78,6 +82,7 @@ __all__ = [
     "riccati_finite",
     "run_closed_loops",
     "run_compiled",
+    "run_koopman_loops",
     "saturated_steps",
     "small_gain_holds",
     "small_gain_margin",

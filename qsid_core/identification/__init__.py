@@ -4,15 +4,38 @@ Every public name of this subpackage is listed in ``__all__``; import from here,
 
 from __future__ import annotations
 
+from .edmd import (
+    KoopmanModel,
+    LiftedMoments,
+    edmd,
+    exact_lifted_moments,
+    lifted_error,
+    prediction_error,
+    quantized_lifted_moments,
+)
 from .identify import ESTIMATORS, Identified, identify, least_squares, relative_errors
+from .lifting import LIFTINGS, Lifting, MonomialLifting, RBFLifting, bernoulli_shifted, parse_lifting
 from .theorem1 import noise_covariance, theorem1_prediction
 
 __all__ = [
     "ESTIMATORS",
     "Identified",
+    "KoopmanModel",
+    "LIFTINGS",
+    "LiftedMoments",
+    "Lifting",
+    "MonomialLifting",
+    "RBFLifting",
+    "bernoulli_shifted",
+    "edmd",
+    "exact_lifted_moments",
     "identify",
     "least_squares",
+    "lifted_error",
     "noise_covariance",
+    "parse_lifting",
+    "prediction_error",
+    "quantized_lifted_moments",
     "relative_errors",
     "theorem1_prediction",
 ]

@@ -32,10 +32,11 @@ import tempfile
 import threading
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 from . import kernels
 
-__all__ = ["kernel", "source", "MAX_CHANNELS", "NOT_USED"]
+__all__ = ["kernel", "source", "import_generated", "MAX_CHANNELS", "NOT_USED"]
 
 #: Up to this many channels (states + inputs) the kernel is specialised (the sums then fit in registers).
 MAX_CHANNELS = 8
@@ -111,17 +112,21 @@ def _write(path: Path, text: str) -> None:
         raise
 
 
-def _load(p: int, n: int) -> Callable[..., None]:
-    name = f"qsid_accumulate_p{p}_n{n}"
+def import_generated(name: str, text: str) -> ModuleType:
+    """The module ``name`` with source ``text``, written to ``<numba cache>/generated/`` and imported from there."""
     path = Path(kernels.cache_dir()) / "generated" / f"{name}.py"
-    _write(path, source(p, n))
+    _write(path, text)
     spec = importlib.util.spec_from_file_location(name, path)
     if spec is None or spec.loader is None:
         raise ImportError(f"cannot import {path}")
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
-    fn: Callable[..., None] = module.kernel
+    return module
+
+
+def _load(p: int, n: int) -> Callable[..., None]:
+    fn: Callable[..., None] = import_generated(f"qsid_accumulate_p{p}_n{n}", source(p, n)).kernel
     return fn
 
 

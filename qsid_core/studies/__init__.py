@@ -37,6 +37,7 @@ from .datalength import (
 )
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
+from .koopman_sweep import KOOPMAN_MPC, NO_CERTIFICATES, KoopmanConfig, KoopmanResult, run_koopman_sweep
 from .outputs import output_target, replace_atomically
 from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded
 from .records import (
@@ -68,7 +69,11 @@ __all__ = [
     "Experiment",
     "FIT_TOLERANCE",
     "InlineExecutor",
+    "KOOPMAN_MPC",
+    "KoopmanConfig",
+    "KoopmanResult",
     "LARGE_DATA_RATIO",
+    "NO_CERTIFICATES",
     "OVERLOAD_EFFECT_RATIO",
     "RESULT_FORMAT",
     "RealizationRecord",
@@ -112,6 +117,7 @@ __all__ = [
     "realized_small_gain",
     "replace_atomically",
     "run_datalength",
+    "run_koopman_sweep",
     "run_sweep",
     "runs_and_steps",
     "single_threaded_blas",

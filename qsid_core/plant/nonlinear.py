@@ -1,0 +1,422 @@
+"""Nonlinear plants: a continuous-time vector field sampled by one classical RK4 step per sample.
+
+A :class:`NonlinearSystem` is ``xdot = f(x, u)`` with a zero-order hold on ``u`` over each sample of
+``dt`` seconds; the discrete plant is one classical Runge-Kutta (RK4) step::
+
+    k1 = f(x, u), k2 = f(x + dt/2 k1, u), k3 = f(x + dt/2 k2, u), k4 = f(x + dt k3, u)
+    x+ = x + dt/6 (k1 + 2 k2 + 2 k3 + k4)
+
+Presets (issue 31, all with ``dt = 0.05``):
+
+``van-der-pol``
+    x1' = x2, x2' = mu (1 - x1^2) x2 - x1 + u with mu = 1 (an unstable origin inside a limit cycle).
+``duffing``
+    x1' = x2, x2' = -0.5 x2 + x1 - x1^3 + u (a saddle at the origin between two stable wells at x1 = +-1).
+``pendulum``
+    x1' = x2, x2' = -sin x1 - 0.1 x2 + u (a damped pendulum, stable at the origin).
+
+A custom plant is a Python callable ``f(x, u) -> xdot`` vectorised over a batch (``x`` of shape
+(runs, n), ``u`` of shape (runs, m), the result of shape (runs, n)); a plant file names it as
+``vector_field = "module:function"`` (see :func:`nonlinear_from_dict`).
+
+Training data (:func:`simulate_nonlinear`) are as the linear presets': runs x steps with
+x0 ~ U[-a, a]^n (a = 2 by default) and u ~ U[-1, 1]^m i.i.d. A run that leaves the sane box
+``|x_i| <= box`` is stopped there, left out of the data and *reported* (:attr:`NonlinearDataset.left_box`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomllib
+
+from ..errors import ConfigError, SystemDefinitionError, check_float, check_int, short_repr
+from .data import Dataset
+
+__all__ = [
+    "NONLINEAR_PRESETS",
+    "NonlinearDataset",
+    "NonlinearSystem",
+    "VectorField",
+    "get_nonlinear",
+    "is_nonlinear",
+    "is_nonlinear_file",
+    "load_nonlinear",
+    "nonlinear_from_dict",
+    "rk4_step",
+    "simulate_nonlinear",
+]
+
+#: ``f(x, u) -> xdot`` over a batch: x (runs, n), u (runs, m) -> (runs, n)
+VectorField = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+#: Default sane box ``|x_i| <= SANE_BOX`` of the presets (a run beyond it is reported and left out).
+SANE_BOX = 50.0
+
+
+@dataclass(frozen=True, eq=False)
+class NonlinearSystem:
+    """A nonlinear plant ``xdot = f(x, u)``, sampled by one RK4 step of ``dt`` with the input held.
+
+    Parameters
+    ----------
+    name : str
+        Short identifier.
+    vector_field : callable
+        ``f(x, u)`` with x of shape (runs, n) and u of shape (runs, m), returning shape (runs, n).
+    n, m : int
+        Numbers of states and inputs.
+    dt : float, > 0
+        Sample time in seconds (one RK4 step per sample).
+    x0 : tuple of float, length n
+        Initial state of the regulation task.
+    Q, R : tuple of float
+        Diagonals of the state (length n, >= 0) and input (length m, > 0) weights.
+    amplitude : float, > 0
+        ``a`` of the training runs' x0 ~ U[-a, a]^n.
+    box : float, > 0
+        The sane box ``|x_i| <= box``: a run beyond it is reported and left out of the data.
+    description : str
+    state_names, input_names : tuple of str
+    """
+
+    name: str
+    vector_field: VectorField
+    n: int
+    m: int
+    dt: float = 0.05
+    x0: tuple[float, ...] = ()
+    Q: tuple[float, ...] = ()
+    R: tuple[float, ...] = ()
+    amplitude: float = 2.0
+    box: float = SANE_BOX
+    description: str = ""
+    state_names: tuple[str, ...] = field(default=())
+    input_names: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        if not callable(self.vector_field):
+            raise SystemDefinitionError(
+                f"vector field of {self.name!r} must be callable; got {short_repr(self.vector_field)}"
+            )
+        object.__setattr__(self, "n", check_int("states n", self.n, 1, 20))
+        object.__setattr__(self, "m", check_int("inputs m", self.m, 1, 20))
+        object.__setattr__(self, "dt", check_float("dt", self.dt, 0.0, 1e6, lo_open=True))
+        object.__setattr__(self, "amplitude", check_float("amplitude", self.amplitude, 0.0, 1e6, lo_open=True))
+        object.__setattr__(self, "box", check_float("box", self.box, 0.0, 1e12, lo_open=True))
+        for nm, k, default, lo in (("x0", self.n, 0.0, None), ("Q", self.n, 1.0, 0.0), ("R", self.m, 0.1, 0.0)):
+            v = np.asarray(getattr(self, nm) or [default] * k, dtype=float).reshape(-1)
+            if v.size == 1:
+                v = np.repeat(v, k)
+            if v.size != k or not np.all(np.isfinite(v)):
+                raise SystemDefinitionError(f"{nm} of {self.name!r} must have {k} finite entries; got {v.size}")
+            if lo is not None and (np.any(v < lo) or (nm == "R" and np.any(v <= 0))):
+                raise SystemDefinitionError(f"{nm} of {self.name!r} must be {'> 0' if nm == 'R' else '>= 0'}")
+            object.__setattr__(self, nm, tuple(v.tolist()))
+        object.__setattr__(self, "state_names", tuple(self.state_names) or tuple(f"x{i + 1}" for i in range(self.n)))
+        object.__setattr__(self, "input_names", tuple(self.input_names) or tuple(f"u{i + 1}" for i in range(self.m)))
+
+    def xdot(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The vector field at a batch, checked: shape (runs, n), finite.
+
+        Raises
+        ------
+        SystemDefinitionError
+            If the callable raises, returns the wrong shape, or returns NaN or inf at a finite state.
+        """
+        try:
+            out = np.asarray(self.vector_field(x, u), dtype=float)
+        except Exception as exc:  # any failure of user code becomes one line naming the field
+            raise SystemDefinitionError(
+                f"vector field of {self.name!r} raised {type(exc).__name__}: {str(exc)[:200]}"
+            ) from None
+        if out.shape != x.shape:
+            raise SystemDefinitionError(
+                f"vector field of {self.name!r} returned shape {out.shape}; expected {x.shape} (runs, n)"
+            )
+        bad = ~np.all(np.isfinite(out), axis=1) & np.all(np.isfinite(x), axis=1)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise SystemDefinitionError(
+                f"vector field of {self.name!r} returned NaN or inf at x = {np.round(x[i], 6).tolist()}, "
+                f"u = {np.round(u[i], 6).tolist()}"
+            )
+        return out
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One sample: RK4 with the input held, x (runs, n), u (runs, m) -> (runs, n)."""
+        return rk4_step(self.xdot, x, u, self.dt)
+
+
+def rk4_step(f: VectorField, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
+    """One classical Runge-Kutta step of ``xdot = f(x, u)`` with ``u`` held: shapes (runs, n), (runs, m)."""
+    h = 0.5 * dt
+    k1 = f(x, u)
+    k2 = f(x + h * k1, u)
+    k3 = f(x + h * k2, u)
+    k4 = f(x + dt * k3, u)
+    out: np.ndarray = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+    return out
+
+
+def _van_der_pol(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+    x1, x2 = x[:, 0], x[:, 1]
+    return np.stack([x2, (1.0 - x1 * x1) * x2 - x1 + u[:, 0]], axis=1)
+
+
+def _duffing(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+    x1, x2 = x[:, 0], x[:, 1]
+    return np.stack([x2, -0.5 * x2 + x1 - x1**3 + u[:, 0]], axis=1)
+
+
+def _pendulum(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+    x1, x2 = x[:, 0], x[:, 1]
+    return np.stack([x2, -np.sin(x1) - 0.1 * x2 + u[:, 0]], axis=1)
+
+
+def van_der_pol() -> NonlinearSystem:
+    """Van der Pol oscillator, mu = 1, dt = 0.05; regulation from x0 = (2, 0) (on the limit cycle) to 0."""
+    return NonlinearSystem(
+        "van-der-pol",
+        _van_der_pol,
+        2,
+        1,
+        x0=(2.0, 0.0),
+        description="Van der Pol oscillator (mu = 1), nonlinear, 2 states, 1 input, RK4 at dt = 0.05",
+        state_names=("position", "velocity"),
+        input_names=("force",),
+    )
+
+
+def duffing() -> NonlinearSystem:
+    """Duffing oscillator, dt = 0.05; regulation from the stable well x0 = (1, 0) to the saddle at 0."""
+    return NonlinearSystem(
+        "duffing",
+        _duffing,
+        2,
+        1,
+        x0=(1.0, 0.0),
+        description="Duffing oscillator (double well), nonlinear, 2 states, 1 input, RK4 at dt = 0.05",
+        state_names=("position", "velocity"),
+        input_names=("force",),
+    )
+
+
+def pendulum() -> NonlinearSystem:
+    """Damped pendulum, dt = 0.05; regulation from x0 = (2, 0) (about 115 degrees) to hanging at 0."""
+    return NonlinearSystem(
+        "pendulum",
+        _pendulum,
+        2,
+        1,
+        x0=(2.0, 0.0),
+        description="damped pendulum, nonlinear, 2 states, 1 input, RK4 at dt = 0.05",
+        state_names=("angle", "rate"),
+        input_names=("torque",),
+    )
+
+
+#: The nonlinear presets by name.
+NONLINEAR_PRESETS: dict[str, Callable[[], NonlinearSystem]] = {
+    "van-der-pol": van_der_pol,
+    "duffing": duffing,
+    "pendulum": pendulum,
+}
+
+
+def is_nonlinear(name: object) -> bool:
+    """Whether ``name`` is a nonlinear preset's name, a nonlinear plant file or a :class:`NonlinearSystem`."""
+    if isinstance(name, NonlinearSystem):
+        return True
+    return isinstance(name, str) and (name.strip().lower() in NONLINEAR_PRESETS or is_nonlinear_file(name))
+
+
+def get_nonlinear(name: str | NonlinearSystem) -> NonlinearSystem:
+    """A nonlinear preset by name, a plant file naming a ``vector_field``, or a :class:`NonlinearSystem` passed through.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown name.
+    """
+    if isinstance(name, NonlinearSystem):
+        return name
+    if is_nonlinear_file(name):
+        return load_nonlinear(name)
+    key = str(name).strip().lower()
+    if key not in NONLINEAR_PRESETS:
+        raise ConfigError(f"unknown nonlinear system {short_repr(name)}; choose from {', '.join(NONLINEAR_PRESETS)}")
+    return NONLINEAR_PRESETS[key]()
+
+
+def _resolve(ref: str) -> VectorField:
+    """The callable named by ``"module:function"``."""
+    mod, sep, attr = ref.partition(":")
+    if not sep or not mod or not attr:
+        raise SystemDefinitionError(f"vector_field must be 'module:function'; got {short_repr(ref)}")
+    try:
+        obj: Any = importlib.import_module(mod)
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except Exception as exc:  # import errors of user code: one line
+        raise SystemDefinitionError(f"vector_field {ref!r} cannot be loaded: {type(exc).__name__}: {exc}") from None
+    if not callable(obj):
+        raise SystemDefinitionError(f"vector_field {ref!r} is not callable")
+    fn: VectorField = obj
+    return fn
+
+
+def nonlinear_from_dict(d: Mapping[str, Any], name: str = "custom") -> NonlinearSystem:
+    """A nonlinear plant from a plant file's table.
+
+    Keys: ``vector_field`` ("module:function", required), ``n``, ``m`` (required), and optional
+    ``dt``, ``x0``, ``Q``, ``R``, ``amplitude``, ``box``, ``description``, ``state_names``, ``input_names``.
+
+    Raises
+    ------
+    SystemDefinitionError
+        If a key is missing or unknown, or the function cannot be imported.
+    """
+    known = {"vector_field", "n", "m", "dt", "x0", "Q", "R", "amplitude", "box", "description", "state_names"}
+    known |= {"input_names", "name"}
+    extra = sorted(set(d) - known)
+    if extra:
+        raise SystemDefinitionError(f"unknown key(s) in nonlinear plant {name!r}: {', '.join(extra)}")
+    for k in ("vector_field", "n", "m"):
+        if k not in d:
+            raise SystemDefinitionError(f"nonlinear plant {name!r} needs {k!r}")
+    if not isinstance(d["vector_field"], str):
+        raise SystemDefinitionError("vector_field must be a string 'module:function'")
+    kw = {k: d[k] for k in ("dt", "amplitude", "box", "description") if k in d}
+    for k in ("x0", "Q", "R", "state_names", "input_names"):
+        if k in d:
+            kw[k] = tuple(d[k])
+    return NonlinearSystem(str(d.get("name", name)), _resolve(d["vector_field"]), d["n"], d["m"], **kw)
+
+
+def is_nonlinear_file(path: str | Path) -> bool:
+    """Whether ``path`` is an existing .toml/.json plant file that names a ``vector_field``."""
+    p = Path(path)
+    if p.suffix.lower() not in (".toml", ".json") or not p.is_file():
+        return False
+    try:
+        return "vector_field" in _read_table(p)
+    except (OSError, ValueError):
+        return False
+
+
+def _read_table(p: Path) -> dict[str, Any]:
+    text = p.read_text()
+    d = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
+    if not isinstance(d, dict):
+        raise SystemDefinitionError(f"plant file {p.name!r} must hold one table of keys")
+    return d
+
+
+def load_nonlinear(path: str | Path) -> NonlinearSystem:
+    """A nonlinear plant from a .toml or .json file (keys of :func:`nonlinear_from_dict`).
+
+    Raises
+    ------
+    SystemDefinitionError
+        Unreadable or malformed file, or a vector field that cannot be imported.
+    """
+    p = Path(path)
+    try:
+        d = _read_table(p)
+    except (OSError, ValueError) as exc:
+        raise SystemDefinitionError(f"plant file {str(p)!r} cannot be read: {exc}") from None
+    return nonlinear_from_dict(d, p.stem)
+
+
+@dataclass(frozen=True, eq=False)
+class NonlinearDataset(Dataset):
+    """Training data of a nonlinear plant: a :class:`~qsid_core.plant.data.Dataset` of the runs that stayed sane.
+
+    Attributes
+    ----------
+    left_box : tuple of int
+        Indices (among the runs drawn) of the runs that left ``|x_i| <= box``; they are not in ``states``.
+    drawn : int
+        Number of runs drawn (kept + left).
+    """
+
+    left_box: tuple[int, ...] = ()
+    drawn: int = 0
+
+    @property
+    def report(self) -> str:
+        """One line on the runs left out ("" when none)."""
+        if not self.left_box:
+            return ""
+        shown = ", ".join(map(str, self.left_box[:10])) + (", ..." if len(self.left_box) > 10 else "")
+        return f"{len(self.left_box)} of {self.drawn} runs left the sane box and are not used (runs {shown})"
+
+
+def simulate_nonlinear(
+    system: NonlinearSystem,
+    trajectories: int = 200,
+    steps: int = 100,
+    seed: int | None = 0,
+    input_amplitude: float = 1.0,
+) -> NonlinearDataset:
+    """Random-input training runs of a nonlinear plant.
+
+    Parameters
+    ----------
+    system : NonlinearSystem
+    trajectories : int, >= 1
+        Runs drawn.
+    steps : int, >= 1
+        Samples per run.
+    seed : int or None
+        Seed of ``numpy.random.default_rng`` (inputs drawn first, then x0, as :func:`~qsid_core.plant.data.simulate`).
+    input_amplitude : float, > 0
+        ``A`` of u ~ U[-A, A]^m.
+
+    Returns
+    -------
+    NonlinearDataset
+        ``states`` (kept runs, steps + 1, n), ``inputs`` (kept runs, steps, m) and the runs left out.
+
+    Raises
+    ------
+    ConfigError
+        Bad sizes, or every run left the sane box.
+    SystemDefinitionError
+        The vector field raised or returned NaN/inf at a finite state.
+    """
+    if not isinstance(system, NonlinearSystem):
+        raise ConfigError(f"system must be a NonlinearSystem; got {type(system).__name__}")
+    if seed is not None:
+        check_int("seed", seed, 0)
+    trajectories = check_int("trajectories", trajectories, 1, 100_000)
+    steps = check_int("steps", steps, 1, 1_000_000)
+    input_amplitude = check_float("input amplitude", input_amplitude, 0.0, 1e12, lo_open=True)
+    n, m = system.n, system.m
+    rng = np.random.default_rng(seed)
+    inputs = rng.uniform(-1.0, 1.0, size=(trajectories, steps, m)) * input_amplitude
+    states = np.empty((trajectories, steps + 1, n))
+    states[:, 0, :] = rng.uniform(-system.amplitude, system.amplitude, size=(trajectories, n))
+    alive = np.ones(trajectories, dtype=bool)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for t in range(steps):
+            idx = np.flatnonzero(alive)
+            nxt = np.full((trajectories, n), np.nan)
+            if idx.size:
+                nxt[idx] = system.step(states[idx, t, :], inputs[idx, t, :])
+            states[:, t + 1, :] = nxt
+            alive &= np.all(np.abs(nxt) <= system.box, axis=1)
+    left = tuple(int(i) for i in np.flatnonzero(~alive))
+    if not alive.any():
+        raise ConfigError(
+            f"every one of {trajectories} runs of {system.name!r} left the sane box |x| <= {system.box:g}; "
+            "use a smaller amplitude or fewer steps"
+        )
+    return NonlinearDataset(states[alive], inputs[alive], seed, input_amplitude, left_box=left, drawn=trajectories)

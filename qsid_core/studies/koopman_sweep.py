@@ -1,0 +1,289 @@
+"""Sweeps over the word length for a nonlinear plant: quantized EDMD, its de-biased form, Koopman MPC.
+
+For each realization (an independent dither draw shared by every word length, as the linear sweeps do)
+and each word length ``b``: the lifted moments of the quantized training data
+(:func:`~qsid_core.identification.quantized_lifted_moments`), the lifted model by the chosen estimator
+(:func:`~qsid_core.identification.edmd`), its relative errors against the EDMD of the *same unquantized
+data*, its multi-step prediction error on held-out runs of the true plant, and the Koopman MPC built on
+it run on the true plant from the plant's ``x0`` (:func:`~qsid_core.control.run_koopman_loops`).
+
+The linear certificates (Theorem 1's error model, the small-gain and ultimate-bound results) assume a
+linear plant: they are not computed here and the result says so (:data:`NO_CERTIFICATES`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..control import CONVERGED_RADIUS, MPCConfig, run_koopman_loops
+from ..errors import ConfigError, IdentificationError, MPCFailure, check_choice, check_int
+from ..identification import (
+    ESTIMATORS,
+    KoopmanModel,
+    Lifting,
+    edmd,
+    exact_lifted_moments,
+    lifted_error,
+    parse_lifting,
+    prediction_error,
+    quantized_lifted_moments,
+)
+from ..plant import NonlinearDataset, NonlinearSystem, get_nonlinear, simulate_nonlinear
+from ..quantization import MAX_BITS, QuantizerSpec
+
+__all__ = ["KOOPMAN_MPC", "NO_CERTIFICATES", "KoopmanConfig", "KoopmanResult", "run_koopman_sweep"]
+
+#: The MPC of the nonlinear sweeps by default: 1 s horizon, 10 s of closed loop (dt = 0.05).
+KOOPMAN_MPC = MPCConfig(horizon=20, steps=200, verify_steps=None)
+#: What the nonlinear results say about the linear certificates.
+NO_CERTIFICATES = (
+    "the linear certificates (Theorem 1's error model, small gain, ultimate bound, b_letter, b_robust) "
+    "assume a linear plant and do not apply to a nonlinear one: only observed outcomes are reported"
+)
+#: Held-out runs for the prediction error: runs, steps, prediction horizon (samples).
+HELD_OUT = (50, 40, 20)
+
+
+@dataclass(frozen=True)
+class KoopmanConfig:
+    """A word-length sweep of a nonlinear plant.
+
+    Parameters
+    ----------
+    system : str or NonlinearSystem
+        A nonlinear preset (``van-der-pol``, ``duffing``, ``pendulum``) or a plant.
+    lifting : str
+        Dictionary spec (``poly:3``, ``rbf:K``, ``identity``; see :func:`~qsid_core.identification.parse_lifting`).
+    estimator : {"ls", "bcls"}
+    bits : tuple of int
+        Word lengths (every state and input).
+    trajectories, steps : int
+        Training runs and samples per run (default 2000 x 100).
+    realizations : int
+        Dither realizations per b.
+    data_seed, dither_seed : int
+        Seeds of the training data (and held-out runs) and of the dither.
+    quantizer : QuantizerSpec
+        Dither, range, guard band (default: subtractive, per-channel, guard band on).
+    mpc : MPCConfig or None
+        The Koopman MPC (default :data:`KOOPMAN_MPC`); None skips the loops.
+    radius : float
+        Convergence radius of the loops' verdict.
+    """
+
+    system: str | NonlinearSystem = "van-der-pol"
+    lifting: str = "poly:3"
+    estimator: str = "ls"
+    bits: tuple[int, ...] = tuple(range(2, 9))
+    trajectories: int = 2000
+    steps: int = 100
+    realizations: int = 20
+    data_seed: int = 0
+    dither_seed: int = 1
+    quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
+    mpc: MPCConfig | None = KOOPMAN_MPC
+    radius: float = CONVERGED_RADIUS
+
+    def __post_init__(self) -> None:
+        check_choice("estimator", self.estimator, ESTIMATORS)
+        if not self.bits:
+            raise ConfigError("bits must name at least one word length")
+        object.__setattr__(self, "bits", tuple(check_int("bits", b, 1, MAX_BITS) for b in self.bits))
+        check_int("trajectories", self.trajectories, 1, 100_000)
+        check_int("steps", self.steps, 1, 1_000_000)
+        check_int("realizations", self.realizations, 1, 10_000)
+        check_int("data seed", self.data_seed, 0)
+        check_int("dither seed", self.dither_seed, 0)
+        if not isinstance(self.quantizer, QuantizerSpec):
+            raise ConfigError("quantizer must be a QuantizerSpec")
+
+    def plant(self) -> NonlinearSystem:
+        """The plant (a preset by name)."""
+        return get_nonlinear(self.system)
+
+    def dictionary(self) -> Lifting:
+        """The lifting for the plant's state (RBF centres over the training amplitude, seeded by ``data_seed``)."""
+        s = self.plant()
+        return parse_lifting(self.lifting, s.n, s.amplitude, self.data_seed)
+
+
+@dataclass
+class KoopmanResult:
+    """A finished nonlinear sweep: one row per word length, and what they are compared with.
+
+    Attributes
+    ----------
+    config : KoopmanConfig
+    rows : list of dict
+        Per b (JSON-ready): ``bits``, ``eps_x``, ``eps_u``, ``err_G`` / ``err_A`` / ``err_B`` and
+        ``prediction_error`` as ``{mean, std}``, ``overload_fraction``, ``bcls_fallbacks``,
+        ``ident_failures``, ``stabilized_fraction`` and ``closed_loop_outcomes`` (None without loops),
+        ``notes``.
+    reference_prediction_error : float
+        The unquantized EDMD's prediction error (the floor the quantized models approach).
+    reference_outcome : str or None
+        The unquantized EDMD's Koopman MPC verdict.
+    data_report : str
+        Runs left out of the training data ("" when none).
+    timing_s : float
+    """
+
+    config: KoopmanConfig
+    rows: list[dict[str, Any]]
+    reference_prediction_error: float
+    reference_outcome: str | None
+    data_report: str
+    features: int
+    runs_used: int
+    timing_s: float = 0.0
+
+    def _mpc(self, s: NonlinearSystem) -> dict[str, Any]:
+        """The loops' settings as run (the plant's defaults where the config leaves them unset)."""
+        m = self.config.mpc
+        assert m is not None
+        return {
+            "horizon": m.horizon,
+            "steps": m.steps,
+            "u_max": list(m.u_max) if isinstance(m.u_max, tuple) else [m.u_max],
+            "x0": list(m.x0 or s.x0),
+            "Q": list(m.Q or s.Q),
+            "R": list(m.R or s.R),
+            "terminal_weight": "C'QC" if self.config.lifting != "identity" else "DARE",
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict-JSON-ready summary."""
+        c = self.config
+        s = c.plant()
+        q = c.quantizer
+        return {
+            "kind": "koopman",
+            "system": s.name,
+            "config": {
+                "lifting": c.lifting,
+                "features": self.features,
+                "estimator": c.estimator,
+                "bits": list(c.bits),
+                "trajectories": c.trajectories,
+                "steps": c.steps,
+                "realizations": c.realizations,
+                "data_seed": c.data_seed,
+                "dither_seed": c.dither_seed,
+                "dither": q.dither,
+                "range": q.range_mode,
+                "guard": q.guard,
+                "mpc": None if c.mpc is None else self._mpc(s),
+                "convergence_radius": c.radius,
+                "held_out": dict(zip(("runs", "steps", "horizon"), HELD_OUT, strict=True)),
+            },
+            "data": {"runs_used": self.runs_used, "left_box": self.data_report},
+            "certificates": NO_CERTIFICATES,
+            "reference": {
+                "prediction_error": self.reference_prediction_error,
+                "closed_loop_outcome": self.reference_outcome,
+            },
+            "results": self.rows,
+            "timing_s": {"total": self.timing_s},
+        }
+
+
+def _stats(v: list[float]) -> dict[str, float]:
+    a = np.asarray(v, dtype=float)
+    a = a[np.isfinite(a)]
+    if a.size == 0:
+        return {"mean": float("nan"), "std": float("nan")}
+    return {"mean": float(a.mean()), "std": float(a.std())}
+
+
+def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
+    """Run the sweep (see the module docstring).
+
+    Raises
+    ------
+    ConfigError, SystemDefinitionError, IdentificationError
+        Bad settings, a vector field that fails, or no model from the unquantized data.
+    """
+    t0 = time.perf_counter()
+    system = cfg.plant()
+    lifting = cfg.dictionary()
+    data: NonlinearDataset = simulate_nonlinear(system, cfg.trajectories, cfg.steps, cfg.data_seed)
+    runs, steps, horizon = HELD_OUT
+    held = simulate_nonlinear(system, runs, steps, cfg.data_seed + 104729)
+    if data.T < lifting.L + system.m:
+        raise IdentificationError(
+            f"samples: {data.T} samples cannot fit {lifting.L + system.m} unknowns per row "
+            f"({lifting.L} features + {system.m} inputs); use more runs or steps, or a smaller dictionary"
+        )
+    ref = edmd(exact_lifted_moments(data, lifting), lifting.C, "ls")
+    ref_loop = None if cfg.mpc is None else run_koopman_loops([ref], lifting, system, cfg.mpc, cfg.radius).outcome[0]
+    nb = len(cfg.bits)
+    per: list[dict[str, list[Any]]] = [
+        {k: [] for k in ("G", "A", "B", "pred", "fallback", "notes", "models", "over", "eps")} for _ in range(nb)
+    ]
+    unbiased = cfg.estimator == "bcls"
+    for seq in np.random.SeedSequence(cfg.dither_seed).spawn(cfg.realizations):
+        moms = quantized_lifted_moments(data, lifting, cfg.bits, cfg.quantizer, seed=seq, unbiased=unbiased)
+        for j, mom in enumerate(moms):
+            acc = per[j]
+            acc["over"].append(mom.overload_fraction)
+            acc["eps"].append(mom.eps)
+            try:
+                model: KoopmanModel | None = edmd(mom, lifting.C, cfg.estimator)
+            except IdentificationError as exc:
+                model = None
+                acc["notes"].append(str(exc))
+            if model is None:
+                for k in ("G", "A", "B", "pred"):
+                    acc[k].append(float("nan"))
+            else:
+                eG, eA, eB = lifted_error(model, ref)
+                acc["G"].append(eG)
+                acc["A"].append(eA)
+                acc["B"].append(eB)
+                acc["pred"].append(prediction_error(model, lifting, held, horizon))
+                acc["fallback"].append(model.fallback)
+                if model.note:
+                    acc["notes"].append(model.note)
+            acc["models"].append(model)
+    rows = []
+    n = system.n
+    for j, b in enumerate(cfg.bits):
+        acc = per[j]
+        row: dict[str, Any] = {
+            "bits": b,
+            "eps_x": np.asarray(acc["eps"][0][:n]).tolist(),
+            "eps_u": np.asarray(acc["eps"][0][n:]).tolist(),
+            "err_G": _stats(acc["G"]),
+            "err_A": _stats(acc["A"]),
+            "err_B": _stats(acc["B"]),
+            "prediction_error": _stats(acc["pred"]),
+            "overload_fraction": float(np.mean(acc["over"])),
+            "bcls_fallbacks": int(sum(acc["fallback"])),
+            "ident_failures": int(sum(m is None for m in acc["models"])),
+            "realizations": cfg.realizations,
+            "stabilized_fraction": None,
+            "closed_loop_outcomes": None,
+            "notes": sorted(set(acc["notes"])),
+        }
+        if cfg.mpc is not None:
+            try:
+                loops = run_koopman_loops(acc["models"], lifting, system, cfg.mpc, cfg.radius)
+            except MPCFailure as exc:  # pragma: no cover - run_koopman_loops records failures per loop
+                raise ConfigError(str(exc)) from None
+            row["stabilized_fraction"] = loops.converged_fraction
+            row["closed_loop_outcomes"] = loops.counts()
+        rows.append(row)
+    return KoopmanResult(
+        cfg,
+        rows,
+        prediction_error(ref, lifting, held, horizon),
+        ref_loop,
+        data.report,
+        lifting.L,
+        data.trajectories,
+        time.perf_counter() - t0,
+    )
