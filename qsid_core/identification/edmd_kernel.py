@@ -28,6 +28,7 @@ from __future__ import annotations
 import hashlib
 import threading
 from collections.abc import Callable, Sequence
+from typing import Any, TypeVar, cast
 
 import numpy as np
 
@@ -36,6 +37,62 @@ from ..quantization import kernels, unrolled
 __all__ = ["AVAILABLE", "MAX_UNROLLED", "NOT_USED", "RUNS_PER_BLOCK", "accumulate_lifted", "source"]
 
 AVAILABLE = kernels.AVAILABLE
+
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _quantized_py(v: float, lo: float, e: float, w: float, levels: float, sub: float) -> tuple[float, int]:
+    """One value quantized with the dither ``w`` (in cells; ``sub`` 1 subtracts it): (value, 1 if overloaded)."""
+    s = (v - lo) / e + w
+    k = min(max(np.floor(s), 0.0), levels - 1.0)
+    return lo + e * (k + 0.5) - sub * e * w, int((s < 0.0) | (s > levels))
+
+
+def _monomials_py(F: np.ndarray, E: np.ndarray, out: np.ndarray, add: bool) -> None:
+    """``out[i] (+)= prod_c F[c, E[i, c]]``: the monomials of exponents ``E`` from the channels' powers ``F``."""
+    for i in range(E.shape[0]):
+        acc = 1.0
+        for c in range(E.shape[1]):
+            acc *= F[c, E[i, c]]
+        if add:
+            out[i] += acc
+        else:
+            out[i] = acc
+
+
+def _jit(fn: _F) -> _F:
+    """``fn`` compiled by numba (cached on disk) when the kernels are available, else ``fn`` itself."""
+    if not kernels.AVAILABLE:  # pragma: no cover
+        return fn
+    import numba
+
+    return cast(_F, numba.njit(cache=True, nogil=True)(fn))
+
+
+_quantized = _jit(_quantized_py)
+_monomials = _jit(_monomials_py)
+
+
+def _powers_py(
+    x: float, c: int, K: int, quant: bool, unbiased: bool, Bm: np.ndarray, P: np.ndarray, Q: np.ndarray
+) -> None:
+    """Row ``c`` of ``P``: ``x**0..x**K``; of ``Q``: their unbiased versions (the same where not quantized)."""
+    P[c, 0] = 1.0
+    for k2 in range(1, K + 1):
+        P[c, k2] = P[c, k2 - 1] * x
+    if unbiased:
+        for k2 in range(K + 1):
+            if quant:
+                acc = 0.0
+                for i in range(k2, -1, -2):  # B_k(y + 1/2) has the parity of k: every other power
+                    acc += Bm[c, k2, i] * P[c, i]
+                Q[c, k2] = acc
+            else:
+                Q[c, k2] = P[c, k2]
+
+
+_powers = _jit(_powers_py)
 
 
 def _lift_runs_py(
@@ -68,7 +125,6 @@ def _lift_runs_py(
     R, S1, n = X.shape
     m = Uin.shape[2]
     L = E.shape[0]
-    G = GE.shape[0]
     K = Bc.shape[0] - 1
     P = np.empty((n, Bc.shape[0]))
     Q = np.empty((n, Bc.shape[0]))
@@ -82,86 +138,43 @@ def _lift_runs_py(
     for r in range(R):
         for t in range(S1):
             for c in range(n):
-                e = eps[c]
                 x = X[r, t, c]
                 if quant[c]:
-                    w = W[r, t, c]
-                    s = (x - lo_q[c]) / e + w
-                    cnt += (s < 0.0) | (s > levels)
-                    k = min(max(np.floor(s), 0.0), levels - 1.0)
-                    x = lo_q[c] + e * (k + 0.5) - sub * e * w
-                P[c, 0] = 1.0
-                for k2 in range(1, K + 1):
-                    P[c, k2] = P[c, k2 - 1] * x
-                if unbiased:
-                    if quant[c]:
-                        for k2 in range(K + 1):
-                            acc = 0.0
-                            for i in range(k2, -1, -2):  # B_k(y + 1/2) has the parity of k: every other power
-                                acc += Bm[c, k2, i] * P[c, i]
-                            Q[c, k2] = acc
-                    else:
-                        for k2 in range(K + 1):
-                            Q[c, k2] = P[c, k2]
-            for i in range(L):
-                acc = 1.0
-                for c in range(n):
-                    acc *= P[c, E[i, c]]
-                Zp[r, t, i] = acc
+                    x, o = _quantized(x, lo_q[c], eps[c], W[r, t, c], levels, sub)
+                    cnt += o
+                _powers(x, c, K, quant[c], unbiased, Bm, P, Q)
+            _monomials(P, E, Zp[r, t, :L], False)
             if unbiased:
-                for i in range(L):
-                    acc = 1.0
-                    for c in range(n):
-                        acc *= Q[c, E[i, c]]
-                    Zu[r, t, i] = acc
+                _monomials(Q, E, Zu[r, t, :L], False)
             if t == S1 - 1:
-                for a in range(m):
-                    Zp[r, t, L + a] = 0.0
-                    if unbiased:
-                        Zu[r, t, L + a] = 0.0
-            else:
-                for g in range(G):
-                    acc = 1.0
-                    for c in range(n):
-                        acc *= P[c, GE[g, c]]
-                    SGp[g] += acc
+                Zp[r, t, L:] = 0.0
                 if unbiased:
-                    for g in range(G):
-                        acc = 1.0
-                        for c in range(n):
-                            acc *= Q[c, GE[g, c]]
-                        SGu[g] += acc
-                for a in range(m):
-                    cc = n + a
-                    v = Uin[r, t, a]
-                    if quant[cc]:
-                        e = eps[cc]
-                        w = W[r, t, cc]
-                        s = (v - lo_q[cc]) / e + w
-                        cnt += (s < 0.0) | (s > levels)
-                        k = min(max(np.floor(s), 0.0), levels - 1.0)
-                        v = lo_q[cc] + e * (k + 0.5) - sub * e * w
-                    Zp[r, t, L + a] = v
+                    Zu[r, t, L:] = 0.0
+                continue
+            _monomials(P, GE, SGp, True)
+            if unbiased:
+                _monomials(Q, GE, SGu, True)
+            for a in range(m):
+                cc = n + a
+                v = Uin[r, t, a]
+                if quant[cc]:
+                    v, o = _quantized(v, lo_q[cc], eps[cc], W[r, t, cc], levels, sub)
+                    cnt += o
+                Zp[r, t, L + a] = v
+                if unbiased:
+                    Zu[r, t, L + a] = v
+            for a in range(m):
+                v = Zp[r, t, L + a]
+                for i in range(L):
+                    XUp[i, a] += Zp[r, t, i] * v
                     if unbiased:
-                        Zu[r, t, L + a] = v
-                for a in range(m):
-                    v = Zp[r, t, L + a]
-                    for i in range(L):
-                        XUp[i, a] += Zp[r, t, i] * v
-                        if unbiased:
-                            XUu[i, a] += Zu[r, t, i] * v
-                    for b in range(m):
-                        UU[a, b] += v * Zp[r, t, L + b]
+                        XUu[i, a] += Zu[r, t, i] * v
+                for b in range(m):
+                    UU[a, b] += v * Zp[r, t, L + b]
     return cnt
 
 
-_kernel: Callable[..., int]
-if AVAILABLE:
-    import numba
-
-    _kernel = numba.njit(cache=True, nogil=True)(_lift_runs_py)
-else:  # pragma: no cover
-    _kernel = _lift_runs_py
+_kernel: Callable[..., int] = _jit(_lift_runs_py)
 
 #: Runs lifted per block (the block's features stay in cache for the products).
 RUNS_PER_BLOCK = 64
