@@ -76,6 +76,76 @@ def _loops_all(job, rows: dict, bits: list) -> None:
             fill_rows(job, rows, e, bits, f.result())
 
 
+def _rest_in_chunks(ex, b: int, chunk: int, executor, samples: int, values: Values, tasks: int) -> list[list[int]]:
+    """The word lengths other than ``b`` in chunks of ``chunk``; with a pool, ``ex.tasks`` sized for one chunk
+    (tasks of a fraction of a second: abandoned work never holds the pool)."""
+    rest = [x for x in ex.config.bits if x != b]
+    parts = [rest[i : i + chunk] for i in range(0, len(rest), chunk)]
+    if executor is not None and parts:
+        channels = ex.system.n + ex.system.m
+        ex.tasks = pool_tasks(samples * channels // 4, int(values.realizations), len(parts[0]), tasks)
+    return parts
+
+
+def _next_loops(
+    job, rows, parts: list[list[int]], k: int, all_quantized: bool, stop: Callable[[], bool]
+) -> tuple[list[int], int] | None:
+    """The closed loops of chunk ``k``: ``(the b done, the next chunk)``, or None when stopped.
+
+    Once every b is quantized (or cached) all remaining loops are spread over the executor at once;
+    before that they run here, side by side with the quantization of the next chunk in the helper,
+    one b at a time, so a newer setting never waits for a whole chunk of loops.
+    """
+    if all_quantized:
+        part = [x for p in parts[k:] for x in p]
+        _loops_all(job, rows, part)
+        return part, len(parts)
+    for x in parts[k]:
+        for e in job.estimators:
+            if stop():
+                return None
+            fill_rows(job, rows, e, [x])
+    return parts[k], k + 1
+
+
+def _curves(
+    job,
+    rows,
+    ahead: _Ahead,
+    pooled: bool,
+    stop: Callable[[], bool],
+    on_progress: Callable[[int, int, str], None] | None,
+    min_interval: float,
+    t0: float,
+    timings: dict[str, float],
+) -> Generator[Frame, None, None]:
+    """The "curves" frames: chunk after chunk of the other word lengths (quantized by ``ahead``), their
+    overload effects and closed loops, a frame every ``min_interval`` s and at the end."""
+    parts, total = ahead.parts, len(ALL_BITS)
+    last, done, k = time.perf_counter(), 1, 0
+    while k < len(parts):
+        if stop():
+            return
+        if on_progress:
+            on_progress(done, total, f"computing b={parts[k][0]}..{parts[k][-1]} ({done + 1}/{total})")
+        ahead.start(k)
+        for x in parts[k]:  # needs no quantized data: computed here while the pool quantizes
+            if stop():
+                return
+            job.ex.overload_effect(x)
+        ahead.wait(k)
+        step = _next_loops(job, rows, parts, k, pooled and ahead.finished, stop)
+        if step is None:
+            return
+        part, k = step
+        done += len(part)
+        now = time.perf_counter()
+        if done >= total or now - last >= min_interval:
+            last = now
+            timings["curves"] = now - t0
+            yield make_frame(job, "curves", rows, done, now - t0, timings)
+
+
 def iter_frames(
     values: Values,
     cache: MutableMapping | None = None,
@@ -126,12 +196,7 @@ def iter_frames(
 
     def quantize_the_rest(ex) -> None:
         """The current b is quantized: the helper starts on the other word lengths while its rows are built."""
-        rest = [x for x in ex.config.bits if x != b]
-        parts = [rest[i : i + chunk] for i in range(0, len(rest), chunk)]
-        if executor is not None and parts:  # tasks of a fraction of a second: abandoned work never holds the pool
-            channels = ex.system.n + ex.system.m
-            ex.tasks = pool_tasks(samples * channels // 4, int(values.realizations), len(parts[0]), tasks)
-        ahead.append(_Ahead(helper, ex, parts, stop))
+        ahead.append(_Ahead(helper, ex, _rest_in_chunks(ex, b, chunk, executor, samples, values, tasks), stop))
         ahead[0].start(0)
 
     try:
@@ -145,36 +210,6 @@ def iter_frames(
         )
         timings = {"current": time.perf_counter() - t0}
         yield make_frame(job, "current", rows, 1, timings["current"], timings)
-        parts = ahead[0].parts
-        last, done, k = time.perf_counter(), 1, 0
-        while k < len(parts):
-            if stop():
-                return
-            if on_progress:
-                on_progress(done, total, f"computing b={parts[k][0]}..{parts[k][-1]} ({done + 1}/{total})")
-            ahead[0].start(k)
-            for x in parts[k]:  # needs no quantized data: computed here while the pool quantizes
-                if stop():
-                    return
-                job.ex.overload_effect(x)
-            ahead[0].wait(k)
-            if executor is not None and ahead[0].finished:
-                # every b quantized (or cached): spread all remaining closed loops over the executor at once
-                part, k = [x for p in parts[k:] for x in p], len(parts)
-                _loops_all(job, rows, part)
-            else:
-                # closed loops here, side by side with the quantization of the next chunk in the helper
-                part, k = parts[k], k + 1
-                for x in part:  # one b at a time: a newer setting never waits for a whole chunk of loops
-                    for e in job.estimators:
-                        if stop():
-                            return
-                        fill_rows(job, rows, e, [x])
-            done += len(part)
-            now = time.perf_counter()
-            if done >= total or now - last >= min_interval:
-                last = now
-                timings["curves"] = now - t0
-                yield make_frame(job, "curves", rows, done, now - t0, timings)
+        yield from _curves(job, rows, ahead[0], executor is not None, stop, on_progress, min_interval, t0, timings)
     finally:
         helper.shutdown(wait=False, cancel_futures=True)

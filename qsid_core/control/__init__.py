@@ -4,7 +4,7 @@ Every public name of this subpackage is listed in ``__all__``; import from here,
 
 from __future__ import annotations
 
-from .bound import RealizedBounds, UltimateBound, realized_bounds, riccati_finite, ultimate_bound
+from .bound import UltimateBound, riccati_finite, ultimate_bound
 from .closed_loop import run_closed_loops
 from .condensed_qp import CondensedQP, DaqpMPC, condense
 from .controller import MPCController
@@ -15,6 +15,7 @@ from .loop_noise import DISTURBANCES, LoopNoise, loop_noise
 from .loop_results import ClosedLoops
 from .mpc import FAILURE_KINDS, SOLVERS, TRACKING, MPCConfig
 from .mpc_weights import MPCWeights
+from .realized_bound import RealizedBounds, realized_bounds
 from .reference import KINDS, parse_reference, reference_samples
 from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
 from .sparse_qp import OsqpMPC

@@ -22,8 +22,11 @@ python-control is imported inside the functions (importing it costs ~1.5 s).
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
+from typing import Any, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import SystemDefinitionError, check_choice
 from .lti import LTISystem
@@ -36,19 +39,32 @@ __all__ = [
     "identified_statespaces",
 ]
 
+#: A ``control.StateSpace`` (python-control ships no type information).
+StateSpace = Any
+
+
+class _Identified(Protocol):
+    """What :func:`identified_statespaces` reads of a :class:`~qsid_core.studies.stage_results.BitsIdentification`."""
+
+    bits: int
+    A_hat: NDArray[np.float64]
+    B_hat: NDArray[np.float64]
+    failed: NDArray[np.bool_]
+
+
 OUTPUT_RULES = ("full-state", "ignore")
 _TOL = 1e-12
 
 
-def _labels(labels, prefix: str) -> tuple[str, ...]:
+def _labels(labels: Iterable[object], prefix: str) -> tuple[str, ...]:
     """python-control's labels, or () when they are its defaults ('x[0]', ...) so qsid's defaults apply."""
-    labels = tuple(str(v) for v in labels)
-    if all(re.fullmatch(rf"{prefix}\[\d+\]", v) for v in labels):
+    texts = tuple(str(v) for v in labels)
+    if all(re.fullmatch(rf"{prefix}\[\d+\]", v) for v in texts):
         return ()
-    return labels
+    return texts
 
 
-def _discrete(sys, dt, method: str):
+def _discrete(sys: StateSpace, dt: float | None, method: str) -> tuple[StateSpace, float]:
     """(discrete StateSpace, sample time) from a discrete or continuous StateSpace."""
     import control
 
@@ -74,7 +90,7 @@ def _discrete(sys, dt, method: str):
     return sys, float(sys.dt)
 
 
-def _positive_dt(dt) -> float:
+def _positive_dt(dt: Any) -> float:  # anything float() may take; the rest is refused in words
     try:
         v = float(dt)
     except (TypeError, ValueError):
@@ -85,15 +101,15 @@ def _positive_dt(dt) -> float:
 
 
 def system_from_statespace(
-    sys,
+    sys: StateSpace,
     dt: float | None = None,
     *,
     outputs: str = "full-state",
     method: str = "zoh",
     name: str | None = None,
-    x0=None,
-    Q=None,
-    R=None,
+    x0: ArrayLike | None = None,
+    Q: ArrayLike | None = None,
+    R: ArrayLike | None = None,
     description: str = "",
 ) -> LTISystem:
     """An :class:`LTISystem` from a ``control.StateSpace``.
@@ -164,7 +180,15 @@ def system_from_statespace(
     )
 
 
-def model_to_statespace(A, B, dt: float, *, name: str = "model", states=None, inputs=None):
+def model_to_statespace(
+    A: ArrayLike,
+    B: ArrayLike,
+    dt: float,
+    *,
+    name: str = "model",
+    states: Iterable[str] | None = None,
+    inputs: Iterable[str] | None = None,
+) -> StateSpace:
     """``control.StateSpace(A, B, I, 0, dt)``: a full-state model as python-control sees it.
 
     Parameters
@@ -183,7 +207,7 @@ def model_to_statespace(A, B, dt: float, *, name: str = "model", states=None, in
     n, m = B.shape
     if A.shape != (n, n):
         raise SystemDefinitionError(f"A must be {n} x {n} to go with B of shape {B.shape}; got {A.shape}")
-    kw = {}
+    kw: dict[str, list[str]] = {}
     if states is not None:
         kw.update(states=list(states), outputs=list(states))
     if inputs is not None:
@@ -191,14 +215,14 @@ def model_to_statespace(A, B, dt: float, *, name: str = "model", states=None, in
     return control.ss(A, B, np.eye(n), np.zeros((n, m)), _positive_dt(dt), name=name, **kw)
 
 
-def system_to_statespace(system: LTISystem):
+def system_to_statespace(system: LTISystem) -> StateSpace:
     """The true plant of an :class:`LTISystem` as ``control.StateSpace`` (``C = I``, ``D = 0``, its ``dt``)."""
     return model_to_statespace(
         system.A, system.B, system.dt, name=system.name, states=system.state_names, inputs=system.input_names
     )
 
 
-def identified_statespaces(ident, system: LTISystem) -> list:
+def identified_statespaces(ident: _Identified, system: LTISystem) -> list[StateSpace | None]:
     """Every realization's identified model at one word length as ``control.StateSpace``.
 
     Parameters
@@ -213,7 +237,7 @@ def identified_statespaces(ident, system: LTISystem) -> list:
     list, length R
         ``control.StateSpace`` per realization, ``None`` where identification failed.
     """
-    out = []
+    out: list[StateSpace | None] = []
     for r, (A, B) in enumerate(zip(ident.A_hat, ident.B_hat)):
         if ident.failed[r] or not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
             out.append(None)

@@ -18,11 +18,18 @@ versions, and :data:`REASON` says why.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["AVAILABLE", "REASON", "accumulate_chunk", "box_qp_pdas", "cache_dir"]
+
+Floats = NDArray[np.float64]
+Ints = NDArray[np.int64]
+Bools = NDArray[np.bool_]
 
 
 def cache_dir() -> str:
@@ -37,7 +44,7 @@ def cache_dir() -> str:
     return str(base / "qsid" / "numba")
 
 
-def _load():
+def _load() -> tuple[Any, str]:  # (the numba module, which ships no type information, or None; why not)
     if os.environ.get("QSID_NO_NUMBA"):
         return None, "numba disabled by QSID_NO_NUMBA"
     d = cache_dir()
@@ -63,7 +70,7 @@ AVAILABLE = _numba is not None
 BLOCK = 256
 
 
-def _dot_py(x, y, k):
+def _dot_py(x: Floats, y: Floats, k: int) -> float:
     """``sum_{r<k} x[r] y[r]`` (a loop numba vectorises)."""
     acc = 0.0
     for r in range(k):
@@ -71,7 +78,7 @@ def _dot_py(x, y, k):
     return acc
 
 
-def _accumulate_block_py(V, nr, r1, M, C, sums, j):
+def _accumulate_block_py(V: Floats, nr: int, r1: int, M: Floats, C: Floats, sums: Floats, j: int) -> None:
     """Add one block's sums at word length ``j``: ``sums += sum_r v_r``, ``M += sum_r v_r v_r'`` (upper
     triangle) and ``C += sum_r v_{r-1} v_r[:n]'`` over rows ``r1 + 1 .. nr`` (``v_r = V[:, r]``, ``V[:, 0]``
     the row before the block). Any number of channels; :mod:`qsid_core.quantization.unrolled` writes the same sums
@@ -91,7 +98,23 @@ def _accumulate_block_py(V, nr, r1, M, C, sums, j):
             C[j, a, b] += _dot(V[a, r1:nr], V[b, r1 + 1 : nr + 1], nr - r1)
 
 
-def _accumulate_chunk_py(y, u, sub, quant, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first):
+def _accumulate_chunk_py(
+    y: Floats,
+    u: Floats,
+    sub: float,
+    quant: Bools,
+    scale: Floats,
+    half: Floats,
+    row0: int,
+    S1: int,
+    M: Floats,
+    C: Floats,
+    sums: Floats,
+    over: Ints,
+    prev: Floats,
+    v_last: Floats,
+    v_first: Floats,
+) -> None:
     """Quantize rows ``y`` at every word length and accumulate (see :func:`accumulate_chunk`)."""
     rows, p = y.shape
     V = np.empty((p, BLOCK + 1))  # V[:, 0] = v of the row before the block, V[:, 1 + r] = v of row r
@@ -135,7 +158,7 @@ def _accumulate_chunk_py(y, u, sub, quant, scale, half, row0, S1, M, C, sums, ov
                     v_first[j, (g0 + r) // S1, a] = V[a, r + 1]
 
 
-def _chol_solve_py(Hs, free, nf, L, rhs):
+def _chol_solve_py(Hs: Floats, free: Ints, nf: int, L: Floats, rhs: Floats) -> bool:
     """Solve ``H_FF z = rhs`` in place (``F = free[:nf]``) by Cholesky; False if ``H_FF`` is not definite."""
     for a in range(nf):  # L L' = H_FF (lower triangle)
         for b in range(a + 1):
@@ -161,7 +184,19 @@ def _chol_solve_py(Hs, free, nf, L, rhs):
     return True
 
 
-def _pdas_one_py(Hs, gs, ub, up, lo, iters, tol, x, L, rhs, free):
+def _pdas_one_py(
+    Hs: Floats,
+    gs: Floats,
+    ub: Floats,
+    up: Bools,
+    lo: Bools,
+    iters: int,
+    tol: float,
+    x: Floats,
+    L: Floats,
+    rhs: Floats,
+    free: Ints,
+) -> bool:
     """Primal-dual active-set iterations for one box QP from the guess ``up``/``lo`` (updated in place).
 
     On True, ``x`` holds the minimiser of ``1/2 x'Hs x + gs'x`` subject to ``|x| <= ub``
@@ -219,7 +254,9 @@ def _pdas_one_py(Hs, gs, ub, up, lo, iters, tol, x, L, rhs, free):
     return False
 
 
-def _box_qp_pdas_py(H, g, ub, upper, lower, iters, tol, U, ok):
+def _box_qp_pdas_py(
+    H: Floats, g: Floats, ub: Floats, upper: Bools, lower: Bools, iters: int, tol: float, U: Floats, ok: Bools
+) -> None:
     """Primal-dual active-set iterations for each box QP of a batch (see :func:`box_qp_pdas`)."""
     S, nU = g.shape
     L = np.empty((nU, nU))
@@ -253,7 +290,22 @@ else:  # pragma: no cover
 
 
 def accumulate_chunk(
-    y, u, scale, half, row0, S1, M, C, sums, over, prev, v_last, v_first, sub: float = 1.0, quant=None, kernel=None
+    y: Floats,
+    u: Floats,
+    scale: ArrayLike,
+    half: ArrayLike,
+    row0: int,
+    S1: int,
+    M: Floats,
+    C: Floats,
+    sums: Floats,
+    over: Ints,
+    prev: Floats,
+    v_last: Floats,
+    v_first: Floats,
+    sub: float = 1.0,
+    quant: ArrayLike | None = None,
+    kernel: Callable[..., None] | None = None,
 ) -> None:
     """Quantize a chunk of normalised samples at every word length and accumulate, in place.
 
@@ -298,16 +350,17 @@ def accumulate_chunk(
     if not AVAILABLE:
         raise RuntimeError(f"compiled kernels unavailable: {REASON}")
     p = y.shape[1]
-    scale2 = np.ascontiguousarray(
-        np.broadcast_to(np.asarray(scale, dtype=float).reshape(len(scale), -1), (len(scale), p))
-    )
-    half2 = np.ascontiguousarray(np.broadcast_to(np.asarray(half, dtype=float).reshape(len(half), -1), (len(half), p)))
+    sc, hf = np.asarray(scale, dtype=float), np.asarray(half, dtype=float)
+    scale2 = np.ascontiguousarray(np.broadcast_to(sc.reshape(len(sc), -1), (len(sc), p)))
+    half2 = np.ascontiguousarray(np.broadcast_to(hf.reshape(len(hf), -1), (len(hf), p)))
     q = np.ones(p, dtype=np.bool_) if quant is None else np.asarray(quant, dtype=np.bool_)
     fn = kernel or _accumulate_chunk_nb
     fn(y, u, float(sub), q, scale2, half2, int(row0), int(S1), M, C, sums, over, prev, v_last, v_first)
 
 
-def box_qp_pdas(H, g, ub, upper, lower, iters: int = 8, tol: float = 1e-12):
+def box_qp_pdas(
+    H: Floats, g: Floats, ub: ArrayLike, upper: Bools, lower: Bools, iters: int = 8, tol: float = 1e-12
+) -> tuple[Floats, Bools]:
     """Compiled :func:`qsid_core.control.condensed_qp.box_qp_batch`: same rule, same KKT check, one problem at a time.
 
     Each iteration fixes the active variables at their bound and solves the free

@@ -181,6 +181,22 @@ def _error_stats(x: np.ndarray, ed: np.ndarray, ep: np.ndarray, lo_q: float, eps
     )
 
 
+def _checked_signal(signal: ArrayLike, lo: float, hi: float) -> tuple[np.ndarray, float, float]:
+    """``(x, lo, hi)``: the signal flattened, shape (N,), and the range, checked (finite, within the engine's
+    magnitude limit, at least 2 samples)."""
+    x = np.asarray(signal, dtype=float).ravel()
+    if x.size < 2 or not np.all(np.isfinite(x)):
+        raise ConfigError("the quantizer demo needs a finite signal of at least 2 samples")
+    lo = check_float("lo", lo, -MAX_MAGNITUDE, MAX_MAGNITUDE)
+    hi = check_float("hi", hi, -MAX_MAGNITUDE, MAX_MAGNITUDE)
+    if np.abs(x).max() > MAX_MAGNITUDE:
+        raise ConfigError(
+            f"the quantizer demo needs the signal within ±{MAX_MAGNITUDE:g} (its error variance "
+            "eps²/12 must stay a number)"
+        )
+    return x, lo, hi
+
+
 def quantizer_demo(
     signal: ArrayLike,
     lo: float,
@@ -218,16 +234,7 @@ def quantizer_demo(
     ConfigError
         Empty or non-finite signal, bad range, bits, window, start or bins.
     """
-    x = np.asarray(signal, dtype=float).ravel()
-    if x.size < 2 or not np.all(np.isfinite(x)):
-        raise ConfigError("the quantizer demo needs a finite signal of at least 2 samples")
-    lo = check_float("lo", lo, -MAX_MAGNITUDE, MAX_MAGNITUDE)
-    hi = check_float("hi", hi, -MAX_MAGNITUDE, MAX_MAGNITUDE)
-    if np.abs(x).max() > MAX_MAGNITUDE:
-        raise ConfigError(
-            f"the quantizer demo needs the signal within ±{MAX_MAGNITUDE:g} (its error variance "
-            "eps²/12 must stay a number)"
-        )
+    x, lo, hi = _checked_signal(signal, lo, hi)
     bits = check_int("bits", bits, 1, MAX_BITS)
     window = check_int("window", window, 1)
     start = check_int("start", start, 0, x.size - 1)

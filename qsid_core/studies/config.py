@@ -21,6 +21,10 @@ from ..quantization.quantize import LETTER_QUANTIZER, MAX_BITS, QuantizerSpec
 from ..validate import check_bool
 from .config_checks import check_sweep_parts
 
+#: The inputs' word length as :func:`parse_input_bits` gives it: None (the swept b), "exact", one for all inputs,
+#: or one entry per input.
+InputBits = None | str | int | tuple[int | str, ...]
+
 __all__ = ["SweepConfig", "parse_bits", "parse_input_bits", "parse_noise", "parse_state_bits"]
 
 
@@ -73,7 +77,7 @@ def parse_bits(spec: str | int | Sequence[int] | range) -> tuple[int, ...]:
     return out
 
 
-def parse_input_bits(spec) -> None | str | tuple:
+def parse_input_bits(spec: object) -> InputBits:
     """Word length of the inputs: None or ``"same"`` (as the states), ``"exact"``, one int, or one per input.
 
     Accepts ``12``, ``"12"``, ``"exact"``, ``"8,12"``, ``"exact,8"`` or a sequence of ints / ``"exact"``.
@@ -104,7 +108,7 @@ def parse_input_bits(spec) -> None | str | tuple:
     if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
         return check_int("input bits", int(spec), 1, MAX_BITS)
     if isinstance(spec, (list, tuple)) and 0 < len(spec) <= 1000:
-        out = []
+        out: list[int | str] = []
         for v in spec:
             if isinstance(v, str) and v.strip().lower() in ("exact", "b", "same"):
                 out.append("exact" if v.strip().lower() == "exact" else "b")
@@ -117,7 +121,7 @@ def parse_input_bits(spec) -> None | str | tuple:
     raise ConfigError(f"{form}; got {short_repr(spec)}")
 
 
-def parse_state_bits(spec) -> None | tuple:
+def parse_state_bits(spec: object) -> tuple[int | str, ...] | None:
     """Word length of each state: None or ``""``/``"b"`` (every state has the swept b), else one entry for all
     states or one per state.
 
@@ -138,13 +142,14 @@ def parse_state_bits(spec) -> None | tuple:
     if not isinstance(spec, (list, tuple)) or not spec or any(isinstance(v, str) and not v for v in spec):
         raise ConfigError(f"{form}; got {short_repr(spec)}")
     try:
-        out = parse_input_bits(list(spec)) if len(spec) > 1 else parse_input_bits([spec[0], "b"])[:1]
+        out = parse_input_bits(list(spec) if len(spec) > 1 else [spec[0], "b"])
     except ConfigError:
         raise ConfigError(f"{form}; got {short_repr(spec)}") from None
-    return tuple(out)
+    assert isinstance(out, tuple)  # a list of two or more entries is always read as one entry per channel
+    return out if len(spec) > 1 else out[:1]
 
 
-def parse_noise(spec) -> tuple:
+def parse_noise(spec: object) -> tuple[float, ...]:
     """Sensor noise standard deviations: one for every state, or one per state (``0.01`` or ``"0.01,0.02"``).
 
     Raises
@@ -222,12 +227,12 @@ class SweepConfig:
     theta: float = 0.5
     rho: float | None = None
     input_amplitude: float = 1.0
-    input_bits: None | str | int | tuple[int | str, ...] = None
+    input_bits: InputBits = None
     noise: tuple[float, ...] = (0.0,)
     state_bits: tuple[int | str, ...] | None = None
     noise_known: bool = False
 
-    def to_dict(self, system: LTISystem | None = None) -> dict:
+    def to_dict(self, system: LTISystem | None = None) -> dict[str, Any]:
         """Every setting as plain JSON data; :meth:`from_dict` reads it back to an equal config.
 
         ``system`` (the resolved :class:`LTISystem`, default ``get_system(self.system)``) is
@@ -333,7 +338,8 @@ class SweepConfig:
             bad = sorted(set(mset) - names)
             if bad:
                 raise ConfigError(f"unknown MPC setting(s) {bad}; allowed: {', '.join(sorted(names))}")
-            mpc = MPCConfig(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in mset.items()})
+            given: dict[str, Any] = {k: (tuple(v) if isinstance(v, list) else v) for k, v in mset.items()}
+            mpc = MPCConfig(**given)
         else:
             raise ConfigError("mpc must be a table of MPC settings, or null/false for no MPC")
         qkeys = {"dither": "dither", "range": "range_mode", "guard": "guard", "fixed_range": "fixed_range"}
@@ -346,7 +352,7 @@ class SweepConfig:
         return cls(system=system, quantizer=QuantizerSpec(**qargs), mpc=mpc, **d)
 
     @classmethod
-    def letter(cls, system: str | LTISystem = "dc-motor", **overrides) -> SweepConfig:
+    def letter(cls, system: str | LTISystem = "dc-motor", **overrides: Any) -> SweepConfig:
         """The letter's settings (Section V), which ``qsid reproduce`` uses.
 
         b = 1..16, 50 dither realizations, 200 runs x 1000 steps, x0 ~ U[-1, 1]^n,

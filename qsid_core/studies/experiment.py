@@ -27,9 +27,9 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ..control.bound import RealizedBounds
 from ..control.closed_loop import run_closed_loops
 from ..control.loop_results import ClosedLoops
+from ..control.realized_bound import RealizedBounds
 from ..errors import ConfigError, check_choice, check_int
 from ..identification.identify import ESTIMATORS
 from ..plant.data import Dataset, simulate, with_sensor_noise
@@ -172,7 +172,7 @@ class Experiment:
     def realized_bound(self, b: int, estimator: str | None = None) -> RealizedBounds:
         """A-posteriori ultimate bound per realization at ``b``: its own model error and its own ``P``.
 
-        See :func:`qsid_core.control.bound.realized_bounds`; the MPC settings are the
+        See :func:`qsid_core.control.realized_bound.realized_bounds`; the MPC settings are the
         config's (or the defaults when MPC is off).
         """
         est = estimator or self.config.estimator

@@ -12,10 +12,14 @@ empty, they are not used).
 from __future__ import annotations
 
 import csv
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ConfigError, check_int
 from ..identification.identify import identify, least_squares, relative_errors
@@ -28,7 +32,7 @@ from .config import parse_bits
 __all__ = ["RecordedResult", "dataset_from_arrays", "load_recorded", "identify_recorded"]
 
 
-def dataset_from_arrays(x, u) -> Dataset:
+def dataset_from_arrays(x: ArrayLike, u: ArrayLike) -> Dataset:
     """A :class:`Dataset` from recorded arrays, checked.
 
     Parameters
@@ -86,7 +90,8 @@ def _read_csv(p: Path) -> Dataset:
     want = ["run", "t"] + [f"x{i + 1}" for i in range(len(xs))] + [f"u{i + 1}" for i in range(len(us))]
     if head != want or not xs or not us:
         raise ConfigError(f"{p.name}: the columns must be run, t, x1..xn, u1..um (got {', '.join(head)[:200]})")
-    n, runs = len(xs), {}
+    n = len(xs)
+    runs: dict[str, list[tuple[int, list[float]]]] = {}
     for k, r in enumerate(rows[1:], start=2):
         if not any(c.strip() for c in r):
             continue
@@ -116,7 +121,7 @@ def _read_csv(p: Path) -> Dataset:
     return dataset_from_arrays(np.stack(xl), np.stack(ul))
 
 
-def load_recorded(path) -> Dataset:
+def load_recorded(path: str | os.PathLike[str]) -> Dataset:
     """Recorded data from a ``.npz`` (arrays ``x``, ``u``) or ``.csv`` (``run, t, x1..xn, u1..um``) file.
 
     Raises
@@ -165,18 +170,18 @@ class RecordedResult:
     notes : list of str
     """
 
-    bits: tuple
+    bits: tuple[int, ...]
     reference: str
     A_ref: np.ndarray
     B_ref: np.ndarray
-    eps: dict
-    err: dict
-    overload: dict
+    eps: dict[int, np.ndarray]
+    err: dict[tuple[str, int], np.ndarray]
+    overload: dict[int, float]
     runs: int
     steps: int
-    notes: list = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """Plain JSON data: one row per b with mean/std of each estimator's errors."""
         rows = []
         for b in self.bits:
@@ -200,8 +205,8 @@ class RecordedResult:
 
 
 def identify_recorded(
-    data: Dataset,
-    bits="2:12",
+    data: Dataset | tuple[ArrayLike, ArrayLike],
+    bits: str | int | Sequence[int] = "2:12",
     quantizer: QuantizerSpec | None = None,
     realizations: int = 5,
     dither_seed: int = 1,

@@ -20,8 +20,8 @@ from numpy.typing import ArrayLike
 from ..control.timeseries import saturated_steps
 
 if TYPE_CHECKING:
-    from ..control.bound import RealizedBounds
     from ..control.loop_results import ClosedLoops
+    from ..control.realized_bound import RealizedBounds
     from .assumptions import Assumptions
     from .stage_results import BitsIdentification, TheoryAtBits
 

@@ -22,7 +22,7 @@ from .stage_results import BitsIdentification, TheoryAtBits
 from .summary import _UNKNOWN, SummaryRow, json_clean, summary_row
 
 if TYPE_CHECKING:
-    from ..control.bound import RealizedBounds
+    from ..control.realized_bound import RealizedBounds
     from .assumptions import Assumptions
 
 __all__ = ["RESULT_FORMAT", "StoredRow", "SweepResult", "load_result"]

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..control.bound import RealizedBounds, UltimateBound, realized_bounds, riccati_finite, ultimate_bound
+from ..control.bound import UltimateBound, riccati_finite, ultimate_bound
 from ..control.mpc import MPCConfig
+from ..control.realized_bound import RealizedBounds, realized_bounds
 from ..control.riccati import dare_stabilizing
 from ..errors import ConfigError, MPCFailure
 from ..identification.identify import relative_errors
@@ -56,7 +57,7 @@ def theory_at(ex: Staged, b: int) -> TheoryAtBits:
 
 def realized_bound_at(ex: Staged, b: int, est: str) -> RealizedBounds:
     """The a-posteriori ultimate bound of each realization's model ``est`` identifies at ``b``
-    (:func:`qsid_core.control.bound.realized_bounds`; the MPC settings are the config's, or the defaults)."""
+    (:func:`qsid_core.control.realized_bound.realized_bounds`; the MPC settings are the config's, or the defaults)."""
     c = ex.config
     mcfg = c.mpc or MPCConfig()
     w = mcfg.resolve(ex.system)

@@ -95,7 +95,7 @@ def test_negligible_input_weights_give_no_bound_not_a_linalg_error():
 
 
 def test_the_batched_riccati_recursion_gives_nan_for_a_singular_problem_only():
-    from qsid_core.control.bound import _riccati_finite_batch
+    from qsid_core.control.realized_bound import _riccati_finite_batch
 
     A = np.array([[[0.5]], [[0.5]]])
     B = np.array([[[1.0, 0.0]], [[1.0, 1.0]]])  # the second input moves nothing in the first model

@@ -1,8 +1,10 @@
 """The layout rules of app/ and qsid_core/: small modules and functions, no import cycles; commands and views
 stay independent of each other.
 
-Size is counted in *logical* lines (statements, as the tokenizer ends them), not physical ones, so that the
-formatter spreading one call over several lines does not change it: no module over 300, no function over 60.
+Size is counted twice. In *logical* lines (statements, as the tokenizer ends them): no module over 300, no
+function over 60, so the formatter spreading one call over several lines does not change it. And in
+*physical* lines as formatted (what a reader scrolls through, tables and docstrings included): no module over
+400, no function over 80.
 """
 
 from __future__ import annotations
@@ -107,6 +109,65 @@ def test_no_module_over_300_statements_no_function_over_60(package):
                 if k > 60:
                     too_long.append(f"{name}.{node.name}: {k} logical lines")
     assert too_long == []
+
+
+#: Physical-line limits, as formatted (``ruff format``): a module, a function (its decorators excluded).
+MAX_MODULE_LINES = 400
+MAX_FUNCTION_LINES = 80
+
+# Dashboard modules being rewritten in parallel (the settings schema, the panel and the presenter view); the
+# physical-line limits are waived for them until those rewrites land. The lead empties this list after merging.
+# The CLI's option parser is rewritten by the settings schema (one declaration per setting) at the same time, and
+# the "how many bits" study (studies/bits.py, control/stability.py) is reworked on another branch that grows both.
+PHYSICAL_LIMITS_WAIVED = {
+    "app.cli.parser",
+    "app.dashboard.controls",
+    "app.dashboard.inputs",
+    "app.dashboard.presenter",
+    "app.dashboard.settings",
+    "app.dashboard.share",
+    "app.dashboard.viewcodes",
+    "app.dashboard.viewpanel",
+    "qsid_core.control.stability",
+    "qsid_core.studies.bits",
+}
+
+
+def _physical_too_long(name: str, source: str, tree: ast.AST) -> list[str]:
+    """What in module ``name`` is over the physical-line limits."""
+    out = []
+    lines = source.count("\n") + (not source.endswith("\n") and bool(source))
+    if lines > MAX_MODULE_LINES:
+        out.append(f"{name}: {lines} lines")
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            k = node.end_lineno - node.lineno + 1
+            if k > MAX_FUNCTION_LINES:
+                out.append(f"{name}.{node.name}: {k} lines")
+    return out
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_module_over_400_lines_no_function_over_80_as_formatted(package):
+    too_long = []
+    for name, (path, tree) in _modules(package).items():
+        if name not in PHYSICAL_LIMITS_WAIVED:
+            too_long += _physical_too_long(name, path.read_text(encoding="utf-8"), tree)
+    assert too_long == []
+
+
+def test_the_waived_modules_exist():
+    known = set(_modules("app")) | set(_modules("qsid_core"))
+    assert PHYSICAL_LIMITS_WAIVED <= known, PHYSICAL_LIMITS_WAIVED - known
+
+
+def test_the_physical_rule_counts_every_line():
+    fits = "def f():\n" + "".join(f"    x{i} = {i}\n" for i in range(79))  # 80 lines with the def
+    over = fits + "    x79 = 79\n"
+    assert _physical_too_long("m", fits, ast.parse(fits)) == []
+    assert _physical_too_long("m", over, ast.parse(over)) == ["m.f: 81 lines"]
+    module = "x = 1\n" * 401
+    assert _physical_too_long("m", module, ast.parse(module)) == ["m: 401 lines"]
 
 
 def test_the_size_rule_counts_statements_not_physical_lines():

@@ -80,7 +80,7 @@ def test_bound_shrinks_with_bits_in_sweep():
 
 
 def test_realized_bound_uses_each_models_own_error_and_P():
-    from qsid_core.control.bound import realized_bounds
+    from qsid_core.control import realized_bounds
 
     s = boeing747()
     rng = np.random.default_rng(1)
@@ -97,7 +97,7 @@ def test_realized_bound_uses_each_models_own_error_and_P():
 
 @pytest.mark.parametrize("x0, rho", [("sys", None), (None, None), ("sys", 2.0)])
 def test_realized_bounds_at_once_equal_ultimate_bound_model_by_model(x0, rho):
-    from qsid_core.control.bound import realized_bounds
+    from qsid_core.control import realized_bounds
     from qsid_core.errors import MPCFailure
 
     s = boeing747()
