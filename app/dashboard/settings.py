@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, cast
 
 import numpy as np
 
-from app.settings.check import InputError
-from app.settings.schema import BY_NAME, SETTINGS, value_default
+from app.settings.check import InputError, check_setting
+from app.settings.schema import BY_NAME, SETTINGS, engine_field, plain, value_default
 from qsid_core import (
     PRESETS,
     LTISystem,
@@ -348,8 +348,7 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
 
             parse_reference(reference, system.state_names)
         return MPCConfig(
-            horizon=int(v.horizon),
-            steps=int(v.mpc_steps),
+            **_plain_args(v, "mpc"),  # horizon, closed-loop steps, verdict steps, loop noise and seed
             u_max=float(v.u_max),
             Q=Q,
             R=R,
@@ -360,12 +359,9 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
             x_max=x_max,
             xf_max=xf_max,
             Qf=Qf,
-            verify_steps=int(v.verify_steps),
             disturbance=float(v.disturbance),
             disturbance_kind=v.disturbance_kind,
             feedback_bits=int(v.feedback_bits) or None,
-            feedback_noise=float(v.feedback_noise),
-            loop_seed=int(v.loop_seed),
         )
     except QsidError as exc:
         raise InputError(str(exc)) from None
@@ -390,6 +386,12 @@ def _what_ifs(v: Values, system: LTISystem) -> tuple:
     return ib, sb, noise
 
 
+def _plain_args(v: Values, config: str) -> dict[str, Any]:
+    """The engine arguments of the settings that go to ``config`` ("sweep" or "mpc") as they are, each checked
+    by the table's rules first (:func:`app.settings.schema.plain`)."""
+    return {engine_field(s): check_setting(s, getattr(v, s.name), slider=False) for s in plain(config)}
+
+
 def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
     """The whole engine configuration for ``v`` (all word lengths :data:`ALL_BITS`; b is the one drawn in 3-D)."""
     if not ALL_BITS[0] <= int(v.bits) <= ALL_BITS[-1]:
@@ -400,23 +402,15 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"target share of stabilized loops must be in (0, 1]; got {v.target}")
     if not (np.isfinite(v.cost_gap) and v.cost_gap >= 0):
         raise InputError(f"cost gap must be >= 0 (relative: 0.01 = 1 %); got {v.cost_gap}")
-    if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
-        raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
     input_bits, state_bits, noise = _what_ifs(v, system)
     try:
         return SweepConfig(
             system=system,
             bits=ALL_BITS,
-            realizations=int(v.realizations),
-            trajectories=int(v.trajectories),
-            steps=int(v.steps),
-            input_amplitude=float(v.input_amplitude),
-            data_seed=int(v.data_seed),
-            dither_seed=int(v.dither_seed),
+            **_plain_args(v, "sweep"),  # realizations, data size, seeds, amplitudes, theta
             quantizer=quantizer_spec(v, system.n, system.m),
             estimator=estimators(v.identification)[0],
             mpc=mpc_config(v, system),
-            theta=float(v.theta),
             rho=None if v.rho_auto else float(v.rho),
             input_bits=input_bits,
             state_bits=state_bits,

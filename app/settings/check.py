@@ -63,12 +63,14 @@ def _nesting(text: str) -> int:
     return deepest
 
 
-def _in_range(s: Setting, x: float, value: object, lab: str) -> None:
-    if s.control == "slider" and s.slider is not None:
+def _in_range(s: Setting, x: float, value: object, lab: str, slider: bool) -> None:
+    if slider and s.control == "slider" and s.slider is not None:
         lo, hi, _ = resolve(s.slider)
         if not lo - 1e-9 <= x <= hi + 1e-9:
             raise InputError(f"{lab}: {value:g} is outside the slider's range {lo:g} … {hi:g}")
         return
+    if not slider and s.min is None and s.max is None:
+        return  # the engine checks its own range
     hi = s.max if s.max is not None else NUMBER_MAX
     if s.min is not None and s.min > 0 and x < s.min:
         raise InputError(f"{lab} must be a positive number (at least {s.min:g}); got {value:g}")
@@ -77,10 +79,13 @@ def _in_range(s: Setting, x: float, value: object, lab: str) -> None:
         raise InputError(f"{lab}: {value:g} is outside {lo:g} … {hi:g}")
 
 
-def check_setting(s: Setting, value: Any, options: Sequence[str] | None = None, name: str | None = None) -> Any:
+def check_setting(
+    s: Setting, value: Any, options: Sequence[str] | None = None, name: str | None = None, slider: bool = True
+) -> Any:
     """``value`` if it is allowed for setting ``s``, converted only after the check (a whole float to int,
     a list of numbers to a tuple); ``options``: a dropdown's choices now (default: the setting's);
-    ``name``: how messages name the setting (default: its panel label).
+    ``name``: how messages name the setting (default: its panel label); ``slider``: a slider's value must lie
+    on the slider (False: only the setting's ``min``/``max``, for values set by code rather than in the panel).
 
     Raises
     ------
@@ -94,7 +99,7 @@ def check_setting(s: Setting, value: Any, options: Sequence[str] | None = None, 
         return value
     if s.type in (int, float):
         x = _number(lab, value, s.type is int)
-        _in_range(s, x, value, lab)
+        _in_range(s, x, value, lab, slider)
         return int(x) if s.type is int else x
     if s.type is tuple:
         if not isinstance(value, (list, tuple)) or len(value) > 1000:

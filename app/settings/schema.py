@@ -33,6 +33,8 @@ __all__ = [
     "value_default",
     "cli_default",
     "hint_text",
+    "plain",
+    "engine_field",
     "GROUPS",
     "DATA_GROUP",
     "WHATIF_GROUP",
@@ -199,6 +201,27 @@ def hint_text(s: Setting, text: str | None = None) -> str | None:
         return None
     lo, hi, _ = resolve(s.slider) if s.slider is not None else (s.min, s.max, s.step)
     return text.format(engine=resolve(s.default), panel=value_default(s), lo=lo, hi=hi)
+
+
+def plain(config: str, cli: bool = False) -> tuple[Setting, ...]:
+    """The numeric settings whose value goes to the engine as it is: a generated flag, an ``engine`` path in
+    ``config`` (``"sweep"``: a SweepConfig field, ``"mpc"``: an MPCConfig field), type int or float. ``cli``:
+    only those whose flag's value is the setting's (not None for "take it from --seed")."""
+    return tuple(
+        s
+        for s in SETTINGS
+        if s.flag is not None
+        and s.engine is not None
+        and s.type in (int, float)
+        and (s.engine.startswith("mpc.") if config == "mpc" else "." not in s.engine)
+        and not (cli and s.cli_default is None)
+    )
+
+
+def engine_field(s: Setting) -> str:
+    """The engine config field a setting of :func:`plain` sets (``"mpc.steps"`` -> ``"steps"``)."""
+    assert s.engine is not None
+    return s.engine.rsplit(".", 1)[-1]
 
 
 def value_default(s: Setting) -> Any:
