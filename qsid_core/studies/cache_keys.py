@@ -24,7 +24,7 @@ __all__ = ["KEY_PARTS", "NOT_IN_KEYS", "STAGE_GROUPS", "config_paths", "group_va
 #: Groups of key parts: dotted paths into a :class:`SweepConfig` (``"mpc"`` alone = every MPC field).
 KEY_PARTS: dict[str, tuple[str, ...]] = {
     # the simulated training data
-    "data": ("trajectories", "steps", "data_seed", "input_amplitude"),
+    "data": ("trajectories", "steps", "data_seed", "input_amplitude", "state_amplitude"),
     # the recorded data normalised to the quantizer's ranges
     "prep": ("quantizer.range_mode", "quantizer.guard", "quantizer.fixed_range", "noise"),
     # the word length and the dither of each channel

@@ -189,6 +189,8 @@ class SweepConfig:
         Data size (defaults 200 x 1000, the letter's).
     input_amplitude : float, > 0
         Training inputs are u ~ U[-A, A] (input units; default 1, the letter's).
+    state_amplitude : float, > 0
+        Initial states of the training runs are x0 ~ U[-a, a]^n (state units; default 1, the letter's).
     data_seed, dither_seed : int
         Seeds of the data and of the dither streams.
     quantizer : QuantizerSpec
@@ -232,6 +234,7 @@ class SweepConfig:
     noise: tuple[float, ...] = (0.0,)
     state_bits: tuple[int | str, ...] | None = None
     noise_known: bool = False
+    state_amplitude: float = 1.0
 
     def to_dict(self, system: LTISystem | None = None) -> dict:
         """Every setting as plain JSON data; :meth:`from_dict` reads it back to an equal config.
@@ -360,6 +363,9 @@ class SweepConfig:
         check_choice("estimator", self.estimator, ESTIMATORS)
         object.__setattr__(
             self, "input_amplitude", check_float("input amplitude", self.input_amplitude, 0.0, 1e12, lo_open=True)
+        )
+        object.__setattr__(
+            self, "state_amplitude", check_float("state amplitude", self.state_amplitude, 0.0, 1e12, lo_open=True)
         )
         check_float("theta", self.theta, 0.0, 1.0, lo_open=True, hi_open=True)
         if self.rho is not None:
