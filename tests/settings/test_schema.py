@@ -63,3 +63,26 @@ def test_values_are_checked_by_type_before_any_conversion(name, value):
 def test_a_whole_float_is_an_integer_and_a_list_of_numbers_a_tuple():
     assert check_setting(BY_NAME["bits"], 4.0) == 4 and type(check_setting(BY_NAME["bits"], 4.0)) is int
     assert check_setting(BY_NAME["log_q"], [0, 1.5]) == (0.0, 1.5)
+
+
+def test_the_state_amplitude_reaches_the_data_and_every_front_end():
+    """The setting added with one table in settings.toml (issue 30 item 7)."""
+    import numpy as np
+
+    from app.cli import build_parser
+    from app.cli.runner import config, system_from_args
+    from app.settings.command import sweep_argv
+    from qsid_core import ConfigError, get_system, simulate
+
+    system = get_system("dc-motor")
+    one, two = simulate(system, 4, 6, 3), simulate(system, 4, 6, 3, state_amplitude=2.0)
+    np.testing.assert_allclose(two.states[:, 0], 2.0 * one.states[:, 0])  # the same draws, scaled
+    np.testing.assert_array_equal(two.inputs, one.inputs)
+    assert np.abs(two.states[:, 0]).max() > 1.0
+    with pytest.raises(ConfigError, match="state amplitude"):
+        SweepConfig(state_amplitude=0.0)
+    args = build_parser().parse_args(["sweep", "--state-amplitude", "2.5"])
+    cfg = config(args, system_from_args(args), mpc=True)
+    assert cfg.state_amplitude == 2.5 and "--state-amplitude=2.5" in sweep_argv(cfg)
+    assert SweepConfig.from_dict(cfg.to_dict()).state_amplitude == 2.5
+    assert BY_NAME["state_amplitude"].stages()[0] == "data"

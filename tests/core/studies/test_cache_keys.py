@@ -37,6 +37,7 @@ CHANGES = [
     ({"data_seed": 5}, "data"),
     ({"trajectories": 4}, "data"),
     ({"input_amplitude": 0.5}, "data"),
+    ({"state_amplitude": 2.0}, "data"),
     ({"quantizer": QuantizerSpec(guard=False)}, "prep"),
     ({"noise": 0.01}, "prep"),
     ({"quantizer": QuantizerSpec(dither="tpdf")}, "channels"),
