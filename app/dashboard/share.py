@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import enum
 import html
 import io
 import json
@@ -19,10 +20,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from app.cli.output import dumps
 from app.settings.check import check_setting
 from app.settings.command import bits_command, sweep_command
 from app.settings.schema import BY_NAME
+from qsid_core.studies import json_clean
 
 from .controls import CONTROLS
 from .settings import InputError, Values, estimators, resolve_system, sweep_config
@@ -193,9 +194,21 @@ def curves_csv(frame) -> str:
     return buf.getvalue()
 
 
+def _plain(obj: object) -> object:
+    """What :func:`json.dumps` cannot write itself: an enum as its value."""
+    if isinstance(obj, enum.Enum):
+        return obj.value
+    raise TypeError(f"{type(obj).__name__} is not JSON data")
+
+
+def _dumps(obj: object) -> str:
+    """Strict JSON (non-finite numbers as null, numpy values plain), as the CLI writes it."""
+    return json.dumps(json_clean(obj), indent=2, allow_nan=False, default=_plain)
+
+
 def curves_json(frame) -> str:
     """The current curves, settings and command as strict JSON (rows as the CLI's ``results``)."""
-    return dumps(
+    return _dumps(
         {
             "system": frame.system.name,
             "settings": dataclasses.asdict(frame.values),

@@ -86,3 +86,17 @@ def test_the_state_amplitude_reaches_the_data_and_every_front_end():
     assert cfg.state_amplitude == 2.5 and "--state-amplitude=2.5" in sweep_argv(cfg)
     assert SweepConfig.from_dict(cfg.to_dict()).state_amplitude == 2.5
     assert BY_NAME["state_amplitude"].stages()[0] == "data"
+
+
+def test_no_front_end_reaches_into_the_other():
+    """The dashboard's share module writes the command line with the schema's writer, not the CLI's modules."""
+    import ast
+    from pathlib import Path
+
+    import app.dashboard
+
+    for path in Path(app.dashboard.__file__).parent.glob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        names = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+        names += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+        assert not [m for m in names if m == "app.cli" or m.startswith("app.cli.")], path.name
