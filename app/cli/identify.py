@@ -9,9 +9,11 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from app.settings.cli import add_option
+
 from .files import out_file, write_text
 from .output import dumps
-from .parser import _nonneg_int, add_quantizer_options, engine, pos_int
+from .parser import add_quantizer_options, engine, pos_int
 from .runner import UsageError, _quantizer, resolve_system
 
 if TYPE_CHECKING:
@@ -41,7 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--realizations", type=pos_int, default=5, metavar="N", help="dither realizations per word length (default: 5)"
     )
-    g.add_argument("--dither-seed", type=_nonneg_int, default=1, metavar="N", help="seed of the dither (default: 1)")
+    add_option(g, "dither_seed", default=engine().sweep.dither_seed)
     q = p.add_argument_group("quantizer")
     add_quantizer_options(q, q0, "quantizer range")
     r = p.add_argument_group("output")

@@ -47,6 +47,7 @@ def _reference(text: str | None, system: LTISystem) -> str | tuple[tuple[float, 
 
 def mpc_config(args: argparse.Namespace, system: LTISystem) -> MPCConfig:
     """The engine's :class:`~qsid_core.MPCConfig` for parsed arguments (shapes checked before any work)."""
+    from app.settings.schema import engine_field, plain
     from qsid_core import MPCConfig
 
     if len(args.u_max) not in (1, system.m):
@@ -65,8 +66,8 @@ def mpc_config(args: argparse.Namespace, system: LTISystem) -> MPCConfig:
     if reference is not None and args.x_ref is not None:
         raise UsageError("arguments --reference and --x-ref exclude each other (a reference is constant or not)")
     mcfg = MPCConfig(
-        horizon=args.horizon,
-        steps=args.mpc_steps,
+        # the options of the settings table whose value is the engine's (horizon, steps, loop seed, ...)
+        **{engine_field(s): getattr(args, s.dest) for s in plain("mpc", cli=True) if hasattr(args, s.dest)},
         u_max=u_max,
         x0=args.x0,
         x_ref=args.x_ref,
@@ -77,12 +78,9 @@ def mpc_config(args: argparse.Namespace, system: LTISystem) -> MPCConfig:
         Qf=qf,
         Q=args.q_diag,
         R=args.r_diag,
-        verify_steps=getattr(args, "verify_steps", MPCConfig().verify_steps),
         disturbance=getattr(args, "disturbance", (0.0, "gaussian"))[0],
         disturbance_kind=getattr(args, "disturbance", (0.0, "gaussian"))[1],
         feedback_bits=getattr(args, "feedback_bits", None),
-        feedback_noise=getattr(args, "feedback_noise", 0.0),
-        loop_seed=getattr(args, "loop_seed", 0),
     )
     mcfg.resolve(system)  # shape checks now, before any work
     return mcfg

@@ -9,9 +9,13 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable, Iterable, Mapping
-from types import ModuleType, SimpleNamespace
+from collections.abc import Mapping
+from types import ModuleType
 from typing import TYPE_CHECKING, Any, NoReturn
+
+from app.settings.cli import add_setting_options, float_type, int_type, shown
+from app.settings.command import bits_spec, floats_spec, limits_spec
+from app.settings.schema import DATA_GROUP, LOOP_GROUP, MPC_GROUP, WHATIF_GROUP, engine
 
 if TYPE_CHECKING:
     from qsid_core import SweepConfig
@@ -31,34 +35,7 @@ __all__ = [
 ]
 
 PROG = "qsid"
-
-
-def engine() -> SimpleNamespace:
-    """The engine's defaults and choices, imported on first use (``qsid --help`` never loads numpy).
-
-    Returns a namespace with ``sweep`` (``SweepConfig(mpc=None)``), ``mpc`` (``MPCConfig()``), ``quant``
-    (``QuantizerSpec()``), ``letter`` (``SweepConfig.letter()``), ``dithers``, ``range_modes`` (all of the
-    engine's; "fixed" needs --limits) and ``estimators``.
-    """
-    global _ENGINE
-    if _ENGINE is None:
-        from qsid_core import MPCConfig, QuantizerSpec, SweepConfig
-        from qsid_core.identification import ESTIMATORS
-        from qsid_core.quantization import DITHERS, RANGE_MODES
-
-        _ENGINE = SimpleNamespace(
-            sweep=SweepConfig(mpc=None),
-            mpc=MPCConfig(),
-            quant=QuantizerSpec(),
-            letter=SweepConfig.letter(mpc=None),
-            dithers=DITHERS,
-            range_modes=RANGE_MODES,
-            estimators=ESTIMATORS,
-        )
-    return _ENGINE
-
-
-_ENGINE: SimpleNamespace | None = None
+_DATA, _WHATIF, _MPC, _LOOP = DATA_GROUP, WHATIF_GROUP, MPC_GROUP, LOOP_GROUP
 
 
 class UsageError(Exception):
@@ -74,29 +51,7 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def _int_type(name: str, lo: int) -> Callable[[str], int]:
-    def conv(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer; got {text!r}") from None
-        if v < lo:
-            kind = "positive" if lo == 1 else f">= {lo}"
-            raise argparse.ArgumentTypeError(f"must be {kind}; got {v}")
-        return v
-
-    conv.__name__ = name
-    return conv
-
-
-def _float_type(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number; got {text!r}") from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"must be finite; got {text!r}")
-    return v
+_float_type = float_type()
 
 
 def _floats_type(text: str) -> tuple[float, ...]:
@@ -199,43 +154,20 @@ def _matrix_text(text: str) -> str:
     return text
 
 
-def limits_spec(pairs: Iterable[tuple[float, float]]) -> str:
-    """Fixed ranges as the ``--limits`` text (inverse of the parser's type)."""
-    return ";".join(f"{lo!r},{hi!r}" for lo, hi in pairs)
-
-
-def floats_spec(values: Iterable[float]) -> str:
-    """Numbers as a comma list, exactly (``repr``), for the command a dashboard shows."""
-    return ",".join(repr(float(v)) for v in values)
-
-
-pos_int = _int_type("positive integer", 1)
-_nonneg_int = _int_type("non-negative integer", 0)
-
-
-def bits_spec(bits: Iterable[int]) -> str:
-    """Word lengths as the ``--bits`` text (``(1, ..., 16)`` -> ``"1:16"``)."""
-    b = list(bits)
-    if len(b) > 1 and b == list(range(b[0], b[-1] + 1)):
-        return f"{b[0]}:{b[-1]}"
-    return ",".join(map(str, b))
-
-
-def _g(v: float) -> str:
-    return format(v, "g")
-
-
-def _onoff(v: bool) -> str:
-    return "on" if v else "off"
+pos_int = int_type("positive integer", 1)
+_nonneg_int = int_type("non-negative integer", 0)
 
 
 def add_data_options(p: argparse.ArgumentParser, base: SweepConfig | None = None, seed: bool = True) -> None:
-    """System, data and quantizer options; defaults from ``base`` (a SweepConfig; default the engine's)."""
+    """System, data and quantizer options; defaults from ``base`` (a SweepConfig; default the engine's).
+
+    The options of single settings come from the settings table (:mod:`app.settings.cli`); the ones
+    written here take values that are not one setting's (a system, a sweep of word lengths, one seed for two).
+    """
     e = engine()
     base = e.sweep if base is None else base
-    q0 = base.quantizer
     bits_default = bits_spec(base.bits)
-    g = p.add_argument_group("system and data")
+    g = p.add_argument_group(_DATA)
     g.add_argument(
         "--system",
         default=base.system,
@@ -266,30 +198,7 @@ def add_data_options(p: argparse.ArgumentParser, base: SweepConfig | None = None
         metavar="SPEC",
         help=f"word lengths: '2:12' (inclusive), '2:12:2' (step), '2,4,6' or '8' (default: {bits_default})",
     )
-    g.add_argument(
-        "--realizations",
-        type=pos_int,
-        default=base.realizations,
-        metavar="N",
-        help=f"dither realizations per word length (default: {base.realizations})",
-    )
-    g.add_argument(
-        "--trajectories",
-        type=pos_int,
-        default=base.trajectories,
-        metavar="N",
-        help=f"simulated trajectories (default: {base.trajectories})",
-    )
-    g.add_argument(
-        "--steps", type=pos_int, default=base.steps, metavar="N", help=f"samples per trajectory (default: {base.steps})"
-    )
-    g.add_argument(
-        "--input-amplitude",
-        type=_float_type,
-        default=base.input_amplitude,
-        metavar="A",
-        help=f"training inputs u ~ U[-A, A] (default: {_g(base.input_amplitude)}, the letter's)",
-    )
+    add_setting_options(g, _DATA, base)
     if seed:
         g.add_argument(
             "--seed",
@@ -298,28 +207,11 @@ def add_data_options(p: argparse.ArgumentParser, base: SweepConfig | None = None
             metavar="N",
             help="seed of both the data and the dither streams (sets --data-seed and --dither-seed)",
         )
-    g.add_argument(
-        "--data-seed",
-        type=_nonneg_int,
-        default=None,
-        metavar="N",
-        help=f"seed of the simulated data (default: {base.data_seed})",
-    )
-    g.add_argument(
-        "--dither-seed",
-        type=_nonneg_int,
-        default=None,
-        metavar="N",
-        help=f"seed of the dither streams (default: {base.dither_seed})",
-    )
     q = p.add_argument_group("quantizer and identification")
-    add_quantizer_options(q, q0, "quantizer range: min/max per channel, one range for all, or fixed (--limits)")
-    q.add_argument(
-        "--estimator",
-        choices=e.estimators,
-        default=base.estimator,
-        help=f"least squares or bias-compensated LS (default: {base.estimator})",
+    add_quantizer_options(
+        q, base.quantizer, "quantizer range: min/max per channel, one range for all, or fixed (--limits)"
     )
+    add_setting_options(q, "identification", base)
 
 
 def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None) -> None:
@@ -328,52 +220,16 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
     base = e.sweep if base is None else base
     mpc = e.mpc
     add_data_options(p, base)
-    x = p.add_argument_group("what-ifs: word length per channel, sensor noise, a saved study")
-    x.add_argument(
-        "--input-bits",
-        default=None,
-        metavar="B|exact|B1,B2,..",
-        help="word length of the inputs: one for all, one per input ('8,exact'), or 'exact' (inputs "
-        "recorded without quantization); --bits then sweeps the states (default: same as --bits)",
-    )
-    x.add_argument(
-        "--state-bits",
-        default=None,
-        metavar="E|E1,E2,..",
-        help="word length of the states, one entry for all or one per state: 'b' (the swept --bits), "
-        "a fixed word length, or 'exact' (not quantized), e.g. 'b,b,12,exact' (default: all b)",
-    )
-    x.add_argument(
-        "--noise",
-        default=None,
-        metavar="SIGMA|S1,S2,..",
-        help="standard deviation of Gaussian sensor noise added to the recorded states before "
-        "quantization, one for all or one per state (seeded by the data seed; default: 0)",
-    )
-    x.add_argument(
-        "--noise-known",
-        action="store_true",
-        help="BCLS adds the noise variance sigma^2 to D (without it BCLS corrects only the "
-        "quantization noise it knows of)",
-    )
-    m = p.add_argument_group("MPC and ultimate bound")
-    m.add_argument(
-        "--horizon", type=pos_int, default=mpc.horizon, metavar="N", help=f"MPC horizon (default: {mpc.horizon})"
-    )
-    m.add_argument(
-        "--mpc-steps",
-        type=pos_int,
-        default=mpc.steps,
-        metavar="N",
-        help=f"closed-loop steps on the true system (default: {mpc.steps})",
-    )
+    add_setting_options(p.add_argument_group(_WHATIF), _WHATIF, base)
+    m = p.add_argument_group(_MPC)
+    add_setting_options(m, _MPC, base)
     m.add_argument(
         "--u-max",
         type=_floats_type,
         default=mpc.u_max,
         metavar="X",
         help="input bound |u_i| <= X; one value or one per input, comma-separated "
-        f"(default: {','.join(map(_g, mpc.u_max))})",
+        f"(default: {','.join(map(shown, mpc.u_max))})",
     )
     m.add_argument(
         "--x0",
@@ -388,22 +244,6 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
         default=None,
         metavar="R1,R2,..",
         help="constant reference the MPC tracks, one value or one per state (default: 0)",
-    )
-    m.add_argument(
-        "--reference",
-        default=None,
-        metavar="SPEC|FILE.csv",
-        help="time-varying reference the MPC tracks with preview: step:STATE:AMPLITUDE:TIME, "
-        "sine:STATE:AMPLITUDE:PERIOD, square:STATE:AMPLITUDE:PERIOD (STATE a name or 1-based "
-        "index, times in samples) or a CSV file with one row per step and one column per state; "
-        "excludes --x-ref",
-    )
-    m.add_argument(
-        "--tracking",
-        choices=("letter", "offset-free"),
-        default="letter",
-        help="the cost's input term: the letter's u'Ru, or offset-free (u - u_ref)'R(u - u_ref) with "
-        "u_ref = B^+ (I - A^) r, the input that holds the model at the reference (default: letter)",
     )
     m.add_argument(
         "--x-max",
@@ -445,7 +285,14 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
         metavar="R1,R2,..",
         help="diagonal of the input weight, one value or one per input (default: the system's R)",
     )
-    loop = p.add_argument_group("the real loop (disturbance and measurement)")
+    m.add_argument(
+        "--rho",
+        type=_float_type,
+        default=None,
+        metavar="X",
+        help="rho of the ultimate bound, > 0 (default: the level-set ball through x0)",
+    )
+    loop = p.add_argument_group(_LOOP)
     loop.add_argument(
         "--disturbance",
         type=_disturbance_spec,
@@ -462,43 +309,7 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
         help="the MPC measures the state through a B-bit quantizer with subtractive dither over the "
         "training data's range (default: none, exact state)",
     )
-    loop.add_argument(
-        "--feedback-noise",
-        type=_nonneg_float,
-        default=0.0,
-        metavar="SIGMA",
-        help="sensor noise (standard deviation) on that measurement (default: 0)",
-    )
-    loop.add_argument(
-        "--loop-seed",
-        type=_nonneg_int,
-        default=0,
-        metavar="N",
-        help="seed of the disturbance, feedback dither and sensor noise (default: 0)",
-    )
-    m.add_argument(
-        "--verify-steps",
-        type=_nonneg_int,
-        default=mpc.verify_steps,
-        metavar="N",
-        help="at most N closed-loop steps beyond --mpc-steps to decide whether a loop converges, stays "
-        f"bounded or diverges on the true plant (default: {mpc.verify_steps}; 0: judge from the "
-        "run alone where the spectral radius and the certificate decide, else call it bounded)",
-    )
-    m.add_argument(
-        "--theta",
-        type=_float_type,
-        default=base.theta,
-        metavar="X",
-        help=f"theta of the ultimate bound, in (0, 1) (default: {_g(base.theta)})",
-    )
-    m.add_argument(
-        "--rho",
-        type=_float_type,
-        default=None,
-        metavar="X",
-        help="rho of the ultimate bound, > 0 (default: the level-set ball through x0)",
-    )
+    add_setting_options(loop, _LOOP, base)
     add_running_options(p)
 
 
@@ -551,16 +362,10 @@ def build_parser(commands: Mapping[str, ModuleType], only: str | None = "*") -> 
 
 
 def add_quantizer_options(q: argparse._ArgumentGroup, q0: Any, range_help: str) -> None:
-    """``--range``, ``--limits``, ``--guard`` and ``--dither`` in the group ``q`` (defaults from the
-    engine's ``QuantizerSpec`` ``q0``); ``range_help`` says what the range means for this command."""
-    e = engine()
-    q.add_argument(
-        "--range",
-        dest="range_mode",
-        choices=e.range_modes,
-        default=q0.range_mode,
-        help=f"{range_help} (default: {q0.range_mode})",
-    )
+    """``--dither``, ``--range``, ``--guard`` (from the settings table) and ``--limits`` in the group ``q``
+    (defaults from the engine's ``QuantizerSpec`` ``q0``); ``range_help`` says what the range means for this
+    command."""
+    add_setting_options(q, "quantizer", q0, {"range_mode": range_help})
     q.add_argument(
         "--limits",
         type=_limits,
@@ -568,20 +373,4 @@ def add_quantizer_options(q: argparse._ArgumentGroup, q0: Any, range_help: str) 
         metavar="LO,HI[;LO,HI...]",
         help="the fixed range (with --range fixed): one pair for every channel, or one pair per "
         "channel, states then inputs",
-    )
-    q.add_argument(
-        "--guard",
-        action=argparse.BooleanOptionalAction,
-        default=q0.guard,
-        help="widen the range by the dither's amplitude on each side (half a cell; a cell for tpdf), "
-        "so x + w never overloads "
-        f"(default: {_onoff(q0.guard)})",
-    )
-    q.add_argument(
-        "--dither",
-        choices=e.dithers,
-        default=q0.dither,
-        help="subtractive uniform dither (the letter's), tpdf (non-subtractive triangular, width 2 eps: "
-        "BCLS with D = eps^2/4), rpdf (non-subtractive uniform: BCLS not applicable) or none "
-        f"(default: {q0.dither})",
     )

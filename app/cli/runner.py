@@ -194,6 +194,7 @@ def _quantizer(args: argparse.Namespace, system: Channels) -> QuantizerSpec:
 
 def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfig:
     """The engine's :class:`~qsid_core.SweepConfig` for parsed arguments (shapes checked before any work)."""
+    from app.settings.schema import engine_field, plain
     from qsid_core import SweepConfig, parse_bits
     from qsid_core.validate import MAX_MAGNITUDE
 
@@ -218,15 +219,12 @@ def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfi
     cfg = SweepConfig(
         system=system,
         bits=bits,
-        realizations=args.realizations,
-        trajectories=args.trajectories,
-        steps=args.steps,
+        # the options of the settings table whose value is the engine's (data size, amplitudes, theta, ...)
+        **{engine_field(s): getattr(args, s.dest) for s in plain("sweep", cli=True)},
         quantizer=_quantizer(args, system),
         estimator=args.estimator,
         mpc=mpc_config(args, system) if mpc else None,
-        theta=args.theta,
         rho=args.rho,
-        input_amplitude=args.input_amplitude,
         **seeds,
         **extra,
     )

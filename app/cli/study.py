@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from app.settings.schema import SETTINGS
+
 from .runner import UsageError, check_channels, one_line
 
 if TYPE_CHECKING:
@@ -14,35 +16,28 @@ if TYPE_CHECKING:
 __all__ = ["config_from_file"]
 
 
-#: flags whose non-default value overrides a --config file, and the SweepConfig field each sets
+#: flags whose non-default value overrides a --config file, and the SweepConfig field each sets (the settings
+#: table's flags, and the hand-made ones whose value is one field's)
 _OVERRIDES = {
     "bits": "bits",
-    "realizations": "realizations",
-    "trajectories": "trajectories",
-    "steps": "steps",
-    "data_seed": "data_seed",
-    "dither_seed": "dither_seed",
-    "estimator": "estimator",
-    "input_bits": "input_bits",
-    "state_bits": "state_bits",
-    "noise": "noise",
-    "noise_known": "noise_known",
-    "theta": "theta",
     "rho": "rho",
-    "input_amplitude": "input_amplitude",
+    **{s.dest: s.engine for s in SETTINGS if s.flag and s.engine and "." not in s.engine},
 }
-
 
 #: MPC flags (parsed name -> MPCConfig field) that override the file's MPC settings
 _MPC_FLAGS = {
-    "horizon": "horizon",
-    "mpc_steps": "steps",
     "u_max": "u_max",
     "x0": "x0",
     "x_ref": "x_ref",
     "x_max": "x_max",
     "q_diag": "Q",
     "r_diag": "R",
+    **{s.dest: s.engine.split(".", 1)[1] for s in SETTINGS if s.flag and s.engine and s.engine.startswith("mpc.")},
+}
+
+#: quantizer flags (parsed name -> QuantizerSpec field) that override the file's quantizer
+_QUANT_FLAGS = {
+    s.dest: s.engine.split(".", 1)[1] for s in SETTINGS if s.flag and s.engine and s.engine.startswith("quantizer.")
 }
 
 
@@ -86,11 +81,7 @@ def config_from_file(args: argparse.Namespace, defaults: argparse.Namespace, mpc
         changes.setdefault("data_seed", seed)
         changes.setdefault("dither_seed", seed)
     q = cfg.quantizer
-    qchanges = {
-        k: getattr(args, a)
-        for a, k in (("dither", "dither"), ("range_mode", "range_mode"), ("guard", "guard"))
-        if getattr(args, a) != getattr(defaults, a)
-    }
+    qchanges = {k: getattr(args, a) for a, k in _QUANT_FLAGS.items() if getattr(args, a) != getattr(defaults, a)}
     if args.limits is not None:
         qchanges["fixed_range"] = args.limits[0] if len(args.limits) == 1 else args.limits
     if qchanges:

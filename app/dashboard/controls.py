@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from app.figures.phase_scene import axes_options
+from app.settings.schema import BY_NAME, SETTINGS, Setting, hint_text, resolve
 from qsid_core import LTISystem
-from qsid_core.quantization import DITHERS, RANGE_MODES
 
 from .flow import inline
 
@@ -26,7 +26,6 @@ if TYPE_CHECKING:
     import viser
 from .lessons import NONE, lesson_markdown, lesson_names, lesson_values
 from .settings import (
-    ALL_BITS,
     IDENT_CHOICES,
     INTERACTIVE,
     LOG_MAX,
@@ -58,15 +57,17 @@ PLAY_HINT = (
     "Steps the word length from 1 to 16, about one b per second (the next b only once the previous one is drawn); "
     "press again to pause or resume. Any change of yours stops it."
 )
-MATRIX_HINT = "One row per line (or separate rows with ';'); numbers separated by spaces or commas."
+MATRIX_HINT: str = BY_NAME["a_text"].hint or ""
 
 
 @dataclass(frozen=True)
 class Control:
-    """One input of the panel; ``name`` is the :class:`~app.dashboard.settings.Values` field it sets.
+    """One input of the panel, made from one row of the settings table (``setting``); ``name`` is the
+    :class:`~app.dashboard.settings.Values` field it sets.
 
-    ``kind``: slider (lo, hi, step), dropdown (choices), text, checkbox, number (lo, step);
-    ``tab``: panel tab ("" = above the tabs); ``folder``: optional folder inside the tab.
+    ``kind``: slider (lo, hi, step), dropdown (choices), text, checkbox, number (lo, hi, step);
+    ``tab``: panel tab ("" = above the tabs); ``folder``: optional folder inside the tab;
+    ``convert``: the setting's type.
     """
 
     name: str
@@ -80,323 +81,31 @@ class Control:
     hint: str | None = None
     folder: str | None = None
     convert: Callable[[Any], Any] = str
+    setting: Setting | None = None
 
 
-_R = "Dither realizations"
-_V = "How many bits?"
-_L = "Real loop"
-#: Every input of the panel, in display order (tabs appear in order of first use).
-CONTROLS: tuple[Control, ...] = (
-    Control(
-        "lesson",
-        "dropdown",
-        "lesson",
-        choices=lesson_names(),
-        hint="A lesson sets the controls and says what to look at (every claim is tested)",
-    ),
-    Control(
-        "bits",
-        "slider",
-        "word length b",
-        lo=ALL_BITS[0],
-        hi=ALL_BITS[-1],
-        step=1,
-        convert=int,
-        hint=f"Bits per sample of the quantizer ({ALL_BITS[0]}..{ALL_BITS[-1]}). "
-        "Curves show every b; the 3-D view shows this one.",
-    ),
-    Control(
-        "presenter",
-        "checkbox",
-        "presenter",
-        convert=bool,
-        hint="Lecture-hall layout: plot text 18 px, panel text 16 px, thick lines, a wide 3-D scene "
-        "(both panels narrowed). Auto-play below steps b from 1 to 16.",
-    ),
-    Control(
-        "system",
-        "dropdown",
-        "system",
-        "System",
-        choices=SYSTEM_CHOICES,
-        hint="The true plant. 'custom': type A and B below.",
-    ),
-    Control("a_text", "text", "A", "System", hint=MATRIX_HINT),
-    Control("b_text", "text", "B", "System", hint=MATRIX_HINT),
-    Control("axes", "dropdown", "3-D axes", "System", hint="Which three states the phase portrait draws."),
-    Control(
-        "dither",
-        "dropdown",
-        "dither",
-        "Quantizer",
-        choices=DITHERS,
-        hint="subtractive: x~ = Q(x + w) - w, w ~ U[-ε/2, ε/2]. tpdf: Q(x + w), w triangular on [-ε, ε], "
-        "not subtracted (error variance ε²/4, known). rpdf: Q(x + w), w uniform, not subtracted "
-        "(variance depends on the signal: BCLS does not apply). none: Q(x)",
-    ),
-    Control(
-        "range_mode",
-        "dropdown",
-        "range",
-        "Quantizer",
-        choices=RANGE_MODES,
-        hint="per-channel min/max, one shared range, or a fixed range typed below",
-    ),
-    Control(
-        "fixed_range",
-        "text",
-        "fixed range",
-        "Quantizer",
-        hint="'lo, hi' for every channel, or one 'lo hi' row per channel (states, then inputs)",
-    ),
-    Control(
-        "guard",
-        "checkbox",
-        "guard band",
-        "Quantizer",
-        convert=bool,
-        hint="Widen the range by the dither's amplitude each side (ε/2; ε for tpdf): no overload",
-    ),
-    Control(
-        "state_bits",
-        "text",
-        "state bits",
-        "Quantizer",
-        hint="Word length of the states: 'b' (the slider's b, as the letter), or one entry for all or one "
-        "per state, each 'b', a number or 'exact', like 'b, b, 12, exact'",
-    ),
-    Control(
-        "input_bits",
-        "text",
-        "input bits",
-        "Quantizer",
-        hint="Word length of the inputs: 'same' (= b, as the letter), 'exact' (inputs not quantized), "
-        "one number for all inputs, or one per input like '8, exact'; b then sweeps the states",
-    ),
-    Control(
-        "realizations",
-        "slider",
-        "realizations",
-        "Quantizer",
-        1,
-        100,
-        1,
-        folder=_R,
-        convert=int,
-        hint=f"Independent dither draws per b (paper: {PAPER_SCALE['realizations']}, "
-        f"interactive default: {INTERACTIVE['realizations']})",
-    ),
-    Control("dither_seed", "number", "dither seed", "Quantizer", 0, step=1, folder=_R, convert=int),
-    Control(
-        "trajectories",
-        "slider",
-        "trajectories",
-        "Data",
-        1,
-        400,
-        1,
-        convert=int,
-        hint=f"Training runs (paper: {PAPER_SCALE['trajectories']})",
-    ),
-    Control(
-        "steps",
-        "slider",
-        "steps",
-        "Data",
-        10,
-        2000,
-        10,
-        convert=int,
-        hint=f"Steps per training run (paper: {PAPER_SCALE['steps']})",
-    ),
-    Control("data_seed", "number", "data seed", "Data", 0, step=1, convert=int),
-    Control(
-        "input_amplitude",
-        "number",
-        "input amplitude",
-        "Data",
-        1e-6,
-        step=0.1,
-        convert=float,
-        hint="Training inputs u ~ U[-A, A] (the letter: A = 1). Small A: a small signal against the quantizer range",
-    ),
-    Control(
-        "noise",
-        "text",
-        "sensor noise σ",
-        "Data",
-        hint="Gaussian noise added to the recorded states before quantization: one σ for every state or "
-        "one per state (empty = none; seeded by the data seed)",
-    ),
-    Control(
-        "identification",
-        "dropdown",
-        "estimator",
-        "Identify",
-        choices=tuple(IDENT_CHOICES),
-        hint="LS: least squares on quantized data. BCLS: bias-compensated LS "
-        "(subtracts the known noise T·diag(D): ε²/12 subtractive, ε²/4 tpdf dither).",
-    ),
-    Control(
-        "noise_known",
-        "checkbox",
-        "sensor noise known to BCLS",
-        "Identify",
-        convert=bool,
-        hint="BCLS adds σ² to D; unticked, BCLS corrects only the quantization noise it knows of",
-    ),
-    Control("horizon", "slider", "horizon", "MPC", 1, 50, 1, convert=int),
-    Control("u_max", "slider", "input bound", "MPC", 0.05, 10.0, 0.05, convert=float, hint="|u_i| <= this bound"),
-    Control("x0", "text", "x0", "MPC", hint="Initial state of the closed loop, one number per state"),
-    Control("mpc_steps", "slider", "closed-loop steps", "MPC", 5, 300, 5, convert=int),
-    Control(
-        "x_ref",
-        "text",
-        "reference x_ref",
-        "MPC",
-        hint="Constant reference, one number per state (empty = regulate to 0). δ(ε) assumes x_ref = 0.",
-    ),
-    Control(
-        "reference",
-        "text",
-        "reference r(t)",
-        "MPC",
-        hint="Time-varying reference with preview: step:STATE:AMP:TIME, sine:STATE:AMP:PERIOD or "
-        "square:STATE:AMP:PERIOD (STATE a name or 1-based, times in samples); empty = constant x_ref",
-    ),
-    Control(
-        "tracking",
-        "dropdown",
-        "tracking form",
-        "MPC",
-        choices=("letter", "offset-free"),
-        hint="letter: cost u'Ru (a reference that is no equilibrium leaves an offset); offset-free: "
-        "(u - u_ref)'R(u - u_ref) with u_ref = B^+(I - A^) r, the input that holds the model at r",
-    ),
-    Control(
-        "x_max",
-        "text",
-        "state box x_max",
-        "MPC",
-        hint="|x_i| <= x_max_i over the horizon: one number for every state or one per state (empty = none)",
-    ),
-    Control(
-        "qf",
-        "text",
-        "terminal weight Qf",
-        "MPC",
-        hint="'dare' (each model's stabilizing DARE solution, default), 'Q' (the stage weight) or a "
-        "diagonal: one number for every state or one per state",
-    ),
-    Control(
-        "terminal_box",
-        "text",
-        "terminal box",
-        "MPC",
-        hint="|x_N,i| <= X_i on the last predicted state: one number for every state or one per state (empty = none)",
-    ),
-    Control(
-        "disturbance",
-        "number",
-        "disturbance σ",
-        "MPC",
-        0.0,
-        step=0.005,
-        folder=_L,
-        convert=float,
-        hint="Process noise added to the true plant in the closed loop (standard deviation; the same draws "
-        "for every b, estimator and the true-model loop)",
-    ),
-    Control("disturbance_kind", "dropdown", "disturbance kind", "MPC", choices=("gaussian", "uniform"), folder=_L),
-    Control(
-        "feedback_bits",
-        "slider",
-        "feedback bits",
-        "MPC",
-        0,
-        16,
-        1,
-        folder=_L,
-        convert=int,
-        hint="The MPC measures the state through this many bits per state (subtractive dither, the training "
-        "data's range); 0 = exact state",
-    ),
-    Control(
-        "feedback_noise",
-        "number",
-        "sensor noise σ",
-        "MPC",
-        0.0,
-        step=0.005,
-        folder=_L,
-        convert=float,
-        hint="Noise on the state the MPC measures (standard deviation)",
-    ),
-    Control("loop_seed", "number", "loop seed", "MPC", 0, step=1, folder=_L, convert=int),
-    Control(
-        "verify_steps",
-        "number",
-        "verdict steps",
-        "MPC",
-        0,
-        step=500,
-        folder=_V,
-        convert=int,
-        hint="At most this many extra closed-loop steps to decide whether a loop converges, stays bounded "
-        "or diverges on the true plant (where the spectral radius alone does not decide)",
-    ),
-    Control(
-        "target",
-        "slider",
-        "target stabilized",
-        "MPC",
-        0.5,
-        1.0,
-        0.01,
-        folder=_V,
-        convert=float,
-        hint="b_observed: the smallest b from which on at least this share of the loops converge …",
-    ),
-    Control(
-        "cost_gap",
-        "number",
-        "cost gap",
-        "MPC",
-        0.0,
-        step=0.005,
-        folder=_V,
-        convert=float,
-        hint="… and the mean closed-loop cost is within this relative gap of the true model's (0.01 = 1 %)",
-    ),
-    Control(
-        "theta",
-        "slider",
-        "θ",
-        "Theory",
-        0.05,
-        0.95,
-        0.05,
-        convert=float,
-        hint="Share of the Lyapunov decrease used against the model error (ultimate bound δ(ε))",
-    ),
-    Control(
-        "rho_auto",
-        "checkbox",
-        "ρ auto",
-        "Theory",
-        convert=bool,
-        hint="ρ = sqrt(x0ᵀP x0 / λmin(P)), the smallest ball holding {V ≤ V(x0)} (engine default)",
-    ),
-    Control("rho", "number", "ρ", "Theory", 1e-6, step=0.1, convert=float),
-    Control(
-        "show_bound",
-        "checkbox",
-        "bound in 3-D",
-        "Theory",
-        convert=bool,
-        hint="Draw the ultimate bounds as circles in the 3-D view (hide them to see the loops alone)",
-    ),
-)
+#: The dashboard's own choices of a dropdown (the engine's come with the setting).
+_DASHBOARD_CHOICES: dict[str, tuple[str, ...]] = {
+    "lesson": tuple(lesson_names()),
+    "system": tuple(SYSTEM_CHOICES),
+    "identification": tuple(IDENT_CHOICES),
+}
+
+
+def _control(s: Setting) -> Control:
+    """The panel input of setting ``s``."""
+    assert s.control is not None
+    if s.slider is not None:
+        lo, hi, step = resolve(s.slider)
+    else:  # a number box: the browser offers the allowed range
+        lo, hi, step = s.min, s.max, s.step
+    choices = _DASHBOARD_CHOICES.get(s.name) or tuple(resolve(s.choices))
+    return Control(s.name, s.control, s.label, s.tab, lo, hi, step, choices, hint_text(s), s.folder, s.type, s)
+
+
+#: Every input of the panel, in display order (tabs appear in order of first use): the settings table's
+#: rows that have a panel input.
+CONTROLS: tuple[Control, ...] = tuple(_control(s) for s in SETTINGS if s.control is not None)
 
 
 @dataclass

@@ -42,7 +42,7 @@ from .background import DataLengthRunner
 from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .frames import Frame
-from .inputs import check_panel, unusable
+from .inputs import check_panel, check_sent, unusable
 from .lessons import get_lesson, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
 from .settings import InputError, Values, resolve_system
@@ -90,7 +90,8 @@ class Session:
         # (1) this tab's callbacks: cheap ones at once, others in one thread of its own, never queued twice
         self.callbacks = TabCallbacks(str(client.client_id))
         set_callback_executor(gui, self.callbacks)
-        guard_updates(gui, self._show_error)  # a value viser refuses is explained, not dropped
+        # a value sent is checked by the panel's rules before viser converts it; one viser refuses is explained
+        guard_updates(gui, self._show_error, lambda h, u: check_sent(getattr(self, "controls", None), h, u))
         self._lesson = values.lesson  # the lesson whose settings the panel was given
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
         #: the tab's panels (viser): built once, then only drawn into by this tab's worker

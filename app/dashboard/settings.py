@@ -1,7 +1,8 @@
 """Panel values -> engine configuration (pure functions, no server).
 
 Everything the dashboard shows is computed by :mod:`qsid_core`; this module only
-turns what a person set in the panel (:class:`Values`) into the engine's
+turns what a person set in the panel (:class:`Values`, one field per setting of the
+settings table :data:`app.settings.SETTINGS`) into the engine's
 :class:`~qsid_core.studies.experiment.SweepConfig` / :class:`~qsid_core.control.mpc.MPCConfig`,
 and explains bad input in plain words (:class:`InputError`). Defaults and
 choices are the engine's (``SweepConfig()``, ``MPCConfig()``, ``QuantizerSpec()``,
@@ -15,10 +16,12 @@ import dataclasses
 import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, cast
 
 import numpy as np
 
+from app.settings.check import InputError, check_setting
+from app.settings.schema import BY_NAME, SETTINGS, engine_field, plain, value_default
 from qsid_core import (
     PRESETS,
     LTISystem,
@@ -59,19 +62,14 @@ __all__ = [
 ]
 
 _SWEEP = SweepConfig(mpc=None)  # the engine's defaults (no system is built: "dc-motor" stays a name)
-_MPC = MPCConfig()
-# MPCConfig() holds one input bound per input (a tuple after its checks) and a verification horizon.
-assert isinstance(_MPC.u_max, tuple) and _MPC.verify_steps is not None
-_U_MAX: float = _MPC.u_max[0]
-_VERIFY_STEPS: int = _MPC.verify_steps
-_QUANT = QuantizerSpec()
 
 #: Word lengths every curve is drawn over (the engine's default sweep).
 ALL_BITS = _SWEEP.bits
 #: The letter's data size (the engine's defaults: 200 x 1000 samples, 50 dither realizations).
 PAPER_SCALE = {"trajectories": _SWEEP.trajectories, "steps": _SWEEP.steps, "realizations": _SWEEP.realizations}
-#: Interactive default: every update stays fast (see benchmarks/bench_dashboard.py).
-INTERACTIVE = {"trajectories": 50, "steps": 200, "realizations": 20}
+#: Interactive default (the panel's defaults of the settings table): every update stays fast
+#: (see benchmarks/bench_dashboard.py).
+INTERACTIVE = {k: value_default(BY_NAME[k]) for k in PAPER_SCALE}
 #: Systems offered in the panel (the engine's presets the panel shows, plus a typed one).
 SYSTEM_CHOICES = (*PRESETS, "custom")
 #: Display label of each engine estimator (also the palette's colour keys).
@@ -88,77 +86,51 @@ MAX_CUSTOM_STATES = 12
 FIXED_RANGE_MAX = 1e12
 
 
-class InputError(QsidError):
-    """A value typed or chosen in the panel cannot be used; the message says why, in plain words."""
-
-
 #: Settings that only change what is drawn from results already computed for the others: a change of these
 #: alone, after a complete frame, is cheap (the fast lane of :class:`~app.dashboard.flow.FairSlots`).
-DISPLAY_ONLY = ("bits", "axes", "show_bound", "view_channel", "presenter", "compare_bits")
+DISPLAY_ONLY = tuple(s.name for s in SETTINGS if s.display and s.values)
 
 
-@dataclass(frozen=True)
-class Values:
-    """Everything set in one browser tab's panel (defaults = the engine's, at the interactive data size).
-
-    Empty ``log_q``/``log_r``/``x0`` mean "the system's default".
-    """
-
-    system: str = "dc-motor"
-    a_text: str = ""
-    b_text: str = ""
-    bits: int = 4
-    dither: str = _QUANT.dither
-    range_mode: str = _QUANT.range_mode
-    fixed_range: str = "-1, 1"
-    guard: bool = _QUANT.guard
-    realizations: int = INTERACTIVE["realizations"]
-    dither_seed: int = _SWEEP.dither_seed
-    trajectories: int = INTERACTIVE["trajectories"]
-    steps: int = INTERACTIVE["steps"]
-    data_seed: int = _SWEEP.data_seed
-    input_amplitude: float = _SWEEP.input_amplitude
-    identification: str = tuple(IDENT_CHOICES)[-1]
-    horizon: int = _MPC.horizon
-    log_q: tuple = ()
-    log_r: tuple = ()
-    u_max: float = _U_MAX
-    x0: str = ""
-    mpc_steps: int = _MPC.steps
-    theta: float = _SWEEP.theta
-    rho_auto: bool = _SWEEP.rho is None
-    rho: float = 1.0
-    axes: str = ""
-    show_bound: bool = True
-    lesson: str = NO_LESSON
-    x_ref: str = ""  # constant reference, one number per state ("" = regulate to 0)
-    x_max: str = ""  # state box |x_i| <= x_max_i: one number for all or one per state ("" = none)
-    view_channel: int = 0  # the quantizer view's channel (states, then inputs)
-    compare_bits: str = "2, 4, 6"  # word lengths of the side-by-side phase portraits
-    qf: str = "dare"  # terminal weight: "dare", "Q" or a diagonal (one number or one per state)
-    terminal_box: str = ""  # |x_N,i| <= X_i on the last predicted state ("" = none)
-    tracking: str = "letter"  # the cost's input term: the letter's u'Ru or offset-free (u - u_ref)'R(u - u_ref)
-    reference: str = ""  # time-varying reference: step:/sine:/square:STATE:AMP:TIME|PERIOD ("" = constant x_ref)
-    disturbance: float = 0.0  # process noise on the true plant in the loop (standard deviation)
-    disturbance_kind: str = "gaussian"
-    feedback_bits: int = 0  # the MPC measures the state through this many bits per state (0 = exact)
-    feedback_noise: float = 0.0  # sensor noise on that measurement (standard deviation)
-    loop_seed: int = 0  # seed of the loop's disturbance, feedback dither and sensor noise
-    verify_steps: int = _VERIFY_STEPS  # extra closed-loop steps allowed to judge each loop
-    target: float = 0.95  # share of stabilized loops the "how many bits" answer asks for
-    cost_gap: float = 0.01  # largest relative gap of the mean cost to the true model's for that answer
-    input_bits: str = "same"  # inputs' word length: "same" (= b), "exact", one number, or one per input
-    state_bits: str = "b"  # states' word length: "b" (the slider's), or one entry per state (b, a number, exact)
-    noise: str = ""  # sensor noise sigma on the recorded states: one for all or one per state ("" = none)
-    noise_known: bool = _SWEEP.noise_known  # BCLS adds sigma^2 to D
-    presenter: bool = False  # lecture-hall layout: large text, thick lines, a wide 3-D scene (display only)
+class _ValuesMethods:
+    """The methods of :class:`Values` (its fields are the settings table's)."""
 
     def replace(self, **kw: Any) -> Values:
-        return dataclasses.replace(self, **kw)
+        return cast("Values", dataclasses.replace(self, **kw))  # type: ignore[type-var]  # a dataclass, made below
 
     def same_results(self, other: Values) -> bool:
         """True if ``self`` and ``other`` differ at most in :data:`DISPLAY_ONLY` settings (same results)."""
         return self.replace(**{k: getattr(other, k) for k in DISPLAY_ONLY}) == other
+
+
+def _values_class() -> type:
+    """:class:`Values`: a frozen dataclass with one field per setting of the table (its type and default)."""
+    cls = dataclasses.make_dataclass(
+        "Values",
+        [(s.name, s.type, dataclasses.field(default=value_default(s))) for s in SETTINGS if s.values],
+        bases=(_ValuesMethods,),
+        frozen=True,
+    )
+    cls.__module__ = __name__
+    cls.__doc__ = (
+        "Everything set in one browser tab's panel: one field per setting of :data:`app.settings.SETTINGS` "
+        "(defaults = the engine's, at the interactive data size). Empty ``log_q``/``log_r``/``x0`` mean "
+        '"the system\'s default".'
+    )
+    return cls
+
+
+if TYPE_CHECKING:
+
+    class Values(_ValuesMethods):
+        """Everything set in one browser tab's panel (a field per setting of the table; see ``_values_class``)."""
+
+        __dataclass_fields__: ClassVar[dict[str, Any]]
+
+        def __init__(self, **values: Any) -> None: ...
+        def __getattr__(self, name: str) -> Any: ...
+
+else:
+    Values = _values_class()
 
 
 @dataclass(frozen=True)
@@ -376,8 +348,7 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
 
             parse_reference(reference, system.state_names)
         return MPCConfig(
-            horizon=int(v.horizon),
-            steps=int(v.mpc_steps),
+            **_plain_args(v, "mpc"),  # horizon, closed-loop steps, verdict steps, loop noise and seed
             u_max=float(v.u_max),
             Q=Q,
             R=R,
@@ -388,12 +359,9 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
             x_max=x_max,
             xf_max=xf_max,
             Qf=Qf,
-            verify_steps=int(v.verify_steps),
             disturbance=float(v.disturbance),
             disturbance_kind=v.disturbance_kind,
             feedback_bits=int(v.feedback_bits) or None,
-            feedback_noise=float(v.feedback_noise),
-            loop_seed=int(v.loop_seed),
         )
     except QsidError as exc:
         raise InputError(str(exc)) from None
@@ -418,6 +386,12 @@ def _what_ifs(v: Values, system: LTISystem) -> tuple:
     return ib, sb, noise
 
 
+def _plain_args(v: Values, config: str) -> dict[str, Any]:
+    """The engine arguments of the settings that go to ``config`` ("sweep" or "mpc") as they are, each checked
+    by the table's rules first (:func:`app.settings.schema.plain`)."""
+    return {engine_field(s): check_setting(s, getattr(v, s.name), slider=False) for s in plain(config)}
+
+
 def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
     """The whole engine configuration for ``v`` (all word lengths :data:`ALL_BITS`; b is the one drawn in 3-D)."""
     if not ALL_BITS[0] <= int(v.bits) <= ALL_BITS[-1]:
@@ -428,23 +402,15 @@ def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
         raise InputError(f"target share of stabilized loops must be in (0, 1]; got {v.target}")
     if not (np.isfinite(v.cost_gap) and v.cost_gap >= 0):
         raise InputError(f"cost gap must be >= 0 (relative: 0.01 = 1 %); got {v.cost_gap}")
-    if not (np.isfinite(v.input_amplitude) and v.input_amplitude > 0):
-        raise InputError(f"input amplitude must be a positive number (u ~ U[-A, A]); got {v.input_amplitude}")
     input_bits, state_bits, noise = _what_ifs(v, system)
     try:
         return SweepConfig(
             system=system,
             bits=ALL_BITS,
-            realizations=int(v.realizations),
-            trajectories=int(v.trajectories),
-            steps=int(v.steps),
-            input_amplitude=float(v.input_amplitude),
-            data_seed=int(v.data_seed),
-            dither_seed=int(v.dither_seed),
+            **_plain_args(v, "sweep"),  # realizations, data size, seeds, amplitudes, theta
             quantizer=quantizer_spec(v, system.n, system.m),
             estimator=estimators(v.identification)[0],
             mpc=mpc_config(v, system),
-            theta=float(v.theta),
             rho=None if v.rho_auto else float(v.rho),
             input_bits=input_bits,
             state_bits=state_bits,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import enum
 import html
 import io
 import json
@@ -19,8 +20,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from app.cli.command import bits_command, sweep_command
-from app.cli.output import dumps
+from app.settings.check import check_setting
+from app.settings.command import bits_command, sweep_command
+from app.settings.schema import BY_NAME
+from qsid_core.studies import json_clean
 
 from .controls import CONTROLS
 from .settings import InputError, Values, estimators, resolve_system, sweep_config
@@ -48,7 +51,6 @@ __all__ = [
 #: The "kind" tag of a settings file (and its format version).
 SETTINGS_KIND, SETTINGS_VERSION = "qsid-dashboard-settings", 1
 _FIELDS = {f.name: f for f in dataclasses.fields(Values)}
-_DEFAULTS = Values()
 _CONTROL = {c.name: c for c in CONTROLS}
 
 
@@ -59,39 +61,15 @@ def settings_json(v: Values) -> str:
     )
 
 
-def _field_value(name: str, value):
-    """``value`` converted to the type of Values' field ``name`` (InputError in plain words if it cannot be)."""
-    default = getattr(_DEFAULTS, name)
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise InputError(f"settings: {name} must be true or false; got {value!r:.40}")
-        return value
-    if isinstance(default, (int, float)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise InputError(f"settings: {name} must be a finite number; got {value!r:.40}")
-        if isinstance(default, int):
-            if value != int(value):
-                raise InputError(f"settings: {name} must be a whole number; got {value!r}")
-            value = int(value)
-        c = _CONTROL.get(name)
-        lo = None if c is None else c.lo
-        hi = None if c is None or c.kind != "slider" else c.hi
-        if (lo is not None and value < lo) or (hi is not None and value > hi):
-            span = f"at least {lo:g}" if hi is None else f"between {lo:g} and {hi:g}"
-            raise InputError(f"settings: {name} must be {span} (the panel's range); got {value:g}")
-        return type(default)(value)
-    if isinstance(default, tuple):
-        if not isinstance(value, list) or not all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value
-        ):
-            raise InputError(f"settings: {name} must be a list of finite numbers; got {value!r:.40}")
-        return tuple(float(x) for x in value)
-    if not isinstance(value, str):
-        raise InputError(f"settings: {name} must be text; got {value!r:.40}")
+def _field_value(name: str, value: object) -> object:
+    """``value`` of the settings file's field ``name``, checked by the settings table's rules (its type before
+    any conversion, its range, its choices) as a panel value is; InputError in plain words if it is refused."""
     c = _CONTROL.get(name)
-    if c is not None and c.choices and value not in c.choices:
-        raise InputError(f"settings: {name} must be one of {', '.join(c.choices)}; got {value!r:.40}")
-    return value
+    options = c.choices if c is not None and c.choices else None
+    try:
+        return check_setting(BY_NAME[name], value, options, name=name)
+    except InputError as exc:
+        raise InputError(f"settings: {exc}") from None
 
 
 def values_from_json(text: str | bytes) -> Values:
@@ -216,9 +194,21 @@ def curves_csv(frame) -> str:
     return buf.getvalue()
 
 
+def _plain(obj: object) -> object:
+    """What :func:`json.dumps` cannot write itself: an enum as its value."""
+    if isinstance(obj, enum.Enum):
+        return obj.value
+    raise TypeError(f"{type(obj).__name__} is not JSON data")
+
+
+def _dumps(obj: object) -> str:
+    """Strict JSON (non-finite numbers as null, numpy values plain), as the CLI writes it."""
+    return json.dumps(json_clean(obj), indent=2, allow_nan=False, default=_plain)
+
+
 def curves_json(frame) -> str:
     """The current curves, settings and command as strict JSON (rows as the CLI's ``results``)."""
-    return dumps(
+    return _dumps(
         {
             "system": frame.system.name,
             "settings": dataclasses.asdict(frame.values),

@@ -155,8 +155,13 @@ def set_callback_executor(gui: Any, executor: Any) -> bool:
     return True
 
 
-def guard_updates(gui: Any, on_reject: Callable[[str], None]) -> bool:
+def guard_updates(
+    gui: Any, on_reject: Callable[[str], None], check: Callable[[Any, Any], str | None] | None = None
+) -> bool:
     """Wrap viser's handler of one tab's input messages: a value viser cannot take is explained by ``on_reject``.
+
+    ``check(handle, updates)``, if given, runs first on the values as sent (before viser converts them to
+    the input's type): a reason it returns is passed to ``on_reject`` and the message is dropped.
 
     viser converts each value to the input's type before any callback runs (text sent for a slider,
     a list for a checkbox ...); that error used to end unnoticed in the event loop. Relies on
@@ -179,6 +184,11 @@ def guard_updates(gui: Any, on_reject: Callable[[str], None]) -> bool:
         return _missing("the explanation of refused values", "GuiApi._gui_input_handle_from_uuid")
 
     async def checked(client_id: int, message: Any) -> None:
+        if check is not None:
+            why = check(inputs.get(message.uuid), dict(message.updates))
+            if why is not None:
+                on_reject(why)
+                return
         try:
             await orig(client_id, message)
         except Exception as exc:

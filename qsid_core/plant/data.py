@@ -1,7 +1,7 @@
 """Training data: random-input trajectories of the true system (the letter's Section V).
 
-``trajectories`` runs of ``steps`` steps; x0 ~ U[-1, 1]^n and u_t ~ U[-A, A]^m i.i.d.
-with input amplitude ``A`` (default 1: the letter's U[-1, 1]; defaults 200 x 1000,
+``trajectories`` runs of ``steps`` steps; x0 ~ U[-a, a]^n and u_t ~ U[-A, A]^m i.i.d.
+with state amplitude ``a`` (default 1) and input amplitude ``A`` (default 1: the letter's U[-1, 1]; defaults 200 x 1000,
 as in the letter). A smaller ``A`` makes the signal small against a fixed
 quantizer range.
 """
@@ -96,6 +96,7 @@ def simulate(
     steps: int = 1000,
     seed: int | None = 0,
     input_amplitude: float = 1.0,
+    state_amplitude: float = 1.0,
 ) -> Dataset:
     """Simulate ``trajectories`` runs of ``x+ = A x + B u`` with uniform random x0 and inputs.
 
@@ -112,6 +113,9 @@ def simulate(
     input_amplitude : float, > 0
         ``A`` of u_t ~ U[-A, A]^m (input units; default 1, the letter's). The same
         seed gives the same unit draws scaled by ``A``.
+    state_amplitude : float, > 0
+        ``a`` of the initial states x0 ~ U[-a, a]^n (state units; default 1, the letter's),
+        scaled the same way.
 
     Raises
     ------
@@ -128,6 +132,7 @@ def simulate(
     trajectories = check_int("trajectories", trajectories, 1, 100_000)
     steps = check_int("steps", steps, 1, 1_000_000)
     input_amplitude = check_float("input amplitude", input_amplitude, 0.0, 1e12, lo_open=True)
+    state_amplitude = check_float("state amplitude", state_amplitude, 0.0, 1e12, lo_open=True)
     n, m = system.n, system.m
     if trajectories * steps < n + m:
         raise ConfigError(
@@ -145,6 +150,8 @@ def simulate(
     if input_amplitude != 1.0:
         inputs *= input_amplitude
     states[:, 0, :] = rng.uniform(-1.0, 1.0, size=(trajectories, n))
+    if state_amplitude != 1.0:
+        states[:, 0, :] *= state_amplitude
     AT, BT = system.A.T, system.B.T
     Bu = inputs @ BT  # (traj, steps, n)
     x = states[:, 0, :]

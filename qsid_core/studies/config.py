@@ -172,6 +172,12 @@ def parse_noise(spec: object) -> tuple[float, ...]:
     return tuple(check_float("noise", v, 0.0, 1e12) for v in vals)
 
 
+#: Fields written as tables of their own by :meth:`SweepConfig.to_dict` (every other field as it is).
+_NESTED = {"system", "quantizer", "mpc"}
+#: :meth:`SweepConfig.to_dict`'s keys of the quantizer -> QuantizerSpec fields.
+_QUANT_KEYS = {"dither": "dither", "range": "range_mode", "guard": "guard", "fixed_range": "fixed_range"}
+
+
 @dataclass(frozen=True)
 class SweepConfig:
     """Everything a sweep depends on.
@@ -188,6 +194,8 @@ class SweepConfig:
         Data size (defaults 200 x 1000, the letter's).
     input_amplitude : float, > 0
         Training inputs are u ~ U[-A, A] (input units; default 1, the letter's).
+    state_amplitude : float, > 0
+        Initial states of the training runs are x0 ~ U[-a, a]^n (state units; default 1, the letter's).
     data_seed, dither_seed : int
         Seeds of the data and of the dither streams.
     quantizer : QuantizerSpec
@@ -231,6 +239,7 @@ class SweepConfig:
     noise: tuple[float, ...] = (0.0,)
     state_bits: tuple[int | str, ...] | None = None
     noise_known: bool = False
+    state_amplitude: float = 1.0
 
     def to_dict(self, system: LTISystem | None = None) -> dict[str, Any]:
         """Every setting as plain JSON data; :meth:`from_dict` reads it back to an equal config.
@@ -243,26 +252,18 @@ class SweepConfig:
 
         q = self.quantizer
         sysm = system if system is not None else get_system(self.system)
-        ib = self.input_bits
+        plain = {
+            f.name: (list(v) if isinstance(v, tuple) else v)
+            for f in fields(self)
+            if f.name not in _NESTED
+            for v in [getattr(self, f.name)]
+        }
         return {
-            "bits": list(self.bits),
-            "realizations": self.realizations,
-            "trajectories": self.trajectories,
-            "steps": self.steps,
-            "data_seed": self.data_seed,
-            "dither_seed": self.dither_seed,
+            **plain,
             "dither": q.dither,
             "range": q.range_mode,
             "guard": q.guard,
             "fixed_range": None if q.fixed_range is None else [list(p) for p in q.fixed_range],
-            "estimator": self.estimator,
-            "theta": self.theta,
-            "rho": self.rho,
-            "input_amplitude": self.input_amplitude,
-            "input_bits": list(ib) if isinstance(ib, tuple) else ib,
-            "noise": list(self.noise),
-            "noise_known": self.noise_known,
-            "state_bits": None if self.state_bits is None else list(self.state_bits),
             "system_definition": sysm.to_dict(),
             "mpc_settings": None
             if self.mpc is None
@@ -291,30 +292,16 @@ class SweepConfig:
         if isinstance(d.get("config"), Mapping):  # a whole result
             d = d["config"]
         d = dict(d)
-        allowed = {
-            "bits",
-            "realizations",
-            "trajectories",
-            "steps",
-            "data_seed",
-            "dither_seed",
-            "dither",
-            "range",
-            "guard",
-            "fixed_range",
-            "estimator",
-            "theta",
-            "rho",
-            "input_amplitude",
-            "input_bits",
-            "noise",
-            "noise_known",
-            "state_bits",
-            "system",
-            "system_definition",
-            "mpc",
-            "mpc_settings",
-        }
+        allowed = (
+            {f.name for f in fields(cls)} - _NESTED
+            | set(_QUANT_KEYS)
+            | {
+                "system",
+                "system_definition",
+                "mpc",
+                "mpc_settings",
+            }
+        )
         unknown = sorted(set(d) - allowed)
         if unknown:
             raise ConfigError(f"unknown setting(s) {unknown}; allowed: {', '.join(sorted(allowed))}")
@@ -342,13 +329,12 @@ class SweepConfig:
             mpc = MPCConfig(**given)
         else:
             raise ConfigError("mpc must be a table of MPC settings, or null/false for no MPC")
-        qkeys = {"dither": "dither", "range": "range_mode", "guard": "guard", "fixed_range": "fixed_range"}
-        qargs = {qkeys[k]: d.pop(k) for k in list(d) if k in qkeys}
+        qargs = {_QUANT_KEYS[k]: d.pop(k) for k in list(d) if k in _QUANT_KEYS}
         if isinstance(qargs.get("fixed_range"), list):
             qargs["fixed_range"] = tuple(tuple(p) if isinstance(p, list) else p for p in qargs["fixed_range"])
-        for k in ("input_bits", "noise", "bits", "state_bits"):
-            if isinstance(d.get(k), list):
-                d[k] = tuple(d[k])
+        for k, v in list(d.items()):
+            if isinstance(v, list):  # JSON lists back to the tuples the fields hold
+                d[k] = tuple(v)
         return cls(system=system, quantizer=QuantizerSpec(**qargs), mpc=mpc, **d)
 
     @classmethod
@@ -383,6 +369,9 @@ class SweepConfig:
         check_choice("estimator", self.estimator, ESTIMATORS)
         object.__setattr__(
             self, "input_amplitude", check_float("input amplitude", self.input_amplitude, 0.0, 1e12, lo_open=True)
+        )
+        object.__setattr__(
+            self, "state_amplitude", check_float("state amplitude", self.state_amplitude, 0.0, 1e12, lo_open=True)
         )
         check_float("theta", self.theta, 0.0, 1.0, lo_open=True, hi_open=True)
         if self.rho is not None:

@@ -116,7 +116,8 @@ class Experiment:
         """The unquantized data set (simulated once)."""
         c = self.config
         return self.cache.memo(
-            self.keys.data(), lambda: simulate(self.system, c.trajectories, c.steps, c.data_seed, c.input_amplitude)
+            self.keys.data(),
+            lambda: simulate(self.system, c.trajectories, c.steps, c.data_seed, c.input_amplitude, c.state_amplitude),
         )
 
     @property

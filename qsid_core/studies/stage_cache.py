@@ -22,6 +22,7 @@ from ..control.mpc import MPCConfig
 from ..plant.data import Dataset
 from ..plant.lti import LTISystem
 from ..quantization.moments import Moments, PreparedData
+from .cache_keys import stage_key, system_key
 from .config import SweepConfig
 from .stage_results import BitsIdentification, TheoryAtBits
 
@@ -36,10 +37,9 @@ K = TypeVar("K", bound=Hashable)
 
 @dataclass(frozen=True)
 class StageKeys:
-    """The cache key of every stage for one config and its resolved system.
-
-    Each key nests the keys of the stages it is computed from (data → normalised data → moments), so a
-    change of any setting reaches every stage downstream of it.
+    """The cache key of every stage for one config and its resolved system, generated from the config's
+    fields (:mod:`qsid_core.studies.cache_keys`: each stage's key holds the values of the key groups it
+    depends on, so a change of any setting reaches every stage downstream of it).
 
     Parameters
     ----------
@@ -53,93 +53,56 @@ class StageKeys:
 
     def plant(self) -> Key:
         """The true system: shapes and the bytes of A, B, x0, Q, R."""
-        s = self.system
-        return (s.A.shape, s.B.shape, s.A.tobytes(), s.B.tobytes(), s.x0.tobytes(), s.Q.tobytes(), s.R.tobytes())
+        return system_key(self.system)
 
-    def _data(self) -> Key:
-        c = self.config
-        return self.plant() + (c.trajectories, c.steps, c.data_seed, c.input_amplitude)
-
-    def _prepared(self) -> Key:
-        q = self.config.quantizer
-        return self._data() + (q.range_mode, q.guard, q.fixed_range, self.config.noise)
-
-    def _moments(self, b: int) -> Key:
-        c, q = self.config, self.config.quantizer
-        return self._prepared() + (
-            b,
-            q.dither,
-            c.dither_seed,
-            c.realizations,
-            c.input_bits,
-            c.noise_known,
-            c.state_bits,
-        )
-
-    def _mpc(self) -> MPCConfig:
-        """The MPC the theory stages assume: the config's, or the defaults when MPC is off."""
-        return self.config.mpc or MPCConfig()
+    def _key(self, stage: str, *extra: Hashable) -> Key:
+        return stage_key(self.config, self.system, stage, *extra)
 
     def data(self) -> Key:
         """The unquantized data set."""
-        return ("data",) + self._data()
+        return self._key("data")
 
     def prepared(self) -> Key:
         """The data (with sensor noise) normalised to the quantizer ranges."""
-        return ("prep",) + self._prepared()
+        return self._key("prep")
 
     def moments(self, b: int) -> Key:
         """The quantized Gram matrices of every realization at ``b``."""
-        return ("mom",) + self._moments(b)
+        return self._key("mom", b)
 
     def identification(self, b: int, estimator: str) -> Key:
         """The models ``estimator`` identifies at ``b``."""
-        return ("ident", estimator) + self._moments(b)
+        return self._key("ident", estimator, b)
 
     def theory(self, b: int) -> Key:
         """Theorem 1's prediction and the ultimate bound at ``b``."""
-        c, m = self.config, self._mpc()
-        return (
-            "theory",
-            b,
-            c.theta,
-            c.rho,
-            m.horizon,
-            m.Q,
-            m.R,
-            m.Qf,
-            m.x0,
-            c.quantizer.dither,
-            c.input_bits,
-            c.state_bits,
-        ) + self._prepared()
+        return self._key("theory", b)
 
     def realized_bound(self, b: int, estimator: str) -> Key:
         """The a-posteriori bound of every realization's model at ``b``."""
-        c, m = self.config, self._mpc()
-        return ("realized-bound", estimator, c.theta, c.rho, m.horizon, m.Q, m.R, m.Qf, m.x0) + self._moments(b)
+        return self._key("realized-bound", estimator, b)
 
     def small_gain(self, b: int, predicted: np.ndarray) -> Key:
         """The small-gain test of Theorem 1's predicted model ``predicted`` (shape (n, n+m)) at ``b``."""
-        m = self._mpc()
-        return ("small-gain", b, m.horizon, m.Q, m.R, m.Qf, predicted.tobytes()) + self.plant()
+        return self._key("small-gain", b, predicted.tobytes())
 
     def overload_effect(self, b: int) -> Key:
         """The predicted effect of the quantizer clipping the data at ``b``."""
-        c = self.config
-        return ("overload-effect", b, c.quantizer.dither, c.input_bits, c.state_bits) + self._prepared()
+        return self._key("overload-effect", b)
 
     def assumptions(self, b: int) -> Key:
         """Which hypotheses hold at ``b``."""
-        return ("assumptions",) + self._moments(b)
+        return self._key("assumptions", b)
 
     def loops(self, b: int, estimator: str, mpc: MPCConfig) -> Key:
-        """The closed loops of the MPC ``mpc`` built on every model ``estimator`` identifies at ``b``."""
-        return ("loops", estimator, mpc) + self._moments(b)
+        """The closed loops of the MPC ``mpc`` (the config's) built on every model ``estimator`` identifies at ``b``."""
+        assert mpc == self.config.mpc  # the loop group is the config's MPC
+        return self._key("loops", estimator, b)
 
     def true_loop(self, mpc: MPCConfig) -> Key:
-        """The MPC ``mpc`` built on the true plant (its feedback quantizer reads the data's ranges)."""
-        return ("true-loop", mpc) + (self._prepared() if mpc.feedback_bits is not None else self.plant())
+        """The MPC ``mpc`` (the config's) built on the true plant (its feedback quantizer reads the data's ranges)."""
+        assert mpc == self.config.mpc
+        return self._key("true-loop" if mpc.feedback_bits is None else "true-loop-fed")
 
 
 class StageCache:

@@ -126,7 +126,7 @@ def test_inline_system_like_the_dashboard(capsys):
         (["--Q", "nan"], "not finite"),
         (["--R=-1"], "R"),
         (["--x-max", "0"], "x_max"),
-        (["--input-amplitude", "0"], "input amplitude"),
+        (["--input-amplitude", "0"], "--input-amplitude: must be >= 1e-06"),
         (["--data-seed", "-1"], "--data-seed"),
     ],
 )

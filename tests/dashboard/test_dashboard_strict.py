@@ -54,3 +54,68 @@ def test_x0_is_accepted_as_a_flat_list(text):
     from app.dashboard.settings import parse_vector
 
     assert parse_vector(text, "x0", 2) == (1.0, 0.0)
+
+
+# ----- values sent over the websocket, as a modified page would (issue 32 item 2) -------------------------------
+def _send_raw(tab, handle, value) -> None:
+    import msgspec
+
+    tab.ws.send(
+        msgspec.msgpack.encode({"type": "GuiUpdateMessage", "uuid": handle._impl.uuid, "updates": {"value": value}})
+    )
+
+
+SENT = [
+    ("bits", 3.7, "needs a whole number"),  # viser alone ran it as b = 3
+    ("bits", "5", "expected a whole number, got str"),  # ... as b = 5
+    ("bits", True, "expected a whole number, got bool"),  # ... as b = 1
+    ("trajectories", 20.5, "needs a whole number"),
+    ("guard", "no", "expected on/off"),  # viser alone turned the guard band on
+    ("guard", "false", "expected on/off"),
+    ("guard", 1, "expected on/off"),
+    ("guard", [0], "expected on/off"),
+    ("guard", 0, "expected on/off"),  # ... or off
+    ("noise_known", "", "expected on/off"),
+    ("u_max", "2", "expected a number, got str"),
+    ("dither", 3, "expected text"),
+]
+
+
+@pytest.mark.slow
+def test_values_of_the_wrong_type_sent_over_the_websocket_are_refused_before_any_conversion(tab):
+    from support import wait_until
+
+    for name, value, words in SENT:
+        handle = tab.controls[name]
+        before, gen, frames = handle.value, tab.session.generation, tab.session.frames_drawn
+        tab.controls.error.visible = False
+        _send_raw(tab, handle, value)
+        wait_until(lambda: tab.error is not None, f"{name} = {value!r} refused")
+        err = tab.error
+        assert words in err and "the value sent" in err and "keeps its last value" in err, (name, value, err)
+        assert BY_NAME[name].label in err and "\n" not in err.split("  \n")[0]
+        assert handle.value == before and type(handle.value) is type(before), (name, value, handle.value)
+        assert tab.session.generation == gen and tab.session.frames_drawn == frames
+    # a good value of the right type sent the same way still goes through, and clears the message
+    for name, value in (("bits", 6), ("bits", 7.0), ("guard", False)):
+        gen = tab.session.generation
+        _send_raw(tab, tab.controls[name], value)
+        wait_until(lambda: tab.session.generation > gen, f"{name} = {value!r} taken")
+        tab.wait()
+        assert tab.error is None and getattr(tab.frame.values, name) == value
+        assert type(tab.controls[name].value) is BY_NAME[name].convert
+
+
+@pytest.mark.parametrize(
+    "name,value", [("bits", 3.7), ("bits", "5"), ("bits", True), ("guard", "false"), ("guard", [0])]
+)
+def test_check_sent_names_the_input_and_keeps_it(name, value):
+    from types import SimpleNamespace
+
+    from app.dashboard.inputs import check_sent
+
+    handle = SimpleNamespace(label=BY_NAME[name].label)
+    el = SimpleNamespace(inputs={name: handle}, q_sliders=[], r_sliders=[])
+    why = check_sent(el, handle, {"value": value})
+    assert why is not None and why.startswith(f"{BY_NAME[name].label}: the value sent") and "\n" not in why
+    assert check_sent(el, handle, {"value": 4 if name == "bits" else False}) is None

@@ -1,25 +1,81 @@
 """The ``qsid sweep`` command line that reproduces a :class:`~qsid_core.SweepConfig` (the dashboard's
-"As a command").
+"As a command"), written from the settings table: every setting with a ``flag`` and an ``engine`` path is
+written the same way (:func:`_schema_args`); the few whose flag is not one setting's value (the system,
+``--bits``, ``--limits``, the MPC's lists, ``--disturbance``) are written here by hand.
 
-Only settings that differ from the parser's defaults are written, numbers exactly
+Only settings that differ from the engine's defaults are written, numbers exactly
 (``repr``), list values as ``--flag=value`` (a value may start with '-'). Parsing
 the line with :func:`app.cli.build_parser` and :func:`app.cli.runner.config`
-gives back an equal config (tested round trip).
+gives back an equal config (tested round trip). Both front ends use this module
+(the CLI's ``--help`` examples, the dashboard's *As a command*), so neither imports the other.
 """
 
 from __future__ import annotations
 
 import shlex
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from .parser import bits_spec, floats_spec, limits_spec
+from .schema import SETTINGS
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
 
     from qsid_core import LTISystem, SweepConfig
 
-__all__ = ["sweep_argv", "sweep_command", "bits_command", "system_text"]
+__all__ = ["sweep_argv", "sweep_command", "bits_command", "system_text", "bits_spec", "floats_spec", "limits_spec"]
+
+
+def limits_spec(pairs: Iterable[tuple[float, float]]) -> str:
+    """Fixed ranges as the ``--limits`` text (inverse of the parser's type)."""
+    return ";".join(f"{lo!r},{hi!r}" for lo, hi in pairs)
+
+
+def floats_spec(values: Iterable[float]) -> str:
+    """Numbers as a comma list, exactly (``repr``), for the command a dashboard shows."""
+    return ",".join(repr(float(v)) for v in values)
+
+
+def bits_spec(bits: Iterable[int]) -> str:
+    """Word lengths as the ``--bits`` text (``(1, ..., 16)`` -> ``"1:16"``)."""
+    b = list(bits)
+    if len(b) > 1 and b == list(range(b[0], b[-1] + 1)):
+        return f"{b[0]}:{b[-1]}"
+    return ",".join(map(str, b))
+
+
+def _at(cfg: Any, path: str) -> Any:
+    """The value at a dotted ``engine`` path of a SweepConfig (MPC off: MPCConfig()'s)."""
+    from qsid_core import MPCConfig
+
+    obj = cfg
+    for part in path.split("."):
+        obj = getattr(obj, part) if obj is not None else getattr(MPCConfig(), part)
+    return obj
+
+
+def _text(v: Any) -> str:
+    if isinstance(v, tuple):
+        return ",".join(repr(x) if isinstance(x, float) else str(x) for x in v)
+    return repr(v) if isinstance(v, float) else str(v)
+
+
+def _schema_args(cfg: SweepConfig) -> list[str]:
+    """``--flag=value`` for every generated option whose engine value differs from the engine's default."""
+    from qsid_core import SweepConfig
+
+    d = SweepConfig()
+    out: list[str] = []
+    for s in SETTINGS:
+        if s.flag is None or s.engine is None or (s.engine.startswith("mpc.") and cfg.mpc is None):
+            continue
+        v, dv = _at(cfg, s.engine), _at(d, s.engine)
+        if v == dv:
+            continue
+        if s.type is bool:
+            out.append(s.flag if v else f"--no-{s.flag[2:]}")
+        elif v is not None:
+            out.append(f"{s.flag}={_text(v)}")
+    return out
 
 
 def system_text(M: Iterable[Iterable[float]]) -> str:
@@ -44,34 +100,20 @@ def _mpc_args(cfg: SweepConfig, system: LTISystem) -> list[str]:
     if m is None:
         return ["--no-mpc"]
     out: list[str] = []
-    if m.horizon != d.horizon:
-        out.append(f"--horizon={m.horizon}")
-    if m.steps != d.steps:
-        out.append(f"--mpc-steps={m.steps}")
     if m.u_max != d.u_max:
         out.append(f"--u-max={floats_spec(m.u_max if isinstance(m.u_max, tuple) else (m.u_max,))}")
-    if m.reference is not None:
-        if not isinstance(m.reference, str):
-            raise ValueError(
-                "the command line gives a sampled reference as a CSV file: write it and use --reference FILE.csv"
-            )
-        out.append(f"--reference={m.reference}")
-    if m.tracking != d.tracking:
-        out.append(f"--tracking={m.tracking}")
+    if m.reference is not None and not isinstance(m.reference, str):
+        raise ValueError(
+            "the command line gives a sampled reference as a CSV file: write it and use --reference FILE.csv"
+        )
     if m.disturbance:
         out.append(
             f"--disturbance={m.disturbance!r}" + ("" if m.disturbance_kind == "gaussian" else f":{m.disturbance_kind}")
         )
     if m.feedback_bits is not None:
         out.append(f"--feedback-bits={m.feedback_bits}")
-    if m.feedback_noise:
-        out.append(f"--feedback-noise={m.feedback_noise!r}")
-    if m.loop_seed != d.loop_seed:
-        out.append(f"--loop-seed={m.loop_seed}")
-    if m.verify_steps != d.verify_steps:
-        if m.verify_steps is None:
-            raise ValueError("the command line has no flag for switching the closed-loop verdicts off")
-        out.append(f"--verify-steps={m.verify_steps}")
+    if m.verify_steps is None:
+        raise ValueError("the command line has no flag for switching the closed-loop verdicts off")
     for flag, v in (
         ("--x0", m.x0),
         ("--x-ref", m.x_ref),
@@ -103,43 +145,14 @@ def sweep_argv(cfg: SweepConfig, system_source: str | None = None) -> list[str]:
     from qsid_core import SweepConfig, get_system
 
     system = get_system(cfg.system)
-    d, q, dq = SweepConfig(mpc=None), cfg.quantizer, SweepConfig(mpc=None).quantizer
+    d, q = SweepConfig(mpc=None), cfg.quantizer
     out = _system_args(system, system_source)
     if cfg.bits != d.bits:
         out.append(f"--bits={bits_spec(cfg.bits)}")
-    for flag, v, dv in (
-        ("--realizations", cfg.realizations, d.realizations),
-        ("--trajectories", cfg.trajectories, d.trajectories),
-        ("--steps", cfg.steps, d.steps),
-        ("--data-seed", cfg.data_seed, d.data_seed),
-        ("--dither-seed", cfg.dither_seed, d.dither_seed),
-        ("--range", q.range_mode, dq.range_mode),
-        ("--dither", q.dither, dq.dither),
-        ("--estimator", cfg.estimator, d.estimator),
-    ):
-        if v != dv:
-            out.append(f"{flag}={v}")
-    if cfg.input_amplitude != d.input_amplitude:
-        out.append(f"--input-amplitude={cfg.input_amplitude!r}")
+    out += _schema_args(cfg)
     if q.fixed_range is not None:
         out.append(f"--limits={limits_spec(q.fixed_range)}")
-    if q.guard != dq.guard:
-        out.append("--guard" if q.guard else "--no-guard")
-    if cfg.input_bits is not None:
-        ib = cfg.input_bits
-        out.append(f"--input-bits={','.join(map(str, ib)) if isinstance(ib, tuple) else ib}")
-    # SweepConfig's checks turn state_bits and noise into tuples
-    state_bits, noise = cfg.state_bits, cfg.noise
-    assert (state_bits is None or isinstance(state_bits, tuple)) and isinstance(noise, tuple)
-    if state_bits is not None:
-        out.append(f"--state-bits={','.join(map(str, state_bits))}")
-    if any(v > 0 for v in noise):
-        out.append(f"--noise={floats_spec(noise)}")
-    if cfg.noise_known:
-        out.append("--noise-known")
     out += _mpc_args(cfg, system)
-    if cfg.theta != d.theta:
-        out.append(f"--theta={cfg.theta!r}")
     if cfg.rho is not None:
         out.append(f"--rho={cfg.rho!r}")
     return out
