@@ -186,7 +186,7 @@ class Setting:
         """
         if self.display or self.engine is None:
             return ()
-        from qsid_core.studies.cache_keys import KEY_PARTS, STAGE_GROUPS
+        from qsid_core.studies import KEY_PARTS, STAGE_GROUPS
 
         path = self.engine
         groups = {g for g, parts in KEY_PARTS.items() if any(path == p or path.startswith(p + ".") for p in parts)}
