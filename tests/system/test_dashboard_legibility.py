@@ -1,0 +1,145 @@
+"""Every plot legible at the sizes a class uses: laptop, projector (presenter mode) and phone, in headless Chromium.
+
+For each mode of :data:`MODES` (1366×768 and 1920×1080, normal and presenter; 390×844 phone) the test opens
+every tab of the plots panel and every lesson, and measures the text boxes of every plotly figure shown
+(:data:`legibility.TEXT_BOXES`); :func:`legibility.judge` fails on overlapping text, text under the floor
+(10 px, 16 px in presenter mode), text cut off at a figure's edge, or a figure narrower than 340 px.
+
+Environment:
+
+* ``QSID_SCREENSHOT_DIR=assets``: the screenshots of the README and the docs are written there
+  (:data:`SHOTS`), so the pictures show what the test measured;
+* ``QSID_LEGIBILITY_REPORT=file.json``: every problem found, per mode and place, written there (the
+  baseline counts in docs/teaching.rst were made this way).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+from legibility import NORMAL_FLOOR, PRESENTER_FLOOR, TEXT_BOXES, Problem, judge, summary
+from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
+
+from app.dashboard.lessons import LESSONS, NONE
+from app.figures.registry import TABS, VIEWS
+
+pytestmark = pytest.mark.browser
+
+#: (name, viewport, presenter mode)
+MODES = (
+    ("laptop", (1366, 768), False),
+    ("laptop-presenter", (1366, 768), True),
+    ("hd", (1920, 1080), False),
+    ("hd-presenter", (1920, 1080), True),
+    ("phone", (390, 844), False),
+)
+#: Screenshots written with QSID_SCREENSHOT_DIR: (mode, place) -> file name.
+SHOTS = {
+    ("hd", "tab:Identification"): "dashboard.png",
+    ("laptop", "lesson:dither"): "teach-dither-normal.png",
+    ("hd-presenter", "lesson:fig1"): "teach-fig1-presenter.png",
+    ("hd-presenter", "lesson:bound"): "teach-bound-presenter.png",
+    ("laptop-presenter", "lesson:fig1"): "teach-fig1-laptop-presenter.png",
+    ("phone", "tab:Identification"): "phone-identification.png",
+    ("phone", "lesson:bits-needed"): "phone-bits-needed.png",
+    **{("laptop", f"tab:{t}"): f"view-{t.lower().replace(' ', '-')}.png" for t in TABS},
+}
+
+ACTIVE_TAB = """() => {
+  const strip = [...document.querySelectorAll('[role=tab]')].filter(e => e.title === 'Identification')
+    .map(e => e.parentElement)[0];
+  const on = strip && [...strip.querySelectorAll('[role=tab]')].find(e => e.getAttribute('aria-selected') === 'true');
+  return on ? on.title : null;
+}"""
+
+
+def _dismiss_notices(page) -> None:
+    close = page.locator(".mantine-Notification-closeButton")
+    for i in range(close.count()):
+        close.nth(i).click()
+
+
+def _open_tab(page, tab: str) -> None:
+    page.get_by_role("tab", name=tab, exact=True).last.click(timeout=TIMEOUT_MS)
+    page.wait_for_function(f"({ACTIVE_TAB})() === {tab!r}", timeout=TIMEOUT_MS)
+
+
+def _measure(page, session, mode, place, shots, found) -> None:
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    page.wait_for_timeout(600)  # plotly lays the new figures out
+    name, size, presenter = mode
+    figures = page.evaluate(TEXT_BOXES)
+    problems = judge(figures, PRESENTER_FLOOR if presenter else NORMAL_FLOOR)
+    if not figures:
+        problems.append(Problem("none", place, "no plot visible"))
+    found[name][place] = problems
+    if shots and (name, place) in SHOTS:
+        _dismiss_notices(page)
+        page.wait_for_timeout(300)
+        page.screenshot(path=os.path.join(shots, SHOTS[name, place]))
+
+
+def _walk(page, session, mode, shots, found) -> None:
+    name, size, presenter = mode
+    page.set_viewport_size({"width": size[0], "height": size[1]})
+    session.controls["presenter"].value = presenter
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    found[name] = {}
+    session.controls["lesson"].value = NONE  # each lesson below is then a change (and brings its tab forward)
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    for les in LESSONS:
+        session.controls["lesson"].value = les.name
+        tab = next(v.tab for v in VIEWS if v.name == les.plot)
+        page.wait_for_function(f"({ACTIVE_TAB})() === {tab!r}", timeout=TIMEOUT_MS)
+        _measure(page, session, mode, f"lesson:{les.name}", shots, found)
+    session.controls["lesson"].value = LESSONS[0].name
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    for tab in TABS:
+        _open_tab(page, tab)
+        _measure(page, session, mode, f"tab:{tab}", shots, found)
+
+
+def _write_report(path: str, found: dict) -> None:
+    counts = {name: summary([p for ps in places.values() for p in ps]) for name, places in found.items()}
+    text = {name: {place: [str(p) for p in ps] for place, ps in places.items()} for name, places in found.items()}
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump({"counts": counts, "problems": text}, f, indent=1, ensure_ascii=False)
+
+
+def test_every_plot_is_legible_in_every_mode():
+    _require_browser()
+    from playwright.sync_api import sync_playwright
+
+    from app.dashboard import DashboardApp
+
+    shots = os.environ.get("QSID_SCREENSHOT_DIR")
+    report = os.environ.get("QSID_LEGIBILITY_REPORT")
+    only = os.environ.get("QSID_LEGIBILITY_MODES")  # e.g. "phone,hd-presenter": a subset while working
+    modes = [m for m in MODES if not only or m[0] in only.split(",")]
+    found: dict = {}
+    app = DashboardApp(host="127.0.0.1", port=0, workers=2, cache_bytes=1024 * 2**20)
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+            try:
+                ctx = browser.new_context(viewport={"width": 1366, "height": 768})
+                page = ctx.new_page()
+                page.goto(app.url, timeout=TIMEOUT_MS)
+                session = app.wait_for_sessions(1, timeout=TIMEOUT_MS / 1000)[0]
+                page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
+                page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 2", timeout=TIMEOUT_MS)
+                _dismiss_notices(page)
+                for mode in modes:
+                    _walk(page, session, mode, shots, found)
+            finally:
+                browser.close()
+    finally:
+        app.stop()
+        if report:  # also what was measured before a failure
+            _write_report(report, found)
+    bad = {
+        f"{name} {place}": [str(p) for p in ps] for name, places in found.items() for place, ps in places.items() if ps
+    }
+    assert not bad, json.dumps(bad, indent=1, ensure_ascii=False)[:6000]
