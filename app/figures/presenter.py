@@ -11,10 +11,12 @@ from typing import Any
 
 import plotly.graph_objects as go
 
-__all__ = ["PLOT_FONT", "LINE_SCALE", "presenter_figure"]
+__all__ = ["PLOT_FONT", "NORMAL_FONT", "LINE_SCALE", "presenter_figure", "legible_figure"]
 
 #: Smallest plot text in presenter mode (px).
 PLOT_FONT = 18
+#: Smallest plot text in normal mode (px): a laptop at arm's length (the legibility test's floor is 10).
+NORMAL_FONT = 11
 #: Factor on every trace's line width (at least :data:`MIN_LINE` px).
 LINE_SCALE, MIN_LINE = 1.8, 3.0
 #: plotly's size of the small 2..9 labels of a log axis, relative to its tick font.
@@ -22,24 +24,24 @@ MINOR_LOG = 0.75
 _SPAN = re.compile(r"font-size:\s*(\d+(?:\.\d+)?)px")
 
 
-def _bigger_text(s: str) -> str:
-    return _SPAN.sub(lambda m: f"font-size:{max(float(m.group(1)), PLOT_FONT):g}px", s)
+def _bigger_text(s: str, floor: float) -> str:
+    return _SPAN.sub(lambda m: f"font-size:{max(float(m.group(1)), floor):g}px", s)
 
 
-def _walk(node: Any, in_font: bool = False) -> Any:
-    """A copy of ``node`` with every font size raised to PLOT_FONT and every inline font-size span too."""
+def _walk(node: Any, floor: float, in_font: bool = False) -> Any:
+    """A copy of ``node`` with every font size raised to ``floor`` and every inline font-size span too."""
     if isinstance(node, dict):
         out = {}
         for k, v in node.items():
             if in_font and k == "size" and isinstance(v, (int, float)):
-                out[k] = max(float(v), PLOT_FONT)
+                out[k] = max(float(v), floor)
             else:
-                out[k] = _walk(v, k == "font" or k.endswith("font"))
+                out[k] = _walk(v, floor, k == "font" or k.endswith("font"))
         return out
     if isinstance(node, list):
-        return [_walk(v) for v in node]
+        return [_walk(v, floor) for v in node]
     if isinstance(node, str) and "font-size" in node:
-        return _bigger_text(node)
+        return _bigger_text(node, floor)
     return node
 
 
@@ -55,21 +57,32 @@ def _thicker(trace: dict) -> dict:
     return {**trace, "line": line}
 
 
-def presenter_figure(fig: go.Figure) -> go.Figure:
-    """``fig`` in presenter style (a new figure; ``fig`` is left as it is)."""
+def _with_floor(fig: go.Figure, floor: float, thicker: bool) -> go.Figure:
     d = fig.to_plotly_json()
     layout = dict(d.get("layout") or {})
     template = layout.pop("template", None)
-    layout = _walk(layout)
+    layout = _walk(layout, floor)
     font = dict(layout.get("font") or {})
-    font["size"] = max(float(font.get("size") or 0), PLOT_FONT)
+    font["size"] = max(float(font.get("size") or 0), floor)
     layout["font"] = font
     for key, ax in layout.items():  # plotly draws the 2..9 labels of a "D1"/"D2" log axis at 3/4 of the tick font
         if (key.startswith("xaxis") or key.startswith("yaxis")) and isinstance(ax, dict) and ax.get("type") == "log":
             tick = dict(ax.get("tickfont") or {})
-            tick["size"] = max(float(tick.get("size") or 0), PLOT_FONT / MINOR_LOG)
+            tick["size"] = max(float(tick.get("size") or 0), floor / MINOR_LOG if "tickvals" not in ax else floor)
             layout[key] = {**ax, "tickfont": tick}
     if template is not None:
         layout["template"] = template
-    data = [_thicker(_walk(t)) for t in d.get("data") or []]
+    data = [_walk(t, floor) for t in d.get("data") or []]
+    if thicker:
+        data = [_thicker(t) for t in data]
     return go.Figure(dict(data=data, layout=layout), _validate=False)
+
+
+def presenter_figure(fig: go.Figure) -> go.Figure:
+    """``fig`` in presenter style: text of at least :data:`PLOT_FONT` px, thicker lines (a new figure)."""
+    return _with_floor(fig, PLOT_FONT, thicker=True)
+
+
+def legible_figure(fig: go.Figure) -> go.Figure:
+    """``fig`` with no text under :data:`NORMAL_FONT` px (a new figure; ``fig`` is left as it is)."""
+    return _with_floor(fig, NORMAL_FONT, thicker=False)
