@@ -272,7 +272,9 @@ class Session:
             return gen
         show_weights(c)
         self.play.show()
-        self.presenter.apply(bool(c["presenter"].value))
+        lesson = str(c["lesson"].value)
+        key = get_lesson(lesson).plot if lesson in lesson_names()[1:] else "error"
+        self.presenter.apply(bool(c["presenter"].value), key_plot=key)
         gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:

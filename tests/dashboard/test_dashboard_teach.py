@@ -16,7 +16,7 @@ import msgspec
 import pytest
 from support import CAMERA, HANG_S, ROOT, SMALL, Tab, wait_until
 
-from app.dashboard.presenter import LEFT_WIDTH, RIGHT_WIDTH
+from app.dashboard.presenter import LEFT_WIDTH, PLOT_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
 from app.dashboard.settings import InputError, Values
 from app.dashboard.viewcodes import (
     CODE_LETTERS,
@@ -251,8 +251,58 @@ def test_presenter_with_a_bad_lesson_is_one_line_and_exit_2():
     assert len(r.stderr.strip().splitlines()) == 1 and "unknown lesson 'nope'" in r.stderr, r.stderr
 
 
-def test_presenter_widths_leave_the_scene_more_than_half_of_1366():
-    assert 1366 - LEFT_WIDTH - RIGHT_WIDTH - 4 > 1366 / 2
+class _Recorder:
+    """A stand-in for viser's handles: records panel commands, keeps assigned attributes."""
+
+    def __init__(self, log=None, **attrs):
+        self.log = log if log is not None else []
+        self.__dict__.update(attrs)
+
+    def set_width(self, w):
+        self.log.append(("width", w))
+
+    def minimize(self):
+        self.log.append("minimize")
+
+    def expand(self):
+        self.log.append("expand")
+
+    def on_click(self, f):
+        self.click = f
+
+
+class _Gui:
+    def __init__(self):
+        self.main = _Recorder()
+        self.main_panel = self.main
+
+    def add_html(self, content, visible=True):
+        return _Recorder(content=content, visible=visible)
+
+    def add_button(self, label, visible=True, hint=""):
+        return _Recorder(label=label, visible=visible, order=0.0)
+
+
+def test_presenter_shows_one_view_the_key_plot_or_the_scene():
+    gui, panel = _Gui(), _Recorder()
+    portrait = _Recorder(set_presenter=lambda on: None)
+    plots = {"error": _Recorder(aspect=0.62), "bound": _Recorder(aspect=0.7)}
+    changes = []
+    lay = PresenterLayout(gui, panel, portrait, 640, plots, _Recorder(order=3.0), lambda: changes.append(1))
+    assert lay.switch.order == 3.5 and lay.switch.visible is False
+    assert lay.apply(True, key_plot="bound")
+    assert gui.main.log == [("width", LEFT_WIDTH)] and panel.log[-1] == ("width", WIDE)
+    assert plots["bound"].aspect == PLOT_ASPECT and plots["error"].aspect == 0.62  # the key plot fills the view
+    assert lay.switch.visible and lay.switch.label == SHOW_SCENE and lay.style.visible
+    lay.switch.click(None)  # the one switch: the 3-D scene, the plots panel minimized
+    assert changes and lay.apply(True, key_plot="bound") and panel.log[-1] == "minimize"
+    assert lay.switch.label == SHOW_PLOT and not lay.apply(True, key_plot="bound")
+    lay.toggle()
+    assert lay.apply(True, key_plot="error") and panel.log[-2:] == ["expand", ("width", WIDE)]
+    assert plots["error"].aspect == PLOT_ASPECT and plots["bound"].aspect == 0.7
+    assert lay.apply(False, key_plot="error")  # off: the normal widths and sizes
+    assert gui.main.log[-1] == ("width", 384) and panel.log[-1] == ("width", 640)
+    assert plots["error"].aspect == 0.62 and not lay.switch.visible and not lay.style.visible
 
 
 # ----- auto-play ----------------------------------------------------------------------------------------------------
