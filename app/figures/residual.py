@@ -49,7 +49,7 @@ def residual_figure(
     data, shapes, notes = [], mark_bits(current_bits), []
     exact: set = set()
 
-    def real(bx, by):  # the points above round-off; the b of the others are "exact"
+    def real(bx: list, by: list) -> tuple[list, list]:  # the points above round-off; the b of the others are "exact"
         keep = [(b, y) for b, y in zip(bx, by) if not (y is not None and np.isfinite(y) and y < exact_below)]
         exact.update(b for b, y in zip(bx, by) if y is not None and np.isfinite(y) and y < exact_below)
         return [b for b, _ in keep], [y for _, y in keep]
