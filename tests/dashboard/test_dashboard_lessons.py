@@ -365,3 +365,31 @@ def test_fig1_and_theorem1_text_agree_with_marks():
     for r in rows:
         if r["bits"] in drawn:
             assert r["err_A"]["mean"] == pytest.approx(r["err_A_theory"], rel=0.10), r["bits"]
+
+
+def _gain(loops) -> float:
+    return float(np.mean([np.linalg.norm(np.asarray(k)) for k in loops.gains]))
+
+
+@pytest.mark.slow
+def test_bits_needed_explains_why_b1_settles_and_b2_does_not():
+    """The sentence: at b = 1 every loop converges, at b = 2 few; ‖K̂‖ ≈ 0.24 and 0.66 against the true 1.08."""
+    ex = experiment("bits-needed")
+    one, two = ex.closed_loops(1, "ls"), ex.closed_loops(2, "ls")
+    assert one.outcome_counts()["converged"] == len(one.gains)
+    assert two.outcome_counts()["converged"] <= 0.1 * len(two.gains)
+    true = float(np.linalg.norm(np.asarray(ex.true_model_loop().gains[0])))
+    assert abs(_gain(one) - 0.24) < 0.01 and abs(_gain(two) - 0.66) < 0.01 and abs(true - 1.08) < 0.01
+    assert np.max(np.abs(np.linalg.eigvals(ex.system.A))) < 1  # the Boeing is stable on its own
+    assert "‖K̂‖ ≈ 0.24, the true model's 1.08" in get_lesson("bits-needed").text
+
+
+@pytest.mark.slow
+def test_feedback_lesson_explains_b1_below_the_floor():
+    """The sentence: b = 1's steady-state error is below the true model's because its inputs are ~10x smaller."""
+    ex = experiment("feedback")
+    one, tl = ex.closed_loops(1, "ls"), ex.true_model_loop()
+    assert np.mean(one.steady_state_error) < float(tl.steady_state_error[0])
+    ratio = np.sqrt(np.nanmean(np.asarray(tl.inputs) ** 2)) / np.sqrt(np.nanmean(np.asarray(one.inputs) ** 2))
+    assert 7 < ratio < 13, ratio
+    assert "inputs ~10× smaller than the true model's" in get_lesson("feedback").text
