@@ -28,6 +28,7 @@ __all__ = [
     "PANEL_FONT",
     "LEFT_WIDTH",
     "WIDE",
+    "LEFT_SHARE",
     "PLOT_ASPECT",
     "SHOW_SCENE",
     "SHOW_PLOT",
@@ -37,14 +38,16 @@ __all__ = [
 STEP_SECONDS = 1.0
 #: Smallest panel text in presenter mode (px).
 PANEL_FONT = 16
-#: The left panel's width in presenter mode (px).
+#: The left panel's width in presenter mode showing the 3-D scene (px).
 LEFT_WIDTH = 290
-#: The plots panel's width when presenter mode shows the plot (px): more than any window; viser's dock gives a
-#: docked panel at most the room the other panels leave.
-WIDE = 4000
-#: Height / width of the key plot in presenter mode: fits under the tab strip at 1366×768 (1072 × 622 px in a
-#: 690 px high panel) and at 1920×1080 (1626 × 943 px in a 1000 px panel).
-PLOT_ASPECT = 0.58
+#: Presenter mode showing the plot: the left panel and the plots panel are asked for more than any window
+#: (:data:`WIDE` in all), in the ratio :data:`LEFT_SHARE` : 1 − LEFT_SHARE. viser's dock then scales both to
+#: the window less its 120 px minimum of 3-D canvas, so without knowing the window's width (the server is not
+#: told it) the left panel gets 20 % of it (249 px at 1366, 360 px at 1920) and the plots the rest.
+WIDE, LEFT_SHARE = 20000.0, 0.2
+#: Height / width of the key plot in presenter mode: fits under the tab strip at 1366×768 (~985 × 590 px in a
+#: ~670 px high panel) and at 1920×1080 (~1430 × 860 px in a ~980 px panel).
+PLOT_ASPECT = 0.6
 #: The switch's labels: what pressing it shows.
 SHOW_SCENE, SHOW_PLOT = "⇄ show the 3-D scene", "⇄ show the plot"
 #: The left panel's normal width (viser's "large" control width).
@@ -111,17 +114,22 @@ class PresenterLayout:
         if on == self.on and scene == self.scene_shown and (not on or key_plot == self._key):
             return False
         if on != self.on:
-            self.gui.main_panel.set_width(LEFT_WIDTH if on else NORMAL_LEFT)
             self.style.content = STYLE if on else ""
             self.style.visible = on
             self.portrait.set_presenter(on)
             self.switch.visible = on
         self.on, self.scene_shown = on, scene
-        if scene:
+        if scene:  # the scene beside the left panel
+            self.gui.main_panel.set_width(LEFT_WIDTH)
             self.plots_panel.minimize()
-        else:
+        elif on:  # the plots as wide as the window allows (see WIDE)
+            self.gui.main_panel.set_width(WIDE * LEFT_SHARE)
             self.plots_panel.expand()
-            self.plots_panel.set_width(WIDE if on else self.normal_right)
+            self.plots_panel.set_width(WIDE * (1 - LEFT_SHARE))
+        else:
+            self.gui.main_panel.set_width(NORMAL_LEFT)
+            self.plots_panel.expand()
+            self.plots_panel.set_width(self.normal_right)
         self.switch.label = SHOW_PLOT if scene else SHOW_SCENE
         self._key = key_plot if on else None
         for name, h in self.plots.items():  # the key plot fills the visible height; the others as they were

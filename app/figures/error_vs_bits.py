@@ -208,8 +208,9 @@ def error_figure(
         dict(
             layout,
             height=height + top - 30,
-            margin=dict(l=50, r=10, t=top, b=40),
-            legend=dict(orientation="h", y=-0.25),
+            # the legend at the figure's foot, below the axis titles whatever its rows (never over them)
+            margin=dict(l=50, r=10, t=top, b=100),
+            legend=dict(orientation="h", yref="container", y=0, yanchor="bottom"),
         ),
     )
 

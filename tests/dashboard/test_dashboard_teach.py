@@ -16,7 +16,7 @@ import msgspec
 import pytest
 from support import CAMERA, HANG_S, ROOT, SMALL, Tab, wait_until
 
-from app.dashboard.presenter import LEFT_WIDTH, PLOT_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
+from app.dashboard.presenter import LEFT_SHARE, LEFT_WIDTH, PLOT_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
 from app.dashboard.settings import InputError, Values
 from app.dashboard.viewcodes import (
     CODE_LETTERS,
@@ -291,14 +291,16 @@ def test_presenter_shows_one_view_the_key_plot_or_the_scene():
     lay = PresenterLayout(gui, panel, portrait, 640, plots, _Recorder(order=3.0), lambda: changes.append(1))
     assert lay.switch.order == 3.5 and lay.switch.visible is False
     assert lay.apply(True, key_plot="bound")
-    assert gui.main.log == [("width", LEFT_WIDTH)] and panel.log[-1] == ("width", WIDE)
+    # both panels asked for more than any window, in the ratio the dock keeps when it scales them to fit
+    assert gui.main.log == [("width", WIDE * LEFT_SHARE)] and panel.log[-1] == ("width", WIDE * (1 - LEFT_SHARE))
     assert plots["bound"].aspect == PLOT_ASPECT and plots["error"].aspect == 0.62  # the key plot fills the view
     assert lay.switch.visible and lay.switch.label == SHOW_SCENE and lay.style.visible
     lay.switch.click(None)  # the one switch: the 3-D scene, the plots panel minimized
     assert changes and lay.apply(True, key_plot="bound") and panel.log[-1] == "minimize"
+    assert gui.main.log[-1] == ("width", LEFT_WIDTH)
     assert lay.switch.label == SHOW_PLOT and not lay.apply(True, key_plot="bound")
     lay.toggle()
-    assert lay.apply(True, key_plot="error") and panel.log[-2:] == ["expand", ("width", WIDE)]
+    assert lay.apply(True, key_plot="error") and panel.log[-2:] == ["expand", ("width", WIDE * (1 - LEFT_SHARE))]
     assert plots["error"].aspect == PLOT_ASPECT and plots["bound"].aspect == 0.7
     assert lay.apply(False, key_plot="error")  # off: the normal widths and sizes
     assert gui.main.log[-1] == ("width", 384) and panel.log[-1] == ("width", 640)
