@@ -84,6 +84,18 @@ def test_open_view_says_why_a_link_gave_defaults():
     assert view.fresh and view.note == ""
 
 
+def test_a_link_whose_tab_is_open_gets_a_code_of_its_own():
+    """A class opening the teacher's link while the teacher's tab is open: the settings, never the code (so a
+    student's change cannot reach the teacher's view); a reload (no tab holds the code) keeps it."""
+    store = ViewStore()
+    store.put("kqbxtr", Values(bits=11))
+    v, view = open_view(store, "/v/kqbxtr", "h:1", Values(), in_use=lambda code: code == "kqbxtr")
+    assert v.bits == 11 and view.code != "kqbxtr" and view.fresh and "kqbxtr" in view.note
+    assert store.get(view.code) is None  # nothing stored under the new code until the tab draws
+    v, view = open_view(store, "/v/kqbxtr", "h:1", Values(), in_use=lambda code: False)
+    assert v.bits == 11 and view.code == "kqbxtr" and not view.fresh
+
+
 # ----- view codes in a live tab -------------------------------------------------------------------------------------
 class PathTab(Tab):
     """A tab whose websocket is opened at ``path`` (what the link's ``?websocket=ws://host/v/CODE`` does)."""
@@ -165,6 +177,34 @@ def test_a_code_typed_by_a_student_applies_that_view(dashboard, tab):
         assert f"Loaded view **{code}**" in other.session.codes.status.content
     finally:
         other.close()
+
+
+def test_the_same_code_typed_twice_loads_twice(dashboard, tab):
+    tab.set(bits=12)
+    code = tab.session.codes.view.code
+    other = Tab(dashboard).set(**SMALL)
+    try:
+        for _ in range(2):  # between the two: the student moves b away again
+            other.set(bits=3)
+            other.session.codes.box.value = code
+            wait_until(lambda: other.wait().frame.values.bits == 12, "the view's settings applied")
+            wait_until(lambda: other.session.codes.box.value == "", "the box emptied for the next code")
+    finally:
+        other.close()
+
+
+def test_a_student_on_the_teachers_link_cannot_change_the_teachers_view(dashboard, tab):
+    tab.set(bits=10)
+    code = tab.session.codes.view.code
+    student = PathTab(dashboard, f"/v/{code}").wait()
+    try:
+        assert student.frame.values.bits == 10  # the teacher's settings ...
+        assert student.session.codes.view.code != code  # ... under a code of the student's own
+        student.set(bits=2)
+        assert dashboard.views.get(code).bits == 10 and tab.wait().frame.values.bits == 10
+        assert dashboard.views.get(student.session.codes.view.code).bits == 2
+    finally:
+        student.close()
 
 
 # ----- presenter mode -----------------------------------------------------------------------------------------------
