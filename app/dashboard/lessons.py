@@ -13,7 +13,22 @@ from qsid_core import LETTER_QUANTIZER
 
 from .settings import NO_LESSON, PAPER_SCALE, Values
 
-__all__ = ["Lesson", "LESSONS", "NONE", "lesson_names", "get_lesson", "lesson_values", "lesson_markdown"]
+__all__ = [
+    "Lesson",
+    "LESSONS",
+    "NONE",
+    "BACK_LABEL",
+    "lesson_names",
+    "get_lesson",
+    "lesson_values",
+    "lesson_markdown",
+    "lesson_drift",
+]
+
+#: The button that sets the panel back to the lesson's settings once they drifted.
+BACK_LABEL = "↺ back to the lesson's settings"
+#: Fields a lesson sets that the person is meant to move (its text says "move b to ..."): not a drift.
+_MEANT_TO_MOVE = ("bits",)
 
 #: The selector's entry for "no lesson" (the panel as it is).
 NONE = NO_LESSON
@@ -298,10 +313,24 @@ def lesson_values(name: str, base: Values | None = None) -> Values:
     return base.replace(log_q=(), log_r=(), a_text="", b_text="", lesson=name, **kw)
 
 
-def lesson_markdown(name: str) -> str:
-    """What the panel shows under the selector ('' for no lesson)."""
+def lesson_drift(name: str, values: Values) -> tuple[str, ...]:
+    """The fields lesson ``name`` sets that ``values`` no longer has (b excepted: moving it is the lesson)."""
+    if name == NONE or name not in lesson_names():
+        return ()
+    want = lesson_values(name)
+    keys = [k for k in get_lesson(name).settings if k not in _MEANT_TO_MOVE]
+    return tuple(k for k in keys if getattr(values, k) != getattr(want, k))
+
+
+def lesson_markdown(name: str, drift: tuple[str, ...] = ()) -> str:
+    """What the panel shows under the selector ('' for no lesson); with ``drift`` (the fields changed since the
+    lesson set them) a mark first: the text is about the lesson's settings, no longer the panel's."""
     if name == NONE:
         return ""
     les = get_lesson(name)
     stop = "" if les.title[-1] in ".?!" else "."
-    return f"**{les.title}{stop}** {les.text}"
+    mark = ""
+    if drift:
+        what = ", ".join(k.replace("_", " ") for k in drift)
+        mark = f"✎ **Modified from the lesson** ({what}): the text is about the lesson's own settings.\n\n"
+    return f"{mark}**{les.title}{stop}** {les.text}"
