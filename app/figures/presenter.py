@@ -11,6 +11,8 @@ from typing import Any
 
 import plotly.graph_objects as go
 
+from .axes import log_ticks
+
 __all__ = ["PLOT_FONT", "NORMAL_FONT", "LINE_SCALE", "presenter_figure", "legible_figure"]
 
 #: Smallest plot text in presenter mode (px).
@@ -19,8 +21,6 @@ PLOT_FONT = 18
 NORMAL_FONT = 11
 #: Factor on every trace's line width (at least :data:`MIN_LINE` px).
 LINE_SCALE, MIN_LINE = 1.8, 3.0
-#: plotly's size of the small 2..9 labels of a log axis, relative to its tick font.
-MINOR_LOG = 0.75
 _SPAN = re.compile(r"font-size:\s*(\d+(?:\.\d+)?)px")
 
 
@@ -65,17 +65,65 @@ def _with_floor(fig: go.Figure, floor: float, thicker: bool) -> go.Figure:
     font = dict(layout.get("font") or {})
     font["size"] = max(float(font.get("size") or 0), floor)
     layout["font"] = font
-    for key, ax in layout.items():  # plotly draws the 2..9 labels of a "D1"/"D2" log axis at 3/4 of the tick font
+    for key, ax in layout.items():
         if (key.startswith("xaxis") or key.startswith("yaxis")) and isinstance(ax, dict) and ax.get("type") == "log":
             tick = dict(ax.get("tickfont") or {})
-            tick["size"] = max(float(tick.get("size") or 0), floor / MINOR_LOG if "tickvals" not in ax else floor)
-            layout[key] = {**ax, "tickfont": tick}
+            tick["size"] = max(float(tick.get("size") or 0), floor)
+            extra: dict = {}
+            if "tickvals" not in ax:  # one label per decade: plotly's 2..9 labels (3/4 size) crowd at this size
+                rng = ax.get("range")
+                extra = log_ticks(rng) if rng and rng[1] - rng[0] < 2.5 else {"dtick": 1}
+            layout[key] = {**ax, "tickfont": tick, **extra}
+    if thicker:  # presenter: room for a larger title, long lines broken
+        _room_for_title(layout, floor)
     if template is not None:
         layout["template"] = template
     data = [_walk(t, floor) for t in d.get("data") or []]
     if thicker:
+        for ann in layout.get("annotations") or []:
+            if isinstance(ann.get("text"), str):
+                ann["text"] = wrap_plain(ann["text"])
+    if thicker:
         data = [_thicker(t) for t in data]
     return go.Figure(dict(data=data, layout=layout), _validate=False)
+
+
+#: Characters per line of a title or note in presenter mode (the key plot is ~1000 px wide at 1366: ~100 at
+#: 18 px).
+WRAP = 80
+
+
+def wrap_plain(text: str, width: int = WRAP) -> str:
+    """``text`` with each of its lines broken (``<br>``) at spaces to at most ``width`` characters; a line
+    holding any other HTML tag is left as it is (a break inside a tag would show the tag)."""
+    out = []
+    for line in text.split("<br>"):
+        if len(line) <= width or re.search(r"<(?!br>)", line):
+            out.append(line)
+            continue
+        cur = ""
+        for w in line.split(" "):
+            if cur and len(cur) + 1 + len(w) > width:
+                out.append(cur)
+                cur = w
+            else:
+                cur = f"{cur} {w}" if cur else w
+        out.append(cur)
+    return "<br>".join(out)
+
+
+def _room_for_title(layout: dict, floor: float) -> None:
+    """The title's lines wrapped and the top margin tall enough for them at ``floor`` px."""
+    title = layout.get("title")
+    if not isinstance(title, dict) or not title.get("text"):
+        return
+    text = title["text"]
+    title["text"] = wrap_plain(str(text))
+    lines = title["text"].count("<br>") + 1
+    margin = dict(layout.get("margin") or {})
+    margin["t"] = max(float(margin.get("t") or 0), 1.5 * floor * lines + 16)
+    layout["margin"] = margin
+    title.update(yref="container", y=1.0, yanchor="top", pad=dict(t=6))
 
 
 def presenter_figure(fig: go.Figure) -> go.Figure:

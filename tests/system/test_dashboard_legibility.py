@@ -123,7 +123,10 @@ def _write_report(path: str, found: dict) -> None:
         json.dump({"counts": counts, "problems": text}, f, indent=1, ensure_ascii=False)
 
 
-def test_every_plot_is_legible_in_every_mode():
+@pytest.fixture(scope="module")
+def measured() -> dict:
+    """Every mode walked once in one browser and one server (the lessons' results are computed once):
+    mode name -> place -> problems."""
     _require_browser()
     from playwright.sync_api import sync_playwright
 
@@ -154,7 +157,17 @@ def test_every_plot_is_legible_in_every_mode():
         app.stop()
         if report:  # also what was measured before a failure
             _write_report(report, found)
-    bad = {
-        f"{name} {place}": [str(p) for p in ps] for name, places in found.items() for place, ps in places.items() if ps
-    }
+    return found
+
+
+#: The phone layout (issue 29, item 2) is not built yet: at 390 × 844 no plots tab can be brought forward and
+#: the plots drawn in the sheet are ~250 px wide. Strict: the day it passes, this mark must go.
+PHONE_TODO = pytest.mark.xfail(strict=True, reason="no phone layout yet (issue 29, item 2)")
+
+
+@pytest.mark.parametrize("mode", [m[0] if m[0] != "phone" else pytest.param(m[0], marks=PHONE_TODO) for m in MODES])
+def test_every_plot_is_legible(measured, mode):
+    if mode not in measured:
+        pytest.skip(f"{mode} not in QSID_LEGIBILITY_MODES")
+    bad = {place: [str(p) for p in ps] for place, ps in measured[mode].items() if ps}
     assert not bad, json.dumps(bad, indent=1, ensure_ascii=False)[:6000]
