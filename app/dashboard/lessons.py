@@ -75,7 +75,7 @@ LESSONS: tuple[Lesson, ...] = (
         "tab): for b = 2..6 the error of Â falls about 0.55 decades per bit on Theorem 1's dashed line (its "
         "O(ε²) bias), from b = 8 on about 0.3 (finite data, O(ε)). B̂ is not on its line: the range (the "
         "data's min/max, no guard band) clips samples near the extremes, which moves B̂ by more than its "
-        "fluctuation (the plot's ⓘ note on hover and the summary give the numbers). In the cost plot (Control "
+        "fluctuation (the plot's note on hover and the summary give the numbers). In the cost plot (Control "
         "tab) the identified models' MPC cost is within 0.01 % of the true model's (dashed) from b = 8 on.",
         dict(system="boeing747", bits=8, identification="LS", **_LETTER),
     ),
@@ -104,7 +104,7 @@ LESSONS: tuple[Lesson, ...] = (
         "subtractive dither the noise is known (ε²/12, independent of the signal), so BCLS removes its bias: "
         "the BCLS error of Â is below 0.05 while LS is above 0.7; switch dither to 'none' and BCLS's noise "
         "model fails at b = 3 too (a red cross there; the crosses already shown mark clipping), its error above "
-        "0.5. Move b to 12: LS and BCLS level off near 2e-4, and the plot's ⓘ note (hover) names the cause: "
+        "0.5. Move b to 12: LS and BCLS level off near 2e-4, and the plot's note (hover) names the cause: "
         "the range ±20 clips 0.05 % of the samples, and that, not the data length, sets this floor. Type the "
         "range -40, 40 and the error keeps falling.",
         dict(

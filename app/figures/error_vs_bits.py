@@ -248,7 +248,7 @@ def _notes_head(notes: list[str]) -> str:
 def _notes_line(notes: list[str]) -> dict[str, Any]:
     """One line above the panels naming who the notes are about; the full sentences on hover."""
     return dict(
-        text=f"ⓘ {_notes_head(notes)} (hover: why)",
+        text=f"Notes: {_notes_head(notes)} (hover here: why)",
         hovertext="<br>".join(_wrap(t) for t in notes),
         xref="paper",
         yref="paper",

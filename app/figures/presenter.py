@@ -80,9 +80,7 @@ def _with_floor(fig: go.Figure, floor: float, thicker: bool) -> go.Figure:
         layout["template"] = template
     data = [_walk(t, floor) for t in d.get("data") or []]
     if thicker:
-        for ann in layout.get("annotations") or []:
-            if isinstance(ann.get("text"), str):
-                ann["text"] = wrap_plain(ann["text"])
+        _wrap_notes(layout, floor)
     if thicker:
         data = [_thicker(t) for t in data]
     return go.Figure(dict(data=data, layout=layout), _validate=False)
@@ -110,6 +108,21 @@ def wrap_plain(text: str, width: int = WRAP) -> str:
                 cur = f"{cur} {w}" if cur else w
         out.append(cur)
     return "<br>".join(out)
+
+
+def _wrap_notes(layout: dict, floor: float) -> None:
+    """Long notes wrapped; the top margin raised for notes standing on the plot's top edge (caption lines)."""
+    margin = dict(layout.get("margin") or {})
+    for ann in layout.get("annotations") or []:
+        if not isinstance(ann.get("text"), str):
+            continue
+        ann["text"] = wrap_plain(ann["text"])
+        on_top = ann.get("yref") == "paper" and float(ann.get("y") or 0) >= 1.0 and ann.get("yanchor") == "bottom"
+        if on_top:
+            lines = ann["text"].count("<br>") + 1
+            need = 1.5 * floor * lines + float(ann.get("yshift") or 0) + 12
+            margin["t"] = max(float(margin.get("t") or 0), need)
+    layout["margin"] = margin
 
 
 def _room_for_title(layout: dict, floor: float) -> None:

@@ -103,7 +103,7 @@ def test_dc_motor_integrator_fades_theorem1_and_says_why():
     assert faded and all(t.opacity < 0.5 and t.line.dash == "dot" for t in faded)
     assert "Theorem 1" not in names  # no b where the hypotheses hold: no normal line at all
     note = [a.text for a in fig.layout.annotations if a.hovertext]
-    assert note == ["ⓘ Theorem 1 faded (hover: why)"]  # one line on the plot ...
+    assert note == ["Notes: Theorem 1 faded (hover here: why)"]  # one line on the plot ...
     why = " ".join(a.hovertext or "" for a in fig.layout.annotations)
     assert "unit circle (integrator)" in why
     assert "does not converge" in why  # ... the whole sentence on hover (and in the summary)
