@@ -21,6 +21,7 @@ import os
 import pytest
 from legibility import NORMAL_FLOOR, PRESENTER_FLOOR, TEXT_BOXES, Problem, judge, summary
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
+from test_dashboard_teach_browser import ACTIVE_TAB, _dismiss_notices
 
 from app.dashboard.lessons import LESSONS, NONE
 from app.figures.registry import TABS, VIEWS
@@ -46,20 +47,6 @@ SHOTS = {
     ("phone", "lesson:bits-needed"): "phone-bits-needed.png",
     **{("laptop", f"tab:{t}"): f"view-{t.lower().replace(' ', '-')}.png" for t in TABS},
 }
-
-ACTIVE_TAB = """() => {
-  const strip = [...document.querySelectorAll('[role=tab]')].filter(e => e.title === 'Identification')
-    .map(e => e.parentElement)[0];
-  const on = strip && [...strip.querySelectorAll('[role=tab]')].find(e => e.getAttribute('aria-selected') === 'true');
-  return on ? on.title : null;
-}"""
-
-
-def _dismiss_notices(page) -> None:
-    close = page.locator(".mantine-Notification-closeButton")
-    for i in range(close.count()):
-        close.nth(i).click()
-
 
 #: How long (ms) a tab may take to come forward before the test says it cannot be reached (the page is idle by
 #: then: every change was drawn; this is not a speed target).
