@@ -19,6 +19,8 @@ __all__ = ["PLOT_FONT", "NORMAL_FONT", "LINE_SCALE", "presenter_figure", "legibl
 PLOT_FONT = 18
 #: Smallest plot text in normal mode (px): a laptop at arm's length (the legibility test's floor is 10).
 NORMAL_FONT = 11
+#: plotly's size of a power label's exponent (10⁻³), relative to the tick font.
+SUPERSCRIPT = 0.8
 #: Factor on every trace's line width (at least :data:`MIN_LINE` px).
 LINE_SCALE, MIN_LINE = 1.8, 3.0
 _SPAN = re.compile(r"font-size:\s*(\d+(?:\.\d+)?)px")
@@ -68,7 +70,8 @@ def _with_floor(fig: go.Figure, floor: float, thicker: bool) -> go.Figure:
     for key, ax in layout.items():
         if (key.startswith("xaxis") or key.startswith("yaxis")) and isinstance(ax, dict) and ax.get("type") == "log":
             tick = dict(ax.get("tickfont") or {})
-            tick["size"] = max(float(tick.get("size") or 0), floor)
+            # a power label's exponent is drawn at SUPERSCRIPT of the tick font: it too stays at the floor
+            tick["size"] = max(float(tick.get("size") or 0), floor / SUPERSCRIPT)
             extra: dict = {}
             if "tickvals" not in ax:  # one label per decade: plotly's 2..9 labels (3/4 size) crowd at this size
                 rng = ax.get("range")

@@ -138,7 +138,10 @@ def measured() -> dict:
                 page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 2", timeout=TIMEOUT_MS)
                 _dismiss_notices(page)
                 for mode in modes:
-                    _walk(page, session, mode, shots, found)
+                    try:
+                        _walk(page, session, mode, shots, found)
+                    except Exception as exc:  # this mode fails on it; the other modes are still measured
+                        found.setdefault(mode[0], {})["walk"] = [Problem("none", mode[0], f"walk failed: {exc!r}")]
             finally:
                 browser.close()
     finally:
