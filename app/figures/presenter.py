@@ -9,6 +9,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+import numpy as np
 import plotly.graph_objects as go
 
 from .axes import log_ticks
@@ -73,9 +74,11 @@ def _with_floor(fig: go.Figure, floor: float, thicker: bool) -> go.Figure:
             # a power label's exponent is drawn at SUPERSCRIPT of the tick font: it too stays at the floor
             tick["size"] = max(float(tick.get("size") or 0), floor / SUPERSCRIPT)
             extra: dict = {}
-            if "tickvals" not in ax:  # one label per decade: plotly's 2..9 labels (3/4 size) crowd at this size
+            if "tickvals" not in ax:  # at most one label per decade: plotly's 2..9 labels crowd at this size
                 rng = ax.get("range")
-                extra = log_ticks(rng) if rng and rng[1] - rng[0] < 2.5 else {"dtick": 1}
+                span = rng[1] - rng[0] if rng else 0.0
+                # a tall span on a short plot: every second or third decade (about 8 labels at most)
+                extra = log_ticks(rng) if rng and span < 2.5 else {"dtick": max(1, int(np.ceil(span / 8)))}
             layout[key] = {**ax, "tickfont": tick, **extra}
     if thicker:  # presenter: room for a larger title, long lines broken
         _room_for_title(layout, floor)
