@@ -23,6 +23,8 @@ __all__ = [
     "lesson_values",
     "lesson_markdown",
     "lesson_drift",
+    "LessonMark",
+    "key_view",
 ]
 
 #: The button that sets the panel back to the lesson's settings once they drifted.
@@ -313,6 +315,11 @@ def lesson_values(name: str, base: Values | None = None) -> Values:
     return base.replace(log_q=(), log_r=(), a_text="", b_text="", lesson=name, **kw)
 
 
+def key_view(name: str) -> str:
+    """The view lesson ``name`` is about (the error plot without a lesson)."""
+    return get_lesson(name).plot if name in lesson_names()[1:] else "error"
+
+
 def lesson_drift(name: str, values: Values) -> tuple[str, ...]:
     """The fields lesson ``name`` sets that ``values`` no longer has (b excepted: moving it is the lesson)."""
     if name == NONE or name not in lesson_names():
@@ -334,3 +341,41 @@ def lesson_markdown(name: str, drift: tuple[str, ...] = ()) -> str:
         what = ", ".join(k.replace("_", " ") for k in drift)
         mark = f"✎ **Modified from the lesson** ({what}): the text is about the lesson's own settings.\n\n"
     return f"{mark}**{les.title}{stop}** {les.text}"
+
+
+class LessonMark:
+    """The "modified from the lesson" mark above a lesson's text and the button back (one per tab).
+
+    Parameters
+    ----------
+    gui : client.gui
+    text : the lesson text's markdown handle (the button goes right below it)
+    on_back : callable()
+        The button was pressed (the tab then sets the lesson's settings again).
+    """
+
+    def __init__(self, gui, text, on_back):
+        self.text = text
+        self.drift: tuple[str, ...] = ()
+        self.wanted = False  # the button was pressed and the tab has not set the lesson again yet
+        self.back = gui.add_button(BACK_LABEL, visible=False, order=float(text.order) + 0.5)
+        self._on_back = on_back
+        self.back.on_click(lambda _e: self.press())
+
+    def press(self) -> None:
+        """The button: ask the tab to set the lesson's settings again."""
+        self.wanted = True
+        self._on_back()
+
+    def take(self) -> bool:
+        """True once after the button was pressed (the tab's worker then sets the lesson again)."""
+        wanted, self.wanted = self.wanted, False
+        return wanted
+
+    def show(self, values: Values) -> None:
+        """Mark (or unmark) the text for ``values`` (from the tab's worker)."""
+        drift = lesson_drift(values.lesson, values)
+        if drift != self.drift:
+            self.drift = drift
+            self.text.content = lesson_markdown(values.lesson, drift)
+            self.back.visible = bool(drift)

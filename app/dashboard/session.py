@@ -43,7 +43,7 @@ from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .frames import Frame
 from .inputs import check_panel, unusable
-from .lessons import BACK_LABEL, get_lesson, lesson_drift, lesson_markdown, lesson_names, lesson_values
+from .lessons import LessonMark, get_lesson, key_view, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
@@ -91,7 +91,7 @@ class Session:
         self.callbacks = TabCallbacks(str(client.client_id))
         set_callback_executor(gui, self.callbacks)
         guard_updates(gui, self._show_error)  # a value viser refuses is explained, not dropped
-        self._lesson: str | None = values.lesson  # the lesson whose settings the panel was given (None: again)
+        self._lesson = values.lesson  # the lesson whose settings the panel was given
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
         #: the tab's panels (viser): built once, then only drawn into by this tab's worker
         self.ui = TabView(
@@ -108,9 +108,7 @@ class Session:
         self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
         self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes
         self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
-        self._drift: tuple = ()  # the lesson's fields changed since (shown as a mark above its text)
-        self.back = gui.add_button(BACK_LABEL, visible=False, order=float(self.controls.lesson_text.order) + 0.5)
-        self.back.on_click(lambda _e: self._back_to_lesson())
+        self.mark = LessonMark(gui, self.controls.lesson_text, lambda: self.touch(user=True))
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
@@ -250,7 +248,7 @@ class Session:
     def _open_lesson(self, gen: int) -> int:
         """A newly picked lesson sets the panel (the worker's own changes: their generation is adopted)."""
         name = self.controls["lesson"].value
-        if name == self._lesson:
+        if name == self._lesson and not self.mark.take():  # (the mark's button: the lesson set anew)
             return gen
         self._lesson = name
         if apply_lesson(self.controls, name, lambda v: resolve_system(v).system):
@@ -258,19 +256,6 @@ class Session:
                 gen = self._gen
             self._show_lesson_view(name)
         return gen
-
-    def _back_to_lesson(self) -> None:
-        """The back button: the worker sets the lesson's settings again (as if it were picked anew)."""
-        self._lesson = None
-        self.touch(user=True)
-
-    def _show_drift(self, values: Values) -> None:
-        """The "modified from the lesson" mark and the back button, when the lesson's fields changed."""
-        drift = lesson_drift(values.lesson, values)
-        if drift != self._drift:
-            self._drift = drift
-            self.controls.lesson_text.content = lesson_markdown(values.lesson, drift)
-            self.back.visible = bool(drift)
 
     def _show_lesson_view(self, name: str) -> None:
         """The plots panel on the lesson's key view (its tab forward, the view first)."""
@@ -288,15 +273,13 @@ class Session:
             return gen
         show_weights(c)
         self.play.show()
-        lesson = str(c["lesson"].value)
-        key = get_lesson(lesson).plot if lesson in lesson_names()[1:] else "error"
-        self.presenter.apply(bool(c["presenter"].value), key_plot=key)
+        self.presenter.apply(bool(c["presenter"].value), key_plot=key_view(str(c["lesson"].value)))
         gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:
             return gen
         gen, values = adapted
-        self._show_drift(values)
+        self.mark.show(values)
         self.views.set_system(resolve_system(values).system)
         values = values.replace(**self.views.values())
         for attempt in (1, 2):

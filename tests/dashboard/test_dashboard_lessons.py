@@ -355,7 +355,7 @@ def test_fig1_and_theorem1_text_agree_with_marks():
     assert "Theorem 1's line is faded: the motor angle is an integrator" in get_lesson("fig1").text
     fig = error_figure({"LS": _ls_rows(experiment("fig1"), range(4, 13))})
     assert not _line(fig, "Theorem 1", "x") and not _line(fig, "Theorem 1", "x2")
-    assert "integrator" in " ".join(a.text for a in fig.layout.annotations)
+    assert "integrator" in " ".join(a.hovertext or "" for a in fig.layout.annotations)  # the note, on hover
     ex = experiment("theorem1")
     rows = _ls_rows(ex, range(1, 17))
     fig = error_figure({"LS": rows})

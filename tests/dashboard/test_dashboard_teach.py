@@ -210,16 +210,16 @@ def test_a_student_on_the_teachers_link_cannot_change_the_teachers_view(dashboar
 def test_a_lesson_modified_says_so_and_one_click_brings_it_back(tab):
     tab.set(lesson="dither")
     text = tab.controls.lesson_text
-    assert not tab.session.back.visible and "Modified" not in text.content
+    assert not tab.session.mark.back.visible and "Modified" not in text.content
     tab.set(bits=12)  # moving b is the lesson itself: no mark
-    assert not tab.session.back.visible
+    assert not tab.session.mark.back.visible
     tab.set(dither="none")
-    assert tab.session.back.visible and "✎ **Modified from the lesson** (dither)" in text.content
+    assert tab.session.mark.back.visible and "✎ **Modified from the lesson** (dither)" in text.content
     assert "Why dither" in text.content  # the lesson's text stays, marked
-    tab.session._back_to_lesson()  # the button's callback
+    tab.session.mark.press()  # the button's callback
     tab.wait()
     assert tab.frame.values.dither == "subtractive" and tab.frame.values.lesson == "dither"
-    assert not tab.session.back.visible and "Modified" not in text.content
+    assert not tab.session.mark.back.visible and "Modified" not in text.content
 
 
 # ----- presenter mode -----------------------------------------------------------------------------------------------
