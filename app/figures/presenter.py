@@ -68,6 +68,12 @@ def _with_floor(fig: go.Figure, floor: float, thicker: bool) -> go.Figure:
     font = dict(layout.get("font") or {})
     font["size"] = max(float(font.get("size") or 0), floor)
     layout["font"] = font
+    hover = dict(layout.get("hoverlabel") or {})  # plotly's hover labels are 13 px unless told
+    hover["font"] = {
+        **(hover.get("font") or {}),
+        "size": max(float((hover.get("font") or {}).get("size") or 13), floor),
+    }
+    layout["hoverlabel"] = hover
     for key, ax in layout.items():
         if (key.startswith("xaxis") or key.startswith("yaxis")) and isinstance(ax, dict) and ax.get("type") == "log":
             tick = dict(ax.get("tickfont") or {})

@@ -29,6 +29,7 @@ PLOT_TEXT = """() => {
   let min = 1e9, n = 0;
   for (const e of document.querySelectorAll('.js-plotly-plot text')) {
     if (!e.textContent.trim() || e.closest('.js-plotly-plot').offsetParent === null) continue;
+    if (e.closest('.hoverlayer')) continue;  // a hover label under the mouse is not the plot's text
     const r = e.getBoundingClientRect();
     if (r.width === 0) continue;
     min = Math.min(min, parseFloat(getComputedStyle(e).fontSize)); n++;
@@ -193,11 +194,13 @@ def test_teacher_walkthrough(size, presenter, monkeypatch):
                 v = again.last_frame.values
                 assert (v.bits, v.lesson, v.presenter) == (b_paused, "bound", presenter)
 
-                # the link handed to a class: a second page opens the same settings with the same code
+                # the link handed to a class: a second page opens the same settings under a code of its own
+                # (the teacher's tab is open: nothing done there may change the teacher's view)
                 link = view_link(f"127.0.0.1:{app.port}", code)
                 assert link in again.codes.line.content
                 page2, other = _open(ctx, app, link, 2)
-                assert other.codes.view.code == code and other.last_frame.values.bits == b_paused
+                assert other.codes.view.code != code and other.last_frame.values.bits == b_paused
+                page2.wait_for_function(f"() => location.search.includes('/v/{other.codes.view.code}')")
                 assert other.last_frame.values.lesson == "bound"
                 page2.wait_for_function(
                     f"() => document.body.textContent.includes('b = {b_paused} drawn')", timeout=TIMEOUT_MS
