@@ -54,13 +54,14 @@ SHOTS = {
 REACH_MS = 20_000
 
 
-def _tab_shown(page, tab: str, click: bool) -> bool:
-    """Bring plots tab ``tab`` forward (``click``) or wait for a lesson to; False if it cannot be reached."""
+def _tab_shown(page, session, tab: str, click: bool) -> bool:
+    """Bring plots group ``tab`` forward (``click``: as the panel's "show" dropdown does) or wait for a lesson
+    to; False if the page does not show it."""
     from playwright.sync_api import Error
 
     try:
         if click:
-            page.get_by_role("tab", name=tab, exact=True).last.click(timeout=REACH_MS)
+            session.views.show(tab)
         page.wait_for_function(f"({ACTIVE_TAB})() === {tab!r}", timeout=REACH_MS)
     except Error:
         return False
@@ -95,12 +96,12 @@ def _walk(page, session, mode, shots, found) -> None:
     for les in LESSONS:
         session.controls["lesson"].value = les.name
         tab = next(v.tab for v in VIEWS if v.name == les.plot)
-        reached = _tab_shown(page, tab, click=False)
+        reached = _tab_shown(page, session, tab, click=False)
         _measure(page, session, mode, f"lesson:{les.name}", shots, found, reached)
     session.controls["lesson"].value = LESSONS[0].name
     assert session.wait_idle(TIMEOUT_MS / 1000)
     for tab in TABS:
-        reached = _tab_shown(page, tab, click=True)
+        reached = _tab_shown(page, session, tab, click=True)
         _measure(page, session, mode, f"tab:{tab}", shots, found, reached)
 
 
