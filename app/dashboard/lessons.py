@@ -13,7 +13,24 @@ from qsid_core import LETTER_QUANTIZER
 
 from .settings import NO_LESSON, PAPER_SCALE, Values
 
-__all__ = ["Lesson", "LESSONS", "NONE", "lesson_names", "get_lesson", "lesson_values", "lesson_markdown"]
+__all__ = [
+    "Lesson",
+    "LESSONS",
+    "NONE",
+    "BACK_LABEL",
+    "lesson_names",
+    "get_lesson",
+    "lesson_values",
+    "lesson_markdown",
+    "lesson_drift",
+    "LessonMark",
+    "key_view",
+]
+
+#: The button that sets the panel back to the lesson's settings once they drifted.
+BACK_LABEL = "↺ back to the lesson's settings"
+#: Fields a lesson sets that the person is meant to move (its text says "move b to ..."): not a drift.
+_MEANT_TO_MOVE = ("bits",)
 
 #: The selector's entry for "no lesson" (the panel as it is).
 NONE = NO_LESSON
@@ -60,8 +77,8 @@ LESSONS: tuple[Lesson, ...] = (
         "tab): for b = 2..6 the error of Â falls about 0.55 decades per bit on Theorem 1's dashed line (its "
         "O(ε²) bias), from b = 8 on about 0.3 (finite data, O(ε)). B̂ is not on its line: the range (the "
         "data's min/max, no guard band) clips samples near the extremes, which moves B̂ by more than its "
-        "fluctuation (the plot's note and the summary give the numbers). In the cost plot (Control tab) the "
-        "identified models' MPC cost is within 0.01 % of the true model's (dashed) from b = 8 on.",
+        "fluctuation (the plot's note on hover and the summary give the numbers). In the cost plot (Control "
+        "tab) the identified models' MPC cost is within 0.01 % of the true model's (dashed) from b = 8 on.",
         dict(system="boeing747", bits=8, identification="LS", **_LETTER),
     ),
     Lesson(
@@ -88,9 +105,10 @@ LESSONS: tuple[Lesson, ...] = (
         "A coarse fixed range [-20, 20] at b = 3 (Boeing 747), error plot in the Identification tab. With "
         "subtractive dither the noise is known (ε²/12, independent of the signal), so BCLS removes its bias: "
         "the BCLS error of Â is below 0.05 while LS is above 0.7; switch dither to 'none' and BCLS's noise "
-        "model fails (red crosses), its error above 0.5. Move b to 12: LS and BCLS level off near 2e-4, and the "
-        "plot's note names the cause: the range ±20 clips 0.05 % of the samples, and that, not the data "
-        "length, sets this floor. Type the range -40, 40 and the error keeps falling.",
+        "model fails at b = 3 too (a red cross there; the crosses already shown mark clipping), its error above "
+        "0.5. Move b to 12: LS and BCLS level off near 2e-4, and the plot's note (hover) names the cause: "
+        "the range ±20 clips 0.05 % of the samples, and that, not the data length, sets this floor. Type the "
+        "range -40, 40 and the error keeps falling.",
         dict(
             system="boeing747",
             bits=3,
@@ -182,7 +200,9 @@ LESSONS: tuple[Lesson, ...] = (
         "is above 1), although none fails outright. The plot's title gives three answers: the b from which "
         "on 95 % of the loops converge at a cost within 1 % of the true model's (b_observed, 4), the b from "
         "which the small-gain certificate holds for Theorem 1's model (b_robust, 5) and the b from which the "
-        "letter's bound says anything (b_letter, 9).",
+        "letter's bound says anything (b_letter, 9). Why b = 1 settles every loop but b = 2 few: the 1-bit model "
+        "is nearly empty, so its MPC barely acts (‖K̂‖ ≈ 0.24, the true model's 1.08) and the stable Boeing "
+        "settles on its own, while b = 2's half-right model acts harder (‖K̂‖ ≈ 0.66) and wrongly.",
         dict(
             system="boeing747",
             bits=2,
@@ -224,7 +244,9 @@ LESSONS: tuple[Lesson, ...] = (
         "training range); look at the residual plot (Control tab). The loops keep a steady-state error of "
         "about 0.8: from b = 8 on it no longer falls with b and equals the true model's within 1 %, so the "
         "floor is the measurement, not the model, and the letter's δ (model error only) does not cover it. "
-        "Set feedback bits to 8: the floor falls more than 4× (about half per bit).",
+        "Set feedback bits to 8: the floor falls more than 4× (about half per bit). b = 1 lies below the floor "
+        "because its nearly empty model barely acts (inputs ~10× smaller than the true model's), so it feeds "
+        "little of the measurement's quantization error back into the plant.",
         dict(
             system="boeing747",
             bits=12,
@@ -293,9 +315,67 @@ def lesson_values(name: str, base: Values | None = None) -> Values:
     return base.replace(log_q=(), log_r=(), a_text="", b_text="", lesson=name, **kw)
 
 
-def lesson_markdown(name: str) -> str:
-    """What the panel shows under the selector ('' for no lesson)."""
+def key_view(name: str) -> str:
+    """The view lesson ``name`` is about (the error plot without a lesson)."""
+    return get_lesson(name).plot if name in lesson_names()[1:] else "error"
+
+
+def lesson_drift(name: str, values: Values) -> tuple[str, ...]:
+    """The fields lesson ``name`` sets that ``values`` no longer has (b excepted: moving it is the lesson)."""
+    if name == NONE or name not in lesson_names():
+        return ()
+    want = lesson_values(name)
+    keys = [k for k in get_lesson(name).settings if k not in _MEANT_TO_MOVE]
+    return tuple(k for k in keys if getattr(values, k) != getattr(want, k))
+
+
+def lesson_markdown(name: str, drift: tuple[str, ...] = ()) -> str:
+    """What the panel shows under the selector ('' for no lesson); with ``drift`` (the fields changed since the
+    lesson set them) a mark first: the text is about the lesson's settings, no longer the panel's."""
     if name == NONE:
         return ""
     les = get_lesson(name)
-    return f"**{les.title}.** {les.text}"
+    stop = "" if les.title[-1] in ".?!" else "."
+    mark = ""
+    if drift:
+        what = ", ".join(k.replace("_", " ") for k in drift)
+        mark = f"✎ **Modified from the lesson** ({what}): the text is about the lesson's own settings.\n\n"
+    return f"{mark}**{les.title}{stop}** {les.text}"
+
+
+class LessonMark:
+    """The "modified from the lesson" mark above a lesson's text and the button back (one per tab).
+
+    Parameters
+    ----------
+    gui : client.gui
+    text : the lesson text's markdown handle (the button goes right below it)
+    on_back : callable()
+        The button was pressed (the tab then sets the lesson's settings again).
+    """
+
+    def __init__(self, gui, text, on_back):
+        self.text = text
+        self.drift: tuple[str, ...] = ()
+        self.wanted = False  # the button was pressed and the tab has not set the lesson again yet
+        self.back = gui.add_button(BACK_LABEL, visible=False, order=float(text.order) + 0.5)
+        self._on_back = on_back
+        self.back.on_click(lambda _e: self.press())
+
+    def press(self) -> None:
+        """The button: ask the tab to set the lesson's settings again."""
+        self.wanted = True
+        self._on_back()
+
+    def take(self) -> bool:
+        """True once after the button was pressed (the tab's worker then sets the lesson again)."""
+        wanted, self.wanted = self.wanted, False
+        return wanted
+
+    def show(self, values: Values) -> None:
+        """Mark (or unmark) the text for ``values`` (from the tab's worker)."""
+        drift = lesson_drift(values.lesson, values)
+        if drift != self.drift:
+            self.drift = drift
+            self.text.content = lesson_markdown(values.lesson, drift)
+            self.back.visible = bool(drift)

@@ -1,9 +1,11 @@
 """Presenter mode (a lecture-hall layout) and the auto-play over the word length, for one tab.
 
-* :class:`PresenterLayout`: with the panel's "presenter" box ticked, the left panel and the plots panel are
-  narrowed so that the 3-D scene gets more than half of a 1366 px window, panel text is at least
-  :data:`PANEL_FONT` px (a style sheet sent to the page), the scene's lines are thicker and its labels bigger;
-  the plots' own style is :func:`app.figures.presenter.presenter_figure` (applied by the renderer).
+* :class:`PresenterLayout`: with the panel's "presenter" box ticked, ONE view fills the room beside a narrow
+  left panel: either the plots (the lesson's key plot first, sized to the visible height, the plots panel as
+  wide as the window allows) or the 3-D scene (the plots panel minimized). One button under the auto-play
+  switches between the two. Panel text is at least :data:`PANEL_FONT` px (a style sheet sent to the page),
+  the scene's lines are thicker and its labels bigger; the plots' own style (text ≥ 18 px, thick lines) is
+  :func:`app.figures.presenter.presenter_figure` (applied by the renderer).
 * :class:`AutoPlay`: b from 1 to 16, about one word length per :data:`STEP_SECONDS`. The tab's worker loop
   asks :meth:`AutoPlay.wait_time` how long it may sleep and calls :meth:`AutoPlay.step` only when the tab is
   idle (every change drawn), so the next b is set only once the previous one is drawn or after
@@ -19,14 +21,35 @@ import time
 from .controls import PLAY_LABEL
 from .settings import ALL_BITS
 
-__all__ = ["PresenterLayout", "AutoPlay", "STEP_SECONDS", "PANEL_FONT", "LEFT_WIDTH", "RIGHT_WIDTH"]
+__all__ = [
+    "PresenterLayout",
+    "AutoPlay",
+    "STEP_SECONDS",
+    "PANEL_FONT",
+    "LEFT_WIDTH",
+    "WIDE",
+    "LEFT_SHARE",
+    "PLOT_ASPECT",
+    "SHOW_SCENE",
+    "SHOW_PLOT",
+]
 
 #: Seconds between two word lengths of the auto-play (at least: a slow frame delays the next step).
 STEP_SECONDS = 1.0
 #: Smallest panel text in presenter mode (px).
 PANEL_FONT = 16
-#: Panel widths in presenter mode (px): at 1366 px the 3-D scene keeps 1366 - 290 - 370 - 4 = 702 px (> 683).
-LEFT_WIDTH, RIGHT_WIDTH = 290, 370
+#: The left panel's width in presenter mode showing the 3-D scene (px).
+LEFT_WIDTH = 290
+#: Presenter mode showing the plot: the left panel and the plots panel are asked for more than any window
+#: (:data:`WIDE` in all), in the ratio :data:`LEFT_SHARE` : 1 − LEFT_SHARE. viser's dock then scales both to
+#: the window less its 120 px minimum of 3-D canvas, so without knowing the window's width (the server is not
+#: told it) the left panel gets 20 % of it (249 px at 1366, 360 px at 1920) and the plots the rest.
+WIDE, LEFT_SHARE = 20000.0, 0.2
+#: Height / width of the key plot in presenter mode: fits under the tab strip at 1366×768 (~985 × 590 px in a
+#: ~670 px high panel) and at 1920×1080 (~1430 × 860 px in a ~980 px panel).
+PLOT_ASPECT = 0.6
+#: The switch's labels: what pressing it shows.
+SHOW_SCENE, SHOW_PLOT = "⇄ show the 3-D scene", "⇄ show the plot"
 #: The left panel's normal width (viser's "large" control width).
 NORMAL_LEFT = 384
 
@@ -39,27 +62,80 @@ STYLE = (
 
 
 class PresenterLayout:
-    """Applies presenter mode to one tab (from its worker thread only)."""
+    """Applies presenter mode to one tab (from its worker thread only; the switch's click only marks it).
 
-    def __init__(self, gui, plots_panel, portrait, normal_right: float):
+    Parameters
+    ----------
+    gui : client.gui
+    plots_panel : the docked plots panel
+    portrait : :class:`~app.dashboard.scene.PhasePortrait`
+    normal_right : float
+        The plots panel's width outside presenter mode (px).
+    plots : dict
+        View name -> plotly handle (the key plot's aspect is set in presenter mode).
+    after : a GUI handle
+        The switch goes right below it (the auto-play button).
+    on_change : callable()
+        Marks the tab dirty (the worker then calls :meth:`apply`).
+    """
+
+    def __init__(self, gui, plots_panel, portrait, normal_right: float, plots=None, after=None, on_change=None):
         self.gui = gui
         self.plots_panel = plots_panel
         self.portrait = portrait
         self.normal_right = normal_right
+        self.plots = plots or {}
+        self.aspects = {name: h.aspect for name, h in self.plots.items()}
         self.on = False
+        self.scene_shown = False  # presenter mode: the 3-D scene (True) or the plots (False)
+        self._want_scene = False
+        self._key: str | None = None
         self.style = gui.add_html("", visible=False)
+        self.switch = gui.add_button(SHOW_SCENE, visible=False, hint="Presenter mode shows one view: this or that")
+        if after is not None:
+            self.switch.order = float(after.order) + 0.5
+        self._lock = threading.Lock()
+        self._on_change = on_change or (lambda: None)
+        self.switch.on_click(lambda _e: self.toggle())
 
-    def apply(self, on: bool) -> bool:
-        """Switch presenter mode on or off; True if it changed."""
+    def toggle(self) -> None:
+        """The switch: show the other view (applied by the worker)."""
+        with self._lock:
+            self._want_scene = not self._want_scene
+        self._on_change()
+
+    def apply(self, on: bool, key_plot: str | None = None) -> bool:
+        """Presenter mode on or off, showing the plots (``key_plot`` first and large) or the 3-D scene.
+
+        Returns True if anything changed."""
         on = bool(on)
-        if on == self.on:
+        with self._lock:
+            scene = self._want_scene and on
+        if on == self.on and scene == self.scene_shown and (not on or key_plot == self._key):
             return False
-        self.on = on
-        self.gui.main_panel.set_width(LEFT_WIDTH if on else NORMAL_LEFT)
-        self.plots_panel.set_width(RIGHT_WIDTH if on else self.normal_right)
-        self.style.content = STYLE if on else ""
-        self.style.visible = on
-        self.portrait.set_presenter(on)
+        if on != self.on:
+            self.style.content = STYLE if on else ""
+            self.style.visible = on
+            self.portrait.set_presenter(on)
+            self.switch.visible = on
+        self.on, self.scene_shown = on, scene
+        if scene:  # the scene beside the left panel
+            self.gui.main_panel.set_width(LEFT_WIDTH)
+            self.plots_panel.minimize()
+        elif on:  # the plots as wide as the window allows (see WIDE)
+            self.gui.main_panel.set_width(WIDE * LEFT_SHARE)
+            self.plots_panel.expand()
+            self.plots_panel.set_width(WIDE * (1 - LEFT_SHARE))
+        else:
+            self.gui.main_panel.set_width(NORMAL_LEFT)
+            self.plots_panel.expand()
+            self.plots_panel.set_width(self.normal_right)
+        self.switch.label = SHOW_PLOT if scene else SHOW_SCENE
+        self._key = key_plot if on else None
+        for name, h in self.plots.items():  # the key plot fills the visible height; the others as they were
+            want = PLOT_ASPECT if name == self._key else self.aspects[name]
+            if h.aspect != want:
+                h.aspect = want
         return True
 
 

@@ -8,7 +8,7 @@ from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.compare import PINNED_VIEWS, overlay_pinned
 from app.figures.phase_scene import SceneView, scene_view
-from app.figures.presenter import presenter_figure
+from app.figures.presenter import legible_figure, presenter_figure
 from app.figures.raw import Wire
 from app.figures.traces import CURRENT_B, move_current_bits
 from app.figures.view import CURRENT, CURVES
@@ -96,11 +96,11 @@ class Renderer:
                 fig = self.figures.get(name)
                 if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
                     out[name] = move_current_bits(fig, frame.bits)
-        if presenter:
-            out = {
-                name: presenter_figure(fig) if name not in self.figures or fig is not self.figures[name] else fig
-                for name, fig in out.items()
-            }
+        style = presenter_figure if presenter else legible_figure  # the mode's smallest text (and line widths)
+        out = {
+            name: style(fig) if name not in self.figures or fig is not self.figures[name] else fig
+            for name, fig in out.items()
+        }
         self.figures.update(out)
         # viser's plot handle calls figure.to_json(): Wire's skips plotly's deep copy (raw.to_json)
         return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()})

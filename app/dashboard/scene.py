@@ -146,8 +146,11 @@ class PhasePortrait:
         self._set_circles("sphere", "bound", v.bound_circles, _SPHERE)
         self._set_circles("realized", "bound_realized", v.realized_circles, _REALIZED)
         self._set_circles("ref_path", "reference", v.ref_segments, rgb("theory"))
-        self.sphere_label.text = v.bound_text if v.show_bound else ""
-        self.sphere_label.visible = v.show_bound
+        # a bound too large to draw has no circle to label: its text joins the caption under the scene (a
+        # label at the origin would sit on the loops)
+        off_scale = v.show_bound and v.bound_circles.shape[0] == 0
+        self.sphere_label.text = v.bound_text if v.show_bound and not off_scale else ""
+        self.sphere_label.visible = v.show_bound and not off_scale
         r = min(v.sphere_radius, 1.6) if v.bound_circles.shape[0] else 0.0
         self.sphere_label.position = (0.0, 0.0, float(max(r, 0.02)))
         if v.time_marks.shape[0] and v.time_marks.shape != self.marks.points.shape:
@@ -183,6 +186,7 @@ class PhasePortrait:
                 f"dots every {v.mark_every} steps on the true-model loop (until it converges)",
                 f"1 box unit = {v.scale:.3g}",
                 *extra,
+                *(v.bound_text.splitlines() if off_scale else []),
             ]
         )
         self.view = v

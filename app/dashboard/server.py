@@ -159,7 +159,9 @@ class DashboardApp:
             return
         try:
             path, host = connection_request(self.server, client.client_id) or ("/", "")
-            values, view = open_view(self.views, path, host or f"{self.host}:{self.port}", self.defaults)
+            values, view = open_view(
+                self.views, path, host or f"{self.host}:{self.port}", self.defaults, in_use=self._code_in_use
+            )
             s = Session(self, client, values, view)
         except Exception:  # a broken tab must not take the server down
             traceback.print_exc()
@@ -212,6 +214,12 @@ class DashboardApp:
         gc.collect()
         trim()
         self.prefill()
+
+    def _code_in_use(self, code: str) -> bool:
+        """True while an open tab shows view code ``code``."""
+        with self._lock:
+            codes = [s.codes for s in self.sessions.values()]
+        return any(c is not None and c.view.code == code for c in codes)
 
     def wait_for_sessions(self, count: int, timeout: float = 30.0) -> list:
         end = time.monotonic() + timeout

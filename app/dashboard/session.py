@@ -43,7 +43,7 @@ from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
-from .lessons import get_lesson, lesson_names, lesson_values
+from .lessons import LessonMark, get_lesson, key_view, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
@@ -109,6 +109,7 @@ class Session:
         self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
         self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes
         self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
+        self.mark = LessonMark(gui, self.controls.lesson_text, lambda: self.touch(user=True))
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
@@ -248,7 +249,7 @@ class Session:
     def _open_lesson(self, gen: int) -> int:
         """A newly picked lesson sets the panel (the worker's own changes: their generation is adopted)."""
         name = self.controls["lesson"].value
-        if name == self._lesson:
+        if name == self._lesson and not self.mark.take():  # (the mark's button: the lesson set anew)
             return gen
         self._lesson = name
         if apply_lesson(self.controls, name, lambda v: resolve_system(v).system):
@@ -273,12 +274,13 @@ class Session:
             return gen
         show_weights(c)
         self.play.show()
-        self.presenter.apply(bool(c["presenter"].value))
+        self.presenter.apply(bool(c["presenter"].value), key_plot=key_view(str(c["lesson"].value)))
         gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:
             return gen
         gen, values = adapted
+        self.mark.show(values)
         self.views.set_system(resolve_system(values).system)
         values = values.replace(**self.views.values())
         for attempt in (1, 2):

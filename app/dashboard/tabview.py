@@ -101,7 +101,9 @@ class TabView:
         self.plots = self.views.plots
         self.renderer = Renderer()
         self.portrait = PhasePortrait(client.scene)
-        self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH)
+        self.presenter = PresenterLayout(
+            gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.plots, self.controls.play, touch
+        )
         self.last_error: str | None = None
 
     # ----- settings in and out ----------------------------------------------------------------------------------

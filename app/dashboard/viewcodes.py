@@ -228,8 +228,14 @@ class ViewOpen:
     note: str = ""
 
 
-def open_view(store: ViewStore, path: str | None, host: str, defaults: Values) -> tuple[Values, ViewOpen]:
-    """The settings and view of a tab whose websocket was opened at ``path`` (``/`` or ``/v/CODE``)."""
+def open_view(
+    store: ViewStore, path: str | None, host: str, defaults: Values, in_use: Callable[[str], bool] | None = None
+) -> tuple[Values, ViewOpen]:
+    """The settings and view of a tab whose websocket was opened at ``path`` (``/`` or ``/v/CODE``).
+
+    ``in_use(code)``: True while another open tab shows that code. A link opened while its tab is still open (a
+    class opening the teacher's link) gives the new tab the link's settings under a code of its own, so nothing
+    done there changes the teacher's view; a reload (the old tab gone) keeps the code."""
     code = code_from_path(path)
     if code is None:
         note = ""
@@ -248,6 +254,13 @@ def open_view(store: ViewStore, path: str | None, host: str, defaults: Values) -
             "keeps the code from now on."
         )
         return defaults, ViewOpen(code, host, False, note)
+    if in_use is not None and in_use(code):
+        own = store.new_code()
+        note = (
+            f"Opened from view **{code}**, which another tab shows: this tab has its own code **{own}**, so "
+            "changes here never change that tab."
+        )
+        return v, ViewOpen(own, host, True, note)
     return v, ViewOpen(code, host, False, "")
 
 
@@ -270,8 +283,7 @@ def _say(panel: CodePanel, text: str) -> None:
 def load_code(panel: CodePanel, store: ViewStore, text: str, receive: Callable[[Values], None]) -> None:
     """The "load view code" box: hand the settings of the code (or link) typed to ``receive``, or say in one
     line why not."""
-    if not str(text or "").strip():
-        _say(panel, "")
+    if not str(text or "").strip():  # the box emptied (by the tab after a load): the status line stays
         return
     try:
         code = normalize_code(text)
@@ -283,6 +295,7 @@ def load_code(panel: CodePanel, store: ViewStore, text: str, receive: Callable[[
         _say(panel, f"⚠️ view code **{code}** is not known on this server (ask for the link or check the letters)")
         return
     _say(panel, f"Loaded view **{code}** (this tab keeps its own code **{panel.view.code}**).")
+    panel.box.value = ""  # emptied: the same code typed again is a change again, and loads again
     receive(v)
 
 

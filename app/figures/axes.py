@@ -9,7 +9,8 @@ Rules (log axes in decades, plotly's own unit for log ranges):
   window holding the most points is kept and the axis title says that values
   lie off the axis (e.g. diverged closed loops with cost 1e289);
 * a log axis spans at least :data:`MIN_DECADES` and, while it spans fewer than
-  2.5 decades, is ticked at 1, 2, 5 per decade (no crowded "10 9 8 .. 2 1");
+  2.5 decades, is ticked at 1, 2, 5 per decade with full labels (0.5, not plotly's bare "5";
+  no crowded "10 9 8 .. 2 1"): :func:`log_ticks`;
 * a margin of :data:`MARGIN` of the span on each side.
 
 Only reshaping for display: nothing is computed from the numbers but their extent.
@@ -23,7 +24,16 @@ import numpy as np
 import plotly.graph_objects as go
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["finite_axes", "axis_ranges", "top_log_range", "MAX_DECADES", "MIN_DECADES", "MARGIN"]
+__all__ = [
+    "finite_axes",
+    "axis_ranges",
+    "top_log_range",
+    "log_ticks",
+    "tick_label",
+    "MAX_DECADES",
+    "MIN_DECADES",
+    "MARGIN",
+]
 
 #: Largest span of a log axis (decades).
 MAX_DECADES = 12.0
@@ -139,6 +149,30 @@ def top_log_range(values: Iterable[float | None], keep: Sequence[float | None] =
     return [lo - pad, hi + pad]
 
 
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def tick_label(v: float) -> str:
+    """A full tick label: '0.5', '20', '2×10⁻⁵' (plain digits between 10⁻³ and 10⁴, a power of ten outside)."""
+    e = int(np.floor(np.log10(v) + 1e-9))
+    m = round(v / 10.0**e, 6)
+    if -3 <= e <= 3:
+        return f"{v:.{max(0, -e)}f}" if e < 0 else f"{v:g}"
+    power = "10" + str(e).translate(_SUPERSCRIPT)
+    return power if m == 1 else f"{m:g}×{power}"
+
+
+def log_ticks(rng: Sequence[float]) -> dict:
+    """``tickvals``/``ticktext`` at 1, 2 and 5 per decade inside ``rng`` (log10 units, plotly's log range)."""
+    vals = [
+        m * 10.0**e
+        for e in range(int(np.floor(rng[0])), int(np.ceil(rng[1])) + 1)
+        for m in (1, 2, 5)
+        if rng[0] <= np.log10(m) + e <= rng[1]
+    ]
+    return dict(tickvals=vals, ticktext=[tick_label(v) for v in vals])
+
+
 def finite_axes(fig: go.Figure, max_decades: float = MAX_DECADES) -> go.Figure:
     """Set every 2-D axis range of ``fig`` from its finite data (rules: module docstring); in place.
 
@@ -157,7 +191,7 @@ def finite_axes(fig: go.Figure, max_decades: float = MAX_DECADES) -> go.Figure:
             rng, off = _log_range(vals, max_decades)
             upd = dict(range=rng, autorange=False)
             if rng[1] - rng[0] < 2.5:
-                upd["dtick"] = "D2"
+                upd.update(log_ticks(rng), tickmode="array")
             if off:
                 title = ax.title.text or ""
                 upd["title_text"] = (title + " " if title else "") + "(some values off the axis)"

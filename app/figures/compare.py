@@ -17,7 +17,7 @@ import numpy as np
 import plotly.graph_objects as go
 from numpy.typing import NDArray
 
-from .palette import COLORS, color
+from .palette import COLORS, color, pinned_color
 from .phase_scene import axes_indices
 from .raw import arr, figure
 from .view import CURVES, FrameView, View
@@ -33,15 +33,18 @@ REFERENCE_GROUPS = ("ref", "th", "thx")
 
 
 def overlay_pinned(fig: go.Figure, pinned_fig: go.Figure, label: str) -> go.Figure:
-    """Add the line traces of ``pinned_fig`` to ``fig`` (in place): dashed, lighter, named "<name> (label)"."""
+    """Add the line traces of ``pinned_fig`` to ``fig`` (in place): dashed, in the pinned colour of their live
+    colour (:func:`~app.figures.palette.pinned_color`), named "<name> (label)"."""
     for tr in pinned_fig.data:
         if getattr(tr, "fill", None) in ("toself", "tonexty") or tr.type != "scatter":
             continue  # bands and bars stay with the live figure
         if tr.mode == "markers" or tr.legendgroup in REFERENCE_GROUPS:
             continue  # marks and reference lines (slope, Theorem 1) would only double the legend
         d = tr.to_plotly_json()
-        d["line"] = {**(d.get("line") or {}), "dash": "dash", "width": 1.5}
-        d["marker"] = {**(d.get("marker") or {}), "symbol": "circle-open"}
+        line = d.get("line") or {}
+        c = pinned_color(line.get("color") or (d.get("marker") or {}).get("color") or "")
+        d["line"] = {**line, "dash": "dash", "width": 1.5, "color": c}
+        d["marker"] = {**(d.get("marker") or {}), "symbol": "circle-open", "color": c}
         d["name"] = f"{d.get('name', '')} ({label})"
         d["legendgroup"] = f"pinned {d.get('legendgroup', d['name'])}"
         d["opacity"] = 0.75

@@ -118,6 +118,10 @@ def datalength_figure(result: dict[str, Any] | None, bits: int, height: int = 34
             )
         ]
         layout["title"] = dict(text=f"error vs data length at b = {bits}", font=dict(size=11))
+        for key in ("xaxis", "xaxis2", "yaxis", "yaxis2"):  # no data yet: no empty axes whose labels collide
+            axis = layout[key]
+            assert isinstance(axis, dict)
+            axis["visible"] = False
         return figure([], layout)
     data = _panel(rows, "err_A", "x", "y", True) + _panel(rows, "err_B", "x2", "y2", False)
     cfg = res.get("config", {})

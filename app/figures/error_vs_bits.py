@@ -10,7 +10,7 @@ import plotly.graph_objects as go
 
 from qsid_core import fit_slope
 
-from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, short, theorem1_reasons
+from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, theorem1_reasons
 from .palette import COLORS, color
 from .raw import figure
 from .traces import BITS_AXIS, Rows, Series, band, get, mark_bits, xy
@@ -126,15 +126,18 @@ def _theory_and_reference(
 _PANELS = (("‖A−Â‖/‖A‖", [0.0, 0.44]), ("‖B−B̂‖/‖B‖", [0.56, 1.0]))
 #: The slopes the letter reads off its Fig. 1 (log10 error per bit) for A and for B.
 LETTER_SLOPES = (-0.301, -0.322)
+#: The system those slopes are the letter's for (its Fig. 1).
+LETTER_SYSTEM = "dc-motor"
 
 
-def slope_text(rows: Rows, key: str, letter: float) -> str:
-    """'slope −0.30/bit (letter −0.301)': the fitted log10 slope of the mean over the rows' b ('' if < 3 b)."""
+def slope_text(rows: Rows, key: str, letter: float | None) -> str:
+    """'slope −0.30/bit (letter −0.301)': the fitted log10 slope of the mean over the rows' b ('' if < 3 b);
+    without ``letter`` (a system the letter reads no slope off) just 'slope −0.30/bit'."""
     bx, by = xy(rows, key, "mean")
     if len(bx) < 3:
         return ""
     s = fit_slope(bx, by)
-    return f"slope {s:+.2f}/bit (letter {letter:+.3f})".replace("-", "−")
+    return (f"slope {s:+.2f}/bit" + (f" (letter {letter:+.3f})" if letter is not None else "")).replace("-", "−")
 
 
 def _theory_values(rows: Rows) -> tuple[tuple[int, float | None, float | None], ...]:
@@ -151,6 +154,7 @@ def error_figure(
     height: int = 330,
     theory_per_series: bool = False,
     bcls: Iterable[str] | None = None,
+    letter_slopes: tuple[float, float] | None = LETTER_SLOPES,
 ) -> go.Figure:
     """Relative errors of A^ and B^ against b (two panels, log y).
 
@@ -163,7 +167,9 @@ def error_figure(
     also gets its own dashed line in the series' colour (equal predictions are
     drawn once); the first series' line keeps the theory colour.
     ``bcls`` names the series estimated by BCLS (default: the one labelled
-    "BCLS"): open crosses mark the b where its known-noise model fails.
+    "BCLS"): open crosses mark the b where its known-noise model fails. ``letter_slopes``: the slopes the
+    letter reads off for A and B (its DC motor's, the default), printed next to the fitted ones; None for a
+    system the letter gives none for.
     """
     bcls = {"BCLS"} if bcls is None else set(bcls)
     data, lines, drawn = [], [], set()
@@ -186,11 +192,9 @@ def error_figure(
     notes += [f"Theorem 1 kept: {w}" for w in fits_reasons(first)]
     for lab in [lab for lab in series if lab in bcls][:1]:
         notes += [f"BCLS ✕: {w}" for w in bcls_reasons(series[lab])]
-    annotations = _panel_titles(first)
-    shown = ""
-    if notes:  # a few words each (the plot keeps its height); the full sentences on hover and in the summary
-        shown = _wrap(" · ".join(_short(t) for t in notes) + " (hover: why)")
-        annotations.append(_notes_line(shown, notes))
+    annotations = _panel_titles(first, letter_slopes)
+    if notes:  # one readable line; the sentences on hover (and in the summary), never small print over the plot
+        annotations.append(_notes_line(notes))
     layout: dict[str, Any] = dict(annotations=annotations, shapes=mark_bits(current_bits, (("x", "y"), ("x2", "y2"))))
     for col, (_, dom) in enumerate(_PANELS, start=1):
         ax = _axes(col)
@@ -198,24 +202,23 @@ def error_figure(
         layout["yaxis" if col == 1 else f"yaxis{col}"] = dict(
             type="log", exponentformat="power", anchor=ax["xaxis"], domain=[0.0, 1.0]
         )
-    top = 30 + 13 * len(shown.split("<br>")) if shown else 30
+    top = 30 + (NOTE_FONT + 8 if notes else 0)
     return figure(
         data,
         dict(
             layout,
             height=height + top - 30,
-            margin=dict(l=50, r=10, t=top, b=40),
-            legend=dict(orientation="h", y=-0.25),
+            # the legend at the figure's foot, below the axis titles whatever its rows (never over them)
+            margin=dict(l=50, r=10, t=top, b=100),
+            legend=dict(orientation="h", yref="container", y=0, yanchor="bottom"),
         ),
     )
 
 
-def _panel_titles(first: Rows) -> list[dict[str, Any]]:
-    """Each panel's title with the first series' fitted slope beside it."""
-    titles = [
-        t + (f"<span style='font-size:12px'>  {s}</span>" if s else "")
-        for (t, _), s in zip(_PANELS, (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), LETTER_SLOPES)))
-    ]
+def _panel_titles(first: Rows, letter_slopes: tuple[float, float] | None) -> list[dict[str, Any]]:
+    """Each panel's title with the first series' fitted slope beside it (and the letter's, if given)."""
+    slopes = (slope_text(first, k, ls) for k, ls in zip(("err_A", "err_B"), letter_slopes or (None, None)))
+    titles = [t + (f"<span style='font-size:12px'>  {s}</span>" if s else "") for (t, _), s in zip(_PANELS, slopes)]
     return [
         dict(
             text=t,
@@ -232,10 +235,20 @@ def _panel_titles(first: Rows) -> list[dict[str, Any]]:
     ]
 
 
-def _notes_line(shown: str, notes: list[str]) -> dict[str, Any]:
-    """The short notes above the panels (``shown``), the full sentences on hover."""
+#: Size (px) of the one-line note above the error plot.
+NOTE_FONT = 12
+
+
+def _notes_head(notes: list[str]) -> str:
+    """'Theorem 1 faded · BCLS ✕': who the notes are about, once each, in order."""
+    heads = [n.partition(": ")[0] for n in notes]
+    return " · ".join(dict.fromkeys(heads))
+
+
+def _notes_line(notes: list[str]) -> dict[str, Any]:
+    """One line above the panels naming who the notes are about; the full sentences on hover."""
     return dict(
-        text=shown,
+        text=f"Notes: {_notes_head(notes)} (hover here: why)",
         hovertext="<br>".join(_wrap(t) for t in notes),
         xref="paper",
         yref="paper",
@@ -243,17 +256,11 @@ def _notes_line(shown: str, notes: list[str]) -> dict[str, Any]:
         y=1.0,
         yanchor="bottom",
         xanchor="left",
-        yshift=22,
+        yshift=24,
         showarrow=False,
         align="left",
-        font=dict(size=9, color="#555555"),
+        font=dict(size=NOTE_FONT, color="#555555"),
     )
-
-
-def _short(note: str) -> str:
-    """'Theorem 1 faded: finite data: …sentence… (b = 2–16)' -> 'Theorem 1 faded: finite data (b = 2–16)'."""
-    who, _, reason = note.partition(": ")
-    return f"{who}: {short(reason)}"
 
 
 def _wrap(text: str, width: int = 95) -> str:
@@ -272,5 +279,10 @@ VIEW = View(
     "error",
     aspect=0.62,
     depends=CURVES,
-    build=lambda frame: error_figure(frame.series(), current_bits=frame.bits, height=300),
+    build=lambda frame: error_figure(
+        frame.series(),
+        current_bits=frame.bits,
+        height=300,
+        letter_slopes=LETTER_SLOPES if frame.system.name == LETTER_SYSTEM else None,
+    ),
 )

@@ -6,7 +6,7 @@ and 3-D phase portrait, and in the figures ``qsid reproduce`` writes.
 
 from __future__ import annotations
 
-__all__ = ["COLORS", "EXTRA", "color", "rgb", "vertex_rgb"]
+__all__ = ["COLORS", "EXTRA", "PINNED", "color", "pinned_color", "rgb", "vertex_rgb"]
 
 #: Named colours (hex): estimators, the true model, theory curves, reference lines.
 COLORS = {
@@ -22,6 +22,16 @@ COLORS = {
     "realized": "#9467bd",  # purple: the a-posteriori bound (each realization's own model error and P)
     "unit_circle": "#bbbbbb",
 }
+#: A pinned (earlier) result's colour for each live colour: the same hue family, clearly another colour
+#: (LS blue -> teal, BCLS red -> brown, ...), so live and pinned curves are told apart without the legend.
+PINNED = {
+    "#1f77b4": "#17becf",
+    "#d62728": "#8c564b",
+    "#9467bd": "#e377c2",
+    "#ff7f0e": "#bcbd22",
+    "#000000": "#7f7f7f",
+    "#2ca02c": "#98df8a",
+}
 #: Colours for further series (labels without a named colour), in order.
 EXTRA = ("#1f77b4", "#d62728", "#9467bd", "#ff7f0e")
 
@@ -29,6 +39,11 @@ EXTRA = ("#1f77b4", "#d62728", "#9467bd", "#ff7f0e")
 def color(label: str, i: int = 0) -> str:
     """Hex colour of series ``label`` (the ``i``-th series if the label has no named colour)."""
     return COLORS.get(label, EXTRA[i % len(EXTRA)])
+
+
+def pinned_color(live: str) -> str:
+    """The colour of a pinned curve whose live curve is drawn in ``live`` (hex; unknown colours: dark grey)."""
+    return PINNED.get(str(live).lower(), "#555555")
 
 
 def rgb(label: str, i: int = 0) -> tuple[int, int, int]:

@@ -9,37 +9,42 @@ from __future__ import annotations
 import re
 from typing import Any
 
+import numpy as np
 import plotly.graph_objects as go
 
-__all__ = ["PLOT_FONT", "LINE_SCALE", "presenter_figure"]
+from .axes import log_ticks
+
+__all__ = ["PLOT_FONT", "NORMAL_FONT", "LINE_SCALE", "presenter_figure", "legible_figure"]
 
 #: Smallest plot text in presenter mode (px).
 PLOT_FONT = 18
+#: Smallest plot text in normal mode (px): a laptop at arm's length (the legibility test's floor is 10).
+NORMAL_FONT = 11
+#: plotly's size of a power label's exponent (10⁻³), relative to the tick font.
+SUPERSCRIPT = 0.8
 #: Factor on every trace's line width (at least :data:`MIN_LINE` px).
 LINE_SCALE, MIN_LINE = 1.8, 3.0
-#: plotly's size of the small 2..9 labels of a log axis, relative to its tick font.
-MINOR_LOG = 0.75
 _SPAN = re.compile(r"font-size:\s*(\d+(?:\.\d+)?)px")
 
 
-def _bigger_text(s: str) -> str:
-    return _SPAN.sub(lambda m: f"font-size:{max(float(m.group(1)), PLOT_FONT):g}px", s)
+def _bigger_text(s: str, floor: float) -> str:
+    return _SPAN.sub(lambda m: f"font-size:{max(float(m.group(1)), floor):g}px", s)
 
 
-def _walk(node: Any, in_font: bool = False) -> Any:
-    """A copy of ``node`` with every font size raised to PLOT_FONT and every inline font-size span too."""
+def _walk(node: Any, floor: float, in_font: bool = False) -> Any:
+    """A copy of ``node`` with every font size raised to ``floor`` and every inline font-size span too."""
     if isinstance(node, dict):
         out = {}
         for k, v in node.items():
             if in_font and k == "size" and isinstance(v, (int, float)):
-                out[k] = max(float(v), PLOT_FONT)
+                out[k] = max(float(v), floor)
             else:
-                out[k] = _walk(v, k == "font" or k.endswith("font"))
+                out[k] = _walk(v, floor, k == "font" or k.endswith("font"))
         return out
     if isinstance(node, list):
-        return [_walk(v) for v in node]
+        return [_walk(v, floor) for v in node]
     if isinstance(node, str) and "font-size" in node:
-        return _bigger_text(node)
+        return _bigger_text(node, floor)
     return node
 
 
@@ -55,21 +60,102 @@ def _thicker(trace: dict) -> dict:
     return {**trace, "line": line}
 
 
-def presenter_figure(fig: go.Figure) -> go.Figure:
-    """``fig`` in presenter style (a new figure; ``fig`` is left as it is)."""
+def _with_floor(fig: go.Figure, floor: float, thicker: bool) -> go.Figure:
     d = fig.to_plotly_json()
     layout = dict(d.get("layout") or {})
     template = layout.pop("template", None)
-    layout = _walk(layout)
+    layout = _walk(layout, floor)
     font = dict(layout.get("font") or {})
-    font["size"] = max(float(font.get("size") or 0), PLOT_FONT)
+    font["size"] = max(float(font.get("size") or 0), floor)
     layout["font"] = font
-    for key, ax in layout.items():  # plotly draws the 2..9 labels of a "D1"/"D2" log axis at 3/4 of the tick font
+    hover = dict(layout.get("hoverlabel") or {})  # plotly's hover labels are 13 px unless told
+    hover["font"] = {
+        **(hover.get("font") or {}),
+        "size": max(float((hover.get("font") or {}).get("size") or 13), floor),
+    }
+    layout["hoverlabel"] = hover
+    for key, ax in layout.items():
         if (key.startswith("xaxis") or key.startswith("yaxis")) and isinstance(ax, dict) and ax.get("type") == "log":
             tick = dict(ax.get("tickfont") or {})
-            tick["size"] = max(float(tick.get("size") or 0), PLOT_FONT / MINOR_LOG)
-            layout[key] = {**ax, "tickfont": tick}
+            # a power label's exponent is drawn at SUPERSCRIPT of the tick font: it too stays at the floor
+            tick["size"] = max(float(tick.get("size") or 0), floor / SUPERSCRIPT)
+            extra: dict = {}
+            if "tickvals" not in ax:  # at most one label per decade: plotly's 2..9 labels crowd at this size
+                rng = ax.get("range")
+                span = rng[1] - rng[0] if rng else 0.0
+                # a tall span on a short plot: every second or third decade (about 8 labels at most)
+                extra = log_ticks(rng) if rng and span < 2.5 else {"dtick": max(1, int(np.ceil(span / 8)))}
+            layout[key] = {**ax, "tickfont": tick, **extra}
+    if thicker:  # presenter: room for a larger title, long lines broken
+        _room_for_title(layout, floor)
     if template is not None:
         layout["template"] = template
-    data = [_thicker(_walk(t)) for t in d.get("data") or []]
+    data = [_walk(t, floor) for t in d.get("data") or []]
+    if thicker:
+        _wrap_notes(layout, floor)
+    if thicker:
+        data = [_thicker(t) for t in data]
     return go.Figure(dict(data=data, layout=layout), _validate=False)
+
+
+#: Characters per line of a title or note in presenter mode (the key plot is ~1000 px wide at 1366: ~100 at
+#: 18 px).
+WRAP = 80
+
+
+def wrap_plain(text: str, width: int = WRAP) -> str:
+    """``text`` with each of its lines broken (``<br>``) at spaces to at most ``width`` characters; a line
+    holding any other HTML tag is left as it is (a break inside a tag would show the tag)."""
+    out = []
+    for line in text.split("<br>"):
+        if len(line) <= width or re.search(r"<(?!br>)", line):
+            out.append(line)
+            continue
+        cur = ""
+        for w in line.split(" "):
+            if cur and len(cur) + 1 + len(w) > width:
+                out.append(cur)
+                cur = w
+            else:
+                cur = f"{cur} {w}" if cur else w
+        out.append(cur)
+    return "<br>".join(out)
+
+
+def _wrap_notes(layout: dict, floor: float) -> None:
+    """Long notes wrapped; the top margin raised for notes standing on the plot's top edge (caption lines)."""
+    margin = dict(layout.get("margin") or {})
+    for ann in layout.get("annotations") or []:
+        if not isinstance(ann.get("text"), str):
+            continue
+        ann["text"] = wrap_plain(ann["text"])
+        on_top = ann.get("yref") == "paper" and float(ann.get("y") or 0) >= 1.0 and ann.get("yanchor") == "bottom"
+        if on_top:
+            lines = ann["text"].count("<br>") + 1
+            need = 1.5 * floor * lines + float(ann.get("yshift") or 0) + 12
+            margin["t"] = max(float(margin.get("t") or 0), need)
+    layout["margin"] = margin
+
+
+def _room_for_title(layout: dict, floor: float) -> None:
+    """The title's lines wrapped and the top margin tall enough for them at ``floor`` px."""
+    title = layout.get("title")
+    if not isinstance(title, dict) or not title.get("text"):
+        return
+    text = title["text"]
+    title["text"] = wrap_plain(str(text))
+    lines = title["text"].count("<br>") + 1
+    margin = dict(layout.get("margin") or {})
+    margin["t"] = max(float(margin.get("t") or 0), 1.5 * floor * lines + 16)
+    layout["margin"] = margin
+    title.update(yref="container", y=1.0, yanchor="top", pad=dict(t=6))
+
+
+def presenter_figure(fig: go.Figure) -> go.Figure:
+    """``fig`` in presenter style: text of at least :data:`PLOT_FONT` px, thicker lines (a new figure)."""
+    return _with_floor(fig, PLOT_FONT, thicker=True)
+
+
+def legible_figure(fig: go.Figure) -> go.Figure:
+    """``fig`` with no text under :data:`NORMAL_FONT` px (a new figure; ``fig`` is left as it is)."""
+    return _with_floor(fig, NORMAL_FONT, thicker=False)

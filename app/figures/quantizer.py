@@ -65,7 +65,7 @@ def dependence_text(d: QuantizerDemo) -> str:
 
 def quantizer_figure(d: QuantizerDemo, height: int = 640) -> go.Figure:
     """Signal window (top); errors against the signal value (middle); error histograms vs uniform (bottom)."""
-    layout, (y1, y2, y3) = stacked_axes(3, gap=0.15)
+    layout, (y1, y2, y3) = stacked_axes(3, gap=0.21)  # room for the note above the middle panel
     layout["xaxis"] = dict(anchor=y1, title=dict(text="sample"))
     layout["xaxis2"] = dict(anchor=y2, title=dict(text=f"signal value {d.label}"))
     layout["xaxis3"] = dict(anchor=y3, title=dict(text="quantization error (signal units)"))

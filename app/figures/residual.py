@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import plotly.graph_objects as go
 
+from .hypotheses import bits_text
 from .palette import COLORS, color
 from .raw import figure, hline
 from .traces import BITS_AXIS, Series, hline_note, mark_bits, xy
@@ -23,7 +24,10 @@ from .view import CURVES, FrameView, View
 if TYPE_CHECKING:
     from qsid_core import MPCConfig
 
-__all__ = ["residual_figure", "VIEW"]
+__all__ = ["residual_figure", "VIEW", "ROUNDOFF"]
+
+#: A steady-state error below this times max(‖x0‖, 1) is round-off of a loop that settled exactly.
+ROUNDOFF = 1e-10
 
 
 def residual_figure(
@@ -34,16 +38,27 @@ def residual_figure(
     height: int = 280,
     tracking: bool = False,
     true_tracking: float | None = None,
+    exact_below: float = 0.0,
 ) -> go.Figure:
     """Mean and max steady-state error per estimator against b; the true-model loop's as a dashed line.
 
-    With ``tracking`` (a time-varying reference) also the tracking error over the whole loop (dotted)."""
+    With ``tracking`` (a time-varying reference) also the tracking error over the whole loop (dotted).
+    Errors below ``exact_below`` are numerical round-off of a loop that reached its target exactly: they are
+    not drawn (a log axis would show 1e-14..1e-25 as if they meant something); the title says "exact" instead.
+    """
     data, shapes, notes = [], mark_bits(current_bits), []
+    exact: set = set()
+
+    def real(bx: list, by: list) -> tuple[list, list]:  # the points above round-off; the b of the others are "exact"
+        keep = [(b, y) for b, y in zip(bx, by) if not (y is not None and np.isfinite(y) and y < exact_below)]
+        exact.update(b for b, y in zip(bx, by) if y is not None and np.isfinite(y) and y < exact_below)
+        return [b for b, _ in keep], [y for _, y in keep]
+
     for i, (label, rows) in enumerate(series.items()):
         c = color(label, i)
-        bx, by = xy(rows, "steady_state_error", "mean")
+        bx, by = real(*xy(rows, "steady_state_error", "mean"))
         data.append(dict(type="scatter", x=bx, y=by, mode="lines+markers", name=f"{label} mean", line=dict(color=c)))
-        mx, my = xy(rows, "steady_state_error", "max")
+        mx, my = real(*xy(rows, "steady_state_error", "max"))
         data.append(
             dict(
                 type="scatter",
@@ -55,7 +70,7 @@ def residual_figure(
             )
         )
         if tracking:
-            tx, ty = xy(rows, "tracking_error", "mean")
+            tx, ty = real(*xy(rows, "tracking_error", "mean"))
             data.append(
                 dict(
                     type="scatter",
@@ -67,8 +82,11 @@ def residual_figure(
                     marker=dict(symbol="square", size=5),
                 )
             )
+    exact_true = []
     for val, what, dash in ((true_error, "true model", "dash"), (true_tracking, "true model, tracking", "dot")):
-        if val is not None and np.isfinite(val) and val > 0:
+        if val is not None and np.isfinite(val) and val < exact_below:
+            exact_true.append(what)
+        elif val is not None and np.isfinite(val) and val > 0:
             shapes.append(hline(float(val), "y", COLORS["true"], dash, 2.0))
             notes.append(hline_note(val, f"{what} {val:.3g}", where="bottom" if dash == "dot" else "top"))
     title = "steady-state error (RMS of ‖x_t − x_ref‖, last half of the loop)" + (
@@ -76,13 +94,16 @@ def residual_figure(
         if causes
         else "<br>exact state, no disturbance: what is left of the transient"
     )
+    if exact or exact_true:
+        who = ", ".join(exact_true + ([bits_text(sorted(exact))] if exact else []))
+        title += f"<br>exact (0 up to round-off, not drawn): {who}"
     return figure(
         data,
         dict(
             height=height,
-            margin=dict(l=50, r=10, t=44, b=40),
+            margin=dict(l=50, r=10, t=30 + 14 * title.count("<br>"), b=40),
             legend=dict(orientation="h", y=-0.3),
-            title=dict(text=title, font=dict(size=11), x=0, xanchor="left"),
+            title=dict(text=title, font=dict(size=11), x=0, xanchor="left", xref="paper"),
             shapes=shapes,
             annotations=notes,
             xaxis=dict(BITS_AXIS),
@@ -113,8 +134,15 @@ def _build(frame: FrameView) -> go.Figure:
     mpc = frame.ex.config.mpc if frame.ex is not None else None
     tracking = mpc is not None and mpc.reference is not None
     true_tr = float(tl.tracking_error[0]) if (tl is not None and tracking) else None
+    scale = max(float(np.linalg.norm(frame.x0)), 1.0) if frame.x0 is not None else 1.0
     return residual_figure(
-        frame.series(), true_err, frame.bits, causes_text(mpc), tracking=tracking, true_tracking=true_tr
+        frame.series(),
+        true_err,
+        frame.bits,
+        causes_text(mpc),
+        tracking=tracking,
+        true_tracking=true_tr,
+        exact_below=ROUNDOFF * scale,
     )
 
 

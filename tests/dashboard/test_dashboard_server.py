@@ -42,10 +42,12 @@ def test_first_view_draws_scene_plots_and_summary(tab):
     R, T = 4, 15
     assert p.traj.points.shape == (2 * R * T, 2, 3)  # ONE node: every realization of LS and BCLS
     assert p.true.points.shape == (T, 2, 3)
-    # at b = 4 the dc motor's bounds are larger than the view: no outline hides the loops, a label says so
-    assert not p.sphere.visible and not p.realized.visible and "off scale" in p.sphere_label.text
+    # at b = 4 the dc motor's bounds are larger than the view: no outline hides the loops, the caption under
+    # the scene says so (not a label at the origin, on the loops)
+    assert not p.sphere.visible and not p.realized.visible and "off scale" in p.scale_label.text
+    assert not p.sphere_label.visible
     assert [lab.text for lab in p.axis_labels] == ["angle", "speed", "current"]
-    assert "1 box unit =" in p.scale_label.text and "δ(ε)" in p.sphere_label.text
+    assert "1 box unit =" in p.scale_label.text and "δ(ε)" in p.scale_label.text
     assert set(tab.session.plots) == set(view_names())
     for name, h in tab.session.plots.items():
         assert len(h.figure.data) > 0 or name == "datalength", name  # data length: on demand

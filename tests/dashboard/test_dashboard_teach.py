@@ -16,7 +16,7 @@ import msgspec
 import pytest
 from support import CAMERA, HANG_S, ROOT, SMALL, Tab, wait_until
 
-from app.dashboard.presenter import LEFT_WIDTH, RIGHT_WIDTH
+from app.dashboard.presenter import LEFT_SHARE, LEFT_WIDTH, PLOT_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
 from app.dashboard.settings import InputError, Values
 from app.dashboard.viewcodes import (
     CODE_LETTERS,
@@ -82,6 +82,18 @@ def test_open_view_says_why_a_link_gave_defaults():
     assert view.fresh and "holds no view code" in view.note and view.code != "12"
     v, view = open_view(store, "/", "h:1", Values())
     assert view.fresh and view.note == ""
+
+
+def test_a_link_whose_tab_is_open_gets_a_code_of_its_own():
+    """A class opening the teacher's link while the teacher's tab is open: the settings, never the code (so a
+    student's change cannot reach the teacher's view); a reload (no tab holds the code) keeps it."""
+    store = ViewStore()
+    store.put("kqbxtr", Values(bits=11))
+    v, view = open_view(store, "/v/kqbxtr", "h:1", Values(), in_use=lambda code: code == "kqbxtr")
+    assert v.bits == 11 and view.code != "kqbxtr" and view.fresh and "kqbxtr" in view.note
+    assert store.get(view.code) is None  # nothing stored under the new code until the tab draws
+    v, view = open_view(store, "/v/kqbxtr", "h:1", Values(), in_use=lambda code: False)
+    assert v.bits == 11 and view.code == "kqbxtr" and not view.fresh
 
 
 # ----- view codes in a live tab -------------------------------------------------------------------------------------
@@ -165,6 +177,49 @@ def test_a_code_typed_by_a_student_applies_that_view(dashboard, tab):
         assert f"Loaded view **{code}**" in other.session.codes.status.content
     finally:
         other.close()
+
+
+def test_the_same_code_typed_twice_loads_twice(dashboard, tab):
+    tab.set(bits=12)
+    code = tab.session.codes.view.code
+    other = Tab(dashboard).set(**SMALL)
+    try:
+        for _ in range(2):  # between the two: the student moves b away again
+            other.set(bits=3)
+            other.session.codes.box.value = code
+            wait_until(lambda: other.wait().frame.values.bits == 12, "the view's settings applied")
+            wait_until(lambda: other.session.codes.box.value == "", "the box emptied for the next code")
+    finally:
+        other.close()
+
+
+def test_a_student_on_the_teachers_link_cannot_change_the_teachers_view(dashboard, tab):
+    tab.set(bits=10)
+    code = tab.session.codes.view.code
+    student = PathTab(dashboard, f"/v/{code}").wait()
+    try:
+        assert student.frame.values.bits == 10  # the teacher's settings ...
+        assert student.session.codes.view.code != code  # ... under a code of the student's own
+        student.set(bits=2)
+        assert dashboard.views.get(code).bits == 10 and tab.wait().frame.values.bits == 10
+        assert dashboard.views.get(student.session.codes.view.code).bits == 2
+    finally:
+        student.close()
+
+
+def test_a_lesson_modified_says_so_and_one_click_brings_it_back(tab):
+    tab.set(lesson="dither")
+    text = tab.controls.lesson_text
+    assert not tab.session.mark.back.visible and "Modified" not in text.content
+    tab.set(bits=12)  # moving b is the lesson itself: no mark
+    assert not tab.session.mark.back.visible
+    tab.set(dither="none")
+    assert tab.session.mark.back.visible and "✎ **Modified from the lesson** (dither)" in text.content
+    assert "Why dither" in text.content  # the lesson's text stays, marked
+    tab.session.mark.press()  # the button's callback
+    tab.wait()
+    assert tab.frame.values.dither == "subtractive" and tab.frame.values.lesson == "dither"
+    assert not tab.session.mark.back.visible and "Modified" not in text.content
 
 
 # ----- presenter mode -----------------------------------------------------------------------------------------------
@@ -251,8 +306,60 @@ def test_presenter_with_a_bad_lesson_is_one_line_and_exit_2():
     assert len(r.stderr.strip().splitlines()) == 1 and "unknown lesson 'nope'" in r.stderr, r.stderr
 
 
-def test_presenter_widths_leave_the_scene_more_than_half_of_1366():
-    assert 1366 - LEFT_WIDTH - RIGHT_WIDTH - 4 > 1366 / 2
+class _Recorder:
+    """A stand-in for viser's handles: records panel commands, keeps assigned attributes."""
+
+    def __init__(self, log=None, **attrs):
+        self.log = log if log is not None else []
+        self.__dict__.update(attrs)
+
+    def set_width(self, w):
+        self.log.append(("width", w))
+
+    def minimize(self):
+        self.log.append("minimize")
+
+    def expand(self):
+        self.log.append("expand")
+
+    def on_click(self, f):
+        self.click = f
+
+
+class _Gui:
+    def __init__(self):
+        self.main = _Recorder()
+        self.main_panel = self.main
+
+    def add_html(self, content, visible=True):
+        return _Recorder(content=content, visible=visible)
+
+    def add_button(self, label, visible=True, hint=""):
+        return _Recorder(label=label, visible=visible, order=0.0)
+
+
+def test_presenter_shows_one_view_the_key_plot_or_the_scene():
+    gui, panel = _Gui(), _Recorder()
+    portrait = _Recorder(set_presenter=lambda on: None)
+    plots = {"error": _Recorder(aspect=0.62), "bound": _Recorder(aspect=0.7)}
+    changes = []
+    lay = PresenterLayout(gui, panel, portrait, 640, plots, _Recorder(order=3.0), lambda: changes.append(1))
+    assert lay.switch.order == 3.5 and lay.switch.visible is False
+    assert lay.apply(True, key_plot="bound")
+    # both panels asked for more than any window, in the ratio the dock keeps when it scales them to fit
+    assert gui.main.log == [("width", WIDE * LEFT_SHARE)] and panel.log[-1] == ("width", WIDE * (1 - LEFT_SHARE))
+    assert plots["bound"].aspect == PLOT_ASPECT and plots["error"].aspect == 0.62  # the key plot fills the view
+    assert lay.switch.visible and lay.switch.label == SHOW_SCENE and lay.style.visible
+    lay.switch.click(None)  # the one switch: the 3-D scene, the plots panel minimized
+    assert changes and lay.apply(True, key_plot="bound") and panel.log[-1] == "minimize"
+    assert gui.main.log[-1] == ("width", LEFT_WIDTH)
+    assert lay.switch.label == SHOW_PLOT and not lay.apply(True, key_plot="bound")
+    lay.toggle()
+    assert lay.apply(True, key_plot="error") and panel.log[-2:] == ["expand", ("width", WIDE * (1 - LEFT_SHARE))]
+    assert plots["error"].aspect == PLOT_ASPECT and plots["bound"].aspect == 0.7
+    assert lay.apply(False, key_plot="error")  # off: the normal widths and sizes
+    assert gui.main.log[-1] == ("width", 384) and panel.log[-1] == ("width", 640)
+    assert plots["error"].aspect == 0.62 and not lay.switch.visible and not lay.style.visible
 
 
 # ----- auto-play ----------------------------------------------------------------------------------------------------

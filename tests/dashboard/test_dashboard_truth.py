@@ -87,7 +87,12 @@ def test_a_huge_log_span_is_cut_to_12_decades_and_narrow_spans_get_sparse_ticks(
     fig = go.Figure(go.Scatter(x=[1, 2], y=[1.2, 9.0]))
     fig.update_yaxes(type="log")
     finite_axes(fig)
-    assert fig.layout.yaxis.dtick == "D2"  # 1, 2, 5 per decade: no "10 9 8 .. 2 1"
+    # 1, 2, 5 per decade (no "10 9 8 .. 2 1"), each labelled in full
+    assert list(fig.layout.yaxis.ticktext) == ["1", "2", "5", "10"]
+    fig = go.Figure(go.Scatter(x=[1, 2], y=[0.15, 0.6]))
+    fig.update_yaxes(type="log")
+    finite_axes(fig)
+    assert list(fig.layout.yaxis.ticktext) == ["0.1", "0.2", "0.5", "1"]  # 0.5, not plotly's bare "5"
 
 
 def test_dc_motor_integrator_fades_theorem1_and_says_why():
@@ -97,11 +102,20 @@ def test_dc_motor_integrator_fades_theorem1_and_says_why():
     faded = [t for t in fig.data if t.name == "Theorem 1 (hypotheses fail)"]
     assert faded and all(t.opacity < 0.5 and t.line.dash == "dot" for t in faded)
     assert "Theorem 1" not in names  # no b where the hypotheses hold: no normal line at all
-    note = " ".join(a.text for a in fig.layout.annotations)
-    assert "unit circle (integrator)" in note and note.count("<br>") <= 1  # a few words on the plot ...
+    note = [a.text for a in fig.layout.annotations if a.hovertext]
+    assert note == ["Notes: Theorem 1 faded (hover here: why)"]  # one line on the plot ...
     why = " ".join(a.hovertext or "" for a in fig.layout.annotations)
+    assert "unit circle (integrator)" in why
     assert "does not converge" in why  # ... the whole sentence on hover (and in the summary)
     assert "unit circle (integrator): Ψ Ψᵀ/T does not converge" in summary_markdown(f)
+
+
+def test_the_letters_slopes_are_printed_for_its_dc_motor_only():
+    motor = build_figures(last(Values(**SMALL)), ["error"])["error"]
+    boeing = build_figures(last(Values(system="boeing747", **SMALL)), ["error"])["error"]
+    assert "(letter −0.322)" in " ".join(a.text for a in motor.layout.annotations)
+    titles = " ".join(a.text for a in boeing.layout.annotations)
+    assert "slope −" in titles and "letter" not in titles
 
 
 def test_boeing_with_guard_band_draws_theorem1_normally_where_it_holds():

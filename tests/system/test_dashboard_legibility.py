@@ -1,0 +1,171 @@
+"""Every plot legible at the sizes a class uses: laptop, projector (presenter mode) and phone, in headless Chromium.
+
+For each mode of :data:`MODES` (1366×768 and 1920×1080, normal and presenter; 390×844 phone) the test opens
+every tab of the plots panel and every lesson, and measures the text boxes of every plotly figure shown
+(:data:`legibility.TEXT_BOXES`); :func:`legibility.judge` fails on overlapping text, text under the floor
+(10 px, 16 px in presenter mode), text cut off at a figure's edge, or a figure narrower than 340 px.
+
+Environment:
+
+* ``QSID_SCREENSHOT_DIR=assets``: the screenshots of the README and the docs are written there
+  (:data:`SHOTS`), so the pictures show what the test measured;
+* ``QSID_LEGIBILITY_REPORT=file.json``: every problem found, per mode and place, written there (the
+  baseline counts in docs/teaching.rst were made this way).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+from legibility import NORMAL_FLOOR, PRESENTER_FLOOR, TEXT_BOXES, Problem, judge, summary
+from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
+from test_dashboard_teach_browser import ACTIVE_TAB, _dismiss_notices
+
+from app.dashboard.lessons import LESSONS, NONE
+from app.figures.registry import TABS, VIEWS
+
+pytestmark = pytest.mark.browser
+
+#: (name, viewport, presenter mode)
+MODES = (
+    ("laptop", (1366, 768), False),
+    ("laptop-presenter", (1366, 768), True),
+    ("hd", (1920, 1080), False),
+    ("hd-presenter", (1920, 1080), True),
+    ("phone", (390, 844), False),
+)
+#: Screenshots written with QSID_SCREENSHOT_DIR: (mode, place) -> file name.
+SHOTS = {
+    ("hd", "tab:Identification"): "dashboard.png",
+    ("laptop", "lesson:dither"): "teach-dither-normal.png",
+    ("hd-presenter", "lesson:fig1"): "teach-fig1-presenter.png",
+    ("hd-presenter", "lesson:bound"): "teach-bound-presenter.png",
+    ("laptop-presenter", "lesson:fig1"): "teach-fig1-laptop-presenter.png",
+    ("phone", "tab:Identification"): "phone-identification.png",
+    ("phone", "lesson:bits-needed"): "phone-bits-needed.png",
+}
+# (the per-tab pictures view-*.png are test_dashboard_browser.py's: it computes the data-length study and pins
+# a result first)
+
+#: How long (ms) a tab may take to come forward before the test says it cannot be reached (the page is idle by
+#: then: every change was drawn; this is not a speed target).
+REACH_MS = 20_000
+
+
+def _tab_shown(page, session, tab: str, click: bool) -> bool:
+    """Bring plots group ``tab`` forward (``click``: as the panel's "show" dropdown does) or wait for a lesson
+    to; False if the page does not show it."""
+    from playwright.sync_api import Error
+
+    try:
+        if click:
+            session.views.show(tab)
+        page.wait_for_function(f"({ACTIVE_TAB})() === {tab!r}", timeout=REACH_MS)
+    except Error:
+        return False
+    return True
+
+
+def _measure(page, session, mode, place, shots, found, reached: bool = True) -> None:
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    page.wait_for_timeout(600)  # plotly lays the new figures out
+    name, size, presenter = mode
+    figures = page.evaluate(TEXT_BOXES)
+    problems = judge(figures, PRESENTER_FLOOR if presenter else NORMAL_FLOOR)
+    if not reached:
+        problems.append(Problem("none", place, "its plots tab cannot be brought forward"))
+    if not figures:
+        problems.append(Problem("none", place, "no plot visible"))
+    found[name][place] = problems
+    if shots and (name, place) in SHOTS:
+        _dismiss_notices(page)
+        page.wait_for_timeout(300)
+        page.screenshot(path=os.path.join(shots, SHOTS[name, place]))
+
+
+def _walk(page, session, mode, shots, found) -> None:
+    name, size, presenter = mode
+    page.set_viewport_size({"width": size[0], "height": size[1]})
+    session.controls["presenter"].value = presenter
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    found[name] = {}
+    session.controls["lesson"].value = NONE  # each lesson below is then a change (and brings its tab forward)
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    for les in LESSONS:
+        session.controls["lesson"].value = les.name
+        tab = next(v.tab for v in VIEWS if v.name == les.plot)
+        reached = _tab_shown(page, session, tab, click=False)
+        _measure(page, session, mode, f"lesson:{les.name}", shots, found, reached)
+    session.controls["lesson"].value = LESSONS[0].name
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    for tab in TABS:
+        reached = _tab_shown(page, session, tab, click=True)
+        _measure(page, session, mode, f"tab:{tab}", shots, found, reached)
+
+
+def _write_report(path: str, found: dict) -> None:
+    counts = {name: summary([p for ps in places.values() for p in ps]) for name, places in found.items()}
+    text = {name: {place: [str(p) for p in ps] for place, ps in places.items()} for name, places in found.items()}
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump({"counts": counts, "problems": text}, f, indent=1, ensure_ascii=False)
+
+
+@pytest.fixture(scope="module")
+def measured() -> dict:
+    """Every mode walked once in one browser and one server (the lessons' results are computed once):
+    mode name -> place -> problems."""
+    _require_browser()
+    from playwright.sync_api import sync_playwright
+
+    from app.dashboard import DashboardApp
+
+    shots = os.environ.get("QSID_SCREENSHOT_DIR")
+    report = os.environ.get("QSID_LEGIBILITY_REPORT")
+    only = os.environ.get("QSID_LEGIBILITY_MODES")  # e.g. "phone,hd-presenter": a subset while working
+    modes = [m for m in MODES if not only or m[0] in only.split(",")]
+    found: dict = {}
+    app = DashboardApp(host="127.0.0.1", port=0, workers=2, cache_bytes=1024 * 2**20)
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+            try:
+                ctx = browser.new_context(viewport={"width": 1366, "height": 768})
+                page = ctx.new_page()
+                page.goto(app.url, timeout=TIMEOUT_MS)
+                session = app.wait_for_sessions(1, timeout=TIMEOUT_MS / 1000)[0]
+                page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
+                page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 2", timeout=TIMEOUT_MS)
+                _dismiss_notices(page)
+                for mode in modes:
+                    try:
+                        _walk(page, session, mode, shots, found)
+                    except Exception as exc:  # this mode fails on it; the other modes are still measured
+                        found.setdefault(mode[0], {})["walk"] = [Problem("none", mode[0], f"walk failed: {exc!r}")]
+            finally:
+                browser.close()
+    finally:
+        app.stop()
+        if report:  # also what was measured before a failure
+            _write_report(report, found)
+    return found
+
+
+#: The phone layout (issue 29, item 2) is not built yet: at 390 × 844 no plots tab can be brought forward and
+#: the plots drawn in the sheet are ~250 px wide. Strict: the day it passes, this mark must go.
+PHONE_TODO = pytest.mark.xfail(strict=True, reason="no phone layout yet (issue 29, item 2)")
+
+
+#: Presenter mode, not yet clean: multi-line titles stand out of the figure's top edge (16 texts at 1920 × 1080)
+#: and, at 1366 × 768, some tick labels of the views below the key plot still touch (24 pairs).
+PRESENTER_TODO = pytest.mark.xfail(strict=False, reason="presenter: titles cut off at the top (issue 29, item 3)")
+_TODO = {"phone": PHONE_TODO, "laptop-presenter": PRESENTER_TODO, "hd-presenter": PRESENTER_TODO}
+
+
+@pytest.mark.parametrize("mode", [pytest.param(m[0], marks=_TODO[m[0]]) if m[0] in _TODO else m[0] for m in MODES])
+def test_every_plot_is_legible(measured, mode):
+    if mode not in measured:
+        pytest.skip(f"{mode} not in QSID_LEGIBILITY_MODES")
+    bad = {place: [str(p) for p in ps] for place, ps in measured[mode].items() if ps}
+    assert not bad, json.dumps(bad, indent=1, ensure_ascii=False)[:6000]
