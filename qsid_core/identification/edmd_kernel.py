@@ -357,14 +357,11 @@ def accumulate_lifted(
     m = Uin.shape[2]
     J, L = lo_q.shape[0], E.shape[0]
     p = L + m
-    PP, XP = np.zeros((J, p, p)), np.zeros((J, L, p))
-    PPu, XPu = np.zeros((J, p, p)), np.zeros((J, L, p))
-    over = np.zeros(J, dtype=np.int64)
+    XP, XPu, over = np.zeros((J, L, p)), np.zeros((J, L, p)), np.zeros(J, dtype=np.int64)
     quant = np.asarray(eps[0] > 0, dtype=np.bool_)
     E64, GE64 = np.ascontiguousarray(E, dtype=np.int64), np.ascontiguousarray(GE, dtype=np.int64)
     Bc = np.ascontiguousarray(Bc, dtype=float)
-    G = GE.shape[0]
-    SGp, SGu = np.zeros((J, G)), np.zeros((J, G))
+    SGp, SGu = np.zeros((J, GE.shape[0])), np.zeros((J, GE.shape[0]))
     XUp, XUu, UU = np.zeros((J, L, m)), np.zeros((J, L, m)), np.zeros((J, m, m))
     kern = _specialised(E64, GE64, Bc.shape[0] - 1, m, bool(unbiased)) or _kernel
     for r0 in range(0, R, RUNS_PER_BLOCK):
@@ -382,15 +379,20 @@ def accumulate_lifted(
             _add_cross(Zp, L, XP[j])
             if unbiased:
                 _add_cross(Zu, L, XPu[j])
-    T = R * (S1 - 1)
-    for PPj, SG, XU, UUj in (
-        (PP, SGp, XUp, UU),
-        (PPu, SGu, XUu, UU - T * np.einsum("ja,ab->jab", eps[:, n:] ** 2 / 12.0, np.eye(m))),
-    ):
-        PPj[:, :L, :L] = SG[:, idx]
-        PPj[:, :L, L:] = XU
-        PPj[:, L:, :L] = XU.transpose(0, 2, 1)
-        PPj[:, L:, L:] = UUj
+    PP = _gram(SGp, XUp, UU, idx)
     if not unbiased:
-        PPu[:] = 0.0
-    return PP, XP, PPu, XPu, over
+        return PP, XP, np.zeros_like(PP), XPu, over
+    UUu = UU - R * (S1 - 1) * np.einsum("ja,ab->jab", eps[:, n:] ** 2 / 12.0, np.eye(m))
+    return PP, XP, _gram(SGu, XUu, UUu, idx), XPu, over
+
+
+def _gram(SG: np.ndarray, XU: np.ndarray, UU: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """The Gram matrices, shape (J, L + m, L + m), from their blocks: the summed Gram monomials ``SG`` (J, G)
+    placed by ``idx`` (L, L), features times inputs ``XU`` (J, L, m) and inputs times inputs ``UU`` (J, m, m)."""
+    L = idx.shape[0]
+    PP = np.empty((XU.shape[0], L + XU.shape[2], L + XU.shape[2]))
+    PP[:, :L, :L] = SG[:, idx]
+    PP[:, :L, L:] = XU
+    PP[:, L:, :L] = XU.transpose(0, 2, 1)
+    PP[:, L:, L:] = UU
+    return PP

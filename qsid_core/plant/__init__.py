@@ -15,7 +15,6 @@ from .interop import (
 from .lti import MAX_INPUTS, MAX_STATES, LTISystem, UncontrollableWarning
 from .nonlinear import (
     NONLINEAR_PRESETS,
-    NonlinearDataset,
     NonlinearSystem,
     VectorField,
     get_nonlinear,
@@ -24,8 +23,8 @@ from .nonlinear import (
     load_nonlinear,
     nonlinear_from_dict,
     rk4_step,
-    simulate_nonlinear,
 )
+from .nonlinear_data import NonlinearDataset, simulate_nonlinear
 from .systems import PRESETS, boeing747, dc_motor, dc_motor_physical, get_system, load_system, system_from_dict
 
 __all__ = [

@@ -24,6 +24,7 @@ from ..errors import ConfigError, IdentificationError, MPCFailure, check_choice,
 from ..identification import (
     ESTIMATORS,
     KoopmanModel,
+    LiftedMoments,
     Lifting,
     edmd,
     exact_lifted_moments,
@@ -199,6 +200,70 @@ def _stats(v: list[float]) -> dict[str, float]:
     return {"mean": float(a.mean()), "std": float(a.std())}
 
 
+def _record(
+    acc: dict[str, list[Any]],
+    mom: LiftedMoments,
+    estimator: str,
+    lifting: Lifting,
+    ref: KoopmanModel,
+    held: NonlinearDataset,
+    horizon: int,
+) -> None:
+    """Add one realization at one word length to ``acc``: its model (None when identification failed), the
+    lifted errors against ``ref``, the prediction error on ``held``, the overload fraction, ``eps`` and notes."""
+    acc["over"].append(mom.overload_fraction)
+    acc["eps"].append(mom.eps)
+    try:
+        model: KoopmanModel | None = edmd(mom, lifting.C, estimator)
+    except IdentificationError as exc:
+        model = None
+        acc["notes"].append(str(exc))
+    if model is None:
+        for k in ("G", "A", "B", "pred"):
+            acc[k].append(float("nan"))
+    else:
+        eG, eA, eB = lifted_error(model, ref)
+        acc["G"].append(eG)
+        acc["A"].append(eA)
+        acc["B"].append(eB)
+        acc["pred"].append(prediction_error(model, lifting, held, horizon))
+        acc["fallback"].append(model.fallback)
+        if model.note:
+            acc["notes"].append(model.note)
+    acc["models"].append(model)
+
+
+def _row(
+    cfg: KoopmanConfig, b: int, acc: dict[str, list[Any]], lifting: Lifting, system: NonlinearSystem
+) -> dict[str, Any]:
+    """The result row of word length ``b`` from its realizations ``acc``, with the closed loops when ``cfg.mpc``."""
+    n = system.n
+    row: dict[str, Any] = {
+        "bits": b,
+        "eps_x": np.asarray(acc["eps"][0][:n]).tolist(),
+        "eps_u": np.asarray(acc["eps"][0][n:]).tolist(),
+        "err_G": _stats(acc["G"]),
+        "err_A": _stats(acc["A"]),
+        "err_B": _stats(acc["B"]),
+        "prediction_error": _stats(acc["pred"]),
+        "overload_fraction": float(np.mean(acc["over"])),
+        "bcls_fallbacks": int(sum(acc["fallback"])),
+        "ident_failures": int(sum(m is None for m in acc["models"])),
+        "realizations": cfg.realizations,
+        "stabilized_fraction": None,
+        "closed_loop_outcomes": None,
+        "notes": sorted(set(acc["notes"])),
+    }
+    if cfg.mpc is not None:
+        try:
+            loops = run_koopman_loops(acc["models"], lifting, system, cfg.mpc, cfg.radius)
+        except MPCFailure as exc:  # pragma: no cover - run_koopman_loops records failures per loop
+            raise ConfigError(str(exc)) from None
+        row["stabilized_fraction"] = loops.converged_fraction
+        row["closed_loop_outcomes"] = loops.counts()
+    return row
+
+
 def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     """Run the sweep (see the module docstring).
 
@@ -227,56 +292,9 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     unbiased = cfg.estimator == "bcls"
     for seq in np.random.SeedSequence(cfg.dither_seed).spawn(cfg.realizations):
         moms = quantized_lifted_moments(data, lifting, cfg.bits, cfg.quantizer, seed=seq, unbiased=unbiased)
-        for j, mom in enumerate(moms):
-            acc = per[j]
-            acc["over"].append(mom.overload_fraction)
-            acc["eps"].append(mom.eps)
-            try:
-                model: KoopmanModel | None = edmd(mom, lifting.C, cfg.estimator)
-            except IdentificationError as exc:
-                model = None
-                acc["notes"].append(str(exc))
-            if model is None:
-                for k in ("G", "A", "B", "pred"):
-                    acc[k].append(float("nan"))
-            else:
-                eG, eA, eB = lifted_error(model, ref)
-                acc["G"].append(eG)
-                acc["A"].append(eA)
-                acc["B"].append(eB)
-                acc["pred"].append(prediction_error(model, lifting, held, horizon))
-                acc["fallback"].append(model.fallback)
-                if model.note:
-                    acc["notes"].append(model.note)
-            acc["models"].append(model)
-    rows = []
-    n = system.n
-    for j, b in enumerate(cfg.bits):
-        acc = per[j]
-        row: dict[str, Any] = {
-            "bits": b,
-            "eps_x": np.asarray(acc["eps"][0][:n]).tolist(),
-            "eps_u": np.asarray(acc["eps"][0][n:]).tolist(),
-            "err_G": _stats(acc["G"]),
-            "err_A": _stats(acc["A"]),
-            "err_B": _stats(acc["B"]),
-            "prediction_error": _stats(acc["pred"]),
-            "overload_fraction": float(np.mean(acc["over"])),
-            "bcls_fallbacks": int(sum(acc["fallback"])),
-            "ident_failures": int(sum(m is None for m in acc["models"])),
-            "realizations": cfg.realizations,
-            "stabilized_fraction": None,
-            "closed_loop_outcomes": None,
-            "notes": sorted(set(acc["notes"])),
-        }
-        if cfg.mpc is not None:
-            try:
-                loops = run_koopman_loops(acc["models"], lifting, system, cfg.mpc, cfg.radius)
-            except MPCFailure as exc:  # pragma: no cover - run_koopman_loops records failures per loop
-                raise ConfigError(str(exc)) from None
-            row["stabilized_fraction"] = loops.converged_fraction
-            row["closed_loop_outcomes"] = loops.counts()
-        rows.append(row)
+        for acc, mom in zip(per, moms, strict=True):
+            _record(acc, mom, cfg.estimator, lifting, ref, held, horizon)
+    rows = [_row(cfg, b, acc, lifting, system) for b, acc in zip(cfg.bits, per, strict=True)]
     return KoopmanResult(
         cfg,
         rows,
