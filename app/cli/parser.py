@@ -218,11 +218,19 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
     """Options shared by ``sweep`` and ``reproduce`` (defaults from ``base``: the engine's or the letter's)."""
     e = engine()
     base = e.sweep if base is None else base
-    mpc = e.mpc
     add_data_options(p, base)
     add_setting_options(p.add_argument_group(_WHATIF), _WHATIF, base)
     m = p.add_argument_group(_MPC)
     add_setting_options(m, _MPC, base)
+    _add_mpc_problem_options(m, e.mpc)
+    _add_mpc_weight_options(m)
+    _add_loop_options(p.add_argument_group(_LOOP), base)
+    add_running_options(p)
+
+
+def _add_mpc_problem_options(m: argparse._ArgumentGroup, mpc: Any) -> None:
+    """The MPC problem's bounds, start, reference and terminal ingredients in group ``m`` (defaults from the
+    engine's ``MPCConfig`` ``mpc``)."""
     m.add_argument(
         "--u-max",
         type=_floats_type,
@@ -269,6 +277,10 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
         metavar="X",
         help="terminal box |x_N,i| <= X_i on the last predicted state, one value or one per state (default: none)",
     )
+
+
+def _add_mpc_weight_options(m: argparse._ArgumentGroup) -> None:
+    """The MPC's state and input weights and the rho of the ultimate bound in group ``m``."""
     m.add_argument(
         "--Q",
         dest="q_diag",
@@ -292,7 +304,10 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
         metavar="X",
         help="rho of the ultimate bound, > 0 (default: the level-set ball through x0)",
     )
-    loop = p.add_argument_group(_LOOP)
+
+
+def _add_loop_options(loop: argparse._ArgumentGroup, base: SweepConfig) -> None:
+    """The closed loop's process noise and state feedback quantizer, then the loop settings, in group ``loop``."""
     loop.add_argument(
         "--disturbance",
         type=_disturbance_spec,
@@ -310,7 +325,6 @@ def add_run_options(p: argparse.ArgumentParser, base: SweepConfig | None = None)
         "training data's range (default: none, exact state)",
     )
     add_setting_options(loop, _LOOP, base)
-    add_running_options(p)
 
 
 def add_running_options(p: argparse.ArgumentParser) -> None:

@@ -4,8 +4,9 @@ Everything the dashboard shows is computed by :mod:`qsid_core`; this module only
 turns what a person set in the panel (:class:`Values`, one field per setting of the
 settings table :data:`app.settings.SETTINGS`) into the engine's
 :class:`~qsid_core.studies.experiment.SweepConfig` / :class:`~qsid_core.control.mpc.MPCConfig`,
-and explains bad input in plain words (:class:`InputError`). Defaults and
-choices are the engine's (``SweepConfig()``, ``MPCConfig()``, ``QuantizerSpec()``,
+and explains bad input in plain words (:class:`InputError`); typed text (matrices,
+vectors, ranges, boxes) is read by :mod:`app.dashboard.typed`. Defaults and choices
+are the engine's (``SweepConfig()``, ``MPCConfig()``, ``QuantizerSpec()``,
 ``ESTIMATORS``); only the dashboard's own choices (interactive data size, the
 b drawn first, both estimators side by side) are set here.
 """
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, cast
 
@@ -29,12 +30,23 @@ from qsid_core import (
     QsidError,
     QuantizerSpec,
     SweepConfig,
-    SystemDefinitionError,
     UncontrollableWarning,
     get_system,
 )
 from qsid_core.identification import ESTIMATORS
-from qsid_core.validate import parse_matrix
+
+from .typed import (
+    LOG_MAX,
+    LOG_MIN,
+    fixed_range,
+    format_weights,
+    log_from_weights,
+    matrix_text,
+    panel_matrix,
+    parse_vector,
+    state_box,
+    weights_from_log,
+)
 
 __all__ = [
     "ALL_BITS",
@@ -76,14 +88,10 @@ SYSTEM_CHOICES = (*PRESETS, "custom")
 LABELS = {e: e.upper() for e in ESTIMATORS}
 #: Identification choices -> engine estimators: each estimator alone, then all side by side.
 IDENT_CHOICES = {**{LABELS[e]: (e,) for e in ESTIMATORS}, " + ".join(LABELS[e] for e in ESTIMATORS): ESTIMATORS}
-#: Range of the log10 weight sliders.
-LOG_MIN, LOG_MAX = -3.0, 3.0
 #: The lesson selector's "no lesson" entry (lessons: :mod:`app.dashboard.lessons`).
 NO_LESSON = "(none)"
 #: Largest custom system the dashboard accepts (3-D view choices grow as n^3).
 MAX_CUSTOM_STATES = 12
-#: Largest |lo|, |hi| of a typed fixed quantizer range (beyond it eps overflows or loses all precision).
-FIXED_RANGE_MAX = 1e12
 
 
 #: Settings that only change what is drawn from results already computed for the others: a change of these
@@ -141,15 +149,6 @@ class SystemChoice:
     notes: tuple = ()
 
 
-def _fmt(x: float) -> str:
-    return f"{x:.6g}"
-
-
-def matrix_text(M: np.ndarray) -> str:
-    """A matrix as the panel shows it: one row per line, entries separated by spaces."""
-    return "\n".join(" ".join(_fmt(float(v)) for v in row) for row in np.atleast_2d(M))
-
-
 _T = TypeVar("_T")
 
 
@@ -163,33 +162,6 @@ def _build_quietly(fn: Callable[[], _T]) -> tuple[_T, tuple[str, ...]]:
         if issubclass(w.category, UncontrollableWarning):
             notes.append(f"{w.message}. Identification still works.")
     return out, tuple(notes)
-
-
-#: Smallest magnitude of a nonzero typed entry: products of two stay normal floating-point numbers.
-MIN_ENTRY = 1e-150
-
-
-def panel_matrix(text: str, name: str) -> np.ndarray:
-    """A matrix typed in the panel (see :func:`qsid_core.validate.parse_matrix`), stricter than a file:
-    plain ASCII only (no other scripts' digits read as numbers) and no nonzero entry below
-    :data:`MIN_ENTRY` in magnitude (subnormal numbers break the Riccati and least-squares solvers).
-
-    Raises
-    ------
-    QsidError
-        Naming the matrix and the entry.
-    """
-    if isinstance(text, str) and not text.isascii():
-        bad = next(ch for ch in text if not ch.isascii())
-        raise SystemDefinitionError(f"{name}: {bad!r} is not allowed; type numbers with the digits 0-9 (plain ASCII)")
-    M = parse_matrix(text, name)
-    tiny = (M != 0) & (np.abs(M) < MIN_ENTRY)
-    if np.any(tiny):
-        raise SystemDefinitionError(
-            f"{name}: the entry {M[tiny][0]:g} is too close to zero for the numerics; "
-            f"write 0 or a magnitude of at least {MIN_ENTRY:g}"
-        )
-    return M
 
 
 def resolve_system(v: Values) -> SystemChoice:
@@ -227,80 +199,13 @@ def resolve_system(v: Values) -> SystemChoice:
     return SystemChoice(sysm, notes)
 
 
-def parse_vector(text: str, name: str, k: int, what: str = "") -> tuple[float, ...] | None:
-    """``k`` numbers typed as ``"1, 0, 0"`` (spaces or commas); empty text -> None (use the default)."""
-    s = (text or "").strip()
-    if not s:
-        return None
-    return _numbers(s, name, k, what)
-
-
-def _numbers(s: str, name: str, k: int, what: str) -> tuple[float, ...]:
-    """The ``k`` numbers of the non-empty stripped text ``s`` (see :func:`parse_vector`)."""
-    try:
-        if s.startswith("[") and not s[1:].lstrip().startswith("["):  # a flat JSON list: one row
-            s = f"[{s}]"
-        arr = panel_matrix(s.replace(";", " ").replace("\n", " "), name).reshape(-1)
-    except QsidError as exc:
-        raise InputError(str(exc)) from None
-    if arr.size != k:
-        raise InputError(f"{name} needs {k} numbers{what}; got {arr.size}")
-    return tuple(float(x) for x in arr)
-
-
-def _fixed_range(text: str, n: int, m: int) -> tuple:
-    s = (text or "").strip()
-    if not s:
-        raise InputError("fixed range: type 'lo, hi' (one range for every channel) or one 'lo hi' row per channel")
-    try:
-        M = parse_matrix(s, "fixed range")
-    except QsidError as exc:
-        raise InputError(str(exc)) from None
-    if M.size == 2:
-        pairs = M.reshape(1, 2)
-    elif M.shape == (n + m, 2):
-        pairs = M
-    else:
-        raise InputError(
-            f"fixed range: give one 'lo, hi' pair, or {n + m} rows 'lo hi' (states then inputs); got shape {M.shape}"
-        )
-    if not np.all(np.isfinite(pairs)) or np.abs(pairs).max() > FIXED_RANGE_MAX:
-        raise InputError(f"fixed range: every number must lie between -{FIXED_RANGE_MAX:g} and {FIXED_RANGE_MAX:g}")
-    if np.any(pairs[:, 1] <= pairs[:, 0]):
-        raise InputError("fixed range: every range needs lo < hi")
-    if np.any(pairs[:, 1] - pairs[:, 0] < 1e-9 * np.maximum(1.0, np.abs(pairs).max(axis=1))):
-        raise InputError(
-            "fixed range: a range this narrow leaves no room for 2^b cells "
-            "(hi - lo must be at least 1e-9 × max(1, |lo|, |hi|))"
-        )
-    return tuple(map(tuple, pairs.tolist()))
-
-
 def quantizer_spec(v: Values, n: int, m: int) -> QuantizerSpec:
     """The quantizer of the panel (dither, range mode, guard band, fixed range)."""
-    fixed = _fixed_range(v.fixed_range, n, m) if v.range_mode == "fixed" else None
+    fixed = fixed_range(v.fixed_range, n, m) if v.range_mode == "fixed" else None
     try:
         return QuantizerSpec(dither=v.dither, range_mode=v.range_mode, guard=bool(v.guard), fixed_range=fixed)
     except QsidError as exc:
         raise InputError(str(exc)) from None
-
-
-def weights_from_log(logs: Iterable[float]) -> tuple[float, ...]:
-    """Slider positions (log10 of the weight) -> weights, rounded to 4 significant digits."""
-    return tuple(float(f"{10.0 ** float(x):.4g}") for x in logs)
-
-
-def log_from_weights(diag: Iterable[float]) -> tuple[float, ...]:
-    """Weights -> slider positions (log10, clipped to the slider range, 0 weights at the bottom)."""
-    out = []
-    for w in np.asarray(diag, dtype=float).reshape(-1):
-        x = np.log10(w) if w > 0 else LOG_MIN
-        out.append(round(float(np.clip(x, LOG_MIN, LOG_MAX)), 2))
-    return tuple(out)
-
-
-def format_weights(name: str, diag: Iterable[float]) -> str:
-    return f"{name} = diag({', '.join(f'{w:.3g}' for w in diag)})"
 
 
 def estimators(choice: str) -> tuple:
@@ -308,18 +213,6 @@ def estimators(choice: str) -> tuple:
     if choice not in IDENT_CHOICES:
         raise InputError(f"identification must be one of {', '.join(IDENT_CHOICES)}; got {choice!r}")
     return IDENT_CHOICES[choice]
-
-
-def _state_box(text: str, n: int, names: str, what: str = "x_max") -> tuple[float, ...] | None:
-    """A state box typed in the panel: one bound for every state or one per state ("" = no box)."""
-    s = (text or "").strip()
-    if not s:
-        return None
-    k = len(s.replace(",", " ").replace(";", " ").split())
-    box = _numbers(s, what, 1 if k == 1 else n, f" (one for every state, or one per state: {names})")
-    if not all(np.isfinite(x) and x > 0 for x in box):
-        raise InputError(f"{what}: every bound must be a positive number; got {s!r}")
-    return box if len(box) == n else box * n
 
 
 def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
@@ -330,8 +223,8 @@ def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
     names = ", ".join(system.state_names)
     x0 = parse_vector(v.x0, "x0", n, f" (one per state: {names})")
     x_ref = parse_vector(v.x_ref, "x_ref", n, f" (one per state: {names})")
-    x_max = _state_box(v.x_max, n, names)
-    xf_max = _state_box(v.terminal_box, n, names, "terminal box")
+    x_max = state_box(v.x_max, n, names)
+    xf_max = state_box(v.terminal_box, n, names, "terminal box")
     qf_text = (v.qf or "").strip()
     if qf_text.lower() in ("", "dare"):
         Qf = None
