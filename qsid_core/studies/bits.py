@@ -17,8 +17,10 @@ mean closed-loop cost to the MPC built on the true model. From those rows:
 
     * for **Theorem 1's model** (its large-data limit of LS at that b) when the test
       holds with the margin :data:`CERTIFY_TOLERANCE` (``(1 + tol) ||.|| < r_C``) *and* its
-      hypothesis is checked on the data: the measured mean relative errors of A^ and
-      B^ are both within ``CERTIFY_TOLERANCE`` (25 %) of Theorem 1's (in finite data,
+      hypotheses are checked on the data: the data's second moments have a limit and the
+      dither a known error variance (:mod:`qsid_core.studies.assumptions`), and the
+      measured mean relative errors of A^ and B^ are both within ``CERTIFY_TOLERANCE``
+      (25 %) of Theorem 1's (in finite data,
       where the fluctuation dominates, or with BCLS, they are not, and a certificate
       for a model the data do not give would be no certificate); or
     * for **every loop's own model**: the test holds for each realization's model and
@@ -424,6 +426,11 @@ def answer_from_rows(
 def _theorem1_misfit(row) -> str:
     """Empty when the measured mean errors of A^ and B^ are within CERTIFY_TOLERANCE of Theorem 1's, else why."""
     why = []
+    hyp = row.get("assumptions") or {}
+    if hyp.get("stationary") is False:
+        why.append(f"Psi Psi^T / T has no limit (spectral radius of A {hyp.get('spectral_radius', float('nan')):.6g})")
+    if hyp.get("known_noise") is False:
+        why.append("the dither gives no signal-independent error variance")
     for blk in ("A", "B"):
         meas = (row.get(f"err_{blk}") or {}).get("mean")
         pred = row.get(f"err_{blk}_theory")
