@@ -29,7 +29,7 @@ from ..quantization.moments import prepare, quantized_moments
 from ..quantization.quantize import ERROR_VARIANCE, QuantizerSpec
 from .config import parse_bits
 
-__all__ = ["RecordedResult", "dataset_from_arrays", "load_recorded", "identify_recorded"]
+__all__ = ["RecordedResult", "dataset_from_arrays", "load_recorded", "identify_recorded", "theorem1_on_data"]
 
 
 def dataset_from_arrays(x: ArrayLike, u: ArrayLike) -> Dataset:
