@@ -359,8 +359,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.system not in STARTING_SYSTEMS:  # a plant file: the panel's custom system
             size = PAPER_SCALE if args.scale == "paper" else INTERACTIVE
             settings, notes = values_for_plant_file(args.system, settings or Values().replace(**size))
-            for note in notes:
-                print(f"qsid-dashboard: note: {note}", file=sys.stderr, flush=True)
+            for msg in notes:
+                print(f"qsid-dashboard: note: {msg}", file=sys.stderr, flush=True)
             args.system = STARTING_SYSTEMS[0]  # unused: the settings say which system
         warning = check_address(args.host, args.port)
     except QsidError as exc:

@@ -136,7 +136,8 @@ def values_for_plant_file(path: str | Path, defaults: Values) -> tuple[Values, l
         )
     rows = lambda M: "; ".join(" ".join(repr(float(x)) for x in row) for row in M)  # noqa: E731
     notes = []
-    for name, W in (("Q", sysm.Q), ("R", sysm.R)):
+    Q, R = np.asarray(sysm.Q, dtype=float), np.asarray(sysm.R, dtype=float)
+    for name, W in (("Q", Q), ("R", R)):
         d = np.diag(W)
         if np.any(W != np.diag(d)):
             notes.append(f"{name} of {path} is not diagonal: the panel keeps its diagonal")
@@ -149,9 +150,9 @@ def values_for_plant_file(path: str | Path, defaults: Values) -> tuple[Values, l
         system="custom",
         a_text=rows(sysm.A),
         b_text=rows(sysm.B),
-        x0=", ".join(repr(float(x)) for x in sysm.x0),
-        log_q=log_from_weights(np.diag(sysm.Q)),
-        log_r=log_from_weights(np.diag(sysm.R)),
+        x0=", ".join(repr(float(x)) for x in np.asarray(sysm.x0, dtype=float)),
+        log_q=log_from_weights(np.diag(Q)),
+        log_r=log_from_weights(np.diag(R)),
     )
     resolve_system(v)  # the panel's own checks, now rather than in the first tab
     return v, notes

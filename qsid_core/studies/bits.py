@@ -42,7 +42,7 @@ import dataclasses
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -487,7 +487,7 @@ def certificate(
     return False, None, f"not certified: {why}"
 
 
-def loop_length(ex: Experiment) -> dict:
+def loop_length(ex: Experiment) -> dict[str, Any]:
     """The closed-loop length chosen from the plant: ``{"steps": N, "rule": text}``.
 
     The MPC built on the true model is run for :data:`LOOP_TIME_CONSTANTS` slowest time constants
@@ -502,7 +502,8 @@ def loop_length(ex: Experiment) -> dict:
         raise ConfigError("the loop length needs the MPC (mpc must not be None)")
     if cfg.disturbance or cfg.feedback_noise or cfg.feedback_bits is not None or cfg.reference is not None:
         return {"steps": cfg.steps, "rule": f"{cfg.steps} steps as configured (the loop does not settle to a point)"}
-    rho = float(ex.true_model_loop().spectral_radius[0])
+    radii = ex.true_model_loop().spectral_radius
+    rho = float(radii[0]) if radii is not None else math.nan
     if not (0.0 <= rho < 1.0):
         return {"steps": cfg.steps, "rule": f"{cfg.steps} steps as configured (the true-model loop is not stable)"}
     tau = -1.0 / math.log(rho) if rho > 0 else 1.0
@@ -567,13 +568,13 @@ def bits_needed(
     ex = experiment.with_config(config) if experiment is not None else Experiment(config, executor)
     if executor is not None:
         ex.executor = executor
-    length = (
+    length: dict[str, Any] = (
         loop_length(ex)
         if auto_length
         else {"steps": config.mpc.steps, "rule": f"{config.mpc.steps} steps as configured"}
     )
-    if length["steps"] != config.mpc.steps:
-        config = dataclasses.replace(config, mpc=dataclasses.replace(config.mpc, steps=length["steps"]))
+    if int(length["steps"]) != config.mpc.steps:
+        config = dataclasses.replace(config, mpc=dataclasses.replace(config.mpc, steps=int(length["steps"])))
         ex = ex.with_config(config)
     res = run_sweep(config, executor=executor, progress=progress, experiment=ex)
     robust = {b: predicted_small_gain(ex, b) for b in res.bits}

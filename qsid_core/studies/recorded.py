@@ -245,7 +245,7 @@ def theorem1_on_data(PP: np.ndarray, T: int, A: np.ndarray, B: np.ndarray, eps, 
     Gp = theorem1_prediction(G, PP / T, eps, dither)
     eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], A, B)
     fA, fB = finite_data_fluctuation(G, PP, eps)
-    fA, fB = fA / np.linalg.norm(A), fB / np.linalg.norm(B)
+    fA, fB = float(fA / np.linalg.norm(A)), float(fB / np.linalg.norm(B))
     why = []
     if dither not in ERROR_VARIANCE:
         why.append(f"dither {dither} has no signal-independent error variance")
