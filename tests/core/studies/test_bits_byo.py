@@ -124,3 +124,15 @@ def test_pendulum_loop_length_from_the_plant_and_gap_sign():
     assert r6.diverged and r6.cost_gap is None
     assert r7.cost_gap > 0.1 and (ans.b_observed is None or ans.b_observed > 7)
     assert abs(r9.cost_gap) < abs(r7.cost_gap)
+
+
+def test_the_sentence_has_no_data_rate_from_round_off():
+    """On main: 'would need more than 0.00 bits per sample' for undamped masses (3.8e-15 from |lambda| = 1)."""
+    from qsid_core.control import data_rate_bits
+
+    A = load_system(DATA / "chain.toml").A
+    rows = [{"bits": 8, "closed_loop_outcomes": {"converged": 1, "bounded": 0, "diverged": 0, "failed": 0}}]
+    ans = answer_from_rows("chain", {}, rows, 1.0, data_rate=data_rate_bits(A))
+    assert "bits per sample" not in ans.sentence
+    ans = answer_from_rows("toy", {}, rows, 1.0, data_rate=3.8e-15)  # a floor a caller computed otherwise
+    assert "bits per sample" not in ans.sentence
