@@ -108,7 +108,8 @@ def _certificate(r: dict) -> str:
     test = f"{g(r['robust_perturbation'], '.2g')}/{g(r['robust_radius'], '.2g')}"
     if r["robust_certified"]:
         return f"yes ({'Thm 1' if r['robust_basis'] == 'theorem1' else 'own'}) {test}"
-    return f"no {test}"
+    hypothesis = "large-data hypothesis fails" in (r.get("robust_note") or "")
+    return f"no (hyp.) {test}" if hypothesis else f"no {test}"
 
 
 def format_bits(d: dict) -> str:
