@@ -209,7 +209,9 @@ class RecordedResult:
         }
 
 
-def theorem1_on_data(PP: np.ndarray, T: int, A: np.ndarray, B: np.ndarray, eps, dither: str, overload: float) -> dict:
+def theorem1_on_data(
+    PP: np.ndarray, T: int, A: np.ndarray, B: np.ndarray, eps: ArrayLike, dither: str, overload: float
+) -> dict[str, Any]:
     """Theorem 1's LS errors predicted from the data's own ``Sigma = Psi Psi^T / T``, and whether they apply.
 
     The hypotheses are checked as in :mod:`qsid_core.studies.assumptions`: a dither of known error

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from app.cli import build_parser
-from app.cli.command import sweep_argv
 from app.cli.runner import config, system_from_args
+from app.settings.command import sweep_argv
 from qsid_core import ConfigError, SweepConfig, get_system, load_system
 from qsid_core.plant.data import simulate
 
