@@ -24,10 +24,12 @@ HELP = "how many bits the MPC needs: stabilized share and cost gap per b, three 
 DESCRIPTION = (
     "For each b: the share of MPC loops (built on the quantized-data models) that converge on the true "
     "plant, with a 95 % interval, and the gap of their mean cost to the true-model MPC. Then three word "
-    "lengths: b_observed (from which on at least --target of the loops converge and the cost gap is at "
-    "most --cost-gap), b_robust (from which on the small-gain test certifies the loop for Theorem 1's "
-    "predicted model error) and b_letter (from which on the letter's ultimate bound is below rho and "
-    "below ||x0||)."
+    "lengths: b_observed (from which on at least --target of the loops converge and the cost gap, signed "
+    "and over the loops that did not diverge, is at most --cost-gap in size), b_robust (from which on the "
+    "small-gain test certifies the loops: for Theorem 1's model where the measured model errors are within "
+    "25 % of its prediction, or for every loop's own model) and b_letter (from which on the letter's "
+    "ultimate bound is below rho and below ||x0||). Without --mpc-steps the loops run for a length chosen "
+    "from the plant (until the true-model loop's remaining cost is below 1e-6 of its total), printed."
 )
 
 
@@ -44,6 +46,13 @@ def _fraction(text: str) -> float:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
     add_lifting_option(p)
+    for act in p._actions:  # the loop length is chosen from the plant unless given
+        if act.dest == "mpc_steps":
+            act.default = None
+            act.help = (
+                "closed-loop steps on the true system (default: chosen from the plant, until the true-model "
+                "loop's remaining cost is below 1e-6 of its total; printed)"
+            )
     a = p.add_argument_group("the answer")
     a.add_argument(
         "--target",
@@ -80,15 +89,38 @@ def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x + 0.0:.1f}%".replace("-0.0%", "0.0%")
 
 
+def _gap(r: dict) -> str:
+    """The signed cost gap, "diverged" when every loop diverged or failed (never a 20-digit number)."""
+    x = r["cost_gap"]
+    if x is None:
+        return "diverged" if r.get("cost_diverged") else "-"
+    if abs(x) >= 1e4:  # 1,000,000 % and more: a power of ten reads better than the digits
+        return f"{100 * x:+.2g}%"
+    if abs(x) >= 10:
+        return f"{100 * x:+.0f}%"
+    return f"{100 * x + 0.0:+.1f}%".replace("-0.0%", "+0.0%")
+
+
+def _certificate(r: dict) -> str:
+    """The small-gain column: the verdict, then the test for Theorem 1's model."""
+    if r["robust_certified"] is None:
+        return "-"
+    test = f"{g(r['robust_perturbation'], '.2g')}/{g(r['robust_radius'], '.2g')}"
+    if r["robust_certified"]:
+        return f"yes ({'Thm 1' if r['robust_basis'] == 'theorem1' else 'own'}) {test}"
+    hypothesis = "large-data hypothesis fails" in (r.get("robust_note") or "")
+    return f"no (hyp.) {test}" if hypothesis else f"no {test}"
+
+
 def format_bits(d: dict) -> str:
-    """The plain table of a ``qsid bits`` JSON dict, then the answer in one sentence."""
+    """The plain table of a ``qsid bits`` JSON dict, the reasons for each b not certified, then the answer."""
     head = [
         "b",
         "stabilized",
         "95% interval",
         "cost gap",
         "converged/bounded/diverged/failed",
-        "small gain (pred.)",
+        "certified (pert./radius)",
         "certified (own error)",
         "delta",
         "delta < rho",
@@ -98,25 +130,15 @@ def format_bits(d: dict) -> str:
     for r in d["rows"]:
         oc = r["closed_loop_outcomes"]
         lo, hi = r["stabilized_interval"]
-        sg = (
-            "-"
-            if r["robust_certified"] is None
-            else (
-                f"{'yes' if r['robust_certified'] else 'no'} {g(r['robust_perturbation'], '.2g')}<"
-                f"{g(r['robust_radius'], '.2g')}"
-                if r["robust_certified"]
-                else f"no {g(r['robust_perturbation'], '.2g')}>={g(r['robust_radius'], '.2g')}"
-            )
-        )
         total = sum(oc.values())
         rows.append(
             [
                 str(r["bits"]),
                 _pct(r["stabilized_fraction"]),
                 f"{_pct(lo)}..{_pct(hi)}",
-                _pct(r["cost_gap"]),
+                _gap(r),
                 "/".join(str(oc.get(k, 0)) for k in ("converged", "bounded", "diverged", "failed")),
-                sg,
+                _certificate(r),
                 "-" if r["robust_certified_realized"] is None else f"{r['robust_certified_realized']}/{total}",
                 g(r["ultimate_bound"], ".3g"),
                 _yn(r["bound_self_consistent"]),
@@ -129,12 +151,15 @@ def format_bits(d: dict) -> str:
         return "  ".join(c.rjust(w) for c, w in zip(cells, widths))
 
     s = d["settings"]
+    length = (d.get("loop_length") or {}).get("rule")
     lines = [
         f"system {d['system']}: {s['trajectories']} x {s['steps']} samples, {s['realizations']} realizations, "
         f"estimator {s['estimator']}, dither {s['dither']}; true-model MPC cost {g(d['true_model_cost'], '.4g')}",
+        *([f"closed-loop length {length}"] if length else []),
         fmt(head),
         fmt(["-" * w for w in widths]),
         *(fmt(r) for r in rows),
+        *(f"b = {r['bits']}: {r['robust_note']}" for r in d["rows"] if r.get("robust_note", "").startswith("not")),
         f"b_observed = {_b(d['b_observed'])}, b_robust = {_b(d['b_robust'])}, b_letter = {_b(d['b_letter'])}",
         d["sentence"],
     ]
@@ -150,10 +175,13 @@ def _b(v: int | None) -> str:
 
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
-    from qsid_core import Experiment
+    from qsid_core import Experiment, MPCConfig
     from qsid_core.studies import bits_needed
 
     _check(args)
+    auto_length = args.mpc_steps is None
+    if auto_length:
+        args.mpc_steps = MPCConfig().steps
     if koopman.wanted(args):
         return koopman.run_bits(args, rep)
     system = system_from_args(args)
@@ -165,7 +193,15 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
             f"system {system.name!r}: b = {bits_text(cfg.bits)}, {cfg.realizations} realizations, "
             f"{cfg.trajectories} x {cfg.steps} samples; quantize, identify, run and judge every closed loop"
         )
-        ans = bits_needed(cfg, target=args.target, cost_gap=args.cost_gap, executor=pool, progress=rep, experiment=ex)
+        ans = bits_needed(
+            cfg,
+            target=args.target,
+            cost_gap=args.cost_gap,
+            executor=pool,
+            progress=rep,
+            experiment=ex,
+            auto_length=auto_length,
+        )
     d = ans.to_dict()
     d["timing_s"] = ans.result.timing_s if ans.result is not None else {}
     text = dumps(d)

@@ -25,7 +25,8 @@ HELP = "identify your own recorded data (.npz or .csv) at each word length by LS
 DESCRIPTION = (
     "Quantize recorded data (a .npz with x: runs x (steps+1) x n and u: runs x steps x m, or a .csv "
     "with columns run, t, x1..xn, u1..um) at each word length, identify A and B by LS and BCLS, and "
-    "report their relative errors against the LS model of the unquantized data (or --system's)."
+    "report their relative errors against the LS model of the unquantized data (or --system's), with "
+    "Theorem 1's predicted LS errors from the data's own Psi Psi^T / T where its hypotheses hold."
 )
 
 
@@ -56,16 +57,23 @@ def _pm(s: dict) -> str:
     return "-" if s["mean"] != s["mean"] else f"{s['mean']:.3e} +/- {s['std']:.1e}"
 
 
+def _theory(r: dict, blk: str) -> str:
+    t = r.get("theorem1")
+    return "-" if not t or not t[f"holds_{blk}"] else f"{t[f'err_{blk}']:.3e}"
+
+
 def format_table(d: dict) -> str:
-    """The readable table of :meth:`RecordedResult.to_dict`."""
-    head = ["b", "eps min..max", "LS err_A", "BCLS err_A", "LS err_B", "BCLS err_B", "overload"]
+    """The readable table of :meth:`RecordedResult.to_dict`: errors per b, Theorem 1's where it applies, notes."""
+    head = ["b", "eps min..max", "LS err_A", "Thm1 A", "BCLS err_A", "LS err_B", "Thm1 B", "BCLS err_B", "overload"]
     rows = [
         [
             str(r["bits"]),
             f"{min(r['eps']):.2e}..{max(r['eps']):.2e}",
             _pm(r["ls"]["err_A"]),
+            _theory(r, "A"),
             _pm(r["bcls"]["err_A"]),
             _pm(r["ls"]["err_B"]),
+            _theory(r, "B"),
             _pm(r["bcls"]["err_B"]),
             f"{100 * r['overload_fraction']:.2f}%",
         ]
@@ -74,10 +82,16 @@ def format_table(d: dict) -> str:
     w = [max(len(x) for x in col) for col in zip(head, *rows)]
     fmt = lambda cells: "  ".join(c.rjust(k) for c, k in zip(cells, w))  # noqa: E731
     lines = [
-        f"recorded data: {d['runs']} runs x {d['steps']} steps; errors against {d['reference']}",
+        f"recorded data: {d['runs']} runs x {d['steps']} steps; errors against {d['reference']}; Theorem 1 "
+        "from the data's own Psi Psi^T / T (shown where its hypotheses hold)",
         fmt(head),
         fmt(["-" * k for k in w]),
         *map(fmt, rows),
+    ]
+    lines += [
+        f"Theorem 1 at b = {r['bits']}: {'; '.join(r['theorem1']['why'])}"
+        for r in d["results"]
+        if r.get("theorem1") and r["theorem1"]["why"]
     ]
     lines += [f"note: {n}" for n in d["notes"]]
     return "\n".join(lines)

@@ -33,7 +33,7 @@ from .netcheck import OneLineParser, check_address, port_number, who_can_connect
 from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
-from .share import load_settings_file
+from .share import load_settings_file, values_for_plant_file
 from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
 from .tabview import drop_late_draws
 from .viewcodes import ViewStore, default_store_path, open_view
@@ -275,7 +275,13 @@ def _parser() -> argparse.ArgumentParser:
         default=8080,
         help="port 0-65535 (default 8080; the next free one if taken; 0: any free port)",
     )
-    p.add_argument("--system", default="dc-motor", choices=STARTING_SYSTEMS, help="initial system of new tabs")
+    p.add_argument(
+        "--system",
+        default="dc-motor",
+        metavar="NAME|FILE",
+        help=f"initial system of new tabs: a preset ({', '.join(STARTING_SYSTEMS)}) or a .toml/.json plant file "
+        "as qsid --system reads it (opened as the panel's custom system)",
+    )
     p.add_argument(
         "--scale",
         default="interactive",
@@ -358,6 +364,12 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     try:
         settings = None if args.settings is None else load_settings_file(args.settings)
+        if args.system not in STARTING_SYSTEMS:  # a plant file: the panel's custom system
+            size = PAPER_SCALE if args.scale == "paper" else INTERACTIVE
+            settings, notes = values_for_plant_file(args.system, settings or Values().replace(**size))
+            for msg in notes:
+                print(f"qsid-dashboard: note: {msg}", file=sys.stderr, flush=True)
+            args.system = STARTING_SYSTEMS[0]  # unused: the settings say which system
         warning = check_address(args.host, args.port)
     except QsidError as exc:
         print(f"qsid-dashboard: error: {exc}", file=sys.stderr)

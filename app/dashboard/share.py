@@ -20,9 +20,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from app.settings.check import check_setting
 from app.settings.command import bits_command, sweep_command
 from app.settings.schema import BY_NAME
+from qsid_core import QsidError
 from qsid_core.studies import json_clean
 
 from .controls import CONTROLS
@@ -36,6 +39,7 @@ __all__ = [
     "settings_json",
     "values_from_json",
     "load_settings_file",
+    "values_for_plant_file",
     "command_lines",
     "curves_rows",
     "curves_csv",
@@ -103,6 +107,55 @@ def load_settings_file(path: str | Path) -> Values:
         raise InputError(f"{p.name}: {exc}") from None
     except OSError as exc:
         raise InputError(f"cannot read settings file {str(p)!r}: {exc.strerror or exc}") from None
+
+
+def values_for_plant_file(path: str | Path, defaults: Values) -> tuple[Values, list[str]]:
+    """``qsid-dashboard --system FILE``: the plant file the CLI reads, as the panel's custom system.
+
+    A, B and x0 are kept exactly (their numbers written out in full); Q and R become the weight
+    sliders' log10 positions, so a weight outside the sliders' range is clipped and an off-diagonal
+    entry dropped: each such change is one line of the returned notes.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read or is not a plant the engine and the panel accept (one line, naming it).
+    """
+    from qsid_core import get_system
+
+    from .settings import LOG_MAX, LOG_MIN, MAX_CUSTOM_STATES, log_from_weights
+
+    try:
+        sysm = get_system(str(path))  # a preset name or a file, as qsid --system
+    except QsidError as exc:
+        raise InputError(f"--system {path}: {exc}") from None
+    if sysm.n > MAX_CUSTOM_STATES:
+        raise InputError(
+            f"--system {path}: {sysm.n} states; the dashboard's panel takes at most {MAX_CUSTOM_STATES} "
+            "(the CLI takes any size the engine accepts)"
+        )
+    rows = lambda M: "; ".join(" ".join(repr(float(x)) for x in row) for row in M)  # noqa: E731
+    notes = []
+    Q, R = np.asarray(sysm.Q, dtype=float), np.asarray(sysm.R, dtype=float)
+    for name, W in (("Q", Q), ("R", R)):
+        d = np.diag(W)
+        if np.any(W != np.diag(d)):
+            notes.append(f"{name} of {path} is not diagonal: the panel keeps its diagonal")
+        if np.any((d > 0) & ((d < 10.0**LOG_MIN) | (d > 10.0**LOG_MAX))):
+            notes.append(
+                f"{name} of {path} = diag({', '.join(f'{w:g}' for w in d)}) is outside the sliders' range "
+                f"1e{LOG_MIN:g}..1e{LOG_MAX:g}: clipped"
+            )
+    v = defaults.replace(
+        system="custom",
+        a_text=rows(sysm.A),
+        b_text=rows(sysm.B),
+        x0=", ".join(repr(float(x)) for x in np.asarray(sysm.x0, dtype=float)),
+        log_q=log_from_weights(np.diag(Q)),
+        log_r=log_from_weights(np.diag(R)),
+    )
+    resolve_system(v)  # the panel's own checks, now rather than in the first tab
+    return v, notes
 
 
 def command_lines(v: Values) -> list:

@@ -225,6 +225,22 @@ def _lesson_changes(values: Values) -> list[str]:
     ]
 
 
+def _certificate(frame: Frame) -> list[str]:
+    """Whether the small-gain test certifies the loops at the current b, and why not (qsid bits' rule)."""
+    from qsid_core.studies import certificate, predicted_small_gain, realized_small_gain
+
+    if frame.ex is None or frame.ex.config.mpc is None:
+        return []
+    out = []
+    pert, rad = predicted_small_gain(frame.ex, frame.bits)
+    for lab in frame.labels:
+        r, lp = frame.rows[lab][frame.bits], frame.loops[lab]
+        own = int(realized_small_gain(frame.idents[lab], lp, frame.system.A, frame.system.B).sum())
+        _, _, note = certificate(r, pert, rad, own, len(lp.cost))
+        out.append(f"**Small-gain certificate**, {lab}: {note}.")
+    return ["", "  \n".join(out)]
+
+
 def summary_markdown(frame: Frame) -> str:
     """The numeric summary at the current b: eps per channel, errors, overload, failures."""
     sysm = frame.system
@@ -248,12 +264,13 @@ def summary_markdown(frame: Frame) -> str:
         *_bound_lesson(frame, first),
         *_hypotheses(frame),
         "",
-        "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost | closed loops on the true plant |",
+        "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost (loops not diverged) | closed loops on the true plant |",
         "|---|---|---|---|---|",
     ]
     for lab in frame.labels:
         r = frame.rows[lab][b]
-        cost = (r.get("mpc_cost") or {}).get("mean")
+        mc = r.get("mpc_cost") or {}
+        cost = mc.get("mean_bounded", mc.get("mean"))  # a diverged loop's cost is no cost
         lines.append(
             f"| {lab} | {_g(r['err_A']['mean'])} | {_g(r['err_B']['mean'])} | {_g(cost, '.4g')} | "
             f"{_failures(r, frame.loops[lab])} |"
@@ -264,6 +281,7 @@ def summary_markdown(frame: Frame) -> str:
     tl = frame.true_loop
     why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
     lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}{why}")
+    lines += _certificate(frame)
     lines += _real_loop(frame)
     notes = list(frame.notes)
     for lab in frame.labels:

@@ -2,8 +2,8 @@
 
 Top: the share of closed loops that converge on the true plant, per estimator,
 with its 95 % Wilson interval, and the target. Bottom: the gap of the mean
-closed-loop cost to the true-model MPC (log scale, absolute value) and the
-allowed gap. Vertical lines: ``b_observed`` (solid), ``b_robust`` (dashed, the
+closed-loop cost to the true-model MPC over the loops that did not diverge (log
+scale, absolute value; the hover gives its sign) and the allowed gap. Vertical lines: ``b_observed`` (solid), ``b_robust`` (dashed, the
 small-gain certificate for Theorem 1's predicted model) and ``b_letter``
 (dotted, the letter's bound below rho and below ||x0||); the sentence of
 :class:`qsid_core.studies.bits.BitsAnswer` is the title.
@@ -17,7 +17,7 @@ import numpy as np
 import plotly.graph_objects as go
 
 from qsid_core.control import data_rate_bits
-from qsid_core.studies import BitsAnswer, answer_from_rows, predicted_small_gain
+from qsid_core.studies import BitsAnswer, answer_from_rows, predicted_small_gain, realized_small_gain
 
 from .palette import COLORS, color
 from .raw import figure, hline, stacked_axes
@@ -102,7 +102,7 @@ def _answer_traces(lab: str, ans: BitsAnswer, c: str, y1: str, y2: str) -> list[
             hovertemplate="b = %{x}: %{y:.0f} % converged<extra>" + lab + "</extra>",
         )
     )
-    gap = [(r.bits, abs(r.cost_gap)) for r in rows if r.cost_gap is not None and abs(r.cost_gap) > 0]
+    gap = [(r.bits, abs(r.cost_gap), r.cost_gap) for r in rows if r.cost_gap is not None and abs(r.cost_gap) > 0]
     if gap:
         data.append(
             dict(
@@ -115,7 +115,10 @@ def _answer_traces(lab: str, ans: BitsAnswer, c: str, y1: str, y2: str) -> list[
                 showlegend=False,
                 line=dict(color=c, dash="dash"),
                 yaxis=y2,
-                hovertemplate="b = %{x}: |gap| %{y:.3g} %<extra>" + lab + "</extra>",
+                customdata=[f"{100 * g[2]:+.3g} %" for g in gap],
+                hovertemplate="b = %{x}: gap %{customdata} (over the loops that did not diverge)<extra>"
+                + lab
+                + "</extra>",
             )
         )
     return data
@@ -194,7 +197,8 @@ def _wrap(text: str, width: int = 95) -> str:
 def answers(
     series: Series, true_cost: float | None, ex: Experiment, target: float, cost_gap: float
 ) -> dict[str, BitsAnswer]:
-    """``{label: BitsAnswer}`` from the rows computed so far (the predicted small-gain test from ``ex``)."""
+    """``{label: BitsAnswer}`` from the rows computed so far (the small-gain tests from ``ex``: Theorem 1's
+    model, and each loop's own model where the loops are in ``ex``'s cache)."""
     out: dict[str, BitsAnswer] = {}
     robust: dict[int, Any] | None = None
     for lab, rows in series.items():
@@ -209,11 +213,23 @@ def answers(
             rows,
             true_cost,
             robust=robust,
+            robust_realized=_own_error(ex, lab.lower(), [int(r["bits"]) for r in rows]),
             target=target,
             cost_gap=cost_gap,
             data_rate=data_rate_bits(ex.system.A),
         )
     return out
+
+
+def _own_error(ex: Experiment, estimator: str, bits: list[int]) -> dict[int, int] | None:
+    """Per b, the loops the small-gain test certifies with their own model (None: not the engine's estimator)."""
+    if ex is None or ex.config.mpc is None or estimator not in ("ls", "bcls"):
+        return None
+    A, B = ex.system.A, ex.system.B
+    return {
+        b: int(realized_small_gain(ex.identification(b, estimator), ex.closed_loops(b, estimator), A, B).sum())
+        for b in bits
+    }
 
 
 def _build(frame: FrameView) -> go.Figure:

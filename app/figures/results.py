@@ -127,24 +127,38 @@ def result_series(
     return dict(zip(labels, (d["results"] for d in dicts))), dicts
 
 
-def _stabilized(series: dict[str, list[dict[str, Any]]], dicts: list[dict[str, Any]], height: int) -> go.Figure:
+def _stabilized(
+    series: dict[str, list[dict[str, Any]]], dicts: list[dict[str, Any]], height: int, results: Sequence[Any] = ()
+) -> go.Figure:
     """The bits view; the small-gain test of Theorem 1's predicted model is recomputed from each result's
-    configuration (its data are simulated again; no closed loop runs)."""
+    configuration (its data are simulated again; no closed loop runs); each loop's own test where a fresh
+    result still holds its models and loops (a loaded one does not)."""
     from qsid_core import Experiment, SweepConfig
     from qsid_core.control import data_rate_bits
-    from qsid_core.studies import answer_from_rows, predicted_small_gain
+    from qsid_core.studies import answer_from_rows, predicted_small_gain, realized_small_gain
 
     from .bits_needed import bits_figure
 
     answers = {}
-    for (label, rows), d in zip(series.items(), dicts):
+    fresh = list(results) + [None] * (len(dicts) - len(results))
+    for (label, rows), d, res in zip(series.items(), dicts, fresh):
         if not any(r.get("closed_loop_outcomes") for r in rows):
             raise FigureError(f"view 'stabilized': the result {label!r} has no closed loops (it ran without MPC)")
         ex = Experiment(SweepConfig.from_dict(d["config"]))
         robust = {int(r["bits"]): predicted_small_gain(ex, int(r["bits"])) for r in rows}
         A = np.asarray(d["config"]["system_definition"]["A"], dtype=float)
+        own = None
+        if getattr(res, "loops", None) and getattr(res, "identification", None):
+            s = res.system
+            own = {b: int(realized_small_gain(res.identification[b], res.loops[b], s.A, s.B).sum()) for b in res.loops}
         answers[label] = answer_from_rows(
-            d.get("system", ""), {}, rows, d.get("mpc_cost_true_model"), robust=robust, data_rate=data_rate_bits(A)
+            d.get("system", ""),
+            {},
+            rows,
+            d.get("mpc_cost_true_model"),
+            robust=robust,
+            robust_realized=own,
+            data_rate=data_rate_bits(A),
         )
     return bits_figure(answers, height=height)
 
@@ -185,7 +199,7 @@ def plot_results(
 
         return error_figure(series, height=height or 380, theory_per_series=True, bcls=bcls)
     if view == "stabilized":
-        return _stabilized(series, dicts, height or 480)
+        return _stabilized(series, dicts, height or 480, results)
     if view == "cost":
         from .cost import cost_figure
 

@@ -166,8 +166,14 @@ def sweep_command(cfg: SweepConfig, system_source: str | None = None) -> str:
 def bits_command(
     cfg: SweepConfig, target: float = 0.95, cost_gap: float = 0.01, system_source: str | None = None
 ) -> str:
-    """The shell line ``qsid bits ...`` for ``cfg`` and the answer's thresholds (defaults left out)."""
+    """The shell line ``qsid bits ...`` for ``cfg`` and the answer's thresholds (defaults left out).
+
+    The loop length is always written: without ``--mpc-steps`` ``qsid bits`` chooses it from the plant.
+    """
     extra = ([] if target == 0.95 else [f"--target={target!r}"]) + (
         [] if cost_gap == 0.01 else [f"--cost-gap={cost_gap!r}"]
     )
-    return shlex.join(["qsid", "bits", *sweep_argv(cfg, system_source), *extra])
+    argv = sweep_argv(cfg, system_source)
+    if cfg.mpc is not None and not any(a.startswith("--mpc-steps") for a in argv):
+        argv.append(f"--mpc-steps={cfg.mpc.steps}")
+    return shlex.join(["qsid", "bits", *argv, *extra])

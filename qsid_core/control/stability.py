@@ -34,7 +34,11 @@ __all__ = [
     "small_gain_holds",
     "data_rate_bits",
     "controllability_margin",
+    "UNIT_CIRCLE_ROUNDOFF",
 ]
+
+#: ``|lambda| - 1`` at most this is round-off of an eigenvalue on the unit circle (:func:`data_rate_bits`).
+UNIT_CIRCLE_ROUNDOFF = 1e-7
 
 
 def spectral_radius(M: np.ndarray) -> np.ndarray:
@@ -357,19 +361,22 @@ def small_gain_margin(
 
 
 def data_rate_bits(A: np.ndarray) -> float:
-    """The data-rate theorem's floor: ``sum over |lambda_i| >= 1 of log2 |lambda_i|`` bits per sample.
+    """The data-rate theorem's floor: ``sum over |lambda_i| > 1 of log2 |lambda_i|`` bits per sample.
 
     Any feedback loop that measures the state through a digital channel must send
     more than this many bits per sample to stabilize the plant, whatever the
     controller (Tatikonda & Mitter, IEEE TAC 2004; Nair & Evans, SIAM J. Control
-    Optim. 2004). 0 for a stable (or marginally stable) plant.
+    Optim. 2004). 0 for a stable (or marginally stable) plant: an eigenvalue with
+    ``|lambda| <= 1 +`` :data:`UNIT_CIRCLE_ROUNDOFF` counts as on the unit circle (round-off
+    of an eigenvalue computed at ``|lambda| = 1``; a double one, as of an undamped mass, moves by
+    about the square root of the machine epsilon, 1.5e-8).
 
     Parameters
     ----------
     A : ndarray, shape (n, n)
     """
     lam = np.abs(np.linalg.eigvals(np.asarray(A, dtype=float)))
-    return float(np.sum(np.log2(lam[lam >= 1.0])))
+    return float(np.sum(np.log2(lam[lam > 1.0 + UNIT_CIRCLE_ROUNDOFF])))
 
 
 def controllability_margin(A: np.ndarray, B: np.ndarray) -> np.ndarray:

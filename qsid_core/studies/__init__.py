@@ -15,11 +15,16 @@ from .assumptions import (
     range_words,
 )
 from .bits import (
+    CERTIFY_TOLERANCE,
+    LOOP_COST_TOLERANCE,
+    LOOP_TIME_CONSTANTS,
     BitsAnswer,
     BitsRow,
     answer_from_rows,
     bits_needed,
+    certificate,
     from_on,
+    loop_length,
     predicted_small_gain,
     realized_small_gain,
     wilson_interval,
@@ -40,7 +45,7 @@ from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
 from .koopman_sweep import KOOPMAN_MPC, NO_CERTIFICATES, KoopmanConfig, KoopmanResult, run_koopman_sweep
 from .outputs import output_target, replace_atomically
-from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded
+from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded, theorem1_on_data
 from .records import (
     COLUMNS,
     RealizationRecord,
@@ -61,6 +66,7 @@ __all__ = [
     "BitsAnswer",
     "BitsIdentification",
     "BitsRow",
+    "CERTIFY_TOLERANCE",
     "COLUMNS",
     "COMPILED_KERNELS",
     "DEFAULT_SAMPLES",
@@ -75,6 +81,8 @@ __all__ = [
     "KoopmanConfig",
     "KoopmanResult",
     "LARGE_DATA_RATIO",
+    "LOOP_COST_TOLERANCE",
+    "LOOP_TIME_CONSTANTS",
     "NOT_IN_KEYS",
     "NO_CERTIFICATES",
     "OVERLOAD_EFFECT_RATIO",
@@ -93,6 +101,7 @@ __all__ = [
     "assess",
     "bits_needed",
     "build_row",
+    "certificate",
     "check_run_args",
     "check_sweep_parts",
     "clipping_effect",
@@ -111,6 +120,7 @@ __all__ = [
     "kernels_cached",
     "load_recorded",
     "load_result",
+    "loop_length",
     "one_per_size",
     "output_target",
     "parse_bits",
@@ -131,6 +141,7 @@ __all__ = [
     "summarize",
     "summary_row",
     "system_key",
+    "theorem1_on_data",
     "to_columns",
     "to_pandas",
     "wilson_interval",

@@ -7,16 +7,27 @@ mean closed-loop cost to the MPC built on the true model. From those rows:
 ``b_observed``
     The smallest b from which on (every larger b of the sweep too) at least
     ``target`` of the loops are stabilized and the mean cost gap is at most
-    ``cost_gap``.
+    ``cost_gap`` in absolute value.
 ``b_robust``
-    The smallest b from which on a *sufficient* condition certifies the loop
-    for Theorem 1's predicted model: with ``(A^, B^)`` the large-data limit of
-    LS at that b and ``K^`` the gain of the MPC built on it (its unconstrained
-    law), the small-gain theorem gives stability of ``A - B K^`` when
+    The smallest b from which on a *sufficient* condition certifies the loops.
+    With ``(A^, B^)`` a model and ``K^`` the gain of the MPC built on it (its
+    unconstrained law), the small-gain theorem gives stability of ``A - B K^`` when
     ``||(A - A^) - (B - B^) K^||_2 < r_C(A^ - B^ K^)``, the complex stability radius of the
-    nominal loop (:func:`qsid_core.control.stability.small_gain_margin`). Assumptions:
-    large data (the model equals Theorem 1's limit), constraints inactive near
-    the reference (the MPC is its linear law there).
+    nominal loop (:func:`qsid_core.control.stability.small_gain_margin`). A b is certified
+
+    * for **Theorem 1's model** (its large-data limit of LS at that b) when the test
+      holds with the margin :data:`CERTIFY_TOLERANCE` (``(1 + tol) ||.|| < r_C``) *and* its
+      hypotheses are checked on the data: the data's second moments have a limit and the
+      dither a known error variance (:mod:`qsid_core.studies.assumptions`), and the
+      measured mean relative errors of A^ and B^ are both within ``CERTIFY_TOLERANCE``
+      (25 %) of Theorem 1's (in finite data,
+      where the fluctuation dominates, or with BCLS, they are not, and a certificate
+      for a model the data do not give would be no certificate); or
+    * for **every loop's own model**: the test holds for each realization's model and
+      gain (no large-data hypothesis; ``robust_realized`` equals the loops run).
+
+    Otherwise the row says "not certified: <why, with the numbers>". Both assume the
+    constraints inactive near the reference (the MPC is its linear law there).
 ``b_letter``
     The smallest b from which on the letter's ultimate bound is self-consistent
     (``delta < rho``: its proof assumes the state stays within ``rho``) and
@@ -31,7 +42,7 @@ import dataclasses
 import math
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -44,6 +55,11 @@ from .sweep import run_sweep
 from .sweep_result import SweepResult
 
 __all__ = [
+    "CERTIFY_TOLERANCE",
+    "LOOP_COST_TOLERANCE",
+    "LOOP_TIME_CONSTANTS",
+    "loop_length",
+    "certificate",
     "BitsRow",
     "BitsAnswer",
     "wilson_interval",
@@ -53,6 +69,15 @@ __all__ = [
     "bits_needed",
     "answer_from_rows",
 ]
+
+
+#: b_robust through Theorem 1's model needs the measured errors within this relative distance of the
+#: prediction, and the small-gain test to hold with this margin.
+CERTIFY_TOLERANCE = 0.25
+#: The loop length chosen from the plant: the true-model loop's cost after it is at most this share of its total.
+LOOP_COST_TOLERANCE = 1e-6
+#: ... searched over this many slowest time constants of the true-model loop (at most 10000 steps).
+LOOP_TIME_CONSTANTS = 20
 
 
 def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -89,15 +114,20 @@ class BitsRow:
     interval : tuple of float
         Its 95 % Wilson interval over the realizations.
     cost_gap : float or None
-        ``mean closed-loop cost / true-model cost - 1`` (loops that ran).
+        ``mean closed-loop cost / true-model cost - 1``, signed, over the loops judged converged
+        or bounded (None when none is: every loop diverged or failed, see ``diverged``).
     outcomes : dict
         ``{"converged", "bounded", "diverged", "failed"}`` counts.
     robust : bool or None
-        The small-gain certificate holds for Theorem 1's predicted model.
+        The loops are certified at this b (module docstring; None without the predicted test).
     robust_perturbation, robust_radius : float or None
-        ``||dA - dB K^||_2`` and ``r_C(A^ - B^ K^)`` of that certificate.
+        ``||dA - dB K^||_2`` and ``r_C(A^ - B^ K^)`` of the test for Theorem 1's model.
     robust_realized : int or None
         Realizations certified by the same test with their *own* model error.
+    robust_basis : str or None
+        ``"theorem1"`` or ``"own-error"``: what certified it (None: not certified).
+    robust_note : str
+        Why it is certified, or "not certified: ..." with the hypothesis that fails and its numbers.
     delta, rho : float or None
         The letter's ultimate bound and the ``rho`` it used.
     bound_self_consistent, bound_informative : bool or None
@@ -116,6 +146,13 @@ class BitsRow:
     rho: float | None = None
     bound_self_consistent: bool | None = None
     bound_informative: bool | None = None
+    robust_basis: str | None = None
+    robust_note: str = ""
+
+    @property
+    def diverged(self) -> bool:
+        """Every loop that ran diverged or failed: no cost to compare."""
+        return self.cost_gap is None and sum(self.outcomes.values()) > 0
 
     def to_dict(self) -> dict:
         return json_clean(
@@ -124,8 +161,12 @@ class BitsRow:
                 "stabilized_fraction": self.stabilized_fraction,
                 "stabilized_interval": list(self.interval),
                 "cost_gap": self.cost_gap,
+                "cost_gap_abs": None if self.cost_gap is None else abs(self.cost_gap),
+                "cost_diverged": self.diverged,
                 "closed_loop_outcomes": self.outcomes,
                 "robust_certified": self.robust,
+                "robust_basis": self.robust_basis,
+                "robust_note": self.robust_note,
                 "robust_perturbation": self.robust_perturbation,
                 "robust_radius": self.robust_radius,
                 "robust_certified_realized": self.robust_realized,
@@ -154,6 +195,9 @@ class BitsAnswer:
         The data-rate theorem's floor for *quantized feedback* of this plant
         (:func:`qsid_core.control.stability.data_rate_bits`); a different question from the
         word length of the training data, given for comparison.
+    loop_length : dict or None
+        ``{"steps": N, "rule": text}``: the closed-loop length the costs were measured over
+        and how it was chosen (:func:`loop_length`).
     """
 
     system: str
@@ -164,6 +208,7 @@ class BitsAnswer:
     rows: tuple
     true_cost: float | None = None
     data_rate_bits: float | None = None
+    loop_length: dict | None = None
     result: SweepResult | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -182,23 +227,30 @@ class BitsAnswer:
                 f"the MPC stabilizes at least {100 * t:g} % of the loops, with a cost within {100 * g:g} % of "
                 f"the true model's, from b = {self.b_observed} on"
             )
-        rob = (
-            "the small-gain certificate holds nowhere up to the last b"
-            if self.b_robust is None
-            else f"the small-gain certificate needs b >= {self.b_robust}"
-        )
+        rob = self._robust_words()
         let = (
             "the letter's bound says nothing up to the last b"
             if self.b_letter is None
             else f"the letter's bound says something from b = {self.b_letter}"
         )
         dr = ""
-        if self.data_rate_bits:
+        if self.data_rate_bits and self.data_rate_bits >= 0.005:
             dr = (
                 f" (Quantized feedback of this plant would need more than {self.data_rate_bits:.2f} bits per "
                 "sample: the data-rate theorem.)"
             )
         return f"{obs}; {rob}; {let}.{dr}"
+
+    def _robust_words(self) -> str:
+        if self.b_robust is not None:
+            row = next(r for r in self.rows if r.bits == self.b_robust)
+            how = "Theorem 1's model" if row.robust_basis == "theorem1" else "every loop's own model"
+            return f"the small-gain certificate holds from b = {self.b_robust} on (at b = {self.b_robust}: {how})"
+        judged = [r for r in self.rows if r.robust is not None]
+        if not judged:
+            return "the small-gain certificate was not computed"
+        last = judged[-1]
+        return f"the small-gain certificate is not given (at b = {last.bits}, {last.robust_note})"
 
     def to_dict(self) -> dict:
         return json_clean(
@@ -210,6 +262,7 @@ class BitsAnswer:
                 "b_letter": self.b_letter,
                 "true_model_cost": self.true_cost,
                 "data_rate_bits": self.data_rate_bits,
+                "loop_length": self.loop_length,
                 "sentence": self.sentence,
                 "rows": [r.to_dict() for r in self.rows],
             }
@@ -290,6 +343,7 @@ def answer_from_rows(
     target: float = 0.95,
     cost_gap: float = 0.01,
     data_rate: float | None = None,
+    loop_length: dict | None = None,
 ) -> BitsAnswer:
     """The answer from a sweep's summary rows (``SummaryRow`` or their dicts), as the dashboard has them.
 
@@ -305,6 +359,8 @@ def answer_from_rows(
         ``target`` in (0, 1]; ``cost_gap`` >= 0 (relative).
     data_rate : float, optional
         The plant's data-rate floor (:func:`qsid_core.control.stability.data_rate_bits`).
+    loop_length : dict, optional
+        How long the loops ran (:func:`loop_length`).
     """
     target, cost_gap = _check_targets(target, cost_gap)
     out = []
@@ -313,9 +369,15 @@ def answer_from_rows(
         oc = r.get("closed_loop_outcomes") or {}
         total = sum(oc.values())
         frac = oc["converged"] / total if total else None
-        cost = (r.get("mpc_cost") or {}).get("mean")
+        mc = r.get("mpc_cost") or {}
+        if "mean_bounded" in mc:
+            cost = mc["mean_bounded"]
+        else:  # rows without it (older results): the plain mean, only when no loop diverged or failed
+            cost = mc.get("mean") if not (oc.get("diverged") or oc.get("failed")) else None
         gap = (cost / true_cost - 1.0) if (cost is not None and true_cost) else None
         pert, rad = (robust or {}).get(b, (None, None))
+        realized = (robust_realized or {}).get(b)
+        ok, basis, note = certificate(r, pert, rad, realized, total)
         out.append(
             BitsRow(
                 bits=b,
@@ -323,14 +385,16 @@ def answer_from_rows(
                 interval=wilson_interval(oc.get("converged", 0), total),
                 cost_gap=gap,
                 outcomes=dict(oc),
-                robust=None if pert is None else bool(pert < rad),
+                robust=ok,
                 robust_perturbation=pert,
                 robust_radius=rad,
-                robust_realized=(robust_realized or {}).get(b),
+                robust_realized=realized,
                 delta=r.get("ultimate_bound"),
                 rho=r.get("rho"),
                 bound_self_consistent=r.get("bound_self_consistent"),
                 bound_informative=r.get("bound_informative"),
+                robust_basis=basis,
+                robust_note=note,
             )
         )
     bits = [r.bits for r in out]
@@ -340,7 +404,7 @@ def answer_from_rows(
             r.stabilized_fraction is not None
             and r.stabilized_fraction >= target - 1e-12
             and r.cost_gap is not None
-            and r.cost_gap <= cost_gap
+            and abs(r.cost_gap) <= cost_gap
             for r in out
         ],
     )
@@ -355,7 +419,110 @@ def answer_from_rows(
         tuple(out),
         true_cost,
         data_rate,
+        loop_length,
     )
+
+
+def _theorem1_misfit(row) -> str:
+    """Empty when the measured mean errors of A^ and B^ are within CERTIFY_TOLERANCE of Theorem 1's, else why."""
+    why = []
+    hyp = row.get("assumptions") or {}
+    if hyp.get("stationary") is False:
+        why.append(f"Psi Psi^T / T has no limit (spectral radius of A {hyp.get('spectral_radius', float('nan')):.6g})")
+    if hyp.get("known_noise") is False:
+        why.append("the dither gives no signal-independent error variance")
+    for blk in ("A", "B"):
+        meas = (row.get(f"err_{blk}") or {}).get("mean")
+        pred = row.get(f"err_{blk}_theory")
+        if meas is None or pred is None or not pred > 0:
+            why.append(f"no measured or predicted error of {blk}^")
+        elif abs(meas - pred) > CERTIFY_TOLERANCE * pred:
+            why.append(f"measured err_{blk} {meas:.3g} vs Theorem 1's {pred:.3g} ({meas / pred:.3g}x)")
+    return "; ".join(why)
+
+
+def certificate(
+    row, perturbation: float | None, radius: float | None, realized: int | None, loops: int
+) -> tuple[bool | None, str | None, str]:
+    """Whether the loops at one b are certified, on what basis, and why (see the module docstring).
+
+    Parameters
+    ----------
+    row : mapping
+        The summary row (``err_A``, ``err_B``, ``err_A_theory``, ``err_B_theory``).
+    perturbation, radius : float or None
+        The small-gain test for Theorem 1's model (:func:`predicted_small_gain`; None: not computed).
+    realized : int or None
+        Loops certified with their own model error (None: not computed).
+    loops : int
+        Loops run.
+
+    Returns
+    -------
+    (certified, basis, note) : bool or None, ``"theorem1"``/``"own-error"``/None, str
+    """
+    if perturbation is None or radius is None:
+        return None, None, ""
+    tol = CERTIFY_TOLERANCE
+    passes = perturbation * (1 + tol) < radius
+    misfit = _theorem1_misfit(row)
+    if passes and not misfit:
+        return (
+            True,
+            "theorem1",
+            (
+                f"certified for Theorem 1's model ({1 + tol:g} x {perturbation:.2g} < {radius:.2g}; measured errors "
+                f"within {100 * tol:g} % of it)"
+            ),
+        )
+    if realized is not None and loops and realized == loops:
+        return True, "own-error", f"certified for every loop's own model ({realized}/{loops})"
+    why = (
+        f"small gain fails for Theorem 1's model ({1 + tol:g} x {perturbation:.2g} >= {radius:.2g})"
+        if not passes
+        else f"large-data hypothesis fails ({misfit}; tolerance {100 * tol:g} %)"
+    )
+    if realized is not None:
+        why += f"; {realized} of {loops} loops certified with their own error"
+    return False, None, f"not certified: {why}"
+
+
+def loop_length(ex: Experiment) -> dict[str, Any]:
+    """The closed-loop length chosen from the plant: ``{"steps": N, "rule": text}``.
+
+    The MPC built on the true model is run for :data:`LOOP_TIME_CONSTANTS` slowest time constants
+    of its linear law (``-1 / ln rho(A - B K)`` steps, at most 10000); ``N`` is the first step
+    after which its remaining cost is at most :data:`LOOP_COST_TOLERANCE` of its total, so the
+    cost gap is not an artefact of stopping early. Kept as configured, with the reason, when the
+    true-model loop cannot settle (a disturbance, sensor noise, a quantized measurement, a
+    time-varying reference, or the true-model loop itself not converging).
+    """
+    cfg = ex.config.mpc
+    if cfg is None:
+        raise ConfigError("the loop length needs the MPC (mpc must not be None)")
+    if cfg.disturbance or cfg.feedback_noise or cfg.feedback_bits is not None or cfg.reference is not None:
+        return {"steps": cfg.steps, "rule": f"{cfg.steps} steps as configured (the loop does not settle to a point)"}
+    radii = ex.true_model_loop().spectral_radius
+    rho = float(radii[0]) if radii is not None else math.nan
+    if not (0.0 <= rho < 1.0):
+        return {"steps": cfg.steps, "rule": f"{cfg.steps} steps as configured (the true-model loop is not stable)"}
+    tau = -1.0 / math.log(rho) if rho > 0 else 1.0
+    scan = int(min(10000, max(cfg.horizon, math.ceil(LOOP_TIME_CONSTANTS * tau))))
+    lp = ex.with_config(dataclasses.replace(ex.config, mpc=dataclasses.replace(cfg, steps=scan))).true_model_loop()
+    w = cfg.resolve(ex.system)
+    e = lp.states[0, :-1] - np.asarray(lp.x_ref, dtype=float).reshape(-1, ex.system.n)[:scan]
+    u = lp.inputs[0]
+    stage = np.einsum("ti,ij,tj->t", e, w.Q, e) + np.einsum("ti,ij,tj->t", u, w.R, u)
+    if not np.all(np.isfinite(stage)) or not stage.sum() > 0:
+        return {"steps": cfg.steps, "rule": f"{cfg.steps} steps as configured (the true-model cost is not finite)"}
+    tail = np.cumsum(stage[::-1])[::-1]  # tail[t]: cost from step t on
+    steps = int(np.argmax(tail <= LOOP_COST_TOLERANCE * tail[0])) if tail[-1] <= LOOP_COST_TOLERANCE * tail[0] else scan
+    steps = max(steps, 1)
+    return {
+        "steps": steps,
+        "rule": f"{steps} steps: the true-model loop's remaining cost is below {LOOP_COST_TOLERANCE:g} of its total "
+        f"(slowest time constant {tau:.3g} steps; searched over {scan})",
+    }
 
 
 def bits_needed(
@@ -367,6 +534,7 @@ def bits_needed(
     progress: Progress | None = None,
     experiment: Experiment | None = None,
     realized: bool = True,
+    auto_length: bool = False,
 ) -> BitsAnswer:
     """Run the sweep of ``config`` and answer "how many bits?" (see the module docstring).
 
@@ -381,7 +549,11 @@ def bits_needed(
     executor, progress, experiment
         As in :func:`qsid_core.studies.sweep.run_sweep`.
     realized : bool
-        Also count per b the realizations the small-gain test certifies with their own error.
+        Also count per b the realizations the small-gain test certifies with their own error
+        (without it, only Theorem 1's model can certify a b).
+    auto_length : bool
+        Run the loops for the length chosen from the plant (:func:`loop_length`) instead of
+        ``config.mpc.steps``.
 
     Raises
     ------
@@ -396,6 +568,14 @@ def bits_needed(
     ex = experiment.with_config(config) if experiment is not None else Experiment(config, executor)
     if executor is not None:
         ex.executor = executor
+    length: dict[str, Any] = (
+        loop_length(ex)
+        if auto_length
+        else {"steps": config.mpc.steps, "rule": f"{config.mpc.steps} steps as configured"}
+    )
+    if int(length["steps"]) != config.mpc.steps:
+        config = dataclasses.replace(config, mpc=dataclasses.replace(config.mpc, steps=int(length["steps"])))
+        ex = ex.with_config(config)
     res = run_sweep(config, executor=executor, progress=progress, experiment=ex)
     robust = {b: predicted_small_gain(ex, b) for b in res.bits}
     rr = None
@@ -416,5 +596,6 @@ def bits_needed(
         target=target,
         cost_gap=cost_gap,
         data_rate=data_rate_bits(res.system.A),
+        loop_length=length,
     )
     return dataclasses.replace(ans, result=res)

@@ -26,10 +26,10 @@ from ..identification.identify import identify, least_squares, relative_errors
 from ..plant.data import Dataset
 from ..plant.lti import LTISystem
 from ..quantization.moments import prepare, quantized_moments
-from ..quantization.quantize import QuantizerSpec
+from ..quantization.quantize import ERROR_VARIANCE, QuantizerSpec
 from .config import parse_bits
 
-__all__ = ["RecordedResult", "dataset_from_arrays", "load_recorded", "identify_recorded"]
+__all__ = ["RecordedResult", "dataset_from_arrays", "load_recorded", "identify_recorded", "theorem1_on_data"]
 
 
 def dataset_from_arrays(x: ArrayLike, u: ArrayLike) -> Dataset:
@@ -168,6 +168,8 @@ class RecordedResult:
         Relative errors of A and B per realization.
     overload : dict b -> float
     notes : list of str
+    theory : dict b -> dict
+        Theorem 1's prediction from the data's own second moments (:func:`theorem1_on_data`).
     """
 
     bits: tuple[int, ...]
@@ -180,9 +182,10 @@ class RecordedResult:
     runs: int
     steps: int
     notes: list[str] = field(default_factory=list)
+    theory: dict[int, dict[str, Any]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON data: one row per b with mean/std of each estimator's errors."""
+        """Plain JSON data: one row per b with mean/std of each estimator's errors and Theorem 1's prediction."""
         rows = []
         for b in self.bits:
             r = {"bits": b, "eps": self.eps[b].tolist(), "overload_fraction": self.overload[b]}
@@ -192,6 +195,8 @@ class RecordedResult:
                     "err_A": {"mean": float(np.nanmean(e[:, 0])), "std": float(np.nanstd(e[:, 0]))},
                     "err_B": {"mean": float(np.nanmean(e[:, 1])), "std": float(np.nanstd(e[:, 1]))},
                 }
+            if b in self.theory:
+                r["theorem1"] = self.theory[b]
             rows.append(r)
         return {
             "reference": self.reference,
@@ -202,6 +207,69 @@ class RecordedResult:
             "results": rows,
             "notes": list(self.notes),
         }
+
+
+def theorem1_on_data(
+    PP: np.ndarray, T: int, A: np.ndarray, B: np.ndarray, eps: ArrayLike, dither: str, overload: float
+) -> dict[str, Any]:
+    """Theorem 1's LS errors predicted from the data's own ``Sigma = Psi Psi^T / T``, and whether they apply.
+
+    The hypotheses are checked as in :mod:`qsid_core.studies.assumptions`: a dither of known error
+    variance (subtractive or tpdf), a stable reference model (``Sigma`` has a limit: spectral radius
+    below ``1 - STATIONARITY_MARGIN``), no entry overloaded, and large data per block (Theorem 1's bias
+    at least ``LARGE_DATA_RATIO`` times the predicted finite-data fluctuation).
+
+    Parameters
+    ----------
+    PP : ndarray, shape (n+m, n+m)
+        ``Psi Psi^T`` of the unquantized data, summed over the ``T`` samples.
+    T : int
+    A, B : ndarray, shapes (n, n), (n, m)
+        The reference model.
+    eps : ndarray, shape (n+m,)
+        Cell widths at this b.
+    dither : str
+    overload : float
+        Mean fraction of overloaded entries.
+
+    Returns
+    -------
+    dict
+        ``err_A``, ``err_B`` (predicted relative errors), ``fluctuation_A``, ``fluctuation_B``,
+        ``holds_A``, ``holds_B`` and ``why`` (the hypotheses that fail, in words).
+    """
+    from ..identification.theorem1 import theorem1_prediction
+    from .assumptions import LARGE_DATA_RATIO, STATIONARITY_MARGIN, finite_data_fluctuation
+
+    n = A.shape[0]
+    G = np.hstack([A, B])
+    eps = np.asarray(eps, dtype=float)
+    Gp = theorem1_prediction(G, PP / T, eps, dither)
+    eA, eB = relative_errors(Gp[:, :n], Gp[:, n:], A, B)
+    fA, fB = finite_data_fluctuation(G, PP, eps)
+    fA, fB = float(fA / np.linalg.norm(A)), float(fB / np.linalg.norm(B))
+    why = []
+    if dither not in ERROR_VARIANCE:
+        why.append(f"dither {dither} has no signal-independent error variance")
+    rho = float(np.abs(np.linalg.eigvals(A)).max())
+    if not rho < 1.0 - STATIONARITY_MARGIN:
+        why.append(f"Psi Psi^T / T has no limit (spectral radius of the reference A {rho:.6g})")
+    if overload > 0:
+        why.append(f"{100 * overload:.3g} % of the entries overload")
+    common = not why
+    large = {"A": eA >= LARGE_DATA_RATIO * fA, "B": eB >= LARGE_DATA_RATIO * fB}
+    for blk, e, f in (("A", eA, fA), ("B", eB, fB)):
+        if not large[blk]:
+            why.append(f"finite data for {blk}^ (bias {e:.3g} < {LARGE_DATA_RATIO:g} x fluctuation {f:.3g})")
+    return {
+        "err_A": float(eA),
+        "err_B": float(eB),
+        "fluctuation_A": float(fA),
+        "fluctuation_B": float(fB),
+        "holds_A": bool(common and large["A"]),
+        "holds_B": bool(common and large["B"]),
+        "why": why,
+    }
 
 
 def identify_recorded(
@@ -272,6 +340,11 @@ def identify_recorded(
                     notes.add(f"b = {b}: {exc}")
                     rows.append((float("nan"), float("nan")))
             err[(est, b)] = np.array(rows)
+    overload = {b: float(np.mean([m[j].overload_fraction for m in moms])) for j, b in enumerate(bits)}
+    theory = {
+        b: theorem1_on_data(prep.exact.PP, prep.exact.T, A_ref, B_ref, moms[0][j].eps, spec.dither, overload[b])
+        for j, b in enumerate(bits)
+    }
     return RecordedResult(
         bits,
         ref,
@@ -279,8 +352,9 @@ def identify_recorded(
         B_ref,
         {b: moms[0][j].eps for j, b in enumerate(bits)},
         err,
-        {b: float(np.mean([m[j].overload_fraction for m in moms])) for j, b in enumerate(bits)},
+        overload,
         data.trajectories,
         data.steps,
         sorted(notes),
+        theory,
     )

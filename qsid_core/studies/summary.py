@@ -94,7 +94,8 @@ class SummaryRow(Mapping[str, Any]):
     assumptions : Assumptions or None
         Hypotheses of Theorem 1 and BCLS (:mod:`qsid_core.studies.assumptions`).
     mpc_cost, final_state_norm : dict or None
-        Closed-loop summaries (None when MPC is off).
+        Closed-loop summaries (None when MPC is off); ``mpc_cost["mean_bounded"]`` is the mean over
+        the loops judged converged or bounded (with the verdicts on).
     qp_steps : int or None
         Closed-loop steps whose input needed the QP solver (a constraint was active).
     saturated_steps : dict or None
@@ -249,6 +250,9 @@ def _loop_fields(lp: ClosedLoops, u_max: Any) -> dict[str, Any]:
         if f:
             kinds[f] = kinds.get(f, 0) + 1
     kw["mpc_cost"] = {**Stats.of(lp.cost).to_dict(), "failed": int(failed.sum()), "failures": kinds}
+    if lp.outcome:  # the mean over the loops that did not diverge (a diverged loop's cost is no cost)
+        kept = np.isin(np.asarray(lp.outcome), ("converged", "bounded"))
+        kw["mpc_cost"]["mean_bounded"] = Stats.of(lp.cost[kept]).mean
     kw["final_state_norm"] = {
         "mean": float(fsn.mean()) if fsn.size else None,
         "max": float(fsn.max()) if fsn.size else None,

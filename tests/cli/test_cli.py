@@ -167,7 +167,7 @@ def test_singular_identification_is_counted_not_fatal(capsys):
     row = _strict_json(out)["results"][0]
     # every one of the 3 realizations fails to identify; each is a failed closed loop of kind "ident", no cost
     assert row["ident_failures"] == 3
-    assert row["mpc_cost"] == {"mean": None, "std": None, "failed": 3, "failures": {"ident": 3}}
+    assert row["mpc_cost"] == {"mean": None, "std": None, "failed": 3, "failures": {"ident": 3}, "mean_bounded": None}
 
 
 def test_seed_and_workers_reproducible(capsys):

@@ -99,10 +99,10 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
 def test_command_is_short_at_the_defaults_and_names_changes():
     assert share.command_lines(Values(identification="LS")) == [
         "qsid sweep --realizations=20 --trajectories=50 --steps=200",
-        "qsid bits --realizations=20 --trajectories=50 --steps=200",
+        "qsid bits --realizations=20 --trajectories=50 --steps=200 --mpc-steps=50",
     ]
     line = share.command_lines(Values(identification="LS", target=0.9, cost_gap=0.05, verify_steps=100))[-1]
-    assert line.endswith("--verify-steps=100 --target=0.9 --cost-gap=0.05")
+    assert "--verify-steps=100" in line and line.endswith("--mpc-steps=50 --target=0.9 --cost-gap=0.05")
     line = share.command_lines(CASES["boeing, fixed per channel, no guard, BCLS"])[0]
     assert "--system=boeing747" in line and "--no-guard" in line and "--limits=-20.0,20.0;" in line
 

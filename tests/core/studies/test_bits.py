@@ -42,7 +42,7 @@ def _rows_agree(ans):
     """b_observed / b_robust / b_letter recomputed by hand from the rows."""
     t, g = ans.settings["target"], ans.settings["cost_gap"]
     rows = ans.rows
-    obs = [r.stabilized_fraction >= t and r.cost_gap <= g for r in rows]
+    obs = [r.stabilized_fraction >= t and r.cost_gap is not None and abs(r.cost_gap) <= g for r in rows]
     for name, ok in (
         ("b_observed", obs),
         ("b_robust", [r.robust for r in rows]),
@@ -109,12 +109,16 @@ def test_answer_from_rows_and_bad_targets():
             "rho": 2.0,
             "bound_self_consistent": b > 2,
             "bound_informative": b > 3,
+            "err_A": {"mean": 0.11},
+            "err_A_theory": 0.1,
+            "err_B": {"mean": 0.09},
+            "err_B_theory": 0.1,
         }
         for b, c, cost in ((1, 2, 5.0), (2, 10, 1.05), (3, 10, 1.001), (4, 10, 1.0))
     ]
     ans = answer_from_rows("toy", {}, rows, 1.0, robust={1: (2.0, 1.0), 2: (0.5, 1.0), 3: (0.1, 1.0), 4: (0.1, 1.0)})
     assert (ans.b_observed, ans.b_robust, ans.b_letter) == (3, 2, 4)
-    assert "from b = 3 on" in ans.sentence and "needs b >= 2" in ans.sentence and "from b = 4" in ans.sentence
+    assert "from b = 3 on" in ans.sentence and "holds from b = 2 on" in ans.sentence and "from b = 4" in ans.sentence
     loose = answer_from_rows("toy", {}, rows, 1.0, target=0.2, cost_gap=10)
     assert loose.b_observed == 1 and loose.b_robust is None
     for kw, field in (
