@@ -19,13 +19,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError, check_int
 from ..identification.identify import identify, least_squares, relative_errors
 from ..plant.data import Dataset
 from ..plant.lti import LTISystem
-from ..quantization.moments import prepare, quantized_moments
+from ..quantization.moments import Moments, PreparedData, prepare, quantized_moments
 from ..quantization.quantize import ERROR_VARIANCE, QuantizerSpec
 from .config import parse_bits
 
@@ -272,6 +272,45 @@ def theorem1_on_data(
     }
 
 
+def _reference(
+    data: Dataset, prep: PreparedData, system: LTISystem | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], str]:
+    """The model the errors are measured against: ``system``, or LS on the unquantized data; and its name."""
+    if system is not None:
+        if system.A.shape[0] != data.n or system.B.shape[1] != data.m:
+            raise ConfigError(
+                f"system {system.name!r} has {system.n} states and {system.m} inputs; the data have "
+                f"{data.n} and {data.m}"
+            )
+        return system.A, system.B, system.name
+    try:
+        A_ref, B_ref = least_squares(prep.exact.PP, prep.exact.XP, data.n)
+    except ValueError as exc:
+        raise ConfigError(f"the unquantized data do not identify a model: {exc}") from None
+    return A_ref, B_ref, "LS on the unquantized data"
+
+
+def _errors(
+    bits: Sequence[int], moms: Sequence[Sequence[Moments]], A_ref: NDArray[np.float64], B_ref: NDArray[np.float64]
+) -> tuple[dict[tuple[str, int], NDArray[np.float64]], set[str]]:
+    """Relative errors of LS and BCLS at each b for every realization (NaN where impossible), and the notes."""
+    err: dict[tuple[str, int], NDArray[np.float64]] = {}
+    notes: set[str] = set()
+    for j, b in enumerate(bits):
+        for est in ("ls", "bcls"):
+            rows = []
+            for mo in (m[j] for m in moms):
+                try:
+                    idn = identify(mo, est)
+                    notes.update([idn.note] if idn.note else [])
+                    rows.append(relative_errors(idn.A, idn.B, A_ref, B_ref))
+                except ValueError as exc:
+                    notes.add(f"b = {b}: {exc}")
+                    rows.append((float("nan"), float("nan")))
+            err[(est, b)] = np.array(rows)
+    return err, notes
+
+
 def identify_recorded(
     data: Dataset | tuple[ArrayLike, ArrayLike],
     bits: str | int | Sequence[int] = "2:12",
@@ -309,37 +348,13 @@ def identify_recorded(
     spec = quantizer or QuantizerSpec()
     R = 1 if spec.dither == "none" else check_int("realizations", realizations, 1, 10000)
     prep = prepare(data, spec)
-    if system is not None:
-        if system.A.shape[0] != data.n or system.B.shape[1] != data.m:
-            raise ConfigError(
-                f"system {system.name!r} has {system.n} states and {system.m} inputs; the data have "
-                f"{data.n} and {data.m}"
-            )
-        A_ref, B_ref, ref = system.A, system.B, system.name
-    else:
-        try:
-            A_ref, B_ref = least_squares(prep.exact.PP, prep.exact.XP, data.n)
-        except ValueError as exc:
-            raise ConfigError(f"the unquantized data do not identify a model: {exc}") from None
-        ref = "LS on the unquantized data"
+    A_ref, B_ref, ref = _reference(data, prep, system)
     seeds = np.random.SeedSequence(dither_seed).spawn(R)
     moms = [
         quantized_moments(prep, list(bits), spec, np.random.default_rng(s) if spec.dither != "none" else None)
         for s in seeds
     ]
-    err, notes = {}, set()
-    for j, b in enumerate(bits):
-        for est in ("ls", "bcls"):
-            rows = []
-            for mo in (m[j] for m in moms):
-                try:
-                    idn = identify(mo, est)
-                    notes.update([idn.note] if idn.note else [])
-                    rows.append(relative_errors(idn.A, idn.B, A_ref, B_ref))
-                except ValueError as exc:
-                    notes.add(f"b = {b}: {exc}")
-                    rows.append((float("nan"), float("nan")))
-            err[(est, b)] = np.array(rows)
+    err, notes = _errors(bits, moms, A_ref, B_ref)
     overload = {b: float(np.mean([m[j].overload_fraction for m in moms])) for j, b in enumerate(bits)}
     theory = {
         b: theorem1_on_data(prep.exact.PP, prep.exact.T, A_ref, B_ref, moms[0][j].eps, spec.dither, overload[b])
