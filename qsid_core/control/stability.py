@@ -1,4 +1,4 @@
-"""Linear-algebra tests of closed-loop stability: spectral radii, convergence certificates, stability radii.
+"""Linear-algebra tests of closed-loop stability: spectral radii and convergence certificates.
 
 The MPC built on a model ``(A^, B^)`` is, while no constraint is active, the
 affine feedback ``u = -K^ x + k`` with ``K^`` the first gain of its finite-horizon
@@ -9,14 +9,10 @@ Riccati recursion. On the true plant that law gives ``x+ = (A - B K^) x + B k``:
 * :func:`lyapunov_gains` -- with ``S`` the solution of ``M'SM - S = -I``, the
   ``S``-norm of ``x_t - x_inf`` never grows, so ``|F_i (x_t - x_inf)| <= g_i ||x_0 - x_inf||_S``
   for every future step: a state from which the unconstrained law stays
-  feasible forever, and therefore converges (:func:`certify`);
-* :func:`complex_stability_radius` -- the smallest unstructured complex
-  perturbation ``E`` (spectral norm) that makes ``M + E`` unstable:
-  ``min over |z| = 1 of sigma_min(zI - M)``. ``||E||_2`` below it certifies
-  stability (small-gain theorem; Hinrichsen & Pritchard, *Mathematical Systems
-  Theory I*, Springer 2005, Sec. 5.3);
-* :func:`controllability_margin` -- the relative smallest singular value of the
-  controllability matrix (Assumption 2 of the letter asks ``(A^, B^)`` controllable).
+  feasible forever, and therefore converges (:func:`certify`).
+
+Stability radii and the small-gain test are in :mod:`qsid_core.control.stability_radius`,
+controllability and the data-rate floor in :mod:`qsid_core.control.controllability`.
 """
 
 from __future__ import annotations
@@ -29,16 +25,7 @@ __all__ = [
     "lyapunov_gains",
     "certify",
     "certify_batch",
-    "complex_stability_radius",
-    "small_gain_margin",
-    "small_gain_holds",
-    "data_rate_bits",
-    "controllability_margin",
-    "UNIT_CIRCLE_ROUNDOFF",
 ]
-
-#: ``|lambda| - 1`` at most this is round-off of an eigenvalue on the unit circle (:func:`data_rate_bits`).
-UNIT_CIRCLE_ROUNDOFF = 1e-7
 
 
 def spectral_radius(M: np.ndarray) -> np.ndarray:
@@ -238,176 +225,3 @@ def certify(
         worst = np.abs(F @ x_inf + f) + g * size
     ok = bool(np.all(worst <= bound * (1 - margin)) and np.all(np.isfinite(x_inf)))
     return ok, x_inf
-
-
-def complex_stability_radius(M: np.ndarray, grid: int = 180) -> float:
-    """``min over |z| = 1 of sigma_min(zI - M)``: the complex stability radius of a stable ``M``.
-
-    ``M + E`` is stable for every complex ``E`` with ``||E||_2`` below it (and some
-    ``E`` of that norm makes it unstable). Computed on a grid of ``grid`` points of
-    the unit circle, then refined around each dip of the grid that can hold the
-    minimum by a bounded scalar minimisation; the result is exact to about 1e-10 relative for the small
-    systems here (the default grid of 180 gives the same radii as 720 to 1e-16 on both presets' loops, in
-    a quarter of the time: the refinement, not the grid, sets the accuracy). 0 when ``M`` is not stable.
-
-    Parameters
-    ----------
-    M : ndarray, shape (n, n)
-    grid : int
-
-    Returns
-    -------
-    float
-    """
-    from scipy.optimize import minimize_scalar
-
-    M = np.asarray(M, dtype=float)
-    if not np.all(np.isfinite(M)) or spectral_radius(M) >= 1.0:
-        return 0.0
-    n = M.shape[0]
-    eye = np.eye(n)
-
-    def smin(theta: float) -> float:
-        return float(np.linalg.svd(np.exp(1j * theta) * eye - M, compute_uv=False)[-1])
-
-    # real M: sigma_min is symmetric in theta, so [0, pi] is enough; the dips sit near the eigenvalues' angles
-    th = np.union1d(np.linspace(0.0, np.pi, grid + 1), np.abs(np.angle(np.linalg.eigvals(M))))
-    vals = np.linalg.svd(np.exp(1j * th)[:, None, None] * eye - M, compute_uv=False)[:, -1]
-    best = float(vals.min())
-    # sigma_min(zI - M) is 1-Lipschitz along the circle: near a grid point it is at least its value less half the
-    # spacing, so only the dips (local minima of the grid) within that slack of the best value can hold the minimum
-    slack = np.pi / grid / 2
-    # neighbours across the ends mirror (sigma_min is even in theta and 2 pi periodic)
-    left, right = np.r_[vals[1], vals[:-1]], np.r_[vals[1:], vals[-2]]
-    dips = np.flatnonzero((vals <= left) & (vals <= right))
-    for k in dips[np.argsort(vals[dips])]:
-        if vals[k] - slack >= best:
-            break
-        lo, hi = th[max(k - 1, 0)], th[min(k + 1, th.size - 1)]
-        r = minimize_scalar(smin, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
-        best = min(best, float(r.fun))
-    return best
-
-
-def small_gain_holds(
-    A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray, grid: int = 720
-) -> np.ndarray:
-    """Whether :func:`small_gain_margin`'s test certifies each loop of a batch, decided cheaply where it can be.
-
-    ``sigma_min(zI - M)`` is 1-Lipschitz along the unit circle, so on a grid of
-    spacing ``h`` its minimum ``g`` gives ``g - h/2 <= r_C <= g``: a perturbation
-    below ``g - h/2`` is certified and one at least ``g`` is not, without refining.
-    A coarse grid, then a fine one, settle almost every loop; the few left are
-    refined exactly (:func:`complex_stability_radius`).
-
-    Parameters
-    ----------
-    A : ndarray, shape (n, n); B : ndarray, shape (n, m)
-        The true plant.
-    A_hat : ndarray, shape (L, n, n); B_hat : ndarray, shape (L, n, m); K : ndarray, shape (L, m, n)
-        Models and the gains designed on them.
-
-    Returns
-    -------
-    ndarray of bool, shape (L,)
-    """
-    A_hat, B_hat, K = (np.asarray(v, dtype=float) for v in (A_hat, B_hat, K))
-    L, n, _ = A_hat.shape
-    out = np.zeros(L, dtype=bool)
-    with np.errstate(all="ignore"):
-        E = (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K
-        M = A_hat - B_hat @ K
-    fin = np.all(np.isfinite(E.reshape(L, -1)), axis=1) & np.all(np.isfinite(M.reshape(L, -1)), axis=1)
-    todo = np.flatnonzero(fin)
-    if not todo.size:
-        return out
-    todo = todo[spectral_radius(M[todo]) < 1.0]
-    pert = np.full(L, np.inf)
-    if todo.size:
-        pert[todo] = np.linalg.norm(E[todo], 2, axis=(1, 2))
-    for pts in (48, 180, grid):
-        if not todo.size:
-            return out
-        th = np.linspace(0.0, np.pi, pts + 1)
-        Z = np.exp(1j * th)[None, :, None, None] * np.eye(n) - M[todo][:, None]
-        g = np.linalg.svd(Z, compute_uv=False)[..., -1].min(axis=1)
-        yes = pert[todo] < g - (th[1] - th[0]) / 2
-        out[todo[yes]] = True
-        todo = todo[~yes & (pert[todo] < g)]
-    for i in todo:
-        out[i] = pert[i] < complex_stability_radius(M[i], grid)
-    return out
-
-
-def small_gain_margin(
-    A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray
-) -> tuple[float, float]:
-    """The robust-stability test of the gain ``K`` designed on ``(A^, B^)`` and applied to ``(A, B)``.
-
-    The true closed loop is ``A - B K = (A^ - B^ K) + (dA - dB K)`` with
-    ``dA = A - A^``, ``dB = B - B^``. By the small-gain theorem it is stable when
-    ``||dA - dB K||_2 < r_C(A^ - B^ K)``, the complex stability radius of the
-    nominal loop (:func:`complex_stability_radius`). A sufficient condition only:
-    it ignores the structure of the perturbation.
-
-    Returns
-    -------
-    (perturbation, radius) : floats ``||dA - dB K||_2`` and ``r_C(A^ - B^ K)``;
-        the loop is certified when ``perturbation < radius``.
-    """
-    E = (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K
-    pert = float(np.linalg.norm(E, 2)) if np.all(np.isfinite(E)) else float("inf")
-    return pert, complex_stability_radius(A_hat - B_hat @ K)
-
-
-def data_rate_bits(A: np.ndarray) -> float:
-    """The data-rate theorem's floor: ``sum over |lambda_i| > 1 of log2 |lambda_i|`` bits per sample.
-
-    Any feedback loop that measures the state through a digital channel must send
-    more than this many bits per sample to stabilize the plant, whatever the
-    controller (Tatikonda & Mitter, IEEE TAC 2004; Nair & Evans, SIAM J. Control
-    Optim. 2004). 0 for a stable (or marginally stable) plant: an eigenvalue with
-    ``|lambda| <= 1 +`` :data:`UNIT_CIRCLE_ROUNDOFF` counts as on the unit circle (round-off
-    of an eigenvalue computed at ``|lambda| = 1``; a double one, as of an undamped mass, moves by
-    about the square root of the machine epsilon, 1.5e-8).
-
-    Parameters
-    ----------
-    A : ndarray, shape (n, n)
-    """
-    lam = np.abs(np.linalg.eigvals(np.asarray(A, dtype=float)))
-    return float(np.sum(np.log2(lam[lam > 1.0 + UNIT_CIRCLE_ROUNDOFF])))
-
-
-def controllability_margin(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``sigma_min / sigma_max`` of ``[B, AB, ..., A^{n-1}B]`` per model (0: uncontrollable, NaN: no model).
-
-    Each block is scaled by ``max(1, ||A||_2)^-k`` so that fast modes do not
-    drown the measure; the controllability matrix's rank is unchanged.
-
-    Parameters
-    ----------
-    A : ndarray, shape (L, n, n); B : ndarray, shape (L, n, m)
-
-    Returns
-    -------
-    ndarray, shape (L,)
-    """
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    L, n, m = B.shape
-    out = np.full(L, np.nan)
-    ok = np.all(np.isfinite(A.reshape(L, -1)), axis=1) & np.all(np.isfinite(B.reshape(L, -1)), axis=1)
-    if not ok.any():
-        return out
-    Ao, Bo = A[ok], B[ok]
-    scale = np.maximum(1.0, np.linalg.norm(Ao, 2, axis=(1, 2)))[:, None, None]
-    blocks, blk = [], Bo
-    for _ in range(n):
-        blocks.append(blk)
-        blk = (Ao @ blk) / scale
-    C = np.concatenate(blocks, axis=2)
-    s = np.linalg.svd(C, compute_uv=False)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out[ok] = np.where(s[:, 0] > 0, s[:, -1] / s[:, 0], 0.0)  # C is n x nm: s has n values
-    return out

@@ -14,21 +14,10 @@ from .assumptions import (
     finite_data_fluctuation,
     range_words,
 )
-from .bits import (
-    CERTIFY_TOLERANCE,
-    LOOP_COST_TOLERANCE,
-    LOOP_TIME_CONSTANTS,
-    BitsAnswer,
-    BitsRow,
-    answer_from_rows,
-    bits_needed,
-    certificate,
-    from_on,
-    loop_length,
-    predicted_small_gain,
-    realized_small_gain,
-    wilson_interval,
-)
+from .bits import bits_needed
+from .bits_answer import BitsAnswer, BitsRow, answer_from_rows, from_on, wilson_interval
+from .bits_certificate import CERTIFY_TOLERANCE, certificate, predicted_small_gain, realized_small_gain
+from .bits_cost import LOOP_COST_TOLERANCE, LOOP_TIME_CONSTANTS, loop_length
 from .cache_keys import KEY_PARTS, NOT_IN_KEYS, STAGE_GROUPS, config_paths, group_values, stage_key, system_key
 from .clipping import clipping_effect
 from .config import SweepConfig, parse_bits, parse_input_bits, parse_noise, parse_state_bits

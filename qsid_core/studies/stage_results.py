@@ -76,10 +76,10 @@ class BitsIdentification:
     @property
     def controllability(self) -> np.ndarray:
         """shape (R,): relative smallest singular value of the controllability matrix of each ``(A^, B^)``
-        (:func:`qsid_core.control.stability.controllability_margin`; NaN for a failed identification)."""
+        (:func:`qsid_core.control.controllability.controllability_margin`; NaN for a failed identification)."""
         margin = self._ctrb
         if margin is None:
-            from ..control.stability import controllability_margin
+            from ..control.controllability import controllability_margin
 
             margin = controllability_margin(self.A_hat, self.B_hat)
             object.__setattr__(self, "_ctrb", margin)

@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..control.controllability import data_rate_bits
 from ..control.loop_results import ClosedLoops
-from ..control.stability import data_rate_bits
 from ..errors import ConfigError
 from ..plant.lti import LTISystem
 from ..quantization.quantize import ERROR_VARIANCE, NOMINAL_VARIANCE, bcls_reason

@@ -125,8 +125,6 @@ PHYSICAL_LIMITS_WAIVED = {
     "app.dashboard.share",
     "app.dashboard.viewcodes",
     "app.dashboard.viewpanel",
-    "qsid_core.control.stability",
-    "qsid_core.studies.bits",
 }
 
 

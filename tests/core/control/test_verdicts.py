@@ -5,8 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from qsid_core.control.mpc import MPCConfig
-from qsid_core.control.stability import (
+from qsid_core.control import (
     certify,
     complex_stability_radius,
     controllability_margin,
@@ -15,6 +14,7 @@ from qsid_core.control.stability import (
     small_gain_margin,
     spectral_radius,
 )
+from qsid_core.control.mpc import MPCConfig
 from qsid_core.control.verdicts import OUTCOMES
 from qsid_core.plant.lti import LTISystem
 from qsid_core.studies.config import SweepConfig

@@ -120,7 +120,7 @@ def test_system_from_dict_requires_mapping():
 def test_new_presets_sources_and_data_rate():
     import numpy as np
 
-    from qsid_core.control.stability import data_rate_bits
+    from qsid_core.control import data_rate_bits
     from qsid_core.plant.systems import PRESETS, dc_motor_physical, get_system
 
     assert {"dc-motor-50ms", "inverted-pendulum", "mass-spring-damper"} <= set(PRESETS)

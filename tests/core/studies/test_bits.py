@@ -9,7 +9,7 @@ from app.cli import main
 from qsid_core.control.mpc import MPCConfig
 from qsid_core.errors import ConfigError
 from qsid_core.plant.lti import LTISystem
-from qsid_core.studies.bits import (
+from qsid_core.studies import (
     answer_from_rows,
     bits_needed,
     from_on,

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from qsid_core import MPCConfig, SweepConfig, load_system
-from qsid_core.studies import answer_from_rows, bits_needed
-from qsid_core.studies.bits import CERTIFY_TOLERANCE, LOOP_COST_TOLERANCE
+from qsid_core.studies import CERTIFY_TOLERANCE, LOOP_COST_TOLERANCE, answer_from_rows, bits_needed
 
 DATA = Path(__file__).resolve().parents[3] / "docs" / "data"
 

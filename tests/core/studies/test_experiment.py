@@ -125,7 +125,7 @@ class _DropsAfterCheck(dict):
 
 @pytest.mark.parametrize("cache", [_Forgetful, _DropsAfterCheck])
 def test_results_never_depend_on_the_cache_keeping_an_entry(cache):
-    from qsid_core.studies.bits import predicted_small_gain
+    from qsid_core.studies import predicted_small_gain
 
     cfg = SweepConfig(bits=(3, 5), mpc=MPCConfig(steps=10), **SMALL)
     ref = Experiment(cfg)

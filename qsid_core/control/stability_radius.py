@@ -1,0 +1,138 @@
+"""Stability radii of a closed loop and the small-gain test of a gain designed on a model.
+
+* :func:`complex_stability_radius` -- the smallest unstructured complex
+  perturbation ``E`` (spectral norm) that makes ``M + E`` unstable:
+  ``min over |z| = 1 of sigma_min(zI - M)``. ``||E||_2`` below it certifies
+  stability (small-gain theorem; Hinrichsen & Pritchard, *Mathematical Systems
+  Theory I*, Springer 2005, Sec. 5.3);
+* :func:`small_gain_margin` -- that test for the gain ``K^`` designed on ``(A^, B^)`` and
+  applied to the true plant ``(A, B)``; :func:`small_gain_holds` decides it for a batch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .stability import spectral_radius
+
+__all__ = ["complex_stability_radius", "small_gain_margin", "small_gain_holds"]
+
+
+def complex_stability_radius(M: np.ndarray, grid: int = 180) -> float:
+    """``min over |z| = 1 of sigma_min(zI - M)``: the complex stability radius of a stable ``M``.
+
+    ``M + E`` is stable for every complex ``E`` with ``||E||_2`` below it (and some
+    ``E`` of that norm makes it unstable). Computed on a grid of ``grid`` points of
+    the unit circle, then refined around each dip of the grid that can hold the
+    minimum by a bounded scalar minimisation; the result is exact to about 1e-10 relative for the small
+    systems here (the default grid of 180 gives the same radii as 720 to 1e-16 on both presets' loops, in
+    a quarter of the time: the refinement, not the grid, sets the accuracy). 0 when ``M`` is not stable.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+    grid : int
+
+    Returns
+    -------
+    float
+    """
+    from scipy.optimize import minimize_scalar
+
+    M = np.asarray(M, dtype=float)
+    if not np.all(np.isfinite(M)) or spectral_radius(M) >= 1.0:
+        return 0.0
+    n = M.shape[0]
+    eye = np.eye(n)
+
+    def smin(theta: float) -> float:
+        return float(np.linalg.svd(np.exp(1j * theta) * eye - M, compute_uv=False)[-1])
+
+    # real M: sigma_min is symmetric in theta, so [0, pi] is enough; the dips sit near the eigenvalues' angles
+    th = np.union1d(np.linspace(0.0, np.pi, grid + 1), np.abs(np.angle(np.linalg.eigvals(M))))
+    vals = np.linalg.svd(np.exp(1j * th)[:, None, None] * eye - M, compute_uv=False)[:, -1]
+    best = float(vals.min())
+    # sigma_min(zI - M) is 1-Lipschitz along the circle: near a grid point it is at least its value less half the
+    # spacing, so only the dips (local minima of the grid) within that slack of the best value can hold the minimum
+    slack = np.pi / grid / 2
+    # neighbours across the ends mirror (sigma_min is even in theta and 2 pi periodic)
+    left, right = np.r_[vals[1], vals[:-1]], np.r_[vals[1:], vals[-2]]
+    dips = np.flatnonzero((vals <= left) & (vals <= right))
+    for k in dips[np.argsort(vals[dips])]:
+        if vals[k] - slack >= best:
+            break
+        lo, hi = th[max(k - 1, 0)], th[min(k + 1, th.size - 1)]
+        r = minimize_scalar(smin, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+        best = min(best, float(r.fun))
+    return best
+
+
+def small_gain_holds(
+    A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray, grid: int = 720
+) -> np.ndarray:
+    """Whether :func:`small_gain_margin`'s test certifies each loop of a batch, decided cheaply where it can be.
+
+    ``sigma_min(zI - M)`` is 1-Lipschitz along the unit circle, so on a grid of
+    spacing ``h`` its minimum ``g`` gives ``g - h/2 <= r_C <= g``: a perturbation
+    below ``g - h/2`` is certified and one at least ``g`` is not, without refining.
+    A coarse grid, then a fine one, settle almost every loop; the few left are
+    refined exactly (:func:`complex_stability_radius`).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n); B : ndarray, shape (n, m)
+        The true plant.
+    A_hat : ndarray, shape (L, n, n); B_hat : ndarray, shape (L, n, m); K : ndarray, shape (L, m, n)
+        Models and the gains designed on them.
+
+    Returns
+    -------
+    ndarray of bool, shape (L,)
+    """
+    A_hat, B_hat, K = (np.asarray(v, dtype=float) for v in (A_hat, B_hat, K))
+    L, n, _ = A_hat.shape
+    out = np.zeros(L, dtype=bool)
+    with np.errstate(all="ignore"):
+        E = (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K
+        M = A_hat - B_hat @ K
+    fin = np.all(np.isfinite(E.reshape(L, -1)), axis=1) & np.all(np.isfinite(M.reshape(L, -1)), axis=1)
+    todo = np.flatnonzero(fin)
+    if not todo.size:
+        return out
+    todo = todo[spectral_radius(M[todo]) < 1.0]
+    pert = np.full(L, np.inf)
+    if todo.size:
+        pert[todo] = np.linalg.norm(E[todo], 2, axis=(1, 2))
+    for pts in (48, 180, grid):
+        if not todo.size:
+            return out
+        th = np.linspace(0.0, np.pi, pts + 1)
+        Z = np.exp(1j * th)[None, :, None, None] * np.eye(n) - M[todo][:, None]
+        g = np.linalg.svd(Z, compute_uv=False)[..., -1].min(axis=1)
+        yes = pert[todo] < g - (th[1] - th[0]) / 2
+        out[todo[yes]] = True
+        todo = todo[~yes & (pert[todo] < g)]
+    for i in todo:
+        out[i] = pert[i] < complex_stability_radius(M[i], grid)
+    return out
+
+
+def small_gain_margin(
+    A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray
+) -> tuple[float, float]:
+    """The robust-stability test of the gain ``K`` designed on ``(A^, B^)`` and applied to ``(A, B)``.
+
+    The true closed loop is ``A - B K = (A^ - B^ K) + (dA - dB K)`` with
+    ``dA = A - A^``, ``dB = B - B^``. By the small-gain theorem it is stable when
+    ``||dA - dB K||_2 < r_C(A^ - B^ K)``, the complex stability radius of the
+    nominal loop (:func:`complex_stability_radius`). A sufficient condition only:
+    it ignores the structure of the perturbation.
+
+    Returns
+    -------
+    (perturbation, radius) : floats ``||dA - dB K||_2`` and ``r_C(A^ - B^ K)``;
+        the loop is certified when ``perturbation < radius``.
+    """
+    E = (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K
+    pert = float(np.linalg.norm(E, 2)) if np.all(np.isfinite(E)) else float("inf")
+    return pert, complex_stability_radius(A_hat - B_hat @ K)

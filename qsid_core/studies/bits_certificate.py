@@ -1,0 +1,152 @@
+"""The small-gain certificate of "how many bits" (``b_robust``) and the check of its hypotheses.
+
+With ``(A^, B^)`` a model and ``K^`` the gain of the MPC built on it (its unconstrained law),
+the small-gain theorem gives stability of ``A - B K^`` when
+``||(A - A^) - (B - B^) K^||_2 < r_C(A^ - B^ K^)``
+(:func:`qsid_core.control.stability_radius.small_gain_margin`). :func:`predicted_small_gain`
+runs that test for Theorem 1's model, :func:`realized_small_gain` for each loop's own model,
+and :func:`certificate` decides from both, with Theorem 1's hypotheses checked on the data
+(see :mod:`qsid_core.studies.bits`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, cast
+
+import numpy as np
+
+from .experiment import Experiment
+
+if TYPE_CHECKING:
+    from ..control.loop_results import ClosedLoops
+    from .stage_results import BitsIdentification
+
+__all__ = ["CERTIFY_TOLERANCE", "certificate", "predicted_small_gain", "realized_small_gain"]
+
+#: b_robust through Theorem 1's model needs the measured errors within this relative distance of the
+#: prediction, and the small-gain test to hold with this margin.
+CERTIFY_TOLERANCE = 0.25
+
+
+def predicted_small_gain(ex: Experiment, b: int) -> tuple[float, float]:
+    """``(perturbation, radius)`` of the small-gain test for Theorem 1's predicted model at ``b``.
+
+    ``K^`` is the first gain of the MPC's Riccati recursion on the predicted model
+    (its terminal weight: the configured ``Qf`` or the model's DARE solution).
+    ``(inf, 0)`` when no MPC can be built on that model. Cached in ``ex``.
+    """
+    from ..control.mpc import MPCConfig
+    from ..control.riccati import dare_stabilizing, lq_parts
+    from ..control.stability_radius import small_gain_margin
+    from ..errors import MPCFailure
+
+    mcfg = ex.config.mpc or MPCConfig()
+    th = ex.theory(b)
+    k = ex.keys.small_gain(b, th.G_pred)
+    try:
+        return cast("tuple[float, float]", ex.cache.mapping[k])
+    except KeyError:  # (a shared, bounded cache may also have dropped it: computed again)
+        pass
+    sysm = ex.system
+    n = sysm.n
+    w = mcfg.resolve(sysm)
+    Ah, Bh = th.G_pred[:, :n], th.G_pred[:, n:]
+    try:
+        Qf = w.Qf if w.Qf is not None else dare_stabilizing(Ah, Bh, w.Q, w.R)
+        with np.errstate(all="ignore"):
+            parts = lq_parts(
+                Ah[None], Bh[None], w.Q, w.R, np.asarray(Qf)[None], np.zeros(n), mcfg.horizon, w.u_max, None, None
+            )
+        K = parts.K[0, 0]
+        res = small_gain_margin(sysm.A, sysm.B, Ah, Bh, K) if np.all(np.isfinite(K)) else (math.inf, 0.0)
+    except (MPCFailure, np.linalg.LinAlgError):
+        res = (math.inf, 0.0)
+    ex.cache.store([(k, res)])
+    return res
+
+
+def realized_small_gain(ident: BitsIdentification, loops: ClosedLoops, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Per realization: whether the small-gain test certifies its loop with its *own* model error.
+
+    ``K^`` is read from the loop's unconstrained law (``A - B K^`` has the loop's
+    spectral radius). A sufficient condition: every certified loop has spectral
+    radius below 1 (tested), not the other way round.
+
+    Returns
+    -------
+    ndarray of bool, shape (R,) (False where the loop has no MPC).
+    """
+    from ..control.stability_radius import small_gain_holds
+
+    out = np.zeros(len(ident.err_A), dtype=bool)
+    idx = [r for r, K in enumerate(loops.gains) if K is not None]
+    gains = [K for K in loops.gains if K is not None]
+    if idx:
+        out[idx] = small_gain_holds(A, B, ident.A_hat[idx], ident.B_hat[idx], np.stack(gains))
+    return out
+
+
+def _theorem1_misfit(row: Mapping[str, Any]) -> str:
+    """Empty when the measured mean errors of A^ and B^ are within CERTIFY_TOLERANCE of Theorem 1's, else why."""
+    why = []
+    hyp = row.get("assumptions") or {}
+    if hyp.get("stationary") is False:
+        why.append(f"Psi Psi^T / T has no limit (spectral radius of A {hyp.get('spectral_radius', float('nan')):.6g})")
+    if hyp.get("known_noise") is False:
+        why.append("the dither gives no signal-independent error variance")
+    for blk in ("A", "B"):
+        meas = (row.get(f"err_{blk}") or {}).get("mean")
+        pred = row.get(f"err_{blk}_theory")
+        if meas is None or pred is None or not pred > 0:
+            why.append(f"no measured or predicted error of {blk}^")
+        elif abs(meas - pred) > CERTIFY_TOLERANCE * pred:
+            why.append(f"measured err_{blk} {meas:.3g} vs Theorem 1's {pred:.3g} ({meas / pred:.3g}x)")
+    return "; ".join(why)
+
+
+def certificate(
+    row: Mapping[str, Any], perturbation: float | None, radius: float | None, realized: int | None, loops: int
+) -> tuple[bool | None, str | None, str]:
+    """Whether the loops at one b are certified, on what basis, and why (:mod:`qsid_core.studies.bits`).
+
+    Parameters
+    ----------
+    row : mapping
+        The summary row (``err_A``, ``err_B``, ``err_A_theory``, ``err_B_theory``).
+    perturbation, radius : float or None
+        The small-gain test for Theorem 1's model (:func:`predicted_small_gain`; None: not computed).
+    realized : int or None
+        Loops certified with their own model error (None: not computed).
+    loops : int
+        Loops run.
+
+    Returns
+    -------
+    (certified, basis, note) : bool or None, ``"theorem1"``/``"own-error"``/None, str
+    """
+    if perturbation is None or radius is None:
+        return None, None, ""
+    tol = CERTIFY_TOLERANCE
+    passes = perturbation * (1 + tol) < radius
+    misfit = _theorem1_misfit(row)
+    if passes and not misfit:
+        return (
+            True,
+            "theorem1",
+            (
+                f"certified for Theorem 1's model ({1 + tol:g} x {perturbation:.2g} < {radius:.2g}; measured errors "
+                f"within {100 * tol:g} % of it)"
+            ),
+        )
+    if realized is not None and loops and realized == loops:
+        return True, "own-error", f"certified for every loop's own model ({realized}/{loops})"
+    why = (
+        f"small gain fails for Theorem 1's model ({1 + tol:g} x {perturbation:.2g} >= {radius:.2g})"
+        if not passes
+        else f"large-data hypothesis fails ({misfit}; tolerance {100 * tol:g} %)"
+    )
+    if realized is not None:
+        why += f"; {realized} of {loops} loops certified with their own error"
+    return False, None, f"not certified: {why}"
