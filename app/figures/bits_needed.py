@@ -6,7 +6,7 @@ closed-loop cost to the true-model MPC over the loops that did not diverge (log
 scale, absolute value; the hover gives its sign) and the allowed gap. Vertical lines: ``b_observed`` (solid), ``b_robust`` (dashed, the
 small-gain certificate for Theorem 1's predicted model) and ``b_letter``
 (dotted, the letter's bound below rho and below ||x0||); the sentence of
-:class:`qsid_core.studies.bits.BitsAnswer` is the title.
+:class:`qsid_core.studies.bits_answer.BitsAnswer` is the title.
 """
 
 from __future__ import annotations
