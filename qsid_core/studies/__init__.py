@@ -16,7 +16,13 @@ from .assumptions import (
 )
 from .bits import bits_needed
 from .bits_answer import BitsAnswer, BitsRow, answer_from_rows, from_on, wilson_interval
-from .bits_certificate import CERTIFY_TOLERANCE, certificate, predicted_small_gain, realized_small_gain
+from .bits_certificate import (
+    CERTIFY_TOLERANCE,
+    certificate,
+    certified_own_models,
+    predicted_small_gain,
+    realized_small_gain,
+)
 from .bits_cost import LOOP_COST_TOLERANCE, LOOP_TIME_CONSTANTS, loop_length
 from .cache_keys import KEY_PARTS, NOT_IN_KEYS, STAGE_GROUPS, config_paths, group_values, stage_key, system_key
 from .clipping import clipping_effect
@@ -91,6 +97,7 @@ __all__ = [
     "bits_needed",
     "build_row",
     "certificate",
+    "certified_own_models",
     "check_run_args",
     "check_sweep_parts",
     "clipping_effect",

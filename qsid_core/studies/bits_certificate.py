@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from ..control.loop_results import ClosedLoops
     from .stage_results import BitsIdentification
 
-__all__ = ["CERTIFY_TOLERANCE", "certificate", "predicted_small_gain", "realized_small_gain"]
+__all__ = ["CERTIFY_TOLERANCE", "certificate", "certified_own_models", "predicted_small_gain", "realized_small_gain"]
 
 #: b_robust through Theorem 1's model needs the measured errors within this relative distance of the
 #: prediction, and the small-gain test to hold with this margin.
@@ -86,6 +86,16 @@ def realized_small_gain(ident: BitsIdentification, loops: ClosedLoops, A: np.nda
     if idx:
         out[idx] = small_gain_holds(A, B, ident.A_hat[idx], ident.B_hat[idx], np.stack(gains))
     return out
+
+
+def certified_own_models(ex: Experiment, b: int, estimator: str) -> int:
+    """How many of ``ex``'s closed loops at ``b`` (models by ``estimator``) :func:`realized_small_gain`
+    certifies with their own model error. Cached in ``ex`` (a frequency sweep of SVDs per loop)."""
+    A, B = ex.system.A, ex.system.B
+    return ex.cache.memo(
+        ex.keys.realized_small_gain(b, estimator),
+        lambda: int(realized_small_gain(ex.identification(b, estimator), ex.closed_loops(b, estimator), A, B).sum()),
+    )
 
 
 def _theorem1_misfit(row: Mapping[str, Any]) -> str:
