@@ -41,6 +41,6 @@ def qsid() -> argparse.ArgumentParser:
 
 def qsid_dashboard() -> argparse.ArgumentParser:
     """The ``qsid-dashboard`` parser."""
-    from app.dashboard.server import _parser
+    from app.dashboard.options import parser
 
-    return _escaped(_parser())
+    return _escaped(parser())

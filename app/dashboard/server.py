@@ -22,18 +22,18 @@ from collections import OrderedDict
 
 import viser
 
-from qsid_core import QsidError, __version__
+from qsid_core import QsidError
 
 from .cache import DEFAULT_MB, SharedCache
 from .flow import READ_BYTES, FairSlots
 from .idle import IdleRelease
-from .lessons import get_lesson, lesson_names, lesson_values
+from .lessons import lesson_values
 from .memory import limit_arenas, one_blas_thread, trim
-from .netcheck import OneLineParser, check_address, port_number, who_can_connect
+from .netcheck import who_can_connect
+from .options import STARTING_SYSTEMS, check_lesson, read_options
 from .pool import DEFAULT_TIMEOUT, Pool
 from .session import Session
-from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
-from .share import load_settings_file, values_for_plant_file
+from .settings import INTERACTIVE, PAPER_SCALE, Values
 from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
 from .tabview import drop_late_draws
 from .viewcodes import ViewStore, default_store_path, open_view
@@ -43,10 +43,7 @@ from .warm import COMPILE_SECONDS, first_tab, needs_compiling, prefill, warm
 
 _install_viser_fix()  # before any server exists: every message buffer is made thread-safe
 
-__all__ = ["DashboardApp", "main", "STARTING_SYSTEMS"]
-
-#: Systems a tab can start with (the panel's presets; 'custom' is typed in the panel).
-STARTING_SYSTEMS = tuple(x for x in SYSTEM_CHOICES if x != "custom")
+__all__ = ["DashboardApp", "main"]
 
 
 class DashboardApp:
@@ -94,7 +91,7 @@ class DashboardApp:
         size = PAPER_SCALE if scale == "paper" else INTERACTIVE
         self.defaults = settings if settings is not None else Values(system=system).replace(**size)
         if lesson is not None:  # every new tab opens on the lesson (its settings, its text)
-            self.defaults = lesson_values(_check_lesson(lesson), self.defaults)
+            self.defaults = lesson_values(check_lesson(lesson), self.defaults)
         if presenter:
             self.defaults = self.defaults.replace(presenter=True)
         drop_late_draws()  # a draw that a closing tab cuts short is dropped without a warning
@@ -254,131 +251,9 @@ class DashboardApp:
         self.server.stop()
 
 
-def _check_lesson(name: str) -> str:
-    try:
-        get_lesson(name)
-    except KeyError as exc:
-        raise QsidError(exc.args[0]) from None
-    return name
-
-
-def _parser() -> argparse.ArgumentParser:
-    p = OneLineParser(
-        prog="qsid-dashboard",
-        description="Live dashboard: quantized data -> identification -> MPC. Open the printed URL in a browser.",
-    )
-    p.add_argument("--version", action="version", version=f"qsid-dashboard {__version__}")
-    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument(
-        "--port",
-        type=port_number,
-        default=8080,
-        help="port 0-65535 (default 8080; the next free one if taken; 0: any free port)",
-    )
-    p.add_argument(
-        "--system",
-        default="dc-motor",
-        metavar="NAME|FILE",
-        help=f"initial system of new tabs: a preset ({', '.join(STARTING_SYSTEMS)}) or a .toml/.json plant file "
-        "as qsid --system reads it (opened as the panel's custom system)",
-    )
-    p.add_argument(
-        "--scale",
-        default="interactive",
-        choices=("interactive", "paper"),
-        help=f"initial data size: interactive ({INTERACTIVE['trajectories']} x {INTERACTIVE['steps']}, "
-        f"{INTERACTIVE['realizations']} realizations) or paper ({PAPER_SCALE['trajectories']} x "
-        f"{PAPER_SCALE['steps']}, {PAPER_SCALE['realizations']})",
-    )
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=2,
-        help="processes for the quantization and closed-loop work, shared by all tabs (0 = in-process; default 2)",
-    )
-    p.add_argument(
-        "--task-timeout",
-        type=float,
-        default=DEFAULT_TIMEOUT,
-        metavar="SECONDS",
-        help=f"a pool task running longer counts as hung: its worker is replaced (default {DEFAULT_TIMEOUT:g})",
-    )
-    p.add_argument(
-        "--max-tabs",
-        type=int,
-        default=None,
-        metavar="N",
-        help="serve at most N tabs at once; further tabs get a page saying the dashboard is full (default: no limit)",
-    )
-    p.add_argument(
-        "--cache-mb",
-        type=int,
-        default=DEFAULT_MB,
-        metavar="MB",
-        help=f"memory budget of the results cache shared by all tabs (default {DEFAULT_MB})",
-    )
-    p.add_argument(
-        "--settings",
-        metavar="FILE",
-        default=None,
-        help="start every new tab from a settings file (saved with the panel's 'Download settings')",
-    )
-    p.add_argument(
-        "--presenter",
-        action="store_true",
-        help="open new tabs in presenter mode: plot text 18 px, panel text 16 px, thick lines, a wide 3-D scene",
-    )
-    p.add_argument(
-        "--lesson", default=None, metavar="NAME", help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}"
-    )
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
-    args = _parser().parse_args(argv)
-    if args.workers < 0 or args.workers > 4 * (os.cpu_count() or 1):
-        print(
-            f"qsid-dashboard: error: --workers must be between 0 and {4 * (os.cpu_count() or 1)} "
-            f"(this machine has {os.cpu_count()} CPUs); got {args.workers}",
-            file=sys.stderr,
-        )
-        return 2
-    if not 16 <= args.cache_mb <= 65536:
-        print(f"qsid-dashboard: error: --cache-mb must be between 16 and 65536; got {args.cache_mb}", file=sys.stderr)
-        return 2
-    if not (args.task_timeout > 0 and args.task_timeout < 1e6):
-        print(
-            f"qsid-dashboard: error: --task-timeout must be a positive number of seconds; got {args.task_timeout}",
-            file=sys.stderr,
-        )
-        return 2
-    if args.max_tabs is not None and not 1 <= args.max_tabs <= 10000:
-        print(f"qsid-dashboard: error: --max-tabs must be between 1 and 10000; got {args.max_tabs}", file=sys.stderr)
-        return 2
-    if args.lesson is not None:
-        try:
-            _check_lesson(args.lesson)
-        except QsidError as exc:
-            print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
-            return 2
-    try:
-        settings = None if args.settings is None else load_settings_file(args.settings)
-        if args.system not in STARTING_SYSTEMS:  # a plant file: the panel's custom system
-            size = PAPER_SCALE if args.scale == "paper" else INTERACTIVE
-            settings, notes = values_for_plant_file(args.system, settings or Values().replace(**size))
-            for msg in notes:
-                print(f"qsid-dashboard: note: {msg}", file=sys.stderr, flush=True)
-            args.system = STARTING_SYSTEMS[0]  # unused: the settings say which system
-        warning = check_address(args.host, args.port)
-    except QsidError as exc:
-        print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
-        return 2
-    if warning:
-        print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
-    stop = prepare_stop_signals()  # before any thread exists: all inherit the mask
-    limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
-    one_blas_thread()
+def _serve(args: argparse.Namespace, settings: Values | None, stop) -> int:
+    """Start the server with the checked options, print its URL once a tab is served at once, and serve
+    until the stop signal; the exit status (2: it could not start)."""
     app = None
     code = 0
     try:
@@ -414,6 +289,22 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
             stop_app(app)
+    return code
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
+    try:
+        args, settings, warning = read_options(argv)
+    except QsidError as exc:
+        print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
+        return 2
+    if warning:
+        print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
+    stop = prepare_stop_signals()  # before any thread exists: all inherit the mask
+    limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
+    one_blas_thread()
+    code = _serve(args, settings, stop)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)

@@ -241,18 +241,16 @@ def _certificate(frame: Frame) -> list[str]:
     return ["", "  \n".join(out)]
 
 
-def summary_markdown(frame: Frame) -> str:
-    """The numeric summary at the current b: eps per channel, errors, overload, failures."""
+def _header(frame: Frame, first: dict) -> list[str]:
+    """The summary's first lines: the system, b and data size, eps per channel, overload, bounds, hypotheses."""
     sysm = frame.system
-    b = frame.bits
-    first = frame.rows[frame.labels[0]][b]
     eps_x = ", ".join(f"{nm} {e:.3g}" for nm, e in zip(sysm.state_names, first["eps_x"]))
     eps_u = ", ".join(f"{nm} {e:.3g}" for nm, e in zip(sysm.input_names, first["eps_u"]))
     eff = first.get("effective_realizations") or frame.values.realizations
     distinct = "" if eff == frame.values.realizations else f" ({eff} distinct: no dither, all identical)"
-    lines = [
+    return [
         *_lesson_changes(frame.values),
-        f"**{sysm.name}**, b = **{b}** bits, {frame.values.realizations} dither realizations{distinct}, "
+        f"**{sysm.name}**, b = **{frame.bits}** bits, {frame.values.realizations} dither realizations{distinct}, "
         f"{frame.values.trajectories} × {frame.values.steps} samples",
         "",
         f"ε states: {eps_x}  ",
@@ -264,11 +262,17 @@ def summary_markdown(frame: Frame) -> str:
         *_bound_lesson(frame, first),
         *_hypotheses(frame),
         "",
+    ]
+
+
+def _error_table(frame: Frame, first: dict) -> list[str]:
+    """One table row per estimator at the current b (errors, MPC cost, closed loops), then Theorem 1's."""
+    lines = [
         "| | ‖ΔA‖/‖A‖ | ‖ΔB‖/‖B‖ | MPC cost (loops not diverged) | closed loops on the true plant |",
         "|---|---|---|---|---|",
     ]
     for lab in frame.labels:
-        r = frame.rows[lab][b]
+        r = frame.rows[lab][frame.bits]
         mc = r.get("mpc_cost") or {}
         cost = mc.get("mean_bounded", mc.get("mean"))  # a diverged loop's cost is no cost
         lines.append(
@@ -276,40 +280,40 @@ def summary_markdown(frame: Frame) -> str:
             f"{_failures(r, frame.loops[lab])} |"
         )
     lines.append(f"| Thm 1 | {_g(first['err_A_theory'])} | {_g(first['err_B_theory'])} | | |")
-    lines += ["", _saturation(frame)]
-    lines.append("")
-    tl = frame.true_loop
-    why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
-    lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}{why}")
-    lines += _certificate(frame)
-    lines += _real_loop(frame)
-    notes = list(frame.notes)
+    return lines
+
+
+def _estimator_notes(frame: Frame) -> list[str]:
+    """What went wrong per estimator at the current b: failed identifications, uncontrollable models, BCLS
+    falling back to LS, the MPC's messages."""
+    b, n = frame.bits, frame.values.realizations
+    notes = []
     for lab in frame.labels:
         k = frame.rows[lab][b].get("ident_failures") or 0
         if k:
             why = "; ".join(x for x in frame.idents[lab].notes if x.startswith("identification failed"))[:200]
-            notes.append(
-                f"{lab} identification failed in {k} of {frame.values.realizations} realizations "
-                f"(their loops are not drawn): {why}"
-            )
+            notes.append(f"{lab} identification failed in {k} of {n} realizations (their loops are not drawn): {why}")
     for lab in frame.labels:
         k = (frame.rows[lab][b].get("controllability") or {}).get("uncontrollable") or 0
         if k:
             notes.append(
-                f"{lab}: {k} of {frame.values.realizations} identified models are not controllable "
-                "(the letter's Assumption 2 fails for them)"
+                f"{lab}: {k} of {n} identified models are not controllable (the letter's Assumption 2 fails for them)"
             )
     if "BCLS" in frame.labels:
         r = frame.rows["BCLS"][b]
         if r["bcls_fallbacks"]:
             why = "; ".join(frame.idents["BCLS"].notes[:2])
-            notes.append(
-                f"BCLS fell back to LS in {r['bcls_fallbacks']} of {frame.values.realizations} realizations: {why}"
-            )
+            notes.append(f"BCLS fell back to LS in {r['bcls_fallbacks']} of {n} realizations: {why}")
     for lab in frame.labels:
         msgs = sorted({m for m in frame.loops[lab].messages if m})
         if msgs:
             notes.append(f"{lab} MPC: " + "; ".join(msgs[:2]) + (" …" if len(msgs) > 2 else ""))
+    return notes
+
+
+def _notes(frame: Frame) -> list[str]:
+    """The frame's notes, the estimators' and the views' assumptions (tracking, the bound), as a list."""
+    notes = list(frame.notes) + _estimator_notes(frame)
     mpc = frame.ex.config.mpc if frame.ex is not None else None
     if frame.values.x_ref.strip() and mpc is not None and any(float(x) for x in mpc.x_ref or ()):
         notes.append(
@@ -318,7 +322,18 @@ def summary_markdown(frame: Frame) -> str:
         )
     if frame.theory.bound_note:
         notes.append(f"bound: {frame.theory.bound_note}")
-    if notes:
-        lines.append("")
-        lines += [f"- {x}" for x in notes]
+    return ["", *(f"- {x}" for x in notes)] if notes else []
+
+
+def summary_markdown(frame: Frame) -> str:
+    """The numeric summary at the current b: eps per channel, errors, overload, failures."""
+    first = frame.rows[frame.labels[0]][frame.bits]
+    lines = _header(frame, first) + _error_table(frame, first)
+    lines += ["", _saturation(frame), ""]
+    tl = frame.true_loop
+    why = f" (its MPC failed: {tl.messages[0]})" if tl is not None and tl.failure and tl.failure[0] else ""
+    lines.append(f"MPC cost with the true model: {_g(frame.true_cost, '.4g')}{why}")
+    lines += _certificate(frame)
+    lines += _real_loop(frame)
+    lines += _notes(frame)
     return "\n".join(lines)

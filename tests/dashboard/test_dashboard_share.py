@@ -20,7 +20,7 @@ from support import HANG_S, Tab
 
 from app.cli import build_parser
 from app.cli.runner import config, system_from_args
-from app.dashboard import share
+from app.dashboard import exports, share
 from app.dashboard.session import iter_frames
 from app.dashboard.settings import InputError, Values, resolve_system, sweep_config
 
@@ -81,7 +81,7 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
     v = CASES[name]
     system = resolve_system(v).system
     want = sweep_config(v, system)
-    *lines, bits_line = share.command_lines(v)
+    *lines, bits_line = exports.command_lines(v)
     assert len(lines) == (2 if v.identification == "LS + BCLS" else 1)
     argv = shlex.split(bits_line)
     assert argv[:2] == ["qsid", "bits"]
@@ -97,13 +97,13 @@ def test_settings_to_command_to_the_same_sweepconfig(name):
 
 
 def test_command_is_short_at_the_defaults_and_names_changes():
-    assert share.command_lines(Values(identification="LS")) == [
+    assert exports.command_lines(Values(identification="LS")) == [
         "qsid sweep --realizations=20 --trajectories=50 --steps=200",
         "qsid bits --realizations=20 --trajectories=50 --steps=200 --mpc-steps=50",
     ]
-    line = share.command_lines(Values(identification="LS", target=0.9, cost_gap=0.05, verify_steps=100))[-1]
+    line = exports.command_lines(Values(identification="LS", target=0.9, cost_gap=0.05, verify_steps=100))[-1]
     assert "--verify-steps=100" in line and line.endswith("--mpc-steps=50 --target=0.9 --cost-gap=0.05")
-    line = share.command_lines(CASES["boeing, fixed per channel, no guard, BCLS"])[0]
+    line = exports.command_lines(CASES["boeing, fixed per channel, no guard, BCLS"])[0]
     assert "--system=boeing747" in line and "--no-guard" in line and "--limits=-20.0,20.0;" in line
 
 
@@ -151,7 +151,7 @@ def frame():
 
 
 def test_export_curves_csv_and_json(frame):
-    rows = list(csv.DictReader(io.StringIO(share.curves_csv(frame))))
+    rows = list(csv.DictReader(io.StringIO(exports.curves_csv(frame))))
     assert len(rows) == 2 * 16 and {r["estimator"] for r in rows} == {"LS", "BCLS"}
     ls4 = next(r for r in rows if r["estimator"] == "LS" and r["bits"] == "4")
     assert float(ls4["err_A_mean"]) == pytest.approx(frame.rows["LS"][4]["err_A"]["mean"])
@@ -165,21 +165,21 @@ def test_export_curves_csv_and_json(frame):
     def bad(c):
         raise AssertionError(c)
 
-    d = json.loads(share.curves_json(frame), parse_constant=bad)
+    d = json.loads(exports.curves_json(frame), parse_constant=bad)
     assert d["settings"] == json.loads(share.settings_json(frame.values))["values"]
     assert [r["bits"] for r in d["curves"]["BCLS"]] == list(range(1, 17)) and d["complete"] is True
-    assert d["command"] == share.command_lines(frame.values)
+    assert d["command"] == exports.command_lines(frame.values)
 
 
 def test_export_figures_is_one_offline_page(frame):
-    page = share.frame_html(frame)
+    page = exports.frame_html(frame)
     assert page.startswith("<!DOCTYPE html>") and page.count('class="panel"') >= 3
     assert not re.search(r"<script[^>]*src=", page)  # plotly.js inlined: one file, works offline
     assert "Plotly.newPlot" in page and "qsid sweep" in page
     from app.figures import registry
 
     frame.datalength = None  # the data-length study was not run: its empty plot is left out of the page
-    assert page.count('class="panel"') == share.frame_html(frame).count('class="panel"') == len(registry.VIEWS) - 1
+    assert page.count('class="panel"') == exports.frame_html(frame).count('class="panel"') == len(registry.VIEWS) - 1
 
 
 @pytest.mark.slow

@@ -281,9 +281,9 @@ def test_presenter_is_a_settings_key_and_survives_a_lesson(tab):
 
 def test_dashboard_app_presenter_with_lesson():
     from app.dashboard import DashboardApp
-    from app.dashboard.server import _parser
+    from app.dashboard.options import parser
 
-    args = _parser().parse_args(["--presenter", "--lesson", "fig2"])
+    args = parser().parse_args(["--presenter", "--lesson", "fig2"])
     assert args.presenter and args.lesson == "fig2"
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, presenter=True, lesson="fig2")
     try:

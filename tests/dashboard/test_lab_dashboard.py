@@ -11,7 +11,7 @@ import pytest
 
 from app.cli import build_parser
 from app.cli.runner import config, system_from_args
-from app.dashboard import share
+from app.dashboard import exports, share
 from app.dashboard.controls import CONTROLS
 from app.dashboard.settings import InputError, Values, resolve_system, sweep_config
 from qsid_core.quantization.quantize import DITHERS
@@ -48,7 +48,7 @@ def test_what_ifs_survive_the_settings_file_and_the_command_line():
     assert share.values_from_json(share.settings_json(WHAT_IF)) == WHAT_IF
     system = resolve_system(WHAT_IF).system
     want = sweep_config(WHAT_IF, system)
-    line, bits_line = share.command_lines(WHAT_IF)  # the sweep, then 'qsid bits' with the same settings
+    line, bits_line = exports.command_lines(WHAT_IF)  # the sweep, then 'qsid bits' with the same settings
     assert bits_line.startswith("qsid bits ")  # the same settings, and the loop length always written
     assert bits_line.split(" ", 2)[2] in (line.split(" ", 2)[2], line.split(" ", 2)[2] + " --mpc-steps=50")
     assert "--dither=tpdf" in line and "--input-bits=8,exact" in line and "--noise-known" in line

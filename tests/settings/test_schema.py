@@ -89,7 +89,7 @@ def test_the_state_amplitude_reaches_the_data_and_every_front_end():
 
 
 def test_no_front_end_reaches_into_the_other():
-    """The dashboard's share module writes the command line with the schema's writer, not the CLI's modules."""
+    """The dashboard's exports module writes the command line with the schema's writer, not the CLI's modules."""
     import ast
     from pathlib import Path
 
