@@ -137,6 +137,15 @@ def test_complex_stability_radius_matches_a_fine_grid_and_small_gain_is_sound():
     assert all(spectral_radius(A - B @ K[i]) < 1 for i in np.flatnonzero(fast))
 
 
+def test_the_stability_radius_is_at_most_the_distance_of_the_spectrum_to_the_circle():
+    """The premise of small_gain_holds' first rejection: r_C(M) <= 1 - rho(M) for a stable M."""
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        M = rng.normal(size=(3, 3))
+        M *= rng.uniform(0.1, 0.95) / spectral_radius(M[None])[0]
+        assert complex_stability_radius(M) <= 1.0 - spectral_radius(M[None])[0] + 1e-9
+
+
 def test_controllability_margin():
     A = np.stack([np.diag([0.5, 0.7]), np.diag([0.5, 0.5])])
     B = np.stack([np.ones((2, 1)), np.ones((2, 1))])
