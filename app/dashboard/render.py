@@ -96,9 +96,10 @@ class Renderer:
                 fig = self.figures.get(name)
                 if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
                     out[name] = move_current_bits(fig, frame.bits)
-        style = presenter_figure if presenter else legible_figure  # the mode's smallest text (and line widths)
+        # the mode's smallest text (and line widths), on the figures just built for this frame
+        style = presenter_figure if presenter else legible_figure
         out = {
-            name: style(fig) if name not in self.figures or fig is not self.figures[name] else fig
+            name: style(fig, inplace=True) if name not in self.figures or fig is not self.figures[name] else fig
             for name, fig in out.items()
         }
         self.figures.update(out)
