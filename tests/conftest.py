@@ -26,7 +26,8 @@ def pytest_runtest_makereport(item, call):
     """With QSID_REQUIRE_BROWSER=1 (set by .ci/run) a skipped browser test fails: it must really run."""
     outcome = yield
     rep = outcome.get_result()
-    if os.environ.get("QSID_REQUIRE_BROWSER") == "1" and item.get_closest_marker("browser") and rep.skipped:
+    required = os.environ.get("QSID_REQUIRE_BROWSER") == "1" and item.get_closest_marker("browser")
+    if required and rep.skipped and not hasattr(rep, "wasxfail"):  # an expected failure is not a skip
         rep.outcome = "failed"
         rep.longrepr = f"browser test skipped in CI (QSID_REQUIRE_BROWSER=1): {rep.longrepr}"
 
