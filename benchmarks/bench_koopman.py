@@ -8,7 +8,7 @@
 Both identify only (no MPC closed loops: the hot path is the quantize-and-accumulate of the moments),
 single process, one BLAS thread, for each estimator (``ls``; ``bcls``, which the nonlinear sweep
 computes from the exact unbiased monomials as well), interleaved (linear, nonlinear, linear, ...) so both
-see the same machine load; the median of ``--repeat`` runs is compared. The target (issue 31) is a
+see the same machine load; the median of ``--repeat`` runs is compared. The target is a
 nonlinear sweep within 3x the linear one; the verdict line says whether this run met it.
 
 Usage::

@@ -6,7 +6,7 @@ A :class:`NonlinearSystem` is ``xdot = f(x, u)`` with a zero-order hold on ``u``
     k1 = f(x, u), k2 = f(x + dt/2 k1, u), k3 = f(x + dt/2 k2, u), k4 = f(x + dt k3, u)
     x+ = x + dt/6 (k1 + 2 k2 + 2 k3 + k4)
 
-Presets (issue 31, all with ``dt = 0.05``):
+Presets (all with ``dt = 0.05``):
 
 ``van-der-pol``
     x1' = x2, x2' = mu (1 - x1^2) x2 - x1 + u with mu = 1 (an unstable origin inside a limit cycle).

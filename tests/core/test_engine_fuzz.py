@@ -1,4 +1,4 @@
-"""Every public engine entry point raises only the engine's own error class (issue 32, finding 3).
+"""Every public engine entry point raises only the engine's own error class.
 
 A hypothesis test per entry point not already fuzzed in ``test_engine_inputs.py``, and the three findings of
 the issue's 78,000-example hunt as plain regression tests. Each call is watched: an exception that is not a

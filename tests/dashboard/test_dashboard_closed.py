@@ -1,5 +1,5 @@
 """A tab closed in the middle of a draw: the draw's messages are dropped without viser's "closed connection"
-warning (issue 32, item 5)."""
+warning."""
 
 from __future__ import annotations
 

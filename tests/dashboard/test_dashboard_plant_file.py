@@ -1,4 +1,4 @@
-"""``qsid-dashboard --system FILE`` (issue 30, finding 6): the plant files the CLI reads open in the dashboard
+"""``qsid-dashboard --system FILE``: the plant files the CLI reads open in the dashboard
 as the panel's custom system, with the CLI's numbers; a bad file is one line and exit status 2."""
 
 from __future__ import annotations

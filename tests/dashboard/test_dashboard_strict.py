@@ -56,7 +56,7 @@ def test_x0_is_accepted_as_a_flat_list(text):
     assert parse_vector(text, "x0", 2) == (1.0, 0.0)
 
 
-# ----- values sent over the websocket, as a modified page would (issue 32 item 2) -------------------------------
+# ----- values sent over the websocket, as a modified page would --------------------------------------------
 def _send_raw(tab, handle, value) -> None:
     import msgspec
 

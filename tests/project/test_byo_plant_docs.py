@@ -1,4 +1,4 @@
-"""The "bring your own plant" page (issue 30): its plant files are its textbook sources' models, its outputs are
+"""The "bring your own plant" page: its plant files are its textbook sources' models, its outputs are
 generated, and no plant in its examples gets a b_robust at which the loops are not all stable -- checked with
 an independent computation (python-control's dlqr on each identified model, spectral radius on the true plant)."""
 

@@ -1,4 +1,4 @@
-"""The data-rate floor ignores |eigenvalue| within round-off of 1 (issue 30, finding 4)."""
+"""The data-rate floor ignores |eigenvalue| within round-off of 1."""
 
 from pathlib import Path
 

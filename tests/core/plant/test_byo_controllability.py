@@ -1,4 +1,4 @@
-"""Controllability on the docs' five plants (issue 30, finding 3): scale-invariant, and python-control's answer."""
+"""Controllability on the docs' five plants: scale-invariant, and python-control's answer."""
 
 import warnings
 from pathlib import Path

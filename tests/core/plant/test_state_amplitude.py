@@ -1,4 +1,4 @@
-"""Training runs' initial-state amplitude (issue 30, finding 7): x0 ~ U[-a, a]^n, in the engine and the CLI; on
+"""Training runs' initial-state amplitude: x0 ~ U[-a, a]^n, in the engine and the CLI; on
 the bus suspension at 1 N, small initial states let the data identify B."""
 
 from pathlib import Path

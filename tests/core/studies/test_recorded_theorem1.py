@@ -1,5 +1,5 @@
 """``qsid identify`` on your own data gives Theorem 1's prediction from the data's own Sigma where its hypotheses
-hold (issue 30, finding 7): the same numbers and the same verdicts as a sweep of the same data."""
+hold: the same numbers and the same verdicts as a sweep of the same data."""
 
 import numpy as np
 
