@@ -124,14 +124,16 @@ def format_koopman(d: dict[str, Any]) -> str:
         f"{d['system']}: lifting {c['lifting']} ({c['features']} features), estimator {c['estimator']}, "
         f"{d['data']['runs_used']} runs x {c['steps']} steps, {c['realizations']} realizations, {c['dither']} dither"
         + (", guard band" if c["guard"] else ""),
-        "b  err_G (vs unquantized EDMD)  err_A            err_B            prediction err   converged",
+        "b  err_G (vs unquantized EDMD)  large-data limit  err_A            err_B            prediction err   converged",
     ]
     for r in d["results"]:
         conv = (
             "-" if r["stabilized_fraction"] is None else f"{r['closed_loop_outcomes']['converged']}/{r['realizations']}"
         )
+        lim = (r.get("large_data") or {}).get("err_G")
         lines.append(
-            f"{r['bits']:<2} {_pm(r['err_G']):<28} {_pm(r['err_A']):<16} {_pm(r['err_B']):<16} "
+            f"{r['bits']:<2} {_pm(r['err_G']):<28} {'-' if lim is None else g(lim):<17} "
+            f"{_pm(r['err_A']):<16} {_pm(r['err_B']):<16} "
             f"{_pm(r['prediction_error']):<16} {conv}"
         )
     ref = d["reference"]
@@ -143,6 +145,11 @@ def format_koopman(d: dict[str, Any]) -> str:
         lines.append(d["data"]["left_box"])
     for note in sorted({n for r in d["results"] for n in r["notes"]}):
         lines.append(f"note: {note}")
+    limits = {r["large_data"]["note"] for r in d["results"] if r.get("large_data", {}).get("note")}
+    for note in sorted(limits):
+        lines.append(f"large-data limit: {note}")
+    if "large_data_hypotheses" in d:
+        lines.append("large-data limit assumes: " + "; ".join(d["large_data_hypotheses"]))
     lines.append(f"note: {d['certificates']}")
     return "\n".join(lines)
 

@@ -13,6 +13,7 @@ from .edmd import (
     prediction_error,
     quantized_lifted_moments,
 )
+from .edmd_limit import LARGE_DATA_HYPOTHESES, LargeDataLimit, error_moments, large_data_limit
 from .identify import ESTIMATORS, Identified, identify, least_squares, relative_errors
 from .lifting import LIFTINGS, Lifting, MonomialLifting, RBFLifting, bernoulli_shifted, parse_lifting
 from .theorem1 import noise_covariance, theorem1_prediction
@@ -21,15 +22,19 @@ __all__ = [
     "ESTIMATORS",
     "Identified",
     "KoopmanModel",
+    "LARGE_DATA_HYPOTHESES",
     "LIFTINGS",
+    "LargeDataLimit",
     "LiftedMoments",
     "Lifting",
     "MonomialLifting",
     "RBFLifting",
     "bernoulli_shifted",
     "edmd",
+    "error_moments",
     "exact_lifted_moments",
     "identify",
+    "large_data_limit",
     "least_squares",
     "lifted_error",
     "noise_covariance",

@@ -23,11 +23,15 @@ from ..control import CONVERGED_RADIUS, MPCConfig, run_koopman_loops
 from ..errors import ConfigError, IdentificationError, MPCFailure, check_choice, check_int
 from ..identification import (
     ESTIMATORS,
+    LARGE_DATA_HYPOTHESES,
     KoopmanModel,
+    LargeDataLimit,
     LiftedMoments,
     Lifting,
+    MonomialLifting,
     edmd,
     exact_lifted_moments,
+    large_data_limit,
     lifted_error,
     parse_lifting,
     prediction_error,
@@ -123,7 +127,8 @@ class KoopmanResult:
         Per b (JSON-ready): ``bits``, ``eps_x``, ``eps_u``, ``err_G`` / ``err_A`` / ``err_B`` and
         ``prediction_error`` as ``{mean, std}``, ``overload_fraction``, ``bcls_fallbacks``,
         ``ident_failures``, ``stabilized_fraction`` and ``closed_loop_outcomes`` (None without loops),
-        ``notes``.
+        ``large_data`` (the estimator's large-data limit: ``err_G`` against the unquantized EDMD, None with a
+        ``note`` where no exact formula exists), ``notes``.
     reference_prediction_error : float
         The unquantized EDMD's prediction error (the floor the quantized models approach).
     reference_outcome : str or None
@@ -183,6 +188,7 @@ class KoopmanResult:
             },
             "data": {"runs_used": self.runs_used, "left_box": self.data_report},
             "certificates": NO_CERTIFICATES,
+            "large_data_hypotheses": list(LARGE_DATA_HYPOTHESES),
             "reference": {
                 "prediction_error": self.reference_prediction_error,
                 "closed_loop_outcome": self.reference_outcome,
@@ -233,6 +239,17 @@ def _record(
     acc["models"].append(model)
 
 
+def _large_data(limit: LargeDataLimit, estimator: str, ref: KoopmanModel, correction: str) -> dict[str, Any]:
+    """The row's ``large_data`` entry: where the estimator goes with many samples (:func:`large_data_limit`)."""
+    if estimator == "bcls":
+        if correction:
+            return {"err_G": None, "note": f"no exact limit: {correction}"}
+        return {"err_G": 0.0, "note": "the de-biased moments are unbiased: the limit is the unquantized EDMD"}
+    if limit.model is None:
+        return {"err_G": None, "note": limit.note}
+    return {"err_G": lifted_error(limit.model, ref)[0], "note": ""}
+
+
 def _row(
     cfg: KoopmanConfig, b: int, acc: dict[str, list[Any]], lifting: Lifting, system: NonlinearSystem
 ) -> dict[str, Any]:
@@ -262,6 +279,15 @@ def _row(
         row["stabilized_fraction"] = loops.converged_fraction
         row["closed_loop_outcomes"] = loops.counts()
     return row
+
+
+def _no_exact_correction(lifting: Lifting, spec: QuantizerSpec) -> str:
+    """Why the de-biased moments are not exact for this dictionary and dither ("" when they are)."""
+    if not isinstance(lifting, MonomialLifting):
+        return f"the radial functions of {lifting.spec} have no exact correction (LS is used)"
+    if spec.dither != "subtractive":
+        return f"the Bernoulli correction is exact for subtractive dither only, not {spec.dither}"
+    return ""
 
 
 def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
@@ -295,6 +321,9 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
         for acc, mom in zip(per, moms, strict=True):
             _record(acc, mom, cfg.estimator, lifting, ref, held, horizon)
     rows = [_row(cfg, b, acc, lifting, system) for b, acc in zip(cfg.bits, per, strict=True)]
+    correction = _no_exact_correction(lifting, cfg.quantizer)
+    for row, limit in zip(rows, large_data_limit(data, lifting, cfg.bits, cfg.quantizer), strict=True):
+        row["large_data"] = _large_data(limit, cfg.estimator, ref, correction)
     return KoopmanResult(
         cfg,
         rows,
