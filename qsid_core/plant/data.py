@@ -90,6 +90,23 @@ class Dataset:
         return np.hstack([X, U]).T, Xp.T
 
 
+def check_runs(seed: int | None, trajectories: int, steps: int, input_amplitude: float) -> tuple[int, int, float]:
+    """The checked ``(trajectories, steps, input_amplitude)`` of a set of training runs (``seed``: None or >= 0).
+
+    Raises
+    ------
+    ConfigError
+        Naming the field that is out of range or not a number.
+    """
+    if seed is not None:
+        check_int("seed", seed, 0)
+    return (
+        check_int("trajectories", trajectories, 1, 100_000),
+        check_int("steps", steps, 1, 1_000_000),
+        check_float("input amplitude", input_amplitude, 0.0, 1e12, lo_open=True),
+    )
+
+
 def simulate(
     system: LTISystem,
     trajectories: int = 200,
@@ -127,11 +144,7 @@ def simulate(
     """
     if not isinstance(system, LTISystem):
         raise ConfigError(f"system must be an LTISystem; got {type(system).__name__}")
-    if seed is not None:
-        check_int("seed", seed, 0)
-    trajectories = check_int("trajectories", trajectories, 1, 100_000)
-    steps = check_int("steps", steps, 1, 1_000_000)
-    input_amplitude = check_float("input amplitude", input_amplitude, 0.0, 1e12, lo_open=True)
+    trajectories, steps, input_amplitude = check_runs(seed, trajectories, steps, input_amplitude)
     state_amplitude = check_float("state amplitude", state_amplitude, 0.0, 1e12, lo_open=True)
     n, m = system.n, system.m
     if trajectories * steps < n + m:

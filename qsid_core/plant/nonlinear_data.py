@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, check_float, check_int
-from .data import Dataset
+from ..errors import ConfigError
+from .data import Dataset, check_runs
 from .nonlinear import NonlinearSystem
 
 __all__ = ["NonlinearDataset", "simulate_nonlinear"]
@@ -77,11 +77,7 @@ def simulate_nonlinear(
     """
     if not isinstance(system, NonlinearSystem):
         raise ConfigError(f"system must be a NonlinearSystem; got {type(system).__name__}")
-    if seed is not None:
-        check_int("seed", seed, 0)
-    trajectories = check_int("trajectories", trajectories, 1, 100_000)
-    steps = check_int("steps", steps, 1, 1_000_000)
-    input_amplitude = check_float("input amplitude", input_amplitude, 0.0, 1e12, lo_open=True)
+    trajectories, steps, input_amplitude = check_runs(seed, trajectories, steps, input_amplitude)
     n, m = system.n, system.m
     rng = np.random.default_rng(seed)
     inputs = rng.uniform(-1.0, 1.0, size=(trajectories, steps, m)) * input_amplitude
