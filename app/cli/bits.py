@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from . import koopman
 from .files import input_files, out_file, write_text
-from .koopman import add_lifting_option
+from .koopman import add_nonlinear_options
 from .output import dumps, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, config, executor, system_from_args
@@ -45,7 +45,7 @@ def _fraction(text: str) -> float:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
-    add_lifting_option(p)
+    add_nonlinear_options(p)
     for act in p._actions:  # the loop length is chosen from the plant unless given
         if act.dest == "mpc_steps":
             act.default = None

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 from . import koopman
 from .figure_out import add_figure_arguments, check_figure, write_figure
 from .files import input_files, out_file, write_text
-from .koopman import add_lifting_option
+from .koopman import add_nonlinear_options
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
 from .runner import UsageError, system_from_args
@@ -28,7 +28,7 @@ DESCRIPTION = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
-    add_lifting_option(p)
+    add_nonlinear_options(p)
     p.add_argument(
         "--config",
         metavar="FILE",

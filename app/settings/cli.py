@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from .schema import BY_NAME, SETTINGS, Setting, cli_default, hint_text, resolve
+from .schema import BY_NAME, SETTINGS, Setting, cli_default, hint_text, nonlinear_default, resolve
 
 __all__ = ["add_setting_options", "add_option", "int_type", "float_type", "shown"]
 
@@ -65,12 +65,22 @@ def shown(value: Any) -> str:
     return str(value)
 
 
+def _nonlinear_note(s: Setting, default: Any) -> str:
+    """``"; nonlinear plants: X"`` where a setting of both plant kinds has another default for a nonlinear one."""
+    if s.nonlinear is None or s.engine is None:
+        return ""
+    nd = nonlinear_default(s)
+    if nd is None or nd == default:
+        return ""
+    return f"; nonlinear plants: {shown(nd)}"
+
+
 def _kwargs(s: Setting, base: Any, help_text: str | None = None, default: Any = ...) -> dict[str, Any]:
     default = cli_default(s, base) if default is ... else default
     shown_default = resolve(s.default) if default is None else default
     help_text = hint_text(s, help_text or s.cli_help) or s.label
     if "(default:" not in help_text:
-        help_text += f" (default: {shown(shown_default)})"
+        help_text += f" (default: {shown(shown_default)}{_nonlinear_note(s, shown_default)})"
     kw: dict[str, Any] = {"dest": s.dest, "default": default, "help": help_text}
     if s.type is bool:
         # on by the engine's default: --flag / --no-flag (a base like the letter's may turn it off); else a switch

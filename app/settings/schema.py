@@ -3,8 +3,9 @@
 
 A row says what the setting is (name, type, unit, allowed range or choices, default), how the panel
 shows it (label, tab, folder, kind of input, hint), its ``qsid`` flag, where it goes in the engine's
-configuration (``engine``: a dotted path into :class:`~qsid_core.SweepConfig`) and whether it changes
-results or only the drawing. From the table come the ``qsid`` options (:mod:`app.settings.cli`), the
+configuration (``engine``: a dotted path into :class:`~qsid_core.SweepConfig`; ``nonlinear``: one into
+:class:`~qsid_core.studies.KoopmanConfig`, for a nonlinear plant) and whether it changes results or only the
+drawing. From the table come the ``qsid`` options (:mod:`app.settings.cli`), the
 dashboard's panel (:mod:`app.dashboard.controls`) and its values (:class:`app.dashboard.settings.Values`),
 the strict type check of a panel or file value (:func:`app.settings.check.check_setting`), the
 ``qsid sweep`` line (:mod:`app.settings.command`) and the stages a change invalidates
@@ -35,11 +36,14 @@ __all__ = [
     "hint_text",
     "plain",
     "engine_field",
+    "nonlinear_default",
+    "nonlinear_settings",
     "GROUPS",
     "DATA_GROUP",
     "WHATIF_GROUP",
     "MPC_GROUP",
     "LOOP_GROUP",
+    "NONLINEAR_GROUP",
 ]
 
 
@@ -54,22 +58,29 @@ def engine() -> SimpleNamespace:
     """The engine's defaults and choices, imported on first use (``qsid --help`` never loads numpy).
 
     Returns a namespace with ``sweep`` (``SweepConfig(mpc=None)``), ``mpc`` (``MPCConfig()``), ``quant``
-    (``QuantizerSpec()``), ``letter`` (``SweepConfig.letter()``), ``dithers``, ``range_modes``, ``estimators``,
-    ``tracking``, ``u_max`` (the default bound of one input) and ``bits_lo`` / ``bits_hi`` (the default sweep's ends).
+    (``QuantizerSpec()``), ``letter`` (``SweepConfig.letter()``), ``koopman`` (``KoopmanConfig()``, the nonlinear
+    sweep's), ``koopman_plant`` (its plant, for the presets' amplitude and sane box), ``systems`` (every preset:
+    the linear ones, then the nonlinear ones), ``dithers``, ``range_modes``, ``estimators``, ``tracking``,
+    ``u_max`` (the default bound of one input) and ``bits_lo`` / ``bits_hi`` (the default sweep's ends).
     """
     global _ENGINE
     if _ENGINE is None:
-        from qsid_core import MPCConfig, QuantizerSpec, SweepConfig
+        from qsid_core import PRESETS, MPCConfig, QuantizerSpec, SweepConfig
         from qsid_core.control import TRACKING
         from qsid_core.identification import ESTIMATORS
+        from qsid_core.plant import NONLINEAR_PRESETS
         from qsid_core.quantization import DITHERS, RANGE_MODES
+        from qsid_core.studies import KoopmanConfig
 
-        sweep, mpc = SweepConfig(mpc=None), MPCConfig()
+        sweep, mpc, koopman = SweepConfig(mpc=None), MPCConfig(), KoopmanConfig()
         _ENGINE = SimpleNamespace(
             sweep=sweep,
             mpc=mpc,
             quant=QuantizerSpec(),
             letter=SweepConfig.letter(mpc=None),
+            koopman=koopman,
+            koopman_plant=koopman.plant(),
+            systems=(*PRESETS, *NONLINEAR_PRESETS),
             dithers=DITHERS,
             range_modes=RANGE_MODES,
             estimators=ESTIMATORS,
@@ -137,7 +148,12 @@ class Setting:
         "take it from --seed").
     engine : str or None
         Where the value goes in the engine: a dotted path into :class:`~qsid_core.SweepConfig`
-        (``"data_seed"``, ``"quantizer.dither"``, ``"mpc.loop_seed"``); None for the front ends' own settings.
+        (``"data_seed"``, ``"quantizer.dither"``, ``"mpc.loop_seed"``); None for the front ends' own settings
+        and the nonlinear plants' own.
+    nonlinear : str or None
+        Where the value goes for a nonlinear plant: a dotted path into :class:`~qsid_core.studies.KoopmanConfig`
+        (``"lifting"``, ``"mpc.horizon"``); None: a nonlinear run cannot honour the setting (its flag is
+        refused there). Its default there is ``KoopmanConfig()``'s (:func:`nonlinear_default`).
     display : bool
         True if the setting only changes what is drawn from results already computed.
     panel_default : value or None
@@ -168,6 +184,7 @@ class Setting:
     cli_help: str | None = None
     cli_default: Any = ...
     engine: str | None = None
+    nonlinear: str | None = None
     display: bool = False
     panel_default: Any = None
     values: bool = True
@@ -178,19 +195,30 @@ class Setting:
         """The argparse destination of the flag (the setting's name)."""
         return self.name
 
-    def stages(self) -> tuple[str, ...]:
+    @property
+    def flags(self) -> tuple[str, ...]:
+        """The ``qsid`` flags that set this setting: the generated one (with ``--no-`` for an on/off one), or
+        the hand-made one its ``cli_note`` starts with (``"--u-max X"`` -> ``--u-max``); () if none."""
+        if self.flag is not None:
+            return (self.flag, f"--no-{self.flag[2:]}") if self.type is bool else (self.flag,)
+        word = self.cli_note.split(" ", 1)[0]
+        return (word,) if word.startswith("--") else ()
+
+    def stages(self, nonlinear: bool = False) -> tuple[str, ...]:
         """The engine's cached stages a change of this setting invalidates (none if display-only or unkeyed).
 
-        Read from :data:`qsid_core.studies.cache_keys.STAGE_GROUPS`: a stage is invalidated if one of its
-        key groups holds ``engine`` (or a field containing it).
+        Read from :data:`qsid_core.studies.STAGE_GROUPS` (``nonlinear``: from
+        :data:`qsid_core.studies.KOOPMAN_STAGE_GROUPS`, for a nonlinear plant): a stage is invalidated if one of
+        its key groups holds ``engine`` (``nonlinear``) or a field containing it.
         """
-        if self.display or self.engine is None:
+        path = self.nonlinear if nonlinear else self.engine
+        if self.display or path is None:
             return ()
-        from qsid_core.studies import KEY_PARTS, STAGE_GROUPS
+        from qsid_core.studies import KEY_PARTS, KOOPMAN_KEY_PARTS, KOOPMAN_STAGE_GROUPS, STAGE_GROUPS
 
-        path = self.engine
-        groups = {g for g, parts in KEY_PARTS.items() if any(path == p or path.startswith(p + ".") for p in parts)}
-        return tuple(s for s, gs in STAGE_GROUPS.items() if groups & set(gs))
+        key_parts, stage_groups = (KOOPMAN_KEY_PARTS, KOOPMAN_STAGE_GROUPS) if nonlinear else (KEY_PARTS, STAGE_GROUPS)
+        groups = {g for g, parts in key_parts.items() if any(path == p or path.startswith(p + ".") for p in parts)}
+        return tuple(s for s, gs in stage_groups.items() if groups & set(gs))
 
 
 def hint_text(s: Setting, text: str | None = None) -> str | None:
@@ -222,6 +250,17 @@ def engine_field(s: Setting) -> str:
     """The engine config field a setting of :func:`plain` sets (``"mpc.steps"`` -> ``"steps"``)."""
     assert s.engine is not None
     return s.engine.rsplit(".", 1)[-1]
+
+
+def nonlinear_default(s: Setting) -> Any:
+    """The engine's default of the setting for a nonlinear plant (``KoopmanConfig()``'s; None: the plant's own,
+    or a setting a nonlinear run does not use)."""
+    return None if s.nonlinear is None else resolve(E("koopman." + s.nonlinear))
+
+
+def nonlinear_settings() -> tuple[Setting, ...]:
+    """The settings a nonlinear run honours (those with a ``nonlinear`` path)."""
+    return tuple(s for s in SETTINGS if s.nonlinear is not None)
 
 
 def value_default(s: Setting) -> Any:
@@ -278,7 +317,9 @@ GROUPS: dict[str, str]
 #: Every setting, in the panel's display order (tabs appear in order of first use).
 SETTINGS: tuple[Setting, ...]
 GROUPS, SETTINGS = _load()
-DATA_GROUP, WHATIF_GROUP, MPC_GROUP, LOOP_GROUP = (GROUPS[k] for k in ("data", "whatif", "mpc", "loop"))
+DATA_GROUP, WHATIF_GROUP, MPC_GROUP, LOOP_GROUP, NONLINEAR_GROUP = (
+    GROUPS[k] for k in ("data", "whatif", "mpc", "loop", "nonlinear")
+)
 
 #: The settings by name.
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}

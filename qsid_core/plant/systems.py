@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike
 from ..errors import ConfigError, SystemDefinitionError, check_float, short_repr
 from ..validate import MAX_MAGNITUDE
 from .lti import LTISystem
+from .nonlinear import NONLINEAR_PRESETS
 
 __all__ = ["PRESETS", "dc_motor", "dc_motor_physical", "boeing747", "get_system", "load_system", "system_from_dict"]
 
@@ -306,10 +307,16 @@ def get_system(name_or_path: str | Path | LTISystem) -> LTISystem:
     key = str(name_or_path)
     if key in PRESETS:
         return PRESETS[key]()
+    if key.strip().lower() in NONLINEAR_PRESETS:
+        raise SystemDefinitionError(
+            f"system {short_repr(key)} is a nonlinear plant: this needs a linear one ({', '.join(PRESETS)}); "
+            "nonlinear plants run as Koopman/EDMD sweeps (KoopmanConfig)"
+        )
     if key.lower().endswith((".toml", ".json")) or _exists(key):
         return load_system(key)
     raise SystemDefinitionError(
-        f"unknown system {short_repr(key)}: not a preset ({', '.join(PRESETS)}) and not an existing .toml/.json file"
+        f"unknown system {short_repr(key)}: not a preset ({', '.join(PRESETS)}; nonlinear: "
+        f"{', '.join(NONLINEAR_PRESETS)}) and not an existing .toml/.json file"
     )
 
 

@@ -38,7 +38,15 @@ from .datalength import (
 )
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
-from .koopman_sweep import KOOPMAN_MPC, NO_CERTIFICATES, KoopmanConfig, KoopmanResult, run_koopman_sweep
+from .koopman_keys import KOOPMAN_KEY_PARTS, KOOPMAN_NOT_IN_KEYS, KOOPMAN_STAGE_GROUPS, koopman_stage_key
+from .koopman_sweep import (
+    KOOPMAN_MPC,
+    KOOPMAN_MPC_UNUSED,
+    NO_CERTIFICATES,
+    KoopmanConfig,
+    KoopmanResult,
+    run_koopman_sweep,
+)
 from .outputs import output_target, replace_atomically
 from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded, theorem1_on_data
 from .records import (
@@ -72,7 +80,11 @@ __all__ = [
     "FIT_TOLERANCE",
     "InlineExecutor",
     "KEY_PARTS",
+    "KOOPMAN_KEY_PARTS",
     "KOOPMAN_MPC",
+    "KOOPMAN_MPC_UNUSED",
+    "KOOPMAN_NOT_IN_KEYS",
+    "KOOPMAN_STAGE_GROUPS",
     "KoopmanConfig",
     "KoopmanResult",
     "LARGE_DATA_RATIO",
@@ -114,6 +126,7 @@ __all__ = [
     "kernel_cache_dir",
     "kernel_names",
     "kernels_cached",
+    "koopman_stage_key",
     "load_recorded",
     "load_result",
     "loop_length",

@@ -14,13 +14,13 @@ linear plant: they are not computed here and the result says so (:data:`NO_CERTI
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ..control import CONVERGED_RADIUS, MPCConfig, run_koopman_loops
-from ..errors import ConfigError, IdentificationError, MPCFailure, check_choice, check_int
+from ..errors import ConfigError, IdentificationError, MPCFailure, check_choice, check_float, check_int
 from ..identification import (
     ESTIMATORS,
     LARGE_DATA_HYPOTHESES,
@@ -40,7 +40,14 @@ from ..identification import (
 from ..plant import NonlinearDataset, NonlinearSystem, get_nonlinear, simulate_nonlinear
 from ..quantization import MAX_BITS, QuantizerSpec
 
-__all__ = ["KOOPMAN_MPC", "NO_CERTIFICATES", "KoopmanConfig", "KoopmanResult", "run_koopman_sweep"]
+__all__ = [
+    "KOOPMAN_MPC",
+    "KOOPMAN_MPC_UNUSED",
+    "NO_CERTIFICATES",
+    "KoopmanConfig",
+    "KoopmanResult",
+    "run_koopman_sweep",
+]
 
 #: The MPC of the nonlinear sweeps by default: 1 s horizon, 10 s of closed loop (dt = 0.05).
 KOOPMAN_MPC = MPCConfig(horizon=20, steps=200, verify_steps=None)
@@ -51,6 +58,22 @@ NO_CERTIFICATES = (
 )
 #: Held-out runs for the prediction error: runs, steps, prediction horizon (samples).
 HELD_OUT = (50, 40, 20)
+#: The :class:`MPCConfig` fields the Koopman loops do not use (exact state feedback, no disturbance, regulation
+#: to 0 without state constraints; the verdict is by ``radius`` and the sane box): a value other than
+#: ``MPCConfig()``'s is refused, never silently ignored. ``verify_steps`` is not used either and not checked
+#: (:data:`KOOPMAN_MPC` leaves it None, a linear study's MPC table may hold any value).
+KOOPMAN_MPC_UNUSED = (
+    "x_max",
+    "xf_max",
+    "x_ref",
+    "disturbance",
+    "disturbance_kind",
+    "feedback_bits",
+    "feedback_noise",
+    "loop_seed",
+    "reference",
+    "tracking",
+)
 
 
 @dataclass(frozen=True)
@@ -71,13 +94,21 @@ class KoopmanConfig:
     realizations : int
         Dither realizations per b.
     data_seed, dither_seed : int
-        Seeds of the training data (and held-out runs) and of the dither.
+        Seeds of the training data (and held-out runs, and the RBF centres) and of the dither.
     quantizer : QuantizerSpec
         Dither, range, guard band (default: subtractive, per-channel, guard band on).
     mpc : MPCConfig or None
-        The Koopman MPC (default :data:`KOOPMAN_MPC`); None skips the loops.
-    radius : float
-        Convergence radius of the loops' verdict.
+        The Koopman MPC (default :data:`KOOPMAN_MPC`); None skips the loops. Fields the loops do not use
+        (:data:`KOOPMAN_MPC_UNUSED`) must keep ``MPCConfig()``'s values.
+    radius : float, > 0
+        Convergence radius of the loops' verdict (2-norm of the final state).
+    state_amplitude : float or None, > 0
+        ``a`` of the training runs' x0 ~ U[-a, a]^n (None: the plant's ``amplitude``, 2 for the presets).
+    input_amplitude : float, > 0
+        ``A`` of the training inputs u ~ U[-A, A]^m.
+    box : float or None, > 0
+        The sane box ``|x_i| <= box`` (None: the plant's, 50 for the presets): a training run beyond it is
+        reported and left out; a closed loop beyond it has diverged.
     """
 
     system: str | NonlinearSystem = "van-der-pol"
@@ -92,6 +123,9 @@ class KoopmanConfig:
     quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
     mpc: MPCConfig | None = KOOPMAN_MPC
     radius: float = CONVERGED_RADIUS
+    state_amplitude: float | None = None
+    input_amplitude: float = 1.0
+    box: float | None = None
 
     def __post_init__(self) -> None:
         check_choice("estimator", self.estimator, ESTIMATORS)
@@ -105,10 +139,31 @@ class KoopmanConfig:
         check_int("dither seed", self.dither_seed, 0)
         if not isinstance(self.quantizer, QuantizerSpec):
             raise ConfigError("quantizer must be a QuantizerSpec")
+        object.__setattr__(self, "radius", check_float("radius", self.radius, 0.0, 1e12, lo_open=True))
+        amp = check_float("input amplitude", self.input_amplitude, 0.0, 1e12, lo_open=True)
+        object.__setattr__(self, "input_amplitude", amp)
+        for name, label in (("state_amplitude", "state amplitude"), ("box", "box")):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, check_float(label, v, 0.0, 1e12, lo_open=True))
+        if self.mpc is not None:
+            if not isinstance(self.mpc, MPCConfig):
+                raise ConfigError("mpc must be an MPCConfig or None")
+            plain = MPCConfig()
+            used = [k for k in KOOPMAN_MPC_UNUSED if getattr(self.mpc, k) != getattr(plain, k)]
+            if used:
+                raise ConfigError(
+                    f"mpc.{used[0]}: the Koopman MPC does not use it (exact state feedback, no disturbance, "
+                    "regulation to 0 without state constraints); leave it at its default"
+                )
 
     def plant(self) -> NonlinearSystem:
-        """The plant (a preset by name)."""
-        return get_nonlinear(self.system)
+        """The plant (a preset by name), with this config's ``state_amplitude`` and ``box`` where set."""
+        s = get_nonlinear(self.system)
+        if self.state_amplitude is None and self.box is None:
+            return s
+        a = s.amplitude if self.state_amplitude is None else self.state_amplitude
+        return replace(s, amplitude=a, box=s.box if self.box is None else self.box)
 
     def dictionary(self) -> Lifting:
         """The lifting for the plant's state (RBF centres over the training amplitude, seeded by ``data_seed``)."""
@@ -179,6 +234,9 @@ class KoopmanResult:
                 "realizations": c.realizations,
                 "data_seed": c.data_seed,
                 "dither_seed": c.dither_seed,
+                "state_amplitude": s.amplitude,
+                "input_amplitude": c.input_amplitude,
+                "box": s.box,
                 "dither": q.dither,
                 "range": q.range_mode,
                 "guard": q.guard,
@@ -301,9 +359,10 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     t0 = time.perf_counter()
     system = cfg.plant()
     lifting = cfg.dictionary()
-    data: NonlinearDataset = simulate_nonlinear(system, cfg.trajectories, cfg.steps, cfg.data_seed)
+    amp = cfg.input_amplitude
+    data: NonlinearDataset = simulate_nonlinear(system, cfg.trajectories, cfg.steps, cfg.data_seed, amp)
     runs, steps, horizon = HELD_OUT
-    held = simulate_nonlinear(system, runs, steps, cfg.data_seed + 104729)
+    held = simulate_nonlinear(system, runs, steps, cfg.data_seed + 104729, amp)
     if data.T < lifting.L + system.m:
         raise IdentificationError(
             f"samples: {data.T} samples cannot fit {lifting.L + system.m} unknowns per row "

@@ -100,3 +100,54 @@ def test_no_front_end_reaches_into_the_other():
         names = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
         names += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
         assert not [m for m in names if m == "app.cli" or m.startswith("app.cli.")], path.name
+
+
+def test_every_nonlinear_path_is_a_koopman_config_field_and_every_field_a_user_sets_is_declared():
+    """The nonlinear settings are declared once: each ``nonlinear`` path is a real field of KoopmanConfig, and
+    every KoopmanConfig field is set by a setting, except the MPC's fields the Koopman loops refuse."""
+    from app.settings.schema import nonlinear_default, nonlinear_settings
+    from qsid_core.studies import KOOPMAN_MPC_UNUSED, KoopmanConfig
+
+    paths = set(config_paths(KoopmanConfig))
+    declared = {s.nonlinear for s in nonlinear_settings()}
+    assert declared <= paths, declared - paths
+    unused = {f"mpc.{k}" for k in KOOPMAN_MPC_UNUSED} | {"mpc.verify_steps", "mpc.eps", "mpc.max_iter", "mpc.solver"}
+    containers = {"quantizer", "mpc"}
+    missing = sorted(p for p in paths - declared - unused - containers if p != "bits")  # bits: --bits, by hand
+    assert not missing, f"KoopmanConfig field(s) {missing} have no setting (settings.toml 'nonlinear = ...')"
+    base = KoopmanConfig()
+    assert nonlinear_default(BY_NAME["lifting"]) == base.lifting == "poly:3"
+    assert nonlinear_default(BY_NAME["trajectories"]) == base.trajectories != resolve(BY_NAME["trajectories"].default)
+    assert nonlinear_default(BY_NAME["horizon"]) == base.mpc.horizon
+    assert nonlinear_default(BY_NAME["converged_radius"]) == base.radius
+    assert value_default(BY_NAME["sane_box"]) == base.plant().box and nonlinear_default(BY_NAME["sane_box"]) is None
+    assert BY_NAME["noise"].nonlinear is None and BY_NAME["tracking"].nonlinear is None  # refused by nonlinear runs
+
+
+def test_the_system_choices_list_every_preset_linear_and_nonlinear():
+    from qsid_core import PRESETS
+    from qsid_core.plant import NONLINEAR_PRESETS
+
+    choices = resolve(BY_NAME["system"].choices)
+    assert choices == (*PRESETS, *NONLINEAR_PRESETS) and "van-der-pol" in choices
+
+
+def test_nonlinear_stages_come_from_the_koopman_keys():
+    assert BY_NAME["lifting"].stages() == ()  # no linear stage holds it
+    assert "data" not in BY_NAME["lifting"].stages(nonlinear=True)
+    assert "models" in BY_NAME["lifting"].stages(nonlinear=True)
+    assert BY_NAME["converged_radius"].stages(nonlinear=True) == ("reference-loop", "loops")
+    assert BY_NAME["sane_box"].stages(nonlinear=True)[0] == "data"
+    assert BY_NAME["dither_seed"].stages(nonlinear=True) == ("models", "loops")
+
+
+def test_the_nonlinear_flags_are_generated_with_the_nonlinear_defaults_in_their_help():
+    from app.cli import build_parser
+
+    parser = build_parser()
+    args = parser.parse_args(["sweep", "--lifting", "rbf:12:gauss", "--sane-box", "20", "--converged-radius", "0.05"])
+    assert (args.lifting, args.sane_box, args.converged_radius) == ("rbf:12:gauss", 20.0, 0.05)
+    sweep = parser._subparsers._group_actions[0].choices["sweep"]  # the sweep command's parser
+    helps = {a.option_strings[0]: a.help for a in sweep._actions if a.option_strings}
+    assert "nonlinear plants: 2000" in helps["--trajectories"]
+    assert "(default: poly:3)" in helps["--lifting"]

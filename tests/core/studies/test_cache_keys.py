@@ -63,3 +63,33 @@ def test_a_changed_field_changes_exactly_the_keys_of_the_stages_that_use_it(chan
 def test_another_system_changes_every_key():
     a, b = get_system("dc-motor"), get_system("boeing747")
     assert all(stage_key(BASE, a, s) != stage_key(BASE, b, s) for s in STAGE_GROUPS)
+
+
+def test_every_field_of_the_koopman_config_is_in_a_key_or_declared_keyless():
+    from qsid_core.studies import KOOPMAN_KEY_PARTS, KOOPMAN_NOT_IN_KEYS, KOOPMAN_STAGE_GROUPS, KoopmanConfig
+
+    paths = config_paths(KoopmanConfig)
+    parts = {p for group in KOOPMAN_KEY_PARTS.values() for p in group}
+    assert parts <= set(paths) and set(KOOPMAN_NOT_IN_KEYS) <= set(paths)
+    assert {g for groups in KOOPMAN_STAGE_GROUPS.values() for g in groups} <= set(KOOPMAN_KEY_PARTS)
+    covered = [p for p in paths if p in KOOPMAN_NOT_IN_KEYS or any(p == q or p.startswith(q + ".") for q in parts)]
+    assert covered == paths, f"KoopmanConfig field(s) {sorted(set(paths) - set(covered))} are in no key"
+
+
+@pytest.mark.parametrize(
+    "change,stages",
+    [
+        ({"lifting": "poly:2"}, "reference reference-loop models loops"),
+        ({"state_amplitude": 1.5}, "data reference reference-loop models loops"),
+        ({"estimator": "bcls"}, "models loops"),
+        ({"radius": 0.2}, "reference-loop loops"),
+        ({"quantizer": QuantizerSpec(guard=False)}, "models loops"),
+    ],
+)
+def test_a_changed_koopman_field_changes_exactly_the_keys_that_use_it(change, stages):
+    from qsid_core.studies import KOOPMAN_STAGE_GROUPS, KoopmanConfig, koopman_stage_key
+
+    base = KoopmanConfig(trajectories=5, steps=10)
+    new = dataclasses.replace(base, **change)
+    for stage in KOOPMAN_STAGE_GROUPS:
+        assert (koopman_stage_key(base, stage) != koopman_stage_key(new, stage)) == (stage in stages.split()), stage

@@ -45,3 +45,44 @@ def test_bad_settings_name_the_field():
         KoopmanConfig(bits=())
     with pytest.raises(ConfigError, match="lifting"):
         KoopmanConfig(lifting="poly:0").dictionary()
+
+
+def test_the_amplitudes_and_the_box_reach_the_plant_and_the_data():
+    from qsid_core.studies import KoopmanConfig
+
+    cfg = KoopmanConfig(state_amplitude=0.5, box=7.0, input_amplitude=0.25)
+    s = cfg.plant()
+    assert (s.amplitude, s.box) == (0.5, 7.0) and KoopmanConfig().plant().amplitude == 2.0
+    small = dict(trajectories=30, steps=5, realizations=1, bits=(6,), mpc=None, lifting="poly:2")
+    d = run_koopman_sweep(KoopmanConfig(state_amplitude=0.5, input_amplitude=0.25, box=7.0, **small)).to_dict()
+    assert (d["config"]["state_amplitude"], d["config"]["input_amplitude"], d["config"]["box"]) == (0.5, 0.25, 7.0)
+    wide = run_koopman_sweep(KoopmanConfig(**small)).to_dict()
+    assert wide["config"]["state_amplitude"] == 2.0 and wide["results"][0]["eps_x"] != d["results"][0]["eps_x"]
+    # the quantizer's per-channel range follows the data: smaller amplitudes give finer cells
+    assert d["results"][0]["eps_u"][0] < 0.5 * wide["results"][0]["eps_u"][0]
+
+
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        ({"radius": 0.0}, "radius"),
+        ({"state_amplitude": -1.0}, "state amplitude"),
+        ({"box": float("nan")}, "box"),
+        ({"input_amplitude": 0}, "input amplitude"),
+    ],
+)
+def test_bad_nonlinear_settings_name_the_field(kw, match):
+    from qsid_core import ConfigError
+    from qsid_core.studies import KoopmanConfig
+
+    with pytest.raises(ConfigError, match=match):
+        KoopmanConfig(**kw)
+
+
+def test_an_mpc_setting_the_koopman_loops_do_not_use_is_refused_not_ignored():
+    from qsid_core import ConfigError, MPCConfig
+    from qsid_core.studies import KoopmanConfig
+
+    with pytest.raises(ConfigError, match="mpc.disturbance: the Koopman MPC does not use it"):
+        KoopmanConfig(mpc=MPCConfig(disturbance=0.1))
+    KoopmanConfig(mpc=MPCConfig(horizon=5, Qf=(1.0, 1.0)))  # the ones it uses are fine
