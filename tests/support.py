@@ -45,9 +45,10 @@ HANG_S = 300.0
 SMALL = dict(trajectories=10, steps=60, realizations=4)
 
 
-def connect_ws(app, **kwargs):
-    """A raw websocket to the in-process server ``app`` speaking viser's protocol (nothing sent yet)."""
-    return _support.connect_ws(app.url, **kwargs)
+def connect_ws(app, path: str = "", **kwargs):
+    """A raw websocket to the in-process server ``app`` at ``path`` (e.g. ``/v/CODE``, what a link's
+    ``?websocket=ws://host/v/CODE`` opens) speaking viser's protocol (nothing sent yet)."""
+    return _support.connect_ws(app.url + path, **kwargs)
 
 
 class Tab:
@@ -57,12 +58,14 @@ class Tab:
     ----------
     app : app.dashboard.DashboardApp
         A running in-process server.
+    path : str
+        The websocket's path (``""``: the bare address; ``/v/CODE``, ``/f/CODE/SPARE``: a link's).
     """
 
-    def __init__(self, app):
+    def __init__(self, app, path: str = ""):
         self.app = app
         before = set(app.sessions)
-        self.ws = connect_ws(app)
+        self.ws = connect_ws(app, path)
         self.received = 0
         self.thread = threading.Thread(target=self._read, daemon=True)
         self.thread.start()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import gc
 import io
 import os
@@ -26,6 +27,7 @@ from qsid_core import QsidError
 
 from .cache import DEFAULT_MB, SharedCache
 from .flow import READ_BYTES, FairSlots
+from .follow import FollowHub
 from .idle import IdleRelease
 from .lessons import lesson_values
 from .memory import limit_arenas, one_blas_thread, trim
@@ -36,8 +38,8 @@ from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, Values
 from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
 from .tabview import drop_late_draws
-from .viewcodes import ViewStore, default_store_path, open_view
-from .viserfix import check_request_hook, connection_request, limit_reads, refuse_share_requests
+from .viewcodes import ViewStore, default_store_path, open_view, page_location
+from .viserfix import check_request_hook, connection_request, limit_reads, redirect_pages, refuse_share_requests
 from .viserfix import install as _install_viser_fix
 from .warm import COMPILE_SECONDS, first_tab, needs_compiling, prefill, warm
 
@@ -96,6 +98,7 @@ class DashboardApp:
             self.defaults = self.defaults.replace(presenter=True)
         drop_late_draws()  # a draw that a closing tab cuts short is dropped without a warning
         self.views = ViewStore(views_file)  # view codes -> settings (links that survive a reload)
+        self.follow = FollowHub(self.views, self._code_in_use)  # tabs followed live by other tabs
         self.cache = SharedCache(cache_bytes)
         self.slots = FairSlots(slots, fast=1)  # (4) at most `slots` tabs compute at once, in turn; cheap turns first
         self.workers = max(0, int(workers))
@@ -120,6 +123,8 @@ class DashboardApp:
         cam.up = (0.0, 0.0, 1.0)
         refuse_share_requests(self.server)
         check_request_hook(self.server)  # view links need the websocket's path: fail now, not silently later
+        #: page requests redirected to addresses that hold a view code (else: long links, no code in the address)
+        self.redirecting = redirect_pages(self.server, self._page_location)
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
 
@@ -159,7 +164,7 @@ class DashboardApp:
             values, view = open_view(
                 self.views, path, host or f"{self.host}:{self.port}", self.defaults, in_use=self._code_in_use
             )
-            s = Session(self, client, values, view)
+            s = Session(self, client, values, dataclasses.replace(view, short=self.redirecting))
         except Exception:  # a broken tab must not take the server down
             traceback.print_exc()
             with self._lock:
@@ -172,6 +177,7 @@ class DashboardApp:
             else:
                 self._admitted.discard(client.client_id)
         if gone:  # the tab closed while it was being built (seconds on a busy server): nobody would close it
+            self.follow.detach(s)
             s.close(wait=False)
             trim()
 
@@ -184,6 +190,7 @@ class DashboardApp:
                 while len(self._gone) > 4096:  # ids whose _connect never came (bounded)
                     self._gone.popitem(last=False)
         if s is not None:
+            self.follow.detach(s)  # a follower leaves; a leader's followers keep its last view
             s.close(wait=False)  # never block viser's callback threads; the worker ends at its next check
             self.views.flush()
             trim()
@@ -212,10 +219,14 @@ class DashboardApp:
         trim()
         self.prefill()
 
-    def _code_in_use(self, code: str) -> bool:
-        """True while an open tab shows view code ``code``."""
+    def _page_location(self, target: str, host: str, secure: bool) -> str | None:
+        """Where a page request is redirected (:func:`~app.dashboard.viewcodes.page_location`), or None."""
+        return page_location(target, host, secure, self.views.new_code)
+
+    def _code_in_use(self, code: str, but=None) -> bool:
+        """True while an open tab (other than session ``but``) shows view code ``code``."""
         with self._lock:
-            codes = [s.codes for s in self.sessions.values()]
+            codes = [s.codes for s in self.sessions.values() if s is not but]
         return any(c is not None and c.view.code == code for c in codes)
 
     def wait_for_sessions(self, count: int, timeout: float = 30.0) -> list:

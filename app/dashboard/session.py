@@ -27,6 +27,9 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
    demand, in-process; cancelled when the tab's generation changes (any new change).
 10. ``DashboardApp.idle`` (server, :class:`~app.dashboard.idle.IdleRelease`): one timer thread once the
     last tab closed; it clears the shared cache and the workers' data unless a tab opened meanwhile.
+11. ``DashboardApp.follow`` (server, :class:`~app.dashboard.follow.FollowHub`): its lock guards who leads and
+    follows which code and the newest state each leader published (a leader's worker publishes, never waiting
+    for a follower); its ``turn`` lock lets one follower's worker push that state at a time.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from qsid_core import QsidError
 from .background import DataLengthRunner
 from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
+from .follower import refused
 from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
 from .lessons import LessonMark, get_lesson, key_view, lesson_names, lesson_values
@@ -49,7 +53,7 @@ from .settings import InputError, Values, resolve_system
 from .share import show_frame
 from .stages import iter_frames
 from .tabview import TabView
-from .viewcodes import ViewOpen, remember
+from .viewcodes import ViewOpen
 from .viserfix import guard_updates, set_callback_executor
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
@@ -91,8 +95,11 @@ class Session:
         self.callbacks = TabCallbacks(str(client.client_id))
         set_callback_executor(gui, self.callbacks)
         # a value sent is checked by the panel's rules before viser converts it; one viser refuses is explained
-        guard_updates(gui, self._show_error, lambda h, u: check_sent(getattr(self, "controls", None), h, u))
-        self._lesson = values.lesson  # the lesson whose settings the panel was given
+        # (a follower's panel takes nothing: :func:`~app.dashboard.follower.refused`)
+        guard_updates(
+            gui, self._show_error, lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u)
+        )
+        self.lesson_shown = values.lesson  # the lesson whose settings the panel was given
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
         #: the tab's panels (viser): built once, then only drawn into by this tab's worker
         self.ui = TabView(
@@ -113,6 +120,7 @@ class Session:
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
+        self.follower = app.follow.attach(self)  # the leader of its code, or a follower of another's (read-only)
         # (2) the tab's one worker
         self.thread = threading.Thread(target=self._loop, name=f"qsid-tab-{client.client_id}", daemon=True)
         self.thread.start()
@@ -249,9 +257,9 @@ class Session:
     def _open_lesson(self, gen: int) -> int:
         """A newly picked lesson sets the panel (the worker's own changes: their generation is adopted)."""
         name = self.controls["lesson"].value
-        if name == self._lesson and not self.mark.take():  # (the mark's button: the lesson set anew)
+        if name == self.lesson_shown and not self.mark.take():  # (the mark's button: the lesson set anew)
             return gen
-        self._lesson = name
+        self.lesson_shown = name
         if apply_lesson(self.controls, name, lambda v: resolve_system(v).system):
             with self._cond:
                 gen = self._gen
@@ -266,6 +274,8 @@ class Session:
     def _run(self, gen: int) -> int:
         """Check, compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
+        if self.follower is not None and self.follower.mirror():  # following another tab: nothing to compute
+            return gen
         self.ui.apply_pending()  # settings loaded (a file, a view code) since the last run
         try:
             check_panel(c)  # every raw value (anything can come over the websocket) before it is converted
@@ -370,7 +380,6 @@ class Session:
             return False
         self.last_frame = frame
         show_frame(self.share, frame)
-        if self.codes is not None:
-            remember(self.codes, self.app.views, self.ui.panel_values())
+        self.app.follow.drawn(self, frame)  # the code keeps these settings; its followers get what was drawn
         self.frames_drawn += 1
         return True

@@ -15,14 +15,16 @@ from typing import Any
 
 from qsid_core import PRESETS, get_system
 
+from .codepanel import CodePanel, add_code_panel
 from .controls import GuiElements, make_gui_elements, read_values
+from .follow import Drawn, Sent
 from .frames import Frame
 from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
 from .scene import PhasePortrait
 from .settings import Values, resolve_system
 from .share import ShareHandles, add_share_panel, apply_values
-from .viewcodes import CodePanel, ViewOpen, ViewStore, add_code_panel
+from .viewcodes import ViewOpen, ViewStore
 from .viewpanel import PANEL_WIDTH, ViewPanel
 
 __all__ = ["TabView", "drop_late_draws", "CLOSED_CONNECTION"]
@@ -105,6 +107,8 @@ class TabView:
             gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.plots, self.controls.play, touch
         )
         self.last_error: str | None = None
+        #: what the last draw pushed (a leader's followers push the same: :mod:`app.dashboard.follow`)
+        self.drawn = Drawn()
 
     # ----- settings in and out ----------------------------------------------------------------------------------
     def panel_values(self) -> Values:
@@ -154,6 +158,7 @@ class TabView:
         if stale():  # never draw an older result over a newer one
             self.renderer = Renderer()  # it remembered figures that were not pushed
             return False
+        figures = {name: Sent(fig) for name, fig in r.figures.items()}  # JSON made once, followers reuse it
         with self.client.atomic():
             if c.error.visible:
                 c.error.visible = False
@@ -162,6 +167,7 @@ class TabView:
                 self.portrait.draw(r.scene)
             if r.summary is not None:
                 c.summary.content = r.summary
-            for name, fig in r.figures.items():
+            for name, fig in figures.items():
                 self.plots[name].figure = fig
+        self.drawn = Drawn(r.scene, r.summary, figures)
         return True

@@ -1,22 +1,27 @@
-"""Views that survive a reload and travel: a short code per tab whose settings the server keeps.
+"""Views that survive a reload and travel: a short code per tab whose settings the server keeps, and the links.
 
 Every tab has a view code (six letters). Its settings are kept on the server (:class:`ViewStore`: in memory and
 in a small JSON file under the user's cache directory, at most :data:`MAX_VIEWS` codes, the least recently used
-dropped first) and updated each time the tab draws new settings. The link
+dropped first) and updated each time the tab draws new settings.
 
-    ``http://HOST:PORT/?websocket=ws://HOST:PORT/v/CODE``
+viser's client connects its websocket to the address in the page's ``?websocket=`` parameter, path included,
+and keeps that parameter in the address bar, so a reload connects to the same path again; the server reads the
+path of the websocket request (:func:`app.dashboard.viserfix.connection_request`). The paths (:func:`parse_path`):
 
-opens a tab on that code: viser's client connects its websocket to the address in ``?websocket=`` (path
-included) and keeps the parameter in the address bar, so a reload connects to the same path again; the server
-reads the path of the websocket request (:func:`app.dashboard.viserfix.connection_request`) and applies the
-code's settings. A tab opened without a code gets a new one, and its address bar is rewritten to its link
-(``history.replaceState``), so a reload of that tab comes back with its settings too. A code typed into the
-panel's "load view code" box applies that code's settings to the tab.
+``/v/CODE``      the view CODE (its settings; a tab of its own if another tab shows CODE)
+``/n/CODE``      the same for a code the server itself handed out: no note if it has no settings yet
+``/f/CODE``      follow the view CODE live and read-only (:mod:`app.dashboard.follow`)
+
+each optionally followed by ``/SPARE``, a second code: the code this tab takes as its own when CODE is not
+its own (another tab shows CODE, or the follower explores from here), so that the address bar already holds
+what a reload needs. The server hands those addresses out by an HTTP redirect of the page request
+(:func:`page_location`, installed by :func:`app.dashboard.viserfix.redirect_pages`): the bare address ``/``,
+the short links ``/v/CODE`` and ``/f/CODE`` the panel shows, and a long link without a spare. No script runs
+in the page to rewrite its address.
 """
 
 from __future__ import annotations
 
-import html
 import json
 import os
 import re
@@ -27,7 +32,7 @@ from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from urllib.parse import parse_qsl, quote
 
 from .settings import InputError, Values
 from .share import settings_json, values_from_json
@@ -39,14 +44,12 @@ __all__ = [
     "new_code",
     "normalize_code",
     "code_from_path",
+    "parse_path",
     "view_link",
+    "page_location",
     "default_store_path",
     "ViewOpen",
     "open_view",
-    "CodePanel",
-    "add_code_panel",
-    "load_code",
-    "remember",
 ]
 
 #: Letters of a code: lower case without i, l, o (not to be confused with 1 and 0 when read off a projector).
@@ -57,7 +60,14 @@ MAX_VIEWS = 1000
 #: Seconds between two writes of the file (the newest settings are written at the latest on close).
 WRITE_EVERY = 2.0
 _FILE_KIND = "qsid-view-codes"
-_PATH = re.compile(r"^/v/([A-Za-z]{6})/?$")
+#: A websocket path: kind, code (checked later: a malformed one is a note), optional spare code.
+_PATH = re.compile(r"^/([nvf])/([^/?#]{1,40})(?:/([A-Za-z]{6}))?/?$")
+#: A page request of a short link (``/v/CODE``, ``/f/CODE``).
+_SHORT = re.compile(r"^/([vf])/([^/?#]{1,40})/?$")
+#: The ``?websocket=`` value of a long link without a spare.
+_LONG = re.compile(r"^(wss?)://([^/?#]+)/([nvf])/([A-Za-z]{6})/?$")
+#: A Host header the server may write back into a link (name or IPv4 or [IPv6], optional port).
+_HOST = re.compile(r"^(?:[A-Za-z0-9.-]+|\[[0-9A-Fa-f:.]+\])(?::[0-9]{1,5})?$")
 
 
 def new_code() -> str:
@@ -65,7 +75,7 @@ def new_code() -> str:
 
 
 def normalize_code(text: str) -> str:
-    """A code as typed (any case, spaces, or a whole link) -> the code.
+    """A code as typed (any case, spaces, or a whole link, view or follow) -> the code.
 
     Raises
     ------
@@ -73,7 +83,7 @@ def normalize_code(text: str) -> str:
         One line saying what a code looks like.
     """
     s = str(text or "").strip()
-    m = re.search(r"/v/([A-Za-z]+)/?$", s)
+    m = re.search(r"/[nvf]/([A-Za-z]+)(?:/[A-Za-z]{6})?/?$", s)
     if m:
         s = m.group(1)
     s = s.lower()
@@ -85,15 +95,59 @@ def normalize_code(text: str) -> str:
     return s
 
 
-def code_from_path(path: str | None) -> str | None:
-    """The code of a websocket path ``/v/CODE`` (None for any other path, e.g. ``/``)."""
+def parse_path(path: str | None) -> tuple[str, str, str | None] | None:
+    """(kind, code as written, spare code or None) of a websocket path ``/v/CODE[/SPARE]`` (also ``n``, ``f``);
+    None for any other path (e.g. ``/``). The code is as written (:func:`normalize_code` checks it)."""
     m = _PATH.match((path or "").partition("?")[0])
-    return m.group(1).lower() if m else None
+    if m is None:
+        return None
+    return m.group(1), m.group(2), (m.group(3).lower() if m.group(3) else None)
 
 
-def view_link(host: str, code: str) -> str:
-    """The link that opens ``code`` on the server reached as ``host`` (``name:port``)."""
-    return f"http://{host}/?websocket=ws://{host}/v/{code}"
+def code_from_path(path: str | None) -> str | None:
+    """The (well-formed) code of a websocket path ``/v/CODE`` (None for any other path, e.g. ``/``)."""
+    parsed = parse_path(path)
+    try:
+        return normalize_code(parsed[1]) if parsed is not None else None
+    except InputError:
+        return None
+
+
+def view_link(host: str, code: str, kind: str = "v", short: bool = False) -> str:
+    """The link that opens ``code`` on the server reached as ``host`` (``name:port``); ``kind`` ``"f"``: the
+    follow link. ``short``: ``http://HOST/v/CODE``, which only a server redirecting page requests answers
+    (:func:`page_location`); otherwise the long form every viser serves."""
+    if short:
+        return f"http://{host}/{kind}/{code}"
+    return f"http://{host}/?websocket=ws://{host}/{kind}/{code}"
+
+
+def page_location(target: str, host: str, secure: bool, fresh: Callable[[], str]) -> str | None:
+    """Where a page request for ``target`` (path and query) is redirected to, or None (served as it is).
+
+    The bare address gets a new code (``/n/NEW/SPARE``), a short link ``/v/CODE`` or ``/f/CODE`` and a long link
+    without a spare get a spare code (``/v/CODE/SPARE``): the address bar then holds everything a reload needs.
+    ``host`` is the request's Host header (a link names it; a malformed one gives None), ``secure`` whether the
+    page was reached over https (through a proxy: the websocket is then ``wss://``), ``fresh()`` a code not in use.
+    """
+    if not _HOST.match(host or ""):
+        return None
+    path, _, query = target.partition("?")
+    params = parse_qsl(query, keep_blank_values=True)
+    sockets = [v for k, v in params if k == "websocket"]
+    others = "".join(f"&{quote(k)}={quote(v)}" for k, v in params if k != "websocket")
+    short = _SHORT.match(path)
+    if short is not None:  # (a malformed code is kept, quoted: the tab then says what a code looks like)
+        token = short.group(2)
+        code = token.lower() if token.isascii() and token.isalpha() else quote(token, safe="")
+        base, kind = f"{'wss' if secure else 'ws'}://{host}", short.group(1)
+    elif path == "/" and not sockets:
+        base, kind, code = f"{'wss' if secure else 'ws'}://{host}", "n", fresh()
+    elif path == "/" and len(sockets) == 1 and (long := _LONG.match(sockets[0])) is not None:
+        base, kind, code = f"{long.group(1)}://{long.group(2)}", long.group(3), long.group(4)
+    else:
+        return None
+    return f"/?websocket={base}/{kind}/{code}/{fresh()}{others}"
 
 
 def default_store_path() -> Path:
@@ -206,125 +260,91 @@ class ViewStore:
             self.load_note = f"view codes file {self.path} not written: {exc.strerror or exc}"
 
 
-def url_script(link: str, nonce: int) -> str:
-    """HTML that sets the tab's address bar to ``link`` (so that a reload opens the same view): an image that
-    fails to load at once runs the one line (viser has no server call that runs a script in the page)."""
-    query = link[link.index("?") :]
-    script = f"if(location.search!=={json.dumps(query)}){{history.replaceState(null,'',{json.dumps(query)});}}"
-    return (
-        f'<img alt="" data-qsid-url="{nonce}" src="data:," style="display:none" '
-        f'onerror="{html.escape(script, quote=True)}">'
-    )
-
-
 @dataclass(frozen=True)
 class ViewOpen:
-    """How a tab was opened: its code, the host the browser reached, whether the code is new (the address bar is
-    then rewritten to the link) and a note for the panel (an unknown or malformed code in the link)."""
+    """How a tab was opened and what it is now.
+
+    Attributes
+    ----------
+    code : str
+        The tab's own code (a follower: the code it takes when it explores from here).
+    host : str
+        The host (``name:port``) the browser reached: the links name it.
+    note : str
+        One line for the panel (an unknown or malformed code, a code another tab shows), or "".
+    follow : str or None
+        The code this tab follows read-only (None: a view of its own).
+    kept : bool
+        Whether a reload of the tab's address comes back to ``code`` (False: the panel says how to come back).
+    short : bool
+        Links in the short form (the server redirects page requests, :func:`page_location`).
+    """
 
     code: str
     host: str
-    fresh: bool = True
     note: str = ""
+    follow: str | None = None
+    kept: bool = True
+    short: bool = False
+
+
+def _stored(store: ViewStore, code: str) -> tuple[Values | None, str]:
+    """The settings of ``code`` (None if unknown) and why they are not usable ("" or " (reason)")."""
+    try:
+        return store.get(code), ""
+    except InputError as exc:  # kept by an older version and no longer accepted
+        return None, f" ({exc})"
 
 
 def open_view(
     store: ViewStore, path: str | None, host: str, defaults: Values, in_use: Callable[[str], bool] | None = None
 ) -> tuple[Values, ViewOpen]:
-    """The settings and view of a tab whose websocket was opened at ``path`` (``/`` or ``/v/CODE``).
+    """The settings and view of a tab whose websocket was opened at ``path`` (see the module docstring).
 
-    ``in_use(code)``: True while another open tab shows that code. A link opened while its tab is still open (a
-    class opening the teacher's link) gives the new tab the link's settings under a code of its own, so nothing
-    done there changes the teacher's view; a reload (the old tab gone) keeps the code."""
-    code = code_from_path(path)
-    if code is None:
+    ``in_use(code)``: True while another open tab shows that code as its own. A view link opened while its tab is
+    still open (a class opening the teacher's link) gives the new tab the link's settings under a code of its
+    own (the path's spare if it has one), so nothing done there changes the teacher's view; a reload (the old tab
+    gone) keeps the code. A spare that already has settings is this tab's own (it took it before: a reload).
+    """
+    busy = in_use or (lambda _code: False)
+    parsed = parse_path(path)
+    if parsed is None:
         note = ""
         if (path or "/").partition("?")[0].strip("/"):
             note = f"⚠️ The link's path {str(path)[:40]!r} holds no view code; this tab got a new one."
-        return defaults, ViewOpen(store.new_code(), host, True, note)
-    try:
-        v = store.get(code)
-    except InputError as exc:  # kept by an older version and no longer accepted
-        v, why = None, f" ({exc})"
-    else:
-        why = ""
-    if v is None:
-        note = (
-            f"⚠️ View code **{code}** is not known on this server{why}: this tab starts from the defaults and "
-            "keeps the code from now on."
-        )
-        return defaults, ViewOpen(code, host, False, note)
-    if in_use is not None and in_use(code):
-        own = store.new_code()
-        note = (
-            f"Opened from view **{code}**, which another tab shows: this tab has its own code **{own}**, so "
-            "changes here never change that tab."
-        )
-        return v, ViewOpen(own, host, True, note)
-    return v, ViewOpen(code, host, False, "")
-
-
-@dataclass
-class CodePanel:
-    """The tab's code line, the "load view code" box, its status line and the address-bar setter."""
-
-    view: ViewOpen
-    line: Any  # viser GUI handles (markdown, text, markdown, html)
-    box: Any
-    status: Any
-    url: Any
-
-
-def _say(panel: CodePanel, text: str) -> None:
-    panel.status.content = text
-    panel.status.visible = bool(text)
-
-
-def load_code(panel: CodePanel, store: ViewStore, text: str, receive: Callable[[Values], None]) -> None:
-    """The "load view code" box: hand the settings of the code (or link) typed to ``receive``, or say in one
-    line why not."""
-    if not str(text or "").strip():  # the box emptied (by the tab after a load): the status line stays
-        return
+        return defaults, ViewOpen(store.new_code(), host, note, kept=False)
+    kind, text, spare = parsed
+    own = spare if spare is not None and not busy(spare) else None
+    if own is not None:
+        v, _ = _stored(store, own)
+        if v is not None:  # this tab made the spare its own before (a fork or "explore from here"): a reload
+            return v, ViewOpen(own, host)
+    mine, kept = (own, True) if own is not None else (store.new_code(), False)
     try:
         code = normalize_code(text)
-        v = store.get(code)
     except InputError as exc:
-        _say(panel, f"⚠️ {exc}")
-        return
+        return defaults, ViewOpen(mine, host, f"⚠️ The link's {exc}; this tab shows the default view.", kept=kept)
+    v, why = _stored(store, code)
+    if kind == "f":
+        if v is None:
+            note = (
+                f"⚠️ View code **{code}** is not known on this server{why}: there is nothing to follow; this tab "
+                "shows the default view, as a view of its own."
+            )
+            return defaults, ViewOpen(mine, host, note, kept=kept)
+        return v, ViewOpen(mine, host, follow=code, kept=kept)
     if v is None:
-        _say(panel, f"⚠️ view code **{code}** is not known on this server (ask for the link or check the letters)")
-        return
-    _say(panel, f"Loaded view **{code}** (this tab keeps its own code **{panel.view.code}**).")
-    panel.box.value = ""  # emptied: the same code typed again is a change again, and loads again
-    receive(v)
-
-
-def add_code_panel(
-    gui: Any, view: ViewOpen, after: Any, store: ViewStore, receive: Callable[[Values], None]
-) -> CodePanel:
-    """The code line and the load box, placed right after the panel element ``after`` (built once per tab).
-
-    ``gui`` is the tab's ``viser.GuiApi``; a code typed in the box hands its settings to ``receive``.
-    """
-    link = view_link(view.host, view.code)
-    order = float(after.order)
-    line = gui.add_markdown(
-        f"view code **{view.code}** · [link]({link}) (a reload or this link brings these settings back)",
-        order=order + 0.001,
-    )
-    box = gui.add_text(
-        "load view code",
-        "",
-        hint="Type a code (6 letters) or paste a view link: this tab takes that view's settings",
-        order=order + 0.002,
-    )
-    status = gui.add_markdown(view.note, visible=bool(view.note), order=order + 0.003)
-    url = gui.add_html(url_script(link, 1) if view.fresh else "", visible=view.fresh, order=order + 0.004)
-    panel = CodePanel(view, line, box, status, url)
-    box.on_update(lambda e: load_code(panel, store, e.target.value, receive))
-    return panel
-
-
-def remember(panel: CodePanel, store: ViewStore, values: Values) -> None:
-    """After a frame is drawn: the tab's code keeps its newest settings."""
-    store.put(panel.view.code, values)
+        note = ""
+        if kind == "v":  # ("n": a code the server handed out, no settings yet: a new tab)
+            note = (
+                f"⚠️ View code **{code}** is not known on this server{why}: this tab starts from the defaults "
+                "and keeps the code from now on."
+            )
+        return defaults, ViewOpen(code, host, note)
+    if busy(code):
+        note = (
+            f"Opened from view **{code}**, which another tab shows: this tab has its own code **{mine}**, so "
+            "changes here never change that tab."
+        )
+        return v, ViewOpen(mine, host, note, kept=kept)
+    return v, ViewOpen(code, host)

@@ -2,7 +2,8 @@
 
 The dashboard needs a few things viser's public API does not offer: thread-safe message buffers,
 a bounded callback queue per tab, an explanation for a value viser refuses, a bounded socket read
-per turn, no "share URL" tunnel, and a smaller plotly.js bundle. Each hook below is one function with
+per turn, no "share URL" tunnel, a smaller plotly.js bundle, the websocket's request path and page
+requests answered with a redirect (view codes in the address). Each hook below is one function with
 a comment saying which private names it relies on and why; the rest of the dashboard calls only
 these functions. A hook returns True when it is in place; when this viser lacks what the hook relies
 on it changes nothing, returns False and warns once (:class:`ViserHookWarning`), so a viser upgrade
@@ -34,6 +35,7 @@ __all__ = [
     "install",
     "check_request_hook",
     "connection_request",
+    "redirect_pages",
     "LoopEvent",
     "ViserHookWarning",
     "set_callback_executor",
@@ -139,6 +141,59 @@ def connection_request(server, client_id) -> tuple[str, str] | None:
     if request is None:
         return None
     return str(request.path), str(request.headers.get("Host", "") or "")
+
+
+def redirect_pages(server: Any, locate: Callable[[str, str, bool], str | None]) -> bool:
+    """Answer a page request with a redirect where ``locate(target, host, secure)`` gives an address.
+
+    ``target`` is the request's path and query, ``host`` its Host header, ``secure`` whether a proxy says the page
+    was reached over https (``X-Forwarded-Proto``); ``locate`` returns the ``Location`` (a 302, not cached) or
+    None (the request is served as before). Websocket upgrades are never touched.
+
+    viser serves its page through the ``process_request`` hook of its ``websockets`` server, a function local
+    to ``WebsockServer._background_worker`` (viser/infra/_infra.py), and keeps no reference to that server
+    (``websockets.asyncio.server.Server``). The serving coroutine holds it in a local variable while it runs
+    (``async with serve(...) as server``); this hook finds it there, on viser's event loop
+    (``ViserServer._websock_server._background_event_loop``: the coroutine's frame, through the public
+    ``asyncio.all_tasks`` and ``cr_frame``), and wraps the server's ``process_request`` attribute, which
+    ``websockets`` reads for every new connection.
+    """
+    from websockets.asyncio.server import Server
+    from websockets.datastructures import Headers
+    from websockets.http11 import Response
+
+    loop = getattr(getattr(server, "_websock_server", None), "_background_event_loop", None)
+    if not isinstance(loop, asyncio.AbstractEventLoop) or loop.is_closed():
+        return _missing("page redirects (short links)", "ViserServer._websock_server._background_event_loop")
+
+    async def find() -> Any:
+        for task in asyncio.all_tasks():
+            frame = getattr(task.get_coro(), "cr_frame", None)
+            for value in dict(getattr(frame, "f_locals", None) or {}).values():
+                if isinstance(value, Server):
+                    return value
+        return None
+
+    try:
+        ws = asyncio.run_coroutine_threadsafe(find(), loop).result(timeout=10)
+    except Exception:  # the loop stopped, or did not answer
+        ws = None
+    if ws is None or getattr(ws, "_qsid_redirects", False):
+        return bool(ws) or _missing("page redirects (short links)", "its websockets Server in a serving coroutine")
+    serve = ws.process_request
+
+    def process_request(connection: Any, request: Any) -> Any:
+        if "websocket" not in str(request.headers.get("Upgrade", "")).lower():
+            secure = str(request.headers.get("X-Forwarded-Proto", "")).lower() == "https"
+            where = locate(str(request.path), str(request.headers.get("Host", "") or ""), secure)
+            if where is not None:
+                headers = Headers([("Location", where), ("Cache-Control", "no-store"), ("Content-Length", "0")])
+                return Response(302, "Found", headers, b"")
+        return serve(connection, request) if serve is not None else None
+
+    ws.process_request = process_request
+    ws._qsid_redirects = True
+    return True
 
 
 def set_callback_executor(gui: Any, executor: Any) -> bool:

@@ -14,7 +14,7 @@ import time
 
 import msgspec
 import pytest
-from support import CAMERA, HANG_S, ROOT, SMALL, Tab, wait_until
+from support import HANG_S, ROOT, SMALL, Tab, wait_until
 
 from app.dashboard.presenter import LEFT_SHARE, LEFT_WIDTH, PLOT_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
 from app.dashboard.settings import InputError, Values
@@ -75,13 +75,17 @@ def test_open_view_says_why_a_link_gave_defaults():
     store = ViewStore()
     store.put("kqbxtr", Values(bits=11))
     v, view = open_view(store, "/v/kqbxtr", "h:1", Values())
-    assert v.bits == 11 and view.code == "kqbxtr" and not view.fresh and view.note == ""
+    assert v.bits == 11 and view.code == "kqbxtr" and view.kept and view.note == ""
     v, view = open_view(store, "/v/zzzzzz", "h:1", Values(bits=5))
     assert v.bits == 5 and view.code == "zzzzzz" and "is not known on this server" in view.note
+    v, view = open_view(store, "/n/zzzzzz/abcdef", "h:1", Values(bits=5))  # a code the server handed out
+    assert v.bits == 5 and view.code == "zzzzzz" and view.kept and view.note == ""
     v, view = open_view(store, "/v/12", "h:1", Values())
-    assert view.fresh and "holds no view code" in view.note and view.code != "12"
+    assert not view.kept and "'12' is not a code" in view.note and view.code != "12"
+    v, view = open_view(store, "/x/kqbxtr", "h:1", Values())
+    assert not view.kept and "holds no view code" in view.note
     v, view = open_view(store, "/", "h:1", Values())
-    assert view.fresh and view.note == ""
+    assert not view.kept and view.note == ""
 
 
 def test_a_link_whose_tab_is_open_gets_a_code_of_its_own():
@@ -90,49 +94,30 @@ def test_a_link_whose_tab_is_open_gets_a_code_of_its_own():
     store = ViewStore()
     store.put("kqbxtr", Values(bits=11))
     v, view = open_view(store, "/v/kqbxtr", "h:1", Values(), in_use=lambda code: code == "kqbxtr")
-    assert v.bits == 11 and view.code != "kqbxtr" and view.fresh and "kqbxtr" in view.note
+    assert v.bits == 11 and view.code != "kqbxtr" and not view.kept and "kqbxtr" in view.note
     assert store.get(view.code) is None  # nothing stored under the new code until the tab draws
     v, view = open_view(store, "/v/kqbxtr", "h:1", Values(), in_use=lambda code: False)
-    assert v.bits == 11 and view.code == "kqbxtr" and not view.fresh
+    assert v.bits == 11 and view.code == "kqbxtr" and view.kept
+    # the address names a spare code: the tab takes it (so its reload comes back to it) ...
+    v, view = open_view(store, "/v/kqbxtr/abcdef", "h:1", Values(), in_use=lambda code: code == "kqbxtr")
+    assert v.bits == 11 and view.code == "abcdef" and view.kept
+    store.put("abcdef", Values(bits=3))  # ... which then keeps that tab's own settings
+    v, view = open_view(store, "/v/kqbxtr/abcdef", "h:1", Values(), in_use=lambda code: code == "kqbxtr")
+    assert v.bits == 3 and view.code == "abcdef" and view.kept and view.note == ""
 
 
 # ----- view codes in a live tab -------------------------------------------------------------------------------------
-class PathTab(Tab):
-    """A tab whose websocket is opened at ``path`` (what the link's ``?websocket=ws://host/v/CODE`` does)."""
-
-    def __init__(self, app, path: str):
-        import viser
-        from websockets.sync.client import connect
-
-        before = set(app.sessions)
-        self.app, self.received = app, 0
-        self.ws = connect(
-            app.url.replace("http://", "ws://") + path,
-            subprotocols=[f"viser-v{viser.__version__}"],
-            max_size=None,
-            open_timeout=120,
-        )
-        import threading
-
-        self.thread = threading.Thread(target=self._read, daemon=True)
-        self.thread.start()
-        self.ws.send(msgspec.msgpack.encode(CAMERA))
-        sessions = app.wait_for_sessions(len(before) + 1, timeout=HANG_S)
-        self.session = next(s for s in sessions if s.client.client_id not in before)
-        self.controls = self.session.controls
-
-
 def test_a_link_opens_the_settings_its_tab_had_last(dashboard, tab):
     tab.set(bits=9, dither="tpdf")
     code = tab.session.codes.view.code
     assert dashboard.views.get(code).bits == 9
     assert f"view code **{code}**" in tab.session.codes.line.content
-    assert view_link(f"127.0.0.1:{dashboard.port}", code) in tab.session.codes.line.content
+    assert view_link(f"127.0.0.1:{dashboard.port}", code, short=True) in tab.session.codes.line.content
     tab.close()  # a reload: the same link opens a new connection at /v/CODE
     wait_until(lambda: tab.session.client.client_id not in dashboard.sessions, "the closed tab is gone")
-    again = PathTab(dashboard, f"/v/{code}").wait()
+    again = Tab(dashboard, f"/v/{code}").wait()
     try:
-        assert again.session.codes.view.code == code and not again.session.codes.view.fresh
+        assert again.session.codes.view.code == code and again.session.codes.view.kept
         assert again.frame.values.bits == 9 and again.frame.values.dither == "tpdf"
         assert again.frame.values.trajectories == SMALL["trajectories"]
         assert not again.session.codes.status.visible
@@ -141,7 +126,7 @@ def test_a_link_opens_the_settings_its_tab_had_last(dashboard, tab):
 
 
 def test_an_unknown_code_in_a_link_is_one_line_in_the_panel(dashboard):
-    t = PathTab(dashboard, "/v/qqqqqq").wait()
+    t = Tab(dashboard, "/v/qqqqqq").wait()
     try:
         st = t.session.codes.status
         assert st.visible and "**qqqqqq** is not known on this server" in st.content and "\n" not in st.content
@@ -196,7 +181,7 @@ def test_the_same_code_typed_twice_loads_twice(dashboard, tab):
 def test_a_student_on_the_teachers_link_cannot_change_the_teachers_view(dashboard, tab):
     tab.set(bits=10)
     code = tab.session.codes.view.code
-    student = PathTab(dashboard, f"/v/{code}").wait()
+    student = Tab(dashboard, f"/v/{code}").wait()
     try:
         assert student.frame.values.bits == 10  # the teacher's settings ...
         assert student.session.codes.view.code != code  # ... under a code of the student's own
@@ -410,7 +395,7 @@ def test_the_request_path_hook_reads_the_live_path_and_fails_loudly_without_it(d
     from app.dashboard.viserfix import check_request_hook, connection_request
 
     check_request_hook(dashboard.server)  # this viser keeps the raw connections where the hook reads them
-    t = PathTab(dashboard, "/v/kqbxtr")
+    t = Tab(dashboard, "/v/kqbxtr")
     try:
         path, host = connection_request(dashboard.server, t.session.client.client_id)
         assert path == "/v/kqbxtr" and host == f"127.0.0.1:{dashboard.port}"

@@ -3,6 +3,7 @@ and each one reports (returns False, warns) when what it relies on is missing.""
 
 from __future__ import annotations
 
+import http.client
 import re
 import sys
 import time
@@ -62,7 +63,24 @@ def _hooks(server, client, executor):
         "refuse_share_requests": lambda: viserfix.refuse_share_requests(server),
         "plotly_js_unsent": lambda: viserfix.plotly_js_unsent(gui),
         "send_plotly_js": lambda: viserfix.send_plotly_js(gui, "/* plotly.js */"),
+        "redirect_pages": lambda: viserfix.redirect_pages(server, _moved),
     }
+
+
+def _moved(target: str, host: str, secure: bool) -> str | None:
+    """A page-redirect rule for the tests: ``/moved`` goes elsewhere (naming the host and the scheme)."""
+    return f"/?to={'wss' if secure else 'ws'}://{host}/there" if target.startswith("/moved") else None
+
+
+def _get(server, target: str, **headers) -> tuple[int, str | None, int]:
+    """(status, Location, body size) of a plain GET of ``target`` (redirects not followed)."""
+    conn = http.client.HTTPConnection("127.0.0.1", server.get_port(), timeout=60)
+    try:
+        conn.request("GET", target, headers=headers)
+        r = conn.getresponse()
+        return r.status, r.getheader("Location"), len(r.read())
+    finally:
+        conn.close()
 
 
 def test_the_installed_viser_is_in_the_pinned_range_the_hooks_were_written_for():
@@ -102,7 +120,7 @@ def _remove(monkeypatch, server, client, name):
         monkeypatch.delattr(gui, "_thread_executor")
     elif name == "guard_updates":
         monkeypatch.delattr(type(gui), "_handle_gui_updates")
-    elif name in ("limit_reads", "refuse_share_requests"):
+    elif name in ("limit_reads", "refuse_share_requests", "redirect_pages"):
         monkeypatch.delattr(server, "_websock_server")
     elif name in ("plotly_js_unsent", "send_plotly_js"):
         monkeypatch.delattr(gui, "_setup_plotly_js")
@@ -118,6 +136,7 @@ def _remove(monkeypatch, server, client, name):
         "refuse_share_requests",
         "plotly_js_unsent",
         "send_plotly_js",
+        "redirect_pages",
     ],
 )
 def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatch, name):
@@ -135,3 +154,25 @@ def test_limit_reads_of_a_tab_already_gone_is_no_warning(live, fresh):
     with warnings.catch_warnings():
         warnings.simplefilter("error", ViserHookWarning)
         assert viserfix.limit_reads(server, client.client_id + 1000, 4096) is False
+
+
+def test_redirect_pages_answers_page_requests_and_leaves_the_rest_to_viser(live, fresh):
+    server, _client = live
+    port = server.get_port()
+    assert _get(server, "/moved")[0] == 404  # viser itself has no such page
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ViserHookWarning)
+        assert viserfix.redirect_pages(server, _moved) is True
+        assert viserfix.redirect_pages(server, _moved) is True  # once is enough: not wrapped twice
+    assert _get(server, "/moved?x=1") == (302, f"/?to=ws://127.0.0.1:{port}/there", 0)
+    assert _get(server, "/moved", **{"X-Forwarded-Proto": "https"})[1] == f"/?to=wss://127.0.0.1:{port}/there"
+    status, where, size = _get(server, "/")
+    assert status == 200 and where is None and size > 1000  # viser's page, as before
+    tab = WsTab(f"http://127.0.0.1:{port}/moved")  # a websocket at any path is never redirected
+    try:
+        end = time.monotonic() + 60
+        while len(server.get_clients()) < 2 and time.monotonic() < end:
+            time.sleep(0.05)
+        assert len(server.get_clients()) == 2
+    finally:
+        tab.close()

@@ -189,3 +189,12 @@ def test_fuzz_engine_counts_every_call_and_passes(capsys):
     data = json.loads(out.splitlines()[-1].removeprefix("RESULT "))
     assert code == 0 and data["bad"] == {"other exception": 0, "hang": 0, "unflagged NaN": 0}
     assert sum(data["counts"]["theorem1_prediction"].values()) >= 3
+
+
+def test_bench_follow_runs_with_a_few_followers(capsys):
+    import bench_follow
+
+    assert bench_follow.main(["--followers", "2", "--rounds", "1", "--workers", "0"]) == 0
+    out = capsys.readouterr().out
+    rows = [ln for ln in out.splitlines() if ln.startswith(("0 followers", "2 followers"))]
+    assert len(rows) == 3 and "-" not in rows[1].split()[4:6]  # the followers' lag was measured

@@ -3,7 +3,7 @@
 At 1366×768 with presenter mode on and at 1920×1080 with it off, every lesson is opened; measured in the page:
 plot text sizes (``getComputedStyle`` on plotly's SVG text), panel text sizes, the key plot's width in presenter
 mode, where the lesson's key plot starts. Then auto-play runs a few word lengths, a reload brings the tab's settings back, and
-the tab's link opened in a second page shows the same settings. With ``QSID_SCREENSHOT_DIR=assets`` the
+the tab's link opened in a second page shows the same settings under a code of its own. With ``QSID_SCREENSHOT_DIR=assets`` the
 screenshots of docs/teaching.rst are written there.
 """
 
@@ -138,8 +138,8 @@ def test_teacher_walkthrough(size, presenter, monkeypatch):
                 page, s = _open(ctx, app, app.url, 1)
                 _dismiss_notices(page)
                 code = s.codes.view.code
-                # the address bar now holds the tab's link (so a reload comes back to the same view)
-                page.wait_for_function(f"() => location.search.includes('/v/{code}')", timeout=TIMEOUT_MS)
+                # the server redirected the page to an address holding the tab's code (a reload comes back to it)
+                assert f"/n/{code}/" in page.evaluate("() => location.search")
                 assert page.locator(f"text=view code {code}").count() >= 1
                 _walk_lessons(page, s, size, presenter, shots)
 
@@ -196,11 +196,12 @@ def test_teacher_walkthrough(size, presenter, monkeypatch):
 
                 # the link handed to a class: a second page opens the same settings under a code of its own
                 # (the teacher's tab is open: nothing done there may change the teacher's view)
-                link = view_link(f"127.0.0.1:{app.port}", code)
+                link = view_link(f"127.0.0.1:{app.port}", code, short=True)
                 assert link in again.codes.line.content
                 page2, other = _open(ctx, app, link, 2)
                 assert other.codes.view.code != code and other.last_frame.values.bits == b_paused
-                page2.wait_for_function(f"() => location.search.includes('/v/{other.codes.view.code}')")
+                # its address names its own code (the spare the server handed out with the link)
+                assert f"/v/{code}/{other.codes.view.code}" in page2.evaluate("() => location.search")
                 assert other.last_frame.values.lesson == "bound"
                 page2.wait_for_function(
                     f"() => document.body.textContent.includes('b = {b_paused} drawn')", timeout=TIMEOUT_MS
