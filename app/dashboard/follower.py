@@ -44,20 +44,19 @@ def refused(session: Any, handle: Any) -> str | None:
 
 def mirror_panel(session: Any, old: Values | None, new: Values) -> None:
     """Set the panel of ``session`` from values ``old`` (what it shows; None: unknown) to ``new``."""
-    el = session.controls
-    system = resolve_system(new).system
+    el, views = session.controls, session.views
     if old is None or any(getattr(old, k) != getattr(new, k) for k in _STRUCTURAL):
         apply_values(el, new)
+        views.set_system(resolve_system(new).system)
     else:  # the common case (b, a seed, a lesson): only the inputs that changed
         h = el.inputs
-        for c in CONTROLS:
-            if getattr(old, c.name) != getattr(new, c.name):
-                want = _initial(c, new, system)
-                if c.name != "axes" or want in h["axes"].options:
-                    h[c.name].value = want
+        changed = [c for c in CONTROLS if getattr(old, c.name) != getattr(new, c.name)]
+        system = resolve_system(new).system if any(c.name in ("x0", "axes") for c in changed) else None
+        for c in changed:
+            want = _initial(c, new, system) if system is not None else c.convert(getattr(new, c.name))
+            if c.name != "axes" or want in h["axes"].options:
+                h[c.name].value = want
     el.inputs["fixed_range"].visible = new.range_mode == "fixed"
-    views = session.views
-    views.set_system(system)
     names = list(views.channel.options)
     views.channel.value = names[min(max(int(new.view_channel), 0), len(names) - 1)]
     views.compare_bits.value = new.compare_bits
@@ -157,8 +156,9 @@ class Follower:
             self._say(("open" if snap.leader else "left") if snap.values is not None else "waiting")
             if snap.values is None:  # the view's saved settings, computed here (read-only) until its tab draws
                 return False
-            self._show(snap)
-            self.lock()
+            with self.session.client.atomic():  # one wake-up of the event loop for all of it
+                self._show(snap)
+                self.lock()
         return True
 
     def _show(self, snap: Snapshot) -> None:
@@ -183,18 +183,16 @@ class Follower:
             s.views.show(snap.group)
             self.group = snap.group
         new = {key: item for key, item in snap.items.items() if self.seen.get(key) != item[0]}
-        if new:
-            with s.client.atomic():
-                for key, (seq, item) in new.items():
-                    if key == "scene":
-                        s.portrait.draw(item)
-                    elif key == "summary":
-                        c.summary.content = item
-                    elif key in s.plots:
-                        s.plots[key].figure = item
-                    self.seen[key] = seq
-                if c.error.visible:  # a refused input's line: the followed view moved on
-                    c.error.visible = False
+        for key, (seq, item) in new.items():
+            if key == "scene":
+                s.portrait.draw(item)
+            elif key == "summary":
+                c.summary.content = item
+            elif key in s.plots:
+                s.plots[key].figure = item
+            self.seen[key] = seq
+        if new and c.error.visible:  # a refused input's line: the followed view moved on
+            c.error.visible = False
         f = snap.frame
         status = f"{'ready' if f.complete else 'computing …'} · b = {f.bits} drawn (view {self.code})"
         if status != c.status.content:

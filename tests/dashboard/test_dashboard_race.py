@@ -90,6 +90,40 @@ async def _make_event(loop):
     return LoopEvent(loop)
 
 
+def test_loop_event_sets_from_another_thread_wait_for_one_wake_up_and_none_is_lost():
+    """Sets from a foreign thread while one is on its way to the loop are merged into it; once it ran, the next
+    set schedules again (a message pushed after the loop's set still wakes the consumer)."""
+    import asyncio
+
+    loop = asyncio.new_event_loop()
+    runner = threading.Thread(target=loop.run_forever, daemon=True)
+    runner.start()
+    try:
+        ev = asyncio.run_coroutine_threadsafe(_make_event(loop), loop).result(10)
+        gate = threading.Event()
+        loop.call_soon_threadsafe(gate.wait, 10)  # the loop is busy: nothing handed over runs yet
+        scheduled = []
+        real = loop.call_soon_threadsafe
+        loop.call_soon_threadsafe = lambda fn, *a, **k: (scheduled.append(fn == ev._set_on_loop), real(fn, *a, **k))[1]
+        for _ in range(50):
+            ev.set()
+        assert sum(scheduled) == 1 and not ev.is_set()
+        gate.set()
+        asyncio.run_coroutine_threadsafe(asyncio.wait_for(ev.wait(), 10), loop).result(10)
+        asyncio.run_coroutine_threadsafe(_clear(ev), loop).result(10)  # the consumer took the messages
+        ev.set()  # a later push
+        assert sum(scheduled) == 2
+        asyncio.run_coroutine_threadsafe(asyncio.wait_for(ev.wait(), 10), loop).result(10)
+    finally:
+        loop.call_soon_threadsafe(loop.stop)
+        runner.join(10)
+        loop.close()
+
+
+async def _clear(ev):
+    ev.clear()
+
+
 # slow (~8 s): three changes computed and drawn in a real tab
 @pytest.mark.slow
 def test_a_tab_whose_draw_raises_recovers(monkeypatch):
