@@ -35,7 +35,8 @@ def _code_line(view: ViewOpen) -> str:
         follow = view_link(view.host, view.follow, "f", view.short)
         return f"following view **{view.follow}** (read-only) · [follow link]({follow})"
     link, follow = view_link(view.host, view.code, "v", view.short), view_link(view.host, view.code, "f", view.short)
-    return f"view code **{view.code}** · [link]({link}) · [follow link]({follow})"
+    shown = follow.removeprefix("http://") if view.short else "follow link"  # short enough to read off a screen
+    return f"view code **{view.code}** · [link]({link}) · follow: [{shown}]({follow})"
 
 
 def _hint_line(view: ViewOpen, followers: int) -> str:
