@@ -229,12 +229,15 @@ def _kernel_py(
                     ck = cw if c < n else cwu
                     over[j] += _quantize_row(xb[c], wb[c], ck, nb, lo_q[j, c], eps[j, c], levels[j], sub, dst)
                 else:
-                    dst[:nb] = xb[c, :nb]
+                    for k in range(nb):
+                        dst[k] = xb[c, k]
             _lift_block(nb, Yexp, Lc, m, Pw, V)
             for s in range(nl):  # a run's last sample: its features set aside, its column zeroed
                 k = last[s]
-                FL[:, s] = V[:Lc, k]
-                V[:, k] = 0.0
+                for i in range(Lc):
+                    FL[i, s] = V[i, k]
+                for i in range(V.shape[0]):
+                    V[i, k] = 0.0
             _block_sums(V, nb, Lc, m, TA, TB, TO, V.shape[0] - 1, last, nl, FL, S[j], XC[j])
         ends = nl > 0 and last[nl - 1] == nb - 1
         a, skip = (a + nb, 0) if ends or nb == 1 else (a + nb - 1, 1)
