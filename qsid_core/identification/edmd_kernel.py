@@ -11,8 +11,10 @@ and for each block and word length the kernel
   the :class:`~qsid_core.identification.edmd_plan.SumPlan`; columns: samples), with the features and
   inputs of each run's last sample (no regressor) zeroed,
 * adds the sums of :mod:`~qsid_core.identification.edmd_plan` (``SG``, ``XU``, ``UU``, ``XC``) as dot
-  products of rows of ``V`` (LLVM vectorises each across the samples), the cross products of the pairs
-  whose second sample ends a run added back from the features kept aside.
+  products of rows of ``V`` across the samples, in register tiles that read each row once for several
+  sums (one row times four for the plan's slots, two shifted feature rows times four for the cross
+  moments; LLVM vectorises each tile's loop), the cross products of the pairs whose second sample ends a
+  run added back from the features kept aside.
 
 Only plain quantized sums are accumulated: the de-biased and expected moments are linear maps of them
 (:mod:`~qsid_core.identification.edmd_plan`), so BCLS costs no second pass. The sums are those of the
