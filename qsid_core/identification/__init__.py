@@ -11,7 +11,9 @@ from .edmd import (
     exact_lifted_moments,
     lifted_error,
     prediction_error,
+    prediction_errors,
     quantized_lifted_moments,
+    quantized_lifted_realizations,
 )
 from .edmd_limit import LARGE_DATA_HYPOTHESES, LargeDataLimit, error_moments, large_data_limit
 from .identify import ESTIMATORS, Identified, identify, least_squares, relative_errors
@@ -40,7 +42,9 @@ __all__ = [
     "noise_covariance",
     "parse_lifting",
     "prediction_error",
+    "prediction_errors",
     "quantized_lifted_moments",
+    "quantized_lifted_realizations",
     "relative_errors",
     "theorem1_prediction",
 ]

@@ -33,7 +33,8 @@ import numpy as np
 from ..errors import IdentificationError, check_choice
 from ..plant.data import Dataset
 from ..quantization import QuantizerSpec, data_ranges, draw_dither_units, effective_ranges, quantize
-from .edmd_kernel import accumulate_lifted
+from .edmd_kernel import lifted_sums
+from .edmd_plan import bernoulli_maps, moments_from_sums, plan_for
 from .identify import ESTIMATORS, least_squares
 from .lifting import Lifting, MonomialLifting, bernoulli_shifted
 
@@ -44,7 +45,9 @@ __all__ = [
     "exact_lifted_moments",
     "lifted_error",
     "prediction_error",
+    "prediction_errors",
     "quantized_lifted_moments",
+    "quantized_lifted_realizations",
 ]
 
 
@@ -116,18 +119,17 @@ def _moments(Z: np.ndarray, U: np.ndarray, Zp: np.ndarray, eps: np.ndarray) -> L
 
 def exact_lifted_moments(data: Dataset, lifting: Lifting) -> LiftedMoments:
     """The lifted moments of unquantized data (the reference every quantized estimate is compared with)."""
+    n, m = data.n, data.m
+    if isinstance(lifting, MonomialLifting):  # the compiled kernel's sums, nothing quantized
+        plan = plan_for(lifting.exponents, m)
+        zero = np.zeros((1, n + m))
+        SG, XU, UU, XC, _ = lifted_sums(data.states, data.inputs, None, zero, zero, np.ones(1), 0.0, plan)
+        PP, XP = moments_from_sums(plan, SG[0], XU[0], UU[0], XC[0])
+        return LiftedMoments(PP=PP, XP=XP, T=data.T, eps=np.zeros(n + m))
     Z = lifting.lift(data.states)  # every state lifted once: (runs, steps + 1, L)
     L = Z.shape[-1]
     U = data.inputs.reshape(-1, data.m)
     return _moments(Z[:, :-1].reshape(-1, L), U, Z[:, 1:].reshape(-1, L), np.zeros(data.n + data.m))
-
-
-def _gram_exponents(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct pairwise sums of feature exponents ``GE`` (G, n) and the index ``idx[i, j]`` into them."""
-    L = E.shape[0]
-    sums = (E[:, None, :] + E[None, :, :]).reshape(L * L, -1)
-    GE, inv = np.unique(sums, axis=0, return_inverse=True)
-    return GE.astype(np.int64), inv.reshape(L, L)
 
 
 def quantized_lifted_moments(
@@ -158,13 +160,27 @@ def quantized_lifted_moments(
     -------
     list of LiftedMoments, one per word length.
     """
+    return quantized_lifted_realizations(data, lifting, bits, spec, [seed], unbiased)[0]
+
+
+def quantized_lifted_realizations(
+    data: Dataset,
+    lifting: Lifting,
+    bits: Sequence[int],
+    spec: QuantizerSpec | None = None,
+    seeds: Sequence[int | np.random.SeedSequence] = (0,),
+    unbiased: bool = True,
+) -> list[list[LiftedMoments]]:
+    """:func:`quantized_lifted_moments` for several dither realizations, ``[realization][word length]``.
+
+    The ranges, cell widths and sums' plan are worked out once; each realization is one pass of the
+    compiled kernel over the data (every word length inside it). ``seeds[k]`` gives the same moments as
+    ``quantized_lifted_moments(..., seed=seeds[k])``.
+    """
     spec = spec or QuantizerSpec()
     n, m = data.n, data.m
     lo, hi = data_ranges(data.states, data.inputs, spec)
-    rng = np.random.default_rng(seed)
     shape = (data.trajectories, data.steps + 1, n + m)
-    W = draw_dither_units(rng, shape, spec.dither)
-    W = np.zeros(shape) if W is None else W
     ranges = [effective_ranges(lo, hi, int(b), spec.guard, spec.dither) for b in bits]
     lo_q = np.array([r[0] for r in ranges]).reshape(len(bits), n + m)
     eps = np.array([r[1] for r in ranges]).reshape(len(bits), n + m)
@@ -179,20 +195,28 @@ def quantized_lifted_moments(
     )
     T = data.T
     entries = data.T * n + data.T * m + data.trajectories * n
-    if not isinstance(lifting, MonomialLifting):
-        return [_rbf_moments(data, lifting, int(b), spec, W, lo, hi, e, T) for b, e in zip(bits, eps, strict=True)]
-    GE, idx = _gram_exponents(lifting.exponents)
-    Bc = bernoulli_shifted(int(GE.max()))
-    levels = 2.0 ** np.asarray(bits, dtype=float)
-    PP, XP, PPu, XPu, over = accumulate_lifted(
-        data.states, data.inputs, W, lo_q, eps, levels, sub, lifting.exponents, GE, idx, Bc, unbiased
-    )
-    out = []
-    for j in range(len(bits)):
-        mom = LiftedMoments(PP[j], XP[j], T, eps[j], overload_fraction=float(over[j]) / entries, note=note)
-        if unbiased:
-            mom.PPu, mom.XPu = PPu[j], XPu[j]
-        out.append(mom)
+    out: list[list[LiftedMoments]] = []
+    for seed in seeds:
+        W = draw_dither_units(np.random.default_rng(seed), shape, spec.dither)
+        if not isinstance(lifting, MonomialLifting):
+            W0 = np.zeros(shape) if W is None else W
+            out.append(
+                [_rbf_moments(data, lifting, int(b), spec, W0, lo, hi, e, T) for b, e in zip(bits, eps, strict=True)]
+            )
+            continue
+        plan = plan_for(lifting.exponents, m)
+        levels = 2.0 ** np.asarray(bits, dtype=float)
+        SG, XU, UU, XC, over = lifted_sums(data.states, data.inputs, W, lo_q, eps, levels, sub, plan)
+        Bc = bernoulli_shifted(int(plan.Gc.max())) if unbiased else None
+        moms = []
+        for j in range(len(bits)):
+            PP, XP = moments_from_sums(plan, SG[j], XU[j], UU[j], XC[j])
+            mom = LiftedMoments(PP, XP, T, eps[j], overload_fraction=float(over[j]) / entries, note=note)
+            if Bc is not None:
+                UUu = UU[j] - T * np.diag(eps[j, n:] ** 2 / 12.0)
+                mom.PPu, mom.XPu = moments_from_sums(plan, SG[j], XU[j], UUu, XC[j], bernoulli_maps(Bc, eps[j, :n]))
+            moms.append(mom)
+        out.append(moms)
     return out
 
 
@@ -280,13 +304,26 @@ def prediction_error(model: KoopmanModel, lifting: Lifting, held_out: Dataset, h
     ``k = 1 .. horizon``; returns ``sqrt(sum |x^_k - x_k|^2 / sum |x_k|^2)`` over runs and steps (inf when
     the prediction overflows).
     """
+    return prediction_errors([model], lifting, held_out, horizon)[0]
+
+
+def prediction_errors(
+    models: Sequence[KoopmanModel], lifting: Lifting, held_out: Dataset, horizon: int = 20
+) -> list[float]:
+    """:func:`prediction_error` of several models of one lifting at once (one batched product per step)."""
+    if not models:
+        return []
     H = min(int(horizon), held_out.steps)
-    z = lifting.lift(held_out.states[:, 0, :])
-    num = den = 0.0
+    At = np.stack([mo.A.T for mo in models])  # (models, L, L)
+    Bt = np.stack([mo.B.T for mo in models])  # (models, m, L)
+    Ct = np.stack([mo.C.T for mo in models])  # (models, L, n)
+    z = np.broadcast_to(lifting.lift(held_out.states[:, 0, :]), (len(models),) + (held_out.trajectories, At.shape[1]))
+    num = np.zeros(len(models))
+    den = 0.0
     with np.errstate(all="ignore"):
         for k in range(H):
-            z = z @ model.A.T + held_out.inputs[:, k, :] @ model.B.T
+            z = z @ At + held_out.inputs[:, k, :] @ Bt
             x = held_out.states[:, k + 1, :]
-            num += float(((z @ model.C.T - x) ** 2).sum())
+            num += ((z @ Ct - x) ** 2).sum(axis=(1, 2))
             den += float((x**2).sum())
-    return float(np.sqrt(num / den)) if np.isfinite(num) else float("inf")
+    return [float(np.sqrt(v / den)) if np.isfinite(v) else float("inf") for v in num]

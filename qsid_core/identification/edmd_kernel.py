@@ -1,324 +1,264 @@
-"""The quantize-lift-accumulate kernel of EDMD with a monomial dictionary (numba, numpy-free inner loops).
+"""The quantize-lift-accumulate kernel of EDMD with a monomial dictionary (numba; numpy without it).
 
-For every run, every word length and every sample the kernel quantizes the state and the input (each
-state sample once, so ``x~_{t+1}`` of one pair is ``x~_t`` of the next, as on a device), builds the
-power tables of each channel (plain ``x~^k`` and, optionally, the unbiased ``eps^k B_k(x~/eps + 1/2)``,
-:func:`qsid_core.identification.lifting.bernoulli_shifted`), and adds
+One call makes one pass over the raw data (one dither realization) and serves every word length: the
+samples are read in blocks of :data:`BLOCK` rows (runs laid end to end; a block that ends inside a run
+shares its last row with the next one, so every pair of consecutive samples of a run lies in one block),
+and for each block and word length the kernel
 
-* ``SG[g]``: the sum over samples of the Gram monomials ``x^GE[g]`` (every pairwise sum of two
-  feature exponents: the Gram matrix's feature block is assembled from them),
-* ``XU``: features times inputs, ``UU``: inputs times inputs,
-* ``CX``: features of ``x_{t+1}`` times features of ``x_t``, ``CU``: features of ``x_{t+1}`` times ``u_t``,
+* quantizes every channel (the state of every sample once, so ``x~_{t+1}`` of one pair is ``x~_t`` of
+  the next, as on a device) and counts the overloaded entries,
+* lifts the block into the table ``V`` (rows: the features ``Ec``, the inputs, the extra Gram rows of
+  the :class:`~qsid_core.identification.edmd_plan.SumPlan`; columns: samples), with the features and
+  inputs of each run's last sample (no regressor) zeroed,
+* adds the sums of :mod:`~qsid_core.identification.edmd_plan` (``SG``, ``XU``, ``UU``, ``XC``) as dot
+  products of rows of ``V`` across the samples, in register tiles that read each row once for several
+  sums (one row times four for the plan's slots, two shifted feature rows times four for the cross
+  moments; LLVM vectorises each tile's loop), the cross products of the pairs whose second sample ends a
+  run added back from the features kept aside.
 
-each in the plain form (least squares) and, when asked, the unbiased form (the products of one sample
-are replaced as one monomial; products over two samples factor). No Python runs per sample;
-the kernel sums the Gram monomials, features times inputs and inputs times inputs itself, and the cross
-moments of a block of runs are one matrix product (BLAS) over its consecutive rows.
-
-The generic kernel (:func:`_lift_runs_py`) reads the exponents from arrays. For each dictionary the same
-kernel is also written out as Python source (:func:`source`: every power, feature and Gram monomial a
-named local, as :mod:`qsid_core.quantization.unrolled` does for the linear kernel), cached in the numba
-cache directory under a name hashed from its text and compiled with ``cache=True``, once for LS and once
-with the de-biased forms; it is several times faster than the generic one (``benchmarks/bench_koopman.py``,
-:doc:`/performance`) and computes the same numbers (a test checks it). Without numba the plain Python function runs.
+Only plain quantized sums are accumulated: the de-biased and expected moments are linear maps of them
+(:mod:`~qsid_core.identification.edmd_plan`), so BCLS costs no second pass. The sums are those of the
+sample-by-sample definition up to the order of additions (rounding). Without numba, :func:`lifted_sums`
+uses :func:`lifted_sums_numpy` (the same sums from whole arrays), which the tests compare with the kernel.
 """
 
 from __future__ import annotations
 
-import hashlib
-import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
 import numpy as np
 
-from ..quantization import kernels, unrolled
+from ..quantization import kernels
+from .edmd_plan import SumPlan
 
-__all__ = ["AVAILABLE", "MAX_UNROLLED", "NOT_USED", "RUNS_PER_BLOCK", "accumulate_lifted", "source"]
+__all__ = ["AVAILABLE", "BLOCK", "lifted_sums", "lifted_sums_numpy"]
 
 AVAILABLE = kernels.AVAILABLE
-
+#: Samples per block (the block's table ``V`` stays in the L1 cache for its dot products).
+BLOCK = 256
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
-def _quantized_py(v: float, lo: float, e: float, w: float, levels: float, sub: float) -> tuple[float, int]:
-    """One value quantized with the dither ``w`` (in cells; ``sub`` 1 subtracts it): (value, 1 if overloaded)."""
-    s = (v - lo) / e + w
-    k = min(max(np.floor(s), 0.0), levels - 1.0)
-    return lo + e * (k + 0.5) - sub * e * w, int((s < 0.0) | (s > levels))
-
-
-def _monomials_py(F: np.ndarray, E: np.ndarray, out: np.ndarray, add: bool) -> None:
-    """``out[i] (+)= prod_c F[c, E[i, c]]``: the monomials of exponents ``E`` from the channels' powers ``F``."""
-    for i in range(E.shape[0]):
-        acc = 1.0
-        for c in range(E.shape[1]):
-            acc *= F[c, E[i, c]]
-        if add:
-            out[i] += acc
-        else:
-            out[i] = acc
-
-
-def _jit(fn: _F) -> _F:
-    """``fn`` compiled by numba (cached on disk) when the kernels are available, else ``fn`` itself."""
+def _jit(fn: _F, fast: bool = False) -> _F:
+    """``fn`` compiled by numba (cached on disk; ``fast``: sums may be reassociated) when available."""
     if not kernels.AVAILABLE:  # pragma: no cover
         return fn
     import numba
 
-    return cast(_F, numba.njit(cache=True, nogil=True)(fn))
+    flags: dict[str, Any] = {"fastmath": {"reassoc"}} if fast else {}
+    return cast(_F, numba.njit(cache=True, nogil=True, **flags)(fn))
 
 
-_quantized = _jit(_quantized_py)
-_monomials = _jit(_monomials_py)
-
-
-def _powers_py(
-    x: float, c: int, K: int, quant: bool, unbiased: bool, Bm: np.ndarray, P: np.ndarray, Q: np.ndarray
-) -> None:
-    """Row ``c`` of ``P``: ``x**0..x**K``; of ``Q``: their unbiased versions (the same where not quantized)."""
-    P[c, 0] = 1.0
-    for k2 in range(1, K + 1):
-        P[c, k2] = P[c, k2 - 1] * x
-    if unbiased:
-        for k2 in range(K + 1):
-            if quant:
-                acc = 0.0
-                for i in range(k2, -1, -2):  # B_k(y + 1/2) has the parity of k: every other power
-                    acc += Bm[c, k2, i] * P[c, i]
-                Q[c, k2] = acc
-            else:
-                Q[c, k2] = P[c, k2]
-
-
-_powers = _jit(_powers_py)
-
-
-def _lift_runs_py(
-    X: np.ndarray,
-    Uin: np.ndarray,
-    W: np.ndarray,
-    lo_q: np.ndarray,
-    eps: np.ndarray,
+def _quantize_row_py(
+    x: np.ndarray,
+    w: np.ndarray,
+    cw: np.ndarray,
+    nb: int,
+    lo: float,
+    e: float,
     levels: float,
-    quant: np.ndarray,
     sub: float,
-    E: np.ndarray,
-    GE: np.ndarray,
-    Bc: np.ndarray,
-    unbiased: bool,
-    Zp: np.ndarray,
-    Zu: np.ndarray,
-    SGu: np.ndarray,
-    SGp: np.ndarray,
-    XUp: np.ndarray,
-    XUu: np.ndarray,
-    UU: np.ndarray,
+    out: np.ndarray,
 ) -> int:
-    """Quantize and lift a block of runs at one word length; returns the number of overloaded entries.
-
-    Row ``t`` of run ``r`` of ``Zp`` (``Zu``), shape (runs, steps + 1, L + m), gets the plain (unbiased)
-    features of ``x~_t`` and then ``u~_t`` (zeros in the last row, which has no input). Over the regressor
-    samples (every row but a run's last) it adds the plain (``SGp``) and unbiased (``SGu``) Gram monomials,
-    shape (G,), the features times the inputs (``XUp``, ``XUu``, shape (L, m)) and ``u u'`` (``UU``)."""
-    R, S1, n = X.shape
-    m = Uin.shape[2]
-    L = E.shape[0]
-    K = Bc.shape[0] - 1
-    P = np.empty((n, Bc.shape[0]))
-    Q = np.empty((n, Bc.shape[0]))
-    # Bm[c, k, i] = Bc[k, i] eps_c^(k - i): the coefficients of the unbiased k-th power of channel c
-    Bm = np.zeros((n, Bc.shape[0], Bc.shape[0]))
-    for c in range(n):
-        for k2 in range(Bc.shape[0]):
-            for i in range(k2 + 1):
-                Bm[c, k2, i] = Bc[k2, i] * eps[c] ** (k2 - i)
+    """``out[:nb]``: the values ``x`` quantized with the dither ``w`` (cells; ``sub`` 1 subtracts it), as
+    :func:`~qsid_core.quantization.quantize` does; returns the overloaded entries counted where ``cw`` is 1."""
     cnt = 0
-    for r in range(R):
-        for t in range(S1):
-            for c in range(n):
-                x = X[r, t, c]
-                if quant[c]:
-                    x, o = _quantized(x, lo_q[c], eps[c], W[r, t, c], levels, sub)
-                    cnt += o
-                _powers(x, c, K, quant[c], unbiased, Bm, P, Q)
-            _monomials(P, E, Zp[r, t, :L], False)
-            if unbiased:
-                _monomials(Q, E, Zu[r, t, :L], False)
-            if t == S1 - 1:
-                Zp[r, t, L:] = 0.0
-                if unbiased:
-                    Zu[r, t, L:] = 0.0
-                continue
-            _monomials(P, GE, SGp, True)
-            if unbiased:
-                _monomials(Q, GE, SGu, True)
-            for a in range(m):
-                cc = n + a
-                v = Uin[r, t, a]
-                if quant[cc]:
-                    v, o = _quantized(v, lo_q[cc], eps[cc], W[r, t, cc], levels, sub)
-                    cnt += o
-                Zp[r, t, L + a] = v
-                if unbiased:
-                    Zu[r, t, L + a] = v
-            for a in range(m):
-                v = Zp[r, t, L + a]
-                for i in range(L):
-                    XUp[i, a] += Zp[r, t, i] * v
-                    if unbiased:
-                        XUu[i, a] += Zu[r, t, i] * v
-                for b in range(m):
-                    UU[a, b] += v * Zp[r, t, L + b]
+    for k in range(nb):
+        s = (x[k] - lo) / e + w[k]
+        cnt += ((s < 0.0) | (s > levels)) * cw[k]
+        out[k] = lo + e * (min(max(np.floor(s), 0.0), levels - 1.0) + 0.5) - sub * e * w[k]
     return cnt
 
 
-_kernel: Callable[..., int] = _jit(_lift_runs_py)
-
-#: Runs lifted per block (the block's features stay in cache for the products).
-RUNS_PER_BLOCK = 64
-#: Why no specialised kernel is used for a dictionary (by its source file's name; empty while it is).
-NOT_USED: dict[str, str] = {}
-_LOADED: dict[str, Callable[..., int] | None] = {}
-_LOCK = threading.Lock()
+_quantize_row = _jit(_quantize_row_py)  # no reassociation: the same values as the engine's quantizer
 
 
-def _mono(prefix: str, e: Sequence[int]) -> str:
-    """The product of the channels' powers ``prefix{c}_{e[c]}`` (``1.0`` for the constant)."""
-    terms = [f"{prefix}{c}_{k}" for c, k in enumerate(e) if k > 0]
-    return " * ".join(terms) if terms else "1.0"
+def _tile14_py(A: np.ndarray, B0: np.ndarray, B1: np.ndarray, B2: np.ndarray, B3: np.ndarray, nr: int) -> Any:
+    """``sum_{k<nr} A[k] Bq[k]`` for q = 0..3 (each ``A[k]`` read once; one vector sum each)."""
+    s0 = s1 = s2 = s3 = 0.0
+    for k in range(nr):
+        a = A[k]
+        s0 += a * B0[k]
+        s1 += a * B1[k]
+        s2 += a * B2[k]
+        s3 += a * B3[k]
+    return s0, s1, s2, s3
 
 
-def source(E: np.ndarray, GE: np.ndarray, K: int, m: int, unbiased: bool) -> str:
-    """The kernel of :func:`_lift_runs_py` written out for one dictionary and one form (``unbiased`` or not):
-    every power, feature and running sum a named local (no index arrays, no branch on the form), so LLVM
-    keeps them in registers. Same arguments and results (its own ``unbiased`` argument is not read)."""
-    n, L, G = E.shape[1], E.shape[0], GE.shape[0]
-    i4, i3 = " " * 16, " " * 12
-    out = [
-        '"""Generated by qsid_core.identification.edmd_kernel for one dictionary; do not edit (rewritten as needed)."""',
-        "import numba",
-        "import numpy as np",
-        "",
-        "",
-        "@numba.njit(cache=True, nogil=True)",
-        "def kernel(X, Uin, W, lo_q, eps, levels, quant, sub, E, GE, Bc, unbiased, Zp, Zu, SGu, SGp, XUp, XUu, UU):",
-        "    R, S1 = X.shape[0], X.shape[1]",
-        "    cnt = 0",
-    ]
-    out += [f"    lo{c}, e{c}, q{c} = lo_q[{c}], eps[{c}], quant[{c}]" for c in range(n + m)]
-    if unbiased:
-        for c in range(n):
-            for k in range(K + 1):
-                out += [f"    b{c}_{k}_{i} = Bc[{k}, {i}] * e{c} ** {k - i}" for i in range(k % 2, k + 1, 2)]
-    sums = [f"sp{g}" for g in range(G)] + [f"xp{i}_{a}" for i in range(L) for a in range(m)]
-    sums += [f"uu{a}_{b}" for a in range(m) for b in range(m)]
-    if unbiased:
-        sums += [f"sg{g}" for g in range(G)] + [f"xu{i}_{a}" for i in range(L) for a in range(m)]
-    out += [f"    {v} = 0.0" for v in sums]
-    out += ["    for r in range(R):", "        for t in range(S1):"]
+def _tile24_py(
+    A0: np.ndarray, A1: np.ndarray, B0: np.ndarray, B1: np.ndarray, B2: np.ndarray, B3: np.ndarray, nr: int
+) -> Any:
+    """``sum_{k<nr} Ap[k] Bq[k]`` for p = 0..1, q = 0..3 (eight sums from six rows read once)."""
+    s00 = s01 = s02 = s03 = s10 = s11 = s12 = s13 = 0.0
+    for k in range(nr):
+        a0, a1, b0, b1, b2, b3 = A0[k], A1[k], B0[k], B1[k], B2[k], B3[k]
+        s00 += a0 * b0
+        s01 += a0 * b1
+        s02 += a0 * b2
+        s03 += a0 * b3
+        s10 += a1 * b0
+        s11 += a1 * b1
+        s12 += a1 * b2
+        s13 += a1 * b3
+    return s00, s01, s02, s03, s10, s11, s12, s13
 
-    def quantized(v: str, c: int, src: str, w: str, ind: str) -> list[str]:
-        return [
-            f"{ind}{v} = {src}",
-            f"{ind}if q{c}:",
-            f"{ind}    w = {w}",
-            f"{ind}    s = ({v} - lo{c}) / e{c} + w",
-            f"{ind}    cnt += (s < 0.0) | (s > levels)",
-            f"{ind}    {v} = lo{c} + e{c} * (min(max(np.floor(s), 0.0), levels - 1.0) + 0.5) - sub * e{c} * w",
-        ]
 
+_tile14 = _jit(_tile14_py, fast=True)
+_tile24 = _jit(_tile24_py, fast=True)
+
+
+def _lift_block_py(nb: int, Yexp: np.ndarray, Lc: int, m: int, Pw: np.ndarray, V: np.ndarray) -> None:
+    """Rows of ``V`` from the quantized states in ``Pw[:, 1]`` (``Pw[:, 0]`` holds ones): the powers up to
+    ``Pw.shape[1] - 1``, then each monomial of ``Yexp`` as the product of its channels' powers."""
+    n = Pw.shape[0]
     for c in range(n):
-        out += quantized(f"x{c}", c, f"X[r, t, {c}]", f"W[r, t, {c}]", i3)
-        out.append(f"{i3}p{c}_1 = x{c}")
-        out += [f"{i3}p{c}_{k} = p{c}_{k - 1} * x{c}" for k in range(2, K + 1)]
-    out += [f"{i3}f{i} = {_mono('p', E[i])}" for i in range(L)]
-    out += [f"{i3}Zp[r, t, {i}] = f{i}" for i in range(L)]
-    if unbiased:
+        for p in range(2, Pw.shape[1]):
+            Pp, Pq, P1 = Pw[c, p], Pw[c, p - 1], Pw[c, 1]
+            for k in range(nb):
+                Pp[k] = Pq[k] * P1[k]
+    for q in range(Yexp.shape[0]):
+        row = V[q if q < Lc else q + m]
+        F0 = Pw[0, Yexp[q, 0]]
+        if n == 2:
+            F1 = Pw[1, Yexp[q, 1]]
+            for k in range(nb):
+                row[k] = F0[k] * F1[k]
+            continue
+        for k in range(nb):
+            row[k] = F0[k]
+        for c in range(1, n):
+            Fc = Pw[c, Yexp[q, c]]
+            for k in range(nb):
+                row[k] *= Fc[k]
+
+
+def _block_sums_py(
+    V: np.ndarray, nb: int, Lc: int, m: int, TA: np.ndarray, TB: np.ndarray, TO: np.ndarray, Z: int,
+    last: np.ndarray, nl: int, FL: np.ndarray, S: np.ndarray, XC: np.ndarray,
+) -> None:  # fmt: skip
+    """Add one block's sums over its regressor columns ``0 .. nb - 2`` (see the module docstring): the slots
+    ``S`` by the plan's tiles, the cross products ``XC`` by tiles of two features times four rows (``Z``: the
+    zero row that pads them)."""
+    nr = nb - 1
+    p = Lc + m
+    for t in range(TA.shape[0]):
+        s = _tile14(V[TA[t]], V[TB[t, 0]], V[TB[t, 1]], V[TB[t, 2]], V[TB[t, 3]], nr)
+        for q in range(4):
+            if TO[t, q] >= 0:
+                S[TO[t, q]] += s[q]
+    for i in range(0, Lc, 2):
+        i1 = i + 1 if i + 1 < Lc else Z
+        for j in range(0, p, 4):
+            j1 = j + 1 if j + 1 < p else Z
+            j2 = j + 2 if j + 2 < p else Z
+            j3 = j + 3 if j + 3 < p else Z
+            s8 = _tile24(V[i, 1:], V[i1, 1:], V[j], V[j1], V[j2], V[j3], nr)
+            for q in range(min(4, p - j)):
+                XC[i, j + q] += s8[q]
+                if i + 1 < Lc:
+                    XC[i + 1, j + q] += s8[4 + q]
+    for s in range(nl):  # pairs whose second sample ends a run: its features were zeroed in V
+        k = last[s]
+        if k >= 1:
+            for i in range(Lc):
+                f = FL[i, s]
+                for j in range(p):
+                    XC[i, j] += f * V[j, k - 1]
+
+
+_lift_block = _jit(_lift_block_py)
+_block_sums = _jit(_block_sums_py, fast=True)
+
+
+def _load_block_py(
+    X: np.ndarray, Uin: np.ndarray, W: np.ndarray, a: int, nb: int, skip: int,
+    xb: np.ndarray, wb: np.ndarray, cw: np.ndarray, cwu: np.ndarray, last: np.ndarray,
+) -> int:  # fmt: skip
+    """Rows ``a .. a + nb - 1`` of the runs laid end to end, channel by channel into ``xb``/``wb`` (n + m, nb);
+    ``cw``/``cwu`` 1 where a state/input entry is counted (not the first row when it was the previous block's
+    last, no input at a run's last sample); ``last`` the columns ending a run. Returns how many end a run."""
+    S1, n = X.shape[1], X.shape[2]
+    m = Uin.shape[2]
+    nl = 0
+    for k in range(nb):
+        r = (a + k) // S1
+        t = a + k - r * S1
         for c in range(n):
-            for k in range(1, K + 1):
-                terms = " + ".join(f"b{c}_{k}_{i} * p{c}_{i}" if i else f"b{c}_{k}_0" for i in range(k % 2, k + 1, 2))
-                out.append(f"{i3}u{c}_{k} = ({terms}) if q{c} else p{c}_{k}")
-        out += [f"{i3}g{i} = {_mono('u', E[i])}" for i in range(L)]
-        out += [f"{i3}Zu[r, t, {i}] = g{i}" for i in range(L)]
-    out.append(f"{i3}if t == S1 - 1:")
-    out += [f"{i4}Zp[r, t, {L + a}] = 0.0" for a in range(m)]
-    if unbiased:
-        out += [f"{i4}Zu[r, t, {L + a}] = 0.0" for a in range(m)]
-    out.append(f"{i3}else:")
-    out += [f"{i4}sp{g} += {_mono('p', GE[g])}" for g in range(G)]
-    if unbiased:
-        out += [f"{i4}sg{g} += {_mono('u', GE[g])}" for g in range(G)]
-    for a in range(m):
-        out += quantized(f"v{a}", n + a, f"Uin[r, t, {a}]", f"W[r, t, {n + a}]", i4)
-        out.append(f"{i4}Zp[r, t, {L + a}] = v{a}")
-        out += [f"{i4}xp{i}_{a} += f{i} * v{a}" for i in range(L)]
-        if unbiased:
-            out.append(f"{i4}Zu[r, t, {L + a}] = v{a}")
-            out += [f"{i4}xu{i}_{a} += g{i} * v{a}" for i in range(L)]
-    out += [f"{i4}uu{a}_{b} += v{a} * v{b}" for a in range(m) for b in range(m)]
-    out += [f"    SGp[{g}] += sp{g}" for g in range(G)]
-    out += [f"    XUp[{i}, {a}] += xp{i}_{a}" for i in range(L) for a in range(m)]
-    out += [f"    UU[{a}, {b}] += uu{a}_{b}" for a in range(m) for b in range(m)]
-    if unbiased:
-        out += [f"    SGu[{g}] += sg{g}" for g in range(G)]
-        out += [f"    XUu[{i}, {a}] += xu{i}_{a}" for i in range(L) for a in range(m)]
-    out += ["    return cnt", ""]
-    return "\n".join(out)
+            xb[c, k] = X[r, t, c]
+            wb[c, k] = W[r, t, c]
+        cw[k] = 0 if k < skip else 1
+        ends = t == S1 - 1
+        cwu[k] = 0 if ends else cw[k]
+        for c in range(m):
+            xb[n + c, k] = 0.0 if ends else Uin[r, t, c]
+            wb[n + c, k] = 0.0 if ends else W[r, t, n + c]
+        if ends:
+            last[nl] = k
+            nl += 1
+    return nl
 
 
-def _specialised(E: np.ndarray, GE: np.ndarray, K: int, m: int, unbiased: bool) -> Callable[..., int] | None:
-    """The compiled kernel for this dictionary and form (written once to the numba cache directory), or None."""
-    text = source(E, GE, K, m, unbiased)
-    name = "qsid_lift_" + hashlib.sha1(text.encode()).hexdigest()[:16]
-    with _LOCK:
-        if name in _LOADED:
-            return _LOADED[name]
-        fn: Callable[..., int] | None = None
-        if not AVAILABLE:
-            NOT_USED[name] = f"compiled kernels unavailable: {kernels.REASON}"
-        elif E.shape[0] > MAX_UNROLLED:
-            NOT_USED[name] = f"{E.shape[0]} features: not specialised (at most {MAX_UNROLLED})"
-        else:
-            try:
-                fn = unrolled.import_generated(name, text).kernel
-            except Exception as exc:  # any failure: the generic kernel computes the same sums
-                NOT_USED[name] = f"{type(exc).__name__}: {exc}"
-        _LOADED[name] = fn
-        return fn
+_load_block = _jit(_load_block_py)
 
 
-#: Up to this many features the kernel is written out for the dictionary.
-MAX_UNROLLED = 60
+def _kernel_py(
+    X: np.ndarray, Uin: np.ndarray, W: np.ndarray, lo_q: np.ndarray, eps: np.ndarray, levels: np.ndarray,
+    sub: float, Yexp: np.ndarray, Lc: int, TA: np.ndarray, TB: np.ndarray, TO: np.ndarray,
+    S: np.ndarray, XC: np.ndarray, over: np.ndarray, block: int,
+) -> None:  # fmt: skip
+    """Every block at every word length ``j`` (rows of ``lo_q``, ``eps``; ``eps`` 0: not quantized) into the
+    slots ``S[j]``, the cross products ``XC[j]`` and the overload count ``over[j]``, ``block`` samples at a time."""
+    R, S1, n = X.shape
+    m = Uin.shape[2]
+    B = block + 1
+    xb, wb = np.empty((n + m, B)), np.empty((n + m, B))
+    cw, cwu = np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
+    last = np.empty(B, dtype=np.int64)
+    Pw = np.ones((n, max(int(Yexp.max()), 1) + 1, B))
+    V = np.zeros((Yexp.shape[0] + m + 1, B))  # the last row stays zero
+    FL = np.empty((Lc, B))
+    total = R * S1
+    a, skip = 0, 0
+    while a < total:
+        nb = min(B, total - a)
+        nl = _load_block(X, Uin, W, a, nb, skip, xb, wb, cw, cwu, last)
+        for j in range(lo_q.shape[0]):
+            for c in range(n + m):
+                dst = Pw[c, 1] if c < n else V[Lc + c - n]
+                if eps[j, c] > 0:
+                    ck = cw if c < n else cwu
+                    over[j] += _quantize_row(xb[c], wb[c], ck, nb, lo_q[j, c], eps[j, c], levels[j], sub, dst)
+                else:
+                    for k in range(nb):
+                        dst[k] = xb[c, k]
+            _lift_block(nb, Yexp, Lc, m, Pw, V)
+            for s in range(nl):  # a run's last sample: its features set aside, its column zeroed
+                k = last[s]
+                for i in range(Lc):
+                    FL[i, s] = V[i, k]
+                for i in range(V.shape[0]):
+                    V[i, k] = 0.0
+            _block_sums(V, nb, Lc, m, TA, TB, TO, V.shape[0] - 1, last, nl, FL, S[j], XC[j])
+        ends = nl > 0 and last[nl - 1] == nb - 1
+        a, skip = (a + nb, 0) if ends or nb == 1 else (a + nb - 1, 1)
 
 
-def _add_cross(Z: np.ndarray, L: int, XP: np.ndarray) -> None:
-    """Add one block's ``Z+ Phi^T`` from the lifted rows ``Z`` (runs, steps + 1, L + m), in place.
-
-    ``Z`` read as one table of consecutive rows: the products of all neighbouring pairs of rows, less the
-    pairs that straddle two runs (a run's last row has inputs 0, so only their feature block).
-    """
-    Zf = Z.reshape(-1, Z.shape[2])
-    XP += (Zf[1:].T @ Zf[:-1])[:L]
-    XP[:, :L] -= Z[1:, 0, :L].T @ Z[:-1, -1, :L]
+_kernel = _jit(_kernel_py)
 
 
-def accumulate_lifted(
+def lifted_sums(
     X: np.ndarray,
     Uin: np.ndarray,
-    W: np.ndarray,
+    W: np.ndarray | None,
     lo_q: np.ndarray,
     eps: np.ndarray,
     levels: np.ndarray,
     sub: float,
-    E: np.ndarray,
-    GE: np.ndarray,
-    idx: np.ndarray,
-    Bc: np.ndarray,
-    unbiased: bool,
+    plan: SumPlan,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Quantize, lift and accumulate every run at every word length.
+    """The plain sums of the quantized, lifted data at every word length, in one pass over the data.
 
     Parameters
     ----------
@@ -326,73 +266,71 @@ def accumulate_lifted(
         States.
     Uin : ndarray, shape (runs, steps, m)
         Inputs.
-    W : ndarray, shape (runs, steps + 1, n + m)
-        Dither in cell units (the input columns of the last row are unused).
+    W : ndarray, shape (runs, steps + 1, n + m), or None
+        Dither in cell units (the input columns of the last row are unused; None: zeros).
     lo_q, eps : ndarray, shape (J, n + m)
         Quantizer lower bound and cell width per word length and channel (``eps`` 0: recorded exactly).
     levels : ndarray, shape (J,)
         ``2**b`` per word length.
     sub : float
         1.0 subtractive dither, 0.0 non-subtractive.
-    E : ndarray of int64, shape (L, n)
-        Feature exponents.
-    GE : ndarray of int64, shape (G, n)
-        Gram exponents (the distinct pairwise sums of rows of ``E``).
-    idx : ndarray of int, shape (L, L)
-        ``GE[idx[i, j]] == E[i] + E[j]``.
-    Bc : ndarray, shape (K + 1, K + 1)
-        :func:`~qsid_core.identification.lifting.bernoulli_shifted` up to ``K = max(GE)``.
-    unbiased : bool
-        Also form the de-biased moments.
+    plan : SumPlan
+        The dictionary's rows and sums (:func:`~qsid_core.identification.edmd_plan.plan_for`).
 
     Returns
     -------
-    PP : ndarray, shape (J, L + m, L + m)
-    XP : ndarray, shape (J, L, L + m)
-    PPu, XPu : ndarray, same shapes (zeros unless ``unbiased``)
+    SG : ndarray, shape (J, G)
+    XU : ndarray, shape (J, Lc, m)
+    UU : ndarray, shape (J, m, m)
+    XC : ndarray, shape (J, Lc, Lc + m)
     over : ndarray of int64, shape (J,)
-        Entries whose ``x + w`` left the range.
+        Entries whose ``x + w`` left the range (every state sample once, every input once).
     """
     R, S1, n = X.shape
     m = Uin.shape[2]
-    J, L = lo_q.shape[0], E.shape[0]
-    p = L + m
-    XP, XPu, over = np.zeros((J, L, p)), np.zeros((J, L, p)), np.zeros(J, dtype=np.int64)
-    quant = np.asarray(eps[0] > 0, dtype=np.bool_)
-    E64, GE64 = np.ascontiguousarray(E, dtype=np.int64), np.ascontiguousarray(GE, dtype=np.int64)
-    Bc = np.ascontiguousarray(Bc, dtype=float)
-    SGp, SGu = np.zeros((J, GE.shape[0])), np.zeros((J, GE.shape[0]))
-    XUp, XUu, UU = np.zeros((J, L, m)), np.zeros((J, L, m)), np.zeros((J, m, m))
-    kern = _specialised(E64, GE64, Bc.shape[0] - 1, m, bool(unbiased)) or _kernel
-    for r0 in range(0, R, RUNS_PER_BLOCK):
-        Xb = np.ascontiguousarray(X[r0 : r0 + RUNS_PER_BLOCK], dtype=float)
-        Ub = np.ascontiguousarray(Uin[r0 : r0 + RUNS_PER_BLOCK], dtype=float)
-        Wb = np.ascontiguousarray(W[r0 : r0 + RUNS_PER_BLOCK], dtype=float)
-        rb = Xb.shape[0]
-        Zp = np.empty((rb, S1, p))
-        Zu = np.empty((rb, S1, p) if unbiased else (1, 1, p))
-        for j in range(J):
-            over[j] += kern(
-                Xb, Ub, Wb, lo_q[j], eps[j], float(levels[j]), quant, float(sub), E64, GE64, Bc, bool(unbiased),
-                Zp, Zu, SGu[j], SGp[j], XUp[j], XUu[j], UU[j],
-            )  # fmt: skip
-            _add_cross(Zp, L, XP[j])
-            if unbiased:
-                _add_cross(Zu, L, XPu[j])
-    PP = _gram(SGp, XUp, UU, idx)
-    if not unbiased:
-        return PP, XP, np.zeros_like(PP), XPu, over
-    UUu = UU - R * (S1 - 1) * np.einsum("ja,ab->jab", eps[:, n:] ** 2 / 12.0, np.eye(m))
-    return PP, XP, _gram(SGu, XUu, UUu, idx), XPu, over
+    J, Lc = lo_q.shape[0], plan.Lc
+    W = np.zeros((R, S1, n + m)) if W is None else W
+    S, XC = np.zeros((J, int(plan.TO.max()) + 1)), np.zeros((J, Lc, Lc + m))
+    over = np.zeros(J, dtype=np.int64)
+    args = (
+        np.ascontiguousarray(X, dtype=float), np.ascontiguousarray(Uin, dtype=float),
+        np.ascontiguousarray(W, dtype=float), np.ascontiguousarray(lo_q, dtype=float),
+        np.ascontiguousarray(eps, dtype=float), np.ascontiguousarray(levels, dtype=float), float(sub),
+    )  # fmt: skip
+    if not AVAILABLE:  # pragma: no cover
+        return lifted_sums_numpy(*args, plan)
+    _kernel(*args, plan.Yexp, Lc, plan.TA, plan.TB, plan.TO, S, XC, over, BLOCK)
+    return (*plan.split(S), XC, over)
 
 
-def _gram(SG: np.ndarray, XU: np.ndarray, UU: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """The Gram matrices, shape (J, L + m, L + m), from their blocks: the summed Gram monomials ``SG`` (J, G)
-    placed by ``idx`` (L, L), features times inputs ``XU`` (J, L, m) and inputs times inputs ``UU`` (J, m, m)."""
-    L = idx.shape[0]
-    PP = np.empty((XU.shape[0], L + XU.shape[2], L + XU.shape[2]))
-    PP[:, :L, :L] = SG[:, idx]
-    PP[:, :L, L:] = XU
-    PP[:, L:, :L] = XU.transpose(0, 2, 1)
-    PP[:, L:, L:] = UU
-    return PP
+def lifted_sums_numpy(
+    X: np.ndarray, Uin: np.ndarray, W: np.ndarray, lo_q: np.ndarray, eps: np.ndarray, levels: np.ndarray,
+    sub: float, plan: SumPlan,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """:func:`lifted_sums` from whole arrays (every sample at once per word length; no compiled code)."""
+    R, S1, n = X.shape
+    m, J = Uin.shape[2], lo_q.shape[0]
+    Lc = plan.Lc
+    SG, XU = np.zeros((J, plan.Gc.shape[0])), np.zeros((J, Lc, m))
+    UU, XC = np.zeros((J, m, m)), np.zeros((J, Lc, Lc + m))
+    over = np.zeros(J, dtype=np.int64)
+    raw = np.concatenate([X, np.concatenate([Uin, np.zeros((R, 1, m))], axis=1)], axis=2)
+
+    def monomials(v: np.ndarray, exps: np.ndarray) -> np.ndarray:  # (..., n) -> (..., rows of exps)
+        out: np.ndarray = np.prod([v[..., c : c + 1] ** exps[:, c] for c in range(n)], axis=0)
+        return out
+
+    for j in range(J):
+        e = eps[j]
+        s = (raw - lo_q[j]) / np.where(e > 0, e, 1.0) + W
+        q = lo_q[j] + e * (np.minimum(np.maximum(np.floor(s), 0.0), levels[j] - 1.0) + 0.5) - sub * e * W
+        v = np.where(e > 0, q, raw)
+        bad = ((s < 0.0) | (s > levels[j])) & (e > 0)
+        over[j] = int(bad[..., :n].sum() + bad[:, :-1, n:].sum())
+        F = monomials(v[..., :n], plan.Ec)  # (R, S1, Lc)
+        Phi = np.concatenate([F, v[..., n:]], axis=2)[:, :-1].reshape(-1, Lc + m)  # regressor samples
+        SG[j] = monomials(v[:, :-1, :n].reshape(-1, n), plan.Gc).sum(axis=0)
+        XU[j] = Phi[:, :Lc].T @ Phi[:, Lc:]
+        UU[j] = Phi[:, Lc:].T @ Phi[:, Lc:]
+        XC[j] = F[:, 1:].reshape(-1, Lc).T @ Phi
+    return SG, XU, UU, XC, over

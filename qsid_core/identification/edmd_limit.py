@@ -28,14 +28,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from math import comb
 
 import numpy as np
 
 from ..errors import IdentificationError
 from ..plant.data import Dataset
 from ..quantization import QuantizerSpec, data_ranges, effective_ranges
-from .edmd import KoopmanModel, LiftedMoments, edmd, exact_lifted_moments
+from .edmd import KoopmanModel, LiftedMoments, edmd
+from .edmd_kernel import lifted_sums
+from .edmd_plan import SumPlan, expectation_maps, moments_from_sums, plan_for
 from .lifting import Lifting, MonomialLifting
 
 __all__ = ["LARGE_DATA_HYPOTHESES", "LargeDataLimit", "error_moments", "large_data_limit"]
@@ -89,46 +90,17 @@ def error_moments(dither: str, eps: np.ndarray, kmax: int) -> np.ndarray | None:
     return None
 
 
-def _expected_powers(x: np.ndarray, mom: np.ndarray) -> np.ndarray:
-    """``E[(x + e)^k]`` per sample and channel, shape (T, c, K + 1); ``x`` (T, c), ``mom`` (K + 1, c)."""
-    K = mom.shape[0] - 1
-    pw = np.empty(x.shape + (K + 1,))
-    pw[..., 0] = 1.0
-    for k in range(1, K + 1):
-        pw[..., k] = pw[..., k - 1] * x
-    out = np.zeros_like(pw)
-    for k in range(K + 1):
-        for l in range(0, k + 1):
-            if np.any(mom[l]):
-                out[..., k] += comb(k, l) * pw[..., k - l] * mom[l]
-    return out
+def _expected_moments(
+    plan: SumPlan, sums: tuple[np.ndarray, ...], T: int, mom: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The lifted moments' expectation over the quantization error with moments ``mom`` (K + 1, n + m), from
+    the sums of the unquantized data (:func:`~qsid_core.identification.edmd_kernel.lifted_sums` at ``eps`` 0).
 
-
-def _monomials(P: np.ndarray, E: np.ndarray) -> np.ndarray:
-    """``prod_c P[t, c, E[i, c]]``, shape (T, rows of E), from per-channel powers ``P`` (T, n, K + 1)."""
-    out = np.ones((P.shape[0], E.shape[0]))
-    for c in range(E.shape[1]):
-        out *= P[:, c, :][:, E[:, c]]
-    return out
-
-
-def _expected_moments(data: Dataset, lifting: MonomialLifting, mom: np.ndarray) -> LiftedMoments:
-    """The lifted moments' expectation over the quantization error with moments ``mom`` (K + 1, n + m)."""
-    n, m = data.n, data.m
-    E = lifting.exponents
-    L = lifting.L
-    P = _expected_powers(data.states.reshape(-1, n), mom[:, :n])  # every sample once: its error is drawn once
-    runs, steps1 = data.states.shape[:2]
-    now = np.arange(runs * steps1).reshape(runs, steps1)[:, :-1].ravel()
-    U = data.inputs.reshape(-1, m)  # the same order as ``now``
-    GE, inv = np.unique((E[:, None, :] + E[None, :, :]).reshape(L * L, n), axis=0, return_inverse=True)
-    Z = _monomials(P, E)  # E[psi(x~)] per sample
-    ZZ = _monomials(P[now], GE).sum(axis=0)[inv.ravel()].reshape(L, L)  # E[psi psi^T]: one sample, summed degrees
-    Zn = Z[now]
-    UU = U.T @ U + len(now) * np.diag(mom[2, n:])
-    PP = np.block([[ZZ, Zn.T @ U], [U.T @ Zn, UU]])
-    XP = Z[now + 1].T @ np.hstack([Zn, U])  # different samples: independent errors, expectations multiply
-    return LiftedMoments(PP=PP, XP=XP, T=len(now), eps=np.zeros(n + m))
+    Each monomial of one sample becomes its expectation, a combination of the monomials below it
+    (:func:`~qsid_core.identification.edmd_plan.expectation_maps`); products over two samples have
+    independent errors, so their expectations multiply; the inputs' squares gain ``E[e^2]``."""
+    SG, XU, UU, XC = (x[0] for x in sums)
+    return moments_from_sums(plan, SG, XU, UU + T * np.diag(mom[2, n:]), XC, expectation_maps(mom[:, :n]))
 
 
 def large_data_limit(
@@ -152,13 +124,19 @@ def large_data_limit(
     """
     spec = spec or QuantizerSpec()
     lo, hi = data_ranges(data.states, data.inputs, spec)
-    exact = exact_lifted_moments(data, lifting) if isinstance(lifting, MonomialLifting) else None
+    if not isinstance(lifting, MonomialLifting):
+        return [
+            LargeDataLimit(int(b), None, None, f"no exact limit for the radial functions of {lifting.spec}")
+            for b in bits
+        ]
+    n, m = data.n, data.m
+    plan = plan_for(lifting.exponents, m)
+    zero = np.zeros((1, n + m))
+    sums = lifted_sums(data.states, data.inputs, None, zero, zero, np.ones(1), 0.0, plan)[:4]
+    exact_PP, _ = moments_from_sums(plan, *(x[0] for x in sums))
     out = []
     for b in bits:
         _, eps = effective_ranges(lo, hi, int(b), spec.guard, spec.dither)
-        if not isinstance(lifting, MonomialLifting) or exact is None:
-            out.append(LargeDataLimit(int(b), None, None, f"no exact limit for the radial functions of {lifting.spec}"))
-            continue
         mom = error_moments(spec.dither, eps, 2 * int(lifting.exponents.max()))
         if mom is None:
             why = f"the error moments of {spec.dither} dither above the first depend on the signal"
@@ -166,11 +144,12 @@ def large_data_limit(
                 why = "TPDF dither fixes the error's moments up to the second only (the identity dictionary)"
             out.append(LargeDataLimit(int(b), None, None, f"no exact limit: {why}"))
             continue
-        expected = _expected_moments(data, lifting, mom)
+        PP, XP = _expected_moments(plan, sums, data.T, mom, n)
+        expected = LiftedMoments(PP=PP, XP=XP, T=data.T, eps=np.zeros(n + m))
         try:
             model = edmd(expected, lifting.C, "ls")
         except IdentificationError as exc:
             out.append(LargeDataLimit(int(b), None, None, f"no limit: {exc}"))
             continue
-        out.append(LargeDataLimit(int(b), model, (expected.PP - exact.PP) / expected.T))
+        out.append(LargeDataLimit(int(b), model, (expected.PP - exact_PP) / expected.T))
     return out

@@ -20,25 +20,21 @@ from typing import Any
 import numpy as np
 
 from ..control import CONVERGED_RADIUS, MPCConfig, run_koopman_loops
-from ..errors import ConfigError, IdentificationError, MPCFailure, check_choice, check_float, check_int
+from ..errors import ConfigError, IdentificationError, check_choice, check_float, check_int
 from ..identification import (
     ESTIMATORS,
     LARGE_DATA_HYPOTHESES,
-    KoopmanModel,
-    LargeDataLimit,
-    LiftedMoments,
     Lifting,
-    MonomialLifting,
     edmd,
     exact_lifted_moments,
     large_data_limit,
-    lifted_error,
     parse_lifting,
     prediction_error,
-    quantized_lifted_moments,
+    quantized_lifted_realizations,
 )
 from ..plant import NonlinearDataset, NonlinearSystem, get_nonlinear, simulate_nonlinear
 from ..quantization import MAX_BITS, QuantizerSpec
+from .koopman_rows import ACC_KEYS, large_data_entry, no_exact_correction, predict, record, row
 
 __all__ = [
     "KOOPMAN_MPC",
@@ -256,98 +252,6 @@ class KoopmanResult:
         }
 
 
-def _stats(v: list[float]) -> dict[str, float]:
-    a = np.asarray(v, dtype=float)
-    a = a[np.isfinite(a)]
-    if a.size == 0:
-        return {"mean": float("nan"), "std": float("nan")}
-    return {"mean": float(a.mean()), "std": float(a.std())}
-
-
-def _record(
-    acc: dict[str, list[Any]],
-    mom: LiftedMoments,
-    estimator: str,
-    lifting: Lifting,
-    ref: KoopmanModel,
-    held: NonlinearDataset,
-    horizon: int,
-) -> None:
-    """Add one realization at one word length to ``acc``: its model (None when identification failed), the
-    lifted errors against ``ref``, the prediction error on ``held``, the overload fraction, ``eps`` and notes."""
-    acc["over"].append(mom.overload_fraction)
-    acc["eps"].append(mom.eps)
-    try:
-        model: KoopmanModel | None = edmd(mom, lifting.C, estimator)
-    except IdentificationError as exc:
-        model = None
-        acc["notes"].append(str(exc))
-    if model is None:
-        for k in ("G", "A", "B", "pred"):
-            acc[k].append(float("nan"))
-    else:
-        eG, eA, eB = lifted_error(model, ref)
-        acc["G"].append(eG)
-        acc["A"].append(eA)
-        acc["B"].append(eB)
-        acc["pred"].append(prediction_error(model, lifting, held, horizon))
-        acc["fallback"].append(model.fallback)
-        if model.note:
-            acc["notes"].append(model.note)
-    acc["models"].append(model)
-
-
-def _large_data(limit: LargeDataLimit, estimator: str, ref: KoopmanModel, correction: str) -> dict[str, Any]:
-    """The row's ``large_data`` entry: where the estimator goes with many samples (:func:`large_data_limit`)."""
-    if estimator == "bcls":
-        if correction:
-            return {"err_G": None, "note": f"no exact limit: {correction}"}
-        return {"err_G": 0.0, "note": "the de-biased moments are unbiased: the limit is the unquantized EDMD"}
-    if limit.model is None:
-        return {"err_G": None, "note": limit.note}
-    return {"err_G": lifted_error(limit.model, ref)[0], "note": ""}
-
-
-def _row(
-    cfg: KoopmanConfig, b: int, acc: dict[str, list[Any]], lifting: Lifting, system: NonlinearSystem
-) -> dict[str, Any]:
-    """The result row of word length ``b`` from its realizations ``acc``, with the closed loops when ``cfg.mpc``."""
-    n = system.n
-    row: dict[str, Any] = {
-        "bits": b,
-        "eps_x": np.asarray(acc["eps"][0][:n]).tolist(),
-        "eps_u": np.asarray(acc["eps"][0][n:]).tolist(),
-        "err_G": _stats(acc["G"]),
-        "err_A": _stats(acc["A"]),
-        "err_B": _stats(acc["B"]),
-        "prediction_error": _stats(acc["pred"]),
-        "overload_fraction": float(np.mean(acc["over"])),
-        "bcls_fallbacks": int(sum(acc["fallback"])),
-        "ident_failures": int(sum(m is None for m in acc["models"])),
-        "realizations": cfg.realizations,
-        "stabilized_fraction": None,
-        "closed_loop_outcomes": None,
-        "notes": sorted(set(acc["notes"])),
-    }
-    if cfg.mpc is not None:
-        try:
-            loops = run_koopman_loops(acc["models"], lifting, system, cfg.mpc, cfg.radius)
-        except MPCFailure as exc:  # pragma: no cover - run_koopman_loops records failures per loop
-            raise ConfigError(str(exc)) from None
-        row["stabilized_fraction"] = loops.converged_fraction
-        row["closed_loop_outcomes"] = loops.counts()
-    return row
-
-
-def _no_exact_correction(lifting: Lifting, spec: QuantizerSpec) -> str:
-    """Why the de-biased moments are not exact for this dictionary and dither ("" when they are)."""
-    if not isinstance(lifting, MonomialLifting):
-        return f"the radial functions of {lifting.spec} have no exact correction (LS is used)"
-    if spec.dither != "subtractive":
-        return f"the Bernoulli correction is exact for subtractive dither only, not {spec.dither}"
-    return ""
-
-
 def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     """Run the sweep (see the module docstring).
 
@@ -371,18 +275,19 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     ref = edmd(exact_lifted_moments(data, lifting), lifting.C, "ls")
     ref_loop = None if cfg.mpc is None else run_koopman_loops([ref], lifting, system, cfg.mpc, cfg.radius).outcome[0]
     nb = len(cfg.bits)
-    per: list[dict[str, list[Any]]] = [
-        {k: [] for k in ("G", "A", "B", "pred", "fallback", "notes", "models", "over", "eps")} for _ in range(nb)
-    ]
+    per: list[dict[str, list[Any]]] = [{k: [] for k in ACC_KEYS} for _ in range(nb)]
     unbiased = cfg.estimator == "bcls"
-    for seq in np.random.SeedSequence(cfg.dither_seed).spawn(cfg.realizations):
-        moms = quantized_lifted_moments(data, lifting, cfg.bits, cfg.quantizer, seed=seq, unbiased=unbiased)
+    seeds = np.random.SeedSequence(cfg.dither_seed).spawn(cfg.realizations)
+    for moms in quantized_lifted_realizations(data, lifting, cfg.bits, cfg.quantizer, seeds, unbiased):
         for acc, mom in zip(per, moms, strict=True):
-            _record(acc, mom, cfg.estimator, lifting, ref, held, horizon)
-    rows = [_row(cfg, b, acc, lifting, system) for b, acc in zip(cfg.bits, per, strict=True)]
-    correction = _no_exact_correction(lifting, cfg.quantizer)
-    for row, limit in zip(rows, large_data_limit(data, lifting, cfg.bits, cfg.quantizer), strict=True):
-        row["large_data"] = _large_data(limit, cfg.estimator, ref, correction)
+            record(acc, mom, cfg.estimator, lifting, ref)
+        predict(per, lifting, held, horizon)
+    rows = [row(b, acc, lifting, system, cfg.mpc, cfg.radius) for b, acc in zip(cfg.bits, per, strict=True)]
+    correction = no_exact_correction(lifting, cfg.quantizer)
+    # BCLS's limit is the unquantized EDMD itself wherever the correction is exact: LS's limits only
+    limits = large_data_limit(data, lifting, cfg.bits, cfg.quantizer) if cfg.estimator == "ls" else [None] * nb
+    for r, limit in zip(rows, limits, strict=True):
+        r["large_data"] = large_data_entry(limit, cfg.estimator, ref, correction)
     return KoopmanResult(
         cfg,
         rows,

@@ -117,6 +117,7 @@ def test_bench_mpc_quick_main_prints_result(capsys, tmp_path):
         "bench_dashboard_inprocess_before.txt",
         "bench_kernels.txt",
         "bench_koopman.txt",
+        "bench_koopman_before.txt",
     ],
 )
 def test_the_benchmark_outputs_in_the_docs_were_saved_by_the_benchmarks(name):

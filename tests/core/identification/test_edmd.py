@@ -19,8 +19,15 @@ from qsid_core.identification import (
     parse_lifting,
     quantized_lifted_moments,
 )
-from qsid_core.plant import get_nonlinear, get_system, simulate, simulate_nonlinear
-from qsid_core.quantization import Moments, QuantizerSpec, data_ranges, draw_dither_units, quantize
+from qsid_core.plant import Dataset, get_nonlinear, get_system, simulate, simulate_nonlinear
+from qsid_core.quantization import (
+    Moments,
+    QuantizerSpec,
+    data_ranges,
+    draw_dither_units,
+    effective_ranges,
+    quantize,
+)
 
 
 def test_poly_dictionary_holds_every_monomial_up_to_the_degree_constant_and_state_first():
@@ -117,10 +124,15 @@ def _brute_force(data, lf, b, spec, seed):
     return out
 
 
-def test_engine_moments_equal_an_independent_brute_force_loop_over_samples():
-    s = get_nonlinear("van-der-pol")
-    d = simulate_nonlinear(s, 3, 6, seed=2)
-    lf = parse_lifting("poly:2", 2)
+@pytest.mark.parametrize("case", ["van-der-pol poly:2", "3 states 2 inputs poly:3"])
+def test_engine_moments_equal_an_independent_brute_force_loop_over_samples(case):
+    if case.startswith("van"):
+        d = simulate_nonlinear(get_nonlinear("van-der-pol"), 3, 6, seed=2)
+        lf = parse_lifting("poly:2", 2)
+    else:
+        rng = np.random.default_rng(8)
+        d = Dataset(rng.uniform(-2, 2, (2, 5, 3)), rng.uniform(-1, 1, (2, 4, 2)))
+        lf = parse_lifting("poly:3", 3)
     spec = QuantizerSpec()
     mom = quantized_lifted_moments(d, lf, [3], spec, seed=5)[0]
     want = _brute_force(d, lf, 3, spec, 5)
@@ -128,6 +140,18 @@ def test_engine_moments_equal_an_independent_brute_force_loop_over_samples():
     np.testing.assert_allclose(mom.XP, want[False][1], rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(mom.PPu, want[True][0], rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(mom.XPu, want[True][1], rtol=1e-9, atol=1e-9)
+
+
+def test_unquantized_moments_from_the_kernel_equal_the_lifted_products():
+    d = simulate_nonlinear(get_nonlinear("duffing"), 7, 40, seed=4)
+    lf = parse_lifting("poly:3", 2)
+    Z = lf.lift(d.states)
+    Phi = np.concatenate([Z[:, :-1], d.inputs], axis=2).reshape(-1, lf.L + 1)
+    Zp = Z[:, 1:].reshape(-1, lf.L)
+    mom = exact_lifted_moments(d, lf)
+    assert mom.T == 7 * 40 and not mom.eps.any()
+    np.testing.assert_allclose(mom.PP, Phi.T @ Phi, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(mom.XP, Zp.T @ Phi, rtol=1e-12, atol=1e-9)
 
 
 @pytest.mark.slow
@@ -184,17 +208,38 @@ def test_rbf_and_non_subtractive_dither_say_there_is_no_exact_correction():
     assert lifted_error(tk, ref)[0] > 5 * lifted_error(sub, ref)[0]
 
 
-def test_the_kernel_written_out_for_the_dictionary_equals_the_generic_one(monkeypatch):
+@pytest.mark.parametrize(
+    ("runs", "steps", "n", "m", "spec_text", "dither"),
+    [
+        (40, 30, 2, 1, "poly:3", "subtractive"),  # several runs per block of the kernel
+        (5, 256, 2, 1, "poly:2", "subtractive"),  # a run of exactly one block: it ends on the block's last sample
+        (2, 600, 2, 1, "poly:3", "tpdf"),  # runs over several blocks, which share their boundary samples
+        (300, 1, 2, 1, "identity", "subtractive"),  # one regressor per run
+        (7, 127, 2, 1, "poly:4", "none"),  # two runs per block, no dither
+        (9, 50, 3, 2, "poly:2", "subtractive"),  # three states, two inputs
+        (20, 13, 1, 1, "poly:5", "rpdf"),  # one state
+    ],
+)
+def test_the_compiled_kernel_equals_the_whole_array_sums(runs, steps, n, m, spec_text, dither):
     from qsid_core.identification import edmd_kernel
+    from qsid_core.identification.edmd_plan import plan_for
 
-    s = get_nonlinear("pendulum")
-    d = simulate_nonlinear(s, 40, 30, seed=1)
-    lf = parse_lifting("poly:3", 2)
-    fast = quantized_lifted_moments(d, lf, [2, 5], seed=3)
-    assert not edmd_kernel.NOT_USED
-    monkeypatch.setattr(edmd_kernel, "_specialised", lambda *a: None)
-    slow = quantized_lifted_moments(d, lf, [2, 5], seed=3)
-    for a, b in zip(fast, slow, strict=True):
-        for name in ("PP", "XP", "PPu", "XPu"):
-            np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-9)
-        assert a.overload_fraction == b.overload_fraction
+    rng = np.random.default_rng(n + 10 * m)
+    d = Dataset(rng.uniform(-2, 2, (runs, steps + 1, n)), rng.uniform(-1, 1, (runs, steps, m)))
+    spec = QuantizerSpec(dither=dither, guard=False)  # no guard band: some entries overload
+    plan = plan_for(parse_lifting(spec_text, n).exponents, m)
+    lo, hi = data_ranges(d.states, d.inputs, spec)
+    bits = [1, 2, 5, 12]
+    ranges = [effective_ranges(lo, hi, b, spec.guard, spec.dither) for b in bits]
+    lo_q, eps = np.array([r[0] for r in ranges]), np.array([r[1] for r in ranges])
+    eps[2, -1] = 0.0  # one channel recorded exactly at one word length
+    W = draw_dither_units(np.random.default_rng(3), (runs, steps + 1, n + m), dither)
+    W = np.zeros((runs, steps + 1, n + m)) if W is None else W
+    args = (d.states, d.inputs, W, lo_q, eps, 2.0 ** np.array(bits, dtype=float), float(dither == "subtractive"))
+    fast = edmd_kernel.lifted_sums(*args, plan)
+    slow = edmd_kernel.lifted_sums_numpy(*args, plan)
+    assert edmd_kernel.AVAILABLE
+    for a, b in zip(fast[:4], slow[:4], strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-9 * np.abs(b).max())
+    np.testing.assert_array_equal(fast[4], slow[4])
+    assert fast[4].max() > 0 or dither == "none"  # the overload count is exercised (dither crosses the range)

@@ -1,0 +1,44 @@
+"""The nonlinear sweeps' headline claims (docs/science.rst, "Nonlinear plants"), on the paper-scale data.
+
+Full training data (2000 runs x 100 steps, ``poly:3``, subtractive dither, guard band, per-channel range),
+9 dither realizations (one Koopman MPC loop per realization's model, from the plant's x0) and only the word
+lengths a claim is about. The margins were checked on six (data seed, dither seed) pairs: the error ratio at
+b = 3 was 49..70 (asserted >= 10), at b = 4 70..79; Van der Pol at b = 2 converged 0/9 (LS) against 5..8/9
+(BCLS); Duffing at b = 3 0/9 against 9/9; the pendulum at b = 2 9/9 against 5..9/9.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from qsid_core.studies import KoopmanConfig, run_koopman_sweep
+
+pytestmark = pytest.mark.slow
+
+BASE = dict(trajectories=2000, steps=100, realizations=9, data_seed=0, dither_seed=1)
+
+
+def _converged(system: str, estimator: str, b: int) -> int:
+    r = run_koopman_sweep(KoopmanConfig(system=system, estimator=estimator, bits=(b,), **BASE))
+    return int(r.rows[0]["closed_loop_outcomes"]["converged"])
+
+
+def test_de_biased_edmd_is_tens_of_times_closer_to_the_unquantized_edmd_on_van_der_pol():
+    err = {}
+    for est in ("ls", "bcls"):
+        r = run_koopman_sweep(KoopmanConfig(system="van-der-pol", estimator=est, bits=(3, 4), mpc=None, **BASE))
+        err[est] = [row["err_G"]["mean"] for row in r.rows]
+    assert 1.0 < err["ls"][0] < 1.3 and 0.35 < err["ls"][1] < 0.45  # LS's bias: 1.14 and 0.40 in the issue
+    assert err["bcls"][0] * 10 <= err["ls"][0]
+    assert err["bcls"][1] * 10 <= err["ls"][1]
+
+
+def test_koopman_mpc_from_ls_fails_where_the_de_biased_model_converges():
+    assert _converged("van-der-pol", "ls", 2) == 0
+    assert _converged("van-der-pol", "bcls", 2) >= 3
+    assert _converged("duffing", "ls", 3) <= 1
+    assert _converged("duffing", "bcls", 3) >= 7
+
+
+def test_pendulum_at_two_bits_the_steady_biased_ls_converges_at_least_as_often_as_the_noisy_de_biased():
+    assert _converged("pendulum", "ls", 2) >= _converged("pendulum", "bcls", 2)
