@@ -15,7 +15,9 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..control.condensed_qp import box_qp_batch
+from ..identification import parse_lifting, quantized_lifted_realizations
 from ..plant.data import simulate
+from ..plant import get_nonlinear, simulate_nonlinear
 from ..plant.lti import LTISystem
 from ..quantization import kernels
 from ..quantization.moments import prepare, quantized_moments
@@ -23,10 +25,19 @@ from ..quantization.quantize import QuantizerSpec
 
 __all__ = ["COMPILED_KERNELS", "compile_kernels", "kernel_cache_dir", "kernel_names", "kernels_cached", "one_per_size"]
 
-#: The compiled kernels as ``module.function`` (numba names their cache index files after them): the box QP
-#: and the compiled saturated closed loop. The quantize-and-accumulate kernel is generated per system size
-#: (see :func:`kernel_names`); the generic one serves larger systems and is compiled when one is used.
+#: The compiled kernels as ``module.function`` (numba names their cache index files after them): the box QP,
+#: the compiled saturated closed loop and the quantize-lift-accumulate kernel of EDMD (one for every monomial
+#: dictionary and plant size: the dictionary is data to it). The quantize-and-accumulate kernel of linear
+#: plants is generated per system size (see :func:`kernel_names`); the generic one serves larger systems and
+#: is compiled when one is used.
 COMPILED_KERNELS = (
+    "edmd_kernel._block_sums_py",
+    "edmd_kernel._kernel_py",
+    "edmd_kernel._lift_block_py",
+    "edmd_kernel._load_block_py",
+    "edmd_kernel._quantize_row_py",
+    "edmd_kernel._tile14_py",
+    "edmd_kernel._tile24_py",
     "kernels._box_qp_pdas_py",
     "kernels._chol_solve_py",
     "kernels._pdas_one_py",
@@ -68,9 +79,9 @@ def kernels_cached(systems: Iterable[LTISystem]) -> bool:
 
 
 def compile_kernels(systems: Iterable[LTISystem]) -> None:
-    """Compile (or load from the cache) the box QP and the quantize-and-accumulate kernel for every size
-    among ``systems``, through the engine's own paths on tiny data. The compiled closed loop is compiled
-    by the first saturated loop (see :func:`qsid_core.control.run_closed_loops`)."""
+    """Compile (or load from the cache) the box QP, the EDMD kernel and the quantize-and-accumulate kernel for
+    every size among ``systems``, through the engine's own paths on tiny data. The compiled closed loop is
+    compiled by the first saturated loop (see :func:`qsid_core.control.run_closed_loops`)."""
     if not kernels.AVAILABLE:
         return
     H = np.eye(2)[None] * 2.0
@@ -78,5 +89,7 @@ def compile_kernels(systems: Iterable[LTISystem]) -> None:
     upper, lower = np.array([[True, False]]), np.array([[False, True]])
     box_qp_batch(H, g, np.ones(2), upper, lower)
     spec = QuantizerSpec()
+    vdp = get_nonlinear("van-der-pol")
+    quantized_lifted_realizations(simulate_nonlinear(vdp, 2, 5, seed=0), parse_lifting("poly:2", 2), [4], spec)
     for system in one_per_size(systems).values():
         quantized_moments(prepare(simulate(system, 2, 5, seed=0), spec), [4], spec, np.random.default_rng(0))
