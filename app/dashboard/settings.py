@@ -34,6 +34,7 @@ from qsid_core import (
     get_system,
 )
 from qsid_core.identification import ESTIMATORS
+from qsid_core.plant import NONLINEAR_PRESETS, get_nonlinear
 
 from .typed import (
     LOG_MAX,
@@ -82,8 +83,8 @@ PAPER_SCALE = {"trajectories": _SWEEP.trajectories, "steps": _SWEEP.steps, "real
 #: Interactive default (the panel's defaults of the settings table): every update stays fast
 #: (see benchmarks/bench_dashboard.py).
 INTERACTIVE = {k: value_default(BY_NAME[k]) for k in PAPER_SCALE}
-#: Systems offered in the panel (the engine's presets the panel shows, plus a typed one).
-SYSTEM_CHOICES = (*PRESETS, "custom")
+#: Systems offered in the panel (the engine's linear presets, its nonlinear ones, plus a typed linear one).
+SYSTEM_CHOICES = (*PRESETS, *NONLINEAR_PRESETS, "custom")
 #: Display label of each engine estimator (also the palette's colour keys).
 LABELS = {e: e.upper() for e in ESTIMATORS}
 #: Identification choices -> engine estimators: each estimator alone, then all side by side.
@@ -174,6 +175,10 @@ def resolve_system(v: Values) -> SystemChoice:
     """
     if v.system in PRESETS:
         return SystemChoice(get_system(v.system))
+    if v.system in NONLINEAR_PRESETS:  # the panel's stand-in (app.dashboard.koopman_settings.stand_in)
+        from .koopman_settings import stand_in
+
+        return SystemChoice(stand_in(get_nonlinear(v.system)))
     if v.system != "custom":
         raise InputError(f"unknown system {v.system!r}; choose one of {', '.join(SYSTEM_CHOICES)}")
     try:

@@ -24,6 +24,7 @@ from qsid_core import QsidError
 
 from .controls import CONTROLS
 from .exports import command_lines, curves_csv, curves_json, frame_html
+from .koopman_settings import NONLINEAR_CHOICES, koopman_config
 from .settings import InputError, Values, resolve_system, sweep_config
 
 if TYPE_CHECKING:
@@ -81,7 +82,10 @@ def values_from_json(text: str | bytes) -> Values:
     if unknown:
         raise InputError(f"settings: unknown field(s) {', '.join(map(str, unknown))[:200]}")
     v = Values(**{k: _field_value(k, x) for k, x in d["values"].items()})
-    sweep_config(v, resolve_system(v).system)  # every value usable (InputError in plain words otherwise)
+    if v.system in NONLINEAR_CHOICES:  # a nonlinear plant: its sweep's configuration instead
+        koopman_config(v)
+    else:
+        sweep_config(v, resolve_system(v).system)  # every value usable (InputError in plain words otherwise)
     return v
 
 

@@ -308,12 +308,9 @@ def _large_data(limit: LargeDataLimit, estimator: str, ref: KoopmanModel, correc
     return {"err_G": lifted_error(limit.model, ref)[0], "note": ""}
 
 
-def _row(
-    cfg: KoopmanConfig, b: int, acc: dict[str, list[Any]], lifting: Lifting, system: NonlinearSystem
-) -> dict[str, Any]:
-    """The result row of word length ``b`` from its realizations ``acc``, with the closed loops when ``cfg.mpc``."""
-    n = system.n
-    row: dict[str, Any] = {
+def _ident_row(cfg: KoopmanConfig, b: int, acc: dict[str, list[Any]], n: int) -> dict[str, Any]:
+    """The identification part of word length ``b``'s row from its realizations ``acc`` (loops not run: None)."""
+    return {
         "bits": b,
         "eps_x": np.asarray(acc["eps"][0][:n]).tolist(),
         "eps_u": np.asarray(acc["eps"][0][n:]).tolist(),
@@ -329,6 +326,13 @@ def _row(
         "closed_loop_outcomes": None,
         "notes": sorted(set(acc["notes"])),
     }
+
+
+def _row(
+    cfg: KoopmanConfig, b: int, acc: dict[str, list[Any]], lifting: Lifting, system: NonlinearSystem
+) -> dict[str, Any]:
+    """The result row of word length ``b`` from its realizations ``acc``, with the closed loops when ``cfg.mpc``."""
+    row = _ident_row(cfg, b, acc, system.n)
     if cfg.mpc is not None:
         try:
             loops = run_koopman_loops(acc["models"], lifting, system, cfg.mpc, cfg.radius)
