@@ -21,6 +21,7 @@ from app.settings.schema import BY_NAME, SETTINGS, Setting, hint_text, resolve
 from qsid_core import LTISystem
 
 from .flow import inline
+from .koopman_settings import scale_for
 
 if TYPE_CHECKING:
     import viser
@@ -133,6 +134,7 @@ class GuiElements:
     q_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
     r_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
     system_key: tuple[Any, ...] | None = None
+    scale_buttons: list[viser.GuiButtonHandle] = field(default_factory=list)  # paper scale, interactive
 
     def __getitem__(self, name: str) -> Any:
         return self.inputs[name]
@@ -184,8 +186,9 @@ def _extras_after(gui: viser.GuiApi, name: str, values: Values, handles: dict[st
             f"Interactive ({INTERACTIVE['trajectories']} × {INTERACTIVE['steps']}, "
             f"{INTERACTIVE['realizations']} realizations)"
         )
-        paper.on_click(lambda _: set_scale(handles, PAPER_SCALE))
-        inter.on_click(lambda _: set_scale(handles, INTERACTIVE))
+        paper.on_click(lambda _: set_scale(handles, scale_for(handles["system"].value, paper=True)))
+        inter.on_click(lambda _: set_scale(handles, scale_for(handles["system"].value, paper=False)))
+        extra["scale_buttons"] = [paper, inter]
     elif name == "identification":
         gui.add_markdown(
             "LS is biased by the quantization noise (Theorem 1); BCLS removes that bias. "

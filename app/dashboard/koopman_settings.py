@@ -22,7 +22,7 @@ from qsid_core import LTISystem, MPCConfig, QsidError
 from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear
 from qsid_core.studies import KOOPMAN_MPC, KoopmanConfig
 
-from .settings import ALL_BITS, InputError, Values, estimators, mpc_config, quantizer_spec
+from .settings import ALL_BITS, INTERACTIVE, PAPER_SCALE, InputError, Values, estimators, mpc_config, quantizer_spec
 
 __all__ = [
     "NONLINEAR_CHOICES",
@@ -34,6 +34,8 @@ __all__ = [
     "stand_in",
     "koopman_config",
     "switch_defaults",
+    "scale_for",
+    "scale_label",
 ]
 
 #: The nonlinear presets the system dropdown offers.
@@ -86,6 +88,22 @@ def stand_in(plant: NonlinearSystem) -> LTISystem:
             input_names=plant.input_names,
             description=plant.description,
         )
+
+
+def scale_for(system: str, paper: bool) -> dict[str, int]:
+    """The data size of the panel's "Paper scale" (``paper``) or "Interactive" button for ``system``."""
+    if is_nonlinear(system):
+        return NL_PAPER_SCALE if paper else NL_INTERACTIVE
+    return PAPER_SCALE if paper else INTERACTIVE
+
+
+def scale_label(system: str, paper: bool) -> str:
+    """That button's label."""
+    s = scale_for(system, paper)
+    kind = "Paper scale" if paper else "Interactive"
+    if paper and is_nonlinear(system):
+        kind = "Full scale (qsid sweep's)"
+    return f"{kind} ({s['trajectories']} × {s['steps']}, {s['realizations']} realizations)"
 
 
 def _nonlinear_defaults(plant: NonlinearSystem) -> dict[str, Any]:

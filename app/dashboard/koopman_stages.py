@@ -133,6 +133,7 @@ def _loops_rest(
             yield x, e
         return
     with ThreadPoolExecutor(max(1, tasks), thread_name_prefix="qsid-koopman") as submitters:
+
         def one(x: int, e: str) -> None:
             if not stop():
                 ex.loops(x, e, executor)
