@@ -137,7 +137,8 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
         written.append(outdir / f"{stem}.html")
     if formats:
         written += save_panels([(fig, outdir / f"{stem}.{f}") for stem, fig in panels for f in formats], rep)
-    data = {"kind": "koopman-reproduce", "system": ex.system.name, "lifting": cfg.lifting, "bits": list(bits)}
+    data: dict[str, Any] = {"kind": "koopman-reproduce", "system": ex.system.name, "lifting": cfg.lifting}
+    data["bits"] = list(bits)
     data |= {"results": rows, "certificates": NO_CERTIFICATES, "unquantized_prediction_error": ex.reference()[1]}
     write_text(outdir / "data.json", dumps(data, indent=None) + "\n")
     links = "".join(f'<li><a href="{s}.html">{html.escape(f.layout.title.text or s)}</a></li>' for s, f in panels)
