@@ -147,36 +147,60 @@ def run_koopman_loops(
     outcome = ["failed"] * k
     notes = [""] * k
     box = system.box if isinstance(system, NonlinearSystem) else 1e12
+    ctrls: list[MPCController | None] = [None] * k
     for i, model in enumerate(models):
         if model is None:
             notes[i] = "no model: identification failed"
             continue
         try:
-            ctrl = _controller(model, w, cfg, getattr(lifting, "spec", "") == "identity")
-            x = np.array(w.x0, dtype=float)
-            states[i, 0] = x
-            left = False
-            for t in range(steps):
-                u, _, _ = ctrl.solve(lifting.lift(x[None])[0])
-                u = np.clip(u, -w.u_max, w.u_max)
-                inputs[i, t] = u
-                with np.errstate(all="ignore"):
-                    if isinstance(system, NonlinearSystem):
-                        x = system.step(x[None], u[None])[0]
-                    else:
-                        x = system.A @ x + system.B @ u
-                states[i, t + 1] = x
-                if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > box:
-                    left = True
-                    break
+            ctrls[i] = _controller(model, w, cfg, getattr(lifting, "spec", "") == "identity")
         except MPCFailure as exc:
             notes[i] = f"{exc.kind}: {exc}"
-            states[i] = np.nan
-            inputs[i] = np.nan
+    # every loop steps in lockstep: one batched plant step and lift per sample (the MPC is solved per loop)
+    alive = np.array([c is not None for c in ctrls])
+    left = np.zeros(k, dtype=bool)
+    x = np.tile(np.asarray(w.x0, dtype=float), (k, 1))
+    states[alive, 0] = x[alive]
+    for t in range(steps):
+        idx = np.flatnonzero(alive)
+        if idx.size == 0:
+            break
+        Z = lifting.lift(x[idx])
+        U = np.zeros((idx.size, m))
+        ok = np.ones(idx.size, dtype=bool)
+        for j, r in enumerate(idx.tolist()):
+            ctrl = ctrls[r]
+            assert ctrl is not None
+            try:
+                u, _, _ = ctrl.solve(Z[j])
+            except MPCFailure as exc:
+                notes[r] = f"{exc.kind}: {exc}"
+                ctrls[r], ok[j] = None, False
+                continue
+            U[j] = np.clip(u, -w.u_max, w.u_max)
+        for r in idx[~ok].tolist():  # a loop whose MPC failed: failed, no trajectory
+            states[r], inputs[r], alive[r] = np.nan, np.nan, False
+        idx, U = idx[ok], U[ok]
+        if idx.size == 0:
+            break
+        inputs[idx, t] = U
+        with np.errstate(all="ignore"):
+            if isinstance(system, NonlinearSystem):
+                xn = system.step(x[idx], U)
+            else:
+                xn = x[idx] @ system.A.T + U @ system.B.T
+        x[idx] = xn
+        states[idx, t + 1] = xn
+        with np.errstate(invalid="ignore"):
+            out = ~np.all(np.isfinite(xn), axis=1) | (np.max(np.abs(xn), axis=1) > box)
+        left[idx[out]] = True
+        alive[idx[out]] = False
+    for i in range(k):
+        if ctrls[i] is None:
             continue
-        if left:
+        if left[i]:
             outcome[i] = "diverged"
-        elif float(np.linalg.norm(x)) <= radius:
+        elif float(np.linalg.norm(x[i])) <= radius:
             outcome[i] = "converged"
         else:
             outcome[i] = "bounded"
