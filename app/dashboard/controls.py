@@ -21,7 +21,7 @@ from app.settings.schema import BY_NAME, SETTINGS, Setting, hint_text, resolve
 from qsid_core import LTISystem
 
 from .flow import inline
-from .koopman_settings import scale_for
+from .koopman_settings import is_nonlinear, scale_for
 
 if TYPE_CHECKING:
     import viser
@@ -251,6 +251,11 @@ def make_gui_elements(
 
 
 def _system_note(name: str) -> str:
+    if is_nonlinear(name):
+        return (
+            f"Nonlinear preset **{name}**: identified by Koopman/EDMD in the dictionary below, its Koopman MPC run on "
+            "the true plant (settings a nonlinear plant does not use are hidden)."
+        )
     if name == "custom":
         return "Type A (n × n) and B (n × m). " + MATRIX_HINT + " x0 = e1, Q = I, R = I by default."
     return f"Preset **{name}** (matrices shown read-only; pick 'custom' to edit a copy)."

@@ -60,4 +60,5 @@ ALL_VIEWS: tuple[View, ...] = VIEWS + KOOPMAN_VIEWS
 
 
 def view_names() -> tuple[str, ...]:
-    return tuple(v.name for v in VIEWS)
+    """Every plot the plots panel holds (the linear views, then the nonlinear plants')."""
+    return tuple(v.name for v in ALL_VIEWS)
