@@ -17,7 +17,7 @@ import math
 from app.settings.command import bits_command, sweep_command
 from qsid_core.studies import json_clean
 
-from .koopman_exports import koopman_csv, koopman_html, koopman_json_data, koopman_lines, koopman_rows
+from .koopman_exports import koopman_caption, koopman_csv, koopman_json_data, koopman_lines, koopman_rows
 from .koopman_settings import is_nonlinear
 from .settings import Values, estimators, resolve_system, sweep_config
 
@@ -173,7 +173,10 @@ def frame_html(frame) -> str:
     from .render import build_figures
 
     if getattr(frame, "kind", "") == "koopman":
-        return koopman_html(frame)
+        from .koopman_render import koopman_figures
+
+        name = frame.system.name
+        return figures_html(koopman_figures(frame), f"qsid dashboard: {name}", koopman_caption(frame))
     cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
     caption = (
         f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "

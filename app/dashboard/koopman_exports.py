@@ -14,7 +14,7 @@ from app.settings.koopman_command import koopman_command
 
 from .koopman_settings import koopman_config
 
-__all__ = ["koopman_lines", "koopman_rows", "koopman_csv", "koopman_json_data", "koopman_html"]
+__all__ = ["koopman_lines", "koopman_rows", "koopman_csv", "koopman_json_data", "koopman_caption"]
 
 _COLUMNS = (
     "estimator",
@@ -89,14 +89,10 @@ def koopman_json_data(frame: Any) -> dict[str, Any]:
     }
 
 
-def koopman_html(frame: Any) -> str:
-    """The nonlinear views of ``frame`` as one offline page, with the command lines."""
-    from .exports import figures_html
-    from .koopman_render import koopman_figures
-
+def koopman_caption(frame: Any) -> str:
+    """The offline page's caption of a nonlinear frame, with the command lines (HTML)."""
     cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in koopman_lines(frame.values))
-    caption = (
+    return (
         f"Nonlinear plant {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "
         f"lengths with loops. Reproduce the numbers: {cmds}"
     )
-    return figures_html(koopman_figures(frame), f"qsid dashboard: {frame.system.name}", caption)

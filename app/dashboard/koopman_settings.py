@@ -12,17 +12,24 @@ sizes, state and input names, weights and start state and nothing else (no linea
 
 from __future__ import annotations
 
-import warnings
 from typing import Any
-
-import numpy as np
 
 from app.settings.schema import BY_NAME, NONLINEAR_GROUP, SETTINGS, value_default
 from qsid_core import LTISystem, MPCConfig, QsidError
 from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear
 from qsid_core.studies import KOOPMAN_MPC, KoopmanConfig
 
-from .settings import ALL_BITS, INTERACTIVE, PAPER_SCALE, InputError, Values, estimators, mpc_config, quantizer_spec
+from .settings import (
+    ALL_BITS,
+    INTERACTIVE,
+    PAPER_SCALE,
+    InputError,
+    Values,
+    estimators,
+    mpc_config,
+    quantizer_spec,
+    stand_in,
+)
 
 __all__ = [
     "NONLINEAR_CHOICES",
@@ -65,29 +72,6 @@ _SWITCHED = ("trajectories", "steps", "realizations", "horizon", "mpc_steps", "s
 def is_nonlinear(system: str) -> bool:
     """Whether the system dropdown's value names a nonlinear preset."""
     return system in NONLINEAR_CHOICES
-
-
-def stand_in(plant: NonlinearSystem) -> LTISystem:
-    """The panel's linear stand-in of ``plant``: its sizes, names, weights and start state, a chain of integrators
-    (never identified or controlled; it only shapes the panel's Q/R sliders, x0 and channel names)."""
-    n, m, dt = plant.n, plant.m, plant.dt
-    A = np.eye(n) + dt * np.eye(n, k=1)
-    B = np.zeros((n, m))
-    for j in range(min(n, m)):
-        B[n - 1 - j, j] = dt
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # (a stand-in with fewer inputs per chain may be uncontrollable: unused)
-        return LTISystem(
-            plant.name,
-            A,
-            B,
-            Q=np.diag(plant.Q),
-            R=np.diag(plant.R),
-            x0=np.array(plant.x0),
-            state_names=plant.state_names,
-            input_names=plant.input_names,
-            description=plant.description,
-        )
 
 
 def scale_for(system: str, paper: bool) -> dict[str, int]:

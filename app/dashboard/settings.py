@@ -34,7 +34,7 @@ from qsid_core import (
     get_system,
 )
 from qsid_core.identification import ESTIMATORS
-from qsid_core.plant import NONLINEAR_PRESETS, get_nonlinear
+from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear
 
 from .typed import (
     LOG_MAX,
@@ -63,6 +63,7 @@ __all__ = [
     "Values",
     "SystemChoice",
     "resolve_system",
+    "stand_in",
     "matrix_text",
     "quantizer_spec",
     "mpc_config",
@@ -175,9 +176,7 @@ def resolve_system(v: Values) -> SystemChoice:
     """
     if v.system in PRESETS:
         return SystemChoice(get_system(v.system))
-    if v.system in NONLINEAR_PRESETS:  # the panel's stand-in (app.dashboard.koopman_settings.stand_in)
-        from .koopman_settings import stand_in
-
+    if v.system in NONLINEAR_PRESETS:  # a nonlinear plant: the panel's stand-in (its pipeline: koopman_settings.py)
         return SystemChoice(stand_in(get_nonlinear(v.system)))
     if v.system != "custom":
         raise InputError(f"unknown system {v.system!r}; choose one of {', '.join(SYSTEM_CHOICES)}")
@@ -202,6 +201,29 @@ def resolve_system(v: Values) -> SystemChoice:
     except QsidError as exc:
         raise InputError(f"Custom system: {exc}") from None
     return SystemChoice(sysm, notes)
+
+
+def stand_in(plant: NonlinearSystem) -> LTISystem:
+    """The panel's linear stand-in of ``plant``: its sizes, names, weights and start state, a chain of integrators
+    (never identified or controlled; it only shapes the panel's Q/R sliders, x0 and channel names)."""
+    n, m, dt = plant.n, plant.m, plant.dt
+    A = np.eye(n) + dt * np.eye(n, k=1)
+    B = np.zeros((n, m))
+    for j in range(min(n, m)):
+        B[n - 1 - j, j] = dt
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (a stand-in with fewer inputs per chain may be uncontrollable: unused)
+        return LTISystem(
+            plant.name,
+            A,
+            B,
+            Q=np.diag(plant.Q),
+            R=np.diag(plant.R),
+            x0=np.array(plant.x0),
+            state_names=plant.state_names,
+            input_names=plant.input_names,
+            description=plant.description,
+        )
 
 
 def quantizer_spec(v: Values, n: int, m: int) -> QuantizerSpec:
