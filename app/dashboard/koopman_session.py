@@ -48,8 +48,8 @@ class KindSwitch:
         if nonlinear:
             self.plant = system
         if nonlinear != self.nonlinear:
-            for name in LINEAR_ONLY:
-                c[name].visible = not nonlinear
+            for name in LINEAR_ONLY:  # (the 3-D axes choice: only where a linear system has more than one)
+                c[name].visible = not nonlinear and (name != "axes" or len(c[name].options) > 1)
             for name in NONLINEAR_ONLY:
                 c[name].visible = nonlinear
             for button, paper in zip(c.scale_buttons, (True, False)):
