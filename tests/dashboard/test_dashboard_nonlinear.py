@@ -155,3 +155,10 @@ def test_command_line_exports_and_settings_of_a_nonlinear_tab(tab, tmp_path, cap
 def test_no_nonlinear_view_is_built_for_a_linear_frame(tab):
     assert getattr(tab.frame, "kind", "linear") == "linear" and tab.session.ui.koopman_renderer.figures == {}
     assert tab.session.views.shown == "Identification" and tab.frame.values.trajectories == SMALL["trajectories"]
+
+
+def test_the_server_prefills_a_nonlinear_start():
+    from app.dashboard.warm import prefill
+
+    cache: dict = {}
+    assert prefill(Values(system="van-der-pol", **NL_SMALL), cache) > 2 and cache
