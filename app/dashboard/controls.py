@@ -166,6 +166,8 @@ def _add(gui: viser.GuiApi, c: Control, value: Any, system: LTISystem, custom: b
         return gui.add_checkbox(c.label, value, hint=c.hint)
     if c.kind == "dropdown":
         choices: tuple[str, ...] = c.choices or tuple(axes_options(system.state_names))
+        if c.name == "system" and value not in choices and is_nonlinear(value):  # a nonlinear plant file
+            choices = (*choices[:-1], value, choices[-1])
         return gui.add_dropdown(c.label, choices, initial_value=value, hint=c.hint)
     if c.name in ("a_text", "b_text"):
         return gui.add_text(c.label, value, multiline=True, disabled=not custom, hint=c.hint)
@@ -253,7 +255,7 @@ def make_gui_elements(
 def _system_note(name: str) -> str:
     if is_nonlinear(name):
         return (
-            f"Nonlinear preset **{name}**: identified by Koopman/EDMD in the dictionary below, its Koopman MPC run on "
+            f"Nonlinear plant **{name}**: identified by Koopman/EDMD in the dictionary below, its Koopman MPC run on "
             "the true plant (settings a nonlinear plant does not use are hidden)."
         )
     if name == "custom":

@@ -17,12 +17,14 @@ from typing import Any
 from app.settings.schema import BY_NAME, NONLINEAR_GROUP, SETTINGS, value_default
 from qsid_core import LTISystem, MPCConfig, QsidError
 from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear
+from qsid_core.plant import is_nonlinear as engine_is_nonlinear
 from qsid_core.studies import KOOPMAN_MPC, KoopmanConfig
 
 from .settings import (
     ALL_BITS,
     INTERACTIVE,
     PAPER_SCALE,
+    SYSTEM_CHOICES,
     InputError,
     Values,
     estimators,
@@ -38,6 +40,7 @@ __all__ = [
     "NL_INTERACTIVE",
     "NL_PAPER_SCALE",
     "is_nonlinear",
+    "nonlinear_values",
     "stand_in",
     "koopman_config",
     "switch_defaults",
@@ -70,8 +73,18 @@ _SWITCHED = ("trajectories", "steps", "realizations", "horizon", "mpc_steps", "s
 
 
 def is_nonlinear(system: str) -> bool:
-    """Whether the system dropdown's value names a nonlinear preset."""
-    return system in NONLINEAR_CHOICES
+    """Whether the system dropdown's value names a nonlinear plant: a preset, or the plant file naming a
+    ``vector_field`` the dashboard was started with (``qsid-dashboard --system FILE``)."""
+    if system in NONLINEAR_CHOICES:
+        return True
+    return system not in SYSTEM_CHOICES and engine_is_nonlinear(system)
+
+
+def nonlinear_values(plant: str, base: Values, paper: bool = False) -> Values:
+    """``base`` for the nonlinear ``plant``, its settings still at the linear defaults moved to the nonlinear
+    ones, and the data size of ``paper`` (full) or interactive scale (a new tab started on a nonlinear plant)."""
+    v = base.replace(system=plant)
+    return v.replace(**switch_defaults(v, plant, True)).replace(**scale_for(plant, paper))
 
 
 def scale_for(system: str, paper: bool) -> dict[str, int]:

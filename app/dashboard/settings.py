@@ -34,7 +34,7 @@ from qsid_core import (
     get_system,
 )
 from qsid_core.identification import ESTIMATORS
-from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear
+from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear, is_nonlinear
 
 from .typed import (
     LOG_MAX,
@@ -176,8 +176,11 @@ def resolve_system(v: Values) -> SystemChoice:
     """
     if v.system in PRESETS:
         return SystemChoice(get_system(v.system))
-    if v.system in NONLINEAR_PRESETS:  # a nonlinear plant: the panel's stand-in (its pipeline: koopman_settings.py)
-        return SystemChoice(stand_in(get_nonlinear(v.system)))
+    if v.system in NONLINEAR_PRESETS or (v.system not in SYSTEM_CHOICES and is_nonlinear(v.system)):
+        try:  # a nonlinear plant (a preset or a plant file): the panel's stand-in (its pipeline: koopman_settings.py)
+            return SystemChoice(stand_in(get_nonlinear(v.system)))
+        except QsidError as exc:
+            raise InputError(f"system {v.system}: {exc}") from None
     if v.system != "custom":
         raise InputError(f"unknown system {v.system!r}; choose one of {', '.join(SYSTEM_CHOICES)}")
     try:

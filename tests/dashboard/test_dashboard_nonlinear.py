@@ -162,3 +162,61 @@ def test_the_server_prefills_a_nonlinear_start():
 
     cache: dict = {}
     assert prefill(Values(system="van-der-pol", **NL_SMALL), cache) > 2 and cache
+
+
+FIELD = """
+import numpy as np
+
+MODE = "ok"
+
+
+def field(x, u):
+    if MODE == "raise":
+        raise ZeroDivisionError("no field here")
+    if MODE == "nan":
+        return x * np.nan
+    return np.stack([x[:, 1], -np.sin(x[:, 0]) - 0.2 * x[:, 1] + u[:, 0]], axis=1)
+"""
+
+
+def test_a_plant_files_vector_field_in_the_panel_and_its_failures(tmp_path, monkeypatch):
+    import importlib
+
+    from support import Tab
+
+    from app.dashboard import DashboardApp
+    from app.dashboard.exports import command_lines
+    from app.dashboard.share import values_for_plant_file
+
+    (tmp_path / "qsid_test_field.py").write_text(FIELD)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    plant = tmp_path / "swing.toml"
+    plant.write_text('vector_field = "qsid_test_field:field"\nn = 2\nm = 1\nx0 = [1.0, 0.0]\n')
+    v, notes = values_for_plant_file(plant, Values())
+    assert (
+        v.system == str(plant) and notes == [] and (v.realizations, v.horizon) == (NL_INTERACTIVE["realizations"], 20)
+    )
+    app = DashboardApp(host="127.0.0.1", port=0, workers=0, settings=v.replace(**NL_SMALL))
+    try:
+        t = Tab(app).wait()
+        assert t.error is None and t.frame.kind == "koopman" and str(plant) in t.controls["system"].options
+        assert all(f"--system={plant}" in ln for ln in command_lines(t.frame.values))
+        kept = t.frame
+        mod = importlib.import_module("qsid_test_field")
+        for seed, mode, words in ((7, "raise", "raised ZeroDivisionError: no field here"), (8, "nan", "NaN or inf")):
+            monkeypatch.setattr(mod, "MODE", mode)
+            t.set(data_seed=seed)
+            assert words in t.error and "Traceback" not in t.error and t.frame is kept
+        t.close()
+    finally:
+        app.stop()
+
+
+def test_a_plant_file_that_cannot_load_is_one_line(tmp_path):
+    from app.dashboard.settings import InputError
+    from app.dashboard.share import values_for_plant_file
+
+    plant = tmp_path / "gone.toml"
+    plant.write_text('vector_field = "no_such_module_qsid:field"\nn = 2\nm = 1\n')
+    with pytest.raises(InputError, match="cannot be loaded"):
+        values_for_plant_file(plant, Values())
