@@ -189,3 +189,10 @@ def test_fuzz_engine_counts_every_call_and_passes(capsys):
     data = json.loads(out.splitlines()[-1].removeprefix("RESULT "))
     assert code == 0 and data["bad"] == {"other exception": 0, "hang": 0, "unflagged NaN": 0}
     assert sum(data["counts"]["theorem1_prediction"].values()) >= 3
+
+
+def test_bench_koopman_dashboard_quick_mode_agrees(capsys):
+    import bench_koopman_dashboard
+
+    assert bench_koopman_dashboard.main(["--quick", "--repeat", "1"]) == 0
+    assert "same verdicts: yes" in capsys.readouterr().out
