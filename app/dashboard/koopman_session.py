@@ -54,7 +54,6 @@ class KindSwitch:
                 c[name].visible = nonlinear
             for button, paper in zip(c.scale_buttons, (True, False)):
                 button.label = scale_label(system, paper)
-            c.q_folder.visible = True
             session.views.set_kind(nonlinear)
             self.nonlinear = nonlinear
         if nonlinear:  # (the linear code keeps fixed_range's visibility in read_values)
