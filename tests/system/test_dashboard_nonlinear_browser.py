@@ -4,10 +4,12 @@ overlapping text, text not under the floor, not cut off).
 
 With ``QSID_SCREENSHOT_DIR=assets`` the pictures of docs/dashboard.rst and docs/teaching.rst are written there
 (:data:`SHOTS`); every other mode's screenshot goes to pytest's temporary directory, to be looked at.
+``QSID_LEGIBILITY_REPORT=file.json``: every problem found, per mode and place, written there.
 """
 
 from __future__ import annotations
 
+import json
 import os
 
 import pytest
@@ -96,5 +98,9 @@ def test_nonlinear_views_and_lessons_are_legible(tmp_path):
                 browser.close()
     finally:
         app.stop()
+    report = os.environ.get("QSID_LEGIBILITY_REPORT")  # every mode's problems, the non-strict ones too
+    if report:
+        with open(report, "w", encoding="utf-8") as f:
+            json.dump({f"{m} {p}": [str(x) for x in v] for (m, p), v in found.items()}, f, indent=1, ensure_ascii=False)
     bad = {k: [str(p) for p in v] for k, v in found.items() if v and k[0] in STRICT}
     assert not bad, bad
