@@ -99,7 +99,7 @@ def scale_label(system: str, paper: bool) -> str:
     s = scale_for(system, paper)
     kind = "Paper scale" if paper else "Interactive"
     if paper and is_nonlinear(system):
-        kind = "Full scale (qsid sweep's)"
+        kind = "Full scale, as qsid sweep"
     return f"{kind} ({s['trajectories']} × {s['steps']}, {s['realizations']} realizations)"
 
 
