@@ -40,9 +40,10 @@ class KindSwitch:
         if self.nonlinear is not None and nonlinear != self.nonlinear:
             values = read_values(c)
             lesson = str(c["lesson"].value)
-            own = lesson != NONE and lesson_values(lesson).system == system
-            if not own:
-                for name, value in switch_defaults(values, system if nonlinear else self.plant, nonlinear).items():
+            les = lesson_values(lesson) if lesson != NONE else None
+            if les is None or les.system != system:  # (a lesson's own settings are complete: kept)
+                plant = system if nonlinear else self.plant
+                for name, value in switch_defaults(values, plant, nonlinear, also=les).items():
                     c[name].value = value
                     changed = True
         if nonlinear:

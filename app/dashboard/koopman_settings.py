@@ -109,14 +109,21 @@ def _nonlinear_defaults(plant: NonlinearSystem) -> dict[str, Any]:
     return d
 
 
-def switch_defaults(values: Values, nonlinear_plant: str, to_nonlinear: bool) -> dict[str, Any]:
+def switch_defaults(
+    values: Values, nonlinear_plant: str, to_nonlinear: bool, also: Values | None = None
+) -> dict[str, Any]:
     """The panel values to change when the plant switches between linear and the nonlinear ``nonlinear_plant``:
-    each setting of :data:`_SWITCHED` still at the one kind's default goes to the other kind's (a value the person
-    chose stays)."""
+    each setting of :data:`_SWITCHED` still at the one kind's default (or at ``also``'s: the settings of a lesson
+    the person left) goes to the other kind's; a value the person chose stays."""
     lin = {k: value_default(BY_NAME[k]) for k in _SWITCHED}
     nl = _nonlinear_defaults(get_nonlinear(nonlinear_plant))
     src, dst = (lin, nl) if to_nonlinear else (nl, lin)
-    return {k: dst[k] for k in _SWITCHED if getattr(values, k) == src[k] and src[k] != dst[k]}
+
+    def default(k: str) -> bool:
+        v = getattr(values, k)
+        return v == src[k] or (also is not None and v == getattr(also, k))
+
+    return {k: dst[k] for k in _SWITCHED if default(k) and getattr(values, k) != dst[k]}
 
 
 def _mpc(v: Values, system: LTISystem) -> MPCConfig:

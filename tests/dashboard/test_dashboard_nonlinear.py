@@ -220,3 +220,18 @@ def test_a_plant_file_that_cannot_load_is_one_line(tmp_path):
     plant.write_text('vector_field = "no_such_module_qsid:field"\nn = 2\nm = 1\n')
     with pytest.raises(InputError, match="cannot be loaded"):
         values_for_plant_file(plant, Values())
+
+
+def test_leaving_a_linear_lesson_for_a_nonlinear_plant_takes_the_nonlinear_size():
+    from app.dashboard.koopman_settings import switch_defaults
+    from app.dashboard.lessons import lesson_values
+
+    fig1 = lesson_values("fig1")  # the letter's 200 x 1000, 50 realizations
+    moved = switch_defaults(fig1.replace(system="van-der-pol"), "van-der-pol", True, also=fig1)
+    assert {k: moved[k] for k in NL_INTERACTIVE} == NL_INTERACTIVE
+    mine = fig1.replace(system="van-der-pol", trajectories=77)  # a value the person chose stays
+    assert "trajectories" not in switch_defaults(mine, "van-der-pol", True, also=fig1)
+    back = switch_defaults(
+        lesson_values("koopman").replace(system="dc-motor"), "van-der-pol", False, lesson_values("koopman")
+    )
+    assert (back["trajectories"], back["realizations"]) == (50, 20)
