@@ -16,8 +16,10 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from . import koopman, koopman_reproduce
 from .figure_out import check_formats, save_panels
 from .files import check_writable, input_files, write_text
+from .koopman import add_nonlinear_options
 from .output import dumps, format_table, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, config, system_from_args
@@ -69,6 +71,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from qsid_core import SweepConfig
 
     add_run_options(p, base=SweepConfig.letter())  # defaults: the letter's settings (no guard band)
+    add_nonlinear_options(p)  # --lifting ...: a nonlinear --system (app.cli.koopman_reproduce)
     p.add_argument(
         "--out",
         metavar="DIR",
@@ -266,6 +269,8 @@ def _out_dir(text: str, force: bool, inputs: Sequence[Path] = ()) -> Path:
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from plotly.offline import get_plotlyjs
 
+    if koopman.wanted(args):  # a nonlinear --system: its own figures
+        return koopman_reproduce.run(args, rep, _out_dir(args.out, args.force, input_files(args)))
     system = system_from_args(args)
     formats = check_formats(args.figure)
     outdir = _out_dir(args.out, args.force, input_files(args))

@@ -21,6 +21,7 @@ from app.settings.schema import BY_NAME, SETTINGS, Setting, hint_text, resolve
 from qsid_core import LTISystem
 
 from .flow import inline
+from .koopman_settings import is_nonlinear, scale_for
 
 if TYPE_CHECKING:
     import viser
@@ -133,6 +134,7 @@ class GuiElements:
     q_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
     r_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
     system_key: tuple[Any, ...] | None = None
+    scale_buttons: list[viser.GuiButtonHandle] = field(default_factory=list)  # paper scale, interactive
 
     def __getitem__(self, name: str) -> Any:
         return self.inputs[name]
@@ -164,6 +166,8 @@ def _add(gui: viser.GuiApi, c: Control, value: Any, system: LTISystem, custom: b
         return gui.add_checkbox(c.label, value, hint=c.hint)
     if c.kind == "dropdown":
         choices: tuple[str, ...] = c.choices or tuple(axes_options(system.state_names))
+        if c.name == "system" and value not in choices and is_nonlinear(value):  # a nonlinear plant file
+            choices = (*choices[:-1], value, choices[-1])
         return gui.add_dropdown(c.label, choices, initial_value=value, hint=c.hint)
     if c.name in ("a_text", "b_text"):
         return gui.add_text(c.label, value, multiline=True, disabled=not custom, hint=c.hint)
@@ -184,8 +188,9 @@ def _extras_after(gui: viser.GuiApi, name: str, values: Values, handles: dict[st
             f"Interactive ({INTERACTIVE['trajectories']} × {INTERACTIVE['steps']}, "
             f"{INTERACTIVE['realizations']} realizations)"
         )
-        paper.on_click(lambda _: set_scale(handles, PAPER_SCALE))
-        inter.on_click(lambda _: set_scale(handles, INTERACTIVE))
+        paper.on_click(lambda _: set_scale(handles, scale_for(handles["system"].value, paper=True)))
+        inter.on_click(lambda _: set_scale(handles, scale_for(handles["system"].value, paper=False)))
+        extra["scale_buttons"] = [paper, inter]
     elif name == "identification":
         gui.add_markdown(
             "LS is biased by the quantization noise (Theorem 1); BCLS removes that bias. "
@@ -248,6 +253,11 @@ def make_gui_elements(
 
 
 def _system_note(name: str) -> str:
+    if is_nonlinear(name):
+        return (
+            f"Nonlinear plant **{name}**: identified by Koopman/EDMD in the dictionary below, its Koopman MPC run on "
+            "the true plant (settings a nonlinear plant does not use are hidden)."
+        )
     if name == "custom":
         return "Type A (n × n) and B (n × m). " + MATRIX_HINT + " x0 = e1, Q = I, R = I by default."
     return f"Preset **{name}** (matrices shown read-only; pick 'custom' to edit a copy)."

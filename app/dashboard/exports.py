@@ -17,6 +17,8 @@ import math
 from app.settings.command import bits_command, sweep_command
 from qsid_core.studies import json_clean
 
+from .koopman_exports import koopman_caption, koopman_csv, koopman_json_data, koopman_lines, koopman_rows
+from .koopman_settings import is_nonlinear
 from .settings import Values, estimators, resolve_system, sweep_config
 
 __all__ = ["command_lines", "curves_rows", "curves_csv", "curves_json", "figures_html", "frame_html"]
@@ -24,6 +26,8 @@ __all__ = ["command_lines", "curves_rows", "curves_csv", "curves_json", "figures
 
 def command_lines(v: Values) -> list:
     """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown)."""
+    if is_nonlinear(v.system):
+        return koopman_lines(v)
     system = resolve_system(v).system
     cfg = sweep_config(v, system)
     lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
@@ -61,6 +65,8 @@ _COLUMNS = (
 
 def curves_rows(frame) -> list:
     """One flat row per (estimator, b) of the curves computed so far."""
+    if getattr(frame, "kind", "") == "koopman":
+        return koopman_rows(frame)
     out = []
     for lab in frame.labels:
         for b, r in sorted(frame.rows[lab].items()):
@@ -100,6 +106,8 @@ def curves_rows(frame) -> list:
 
 def curves_csv(frame) -> str:
     """The current curves as CSV (header + one row per estimator and b; empty cells for missing values)."""
+    if getattr(frame, "kind", "") == "koopman":
+        return koopman_csv(frame)
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=_COLUMNS, lineterminator="\n")
     w.writeheader()
@@ -124,6 +132,8 @@ def _dumps(obj: object) -> str:
 
 def curves_json(frame) -> str:
     """The current curves, settings and command as strict JSON (rows as the CLI's ``results``)."""
+    if getattr(frame, "kind", "") == "koopman":
+        return _dumps(koopman_json_data(frame))
     return _dumps(
         {
             "system": frame.system.name,
@@ -162,6 +172,11 @@ def frame_html(frame) -> str:
     """The current figures of ``frame`` (every registered view) as one offline page, with the command."""
     from .render import build_figures
 
+    if getattr(frame, "kind", "") == "koopman":
+        from .koopman_render import koopman_figures
+
+        name = frame.system.name
+        return figures_html(koopman_figures(frame), f"qsid dashboard: {name}", koopman_caption(frame))
     cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
     caption = (
         f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "

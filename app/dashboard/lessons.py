@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from qsid_core import LETTER_QUANTIZER
 
+from .koopman_lessons import KOOPMAN_LESSONS
 from .settings import NO_LESSON, PAPER_SCALE, Values
 
 __all__ = [
@@ -284,6 +285,7 @@ LESSONS: tuple[Lesson, ...] = (
         ),
         plot="bound",
     ),
+    *(Lesson(*row) for row in KOOPMAN_LESSONS),  # nonlinear plants (app.dashboard.koopman_lessons)
 )
 
 

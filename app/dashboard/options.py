@@ -12,6 +12,7 @@ import sys
 from qsid_core import ConfigError, QsidError, __version__
 
 from .cache import DEFAULT_MB
+from .koopman_settings import is_nonlinear, nonlinear_values
 from .lessons import get_lesson, lesson_names
 from .netcheck import OneLineParser, check_address, port_number
 from .pool import DEFAULT_TIMEOUT
@@ -132,6 +133,8 @@ def _starting_settings(args: argparse.Namespace) -> Values | None:
         for msg in notes:
             print(f"qsid-dashboard: note: {msg}", file=sys.stderr, flush=True)
         args.system = STARTING_SYSTEMS[0]  # unused: the settings say which system
+    elif settings is None and is_nonlinear(args.system):  # a nonlinear preset: its own data size and MPC
+        settings = nonlinear_values(args.system, Values(), paper=args.scale == "paper")
     return settings
 
 

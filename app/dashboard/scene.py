@@ -180,14 +180,18 @@ class PhasePortrait:
             extra.append(f"{v.clipped} loops leave the view (clipped)")
         same = "" if v.polylines == v.realizations else f" ({v.realizations} computed, identical without dither)"
         # one fact per line (viser splits labels at newlines): a long single line was cut at the canvas edge
-        self.scale_label.text = "\n".join(
-            [
-                f"{v.polylines} distinct closed loops{same}",
-                f"dots every {v.mark_every} steps on the true-model loop (until it converges)",
-                f"1 box unit = {v.scale:.3g}",
-                *extra,
-                *(v.bound_text.splitlines() if off_scale else []),
-            ]
+        self.scale_label.text = (
+            "\n".join(v.caption)
+            if v.caption
+            else "\n".join(
+                [
+                    f"{v.polylines} distinct closed loops{same}",
+                    f"dots every {v.mark_every} steps on the true-model loop (until it converges)",
+                    f"1 box unit = {v.scale:.3g}",
+                    *extra,
+                    *(v.bound_text.splitlines() if off_scale else []),
+                ]
+            )
         )
         self.view = v
         self.draws += 1

@@ -47,6 +47,8 @@ from .flow import TabCallbacks
 from .follower import refused
 from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
+from .koopman_session import KindSwitch, compute_nonlinear
+from .koopman_settings import is_nonlinear
 from .lessons import LessonMark, get_lesson, key_view, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
 from .settings import InputError, Values, resolve_system
@@ -116,6 +118,7 @@ class Session:
         self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
         self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes
         self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
+        self.kind = KindSwitch()  # the panel of a linear or a nonlinear plant
         self.mark = LessonMark(gui, self.controls.lesson_text, lambda: self.touch(user=True))
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
@@ -286,6 +289,9 @@ class Session:
         self.play.show()
         self.presenter.apply(bool(c["presenter"].value), key_plot=key_view(str(c["lesson"].value)))
         gen = self._open_lesson(gen)
+        if self.kind.apply(self):  # linear or nonlinear plant: its inputs shown, its defaults (worker's own change)
+            with self._cond:
+                gen = self._gen
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:
             return gen
@@ -295,6 +301,8 @@ class Session:
         values = values.replace(**self.views.values())
         for attempt in (1, 2):
             try:
+                if is_nonlinear(values.system):  # Koopman/EDMD (app.dashboard.koopman_session)
+                    return compute_nonlinear(self, gen, values)
                 return self._compute(gen, values)
             except PoolFailure as exc:
                 self.app.pool.replace(exc.executor)  # only if no other tab replaced it already

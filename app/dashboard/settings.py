@@ -34,6 +34,7 @@ from qsid_core import (
     get_system,
 )
 from qsid_core.identification import ESTIMATORS
+from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear, is_nonlinear
 
 from .typed import (
     LOG_MAX,
@@ -62,6 +63,7 @@ __all__ = [
     "Values",
     "SystemChoice",
     "resolve_system",
+    "stand_in",
     "matrix_text",
     "quantizer_spec",
     "mpc_config",
@@ -82,8 +84,8 @@ PAPER_SCALE = {"trajectories": _SWEEP.trajectories, "steps": _SWEEP.steps, "real
 #: Interactive default (the panel's defaults of the settings table): every update stays fast
 #: (see benchmarks/bench_dashboard.py).
 INTERACTIVE = {k: value_default(BY_NAME[k]) for k in PAPER_SCALE}
-#: Systems offered in the panel (the engine's presets the panel shows, plus a typed one).
-SYSTEM_CHOICES = (*PRESETS, "custom")
+#: Systems offered in the panel (the engine's linear presets, its nonlinear ones, plus a typed linear one).
+SYSTEM_CHOICES = (*PRESETS, *NONLINEAR_PRESETS, "custom")
 #: Display label of each engine estimator (also the palette's colour keys).
 LABELS = {e: e.upper() for e in ESTIMATORS}
 #: Identification choices -> engine estimators: each estimator alone, then all side by side.
@@ -174,6 +176,11 @@ def resolve_system(v: Values) -> SystemChoice:
     """
     if v.system in PRESETS:
         return SystemChoice(get_system(v.system))
+    if v.system in NONLINEAR_PRESETS or (v.system not in SYSTEM_CHOICES and is_nonlinear(v.system)):
+        try:  # a nonlinear plant (a preset or a plant file): the panel's stand-in (its pipeline: koopman_settings.py)
+            return SystemChoice(stand_in(get_nonlinear(v.system)))
+        except QsidError as exc:
+            raise InputError(f"system {v.system}: {exc}") from None
     if v.system != "custom":
         raise InputError(f"unknown system {v.system!r}; choose one of {', '.join(SYSTEM_CHOICES)}")
     try:
@@ -197,6 +204,29 @@ def resolve_system(v: Values) -> SystemChoice:
     except QsidError as exc:
         raise InputError(f"Custom system: {exc}") from None
     return SystemChoice(sysm, notes)
+
+
+def stand_in(plant: NonlinearSystem) -> LTISystem:
+    """The panel's linear stand-in of ``plant``: its sizes, names, weights and start state, a chain of integrators
+    (never identified or controlled; it only shapes the panel's Q/R sliders, x0 and channel names)."""
+    n, m, dt = plant.n, plant.m, plant.dt
+    A = np.eye(n) + dt * np.eye(n, k=1)
+    B = np.zeros((n, m))
+    for j in range(min(n, m)):
+        B[n - 1 - j, j] = dt
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (a stand-in with fewer inputs per chain may be uncontrollable: unused)
+        return LTISystem(
+            plant.name,
+            A,
+            B,
+            Q=np.diag(plant.Q),
+            R=np.diag(plant.R),
+            x0=np.array(plant.x0),
+            state_names=plant.state_names,
+            input_names=plant.input_names,
+            description=plant.description,
+        )
 
 
 def quantizer_spec(v: Values, n: int, m: int) -> QuantizerSpec:

@@ -24,6 +24,7 @@ from qsid_core import QsidError
 
 from .controls import CONTROLS
 from .exports import command_lines, curves_csv, curves_json, frame_html
+from .koopman_settings import NONLINEAR_CHOICES, koopman_config, nonlinear_values
 from .settings import InputError, Values, resolve_system, sweep_config
 
 if TYPE_CHECKING:
@@ -81,7 +82,10 @@ def values_from_json(text: str | bytes) -> Values:
     if unknown:
         raise InputError(f"settings: unknown field(s) {', '.join(map(str, unknown))[:200]}")
     v = Values(**{k: _field_value(k, x) for k, x in d["values"].items()})
-    sweep_config(v, resolve_system(v).system)  # every value usable (InputError in plain words otherwise)
+    if v.system in NONLINEAR_CHOICES:  # a nonlinear preset: its sweep's configuration instead
+        koopman_config(v)
+    else:
+        sweep_config(v, resolve_system(v).system)  # every value usable (InputError in plain words otherwise)
     return v
 
 
@@ -111,8 +115,16 @@ def values_for_plant_file(path: str | Path, defaults: Values) -> tuple[Values, l
         The file cannot be read or is not a plant the engine and the panel accept (one line, naming it).
     """
     from qsid_core import get_system
+    from qsid_core.plant import get_nonlinear, is_nonlinear_file
 
     from .settings import LOG_MAX, LOG_MIN, MAX_CUSTOM_STATES, log_from_weights
+
+    if is_nonlinear_file(path):  # a vector field: a nonlinear plant of its own in the system dropdown
+        try:
+            get_nonlinear(str(path))
+        except QsidError as exc:
+            raise InputError(f"--system {path}: {exc}") from None
+        return nonlinear_values(str(path), defaults), []
 
     try:
         sysm = get_system(str(path))  # a preset name or a file, as qsid --system

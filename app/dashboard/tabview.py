@@ -19,6 +19,7 @@ from .codepanel import CodePanel, add_code_panel
 from .controls import GuiElements, make_gui_elements, read_values
 from .follow import Drawn, Sent
 from .frames import Frame
+from .koopman_render import KoopmanRenderer
 from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
 from .scene import PhasePortrait
@@ -102,6 +103,7 @@ class TabView:
         self.views = ViewPanel(gui, self.plots_panel, values, system, touch, on_pin, on_unpin, on_datalength)
         self.plots = self.views.plots
         self.renderer = Renderer()
+        self.koopman_renderer = KoopmanRenderer()  # a nonlinear plant's frames (app.dashboard.koopman_render)
         self.portrait = PhasePortrait(client.scene)
         self.presenter = PresenterLayout(
             gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.plots, self.controls.play, touch
@@ -154,9 +156,13 @@ class TabView:
         c = self.controls
         if stale():
             return False
-        r = self.renderer.render(frame, c["axes"].value)
+        koopman = getattr(frame, "kind", "") == "koopman"
+        r = (self.koopman_renderer if koopman else self.renderer).render(frame, c["axes"].value)
         if stale():  # never draw an older result over a newer one
-            self.renderer = Renderer()  # it remembered figures that were not pushed
+            if koopman:
+                self.koopman_renderer = KoopmanRenderer()
+            else:
+                self.renderer = Renderer()  # it remembered figures that were not pushed
             return False
         figures = {name: Sent(fig) for name, fig in r.figures.items()}  # JSON made once, followers reuse it
         with self.client.atomic():

@@ -22,6 +22,7 @@ import plotly.graph_objects as go
 from app.figures import registry
 from app.figures.quantizer import channel_names
 
+from .koopman_settings import is_nonlinear
 from .plotlyjs import send_basic_bundle
 
 __all__ = ["ViewPanel", "blank_figure", "PANEL_WIDTH", "VIEW_FIELDS"]
@@ -87,12 +88,13 @@ class ViewPanel:
                 initial_value=registry.TABS[0],
                 hint="Which plots this panel shows (a lesson picks its own)",
             )
-            for tab in registry.TABS:
+            for tab in registry.TABS + registry.KOOPMAN_TABS:
                 self.groups[tab] = self._add_group(gui, tab, values, on_change, on_pin, on_unpin, on_datalength)
         self.group.on_update(lambda _e: self.show(str(self.group.value)))
         self.show(registry.TABS[0])
         self._orders: dict = {}
         self.set_system(system, int(values.view_channel))
+        self.set_kind(is_nonlinear(values.system))
 
     def _add_group(self, gui, tab: str, values, on_change, on_pin, on_unpin, on_datalength) -> list:
         """The inputs and plots of group ``tab`` (built hidden; :meth:`show` reveals one group)."""
@@ -136,7 +138,7 @@ class ViewPanel:
             )
             self.compare_bits.on_update(lambda _e: on_change())
             out += [self.pin, self.unpin, self.pin_note, self.compare_bits]
-        for v in (v for v in registry.VIEWS if v.tab == tab):
+        for v in (v for v in registry.ALL_VIEWS if v.tab == tab):
             self.plots[v.name] = gui.add_plotly(blank_figure(), aspect=v.aspect, visible=False)
             out.append(self.plots[v.name])
         return out
@@ -162,10 +164,10 @@ class ViewPanel:
     def open_lesson(self, plot: str, system, channel: int) -> None:
         """Show a lesson's key view: its group brought forward, the view first in it (above the fold), and the
         quantizer view on ``channel``."""
-        tab = next(v.tab for v in registry.VIEWS if v.name == plot)
+        tab = next(v.tab for v in registry.ALL_VIEWS if v.name == plot)
         if not self._orders:
             self._orders = {name: float(h.order) for name, h in self.plots.items()}
-        same = [v.name for v in registry.VIEWS if v.tab == tab]
+        same = [v.name for v in registry.ALL_VIEWS if v.tab == tab]
         for name, h in self.plots.items():  # the key view just above its group's first view, the others as built
             want = (min(self._orders[n] for n in same) - 0.5) if name == plot else self._orders[name]
             if h.order != want:
@@ -173,7 +175,17 @@ class ViewPanel:
         self.set_system(system)
         names = self.system_names
         self.channel.value = names[min(max(int(channel), 0), len(names) - 1)]
+        self.set_kind(tab in registry.KOOPMAN_TABS)
         self.show(tab)
+
+    def set_kind(self, nonlinear: bool) -> None:
+        """Offer the groups of a nonlinear plant (:data:`~app.figures.registry.KOOPMAN_TABS`) or of a linear one;
+        the group shown moves to the kind's first when it is not one of them."""
+        tabs = registry.KOOPMAN_TABS if nonlinear else registry.TABS
+        if tuple(self.group.options) != tabs:
+            self.group.options = tabs
+        if self._shown not in tabs:
+            self.show(tabs[0])
 
     def set_system(self, system, channel: int | None = None) -> None:
         """Offer the channels of ``system`` (keeps the choice when the names did not change)."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import urllib.request
+from typing import Any
 
 from qsid_core.studies import compile_kernels, kernels_cached
 from qsid_core.studies import kernel_names as engine_kernel_names
@@ -77,11 +78,21 @@ def prefill(values, cache, executor=None, tasks: int = 1) -> int:
     Returns the number of frames. Raises what the computation raises (e.g. a
     :class:`~qsid_core.errors.QsidError` for settings that cannot be computed).
     """
+    from app.dashboard.koopman_render import KoopmanRenderer
+    from app.dashboard.koopman_settings import is_nonlinear
+    from app.dashboard.koopman_stages import iter_koopman_frames
     from app.dashboard.render import Renderer
     from app.dashboard.stages import iter_frames
 
-    renderer, n = Renderer(), 0
-    for frame in iter_frames(values, cache, executor, tasks):
+    nonlinear = is_nonlinear(values.system)  # (--lesson koopman, a settings file of a nonlinear plant)
+    renderer: Any = KoopmanRenderer() if nonlinear else Renderer()
+    n = 0
+    frames = (
+        iter_koopman_frames(values, cache, executor, tasks)
+        if nonlinear
+        else iter_frames(values, cache, executor, tasks)
+    )
+    for frame in frames:
         for wire in renderer.render(frame).figures.values():
             wire.to_json()  # what viser calls when the figure is sent
         n += 1

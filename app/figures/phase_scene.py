@@ -73,7 +73,9 @@ class SceneView:
     not_converged : int
         Drawn loops judged bounded or diverged on the true plant (they never settle).
     ref_segments : float32 array (T, 2, 3)
-        The path of a time-varying reference (empty for a constant one).
+        The path of a time-varying reference (empty for a constant one); for a nonlinear plant, its free flow.
+    caption : tuple of str
+        The lines under the scene when they are not the linear loops' (a nonlinear plant's); () for those.
     """
 
     segments: np.ndarray
@@ -98,6 +100,7 @@ class SceneView:
     mark_every: int
     not_converged: int = 0
     ref_segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3), dtype=np.float32))
+    caption: tuple[str, ...] = ()
 
 
 def axes_options(names: Iterable[str]) -> list[str]:

@@ -16,6 +16,10 @@ from . import (
     datalength,
     eigenvalues,
     error_vs_bits,
+    koopman_eigen,
+    koopman_error,
+    koopman_outcomes,
+    koopman_prediction,
     norm_time,
     quantizer,
     residual,
@@ -23,7 +27,7 @@ from . import (
 )
 from .view import View
 
-__all__ = ["TABS", "VIEWS", "view_names"]
+__all__ = ["TABS", "VIEWS", "KOOPMAN_TABS", "KOOPMAN_VIEWS", "ALL_VIEWS", "view_names"]
 
 #: Tabs of the plots panel, in order (a view's ``tab``); the current-b views come first in each tab.
 TABS = ("Identification", "Control", "Quantizer", "Data length", "Compare")
@@ -42,6 +46,19 @@ VIEWS: tuple[View, ...] = (
     compare.VIEW,
 )
 
+#: The plots panel's group of a nonlinear plant (shown instead of :data:`TABS` while one is picked).
+KOOPMAN_TABS = ("Nonlinear",)
+#: Its views (they read a :class:`~app.dashboard.koopman_stages.KoopmanFrame`), in panel order.
+KOOPMAN_VIEWS: tuple[View, ...] = (
+    koopman_error.VIEW,
+    koopman_eigen.VIEW,
+    koopman_prediction.VIEW,
+    koopman_outcomes.VIEW,
+)
+#: Every view the plots panel holds.
+ALL_VIEWS: tuple[View, ...] = VIEWS + KOOPMAN_VIEWS
+
 
 def view_names() -> tuple[str, ...]:
-    return tuple(v.name for v in VIEWS)
+    """Every plot the plots panel holds (the linear views, then the nonlinear plants')."""
+    return tuple(v.name for v in ALL_VIEWS)

@@ -113,6 +113,44 @@ def _controller(model: LiftedModel, w: SimpleNamespace, cfg: MPCConfig, dare: bo
     )  # fmt: skip
 
 
+def _controllers(
+    models: Sequence[LiftedModel | None], w: SimpleNamespace, cfg: MPCConfig, dare: bool, notes: list[str]
+) -> list[MPCController | None]:
+    """The MPC of every model (None, with its note, where there is no model or it cannot be built)."""
+    out: list[MPCController | None] = []
+    for i, model in enumerate(models):
+        if model is None:
+            notes[i] = "no model: identification failed"
+            out.append(None)
+            continue
+        try:
+            out.append(_controller(model, w, cfg, dare))
+        except MPCFailure as exc:
+            notes[i] = f"{exc.kind}: {exc}"
+            out.append(None)
+    return out
+
+
+def _inputs(
+    rows: np.ndarray, ctrls: list[MPCController | None], Z: np.ndarray, u_max: np.ndarray, notes: list[str], m: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The first optimal input of every running loop ``rows`` (lifted states ``Z``): (the rows whose MPC solved,
+    their inputs clipped to the box, shape (k, m)); a loop whose MPC fails gets its note, its controller dropped."""
+    U: list[np.ndarray] = []
+    ok: list[int] = []
+    for j, r in enumerate(rows.tolist()):
+        ctrl = ctrls[r]
+        assert ctrl is not None
+        try:
+            u, _, _ = ctrl.solve(Z[j])
+        except MPCFailure as exc:
+            notes[r], ctrls[r] = f"{exc.kind}: {exc}", None
+            continue
+        U.append(np.clip(u, -u_max, u_max))
+        ok.append(r)
+    return np.asarray(ok, dtype=int), np.asarray(U, dtype=float).reshape(len(ok), m)
+
+
 def run_koopman_loops(
     models: Sequence[LiftedModel | None],
     lifting: _Lift,
@@ -147,37 +185,34 @@ def run_koopman_loops(
     outcome = ["failed"] * k
     notes = [""] * k
     box = system.box if isinstance(system, NonlinearSystem) else 1e12
-    for i, model in enumerate(models):
-        if model is None:
-            notes[i] = "no model: identification failed"
-            continue
-        try:
-            ctrl = _controller(model, w, cfg, getattr(lifting, "spec", "") == "identity")
-            x = np.array(w.x0, dtype=float)
-            states[i, 0] = x
-            left = False
-            for t in range(steps):
-                u, _, _ = ctrl.solve(lifting.lift(x[None])[0])
-                u = np.clip(u, -w.u_max, w.u_max)
-                inputs[i, t] = u
-                with np.errstate(all="ignore"):
-                    if isinstance(system, NonlinearSystem):
-                        x = system.step(x[None], u[None])[0]
-                    else:
-                        x = system.A @ x + system.B @ u
-                states[i, t + 1] = x
-                if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > box:
-                    left = True
-                    break
-        except MPCFailure as exc:
-            notes[i] = f"{exc.kind}: {exc}"
-            states[i] = np.nan
-            inputs[i] = np.nan
-            continue
-        if left:
-            outcome[i] = "diverged"
-        elif float(np.linalg.norm(x)) <= radius:
-            outcome[i] = "converged"
-        else:
-            outcome[i] = "bounded"
+    ctrls = _controllers(models, w, cfg, getattr(lifting, "spec", "") == "identity", notes)
+    # every loop steps in lockstep: one batched plant step and lift per sample (the MPC is solved per loop)
+    alive = np.array([c is not None for c in ctrls], dtype=bool)
+    left = np.zeros(k, dtype=bool)
+    x = np.tile(np.asarray(w.x0, dtype=float), (k, 1))
+    states[alive, 0] = x[alive]
+    for t in range(steps):
+        running = np.flatnonzero(alive)
+        if running.size == 0:
+            break
+        rows, U = _inputs(running, ctrls, lifting.lift(x[running]), w.u_max, notes, m)
+        for r in np.setdiff1d(running, rows).tolist():  # its MPC failed: failed, no trajectory
+            states[r], inputs[r], alive[r] = np.nan, np.nan, False
+        if rows.size == 0:
+            break
+        inputs[rows, t] = U
+        with np.errstate(all="ignore"):
+            if isinstance(system, NonlinearSystem):
+                xn = system.step(x[rows], U)
+            else:
+                xn = x[rows] @ system.A.T + U @ system.B.T
+        x[rows] = xn
+        states[rows, t + 1] = xn
+        with np.errstate(invalid="ignore"):
+            out = ~np.all(np.isfinite(xn), axis=1) | (np.max(np.abs(xn), axis=1) > box)
+        left[rows[out]] = True
+        alive[rows[out]] = False
+    for i in range(k):
+        if ctrls[i] is not None:
+            outcome[i] = "diverged" if left[i] else "converged" if float(np.linalg.norm(x[i])) <= radius else "bounded"
     return KoopmanLoops(states, inputs, outcome, float(radius), notes)

@@ -39,6 +39,7 @@ from .datalength import (
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
 from .koopman_keys import KOOPMAN_KEY_PARTS, KOOPMAN_NOT_IN_KEYS, KOOPMAN_STAGE_GROUPS, koopman_stage_key
+from .koopman_stages import FREE_FLOW_GRID, KoopmanExperiment, KoopmanModels
 from .koopman_sweep import (
     KOOPMAN_MPC,
     KOOPMAN_MPC_UNUSED,
@@ -78,6 +79,7 @@ __all__ = [
     "DataLengthRow",
     "Experiment",
     "FIT_TOLERANCE",
+    "FREE_FLOW_GRID",
     "InlineExecutor",
     "KEY_PARTS",
     "KOOPMAN_KEY_PARTS",
@@ -86,6 +88,8 @@ __all__ = [
     "KOOPMAN_NOT_IN_KEYS",
     "KOOPMAN_STAGE_GROUPS",
     "KoopmanConfig",
+    "KoopmanExperiment",
+    "KoopmanModels",
     "KoopmanResult",
     "LARGE_DATA_RATIO",
     "LOOP_COST_TOLERANCE",

@@ -39,6 +39,8 @@ KOOPMAN_STAGE_GROUPS: dict[str, tuple[str, ...]] = {
     "data": ("data",),
     "reference": ("data", "lifting"),  # the unquantized EDMD and its prediction error
     "reference-loop": ("data", "lifting", "loop"),
+    "moments": ("data", "lifting", "quantizer", "realizations"),  # quantized lifted moments (every estimator's)
+    "limit": ("data", "lifting", "quantizer"),  # the large-data limit of LS quantized EDMD
     "models": ("data", "lifting", "quantizer", "realizations", "estimator"),
     "loops": ("data", "lifting", "quantizer", "realizations", "estimator", "loop"),
 }

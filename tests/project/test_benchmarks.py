@@ -199,3 +199,10 @@ def test_bench_follow_runs_with_a_few_followers(capsys):
     out = capsys.readouterr().out
     rows = [ln for ln in out.splitlines() if ln.startswith(("0 followers", "2 followers"))]
     assert len(rows) == 3 and "-" not in rows[1].split()[4:6]  # the followers' lag was measured
+
+
+def test_bench_koopman_dashboard_quick_mode_agrees(capsys):
+    import bench_koopman_dashboard
+
+    assert bench_koopman_dashboard.main(["--quick", "--repeat", "1"]) == 0
+    assert "same verdicts: yes" in capsys.readouterr().out

@@ -138,7 +138,7 @@ def test_nonlinear_stages_come_from_the_koopman_keys():
     assert "models" in BY_NAME["lifting"].stages(nonlinear=True)
     assert BY_NAME["converged_radius"].stages(nonlinear=True) == ("reference-loop", "loops")
     assert BY_NAME["sane_box"].stages(nonlinear=True)[0] == "data"
-    assert BY_NAME["dither_seed"].stages(nonlinear=True) == ("models", "loops")
+    assert BY_NAME["dither_seed"].stages(nonlinear=True) == ("moments", "models", "loops")
 
 
 def test_the_nonlinear_flags_are_generated_with_the_nonlinear_defaults_in_their_help():

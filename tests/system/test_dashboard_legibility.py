@@ -24,7 +24,7 @@ from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 from test_dashboard_teach_browser import ACTIVE_TAB, _dismiss_notices
 
 from app.dashboard.lessons import LESSONS, NONE
-from app.figures.registry import TABS, VIEWS
+from app.figures.registry import ALL_VIEWS, TABS
 
 pytestmark = pytest.mark.browser
 
@@ -95,7 +95,7 @@ def _walk(page, session, mode, shots, found) -> None:
     assert session.wait_idle(TIMEOUT_MS / 1000)
     for les in LESSONS:
         session.controls["lesson"].value = les.name
-        tab = next(v.tab for v in VIEWS if v.name == les.plot)
+        tab = next(v.tab for v in ALL_VIEWS if v.name == les.plot)
         reached = _tab_shown(page, session, tab, click=False)
         _measure(page, session, mode, f"lesson:{les.name}", shots, found, reached)
     session.controls["lesson"].value = LESSONS[0].name

@@ -20,7 +20,7 @@ from app.dashboard.lessons import LESSONS, get_lesson
 from app.dashboard.presenter import PANEL_FONT
 from app.dashboard.viewcodes import view_link
 from app.figures.presenter import PLOT_FONT
-from app.figures.registry import VIEWS
+from app.figures.registry import ALL_VIEWS
 
 pytestmark = pytest.mark.browser
 
@@ -97,7 +97,7 @@ def _open(ctx, app, url, count):
 def _walk_lessons(page, session, size, presenter: bool, shots) -> None:
     for les in LESSONS:
         session.controls["lesson"].value = les.name
-        tab = next(v.tab for v in VIEWS if v.name == les.plot)
+        tab = next(v.tab for v in ALL_VIEWS if v.name == les.plot)
         page.wait_for_function(f"({ACTIVE_TAB})() === {tab!r}", timeout=TIMEOUT_MS)
         assert session.wait_idle(TIMEOUT_MS / 1000)
         assert session.last_frame.values.lesson == les.name and session.last_frame.values.presenter == presenter
@@ -214,5 +214,5 @@ def test_teacher_walkthrough(size, presenter, monkeypatch):
 
 
 def test_every_lesson_names_a_plot_of_the_registry():
-    names = {v.name for v in VIEWS}
+    names = {v.name for v in ALL_VIEWS}
     assert all(get_lesson(les.name).plot in names for les in LESSONS)

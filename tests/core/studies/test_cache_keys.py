@@ -79,11 +79,12 @@ def test_every_field_of_the_koopman_config_is_in_a_key_or_declared_keyless():
 @pytest.mark.parametrize(
     "change,stages",
     [
-        ({"lifting": "poly:2"}, "reference reference-loop models loops"),
-        ({"state_amplitude": 1.5}, "data reference reference-loop models loops"),
+        ({"lifting": "poly:2"}, "reference reference-loop moments limit models loops"),
+        ({"state_amplitude": 1.5}, "data reference reference-loop moments limit models loops"),
         ({"estimator": "bcls"}, "models loops"),
         ({"radius": 0.2}, "reference-loop loops"),
-        ({"quantizer": QuantizerSpec(guard=False)}, "models loops"),
+        ({"quantizer": QuantizerSpec(guard=False)}, "moments limit models loops"),
+        ({"realizations": 3}, "moments models loops"),
     ],
 )
 def test_a_changed_koopman_field_changes_exactly_the_keys_that_use_it(change, stages):

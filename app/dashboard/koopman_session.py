@@ -1,0 +1,115 @@
+"""A tab's worker for a nonlinear plant: the panel fitted to the kind of plant (:class:`KindSwitch`) and one
+computation drawn frame by frame (:func:`compute_nonlinear`), as :meth:`app.dashboard.session.Session._compute`
+does for a linear one (same slots, staleness checks, progress and error lines).
+
+Threads: everything here runs in the tab's worker (see the list in :mod:`app.dashboard.session`); the frames come
+from :func:`~app.dashboard.koopman_stages.iter_koopman_frames`.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from qsid_core import QsidError
+
+from .controls import read_values
+from .koopman_settings import LINEAR_ONLY, NONLINEAR_ONLY, is_nonlinear, scale_label, switch_defaults
+from .koopman_stages import iter_koopman_frames
+from .lessons import NONE, lesson_values
+from .pool import PoolFailure, Superseded
+
+__all__ = ["KindSwitch", "compute_nonlinear"]
+
+
+class KindSwitch:
+    """Shows the panel inputs of the kind of plant picked (linear or nonlinear) and, when the kind changes, moves
+    the settings still at the one kind's defaults to the other's (:func:`~app.dashboard.koopman_settings.switch_defaults`;
+    not when a lesson set the panel: a lesson's settings are complete)."""
+
+    def __init__(self) -> None:
+        self.nonlinear: bool | None = None  # the kind last shown (None: not yet)
+        self.plant = "van-der-pol"  # the nonlinear plant last picked
+
+    def apply(self, session: Any) -> bool:
+        """Fit ``session``'s panel to the plant picked; True if panel values were changed here."""
+        c = session.controls
+        system = str(c["system"].value)
+        nonlinear = is_nonlinear(system)
+        changed = False
+        if self.nonlinear is not None and nonlinear != self.nonlinear:
+            values = read_values(c)
+            lesson = str(c["lesson"].value)
+            les = lesson_values(lesson) if lesson != NONE else None
+            if les is None or les.system != system:  # (a lesson's own settings are complete: kept)
+                plant = system if nonlinear else self.plant
+                for name, value in switch_defaults(values, plant, nonlinear, also=les).items():
+                    c[name].value = value
+                    changed = True
+        if nonlinear:
+            self.plant = system
+        if nonlinear != self.nonlinear:
+            for name in LINEAR_ONLY:  # (the 3-D axes choice: only where a linear system has more than one)
+                c[name].visible = not nonlinear and (name != "axes" or len(c[name].options) > 1)
+            for name in NONLINEAR_ONLY:
+                c[name].visible = nonlinear
+            for button, paper in zip(c.scale_buttons, (True, False)):
+                button.label = scale_label(system, paper)
+            session.views.set_kind(nonlinear)
+            self.nonlinear = nonlinear
+        if nonlinear:  # (the linear code keeps fixed_range's visibility in read_values)
+            c["fixed_range"].visible = c["range_mode"].value == "fixed"
+        return changed
+
+
+def compute_nonlinear(session: Any, gen: int, values: Any) -> int:
+    """Compute and draw generation ``gen`` for a nonlinear plant; returns the generation handled."""
+    c = session.controls
+    t0 = time.perf_counter()
+
+    def progress(done: int, total: int, text: str) -> None:
+        if not session._stale(gen):
+            session.ui.show_progress(done / total, text)
+
+    def queued(ahead: int) -> None:
+        if not session._stale(gen):
+            c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
+
+    c.status.content = "computing …"
+    stale = lambda: session._stale(gen)  # noqa: E731
+    frames = iter_koopman_frames(
+        values,
+        session.app.cache,
+        session.app.pool.guarded(stale),
+        max(1, int(getattr(session.app, "tasks", 2))),
+        should_stop=stale,
+        on_progress=progress,
+    )
+    try:
+        while True:
+            with session.app.slots.turn(queued, False):
+                if stale():
+                    return gen
+                frame = next(frames, None)
+            if frame is None or stale():
+                return gen
+            if not session._draw(frame, gen):
+                return gen
+            session.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
+            if frame.complete:
+                c.progress.value = 100.0
+                c.status.content = (
+                    f"ready · b = {frame.bits} drawn in {frame.timings['current']:.2f} s, "
+                    f"all curves in {session.timings['all']:.2f} s"
+                )
+                return gen
+    except (PoolFailure, Superseded) as exc:
+        if isinstance(exc, PoolFailure):
+            raise
+    except QsidError as exc:
+        session._show_error(str(exc))
+    except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
+        session._show_error(f"these settings cannot be computed ({type(exc).__name__}: {exc})")
+    finally:
+        frames.close()
+    return gen

@@ -1,0 +1,84 @@
+"""The nonlinear lessons' claims (``koopman``, ``bias-variance``), asserted on the numbers the dashboard computes at
+each lesson's own settings (lesson -> Values -> koopman_config -> KoopmanExperiment, the dashboard's path); the
+full-scale ratio the ``koopman`` lesson quotes on the CLI's own sweep."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from app.dashboard.koopman_settings import koopman_config
+from app.dashboard.lessons import get_lesson, lesson_values
+from qsid_core.studies import KoopmanConfig, KoopmanExperiment, run_koopman_sweep
+
+pytestmark = pytest.mark.slow  # 400 x 100 samples, 10 realizations, Koopman MPC loops
+
+_EX: dict = {}
+
+
+def experiment(name: str) -> KoopmanExperiment:
+    if name not in _EX:
+        cfg, ests = koopman_config(lesson_values(name))
+        assert ests == ("ls", "bcls")
+        _EX[name] = KoopmanExperiment(cfg)
+    return _EX[name]
+
+
+def err(ex: KoopmanExperiment, b: int, est: str) -> dict:
+    return ex.models(b, est).row["err_G"]
+
+
+def test_the_nonlinear_lessons_are_short_and_name_their_settings():
+    for name in ("koopman", "bias-variance"):
+        les = get_lesson(name)
+        assert 2 <= les.text.count(". ") + 1 <= 5
+        cfg, _ = koopman_config(lesson_values(name))
+        assert (cfg.trajectories, cfg.steps, cfg.realizations) == (400, 100, 10) and cfg.lifting == "poly:3"
+        assert les.plot.startswith("koopman-")
+
+
+def test_koopman_ls_on_its_limit_bcls_15_to_40_times_lower_and_both_agree_at_fine_b():
+    ex = experiment("koopman")
+    assert ex.config.system == "van-der-pol" and lesson_values("koopman").bits == 3
+    for b in range(2, 8):  # LS on its large-data limit, within 5 %
+        row = ex.models(b, "ls").row
+        assert abs(row["err_G"]["mean"] / row["large_data"]["err_G"] - 1) < 0.05, b
+    for b in range(3, 7):
+        ratio = err(ex, b, "ls")["mean"] / err(ex, b, "bcls")["mean"]
+        assert 15 <= ratio <= 40, (b, ratio)
+    for b in range(11, 17):
+        ls, bc = err(ex, b, "ls")["mean"], err(ex, b, "bcls")["mean"]
+        assert abs(ls / bc - 1) < 0.10, b
+
+
+def test_koopman_full_scale_ratio_is_about_50():
+    cfg = KoopmanConfig(system="van-der-pol", lifting="poly:3", bits=(3,), mpc=None)
+    assert (cfg.trajectories, cfg.steps) == (2000, 100)
+    ls = run_koopman_sweep(cfg).rows[0]["err_G"]["mean"]
+    bc = run_koopman_sweep(dataclasses.replace(cfg, estimator="bcls")).rows[0]["err_G"]["mean"]
+    assert 40 <= ls / bc <= 65, ls / bc
+
+
+def test_koopman_scene_draws_the_limit_cycle_and_the_loops_at_b3():
+    ex = experiment("koopman")
+    flow = ex.free_flow()
+    assert flow.shape[0] == 9 and ex.loops(3, "ls") is not None and ex.loops(3, "bcls") is not None
+
+
+def test_bias_variance_bcls_lower_mean_larger_spread_fewer_converged_loops_at_b2():
+    ex = experiment("bias-variance")
+    assert ex.config.system == "pendulum" and lesson_values("bias-variance").bits == 2
+    ls, bc = err(ex, 2, "ls"), err(ex, 2, "bcls")
+    assert bc["mean"] < 1 < 1.4 < ls["mean"]
+    assert bc["std"] > 2 * ls["std"]
+    cl, cb = ex.loops(2, "ls").counts()["converged"], ex.loops(2, "bcls").counts()["converged"]
+    assert cl == 10 and cb <= 8
+
+
+def test_bias_variance_at_b3_both_converge_and_bcls_wins():
+    ex = experiment("bias-variance")
+    assert ex.loops(3, "ls").counts()["converged"] == 10 == ex.loops(3, "bcls").counts()["converged"]
+    ls, bc = ex.models(3, "ls").row, ex.models(3, "bcls").row
+    assert bc["err_G"]["mean"] < ls["err_G"]["mean"]
+    assert bc["prediction_error"]["mean"] < ls["prediction_error"]["mean"]
