@@ -16,8 +16,8 @@ import numpy as np
 
 from ..control.condensed_qp import box_qp_batch
 from ..identification import parse_lifting, quantized_lifted_realizations
-from ..plant.data import simulate
 from ..plant import get_nonlinear, simulate_nonlinear
+from ..plant.data import simulate
 from ..plant.lti import LTISystem
 from ..quantization import kernels
 from ..quantization.moments import prepare, quantized_moments
