@@ -43,7 +43,7 @@ from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
-from .lessons import LessonMark, get_lesson, key_view, lesson_names, lesson_values
+from .lessons import LessonMark, get_lesson, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
@@ -274,7 +274,8 @@ class Session:
             return gen
         show_weights(c)
         self.play.show()
-        self.presenter.apply(bool(c["presenter"].value), key_plot=key_view(str(c["lesson"].value)))
+        self.ui.phone.apply()  # a phone's layout (the window's shape, from the camera), then presenter mode
+        self.presenter.apply(bool(c["presenter"].value), narrow=self.ui.phone.narrow)
         gen = self._open_lesson(gen)
         adapted = self._adapt_to_system(gen, read_values(c))
         if adapted is None:

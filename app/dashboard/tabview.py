@@ -17,6 +17,7 @@ from qsid_core import PRESETS, get_system
 
 from .controls import GuiElements, make_gui_elements, read_values
 from .frames import Frame
+from .phone import PhoneLayout
 from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
 from .scene import PhasePortrait
@@ -24,6 +25,7 @@ from .settings import Values, resolve_system
 from .share import ShareHandles, add_share_panel, apply_values
 from .viewcodes import CodePanel, ViewOpen, ViewStore, add_code_panel
 from .viewpanel import PANEL_WIDTH, ViewPanel
+from .viserfix import phone_sheet_style
 
 __all__ = ["TabView", "drop_late_draws", "CLOSED_CONNECTION"]
 
@@ -100,10 +102,10 @@ class TabView:
         self.views = ViewPanel(gui, self.plots_panel, values, system, touch, on_pin, on_unpin, on_datalength)
         self.plots = self.views.plots
         self.renderer = Renderer()
-        self.portrait = PhasePortrait(client.scene)
-        self.presenter = PresenterLayout(
-            gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.plots, self.controls.play, touch
-        )
+        self.portrait = PhasePortrait(client.scene, camera=client.camera)
+        self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.controls.play, touch)
+        self.phone = PhoneLayout(gui, client.camera, self.controls, self.plots_panel, self.portrait, touch)
+        phone_sheet_style(gui)  # viser's phone sheet across the window, at most half its height
         self.last_error: str | None = None
 
     # ----- settings in and out ----------------------------------------------------------------------------------
@@ -150,7 +152,7 @@ class TabView:
         c = self.controls
         if stale():
             return False
-        r = self.renderer.render(frame, c["axes"].value)
+        r = self.renderer.render(frame, c["axes"].value, narrow=self.phone.narrow)
         if stale():  # never draw an older result over a newer one
             self.renderer = Renderer()  # it remembered figures that were not pushed
             return False
@@ -163,5 +165,8 @@ class TabView:
             if r.summary is not None:
                 c.summary.content = r.summary
             for name, fig in r.figures.items():
-                self.plots[name].figure = fig
+                h = self.plots[name]
+                if h.aspect != r.aspects[name]:  # presenter mode and phones: as high as the figure's layout
+                    h.aspect = r.aspects[name]
+                h.figure = fig
         return True

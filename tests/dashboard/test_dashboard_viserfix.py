@@ -62,6 +62,7 @@ def _hooks(server, client, executor):
         "refuse_share_requests": lambda: viserfix.refuse_share_requests(server),
         "plotly_js_unsent": lambda: viserfix.plotly_js_unsent(gui),
         "send_plotly_js": lambda: viserfix.send_plotly_js(gui, "/* plotly.js */"),
+        "phone_sheet_style": lambda: viserfix.phone_sheet_style(gui),
     }
 
 
@@ -106,6 +107,8 @@ def _remove(monkeypatch, server, client, name):
         monkeypatch.delattr(server, "_websock_server")
     elif name in ("plotly_js_unsent", "send_plotly_js"):
         monkeypatch.delattr(gui, "_setup_plotly_js")
+    elif name == "phone_sheet_style":  # a client whose sheet is drawn otherwise
+        monkeypatch.setattr(viserfix, "SHEET_SOURCE", ('maxHeight: "61%"',))
 
 
 @pytest.mark.parametrize(
@@ -118,6 +121,7 @@ def _remove(monkeypatch, server, client, name):
         "refuse_share_requests",
         "plotly_js_unsent",
         "send_plotly_js",
+        "phone_sheet_style",
     ],
 )
 def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatch, name):
@@ -135,3 +139,16 @@ def test_limit_reads_of_a_tab_already_gone_is_no_warning(live, fresh):
     with warnings.catch_warnings():
         warnings.simplefilter("error", ViserHookWarning)
         assert viserfix.limit_reads(server, client.client_id + 1000, 4096) is False
+
+
+def test_the_phone_sheet_style_matches_the_installed_clients_sheet():
+    """The style sheet's selectors match the inline styles of viser's bottom sheet, as its client source writes
+    them (the browser test, tests/system/test_dashboard_legibility.py, measures the plots' width in it)."""
+    src = Path(viser.__file__).parent / "client" / "src" / "ControlPanel" / "BottomPanel.tsx"
+    text = src.read_text(encoding="utf-8")
+    assert all(s in text for s in viserfix.SHEET_SOURCE)
+    css = viserfix.PHONE_SHEET_CSS
+    assert "@media (max-width: 36em)" in css and css.count("20em") == 2
+    theme = (src.parents[1] / "AppTheme.ts").read_text(encoding="utf-8")
+    assert "breakpoints" not in theme  # Mantine's default xs breakpoint, 36em: where viser's phone layout starts
+    assert "<script" not in css and "max-height: 50%" in css
