@@ -281,9 +281,9 @@ class Session:
         if adapted is None:
             return gen
         gen, values = adapted
-        self.mark.show(values)
         self.views.set_system(resolve_system(values).system)
         values = values.replace(**self.views.values())
+        self.mark.show(values)  # with the plots panel's own fields: a lesson sets the quantizer's channel too
         for attempt in (1, 2):
             try:
                 return self._compute(gen, values)

@@ -222,6 +222,12 @@ def test_a_lesson_modified_says_so_and_one_click_brings_it_back(tab):
     assert not tab.session.mark.back.visible and "Modified" not in text.content
 
 
+def test_a_lesson_that_picks_the_quantizer_channel_is_not_marked_modified(tab):
+    tab.set(lesson="one-cell")  # it shows the quantizer on u: elevator (a field of the plots panel, not the panel)
+    assert tab.frame.values.view_channel == 4
+    assert not tab.session.mark.back.visible and "Modified" not in tab.controls.lesson_text.content
+
+
 # ----- presenter mode -----------------------------------------------------------------------------------------------
 def _font_sizes(fig) -> list:
     d = fig.to_plotly_json()["layout"]
