@@ -34,7 +34,7 @@ AXES_ENDS = np.vstack([AXIS * np.eye(3), -AXIS * np.eye(3)])
 #: ... and, before anything is drawn, the corners of the unit box the loops lie in.
 FRAMED = np.vstack([AXES_ENDS, [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]])
 #: Share of the free area the framed points may fill (the labels beside the axes' ends need the rest).
-FILL = 0.9
+FILL = 0.85
 
 
 def _pose(d: float, free: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -38,7 +38,7 @@ PHONE_FONT = 12
 PRESENTER_SIZE = (1000.0, 600.0)
 #: Presenter mode: a row of panels at least this high (px); a view of many rows (the time series) grows taller
 #: than :data:`PRESENTER_SIZE` rather than squeezing them.
-MIN_ROW = 75.0
+MIN_ROW = 55.0
 #: The width (px) of a plot on a phone: the plots in the bottom sheet across a 390 px window.
 PHONE_WIDTH = 360.0
 #: plotly's size of a power label's exponent (10⁻³), relative to the tick font.

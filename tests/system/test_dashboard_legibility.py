@@ -87,9 +87,18 @@ def _measure(page, session, mode, place, shots, found, reached: bool = True) -> 
     _shot(page, name, place, shots)
 
 
+#: The first plot shown, scrolled to the top of its panel (on a phone: of the bottom sheet, as a person would).
+FIRST_PLOT_UP = """() => {
+  const gd = [...document.querySelectorAll('.js-plotly-plot')].find(e => e.offsetParent !== null);
+  if (gd) gd.scrollIntoView({block: 'start'});
+}"""
+
+
 def _shot(page, mode: str, place: str, shots) -> None:
     if shots and (mode, place) in SHOTS:
         _dismiss_notices(page)
+        if mode == "phone":
+            page.evaluate(FIRST_PLOT_UP)
         page.mouse.move(1, 1)  # no hint of whatever the pointer was left over
         page.wait_for_timeout(300)
         page.screenshot(path=os.path.join(shots, SHOTS[mode, place]))
