@@ -61,11 +61,16 @@ SHOW_SCENE, SHOW_PLOT = "⇄ show the 3-D scene", "⇄ show the plot"
 #: The left panel's normal width (viser's "large" control width).
 NORMAL_LEFT = 384
 
+#: The narrowest a plot is drawn in presenter mode (px): its layout is made for 1000 px, and squeezed much
+#: narrower (a window under ~750 px, or one narrowed to a phone's width) its margins would leave the plot no
+#: room, on which plotly.js throws and the whole page goes blank. Narrower panels scroll sideways instead.
+MIN_PLOT_WIDTH = 700
 #: Panel text of at least PANEL_FONT px everywhere outside plots and the 3-D canvas (plotly sets its own sizes
-#: inline on SVG text, which this does not touch).
+#: inline on SVG text, which this does not touch); every plot at least MIN_PLOT_WIDTH px wide.
 STYLE = (
     "<style>body :not(svg):not(svg *):not(canvas)"
-    f"{{font-size:max({PANEL_FONT}px,1em) !important;line-height:1.35}}</style>"
+    f"{{font-size:max({PANEL_FONT}px,1em) !important;line-height:1.35}}"
+    f"div:has(> .js-plotly-plot){{min-width:{MIN_PLOT_WIDTH}px}}</style>"
 )
 
 
