@@ -50,11 +50,25 @@ def _lines(text: str) -> int:
     return len(_BR.split(text)) if text else 0
 
 
-def wrap_text(text: str, chars: int) -> str:
-    """``text`` with each of its lines broken (``<br>``) at spaces into lines of at most ``chars`` characters
-    (HTML tags not counted; a break never falls inside a tag)."""
+def _sentences(text: str) -> list[str]:
+    """The lines of ``text``, a line joined to the one before when it only continues its sentence (the one before
+    ends in a letter, digit or comma and it starts in lower case): breaks a view made for a laptop's width."""
     out: list[str] = []
     for line in _BR.split(text):
+        prev = _plain(out[-1]).rstrip() if out else ""
+        if prev and (prev[-1].isalnum() or prev[-1] == ",") and _plain(line)[:1].islower():
+            out[-1] = f"{out[-1].rstrip()} {line.lstrip()}"
+        else:
+            out.append(line)
+    return out
+
+
+def wrap_text(text: str, chars: int) -> str:
+    """``text`` with each of its lines broken (``<br>``) at spaces into lines of at most ``chars`` characters
+    (HTML tags not counted; a break never falls inside a tag; a sentence broken for another width is joined
+    first)."""
+    out: list[str] = []
+    for line in _sentences(text):
         words = re.split(r" (?![^<]*>)", line)  # spaces outside tags
         cur, n = "", 0
         for w in words:

@@ -95,3 +95,16 @@ def test_the_presenter_and_phone_styles_stack_panels_and_keep_their_text_floor(s
         assert lay.height > PHONE_WIDTH  # as high as its stacked panels need (the plot's aspect follows)
     else:
         assert lay.height == PRESENTER_SIZE[1]
+
+
+def test_a_sentence_broken_for_a_laptop_is_joined_before_it_is_wrapped_again():
+    laptop = (
+        "LS: stabilizes at least 95 % of the loops, with a cost within 1 %,<br>from b = 4 on.<br>BCLS: from b = 3 on."
+    )
+    out = wrap_text(laptop, 200).split("<br>")
+    assert out == [
+        "LS: stabilizes at least 95 % of the loops, with a cost within 1 %, from b = 4 on.",
+        "BCLS: from b = 3 on.",
+    ]
+    kept = "steady-state error (last half of the loop)<br>causes besides the model: noise"
+    assert wrap_text(kept, 200) == kept  # a line of its own, not the rest of a sentence
