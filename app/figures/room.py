@@ -214,10 +214,9 @@ def _title_block(layout: dict, width: float, size: float) -> dict | None:
     s = _size({"font": font}, size)
     layout["title"] = {"text": ""}
     chars = max(12, int((width - 12) / (CHAR * s)))
-    return dict(
-        text=wrap_text(text, chars), xref="paper", x=0, xanchor="left", yref="paper", y=1, yanchor="bottom",
-        showarrow=False, align="left", font={"size": s, **({"color": font["color"]} if "color" in font else {})},
-    )  # fmt: skip
+    color = {"color": font["color"]} if "color" in font else {}
+    place = dict(xref="paper", x=0, xanchor="left", yref="paper", y=1, yanchor="bottom")
+    return dict(text=wrap_text(text, chars), showarrow=False, align="left", font={"size": s, **color}, **place)
 
 
 def _thin_ticks(ax: dict, room: float, per_label: float) -> None:
