@@ -60,16 +60,18 @@ class Tab:
         A running in-process server.
     path : str
         The websocket's path (``""``: the bare address; ``/v/CODE``, ``/f/CODE/SPARE``: a link's).
+    camera : dict, optional
+        The first camera message (default :data:`CAMERA`: a 1400 × 900 canvas, a laptop's).
     """
 
-    def __init__(self, app, path: str = ""):
+    def __init__(self, app, path: str = "", camera: dict | None = None):
         self.app = app
         before = set(app.sessions)
         self.ws = connect_ws(app, path)
         self.received = 0
         self.thread = threading.Thread(target=self._read, daemon=True)
         self.thread.start()
-        self.ws.send(msgspec.msgpack.encode(CAMERA))
+        self.ws.send(msgspec.msgpack.encode(camera or CAMERA))  # viser's first camera message: the canvas size
         sessions = app.wait_for_sessions(len(before) + 1, timeout=HANG_S)
         self.session = next(s for s in sessions if s.client.client_id not in before)
         self.controls = self.session.controls

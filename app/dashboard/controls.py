@@ -130,6 +130,8 @@ class GuiElements:
     play: viser.GuiButtonHandle
     q_folder: viser.GuiFolderHandle
     r_folder: viser.GuiFolderHandle
+    tabs: viser.GuiTabGroupHandle  # the settings tabs (System, Quantizer, ...)
+    summary_folder: viser.GuiFolderHandle
     on_change: Callable[..., None]
     q_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
     r_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
@@ -229,7 +231,7 @@ def make_gui_elements(
     extra["progress"] = gui.add_progress_bar(0.0, animated=False)
     extra["status"] = gui.add_markdown("starting …")
     extra["error"] = gui.add_markdown("", visible=False)
-    tabs = gui.add_tab_group()
+    tabs = extra["tabs"] = gui.add_tab_group()
     for tab in dict.fromkeys(c.tab for c in CONTROLS if c.tab):
         with tabs.add_tab(tab):
             folders: dict = {}
@@ -242,7 +244,7 @@ def make_gui_elements(
                     with folders[c.folder]:
                         add(c)
                 _extras_after(gui, c.name, values, handles, extra)
-    with gui.add_folder("Summary"):
+    with gui.add_folder("Summary") as extra["summary_folder"]:
         extra["summary"] = gui.add_markdown("")
     handles["fixed_range"].visible = values.range_mode == "fixed"
     handles["rho"].disabled = bool(values.rho_auto)

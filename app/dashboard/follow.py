@@ -34,14 +34,16 @@ __all__ = ["FollowHub", "Channel", "Snapshot", "Sent", "Drawn"]
 
 
 class Sent:
-    """A figure as pushed to a plot handle: its JSON made once (by the first handle given it), then reused by
-    every follower's handle. viser's plot handle calls :meth:`to_json`; every other attribute is the figure's."""
+    """A figure as pushed to a plot handle, with the handle's height / width (``aspect``): its JSON made once (by
+    the first handle given it), then reused by every follower's handle. viser's plot handle calls
+    :meth:`to_json`; every other attribute is the figure's."""
 
-    __slots__ = ("wire", "json")
+    __slots__ = ("wire", "json", "aspect")
 
-    def __init__(self, wire: Any):
+    def __init__(self, wire: Any, aspect: float):
         self.wire = wire  # an app.figures.raw.Wire (or a plotly figure)
         self.json: str | None = None
+        self.aspect = aspect
 
     def to_json(self) -> str:
         if self.json is None:

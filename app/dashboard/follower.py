@@ -18,7 +18,8 @@ from typing import Any
 
 from .codepanel import show_view
 from .controls import CONTROLS, _initial
-from .lessons import get_lesson, key_view, lesson_drift, lesson_markdown, lesson_names, lesson_values
+from .koopman_render import KoopmanRenderer
+from .lessons import get_lesson, lesson_drift, lesson_markdown, lesson_names, lesson_values
 from .render import Renderer
 from .settings import Values, resolve_system
 from .share import apply_values
@@ -178,7 +179,7 @@ class Follower:
             s.mark.drift, s.mark.back.visible = drift, bool(drift)
             self.values = v
         # (every run: the presenter switch is this screen's own choice, applied here as in any tab)
-        s.presenter.apply(bool(v.presenter), key_plot=key_view(v.lesson))
+        s.presenter.apply(bool(v.presenter), narrow=s.ui.phone.narrow)
         if snap.group is not None and snap.group != self.group:
             s.views.show(snap.group)
             self.group = snap.group
@@ -189,7 +190,10 @@ class Follower:
             elif key == "summary":
                 c.summary.content = item
             elif key in s.plots:
-                s.plots[key].figure = item
+                h = s.plots[key]
+                if h.aspect != item.aspect:
+                    h.aspect = item.aspect
+                h.figure = item
             self.seen[key] = seq
         if new and c.error.visible:  # a refused input's line: the followed view moved on
             c.error.visible = False
@@ -229,6 +233,7 @@ class Follower:
         show_view(s.codes, dataclasses.replace(view, code=own, follow=None, kept=kept, note=""))
         self._unlock()
         s.ui.renderer = Renderer()  # this tab draws its own frames from now on: every view anew
+        s.ui.koopman_renderer = KoopmanRenderer()
         s.lesson_shown = str(s.controls["lesson"].value)
         self.state = "explored"
         back = (

@@ -12,13 +12,12 @@ from typing import Any
 from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.koopman_scene import koopman_scene
-from app.figures.presenter import legible_figure, presenter_figure
 from app.figures.raw import Wire
 from app.figures.traces import CURRENT_B, move_current_bits
 from app.figures.view import CURRENT, CURVES
 from qsid_core.studies import NO_CERTIFICATES
 
-from .render import Render
+from .render import STYLES, Render, plot_aspect
 
 __all__ = ["KoopmanRenderer", "koopman_figures", "koopman_summary", "bcls_exactness"]
 
@@ -89,13 +88,15 @@ class KoopmanRenderer:
         self.figures: dict[str, Any] = {}
         self._rows_key: Any = None
         self._current_key: Any = None
-        self._presenter = False
+        self._style = "normal"
 
-    def render(self, frame: Any, axes: str | None = None) -> Render:
+    def render(self, frame: Any, axes: str | None = None, narrow: bool = False) -> Render:
+        """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode)."""
         presenter = bool(getattr(frame.values, "presenter", False))
-        if presenter != self._presenter:
+        style = "phone" if narrow else "presenter" if presenter else "normal"
+        if style != self._style:  # every figure is rebuilt in the other style
             self.figures, self._rows_key, self._current_key = {}, None, None
-            self._presenter = presenter
+            self._style = style
         out: dict[str, Any] = {}
         scene = summary = None
         curves = [v.name for v in registry.KOOPMAN_VIEWS if v.depends == CURVES]
@@ -119,7 +120,8 @@ class KoopmanRenderer:
                 fig = self.figures.get(name)
                 if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
                     out[name] = move_current_bits(fig, frame.bits)
-        style = presenter_figure if presenter else legible_figure
-        out = {n: style(f, inplace=True) if f is not self.figures.get(n) else f for n, f in out.items()}
+        restyle = STYLES[style]
+        out = {n: restyle(f, inplace=True) if f is not self.figures.get(n) else f for n, f in out.items()}
         self.figures.update(out)
-        return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()})
+        aspects = {name: plot_aspect(style, name, fig) for name, fig in out.items()}
+        return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()}, aspects)

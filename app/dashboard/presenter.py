@@ -1,11 +1,12 @@
 """Presenter mode (a lecture-hall layout) and the auto-play over the word length, for one tab.
 
 * :class:`PresenterLayout`: with the panel's "presenter" box ticked, ONE view fills the room beside a narrow
-  left panel: either the plots (the lesson's key plot first, sized to the visible height, the plots panel as
-  wide as the window allows) or the 3-D scene (the plots panel minimized). One button under the auto-play
-  switches between the two. Panel text is at least :data:`PANEL_FONT` px (a style sheet sent to the page),
-  the scene's lines are thicker and its labels bigger; the plots' own style (text ≥ 18 px, thick lines) is
-  :func:`app.figures.presenter.presenter_figure` (applied by the renderer).
+  left panel: either the plots (the lesson's key plot first, every plot as high as the visible part of the
+  plots panel, the panel as wide as the window allows, the 3-D scene hidden) or the 3-D scene (the plots panel
+  minimized, the camera framing the box in the room left). One button under the auto-play switches between
+  the two. Panel text is at least :data:`PANEL_FONT` px (a style sheet sent to the page), the scene's lines are
+  thicker and its labels bigger; the plots' own style (text ≥ 18 px, thick lines, panels stacked) is
+  :func:`app.figures.presenter.presenter_figure` (applied by the renderer). A phone has no presenter mode.
 * :class:`AutoPlay`: b from 1 to 16, about one word length per :data:`STEP_SECONDS`. The tab's worker loop
   asks :meth:`AutoPlay.wait_time` how long it may sleep and calls :meth:`AutoPlay.step` only when the tab is
   idle (every change drawn), so the next b is set only once the previous one is drawn or after
@@ -17,6 +18,8 @@ from __future__ import annotations
 
 import threading
 import time
+
+from app.figures.presenter import PRESENTER_SIZE
 
 from .controls import PLAY_LABEL
 from .settings import ALL_BITS
@@ -30,6 +33,7 @@ __all__ = [
     "WIDE",
     "LEFT_SHARE",
     "PLOT_ASPECT",
+    "SCENE_ASPECT",
     "SHOW_SCENE",
     "SHOW_PLOT",
 ]
@@ -45,19 +49,28 @@ LEFT_WIDTH = 290
 #: the window less its 120 px minimum of 3-D canvas, so without knowing the window's width (the server is not
 #: told it) the left panel gets 20 % of it (249 px at 1366, 360 px at 1920) and the plots the rest.
 WIDE, LEFT_SHARE = 20000.0, 0.2
-#: Height / width of the key plot in presenter mode: fits under the tab strip at 1366×768 (~985 × 590 px in a
-#: ~670 px high panel) and at 1920×1080 (~1430 × 860 px in a ~980 px panel).
-PLOT_ASPECT = 0.6
+#: Height / width of a plot in presenter mode: one view fills the plots panel under its header at 1366 × 768
+#: (~1000 × 600 px) and at 1920 × 1080 (~1430 × 860 px); a view of many rows is taller (the renderer sets each
+#: plot's aspect from its figure, :func:`app.dashboard.render.plot_aspect`).
+PLOT_ASPECT = PRESENTER_SIZE[1] / PRESENTER_SIZE[0]
+#: Width / height of the 3-D canvas beside the left panel in presenter mode (at least; the camera frames the
+#: box in it).
+SCENE_ASPECT = 1.35
 #: The switch's labels: what pressing it shows.
 SHOW_SCENE, SHOW_PLOT = "⇄ show the 3-D scene", "⇄ show the plot"
 #: The left panel's normal width (viser's "large" control width).
 NORMAL_LEFT = 384
 
+#: The narrowest a plot is drawn in presenter mode (px): its layout is made for 1000 px, and squeezed much
+#: narrower (a window under ~750 px, or one narrowed to a phone's width) its margins would leave the plot no
+#: room, on which plotly.js throws and the whole page goes blank. Narrower panels scroll sideways instead.
+MIN_PLOT_WIDTH = 700
 #: Panel text of at least PANEL_FONT px everywhere outside plots and the 3-D canvas (plotly sets its own sizes
-#: inline on SVG text, which this does not touch).
+#: inline on SVG text, which this does not touch); every plot at least MIN_PLOT_WIDTH px wide.
 STYLE = (
     "<style>body :not(svg):not(svg *):not(canvas)"
-    f"{{font-size:max({PANEL_FONT}px,1em) !important;line-height:1.35}}</style>"
+    f"{{font-size:max({PANEL_FONT}px,1em) !important;line-height:1.35}}"
+    f"div:has(> .js-plotly-plot){{min-width:{MIN_PLOT_WIDTH}px}}</style>"
 )
 
 
@@ -71,25 +84,20 @@ class PresenterLayout:
     portrait : :class:`~app.dashboard.scene.PhasePortrait`
     normal_right : float
         The plots panel's width outside presenter mode (px).
-    plots : dict
-        View name -> plotly handle (the key plot's aspect is set in presenter mode).
     after : a GUI handle
         The switch goes right below it (the auto-play button).
     on_change : callable()
         Marks the tab dirty (the worker then calls :meth:`apply`).
     """
 
-    def __init__(self, gui, plots_panel, portrait, normal_right: float, plots=None, after=None, on_change=None):
+    def __init__(self, gui, plots_panel, portrait, normal_right: float, after=None, on_change=None):
         self.gui = gui
         self.plots_panel = plots_panel
         self.portrait = portrait
         self.normal_right = normal_right
-        self.plots = plots or {}
-        self.aspects = {name: h.aspect for name, h in self.plots.items()}
         self.on = False
         self.scene_shown = False  # presenter mode: the 3-D scene (True) or the plots (False)
         self._want_scene = False
-        self._key: str | None = None
         self.style = gui.add_html("", visible=False)
         self.switch = gui.add_button(SHOW_SCENE, visible=False, hint="Presenter mode shows one view: this or that")
         if after is not None:
@@ -104,38 +112,38 @@ class PresenterLayout:
             self._want_scene = not self._want_scene
         self._on_change()
 
-    def apply(self, on: bool, key_plot: str | None = None) -> bool:
-        """Presenter mode on or off, showing the plots (``key_plot`` first and large) or the 3-D scene.
-
-        Returns True if anything changed."""
-        on = bool(on)
+    def apply(self, on: bool, narrow: bool = False) -> bool:
+        """Presenter mode on or off, showing the plots or the 3-D scene; a phone (``narrow``) has none of it
+        (its panels are one sheet). Returns True if anything changed."""
+        on = bool(on) and not narrow
         with self._lock:
             scene = self._want_scene and on
-        if on == self.on and scene == self.scene_shown and (not on or key_plot == self._key):
+        if on == self.on and scene == self.scene_shown:
             return False
         if on != self.on:
             self.style.content = STYLE if on else ""
             self.style.visible = on
             self.portrait.set_presenter(on)
             self.switch.visible = on
+        was_scene = self.scene_shown
         self.on, self.scene_shown = on, scene
-        if scene:  # the scene beside the left panel
+        # one view at a time: the scene hidden while the plot fills the window (the dock keeps a strip of it)
+        self.portrait.show(scene or not on)
+        if scene:  # the scene beside the left panel, the box framed in it
             self.gui.main_panel.set_width(LEFT_WIDTH)
             self.plots_panel.minimize()
+            self.portrait.look(SCENE_ASPECT)
         elif on:  # the plots as wide as the window allows (see WIDE)
             self.gui.main_panel.set_width(WIDE * LEFT_SHARE)
             self.plots_panel.expand()
             self.plots_panel.set_width(WIDE * (1 - LEFT_SHARE))
-        else:
+        elif not narrow:
             self.gui.main_panel.set_width(NORMAL_LEFT)
             self.plots_panel.expand()
             self.plots_panel.set_width(self.normal_right)
+        if was_scene and not scene:
+            self.portrait.look()  # back where every tab starts
         self.switch.label = SHOW_PLOT if scene else SHOW_SCENE
-        self._key = key_plot if on else None
-        for name, h in self.plots.items():  # the key plot fills the visible height; the others as they were
-            want = PLOT_ASPECT if name == self._key else self.aspects[name]
-            if h.aspect != want:
-                h.aspect = want
         return True
 
 

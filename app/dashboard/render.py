@@ -8,15 +8,29 @@ from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.compare import PINNED_VIEWS, overlay_pinned
 from app.figures.phase_scene import SceneView, scene_view
-from app.figures.presenter import legible_figure, presenter_figure
+from app.figures.presenter import PHONE_WIDTH, PRESENTER_SIZE, legible_figure, phone_figure, presenter_figure
 from app.figures.raw import Wire
 from app.figures.traces import CURRENT_B, move_current_bits
 from app.figures.view import CURRENT, CURVES
 
 from .frames import Frame
+from .presenter import PLOT_ASPECT
 from .summary import summary_markdown
 
-__all__ = ["Render", "Renderer", "build_figures"]
+__all__ = ["Render", "Renderer", "build_figures", "STYLES", "plot_aspect"]
+
+#: The figures' style per layout: a laptop's, presenter mode's (a projector) and a phone's.
+STYLES = {"normal": legible_figure, "presenter": presenter_figure, "phone": phone_figure}
+
+
+def plot_aspect(style: str, name: str, fig) -> float:
+    """Height / width of plot ``name`` drawn in ``style``: the view's own, or as high as the styled figure."""
+    height = fig.layout.height
+    if style == "presenter" and height:
+        return max(PLOT_ASPECT, round(float(height) / PRESENTER_SIZE[0], 3))
+    if style == "phone" and height:
+        return round(float(height) / PHONE_WIDTH, 3)
+    return next(v.aspect for v in registry.ALL_VIEWS if v.name == name)
 
 
 def build_figures(frame: Frame, which=None) -> dict:
@@ -40,6 +54,8 @@ class Render:
     scene: SceneView | None
     summary: str | None
     figures: dict
+    #: view name -> height / width of its plot (for the figures pushed)
+    aspects: dict
 
 
 class Renderer:
@@ -56,14 +72,16 @@ class Renderer:
         self.figures: dict = {}
         self._rows_key = None
         self._current_keys: dict = {}
-        self._presenter = False
+        self._style = "normal"
 
-    def render(self, frame: Frame, axes: str | None = None) -> Render:
+    def render(self, frame: Frame, axes: str | None = None, narrow: bool = False) -> Render:
+        """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode)."""
         out: dict = {}
         presenter = bool(getattr(frame.values, "presenter", False))
-        if presenter != self._presenter:  # every figure is rebuilt in the other style
+        style = "phone" if narrow else "presenter" if presenter else "normal"
+        if style != self._style:  # every figure is rebuilt in the other style
             self.figures, self._rows_key, self._current_keys = {}, None, {}
-            self._presenter = presenter
+            self._style = style
         scene = summary = None
         curves = [v.name for v in registry.VIEWS if v.depends == CURVES]
         if frame.stage == "current":
@@ -96,12 +114,13 @@ class Renderer:
                 fig = self.figures.get(name)
                 if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
                     out[name] = move_current_bits(fig, frame.bits)
-        # the mode's smallest text (and line widths), on the figures just built for this frame
-        style = presenter_figure if presenter else legible_figure
+        # the layout's style (smallest text, line widths, panels stacked), once, on the figures just built
+        restyle = STYLES[style]
         out = {
-            name: style(fig, inplace=True) if name not in self.figures or fig is not self.figures[name] else fig
+            name: restyle(fig, inplace=True) if name not in self.figures or fig is not self.figures[name] else fig
             for name, fig in out.items()
         }
         self.figures.update(out)
+        aspects = {name: plot_aspect(style, name, fig) for name, fig in out.items()}
         # viser's plot handle calls figure.to_json(): Wire's skips plotly's deep copy (raw.to_json)
-        return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()})
+        return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()}, aspects)

@@ -9,12 +9,14 @@ The arrays come from :func:`app.figures.phase_scene.scene_view`; colours from
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from app.figures.palette import rgb
 from app.figures.phase_scene import SceneView
 
-__all__ = ["PhasePortrait"]
+__all__ = ["PhasePortrait", "camera_pose", "drawn_points", "VIEW_FROM", "FOV", "FRAMED"]
 
 PRESENTER_SCALE = 1.8  # presenter mode: lines and labels of the 3-D scene this much thicker / bigger
 AXIS = 1.25  # half length of the drawn axes, in box units
@@ -22,6 +24,71 @@ _GREY = rgb("axes")
 _SPHERE = rgb("bound")
 _REALIZED = rgb("realized")
 _NONE = np.zeros((1, 2, 3), dtype=np.float32)
+
+#: The direction the camera looks at the box from (every new tab starts there, 3.1 box units away).
+VIEW_FROM = (1.7, -2.2, 1.4)
+#: viser's vertical field of view (radians; three.js's default 75°).
+FOV = math.radians(75.0)
+#: What the camera frames at least (box units): the axes' ends, where their labels are.
+AXES_ENDS = np.vstack([AXIS * np.eye(3), -AXIS * np.eye(3)])
+#: ... and, before anything is drawn, the corners of the unit box the loops lie in.
+FRAMED = np.vstack([AXES_ENDS, [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]])
+#: Share of the free area the framed points may fill (the labels beside the axes' ends need the rest).
+FILL = 0.85
+
+
+def _pose(d: float, free: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Camera ``d`` away along :data:`VIEW_FROM`, its target lowered so that the free area is centred:
+    (position, target, forward, screen up)."""
+    back = np.asarray(VIEW_FROM, dtype=float)
+    back /= np.linalg.norm(back)  # from the target to the camera
+    up = np.array([0.0, 0.0, 1.0]) - back[2] * back
+    up /= np.linalg.norm(up)  # the screen's up direction, in the world
+    target = -up * (1.0 - free) * d * math.tan(FOV / 2)  # the free area's centre lies this far above the middle
+    return target + back * d, target, -back, up
+
+
+def _fits(d: float, aspect: float, free: float, points: np.ndarray) -> bool:
+    pos, _, fwd, up = _pose(d, free)
+    right = np.cross(fwd, up)
+    rel = points - pos
+    depth = (rel @ fwd) * math.tan(FOV / 2)
+    x, y = (rel @ right) / (depth * aspect), (rel @ up) / depth  # -1..1 across the canvas
+    mid = 1.0 - free  # the free area's centre
+    return bool(np.all(np.abs(x) <= FILL) and np.all(np.abs(y - mid) <= FILL * free))
+
+
+def drawn_points(view: SceneView | None) -> np.ndarray:
+    """The points a camera frames for ``view``: the axes' ends and the corners of the drawn loops' bounding box
+    (before anything is drawn: the unit box, :data:`FRAMED`)."""
+    if view is None:
+        return FRAMED
+    pts = np.vstack([view.segments.reshape(-1, 3), view.true_segments.reshape(-1, 3), np.reshape(view.start, (1, 3))])
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if pts.shape[0] == 0:
+        return FRAMED
+    lo, hi = np.clip(pts.min(axis=0), -1.0, 1.0), np.clip(pts.max(axis=0), -1.0, 1.0)
+    box = [(x, y, z) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    return np.vstack([AXES_ENDS, box])
+
+
+def camera_pose(
+    aspect: float, free: float = 1.0, points: np.ndarray = FRAMED
+) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    """(position, look_at, up) of a camera that frames ``points`` (box units) in the part of the canvas the
+    panels leave free: the top ``free`` share of its height, on a canvas ``aspect`` (width / height) wide.
+
+    The box is seen from :data:`VIEW_FROM`, its origin in the middle of the free area, as close as that area
+    allows (``points`` fill :data:`FILL` of its height or of its width, whichever is reached first); with
+    ``free`` < 1 the look-at point moves down so that the origin is centred in the free area above (a phone:
+    the bottom sheet covers the rest).
+    """
+    lo, hi = 0.5, 50.0
+    for _ in range(40):  # the nearest distance at which everything fits (it fits farther away too)
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if _fits(mid, aspect, free, points) else (mid, hi)
+    pos, target, _, _ = _pose(hi, free)
+    return tuple(map(float, pos)), tuple(map(float, target)), (0.0, 0.0, 1.0)
 
 
 class PhasePortrait:
@@ -35,9 +102,11 @@ class PhasePortrait:
         Scene-tree folder of every node.
     """
 
-    def __init__(self, scene, prefix: str = "/qsid"):
+    def __init__(self, scene, prefix: str = "/qsid", camera=None):
         self.scene = scene
+        self.camera = camera  # the tab's viewer camera (None: the camera is left alone)
         self.p = prefix
+        self.root = scene.add_frame(prefix, show_axes=False)  # every node below: hidden and shown at once
         self.view: SceneView | None = None
         self.draws = 0
         self.thick = 1.0  # line widths and label sizes x this (presenter mode: PRESENTER_SCALE)
@@ -125,6 +194,24 @@ class PhasePortrait:
         labels = (*self.axis_labels, self.start_label, self.scale_label, self.sphere_label)
         for lab, base in zip(labels, (1.1, 1.1, 1.1, 1.0, 0.85, 0.9)):
             lab.font_screen_scale = base * self.thick
+
+    def show(self, on: bool) -> None:
+        """Show or hide the whole portrait (presenter mode hides it while the plot fills the window)."""
+        if self.root.visible != on:
+            self.root.visible = on
+
+    def look(self, aspect: float | None = None, free: float = 1.0) -> None:
+        """Point the camera at the box: the loops drawn now framed in a free area (:func:`camera_pose`), or,
+        without ``aspect``, from where every new tab starts."""
+        if self.camera is None:
+            return
+        pose: tuple[tuple[float, ...], ...] = (VIEW_FROM, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+        if aspect is not None:  # what is drawn now, as large as the free area allows
+            pose = camera_pose(aspect, free, drawn_points(self.view))
+        pos, target, up = pose
+        self.camera.up_direction = up
+        self.camera.position = pos  # (moves the look-at point along: it is set after)
+        self.camera.look_at = target
 
     # ----- drawing ----------------------------------------------------------------------
     def draw(self, v: SceneView) -> None:

@@ -34,6 +34,7 @@ from .memory import limit_arenas, one_blas_thread, trim
 from .netcheck import who_can_connect
 from .options import STARTING_SYSTEMS, check_lesson, read_options
 from .pool import DEFAULT_TIMEOUT, Pool
+from .scene import VIEW_FROM
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, Values
 from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
@@ -118,7 +119,7 @@ class DashboardApp:
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
         cam = self.server.initial_camera  # every new tab starts looking at the unit box from here
-        cam.position = (1.7, -2.2, 1.4)
+        cam.position = VIEW_FROM
         cam.look_at = (0.0, 0.0, 0.0)
         cam.up = (0.0, 0.0, 1.0)
         refuse_share_requests(self.server)

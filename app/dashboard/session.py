@@ -49,7 +49,7 @@ from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
-from .lessons import LessonMark, get_lesson, key_view, lesson_names, lesson_values
+from .lessons import LessonMark, get_lesson, lesson_names, lesson_values
 from .pool import PoolFailure, Superseded, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
@@ -287,7 +287,8 @@ class Session:
             return gen
         show_weights(c)
         self.play.show()
-        self.presenter.apply(bool(c["presenter"].value), key_plot=key_view(str(c["lesson"].value)))
+        self.ui.phone.apply()  # a phone's layout (the window's shape, from the camera), then presenter mode
+        self.presenter.apply(bool(c["presenter"].value), narrow=self.ui.phone.narrow)
         gen = self._open_lesson(gen)
         if self.kind.apply(self):  # linear or nonlinear plant: its inputs shown, its defaults (worker's own change)
             with self._cond:
@@ -296,9 +297,9 @@ class Session:
         if adapted is None:
             return gen
         gen, values = adapted
-        self.mark.show(values)
         self.views.set_system(resolve_system(values).system)
         values = values.replace(**self.views.values())
+        self.mark.show(values)  # with the plots panel's own fields: a lesson sets the quantizer's channel too
         for attempt in (1, 2):
             try:
                 if is_nonlinear(values.system):  # Koopman/EDMD (app.dashboard.koopman_session)

@@ -20,6 +20,7 @@ from .controls import GuiElements, make_gui_elements, read_values
 from .follow import Drawn, Sent
 from .frames import Frame
 from .koopman_render import KoopmanRenderer
+from .phone import PhoneLayout
 from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
 from .scene import PhasePortrait
@@ -27,6 +28,7 @@ from .settings import Values, resolve_system
 from .share import ShareHandles, add_share_panel, apply_values
 from .viewcodes import ViewOpen, ViewStore
 from .viewpanel import PANEL_WIDTH, ViewPanel
+from .viserfix import phone_sheet_style
 
 __all__ = ["TabView", "drop_late_draws", "CLOSED_CONNECTION"]
 
@@ -104,10 +106,10 @@ class TabView:
         self.plots = self.views.plots
         self.renderer = Renderer()
         self.koopman_renderer = KoopmanRenderer()  # a nonlinear plant's frames (app.dashboard.koopman_render)
-        self.portrait = PhasePortrait(client.scene)
-        self.presenter = PresenterLayout(
-            gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.plots, self.controls.play, touch
-        )
+        self.portrait = PhasePortrait(client.scene, camera=client.camera)
+        self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.controls.play, touch)
+        self.phone = PhoneLayout(gui, client.camera, self.controls, self.plots_panel, self.portrait, touch)
+        phone_sheet_style(gui)  # viser's phone sheet across the window, at most half its height
         self.last_error: str | None = None
         #: what the last draw pushed (a leader's followers push the same: :mod:`app.dashboard.follow`)
         self.drawn = Drawn()
@@ -157,14 +159,16 @@ class TabView:
         if stale():
             return False
         koopman = getattr(frame, "kind", "") == "koopman"
-        r = (self.koopman_renderer if koopman else self.renderer).render(frame, c["axes"].value)
+        r = (self.koopman_renderer if koopman else self.renderer).render(frame, c["axes"].value, self.phone.narrow)
         if stale():  # never draw an older result over a newer one
             if koopman:
                 self.koopman_renderer = KoopmanRenderer()
             else:
                 self.renderer = Renderer()  # it remembered figures that were not pushed
             return False
-        figures = {name: Sent(fig) for name, fig in r.figures.items()}  # JSON made once, followers reuse it
+        figures = {
+            name: Sent(fig, r.aspects[name]) for name, fig in r.figures.items()
+        }  # JSON made once, followers reuse it
         with self.client.atomic():
             if c.error.visible:
                 c.error.visible = False
@@ -174,6 +178,9 @@ class TabView:
             if r.summary is not None:
                 c.summary.content = r.summary
             for name, fig in figures.items():
-                self.plots[name].figure = fig
+                h = self.plots[name]
+                if h.aspect != fig.aspect:  # presenter mode and phones: as high as the figure's layout
+                    h.aspect = fig.aspect
+                h.figure = fig
         self.drawn = Drawn(r.scene, r.summary, figures)
         return True

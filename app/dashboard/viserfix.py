@@ -44,6 +44,8 @@ __all__ = [
     "refuse_share_requests",
     "plotly_js_unsent",
     "send_plotly_js",
+    "phone_sheet_style",
+    "PHONE_SHEET_CSS",
 ]
 
 
@@ -347,4 +349,38 @@ def send_plotly_js(gui: Any, source: str) -> bool:
         return _missing("the small plotly.js bundle", "GuiApi._websock_interface.queue_message")
     conn.queue_message(RunJavascriptMessage(source=source))
     gui._setup_plotly_js = True
+    return True
+
+
+# ----- the phone's bottom sheet -------------------------------------------------------------------------------
+#: viser's phone layout (windows up to its 36em breakpoint) puts every panel into one bottom sheet drawn
+#: ``position: fixed; width: 20em; max-height: 60%`` (``viser/client/src/ControlPanel/BottomPanel.tsx``, inline
+#: styles): plots in it were ~250 px wide and it covered most of the scene. The style sheet below, limited to
+#: that breakpoint, stretches the sheet (and the box inside it, also 20em) across the window and caps it at
+#: half the window's height; the selectors match those inline styles.
+PHONE_SHEET_CSS = (
+    "<style>@media (max-width: 36em) {"
+    '.mantine-Paper-root[style*="position: fixed"][style*="20em"]'
+    "{width: 100vw !important; max-height: 50% !important;}"
+    '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}'
+    "}</style>"
+)
+#: What the selectors rely on, as the client's source writes it.
+SHEET_SOURCE = ('position: "fixed"', 'width: "20em"', 'maxHeight: "60%"')
+
+
+def phone_sheet_style(gui: Any) -> bool:
+    """Send the tab of ``gui`` the style sheet that widens viser's phone sheet (:data:`PHONE_SHEET_CSS`).
+
+    Relies on the sheet's inline styles (:data:`SHEET_SOURCE`) in ``viser/client/src/ControlPanel/
+    BottomPanel.tsx``; when the installed client's source says otherwise, nothing is sent (False, one warning).
+    """
+    from pathlib import Path
+
+    import viser
+
+    src = Path(viser.__file__).parent / "client" / "src" / "ControlPanel" / "BottomPanel.tsx"
+    if src.is_file() and not all(s in src.read_text(encoding="utf-8") for s in SHEET_SOURCE):
+        return _missing("the phone sheet across the window", "the bottom sheet's inline width 20em")
+    gui.add_html(PHONE_SHEET_CSS, order=1e9)  # a style element: nothing drawn, last in the panel
     return True

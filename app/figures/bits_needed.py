@@ -48,6 +48,21 @@ def bits_figure(
         marks, labels = _target_marks(first, y1, y2)
         shapes += marks
         notes += labels
+        # the target is named in the legend (a line of its own there): a label on the line collided with the
+        # marks and the title on small or crowded plots
+        t = first.settings["target"]
+        data.append(
+            dict(
+                type="scatter",
+                x=[None],
+                y=[None],
+                mode="lines",
+                name=f"target {100 * t:g} %",
+                line=dict(color=COLORS["ref"], dash="dash", width=1),
+                yaxis=y1,
+                hoverinfo="skip",
+            )
+        )
     title = "<br>".join(_wrap(f"{lab}: {a.sentence}") for lab, a in answers.items()) + partial
     lay[y1.replace("y", "yaxis")] = {
         **lay[y1.replace("y", "yaxis")],
@@ -130,19 +145,6 @@ def _target_marks(first: BitsAnswer, y1: str, y2: str) -> tuple[list[dict], list
     notes: list[dict] = []
     t, g = first.settings["target"], first.settings["cost_gap"]
     shapes.append(hline(100 * t, y1, COLORS["ref"], "dash"))
-    notes.append(
-        dict(
-            text=f"target {100 * t:g} %",
-            x=0,
-            xref="x domain",
-            y=100 * t,
-            yref=y1,
-            showarrow=False,
-            xanchor="left",
-            yanchor="bottom",
-            font=dict(size=10, color=COLORS["ref"]),
-        )
-    )
     if g > 0:
         shapes.append(hline(100 * g, y2, COLORS["ref"], "dash"))
     at: dict = {}  # b -> the answers marked there (one label, not several on top of each other)

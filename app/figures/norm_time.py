@@ -43,8 +43,22 @@ def _hline(
     if y is None or not np.isfinite(y) or y <= 0:
         return
     shapes.append(hline(float(y), "y", c, dash, width))
-    # labels staggered right, left, middle: lines close together no longer print their labels on each other
-    notes.append(hline_note(y, name, where=where, size=9, x=(1.0, 0.0, 0.5)[len(notes) % 3], color=c))
+    if name:  # labels staggered right, left, middle: lines close together do not print them on each other
+        notes.append(hline_note(y, name, where=where, size=9, x=(1.0, 0.0, 0.5)[len(notes) % 3], color=c))
+
+
+def _realized_lines(
+    shapes: list[dict[str, Any]], notes: list[dict[str, Any]], realized: dict[str, dict[str, float] | None]
+) -> None:
+    """The a-posteriori bound of each estimator (its median) as a dotted line; medians within 25 % of each other
+    draw lines on top of each other, so one label names them all."""
+    found = [(label, (rb or {}).get("median")) for label, rb in realized.items()]
+    medians = [(label, float(y)) for label, y in found if y is not None and np.isfinite(y) and y > 0]
+    together = len(medians) > 1 and max(y for _, y in medians) <= 1.25 * min(y for _, y in medians)
+    joint = "a-posteriori δ " + ", ".join(f"{label} {_g(y)}" for label, y in medians)
+    for k, (label, y) in enumerate(medians):
+        name = (joint if k == 0 else "") if together else f"a-posteriori δ {label} {_g(y)}"
+        _hline(shapes, notes, y, name, COLORS["realized"], "dot")
 
 
 def norm_time_figure(
@@ -94,9 +108,7 @@ def norm_time_figure(
                 )
             )
     _hline(shapes, notes, letter_delta, f"letter's δ(ε) {_g(letter_delta)}", COLORS["theory"], "dash")
-    for label, rb in (realized or {}).items():
-        y = (rb or {}).get("median")
-        _hline(shapes, notes, y, f"a-posteriori δ {label} {_g(y)}", COLORS["realized"], "dot")
+    _realized_lines(shapes, notes, realized or {})
     ys = [v for tr in data for v in tr["y"] if v is not None and np.isfinite(v) and v > 0]
     converged = floor is not None and bool(ys) and min(ys) <= floor * (1 + 1e-9)
     if converged:  # the floor line only when some loop reached it (else it stretched the axis for nothing)

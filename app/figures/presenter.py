@@ -13,13 +13,34 @@ import numpy as np
 import plotly.graph_objects as go
 
 from .axes import log_ticks
+from .room import lay_out
 
-__all__ = ["PLOT_FONT", "NORMAL_FONT", "LINE_SCALE", "presenter_figure", "legible_figure"]
+__all__ = [
+    "PLOT_FONT",
+    "NORMAL_FONT",
+    "PHONE_FONT",
+    "PRESENTER_SIZE",
+    "PHONE_WIDTH",
+    "LINE_SCALE",
+    "presenter_figure",
+    "phone_figure",
+    "legible_figure",
+]
 
 #: Smallest plot text in presenter mode (px).
 PLOT_FONT = 18
 #: Smallest plot text in normal mode (px): a laptop at arm's length (the legibility test's floor is 10).
 NORMAL_FONT = 11
+#: Smallest plot text on a phone (px): held closer than a laptop, on a plot a third as wide.
+PHONE_FONT = 12
+#: The smallest drawing of a plot in presenter mode (px): the plots panel at 1366 × 768 is about 1000 px wide,
+#: and the plot 0.6 as high as wide fits under its header (at 1920 × 1080 the same layout is drawn ~1.4 × larger).
+PRESENTER_SIZE = (1000.0, 600.0)
+#: Presenter mode: a row of panels at least this high (px); a view of many rows (the time series) grows taller
+#: than :data:`PRESENTER_SIZE` rather than squeezing them.
+MIN_ROW = 55.0
+#: The width (px) of a plot on a phone: the plots in the bottom sheet across a 390 px window.
+PHONE_WIDTH = 360.0
 #: plotly's size of a power label's exponent (10⁻³), relative to the tick font.
 SUPERSCRIPT = 0.8
 #: Factor on every trace's line width (at least :data:`MIN_LINE` px).
@@ -71,7 +92,13 @@ def _plain(fig: go.Figure) -> tuple[list[Any], dict[str, Any]]:
     return list(d.get("data") or []), dict(d.get("layout") or {})
 
 
-def _with_floor(fig: go.Figure, floor: float, thicker: bool, inplace: bool = False) -> go.Figure:
+def _with_floor(
+    fig: go.Figure,
+    floor: float,
+    thicker: bool,
+    inplace: bool = False,
+    room: tuple[float, float | None, float] | None = None,
+) -> go.Figure:
     data0, layout0 = _plain(fig)
     layout = dict(layout0)
     template = layout.pop("template", None)
@@ -97,12 +124,11 @@ def _with_floor(fig: go.Figure, floor: float, thicker: bool, inplace: bool = Fal
                 # a tall span on a short plot: every second or third decade (about 8 labels at most)
                 extra = log_ticks(rng) if rng and span < 2.5 else {"dtick": max(1, int(np.ceil(span / 8)))}
             layout[key] = {**ax, "tickfont": tick, **extra}
-    if thicker:  # presenter: room for a larger title, long lines broken
-        _room_for_title(layout, floor)
     data = [_walk(t, floor) for t in data0]
     if thicker:
-        _wrap_notes(layout, floor)
         data = [_thicker(t) for t in data]
+    if room is not None:  # drawn at a known size: panels stacked, room measured for every text
+        lay_out(layout, data, *room)
     if inplace and data0 is getattr(fig, "_data", None) and layout0 is getattr(fig, "_layout", None):
         # plotly's trace and layout objects read these very dicts: replacing their contents restyles the
         # figure without the deep copy of a new one (half of a redraw's figure time otherwise)
@@ -118,63 +144,17 @@ def _with_floor(fig: go.Figure, floor: float, thicker: bool, inplace: bool = Fal
     return out
 
 
-#: Characters per line of a title or note in presenter mode (the key plot is ~1000 px wide at 1366: ~100 at
-#: 18 px).
-WRAP = 80
-
-
-def wrap_plain(text: str, width: int = WRAP) -> str:
-    """``text`` with each of its lines broken (``<br>``) at spaces to at most ``width`` characters; a line
-    holding any other HTML tag is left as it is (a break inside a tag would show the tag)."""
-    out = []
-    for line in text.split("<br>"):
-        if len(line) <= width or re.search(r"<(?!br>)", line):
-            out.append(line)
-            continue
-        cur = ""
-        for w in line.split(" "):
-            if cur and len(cur) + 1 + len(w) > width:
-                out.append(cur)
-                cur = w
-            else:
-                cur = f"{cur} {w}" if cur else w
-        out.append(cur)
-    return "<br>".join(out)
-
-
-def _wrap_notes(layout: dict, floor: float) -> None:
-    """Long notes wrapped; the top margin raised for notes standing on the plot's top edge (caption lines)."""
-    margin = dict(layout.get("margin") or {})
-    for ann in layout.get("annotations") or []:
-        if not isinstance(ann.get("text"), str):
-            continue
-        ann["text"] = wrap_plain(ann["text"])
-        on_top = ann.get("yref") == "paper" and float(ann.get("y") or 0) >= 1.0 and ann.get("yanchor") == "bottom"
-        if on_top:
-            lines = ann["text"].count("<br>") + 1
-            need = 1.5 * floor * lines + float(ann.get("yshift") or 0) + 12
-            margin["t"] = max(float(margin.get("t") or 0), need)
-    layout["margin"] = margin
-
-
-def _room_for_title(layout: dict, floor: float) -> None:
-    """The title's lines wrapped and the top margin tall enough for them at ``floor`` px."""
-    title = layout.get("title")
-    if not isinstance(title, dict) or not title.get("text"):
-        return
-    text = title["text"]
-    title["text"] = wrap_plain(str(text))
-    lines = title["text"].count("<br>") + 1
-    margin = dict(layout.get("margin") or {})
-    margin["t"] = max(float(margin.get("t") or 0), 1.5 * floor * lines + 16)
-    layout["margin"] = margin
-    title.update(yref="container", y=1.0, yanchor="top", pad=dict(t=6))
-
-
 def presenter_figure(fig: go.Figure, inplace: bool = False) -> go.Figure:
-    """``fig`` in presenter style: text of at least :data:`PLOT_FONT` px, thicker lines (a new figure, or
-    ``fig`` itself restyled with ``inplace``)."""
-    return _with_floor(fig, PLOT_FONT, thicker=True, inplace=inplace)
+    """``fig`` in presenter style: text of at least :data:`PLOT_FONT` px, thicker lines, laid out for
+    :data:`PRESENTER_SIZE` (:func:`app.figures.room.lay_out`) (a new figure, or ``fig`` itself restyled with
+    ``inplace``)."""
+    return _with_floor(fig, PLOT_FONT, thicker=True, inplace=inplace, room=(*PRESENTER_SIZE, MIN_ROW))
+
+
+def phone_figure(fig: go.Figure, inplace: bool = False) -> go.Figure:
+    """``fig`` for a phone: text of at least :data:`PHONE_FONT` px, laid out :data:`PHONE_WIDTH` px wide and as
+    high as its panels need, stacked (``layout.height`` says how high)."""
+    return _with_floor(fig, PHONE_FONT, thicker=False, inplace=inplace, room=(PHONE_WIDTH, None, 0.0))
 
 
 def legible_figure(fig: go.Figure, inplace: bool = False) -> go.Figure:

@@ -16,7 +16,7 @@ import msgspec
 import pytest
 from support import HANG_S, ROOT, SMALL, Tab, wait_until
 
-from app.dashboard.presenter import LEFT_SHARE, LEFT_WIDTH, PLOT_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
+from app.dashboard.presenter import LEFT_SHARE, LEFT_WIDTH, SCENE_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
 from app.dashboard.settings import InputError, Values
 from app.dashboard.viewcodes import (
     CODE_LETTERS,
@@ -207,6 +207,12 @@ def test_a_lesson_modified_says_so_and_one_click_brings_it_back(tab):
     assert not tab.session.mark.back.visible and "Modified" not in text.content
 
 
+def test_a_lesson_that_picks_the_quantizer_channel_is_not_marked_modified(tab):
+    tab.set(lesson="one-cell")  # it shows the quantizer on u: elevator (a field of the plots panel, not the panel)
+    assert tab.frame.values.view_channel == 4
+    assert not tab.session.mark.back.visible and "Modified" not in tab.controls.lesson_text.content
+
+
 # ----- presenter mode -----------------------------------------------------------------------------------------------
 def _font_sizes(fig) -> list:
     d = fig.to_plotly_json()["layout"]
@@ -250,7 +256,8 @@ def test_presenter_figure_raises_inline_font_spans():
     import plotly.graph_objects as go
 
     fig = go.Figure(layout=dict(title=dict(text="a <span style='font-size:12px'>b</span>")))
-    assert "font-size:18px" in presenter_figure(fig).layout.title.text
+    out = presenter_figure(fig).layout  # (the title is drawn as a block of text at the top: an annotation)
+    assert any("font-size:18px" in str(t) for t in [out.title.text, *(a.text for a in out.annotations)])
     assert "font-size:12px" in fig.layout.title.text  # the original is left alone
 
 
@@ -323,28 +330,30 @@ class _Gui:
         return _Recorder(label=label, visible=visible, order=0.0)
 
 
-def test_presenter_shows_one_view_the_key_plot_or_the_scene():
+def test_presenter_shows_one_view_the_plot_or_the_scene():
     gui, panel = _Gui(), _Recorder()
-    portrait = _Recorder(set_presenter=lambda on: None)
-    plots = {"error": _Recorder(aspect=0.62), "bound": _Recorder(aspect=0.7)}
+    shown, looks = [], []
+    portrait = _Recorder(set_presenter=lambda on: None, show=shown.append, look=lambda *a, **k: looks.append(a))
     changes = []
-    lay = PresenterLayout(gui, panel, portrait, 640, plots, _Recorder(order=3.0), lambda: changes.append(1))
+    lay = PresenterLayout(gui, panel, portrait, 640, _Recorder(order=3.0), lambda: changes.append(1))
     assert lay.switch.order == 3.5 and lay.switch.visible is False
-    assert lay.apply(True, key_plot="bound")
+    assert lay.apply(True)
     # both panels asked for more than any window, in the ratio the dock keeps when it scales them to fit
     assert gui.main.log == [("width", WIDE * LEFT_SHARE)] and panel.log[-1] == ("width", WIDE * (1 - LEFT_SHARE))
-    assert plots["bound"].aspect == PLOT_ASPECT and plots["error"].aspect == 0.62  # the key plot fills the view
+    assert shown[-1] is False  # one view: the scene hidden behind the plots (the dock keeps a strip of it)
     assert lay.switch.visible and lay.switch.label == SHOW_SCENE and lay.style.visible
-    lay.switch.click(None)  # the one switch: the 3-D scene, the plots panel minimized
-    assert changes and lay.apply(True, key_plot="bound") and panel.log[-1] == "minimize"
-    assert gui.main.log[-1] == ("width", LEFT_WIDTH)
-    assert lay.switch.label == SHOW_PLOT and not lay.apply(True, key_plot="bound")
+    lay.switch.click(None)  # the one switch: the 3-D scene, the plots panel minimized, the box framed in it
+    assert changes and lay.apply(True) and panel.log[-1] == "minimize"
+    assert gui.main.log[-1] == ("width", LEFT_WIDTH) and shown[-1] is True and looks[-1] == (SCENE_ASPECT,)
+    assert lay.switch.label == SHOW_PLOT and not lay.apply(True)
     lay.toggle()
-    assert lay.apply(True, key_plot="error") and panel.log[-2:] == ["expand", ("width", WIDE * (1 - LEFT_SHARE))]
-    assert plots["error"].aspect == PLOT_ASPECT and plots["bound"].aspect == 0.7
-    assert lay.apply(False, key_plot="error")  # off: the normal widths and sizes
-    assert gui.main.log[-1] == ("width", 384) and panel.log[-1] == ("width", 640)
-    assert plots["error"].aspect == 0.62 and not lay.switch.visible and not lay.style.visible
+    assert lay.apply(True) and panel.log[-2:] == ["expand", ("width", WIDE * (1 - LEFT_SHARE))]
+    assert looks[-1] == ()  # the camera back where every tab starts
+    assert lay.apply(False)  # off: the normal widths, the scene shown
+    assert gui.main.log[-1] == ("width", 384) and panel.log[-1] == ("width", 640) and shown[-1] is True
+    assert not lay.switch.visible and not lay.style.visible
+    n = len(panel.log)
+    assert not lay.apply(True, narrow=True) and len(panel.log) == n  # a phone has no presenter mode
 
 
 # ----- auto-play ----------------------------------------------------------------------------------------------------

@@ -64,6 +64,7 @@ def _hooks(server, client, executor):
         "plotly_js_unsent": lambda: viserfix.plotly_js_unsent(gui),
         "send_plotly_js": lambda: viserfix.send_plotly_js(gui, "/* plotly.js */"),
         "redirect_pages": lambda: viserfix.redirect_pages(server, _moved),
+        "phone_sheet_style": lambda: viserfix.phone_sheet_style(gui),
     }
 
 
@@ -124,6 +125,8 @@ def _remove(monkeypatch, server, client, name):
         monkeypatch.delattr(server, "_websock_server")
     elif name in ("plotly_js_unsent", "send_plotly_js"):
         monkeypatch.delattr(gui, "_setup_plotly_js")
+    elif name == "phone_sheet_style":  # a client whose sheet is drawn otherwise
+        monkeypatch.setattr(viserfix, "SHEET_SOURCE", ('maxHeight: "61%"',))
 
 
 @pytest.mark.parametrize(
@@ -137,6 +140,7 @@ def _remove(monkeypatch, server, client, name):
         "plotly_js_unsent",
         "send_plotly_js",
         "redirect_pages",
+        "phone_sheet_style",
     ],
 )
 def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatch, name):
@@ -176,3 +180,16 @@ def test_redirect_pages_answers_page_requests_and_leaves_the_rest_to_viser(live,
         assert len(server.get_clients()) == 2
     finally:
         tab.close()
+
+
+def test_the_phone_sheet_style_matches_the_installed_clients_sheet():
+    """The style sheet's selectors match the inline styles of viser's bottom sheet, as its client source writes
+    them (the browser test, tests/system/test_dashboard_legibility.py, measures the plots' width in it)."""
+    src = Path(viser.__file__).parent / "client" / "src" / "ControlPanel" / "BottomPanel.tsx"
+    text = src.read_text(encoding="utf-8")
+    assert all(s in text for s in viserfix.SHEET_SOURCE)
+    css = viserfix.PHONE_SHEET_CSS
+    assert "@media (max-width: 36em)" in css and css.count("20em") == 2
+    theme = (src.parents[1] / "AppTheme.ts").read_text(encoding="utf-8")
+    assert "breakpoints" not in theme  # Mantine's default xs breakpoint, 36em: where viser's phone layout starts
+    assert "<script" not in css and "max-height: 50%" in css

@@ -1,7 +1,8 @@
 """Every plot legible at the sizes a class uses: laptop, projector (presenter mode) and phone, in headless Chromium.
 
-For each mode of :data:`MODES` (1366×768 and 1920×1080, normal and presenter; 390×844 phone) the test opens
-every tab of the plots panel and every lesson, and measures the text boxes of every plotly figure shown
+For each mode of :data:`MODES` (1366×768 and 1920×1080, normal and presenter; 390×844 phone) the test opens a
+tab at that size (the server tells a phone from its canvas's shape when the tab connects, as for a real phone),
+opens every tab of the plots panel and every lesson, and measures the text boxes of every plotly figure shown
 (:data:`legibility.TEXT_BOXES`); :func:`legibility.judge` fails on overlapping text, text under the floor
 (10 px, 16 px in presenter mode), text cut off at a figure's edge, or a figure narrower than 340 px.
 
@@ -20,6 +21,7 @@ import os
 
 import pytest
 from legibility import NORMAL_FLOOR, PRESENTER_FLOOR, TEXT_BOXES, Problem, judge, summary
+from support import wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 from test_dashboard_teach_browser import ACTIVE_TAB, _dismiss_notices
 
@@ -36,15 +38,18 @@ MODES = (
     ("hd-presenter", (1920, 1080), True),
     ("phone", (390, 844), False),
 )
-#: Screenshots written with QSID_SCREENSHOT_DIR: (mode, place) -> file name.
+#: Screenshots written with QSID_SCREENSHOT_DIR: (mode, place) -> file name ("scene": presenter mode's 3-D view).
 SHOTS = {
     ("hd", "tab:Identification"): "dashboard.png",
     ("laptop", "lesson:dither"): "teach-dither-normal.png",
     ("hd-presenter", "lesson:fig1"): "teach-fig1-presenter.png",
     ("hd-presenter", "lesson:bound"): "teach-bound-presenter.png",
+    ("hd-presenter", "lesson:saturation"): "teach-saturation-presenter.png",
+    ("hd-presenter", "scene"): "teach-scene-presenter.png",
     ("laptop-presenter", "lesson:fig1"): "teach-fig1-laptop-presenter.png",
     ("phone", "tab:Identification"): "phone-identification.png",
     ("phone", "lesson:bits-needed"): "phone-bits-needed.png",
+    ("phone", "lesson:fig1"): "phone-fig1.png",
 }
 # (the per-tab pictures view-*.png are test_dashboard_browser.py's: it computes the data-length study and pins
 # a result first)
@@ -79,15 +84,40 @@ def _measure(page, session, mode, place, shots, found, reached: bool = True) -> 
     if not figures:
         problems.append(Problem("none", place, "no plot visible"))
     found[name][place] = problems
-    if shots and (name, place) in SHOTS:
+    _shot(page, name, place, shots)
+
+
+#: The first plot shown, scrolled to the top of its panel (on a phone: of the bottom sheet, as a person would).
+FIRST_PLOT_UP = """() => {
+  const gd = [...document.querySelectorAll('.js-plotly-plot')].find(e => e.offsetParent !== null);
+  if (gd) gd.scrollIntoView({block: 'start'});
+}"""
+
+
+def _shot(page, mode: str, place: str, shots) -> None:
+    if shots and (mode, place) in SHOTS:
         _dismiss_notices(page)
+        if mode == "phone":
+            page.evaluate(FIRST_PLOT_UP)
+        page.mouse.move(1, 1)  # no hint of whatever the pointer was left over
         page.wait_for_timeout(300)
-        page.screenshot(path=os.path.join(shots, SHOTS[name, place]))
+        page.screenshot(path=os.path.join(shots, SHOTS[mode, place]))
+
+
+def _scene_shot(page, session, mode: str, shots) -> None:
+    """Presenter mode's other view, the 3-D scene (one switch away), pictured; then the plot again."""
+    if not shots or (mode, "scene") not in SHOTS:
+        return
+    session.presenter.toggle()
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    page.wait_for_timeout(1500)  # the camera moves to frame the loops
+    _shot(page, mode, "scene", shots)
+    session.presenter.toggle()
+    assert session.wait_idle(TIMEOUT_MS / 1000)
 
 
 def _walk(page, session, mode, shots, found) -> None:
     name, size, presenter = mode
-    page.set_viewport_size({"width": size[0], "height": size[1]})
     session.controls["presenter"].value = presenter
     assert session.wait_idle(TIMEOUT_MS / 1000)
     found[name] = {}
@@ -103,6 +133,28 @@ def _walk(page, session, mode, shots, found) -> None:
     for tab in TABS:
         reached = _tab_shown(page, session, tab, click=True)
         _measure(page, session, mode, f"tab:{tab}", shots, found, reached)
+    _scene_shot(page, session, name, shots)
+
+
+def _open(ctx, app):
+    """A new tab of ``app`` in browser context ``ctx``: (page, its session), its first view drawn."""
+
+    def ids() -> set:
+        with app._lock:  # tabs connect and leave on the server's threads
+            return set(app.sessions)
+
+    page = ctx.new_page()
+    before = ids()
+    page.goto(app.url, timeout=TIMEOUT_MS)
+    wait_until(lambda: ids() - before, "the new tab's session", TIMEOUT_MS / 1000)
+    new = max(ids() - before)
+    with app._lock:
+        session = app.sessions[new]
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
+    page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 2", timeout=TIMEOUT_MS)
+    _dismiss_notices(page)
+    return page, session
 
 
 def _write_report(path: str, found: dict) -> None:
@@ -131,18 +183,15 @@ def measured() -> dict:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
             try:
-                ctx = browser.new_context(viewport={"width": 1366, "height": 768})
-                page = ctx.new_page()
-                page.goto(app.url, timeout=TIMEOUT_MS)
-                session = app.wait_for_sessions(1, timeout=TIMEOUT_MS / 1000)[0]
-                page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
-                page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 2", timeout=TIMEOUT_MS)
-                _dismiss_notices(page)
-                for mode in modes:
+                for mode in modes:  # each mode a tab of its own opened at its size, as a phone or a projector would
+                    ctx = browser.new_context(viewport={"width": mode[1][0], "height": mode[1][1]})
                     try:
+                        page, session = _open(ctx, app)
                         _walk(page, session, mode, shots, found)
                     except Exception as exc:  # this mode fails on it; the other modes are still measured
                         found.setdefault(mode[0], {})["walk"] = [Problem("none", mode[0], f"walk failed: {exc!r}")]
+                    finally:
+                        ctx.close()
             finally:
                 browser.close()
     finally:
@@ -152,18 +201,7 @@ def measured() -> dict:
     return found
 
 
-#: The phone layout (issue 29, item 2) is not built yet: at 390 × 844 no plots tab can be brought forward and
-#: the plots drawn in the sheet are ~250 px wide. Strict: the day it passes, this mark must go.
-PHONE_TODO = pytest.mark.xfail(strict=True, reason="no phone layout yet (issue 29, item 2)")
-
-
-#: Presenter mode, not yet clean: multi-line titles stand out of the figure's top edge (16 texts at 1920 × 1080)
-#: and, at 1366 × 768, some tick labels of the views below the key plot still touch (24 pairs).
-PRESENTER_TODO = pytest.mark.xfail(strict=False, reason="presenter: titles cut off at the top (issue 29, item 3)")
-_TODO = {"phone": PHONE_TODO, "laptop-presenter": PRESENTER_TODO, "hd-presenter": PRESENTER_TODO}
-
-
-@pytest.mark.parametrize("mode", [pytest.param(m[0], marks=_TODO[m[0]]) if m[0] in _TODO else m[0] for m in MODES])
+@pytest.mark.parametrize("mode", [m[0] for m in MODES])
 def test_every_plot_is_legible(measured, mode):
     if mode not in measured:
         pytest.skip(f"{mode} not in QSID_LEGIBILITY_MODES")
