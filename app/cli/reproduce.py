@@ -172,7 +172,7 @@ def _curve_panels(d: dict, label: str, R: int) -> list:
     fb.update_yaxes(title_text="‖B − B̂‖ / ‖B‖")
     fc = cost_figure({label: rows}, true_cost=d["mpc_cost_true_model"], height=420)
     fc.update_layout(
-        title=f"(c) closed-loop MPC cost on the true system vs b (mean ± std, {R} realizations)",
+        title=dict(text=f"(c) closed-loop MPC cost on the true system vs b (mean ± std, {R} realizations)"),
         margin=dict(l=60, r=20, t=60, b=50),
     )
     return [
