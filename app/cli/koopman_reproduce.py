@@ -110,6 +110,7 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
 
     from plotly.offline import get_plotlyjs
 
+    from app.figures.presenter import legible_figure
     from qsid_core import QuantizerSpec
     from qsid_core.studies import NO_CERTIFICATES, KoopmanExperiment
 
@@ -133,7 +134,7 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
     rep.stage(f"nonlinear sweep of {ex.system.name}, lifting {cfg.lifting}, LS and BCLS, b = {bits[0]}..{bits[-1]}")
     ex.moments(bits)
     rows = {lab: [ex.row(b, e) for b in bits] for e, lab in _LABELS.items()}
-    panels = _panels(ex, rows)
+    panels = [(stem, legible_figure(fig)) for stem, fig in _panels(ex, rows)]  # the dashboard's laptop style
     rep.stage(f"writing figures to {outdir}")
     write_text(outdir / "plotly.min.js", get_plotlyjs())
     written = []

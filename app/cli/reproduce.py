@@ -269,6 +269,8 @@ def _out_dir(text: str, force: bool, inputs: Sequence[Path] = ()) -> Path:
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from plotly.offline import get_plotlyjs
 
+    from app.figures.presenter import legible_figure
+
     if koopman.wanted(args):  # a nonlinear --system: its own figures
         return koopman_reproduce.run(args, rep, _out_dir(args.out, args.force, input_files(args)))
     system = system_from_args(args)
@@ -285,7 +287,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     rep.stage(f"writing figures to {outdir}")
     write_text(outdir / "plotly.min.js", get_plotlyjs())  # matches the plotly that draws the figures
     portrait_panels, portraits, true_states = _portrait_panels(ex, system, label, R)
-    panels = _curve_panels(d, label, R) + portrait_panels
+    # the dashboard's laptop style: no text under 11 px, one labelled tick per decade on log axes
+    panels = [(stem, h, legible_figure(fig)) for stem, h, fig in _curve_panels(d, label, R) + portrait_panels]
     written = []
     for stem, _, fig in panels:
         path = outdir / f"{stem}.html"
