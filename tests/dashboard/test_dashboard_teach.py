@@ -27,6 +27,7 @@ from app.dashboard.viewcodes import (
     view_link,
 )
 from app.figures.presenter import PLOT_FONT, presenter_figure
+from app.figures.registry import KOOPMAN_VIEWS
 
 # slow: each test starts a dashboard and waits for drawn frames (auto-play steps b once a second)
 pytestmark = pytest.mark.slow
@@ -240,7 +241,9 @@ def test_presenter_mode_enlarges_every_plot_and_thickens_lines(tab):
     s = tab.session
     assert s.presenter.on and s.portrait.traj.thickness > 2.0 and s.portrait.true.thickness > 5.0
     assert s.presenter.style.visible and "font-size:max(16px" in s.presenter.style.content
-    for name, h in s.plots.items():
+    drawn = {name: h for name, h in s.plots.items() if h.figure.data}
+    assert {"error", "bits", "bound"} <= set(drawn) and not set(drawn) & {v.name for v in KOOPMAN_VIEWS}
+    for name, h in drawn.items():
         sizes = _font_sizes(h.figure)
         assert sizes and min(sizes) >= PLOT_FONT, name
         assert h.figure.layout.font.size >= PLOT_FONT
