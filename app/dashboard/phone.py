@@ -60,16 +60,22 @@ class PhoneLayout:
     portrait : :class:`~app.dashboard.scene.PhasePortrait`
     on_change : callable()
         Marks the tab dirty (the worker then calls :meth:`apply`).
+    aspect : float, optional
+        Width / height of the canvas when the tab connected, read before the tab docked any panel (default: the
+        camera's now; once the tab's own panels are laid out, the canvas no longer has the window's shape).
     """
 
-    def __init__(self, gui, camera, controls, plots_panel, portrait, on_change: Callable[[], None]):
+    def __init__(
+        self, gui, camera, controls, plots_panel, portrait, on_change: Callable[[], None], aspect: float | None = None
+    ):
         self.controls = controls
         self.plots_panel = plots_panel
         self.portrait = portrait
         self._lock = threading.Lock()
         self._on_change = on_change
-        aspect = canvas_aspect(camera)
-        self._narrow = aspect is not None and aspect < NARROW  # the whole window: nothing is docked yet
+        if aspect is None:
+            aspect = canvas_aspect(camera)
+        self._narrow = aspect is not None and aspect < NARROW  # the whole window: no panel of the tab's docked yet
         self._aspect = aspect or 1.0
         self._settings = False  # the settings shown on a phone
         self.narrow = False  # what is applied

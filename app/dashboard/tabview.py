@@ -20,7 +20,7 @@ from .controls import GuiElements, make_gui_elements, read_values
 from .follow import Drawn, Sent
 from .frames import Frame
 from .koopman_render import KoopmanRenderer
-from .phone import PhoneLayout
+from .phone import PhoneLayout, canvas_aspect
 from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
 from .scene import PhasePortrait
@@ -83,6 +83,9 @@ class TabView:
     ):
         self.client = client
         self.touch = touch
+        # the canvas's shape before this tab docks a panel of its own (read later, it depends on which of them
+        # the browser had laid out when it last sent the camera): the window's shape, less viser's panel
+        connect_aspect = canvas_aspect(client.camera)
         #: settings that arrived from a file or a view code; the worker applies them at its next run
         self.pending: Values | None = None
         gui = client.gui
@@ -108,7 +111,9 @@ class TabView:
         self.koopman_renderer = KoopmanRenderer()  # a nonlinear plant's frames (app.dashboard.koopman_render)
         self.portrait = PhasePortrait(client.scene, camera=client.camera)
         self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.controls.play, touch)
-        self.phone = PhoneLayout(gui, client.camera, self.controls, self.plots_panel, self.portrait, touch)
+        self.phone = PhoneLayout(
+            gui, client.camera, self.controls, self.plots_panel, self.portrait, touch, aspect=connect_aspect
+        )
         phone_sheet_style(gui)  # viser's phone sheet across the window, at most half its height
         self.last_error: str | None = None
         #: what the last draw pushed (a leader's followers push the same: :mod:`app.dashboard.follow`)

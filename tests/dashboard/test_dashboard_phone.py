@@ -101,3 +101,32 @@ def test_a_laptop_tab_stays_a_laptop_tab_whatever_its_docked_canvas_looks_like(t
     tab.ws.send(msgspec.msgpack.encode(PHONE))  # panels docked: the canvas is narrow, the window is not
     tab.set(bits=5)
     assert not phone.narrow and tab.controls.tabs.visible
+
+
+def test_the_window_shape_is_the_canvas_s_before_the_tab_docks_its_panels():
+    """The tab reads the canvas's shape first thing when it connects: by the time its panels are built, the browser
+    may have laid them out and sent a narrow canvas (a laptop in presenter mode: 334 × 768), which says nothing
+    about the window."""
+    from types import SimpleNamespace
+
+    from app.dashboard.phone import PhoneLayout
+
+    class Handle(SimpleNamespace):
+        def on_click(self, _f):
+            pass
+
+    class Gui:
+        def add_button(self, label, **kw):
+            return Handle(label=label, order=0.0, **kw)
+
+    class Camera:  # what the camera says now: the tab's panels docked
+        image_width, image_height = 334, 768
+
+        def on_update(self, _f):
+            pass
+
+    controls = SimpleNamespace(lesson_text=Handle(order=1.0), status=Handle(order=2.0), _bits=Handle(order=3.0))
+    controls = type("C", (SimpleNamespace,), {"__getitem__": lambda self, k: self._bits})(**vars(controls))
+    now = PhoneLayout(Gui(), Camera(), controls, None, None, lambda: None)
+    at_connect = PhoneLayout(Gui(), Camera(), controls, None, None, lambda: None, aspect=1366 / 768)
+    assert now.wanted and not at_connect.wanted
