@@ -4,7 +4,9 @@ For each mode of :data:`MODES` (1366×768 and 1920×1080, normal and presenter; 
 tab at that size (the server tells a phone from its canvas's shape when the tab connects, as for a real phone),
 opens every tab of the plots panel and every lesson, and measures the text boxes of every plotly figure shown
 (:data:`legibility.TEXT_BOXES`); :func:`legibility.judge` fails on overlapping text, text under the floor
-(10 px, 16 px in presenter mode), text cut off at a figure's edge, or a figure narrower than 340 px.
+(10 px, 16 px in presenter mode), text cut off at a figure's edge, or a figure narrower than 340 px. For each
+lesson it also checks what a teacher needs (:func:`_teacher_checks`): the key plot above the fold and, in presenter
+mode, panel text at least ``PANEL_FONT`` and the key plot across most of the window.
 
 Environment:
 
@@ -23,9 +25,10 @@ import pytest
 from legibility import NORMAL_FLOOR, PRESENTER_FLOOR, TEXT_BOXES, Problem, judge, summary
 from support import wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
-from test_dashboard_teach_browser import ACTIVE_TAB, _dismiss_notices
+from test_dashboard_teach_browser import ACTIVE_TAB, KEY_PLOT_WIDTH, PANEL_TEXT, TOP_PLOT, _dismiss_notices
 
 from app.dashboard.lessons import LESSONS, NONE
+from app.dashboard.presenter import PANEL_FONT
 from app.figures.registry import ALL_VIEWS, TABS
 
 pytestmark = pytest.mark.browser
@@ -116,6 +119,26 @@ def _scene_shot(page, session, mode: str, shots) -> None:
     assert session.wait_idle(TIMEOUT_MS / 1000)
 
 
+def _teacher_checks(page, mode, lesson: str) -> list:
+    """What a teacher opening ``lesson`` needs beyond legible text: its key plot starts above the fold (but on a
+    phone, where the sheet scrolls); in
+    presenter mode the panel's text is large too and the key plot spans most of the window (one view at a
+    time; the 3-D scene is one switch away)."""
+    name, size, presenter = mode
+    out = []
+    top = page.evaluate(TOP_PLOT)
+    if name != "phone" and not top < size[1]:  # (a phone's plots follow the slider and the lesson's text)
+        out.append(Problem("none", lesson, f"the key plot starts below the fold, at {top:.0f} px"))
+    if presenter:
+        panel, what = page.evaluate(PANEL_TEXT)
+        if panel < PANEL_FONT:
+            out.append(Problem("none", lesson, f"panel text {panel:.1f} px < {PANEL_FONT} px: {what!r}"))
+        width = page.evaluate(KEY_PLOT_WIDTH)
+        if width < 0.6 * size[0]:
+            out.append(Problem("none", lesson, f"the key plot is {width:.0f} px wide, under 60 % of the window"))
+    return out
+
+
 def _walk(page, session, mode, shots, found) -> None:
     name, size, presenter = mode
     session.controls["presenter"].value = presenter
@@ -128,6 +151,7 @@ def _walk(page, session, mode, shots, found) -> None:
         tab = next(v.tab for v in ALL_VIEWS if v.name == les.plot)
         reached = _tab_shown(page, session, tab, click=False)
         _measure(page, session, mode, f"lesson:{les.name}", shots, found, reached)
+        found[name][f"lesson:{les.name}"] += _teacher_checks(page, mode, les.name)
     session.controls["lesson"].value = LESSONS[0].name
     assert session.wait_idle(TIMEOUT_MS / 1000)
     for tab in TABS:

@@ -1,11 +1,11 @@
-"""A teacher's walkthrough in headless Chromium: every lesson, presenter mode on and off, auto-play, reload, links.
+"""A teacher's session in headless Chromium: presenter mode from the server's flag, auto-play, reload, links.
 
-At 1366×768 with presenter mode on and at 1920×1080 with it off, every lesson is opened; measured in the page:
-plot text sizes (``getComputedStyle`` on plotly's SVG text), panel text sizes, the key plot's width in presenter
-mode, where the lesson's key plot starts. Then auto-play runs a few word lengths, a reload brings the tab's settings back, and
-the tab's link opened in a second page shows the same settings under a code of its own. With ``QSID_SCREENSHOT_DIR=assets`` the
-screenshots of docs/teaching.rst are written there.
-"""
+At 1366×768 with presenter mode on (``qsid-dashboard --presenter``) and at 1920×1080 with it off: the new tab's
+plot text is in its mode's size; auto-play runs a few word lengths, a reload brings the tab's settings back, and
+the tab's link opened in a second page shows the same settings under a code of its own. Every lesson at these
+sizes (its key plot above the fold, presenter mode's text and plot sizes) is checked by
+``test_dashboard_legibility.py``, which opens each lesson once per mode on one server. With
+``QSID_SCREENSHOT_DIR=assets`` the auto-play screenshot of docs/teaching.rst is written there."""
 
 from __future__ import annotations
 
@@ -17,7 +17,6 @@ from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 
 import app.dashboard.presenter as presenter_module
 from app.dashboard.lessons import LESSONS, get_lesson
-from app.dashboard.presenter import PANEL_FONT
 from app.dashboard.viewcodes import view_link
 from app.figures.presenter import PLOT_FONT
 from app.figures.registry import ALL_VIEWS
@@ -68,10 +67,6 @@ ACTIVE_TAB = """() => {
 }"""
 
 
-#: The lessons pictured here (the others of docs/teaching.rst: test_dashboard_legibility.py): (lesson, presenter).
-SHOTS: set = set()
-
-
 def _dismiss_notices(page) -> None:
     close = page.locator(".mantine-Notification-closeButton")
     for i in range(close.count()):
@@ -94,33 +89,6 @@ def _open(ctx, app, url, count):
     return page, session
 
 
-def _walk_lessons(page, session, size, presenter: bool, shots) -> None:
-    for les in LESSONS:
-        session.controls["lesson"].value = les.name
-        tab = next(v.tab for v in ALL_VIEWS if v.name == les.plot)
-        page.wait_for_function(f"({ACTIVE_TAB})() === {tab!r}", timeout=TIMEOUT_MS)
-        assert session.wait_idle(TIMEOUT_MS / 1000)
-        assert session.last_frame.values.lesson == les.name and session.last_frame.values.presenter == presenter
-        page.wait_for_timeout(700)  # plotly lays the new figures out
-        top = page.evaluate(TOP_PLOT)
-        assert top < size[1], (les.name, top)  # the key plot starts above the fold
-        small, n = page.evaluate(PLOT_TEXT)
-        assert n > 0
-        if presenter:
-            assert small >= PLOT_FONT, (les.name, small)
-            panel, what = page.evaluate(PANEL_TEXT)
-            assert panel >= PANEL_FONT, (les.name, panel, what)
-            # one view at a time: the key plot across most of the window (the 3-D scene is one switch away)
-            width = page.evaluate(KEY_PLOT_WIDTH)
-            assert width >= 0.6 * size[0], (les.name, width)
-        else:
-            assert small < PLOT_FONT  # the normal style is the smaller one
-        if shots and (les.name, presenter) in SHOTS:
-            _dismiss_notices(page)
-            page.wait_for_timeout(500)
-            page.screenshot(path=os.path.join(shots, f"teach-{les.name}-{'presenter' if presenter else 'normal'}.png"))
-
-
 @pytest.mark.parametrize("size,presenter", [((1366, 768), True), ((1920, 1080), False)])
 def test_teacher_walkthrough(size, presenter, monkeypatch):
     _require_browser()
@@ -141,7 +109,11 @@ def test_teacher_walkthrough(size, presenter, monkeypatch):
                 # the server redirected the page to an address holding the tab's code (a reload comes back to it)
                 assert f"/n/{code}/" in page.evaluate("() => location.search")
                 assert page.locator(f"text=view code {code}").count() >= 1
-                _walk_lessons(page, s, size, presenter, shots)
+                # the server's presenter flag reaches a new tab: its values, and its plots' text size
+                assert s.last_frame.values.presenter == presenter
+                page.wait_for_timeout(700)  # plotly lays the figures out
+                small, n = page.evaluate(PLOT_TEXT)
+                assert n > 0 and (small >= PLOT_FONT if presenter else small < PLOT_FONT), small
 
                 # auto-play: a few word lengths, one after the other, each drawn before the next
                 s.controls["lesson"].value = "bound"
