@@ -30,7 +30,7 @@ def plot_aspect(style: str, name: str, fig) -> float:
         return max(PLOT_ASPECT, round(float(height) / PRESENTER_SIZE[0], 3))
     if style == "phone" and height:
         return round(float(height) / PHONE_WIDTH, 3)
-    return next(v.aspect for v in registry.ALL_VIEWS if v.name == name)
+    return next(v.aspect for v in registry.VIEWS + registry.KOOPMAN_VIEWS if v.name == name)  # (read now)
 
 
 def build_figures(frame: Frame, which=None) -> dict:

@@ -63,7 +63,7 @@ def test_the_camera_comes_closer_to_small_loops_but_keeps_the_axes_ends_in_view(
 
 def test_a_phone_tab_gets_the_phone_layout_and_a_sideways_one_the_laptop_layout(dashboard):
     assert 780 / 1688 < NARROW and 1688 / 780 > WIDE_AGAIN
-    tab = Tab(dashboard, PHONE)
+    tab = Tab(dashboard, camera=PHONE)
     try:
         tab.set(mpc_steps=15, **SMALL)
         s, c = tab.session, tab.controls
