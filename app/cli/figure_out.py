@@ -105,9 +105,11 @@ def write_figure(result: SweepResult, path: Path | None, view: str, rep: Reporte
     """Draw ``result`` (a SweepResult) as ``view`` into ``path`` (nothing when ``path`` is None)."""
     if path is None:
         return
+    from app.figures.presenter import legible_figure
     from app.figures.results import plot_results
 
-    written = save(plot_results(result, view=view), path, rep)
+    # the dashboard's laptop style: no text under 11 px, one labelled tick per decade on log axes
+    written = save(legible_figure(plot_results(result, view=view)), path, rep)
     rep.stage(f"figure ({view}) written to {written}")
 
 

@@ -86,14 +86,19 @@ def _panels(ex: KoopmanExperiment, rows: dict[str, list[dict[str, Any]]]) -> lis
 
     R, s = ex.config.realizations, ex.system.name
     fa = error_figure(rows, None, ex.config.quantizer.guard, height=460)
-    fa.update_layout(title=f"(a) {s}: error of [A_z, B_z] vs the unquantized EDMD (mean ± std, {R} realizations)")
+    fa.update_layout(
+        title=dict(text=f"(a) {s}: error of [A_z, B_z] vs the unquantized EDMD (mean ± std, {R} realizations)")
+    )
     fb = prediction_figure(rows, None, ex.reference()[1], ex.horizon, height=420)
-    fb.update_layout(title=f"(b) {ex.horizon}-step prediction error on held-out runs", margin=dict(t=60))
+    fb.update_layout(title=dict(text=f"(b) {ex.horizon}-step prediction error on held-out runs"), margin=dict(t=60))
     fc = outcomes_figure(rows, None, height=420)
+    fc.update_layout(
+        title=dict(text=f"(c) Koopman MPC on the true plant, share of {R} loops per b (LS left · BCLS right)")
+    )
     eigs = {lab: lifted_eigenvalues(ex.models(EIGEN_BITS, e).models) for e, lab in _LABELS.items()}
     fd = eigen_figure(eigs, np.linalg.eigvals(ex.reference()[0].A), height=460)
     fd.data[1].name = "unquantized EDMD"
-    fd.update_layout(title=f"(d) eigenvalues of A_z at b = {EIGEN_BITS}", margin=dict(t=60))
+    fd.update_layout(title=dict(text=f"(d) eigenvalues of A_z at b = {EIGEN_BITS}"), margin=dict(t=60))
     out = [("a_error", fa), ("b_prediction", fb), ("c_outcomes", fc), ("d_eigenvalues", fd)]
     return out + [(f"{t}_phase_b{b}", _portrait(ex, b, t)) for t, b in zip("efg", PORTRAIT_BITS)]
 
@@ -105,6 +110,7 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
 
     from plotly.offline import get_plotlyjs
 
+    from app.figures.presenter import legible_figure
     from qsid_core import QuantizerSpec
     from qsid_core.studies import NO_CERTIFICATES, KoopmanExperiment
 
@@ -128,7 +134,7 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
     rep.stage(f"nonlinear sweep of {ex.system.name}, lifting {cfg.lifting}, LS and BCLS, b = {bits[0]}..{bits[-1]}")
     ex.moments(bits)
     rows = {lab: [ex.row(b, e) for b in bits] for e, lab in _LABELS.items()}
-    panels = _panels(ex, rows)
+    panels = [(stem, legible_figure(fig)) for stem, fig in _panels(ex, rows)]  # the dashboard's laptop style
     rep.stage(f"writing figures to {outdir}")
     write_text(outdir / "plotly.min.js", get_plotlyjs())
     written = []

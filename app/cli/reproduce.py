@@ -172,7 +172,7 @@ def _curve_panels(d: dict, label: str, R: int) -> list:
     fb.update_yaxes(title_text="‖B − B̂‖ / ‖B‖")
     fc = cost_figure({label: rows}, true_cost=d["mpc_cost_true_model"], height=420)
     fc.update_layout(
-        title=f"(c) closed-loop MPC cost on the true system vs b (mean ± std, {R} realizations)",
+        title=dict(text=f"(c) closed-loop MPC cost on the true system vs b (mean ± std, {R} realizations)"),
         margin=dict(l=60, r=20, t=60, b=50),
     )
     return [
@@ -269,6 +269,8 @@ def _out_dir(text: str, force: bool, inputs: Sequence[Path] = ()) -> Path:
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from plotly.offline import get_plotlyjs
 
+    from app.figures.presenter import legible_figure
+
     if koopman.wanted(args):  # a nonlinear --system: its own figures
         return koopman_reproduce.run(args, rep, _out_dir(args.out, args.force, input_files(args)))
     system = system_from_args(args)
@@ -285,7 +287,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     rep.stage(f"writing figures to {outdir}")
     write_text(outdir / "plotly.min.js", get_plotlyjs())  # matches the plotly that draws the figures
     portrait_panels, portraits, true_states = _portrait_panels(ex, system, label, R)
-    panels = _curve_panels(d, label, R) + portrait_panels
+    # the dashboard's laptop style: no text under 11 px, one labelled tick per decade on log axes
+    panels = [(stem, h, legible_figure(fig)) for stem, h, fig in _curve_panels(d, label, R) + portrait_panels]
     written = []
     for stem, _, fig in panels:
         path = outdir / f"{stem}.html"

@@ -136,6 +136,7 @@ class GuiElements:
     q_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
     r_sliders: list[viser.GuiSliderHandle[float]] = field(default_factory=list)
     system_key: tuple[Any, ...] | None = None
+    theory_note: viser.GuiMarkdownHandle | None = None  # shown for a nonlinear plant in the Theory tab
     scale_buttons: list[viser.GuiButtonHandle] = field(default_factory=list)  # paper scale, interactive
 
     def __getitem__(self, name: str) -> Any:
@@ -234,6 +235,8 @@ def make_gui_elements(
     tabs = extra["tabs"] = gui.add_tab_group()
     for tab in dict.fromkeys(c.tab for c in CONTROLS if c.tab):
         with tabs.add_tab(tab):
+            if tab == "Theory":  # (viser cannot hide a tab: for a nonlinear plant it says why it is empty)
+                extra["theory_note"] = gui.add_markdown(THEORY_NOTE, visible=False)
             folders: dict = {}
             for c in (c for c in CONTROLS if c.tab == tab):
                 if c.folder is None:
@@ -252,6 +255,13 @@ def make_gui_elements(
     el = GuiElements(gui=gui, inputs=handles, on_change=on_change, **extra)
     set_system(el, system, values.log_q, values.log_r, reset=False)
     return el
+
+
+#: The Theory tab's text for a nonlinear plant (its settings are the linear theory's, hidden then).
+THEORY_NOTE = (
+    "The settings here (θ of Theorem 1's data, the ultimate bound's ρ and its plot) belong to the linear theory: "
+    "for a nonlinear plant they are not used, and the Nonlinear plots show observed outcomes only."
+)
 
 
 def _system_note(name: str) -> str:

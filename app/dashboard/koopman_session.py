@@ -55,6 +55,8 @@ class KindSwitch:
                 c[name].visible = nonlinear
             for button, paper in zip(c.scale_buttons, (True, False)):
                 button.label = scale_label(system, paper)
+            if c.theory_note is not None:
+                c.theory_note.visible = nonlinear
             session.views.set_kind(nonlinear)
             self.nonlinear = nonlinear
         if nonlinear:  # (the linear code keeps fixed_range's visibility in read_values)

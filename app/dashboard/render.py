@@ -31,7 +31,7 @@ def plot_aspect(style: str, name: str, fig) -> float:
         return max(PLOT_ASPECT, round(float(height) / PRESENTER_SIZE[0], 3))
     if style == "phone" and height:
         return round(float(height) / PHONE_WIDTH, 3)
-    return next(v.aspect for v in registry.VIEWS + registry.KOOPMAN_VIEWS if v.name == name)  # (read now)
+    return next(v.aspect for v in registry.VIEWS + registry.KOOPMAN_VIEWS if v.name == name)  # read at call time
 
 
 def build_figures(frame: Frame, which=None) -> dict:

@@ -73,7 +73,8 @@ def _floored(ys: list[float], floor: float | None) -> tuple[list[float], bool]:
 
 
 def _no_bound(rows: Rows) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """Shapes and notes shading the b where the letter's delta >= rho (its proof then gives no bound)."""
+    """Shapes shading the b where the letter's delta >= rho (its proof then gives no bound), and the legend's key
+    to them (a trace without data)."""
     bad = sorted(r["bits"] for r in rows if r.get("bound_self_consistent") is False)
     runs: list[list[int]] = []
     for b in bad:
@@ -97,20 +98,17 @@ def _no_bound(rows: Rows) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
         )
         for lo, hi in runs
     ]
-    notes = [
-        dict(
-            text="δ ≥ ρ: no bound",
-            x=(lo + hi) / 2,
-            xref="x",
-            y=0.02,
-            yref="paper",
-            showarrow=False,
-            yanchor="bottom",
-            font=dict(size=9, color=COLORS["ref"]),
-        )
-        for lo, hi in runs
-    ]
-    return shapes, notes
+    # named in the legend, not written over the traces: a grey square for the shaded word lengths
+    key = dict(
+        type="scatter",
+        x=[None],
+        y=[None],
+        mode="markers",
+        marker=dict(symbol="square", size=12, color=COLORS["ref"], opacity=0.3),
+        name="shaded: δ ≥ ρ, no bound",
+        hoverinfo="skip",
+    )
+    return shapes, [key] if runs else []
 
 
 def bound_figure(
@@ -158,9 +156,9 @@ def bound_figure(
         conv = conv or floored
     shapes = mark_bits(current_bits)
     first_rows = next(iter(series.values()), [])
-    shade, shade_notes = _no_bound(first_rows)
+    shade, shade_key = _no_bound(first_rows)
     shapes += shade
-    notes = [_caption(steps), *shade_notes]
+    notes = [_caption(steps)]
     if x0_norm is not None and x0_norm > 0:
         shapes.append(hline(float(x0_norm), "y", COLORS["true"], "dashdot", 1.0))
         notes.append(hline_note(x0_norm, f"‖x0‖ = {x0_norm:.3g}", x=0.0, size=9))
@@ -177,6 +175,7 @@ def bound_figure(
     if conv and floor is not None and (rng is None or np.log10(floor) >= rng[0]):
         shapes.append(hline(float(floor), "y", COLORS["ref"], "dot", 1.0))
         notes.append(hline_note(floor, "converged (‖x_T‖ ≤ 1e-12‖x0‖)", where="bottom", size=9))
+    data += shade_key
     return figure(
         data,
         dict(

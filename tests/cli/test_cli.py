@@ -200,6 +200,8 @@ def test_reproduce_writes_offline_panels(capsys, tmp_path):
         html = (out_dir / f"{name}.html").read_text(encoding="utf-8")
         assert not re.search(r"<script[^>]*src=[\"']?(https?:)?//", html), name  # offline: no remote script
         assert 'src="plotly.min.js"' in html
+        if name != "index":  # every panel draws its title (plotly.js takes a title as {"text": ...} only)
+            assert re.search(r'"title":\{"text":"\([a-f]\) ', html), name
     assert (out_dir / "plotly.min.js").stat().st_size > 1_000_000
     index = (out_dir / "index.html").read_text(encoding="utf-8")
     assert all(f"{p}.html" in index for p in panels) and index.count('class="panel"') == 6

@@ -94,15 +94,17 @@ def test_reproduce_draws_one_and_two_state_systems_with_a_time_axis(capsys, tmp_
     pp = data["phase_portraits"]
     assert pp["drawn_states"] == list(range(n)) and pp["time_axes"] == list(range(n, 3))
     html = (out_dir / "d_phase_b2.html").read_text()
-    traces = html.split("Plotly.newPlot(", 1)[1].split('{"template"', 1)[0]  # the data, before the layout
-    types = set(re.findall(r'"type":\s*"(\w+)"', traces))
+    args = html.split("Plotly.newPlot(", 1)[1].split(",", 1)[1].lstrip()  # after the div's id: data, layout
+    traces, end = json.JSONDecoder().raw_decode(args)
+    layout = json.JSONDecoder().raw_decode(args[end:].lstrip(", \n"))[0]
+    types = {t["type"] for t in traces}
     steps = len(pp["true_model_states"])
     if n == 2:  # 3-D: x1, x2 and the step k on z
         assert types == {"scatter3d"} and "time (step k) on the third axis" in html
-        assert '"zaxis":{"title":{"text":"stepk(time)"}}' in html.replace(" ", "")
+        assert layout["scene"]["zaxis"]["title"]["text"] == "step k (time)"
     else:  # 2-D: x1 against the step k
         assert types == {"scatter"} and "the state against time (step k)" in html
-        assert '"xaxis":{"title":{"text":"stepk(time)"}}' in html.replace(" ", "")
+        assert layout["xaxis"]["title"]["text"] == "step k (time)"
     assert steps == 51 and len(pp["by_bits"]["2"]["states"][0][0]) == n
 
 

@@ -22,6 +22,8 @@ def test_reproduce_writes_the_nonlinear_figures_and_the_sweeps_rows(tmp_path, ca
     page = (out / "a_error.html").read_text()
     assert "LS: quantized EDMD" in page and "BCLS: quantized EDMD" in page and "LS large-data limit" in page
     assert "free flow (u = 0)" in (out / "e_phase_b2.html").read_text()
+    for name in want:  # every panel draws its title (plotly.js takes a title as {"text": ...} only)
+        assert '"title":{"text":"(' in (out / f"{name}.html").read_text(), name
     data = json.loads((out / "data.json").read_text())
     assert data["bits"] == [2, 3, 4, 6] and "do not apply" in data["certificates"]
     capsys.readouterr()

@@ -104,7 +104,7 @@ def test_a_follower_shows_the_leaders_settings_and_pictures_without_computing(da
         assert f.session.views.shown == tab.session.views.shown  # the lesson's key view, as the teacher's
         assert f.session.controls.lesson_text.content == tab.session.controls.lesson_text.content
         assert f.summary == tab.summary and "ready" in f.session.controls.status.content
-        for v in VIEWS:  # every group's, the very JSON the leader made: nothing built again
+        for v in VIEWS:  # every group's linear views (the nonlinear ones stay blank): the leader's very JSON
             assert f.session.plots[v.name]._plotly_json_str is tab.session.plots[v.name]._plotly_json_str, v.name
         assert f.session.timings == {} and f.session.ui.renderer.figures == {}  # never computed, never rendered
         assert dashboard.views.get("abcdef") is None  # a follower keeps no settings of its own

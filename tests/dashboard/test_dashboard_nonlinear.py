@@ -100,6 +100,7 @@ def test_the_panel_switches_to_a_nonlinear_plant_and_back(tab):
         k: linear[k] for k in NL_INTERACTIVE
     }  # the small test size was the person's own: kept
     assert all(not c[n].visible for n in LINEAR_ONLY) and all(c[n].visible for n in NONLINEAR_ONLY)
+    assert c.theory_note is not None and c.theory_note.visible  # the Theory tab says why it is empty
     assert tab.session.views.shown == "Nonlinear"
     assert tuple(tab.session.views.group.options) == registry.KOOPMAN_TABS
     for name in (v.name for v in registry.KOOPMAN_VIEWS):
@@ -110,6 +111,7 @@ def test_the_panel_switches_to_a_nonlinear_plant_and_back(tab):
     assert all(c[n].visible for n in LINEAR_ONLY if n not in ("fixed_range", "axes")) and not any(
         c[n].visible for n in NONLINEAR_ONLY
     )
+    assert not c.theory_note.visible
 
 
 @pytest.mark.slow  # the whole interactive nonlinear tab, in-process

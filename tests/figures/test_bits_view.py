@@ -52,7 +52,8 @@ def test_bound_view_shades_where_the_proof_gives_nothing_and_marks_x0():
     rects = [sh for sh in fig.layout.shapes if sh.type == "rect"]
     assert [(r.x0, r.x1) for r in rects] == [(0.5, 2.5)]
     texts = [a.text for a in fig.layout.annotations]
-    assert "δ ≥ ρ: no bound" in texts and any(t.startswith("‖x0‖ = 1.41") for t in texts)
+    assert any(t.startswith("‖x0‖ = 1.41") for t in texts) and not any("no bound" in t for t in texts)
+    assert [tr.name for tr in fig.data if tr.name and "no bound" in tr.name] == ["shaded: δ ≥ ρ, no bound"]
 
 
 def test_time_series_title_counts_loops_that_do_not_converge():
