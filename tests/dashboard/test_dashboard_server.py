@@ -114,7 +114,7 @@ def test_word_length_change_moves_sphere_lines_and_marker(tab):
 # slow (~3 s): a tab's view computed in full twice
 @pytest.mark.slow
 def test_weight_change_redraws_cost_not_identification(tab):
-    cost = tab.session.plots["cost"].figure.to_json()
+    cost = tab.figure("cost").to_json()  # (the Control group shown: a tab builds the group it shows)
     idents = dict(tab.frame.idents)
     tab.controls.q_sliders[0].value = 1.5  # a weight slider (they follow the system, not the table)
     tab.wait()
