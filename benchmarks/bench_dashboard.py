@@ -6,13 +6,6 @@ Times what a browser tab's worker does for one change of settings:
 plus serialising every changed figure to JSON (what viser sends). Network and
 browser rendering are not included.
 
-A tab builds only the views of the plots group it shows. Each change is therefore made, interleaved, in two
-tabs with caches of their own: a fresh tab showing the default group (what a person gets; the row itself), and
-one that builds every group's views (``every group built``: what a tab followed by others does, and what every
-tab did before the views were built lazily). After each change the first tab shows the Control group (the
-``bits`` view: the small-gain certificate of every loop), which costs what the change left undone there
-(``then Control shown``); ``CPU ratio`` compares the first two side by side.
-
 Targets (issue 9 supersedes the dashboard issue's; each row prints its target and
 whether the measured median meets it):
 
@@ -78,101 +71,24 @@ from app.dashboard.settings import (
 BREAKDOWN: Breakdown | None = None
 
 
-def _group(tab: str) -> frozenset:
-    from app.figures import registry
-
-    return frozenset(v.name for v in registry.VIEWS if v.tab == tab)
-
-
-class Tab:
-    """One tab as the benchmark drives it: a shared cache, a renderer and summary rows of its own.
-
-    ``shown``: the views it builds (a group's names; None: every view, as a tab that others follow)."""
-
-    def __init__(self, shown: frozenset | None, executor, tasks: int):
-        self.cache, self.renderer, self.memo = SharedCache(), Renderer(), {}
-        self.shown, self.executor, self.tasks = shown, executor, tasks
-        self.last = None
-
-    def update(self, values: Values) -> dict:
-        """One change of settings, as a tab's worker handles it; returns seconds to the current b and to all
-        curves, and this process's CPU seconds."""
-        _start()
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = {"load": os.getloadavg()[0]}
-        for frame in iter_frames(values, self.cache, self.executor, self.tasks, memo=self.memo):
-            r = self.renderer.render(frame, values.axes, shown=self.shown)
-            for fig in r.figures.values():
-                fig.to_json()
-            if frame.stage == "current":
-                out["current"] = time.perf_counter() - t0
-            self.last = frame
-        return _stop(out, t0, c0)
-
-    def show(self, shown: frozenset) -> dict:
-        """Another group shown: the last frame drawn again with ``shown`` (nothing computed, as the tab does)."""
-        _start()
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = {"load": os.getloadavg()[0]}
-        r = self.renderer.render(self.last, self.last.values.axes, shown=shown)
-        for fig in r.figures.values():
-            fig.to_json()
-        out["current"] = time.perf_counter() - t0
-        return _stop(out, t0, c0)
-
-
-def _start() -> None:
+def update(values: Values, cache, renderer: Renderer, executor, tasks: int, memo: dict | None = None) -> dict:
+    """One change of settings, as a tab's worker handles it (``renderer`` and ``memo``: the tab's); returns
+    seconds to the current b and to all curves."""
     if BREAKDOWN is not None:
         BREAKDOWN.reset()
-
-
-def _stop(out: dict, t0: float, c0: float) -> dict:
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = {"load": os.getloadavg()[0]}
+    for frame in iter_frames(values, cache, executor, tasks, memo=memo):
+        r = renderer.render(frame, values.axes)
+        for fig in r.figures.values():
+            fig.to_json()
+        if frame.stage == "current":
+            out["current"] = time.perf_counter() - t0
     out["all"] = time.perf_counter() - t0
     out["cpu"] = time.process_time() - c0  # this process's threads only (not a process pool's workers)
     if BREAKDOWN is not None:
         out["breakdown"] = dict(BREAKDOWN.cpu)
     return out
-
-
-#: The group a new tab shows, and the group of the "how many bits" view.
-DEFAULT_GROUP, BITS_GROUP = "Identification", "Control"
-
-
-class Pair:
-    """The two tabs of the benchmark (see the module docstring), changed in turn."""
-
-    def __init__(self, executor, tasks: int):
-        self.user = Tab(_group(DEFAULT_GROUP), executor, tasks)
-        self.every = Tab(None, executor, tasks)
-        self.turn = 0
-
-    def change(self, values: Values, before: Values | None = None) -> dict:
-        """``values`` set in both tabs (after ``before``, untimed, if given), the order alternating; then the
-        first tab shows the Control group and the default one again. Returns the three measures."""
-        out: dict = {}
-        order = (("user", self.user), ("every", self.every))
-        for name, tab in order if self.turn % 2 == 0 else order[::-1]:
-            if before is not None:
-                tab.update(before)
-            out[name] = tab.update(values)
-            if name == "user":
-                out["shown"] = tab.show(_group(BITS_GROUP))
-                tab.show(tab.shown)
-        self.turn += 1
-        return out
-
-
-def rows(name: str, runs: list, target: str, limit_ms: float | None = None) -> None:
-    """The three measures of ``runs`` (:meth:`Pair.change`), each a row, and their CPU ratio."""
-    _row(name, [r["user"] for r in runs], target, limit_ms)
-    _row("  every group built", [r["every"] for r in runs], target, limit_ms)
-    _row(f"  then {BITS_GROUP} shown", [r["shown"] for r in runs], "-")
-    ratio = [r["user"]["cpu"] / r["every"]["cpu"] for r in runs if r["every"]["cpu"] > 0]
-    print(
-        f"  CPU ratio, default group / every group built (median min max over {len(ratio)} changes): "
-        f"{statistics.median(ratio):.2f} {min(ratio):.2f} {max(ratio):.2f}",
-        flush=True,
-    )
 
 
 def per_view(values: Values, cache, bits: list, executor, tasks: int, pinned=None) -> dict:
@@ -230,12 +146,13 @@ def _row(name: str, runs: list, target: str, limit_ms: float | None = None) -> N
 SATURATED = dict(system="boeing747", x0="20, 20, 0, 0")
 
 
-def saturated_runs(base: Values, tabs: Pair, repeat: int) -> list:
+def saturated_runs(base: Values, cache, renderer: Renderer, executor, tasks: int, repeat: int, memo=None) -> list:
     """Bound 1 -> 0.3 and 1 -> 0.2 on the Boeing from x0 = 20*[1,1,0,0], each a fresh data seed (no cache help)."""
     runs = []
     for i in range(repeat):
-        v = base.replace(**SATURATED, u_max=1.0, data_seed=300 + i)  # the unsaturated view the person starts from
-        runs.append(tabs.change(v.replace(u_max=(0.3, 0.2)[i % 2]), before=v))
+        v = base.replace(**SATURATED, u_max=1.0, data_seed=300 + i)
+        update(v, cache, renderer, executor, tasks, memo)  # the unsaturated view the person starts from
+        runs.append(update(v.replace(u_max=(0.3, 0.2)[i % 2]), cache, renderer, executor, tasks, memo))
     return runs
 
 
@@ -277,15 +194,14 @@ def _main(argv=None) -> int:
         f"{'change':<42} {'current b [ms]: median':>24} {'min':>4} {'max':>8}   "
         f"{'all curves [ms]: median':>8} {'min':>4} {'max':>8}   {'CPU ms':>6}   {'load':>9}  target"
     )
+    cache = SharedCache()
+    ren, memo = Renderer(), {}  # one tab's renderer and summary rows
     base = Values(system=a.system, identification=a.identification, **INTERACTIVE)
-    # kernels loaded and plotly's figure code imported once, by a tab of its own (other data: nothing cached)
-    Tab(None, ex, tasks).update(base.replace(data_seed=999))
-    tabs = Pair(ex, tasks)
-    rows("interactive: first view (cold cache)", [tabs.change(base)], "-")
+    cold = [update(base, cache, ren, ex, tasks, memo)]
+    _row("interactive: first view (cold cache)", cold, "-")
     bits = [5, 6, 3, 7, 4, 8, 2, 9, 10, 11]
-    runs = [tabs.change(base.replace(bits=b)) for b in bits[: a.repeat]]
-    rows("interactive: b change", runs, "<= 100 ms (all, dashboard issue); issue 9: <= 500 ms", 100)
-    cache = tabs.user.cache
+    runs = [update(base.replace(bits=b), cache, ren, ex, tasks, memo) for b in bits[: a.repeat]]
+    _row("interactive: b change", runs, "<= 100 ms (all, dashboard issue); issue 9: <= 500 ms", 100)
     pinned = list(iter_frames(base.replace(dither="none"), cache, ex, tasks))[-1]
     for label, pin in (("", None), (" + pinned overlay", pinned)):
         views = per_view(base, cache, bits[: a.repeat], ex, tasks, pin)
@@ -299,20 +215,24 @@ def _main(argv=None) -> int:
     runs = []
     for i in range(a.repeat):  # move the first Q and the last R slider, as a person would
         d = 0.1 * (i + 1)
-        runs.append(tabs.change(v.replace(log_q=(lq[0] + d,) + lq[1:], log_r=lr[:-1] + (lr[-1] - d,))))
-    rows("interactive: Q/R change", runs, "<= 500 ms (all)", 500)
-    runs = [tabs.change(v.replace(data_seed=100 + i)) for i in range(a.repeat)]
-    rows("interactive: data change (seed)", runs, "<= 500 ms (all)", 500)
-    runs = saturated_runs(base, tabs, a.repeat)
-    rows("interactive: saturated MPC (boeing |u|<=.3/.2)", runs, "<= 500 ms (all)", 500)
+        runs.append(
+            update(v.replace(log_q=(lq[0] + d,) + lq[1:], log_r=lr[:-1] + (lr[-1] - d,)), cache, ren, ex, tasks, memo)
+        )
+    _row("interactive: Q/R change", runs, "<= 500 ms (all)", 500)
+    runs = [update(v.replace(data_seed=100 + i), cache, ren, ex, tasks, memo) for i in range(a.repeat)]
+    _row("interactive: data change (seed)", runs, "<= 500 ms (all)", 500)
+    runs = saturated_runs(base, cache, ren, ex, tasks, a.repeat, memo)
+    _row("interactive: saturated MPC (boeing |u|<=.3/.2)", runs, "<= 500 ms (all)", 500)
     if not a.no_paper:
         paper = base.replace(**PAPER_SCALE)
-        tabs.change(paper)  # the dashboard's paper-scale button, once
-        runs = [tabs.change(paper.replace(data_seed=200 + i)) for i in range(max(2, a.repeat // 2))]
-        rows("paper scale: data change (seed)", runs, "<= 1500 ms (all)", 1500)
-        runs = [tabs.change(paper.replace(data_seed=200, bits=b)) for b in bits[: a.repeat]]
-        rows("paper scale: b change", runs, "-")
-    print(f"cache (the default group's tab): {len(cache)} entries, ~{cache.nbytes / 2**20:.0f} MB, {cache.kinds()}")
+        update(paper, cache, ren, ex, tasks, memo)  # the dashboard's paper-scale button, once
+        runs = [
+            update(paper.replace(data_seed=200 + i), cache, ren, ex, tasks, memo) for i in range(max(2, a.repeat // 2))
+        ]
+        _row("paper scale: data change (seed)", runs, "<= 1500 ms (all)", 1500)
+        runs = [update(paper.replace(data_seed=200, bits=b), cache, ren, ex, tasks, memo) for b in bits[: a.repeat]]
+        _row("paper scale: b change", runs, "-")
+    print(f"cache: {len(cache)} entries, ~{cache.nbytes / 2**20:.0f} MB, {cache.kinds()}")
     if a.datalength:
         from app.dashboard.background import datalength_config
         from qsid_core import run_datalength

@@ -95,20 +95,6 @@ class Tab:
         assert self.session.wait_idle(timeout), f"the tab was not redrawn within {timeout:g} s (hung?)"
         return self
 
-    def show(self, group: str) -> Tab:
-        """Pick ``group`` in the plots panel's "show" dropdown (its callback runs as a person's pick would),
-        then wait until its views are drawn."""
-        self.session.views.group.value = group
-        return self.wait()
-
-    def figure(self, name: str):
-        """The figure of view ``name`` as a person sees it: its group shown first (a tab builds the views of
-        the group it shows; a hidden group's when it is shown)."""
-        from app.figures.registry import ALL_VIEWS
-
-        self.show(next(v.tab for v in ALL_VIEWS if v.name == name))
-        return self.session.plots[name].figure
-
     @property
     def frame(self):
         return self.session.last_frame
@@ -134,8 +120,8 @@ def open_tab(app) -> Tab:
 
 
 def marks(tab: Tab, name: str = "error") -> list:
-    """Where the dotted current-b markers of a plot are (its group shown first)."""
-    return [sh.x0 for sh in tab.figure(name).layout.shapes if sh.name == "current b"]
+    """Where the dotted current-b markers of a plot are."""
+    return [sh.x0 for sh in tab.session.plots[name].figure.layout.shapes if sh.name == "current b"]
 
 
 def wait_until(predicate, what: str, timeout: float = HANG_S, every: float = 0.02) -> None:

@@ -2,13 +2,11 @@
 
 A tab with a view of its own *leads* its code; a tab opened at that code's follow link (``/f/CODE``, see
 :mod:`app.dashboard.viewcodes`) *follows* it (:class:`~app.dashboard.follower.Follower`). The leader computes
-and draws as any tab does, except that while a tab follows it, it builds the views of every group of the plots
-panel, not only of the group it shows (a follower may show another group; when a follower joins, the leader
-draws its last frame again, which builds the groups it had left out). After each draw it publishes what it drew
-to its code's :class:`Channel` (:meth:`FollowHub.drawn`): the panel's values, the frame, and the 3-D scene, the
-summary and the figures it pushed, each figure's JSON made once (:class:`Sent`) and shared by the leader's plot
-handles and every follower's. Publishing costs the leader a few dictionary updates and one ``touch`` per
-follower (a condition notified); it never waits for a follower.
+and draws as any tab does. After each draw it publishes what it drew to its code's :class:`Channel`
+(:meth:`FollowHub.drawn`): the panel's values, the frame, and the 3-D scene, the summary and the figures it
+pushed, each figure's JSON made once (:class:`Sent`) and shared by the leader's plot handles and every
+follower's. Publishing costs the leader a few dictionary updates and one ``touch`` per follower (a
+condition notified); it never waits for a follower.
 
 Each follower's own worker thread, woken by that touch, pushes the items newer than those it pushed already
 and sets its panel to the leader's values. Nothing is computed or rendered again, and followers take no
@@ -117,7 +115,6 @@ class FollowHub:
             leader, n = ch.leader, len(ch.followers)
         if leader is not None:
             count_followers(leader.codes, n)
-            leader.redraw()  # a leader with followers builds every group's views (a follower may show any)
         return follower
 
     def lead(self, code: str, session: Any) -> None:

@@ -101,11 +101,6 @@ class Follower:
         self.button.on_click(lambda _e: self.want_explore())
         self.lock()
 
-    @property
-    def mirroring(self) -> bool:
-        """The tab shows the followed view's published state (not a computation of its own)."""
-        return self.active and self.state in ("open", "left")
-
     def touch(self) -> None:
         """Something was published (or the leader came or went): the tab's worker mirrors it."""
         self.session.touch()

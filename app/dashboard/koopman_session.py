@@ -1,5 +1,5 @@
 """A tab's worker for a nonlinear plant: the panel fitted to the kind of plant (:class:`KindSwitch`) and one
-computation drawn frame by frame (:func:`compute_nonlinear`), as :func:`app.dashboard.linear_session.compute_linear`
+computation drawn frame by frame (:func:`compute_nonlinear`), as :meth:`app.dashboard.session.Session._compute`
 does for a linear one (same slots, staleness checks, progress and error lines).
 
 Threads: everything here runs in the tab's worker (see the list in :mod:`app.dashboard.session`); the frames come

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Collection
 from dataclasses import dataclass
 
 from app.figures import registry
@@ -60,36 +59,43 @@ class Render:
 
 
 class Renderer:
-    """Remembers what one tab drew last, so each frame redraws only what changed and what is shown.
+    """Remembers what one tab drew last, so each frame redraws only what changed.
 
-    * a "current" view is rebuilt when its key changed (default: b or the models);
-    * a "curves" view is rebuilt by a "curves" frame whose rows changed; otherwise only its current-b
-      marker moves (a pure b change leaves the curves alone);
-    * only the views in ``shown`` (the plots panel's group) are built. A hidden view whose inputs changed is
-      *stale* (forgotten as built) and is built when a frame is rendered with it shown: the tab then redraws
-      its last frame, nothing is computed (:meth:`stale` lists them).
-
-    What a figure was built from is kept as a key of object identities; the renderer holds the last frame and
-    the last "curves" frame it rendered, so the objects behind every key it keeps are alive and no identity is
-    reused by a newer result while a view is hidden.
+    * a "current" frame redraws the 3-D view and the summary, rebuilds the
+      ``"current"`` views whose key changed (default: b or the models), and moves the current-b
+      marker of the ``"curves"`` views;
+    * a "curves" frame rebuilds the ``"curves"`` views only if their rows
+      changed (a pure b change leaves them alone and just moves the marker).
     """
 
     def __init__(self):
         self.figures: dict = {}
-        #: view name -> what its figure was built from (a current view's key, a curves view's rows)
-        self._built: dict = {}
-        #: curves view name -> the b its current-b marker is at
-        self._marks: dict = {}
-        self._held: dict = {}  # "last", "curves" -> the frames rendered last (see the class docstring)
+        self._rows_key = None
+        self._current_keys: dict = {}
         self._style = "normal"
 
-    @staticmethod
-    def _wants(frame: Frame) -> tuple[dict, object]:
-        """``(current view name -> its key, the rows' key)``: what each view of ``frame`` is built from."""
-        models = (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels))
-        current = {
-            v.name: v.key(frame) if v.key is not None else models for v in registry.VIEWS if v.depends == CURRENT
-        }
+    def render(self, frame: Frame, axes: str | None = None, narrow: bool = False) -> Render:
+        """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode)."""
+        out: dict = {}
+        presenter = bool(getattr(frame.values, "presenter", False))
+        style = "phone" if narrow else "presenter" if presenter else "normal"
+        if style != self._style:  # every figure is rebuilt in the other style
+            self.figures, self._rows_key, self._current_keys = {}, None, {}
+            self._style = style
+        scene = summary = None
+        curves = [v.name for v in registry.VIEWS if v.depends == CURVES]
+        if frame.stage == "current":
+            scene = scene_view(frame, axes)
+            summary = summary_markdown(frame)
+            models = (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels))
+            todo = []
+            for v in registry.VIEWS:
+                if v.depends == CURRENT:
+                    key = v.key(frame) if v.key is not None else models
+                    if self._current_keys.get(v.name) != key:
+                        todo.append(v.name)
+                        self._current_keys[v.name] = key
+            out.update(build_figures(frame, todo))
         rows_key = (
             frame.labels,
             frame.true_cost,
@@ -100,59 +106,14 @@ class Renderer:
             frame.values.cost_gap,
             tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())),
         )
-        return current, rows_key
-
-    def _changed(self, frame: Frame, current: dict, rows_key: object) -> list[str]:
-        """Every view (shown or not) whose figure ``frame`` changes (``current``, ``rows_key``: :meth:`_wants`): a
-        "current" view whose key differs, and on a "curves" frame a "curves" view whose rows differ."""
-        out = []
-        for v in registry.VIEWS:
-            if v.depends == CURRENT:
-                if self._built.get(v.name) != current[v.name]:
-                    out.append(v.name)
-            elif frame.stage == "curves" and self._built.get(v.name) != rows_key:
-                out.append(v.name)
-        return out
-
-    def stale(self, frame: Frame, shown: Collection[str] | None = None) -> list[str]:
-        """The views of ``shown`` (None: all) that rendering ``frame`` would build (their figure is out of date)."""
-        return [name for name in self._changed(frame, *self._wants(frame)) if shown is None or name in shown]
-
-    def render(
-        self, frame: Frame, axes: str | None = None, narrow: bool = False, shown: Collection[str] | None = None
-    ) -> Render:
-        """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode);
-        ``shown``: the names of the views the tab shows (None: every view)."""
-        presenter = bool(getattr(frame.values, "presenter", False))
-        style = "phone" if narrow else "presenter" if presenter else "normal"
-        if style != self._style:  # every figure is rebuilt in the other style
-            self.figures, self._built, self._marks = {}, {}, {}
-            self._style = style
-        scene = summary = None
-        if frame.stage == "current":
-            scene = scene_view(frame, axes)
-            summary = summary_markdown(frame)
-        current, rows_key = self._wants(frame)
-        todo = []
-        for name in self._changed(frame, current, rows_key):
-            if shown is None or name in shown:
-                todo.append(name)
-            else:  # hidden: stale until its group is shown
-                self._built.pop(name, None)
-        out = build_figures(frame, todo)
-        for name in todo:
-            self._built[name] = current.get(name, rows_key)
-            self._marks[name] = frame.bits
-        for v in registry.VIEWS:  # the shown curves kept: a plot whose current-b marker moves is re-sent
-            fig = self.figures.get(v.name)
-            if v.depends != CURVES or v.name in out or fig is None or (shown is not None and v.name not in shown):
-                continue
-            if self._marks.get(v.name) != frame.bits and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
-                out[v.name] = move_current_bits(fig, frame.bits)
-                self._marks[v.name] = frame.bits
-        self._held["last"] = frame
-        if frame.stage == "curves":
-            self._held["curves"] = frame
+        if frame.stage == "curves" and rows_key != self._rows_key:
+            out.update(build_figures(frame, curves))
+            self._rows_key = rows_key
+        else:
+            for name in curves:  # only plots with a current-b marker are touched (and re-sent)
+                fig = self.figures.get(name)
+                if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
+                    out[name] = move_current_bits(fig, frame.bits)
         # the layout's style (smallest text, line widths, panels stacked), once, on the figures just built
         restyle = STYLES[style]
         out = {

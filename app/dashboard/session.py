@@ -3,15 +3,12 @@
 Concurrency in the dashboard, every mechanism in one list (each is commented where it lives):
 
 1. ``Session._cond`` (one per tab): an input callback only bumps the tab's generation under this
-   condition and wakes the worker (picking the plots panel's group, or a tab starting to follow this one,
-   bumps its count of redraws instead: the worker draws its last frame again, computing nothing);
-   :meth:`Session.wait_idle` waits on it too. Those callbacks run
+   condition and wakes the worker; :meth:`Session.wait_idle` waits on it too. Those callbacks run
    where viser receives the message (its event loop); the tab's other callbacks (buttons, views) run
    in ``Session.callbacks`` (:class:`~app.dashboard.flow.TabCallbacks`, one thread per tab, at most one
    queued call per callback: a flood of changes cannot queue work without bound).
 2. ``Session.thread`` (one per tab): the only thread that reads the panel,
-   computes and draws (the frames of :func:`~app.dashboard.linear_session.compute_linear` or
-   :func:`~app.dashboard.koopman_session.compute_nonlinear`); it drops a computation as soon as a newer generation exists, and starts
+   computes and draws; it drops a computation as soon as a newer generation exists, and starts
    at most one computation per ``MIN_GAP`` seconds (a burst of changes: only the newest is computed;
    a tab flooded with changes faster than any person makes them waits longer, up to ``MAX_GAP``).
 3. the helper thread of :func:`iter_frames` (:mod:`.stages`, one per computation): quantizes the
@@ -49,12 +46,11 @@ from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .follower import refused
 from .frames import Frame
-from .inputs import check_panel, check_sent
+from .inputs import check_panel, check_sent, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
 from .lessons import LessonMark, get_lesson, lesson_names, lesson_values
-from .linear_session import compute_linear
-from .pool import PoolFailure, twice_message
+from .pool import PoolFailure, Superseded, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
 from .stages import iter_frames
@@ -91,7 +87,6 @@ class Session:
         self._gen = 0
         self._done = -1
         self._closed = False
-        self._redraws = self._redrawn = 0  # (1) redraws asked for and done (another group shown: nothing computed)
         self._last_start, self._gap, self._touches = 0.0, MIN_GAP, 0
         self.frames_drawn = 0
         self.last_frame: Frame | None = None
@@ -121,7 +116,6 @@ class Session:
             self.start_datalength,
         )
         self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
-        self.views.on_pick = self.redraw  # a group picked: its views are drawn from the frame drawn last
         self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes
         self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
         self.kind = KindSwitch()  # the panel of a linear or a nonlinear plant
@@ -148,13 +142,6 @@ class Session:
             self._touches += 1
             self._cond.notify_all()
 
-    def redraw(self) -> None:
-        """The plots panel shows another group, or a tab follows this one now: the worker draws the views to
-        show from the frame drawn last (nothing is computed; a computation under way draws them anyway)."""
-        with self._cond:
-            self._redraws += 1
-            self._cond.notify_all()
-
     def close(self, wait: bool = True) -> None:
         """Stop the worker (its computation is dropped at the next check); ``wait``: join it (10 s at most)."""
         with self._cond:
@@ -167,7 +154,7 @@ class Session:
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Block until every change so far is fully drawn (for tests and benchmarks)."""
         with self._cond:
-            return self._cond.wait_for(lambda: self._done == self._gen and self._redrawn == self._redraws, timeout)
+            return self._cond.wait_for(lambda: self._done == self._gen, timeout)
 
     def pin(self) -> None:
         """Keep the frame drawn last for comparison (dashed on the error, cost and bound plots)."""
@@ -209,20 +196,12 @@ class Session:
 
     def _loop(self) -> None:
         while True:
-            with self._cond:  # idle: sleep until a change, a redraw, or until the auto-play's next word length is due
-                self._cond.wait_for(
-                    lambda: self._closed or self._done != self._gen or self._redrawn != self._redraws,
-                    self.play.wait_time(),
-                )
+            with self._cond:  # idle: sleep until a change, or until the auto-play's next word length is due
+                self._cond.wait_for(lambda: self._closed or self._done != self._gen, self.play.wait_time())
                 if self._closed:
                     return
-                idle, redraws = self._done == self._gen, self._redraws
-            if idle:  # (everything drawn) a redraw asked for; the auto-play's next b, if due: a new generation
-                if redraws != self._redrawn:
-                    self._redraw()
-                    with self._cond:
-                        self._redrawn = redraws
-                        self._cond.notify_all()
+                idle = self._done == self._gen
+            if idle:  # (everything drawn) the auto-play's next b, if due: a new generation like any change
                 self.play.step()
                 continue
             with self._cond:
@@ -239,26 +218,6 @@ class Session:
             with self._cond:
                 self._done = gen
                 self._cond.notify_all()
-
-    def _redraw(self) -> None:
-        """(worker) The views to show drawn from the frame drawn last (a cheap turn: nothing is computed); a tab
-        following another gets them from that tab."""
-        frame, gen, follower = self.last_frame, self._gen, self.follower
-        if frame is None or (follower is not None and follower.mirroring):
-            return
-        try:
-            with self.app.slots.turn(None, True):
-                self._draw(frame, gen, again=True)
-        except Exception:  # (as _run_safely: logged; the tab's next change draws anew)
-            traceback.print_exc()
-
-    def _shown(self):
-        """The views to build: the group the plots panel shows, or every view while other tabs follow this one
-        (a follower may show any group)."""
-        codes = self.codes
-        if codes is not None and self.app.follow.followers(codes.view.code):
-            return None
-        return self.views.shown_views
 
     def _run_safely(self, gen: int) -> int:
         """:meth:`_run`, never raising: an internal error (viser's included) is logged with its traceback, the
@@ -345,7 +304,7 @@ class Session:
             try:
                 if is_nonlinear(values.system):  # Koopman/EDMD (app.dashboard.koopman_session)
                     return compute_nonlinear(self, gen, values)
-                return compute_linear(self, gen, values)
+                return self._compute(gen, values)
             except PoolFailure as exc:
                 self.app.pool.replace(exc.executor)  # only if no other tab replaced it already
                 if self._stale(gen):
@@ -355,15 +314,78 @@ class Session:
                     self._show_error(twice_message(exc))
         return gen
 
+    def _compute(self, gen: int, values: Values) -> int:
+        c = self.controls
+        t0 = time.perf_counter()
+
+        def progress(done: int, total: int, text: str) -> None:
+            if not self._stale(gen):
+                self.ui.show_progress(done / total, text)
+
+        waited: list = []
+
+        def queued(ahead: int) -> None:
+            waited.append(ahead)
+            if not self._stale(gen):
+                c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
+
+        c.status.content = "computing …"
+        last = self.last_frame  # only drawing left if just display settings changed since a complete frame
+        cheap = last is not None and last.complete and values.same_results(last.values)
+        frames = iter_frames(
+            values,
+            self.app.cache,
+            self.app.pool.guarded(lambda: self._stale(gen)),
+            self.app.tasks,
+            should_stop=lambda: self._stale(gen),
+            on_progress=progress,
+            memo=self.rows_memo,
+        )
+        try:
+            while True:
+                with self.app.slots.turn(queued, cheap):  # (4) at most a few tabs compute at once, in turn
+                    if self._stale(gen):
+                        return gen
+                    if waited:  # its turn came
+                        c.status.content, waited[:] = "computing …", []
+                    frame = next(frames, None)
+                if frame is None or self._stale(gen):
+                    return gen
+                why = unusable(frame)
+                if why:  # all identifications failed, eps not finite: never 'ready'
+                    self._show_error(why)
+                    return gen
+                if not self._draw(frame, gen):
+                    return gen
+                self.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
+                if frame.complete:
+                    c.progress.value = 100.0
+                    c.status.content = (
+                        f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
+                        f"all curves in {self.timings['all']:.2f} s"
+                    )
+                    return gen  # the last frame: no further turn to wait for
+        except (PoolFailure, Superseded) as exc:
+            if isinstance(exc, PoolFailure):
+                raise
+        except QsidError as exc:
+            self._show_error(str(exc))
+        except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
+            self._show_error(
+                f"these settings cannot be computed ({type(exc).__name__}: {exc}); try smaller or less extreme values"
+            )
+        finally:
+            frames.close()
+        return gen
+
     def _show_error(self, text: str) -> None:
         self.ui.show_error(text)
 
-    def _draw(self, frame: Frame, gen: int, again: bool = False) -> bool:
-        """Push ``frame`` to the tab unless newer settings arrived meanwhile; True if drawn (``again``: it was
-        drawn already, the tab shows another group)."""
+    def _draw(self, frame: Frame, gen: int) -> bool:
+        """Push ``frame`` to the tab unless newer settings arrived meanwhile; True if drawn."""
         frame.pinned = self.pinned
         frame.datalength = self.datalength.lookup(frame.values)
-        if not self.ui.draw(frame, lambda: self._stale(gen), self._shown(), again):
+        if not self.ui.draw(frame, lambda: self._stale(gen)):
             return False
         self.last_frame = frame
         show_frame(self.share, frame)

@@ -10,7 +10,7 @@ settings to the frames), driven by the tab's worker (:class:`app.dashboard.sessi
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Collection
+from collections.abc import Callable
 from typing import Any
 
 from qsid_core import PRESETS, get_system
@@ -158,21 +158,13 @@ class TabView:
         self.controls.progress.value = 100.0 * fraction
         self.controls.status.content = text
 
-    def draw(
-        self, frame: Frame, stale: Callable[[], bool], shown: Collection[str] | None = None, again: bool = False
-    ) -> bool:
-        """Push ``frame`` unless ``stale()`` (newer settings arrived) before it is sent; True if drawn.
-
-        ``shown``: the views to build (None: every view; a view left out is built when it is shown);
-        ``again``: ``frame`` was drawn already (the tab shows another group): an error line stays."""
+    def draw(self, frame: Frame, stale: Callable[[], bool]) -> bool:
+        """Push ``frame`` unless ``stale()`` (newer settings arrived) before it is sent; True if drawn."""
         c = self.controls
         if stale():
             return False
         koopman = getattr(frame, "kind", "") == "koopman"
-        if koopman:
-            r = self.koopman_renderer.render(frame, c["axes"].value, self.phone.narrow)
-        else:
-            r = self.renderer.render(frame, c["axes"].value, self.phone.narrow, shown)
+        r = (self.koopman_renderer if koopman else self.renderer).render(frame, c["axes"].value, self.phone.narrow)
         if stale():  # never draw an older result over a newer one
             if koopman:
                 self.koopman_renderer = KoopmanRenderer()
@@ -183,7 +175,7 @@ class TabView:
             name: Sent(fig, r.aspects[name]) for name, fig in r.figures.items()
         }  # JSON made once, followers reuse it
         with self.client.atomic():
-            if c.error.visible and not again:
+            if c.error.visible:
                 c.error.visible = False
                 self.last_error = None
             if r.scene is not None:

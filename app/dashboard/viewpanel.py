@@ -90,9 +90,7 @@ class ViewPanel:
             )
             for tab in registry.TABS + registry.KOOPMAN_TABS:
                 self.groups[tab] = self._add_group(gui, tab, values, on_change, on_pin, on_unpin, on_datalength)
-        #: called after the person picked a group (the tab's worker then draws the views it shows)
-        self.on_pick: Callable[[], None] = lambda: None
-        self.group.on_update(lambda _e: self._picked())
+        self.group.on_update(lambda _e: self.show(str(self.group.value)))
         self.show(registry.TABS[0])
         self._orders: dict = {}
         self.set_system(system, int(values.view_channel))
@@ -144,16 +142,6 @@ class ViewPanel:
             self.plots[v.name] = gui.add_plotly(blank_figure(), aspect=v.aspect, visible=False)
             out.append(self.plots[v.name])
         return out
-
-    def _picked(self) -> None:
-        self.show(str(self.group.value))
-        self.on_pick()
-
-    @property
-    def shown_views(self) -> frozenset[str]:
-        """The names of the views in the group shown (what the tab's renderer builds)."""
-        tab = self._shown
-        return frozenset(v.name for v in registry.VIEWS + registry.KOOPMAN_VIEWS if v.tab == tab)  # (read now)
 
     @property
     def shown(self) -> str:

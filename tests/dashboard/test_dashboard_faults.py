@@ -81,7 +81,7 @@ def test_frozen_workers_time_out_are_replaced_and_both_tabs_recover():
 
 
 def test_a_tab_says_so_when_the_pool_fails_twice(dashboard, monkeypatch):
-    import app.dashboard.linear_session as session
+    import app.dashboard.session as session
 
     tab = open_tab(dashboard)
     try:

@@ -309,12 +309,8 @@ def test_choosing_a_lesson_brings_its_plot_forward(tab):
     control = [v.name for v in registry.VIEWS if v.tab == "Control"]
     assert min(control, key=lambda n: views.plots[n].order) == "bound"
     assert "**Bound lesson, b = 8**" in tab.summary and "‖x0‖" in tab.summary
-    # the key view drawn for the lesson's settings (a tab builds the group it shows: the lesson's)
-    bound = views.plots["bound"].figure
-    assert bound.data and [sh.x0 for sh in bound.layout.shapes if sh.name == "current b"] == [8]
     tab.set(lesson="one-cell")
     assert views.shown == "Quantizer" and views.plots["quantizer"].visible and not views.plots["bound"].visible
-    assert views.plots["quantizer"].figure.layout.title.text.startswith("u: elevator, b = ")
     assert views.channel.value == "u: elevator"
     tab.set(lesson="fig1")
     assert views.shown == "Identification" and views.group.value == "Identification"

@@ -43,7 +43,7 @@ def test_fair_slots_report_the_place_in_the_queue_and_serve_in_order():
 def test_a_tab_behind_a_slow_computation_says_it_is_queued_then_draws(monkeypatch):
     """One compute slot; tab A's computation is held (a fake slow pool); tab B's change says 'queued behind 1 tab'
     while it waits, and B draws its change as soon as A is through."""
-    import app.dashboard.linear_session as session
+    import app.dashboard.session as session
 
     real = session.iter_frames
     holding, release = threading.Event(), threading.Event()
@@ -113,7 +113,7 @@ def test_cheap_turns_go_first_and_have_a_slot_of_their_own():
 def test_a_word_length_change_is_not_queued_behind_another_tabs_slow_computation(monkeypatch):
     """One compute slot held by tab A's slow computation; tab B's word length change redraws from the cache
     on the fast slot at once, while A still holds its slot."""
-    import app.dashboard.linear_session as session
+    import app.dashboard.session as session
 
     real = session.iter_frames
     holding, release = threading.Event(), threading.Event()

@@ -24,7 +24,7 @@ from support import HANG_S, ROOT, SMALL, marks, open_tab, wait_until
 from app.dashboard import DashboardApp
 from app.dashboard.cache import SharedCache
 from app.dashboard.session import iter_frames
-from app.figures.registry import KOOPMAN_VIEWS, TABS, VIEWS, view_names
+from app.figures.registry import KOOPMAN_VIEWS, view_names
 
 KOOPMAN_NAMES = {v.name for v in KOOPMAN_VIEWS}
 
@@ -51,49 +51,13 @@ def test_first_view_draws_scene_plots_and_summary(tab):
     assert [lab.text for lab in p.axis_labels] == ["angle", "speed", "current"]
     assert "1 box unit =" in p.scale_label.text and "δ(ε)" in p.scale_label.text
     assert set(tab.session.plots) == set(view_names())
-    views = tab.session.views
-    assert views.shown == TABS[0] and views.shown_views == {v.name for v in VIEWS if v.tab == TABS[0]}
     for name, h in tab.session.plots.items():
-        # only the group shown is built (the others when shown: below); data length: on demand; the nonlinear
-        # plants' views: drawn for a nonlinear plant only
-        want = name in views.shown_views and name != "datalength"
-        assert (len(h.figure.data) > 0) == want, name
+        # data length: on demand; the nonlinear plants' views: drawn for a nonlinear plant only
+        assert len(h.figure.data) > 0 or name == "datalength" or name in KOOPMAN_NAMES, name
     assert "ε states: angle" in tab.summary
     assert tab.controls.status.content.startswith("ready")
     assert tab.controls.progress.value == 100.0
     assert tab.received > 0  # the drawing reached the tab (batched websocket frames)
-
-
-def test_a_group_is_drawn_when_shown_from_the_last_frame_without_computing(tab, monkeypatch):
-    import app.dashboard.linear_session as linear
-
-    def drawn(name: str) -> bool:
-        return len(tab.session.plots[name].figure.data) > 0
-
-    control = [v.name for v in VIEWS if v.tab == "Control"]
-    frame, drawn_before = tab.frame, tab.session.frames_drawn
-    assert not any(drawn(n) for n in control)
-    monkeypatch.setattr(linear, "iter_frames", None)  # showing a group computes nothing (this would fail)
-    tab.show("Control")
-    assert all(drawn(n) for n in control) and tab.frame is frame and tab.error is None
-    assert tab.session.frames_drawn == drawn_before + 1
-    assert tab.session.ui.renderer.stale(frame, tab.session.views.shown_views) == []
-    monkeypatch.undo()
-    # a change while Control is shown: Control redrawn, the Identification group stale until shown again
-    eig = tab.session.plots["eigen"].figure
-    tab.set(bits=7)
-    assert [s.x0 for s in tab.session.plots["bits"].figure.layout.shapes if s.name == "current b"][:1] == [7]
-    assert tab.session.plots["eigen"].figure is eig
-    assert tab.session.ui.renderer.stale(tab.frame, tab.session.views.shown_views) == []
-    stale = tab.session.ui.renderer.stale(tab.frame)  # every view's: hidden ones
-    assert "eigen" in stale and "error" not in stale  # (a b change moves the error plot's marker only)
-    assert marks(tab) == [7, 7] and tab.session.plots["eigen"].figure is not eig  # marks() shows Identification
-    # after a refused change the views keep the last good result, a group shown too, and the error line stays
-    tab.set(x_max="1, 2")
-    assert "x_max needs 3 numbers" in tab.error
-    tab.show("Quantizer")
-    assert drawn("quantizer") and "b = 7" in tab.session.plots["quantizer"].figure.layout.title.text
-    assert "x_max needs 3 numbers" in tab.error
 
 
 def test_word_length_change_moves_sphere_lines_and_marker(tab):
@@ -114,7 +78,7 @@ def test_word_length_change_moves_sphere_lines_and_marker(tab):
 # slow (~3 s): a tab's view computed in full twice
 @pytest.mark.slow
 def test_weight_change_redraws_cost_not_identification(tab):
-    cost = tab.figure("cost").to_json()  # (the Control group shown: a tab builds the group it shows)
+    cost = tab.session.plots["cost"].figure.to_json()
     idents = dict(tab.frame.idents)
     tab.controls.q_sliders[0].value = 1.5  # a weight slider (they follow the system, not the table)
     tab.wait()
@@ -222,7 +186,7 @@ def test_two_tabs_keep_their_own_settings(dashboard):
 
 
 def test_worker_survives_unexpected_errors(tab, monkeypatch):
-    import app.dashboard.linear_session as session
+    import app.dashboard.session as session
 
     def boom(*a, **k):
         raise RuntimeError("simulated bug")

@@ -27,7 +27,7 @@ from app.dashboard.viewcodes import (
     view_link,
 )
 from app.figures.presenter import PLOT_FONT, presenter_figure
-from app.figures.registry import KOOPMAN_VIEWS, TABS
+from app.figures.registry import KOOPMAN_VIEWS
 
 # slow: each test starts a dashboard and waits for drawn frames (auto-play steps b once a second)
 pytestmark = pytest.mark.slow
@@ -241,16 +241,13 @@ def test_presenter_mode_enlarges_every_plot_and_thickens_lines(tab):
     s = tab.session
     assert s.presenter.on and s.portrait.traj.thickness > 2.0 and s.portrait.true.thickness > 5.0
     assert s.presenter.style.visible and "font-size:max(16px" in s.presenter.style.content
-    drawn = {}
-    for group in TABS:  # every group's plots (a tab draws a group when it is shown)
-        tab.show(group)
-        drawn.update({name: h.figure for name, h in s.plots.items() if h.visible and h.figure.data})
+    drawn = {name: h for name, h in s.plots.items() if h.figure.data}
     assert {"error", "bits", "bound"} <= set(drawn) and not set(drawn) & {v.name for v in KOOPMAN_VIEWS}
-    for name, fig in drawn.items():
-        sizes = _font_sizes(fig)
+    for name, h in drawn.items():
+        sizes = _font_sizes(h.figure)
         assert sizes and min(sizes) >= PLOT_FONT, name
-        assert fig.layout.font.size >= PLOT_FONT
-    err = tab.figure("error")
+        assert h.figure.layout.font.size >= PLOT_FONT
+    err = s.plots["error"].figure
     widths = [t.line.width for t in err.data if t.mode and "lines" in t.mode and t.line.width]
     assert widths and min(widths) >= 3.0
     tab.set(presenter=False)
