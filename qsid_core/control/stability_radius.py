@@ -67,17 +67,23 @@ def complex_stability_radius(M: np.ndarray, grid: int = 180) -> float:
     return best
 
 
+#: Points of the first grid of the half circle in :func:`small_gain_holds` (its arcs are then halved where needed).
+_FIRST_GRID = 12
+
+
 def small_gain_holds(
     A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray, grid: int = 720
 ) -> np.ndarray:
     """Whether :func:`small_gain_margin`'s test certifies each loop of a batch, decided cheaply where it can be.
 
-    ``sigma_min(zI - M)`` is 1-Lipschitz along the unit circle, so on a grid of
-    spacing ``h`` its minimum ``g`` gives ``g - h/2 <= r_C <= g``: a perturbation
-    below ``g - h/2`` is certified and one at least ``g`` is not, without refining.
-    Before any grid, ``r_C <= 1 - rho(M)`` rejects the loops whose perturbation is at least that.
-    A coarse grid, then a fine one, settle almost every loop; the few left are
-    refined exactly (:func:`complex_stability_radius`).
+    Before any grid, ``r_C <= 1 - rho(M)`` rejects the loops whose perturbation is at least that. Then
+    ``sigma_min(zI - M)`` is 1-Lipschitz along the unit circle: on an arc of length ``w`` whose ends
+    have values ``a`` and ``b`` it is at least ``(a + b - w) / 2``, and ``r_C`` is at most any value it takes.
+    So on a coarse grid of the half circle (``_FIRST_GRID`` points) an arc whose bound exceeds the
+    perturbation is settled, a point at or below it rejects the loop, and only the other arcs are halved, level
+    after level, until they are no wider than the spacing of a grid of ``grid`` points; the few loops still
+    open are refined exactly (:func:`complex_stability_radius`). Every decision is the exact test's: the
+    bounds only decide where they are conclusive.
 
     Parameters
     ----------
@@ -85,6 +91,8 @@ def small_gain_holds(
         The true plant.
     A_hat : ndarray, shape (L, n, n); B_hat : ndarray, shape (L, n, m); K : ndarray, shape (L, m, n)
         Models and the gains designed on them.
+    grid : int
+        The finest arcs are ``pi / grid`` wide at most; also the exact refinement's grid.
 
     Returns
     -------
@@ -109,16 +117,37 @@ def small_gain_holds(
     # r_C(M) <= 1 - rho(M): moving the largest eigenvalue radially onto the circle is a perturbation of that
     # norm. A loop whose perturbation is at least that is not certified, with no frequency sweep.
     todo = todo[pert[todo] < 1.0 - rho[todo]]
-    for pts in (48, 180, grid):
-        if not todo.size:
-            return out
-        th = np.linspace(0.0, np.pi, pts + 1)
-        Z = np.exp(1j * th)[None, :, None, None] * np.eye(n) - M[todo][:, None]
-        g = np.linalg.svd(Z, compute_uv=False)[..., -1].min(axis=1)
-        yes = pert[todo] < g - (th[1] - th[0]) / 2
-        out[todo[yes]] = True
-        todo = todo[~yes & (pert[todo] < g)]
-    for i in todo:
+    if todo.size:
+        out[todo] = _below_radius(M[todo], pert[todo], grid)
+    return out
+
+
+def _below_radius(M: np.ndarray, pert: np.ndarray, grid: int) -> np.ndarray:
+    """``pert < r_C(M)`` per loop (``M`` shape (L, n, n) stable, ``pert`` shape (L,)), decided on arcs of the
+    half circle as :func:`small_gain_holds` describes; shape (L,) bool."""
+    L, n, _ = M.shape
+    eye = np.eye(n)
+
+    def smin(loop: np.ndarray, theta: np.ndarray) -> np.ndarray:  # sigma_min(e^(i theta) I - M[loop]), elementwise
+        return np.linalg.svd(np.exp(1j * theta)[..., None, None] * eye - M[loop], compute_uv=False)[..., -1]
+
+    th = np.linspace(0.0, np.pi, _FIRST_GRID + 1)
+    vals = smin(np.arange(L)[:, None], th[None, :])
+    low: np.ndarray = np.any(vals <= pert[:, None], axis=1)  # a value at or below the perturbation: r_C is too
+    # the open arcs: their loop, left end, the values at both ends; all of width w
+    loop, left = np.repeat(np.arange(L), _FIRST_GRID), np.tile(th[:-1], L)
+    a, b, w = vals[:, :-1].ravel(), vals[:, 1:].ravel(), float(th[1])
+    while True:
+        keep = ~low[loop] & ((a + b - w) / 2 <= pert[loop])  # an arc that can still dip to the perturbation
+        loop, left, a, b = loop[keep], left[keep], a[keep], b[keep]
+        if not loop.size or w <= np.pi / grid:
+            break
+        w /= 2
+        mid = smin(loop, left + w)
+        low[loop[mid <= pert[loop]]] = True
+        loop, left, a, b = np.r_[loop, loop], np.r_[left, left + w], np.r_[a, mid], np.r_[mid, b]
+    out: np.ndarray = ~low
+    for i in np.unique(loop):  # arcs as fine as the grid and still open: the radius itself
         out[i] = pert[i] < complex_stability_radius(M[i], grid)
     return out
 

@@ -137,6 +137,26 @@ def test_complex_stability_radius_matches_a_fine_grid_and_small_gain_is_sound():
     assert all(spectral_radius(A - B @ K[i]) < 1 for i in np.flatnonzero(fast))
 
 
+def test_small_gain_holds_decides_as_the_exact_margin_near_the_radius():
+    """Perturbations within 3 % of each loop's radius (where the bounds on arcs are least conclusive and the
+    exact radius decides what the finest arcs leave open): the same decisions as the exact margin."""
+    rng = np.random.default_rng(7)
+    got = []
+    for n, m in ((1, 1), (2, 1), (3, 2), (4, 1), (4, 2)):
+        B = rng.normal(size=(n, m))
+        for _ in range(16):
+            M = rng.normal(size=(n, n))
+            M *= rng.uniform(0.3, 0.999) / spectral_radius(M[None])[0]  # stable, dips near the circle too
+            K = rng.normal(size=(1, m, n))
+            Ah = M[None] + B @ K
+            E = rng.normal(size=(n, n))
+            A = Ah[0] + E / np.linalg.norm(E, 2) * complex_stability_radius(M) * rng.uniform(0.97, 1.03)
+            fast = bool(small_gain_holds(A, B, Ah, B[None], K)[0])
+            assert fast == np.less(*small_gain_margin(A, B, Ah[0], B, K[0])), (n, m)
+            got.append(fast)
+    assert 0 < sum(got) < len(got)
+
+
 def test_the_stability_radius_is_at_most_the_distance_of_the_spectrum_to_the_circle():
     """The premise of small_gain_holds' first rejection: r_C(M) <= 1 - rho(M) for a stable M."""
     rng = np.random.default_rng(3)
