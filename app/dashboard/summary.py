@@ -11,6 +11,7 @@ from qsid_core.control import saturated_steps
 from qsid_core.studies import OVERLOAD_EFFECT_RATIO
 
 from .frames import Frame
+from .settings import LABELS
 
 if TYPE_CHECKING:
     from qsid_core import ClosedLoops
@@ -227,15 +228,17 @@ def _lesson_changes(values: Values) -> list[str]:
 
 def _certificate(frame: Frame) -> list[str]:
     """Whether the small-gain test certifies the loops at the current b, and why not (qsid bits' rule)."""
-    from qsid_core.studies import certificate, predicted_small_gain, realized_small_gain
+    from qsid_core.studies import certificate, certified_own_models, predicted_small_gain
 
     if frame.ex is None or frame.ex.config.mpc is None:
         return []
     out = []
     pert, rad = predicted_small_gain(frame.ex, frame.bits)
+    engine = {label: est for est, label in LABELS.items()}
     for lab in frame.labels:
         r, lp = frame.rows[lab][frame.bits], frame.loops[lab]
-        own = int(realized_small_gain(frame.idents[lab], lp, frame.system.A, frame.system.B).sum())
+        # (frame.loops and frame.idents are the cache's: counted once per b and estimator, the bits view's count)
+        own = certified_own_models(frame.ex, frame.bits, engine[lab])
         _, _, note = certificate(r, pert, rad, own, len(lp.cost))
         out.append(f"**Small-gain certificate**, {lab}: {note}.")
     return ["", "  \n".join(out)]
