@@ -11,7 +11,7 @@ import warnings
 from collections.abc import Callable, Iterator
 
 from app.distributed import ClusterError, DaskExecutor, _import_distributed, parse_dask_spec
-from app.procs import descendants, kill_new_descendants, resource_trackers
+from app.procs import check_stopped, descendants, kill_new_descendants, resource_trackers
 from qsid_core import ConfigError
 
 __all__ = ["make_executor"]
@@ -143,6 +143,7 @@ def _cluster_executor(parsed, say, connect_timeout, worker_timeout, stall_timeou
                         silence_logs=logging.ERROR,
                     )
                 )
+            check_stopped()  # a stop signal during the start-up, whose interrupt dask caught
             address = cluster.scheduler_address
         else:
             address = parsed.address
@@ -162,6 +163,7 @@ def _cluster_executor(parsed, say, connect_timeout, worker_timeout, stall_timeou
                 f"dask: the scheduler at {address} has no workers after {worker_timeout:g} s; "
                 f"start some with 'dask worker {address}'"
             ) from None
+        check_stopped()
         _check_workers(client)
         nw = len(client.scheduler_info().get("workers", {}))
         say(f"dask: connected to {address} ({nw} worker(s))")

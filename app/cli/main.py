@@ -17,6 +17,8 @@ import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures.process import BrokenProcessPool
 
+from app.procs import STOPPED, stop_signal
+
 from . import bits, datalength, identify, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
 
@@ -56,11 +58,16 @@ def _dispatch(argv: list, rep: Reporter) -> int:
 
 def _stop_signals_interrupt() -> dict:
     """SIGTERM (kill, a CI runner) and SIGHUP (terminal closed) stop a run as Ctrl-C does: workers stopped,
-    no half-written output, exit 130. Returns the handlers to restore (main thread only; else none)."""
+    no half-written output, exit 130; all three through :func:`app.procs.stop_signal`, which remembers the stop
+    for code that checks after a library call. Returns the handlers to restore (main thread only; else none)."""
     old = {}
+    STOPPED.clear()
     if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGTERM, signal.SIGHUP):
-            old[sig] = signal.signal(sig, signal.default_int_handler)
+        for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+            if (
+                sig != signal.SIGINT or signal.getsignal(sig) is signal.default_int_handler
+            ):  # an ignored Ctrl-C stays so
+                old[sig] = signal.signal(sig, stop_signal)
     return old
 
 
