@@ -50,11 +50,18 @@ def tab(dashboard):
     t.close()
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config, items):
-    """Browser and cluster tests start real processes (Chromium, dask) and take seconds: slow too."""
+    """Browser and cluster tests start real processes (Chromium, dask) and take seconds: slow too.
+
+    For ``pytest -n 2 --dist loadgroup`` (pyproject's options) every test gets a group: the browser tests one
+    for them all (one Chromium at a time, as on a person's machine), every other test its file's (a module's
+    fixtures, e.g. a server it shares, are built once, in one worker)."""
     for item in items:
-        if item.get_closest_marker("browser") or item.get_closest_marker("cluster"):
+        browser = item.get_closest_marker("browser")
+        if browser or item.get_closest_marker("cluster"):
             item.add_marker(pytest.mark.slow)
+        item.add_marker(pytest.mark.xdist_group("browser" if browser else item.nodeid.split("::")[0]))
 
 
 def pytest_sessionfinish(session, exitstatus):
