@@ -11,7 +11,8 @@ import warnings
 from collections.abc import Callable, Iterator
 
 from app.distributed import ClusterError, DaskExecutor, _import_distributed, parse_dask_spec
-from app.procs import check_stopped, descendants, kill_new_descendants, resource_trackers
+from app.procs import descendants, kill_new_descendants, resource_trackers
+from app.stop import check_stopped
 from qsid_core import ConfigError
 
 __all__ = ["make_executor"]

@@ -27,8 +27,6 @@ from typing import Any
 
 __all__ = [
     "ProcessPool",
-    "stop_signal",
-    "check_stopped",
     "end_with_parent",
     "kill_workers",
     "worker_pids",
@@ -289,24 +287,6 @@ class ProcessPool(Executor):
             except subprocess.TimeoutExpired:  # still busy with a task nobody waits for
                 w.proc.kill()
                 w.proc.wait()
-
-
-#: Set by :func:`stop_signal`: a stop signal arrived (cleared by the program's entry point).
-STOPPED = threading.Event()
-
-
-def stop_signal(signum, frame) -> None:
-    """A signal handler that stops the program as Ctrl-C does (raises KeyboardInterrupt) and remembers it, so
-    that a library that catches the interrupt while it starts (dask's cluster) cannot hide it
-    (:func:`check_stopped`)."""
-    STOPPED.set()
-    raise KeyboardInterrupt
-
-
-def check_stopped() -> None:
-    """Raise KeyboardInterrupt if :func:`stop_signal` ran (after a call that may have swallowed its interrupt)."""
-    if STOPPED.is_set():
-        raise KeyboardInterrupt
 
 
 def end_with_parent(parent: int) -> None:

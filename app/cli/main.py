@@ -17,7 +17,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures.process import BrokenProcessPool
 
-from app.procs import STOPPED, stop_signal
+from app.stop import STOPPED, stop_signal
 
 from . import bits, datalength, identify, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
