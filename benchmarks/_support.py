@@ -55,10 +55,15 @@ READY_LINE = "qsid dashboard: http"
 
 
 def connect_ws(url: str, open_timeout: float = 120.0, **kwargs: Any) -> Any:
-    """A raw websocket to the dashboard at ``url`` (``http://…``) speaking viser's protocol (nothing sent yet)."""
+    """A raw websocket to the dashboard at ``url`` (``http://…``) speaking viser's protocol (nothing sent yet).
+
+    Like a browser it sends no keepalive pings of its own (websockets' client would, and would close the
+    connection if a busy server answered one late); it answers the server's pings.
+    """
     import viser
     from websockets.sync.client import connect
 
+    kwargs.setdefault("ping_interval", None)
     return connect(
         url.replace("http://", "ws://"),
         subprotocols=[f"viser-v{viser.__version__}"],

@@ -36,6 +36,7 @@ class WsTab:
         self.values: dict[str, object] = {}  # input uuid -> its value as the server last said
         self.received = 0
         self.closed = False
+        self.close_reason = ""  # why the connection ended, as the reader saw it
         self.statuses: list[tuple[float, str]] = []  # (monotonic time, text) of every status line received
         self._dz = zstandard.ZstdDecompressor()
         self._lock = threading.Lock()
@@ -53,7 +54,8 @@ class WsTab:
                     payload = msgspec.msgpack.decode(self._dz.decompress(raw[16 : 16 + size]))
                     for m in payload.get("messages", ()):
                         self._note(m)
-        except Exception:
+        except Exception as exc:
+            self.close_reason = f"{type(exc).__name__}: {exc}"
             self.closed = True
 
     def _note(self, m: dict) -> None:
@@ -106,7 +108,7 @@ class WsTab:
             if self.ready:
                 return time.monotonic() - t0
             if self.closed:
-                raise ConnectionError("the server closed the connection")
+                raise ConnectionError(f"the connection ended ({self.close_reason})")
             time.sleep(0.02)
         raise TimeoutError(f"the tab was not ready within {timeout} s (status: {self.status!r})")
 
@@ -124,7 +126,7 @@ class WsTab:
             if hit is not None:
                 return hit
             if self.closed:
-                raise ConnectionError("the server closed the connection")
+                raise ConnectionError(f"the connection ended ({self.close_reason})")
             time.sleep(0.01)
         raise TimeoutError(f"no answer within {timeout} s (status: {self.status!r})")
 

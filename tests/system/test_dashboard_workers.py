@@ -66,6 +66,9 @@ def test_only_pool_workers_and_a_killed_one_is_replaced():
         wait_until(lambda: not set(descendants(p.pid)) & set(workers), "the old workers gone")
         desc = descendants(p.pid)
         assert len(desc) == 2 and all(b"from app.procs import serve" in _cmdline(x) for x in desc), desc
+    except BaseException:
+        print("the dashboard's stderr:\n" + "".join(err))  # shown with the failure
+        raise
     finally:
         if tab is not None:
             tab.close()
