@@ -58,7 +58,7 @@ STAGE_GROUPS: dict[str, tuple[str, ...]] = {
     "ident": ("data", "prep", "channels", "realizations"),
     "assumptions": ("data", "prep", "channels", "realizations"),
     "loops": ("data", "prep", "channels", "realizations", "loop"),
-    "realized-small-gain": ("data", "prep", "channels", "realizations", "loop"),  # of the loops' own models
+    "own-small-gain": ("data", "prep", "channels", "realizations"),  # of the loops' own models; holds the gains
     "true-loop": ("loop",),
     "true-loop-fed": ("data", "prep", "loop"),  # a quantized measurement uses the training data's range
 }

@@ -99,9 +99,10 @@ class StageKeys:
         assert mpc == self.config.mpc  # the loop group is the config's MPC
         return self._key("loops", estimator, b)
 
-    def realized_small_gain(self, b: int, estimator: str) -> Key:
-        """How many of the config's closed loops at ``b`` the small-gain test certifies with their own model."""
-        return self._key("realized-small-gain", estimator, b)
+    def own_small_gain(self, b: int, estimator: str) -> Key:
+        """The small-gain test of each realization's own model at ``b`` with the gain of its loop (stored
+        with the gain's bytes: the gain is the unconstrained law's, which no closed-loop setting changes)."""
+        return self._key("own-small-gain", estimator, b)
 
     def true_loop(self, mpc: MPCConfig) -> Key:
         """The MPC ``mpc`` (the config's) built on the true plant (its feedback quantizer reads the data's ranges)."""

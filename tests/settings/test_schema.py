@@ -47,7 +47,7 @@ def test_every_generated_flag_parses_to_the_engines_default():
 def test_stages_a_setting_invalidates_come_from_the_engines_cache_keys():
     assert "data" in BY_NAME["data_seed"].stages() and "mom" in BY_NAME["data_seed"].stages()
     assert "data" not in BY_NAME["dither_seed"].stages() and "mom" in BY_NAME["dither_seed"].stages()
-    assert BY_NAME["loop_seed"].stages() == ("loops", "realized-small-gain", "true-loop", "true-loop-fed")
+    assert BY_NAME["loop_seed"].stages() == ("loops", "true-loop", "true-loop-fed")
     assert BY_NAME["bits"].stages() == () and BY_NAME["presenter"].stages() == ()
 
 

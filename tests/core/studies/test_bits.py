@@ -1,5 +1,6 @@
 """``qsid bits`` and :mod:`qsid_core.studies.bits`: the three word lengths, their rows, soundness, bad input."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -161,3 +162,34 @@ def test_cli_bits_bad_input_is_one_line(capsys, args, message):
     assert main(["bits", *TINY, "-q", *args]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err and "Traceback" not in err
+
+
+def test_own_model_certificates_are_reused_across_input_bounds_and_match_a_fresh_count(monkeypatch):
+    """The per-loop certificate is cached with its gain: a new input bound or start (same gains) tests no
+    loop again, a new Q (new gains) tests them all, and every count equals :func:`realized_small_gain`'s."""
+    import qsid_core.studies.bits_certificate as bc
+    from qsid_core.studies import Experiment, certified_own_models
+
+    tested = []
+    real = bc.small_gain_holds
+
+    def spy(A, B, Ah, Bh, K):
+        tested.append(len(K))
+        return real(A, B, Ah, Bh, K)
+
+    monkeypatch.setattr(bc, "small_gain_holds", spy)
+    cache: dict = {}
+    base = SweepConfig(system="boeing747", bits=(4,), realizations=8, trajectories=40, steps=150)
+    x0 = (20.0, 20.0, 0.0, 0.0)
+    counts = []
+    for mpc in (MPCConfig(x0=x0), MPCConfig(x0=x0, u_max=0.3), MPCConfig(x0=(5.0, 5.0, 0.0, 0.0), u_max=0.2)):
+        ex = Experiment(dataclasses.replace(base, mpc=mpc), cache=cache)
+        counts.append(certified_own_models(ex, 4, "ls"))
+        monkeypatch.setattr(bc, "small_gain_holds", real)  # the fresh count is not one of the cached tests
+        fresh = realized_small_gain(ex.identification(4, "ls"), ex.closed_loops(4, "ls"), ex.system.A, ex.system.B)
+        assert counts[-1] == int(fresh.sum())
+        monkeypatch.setattr(bc, "small_gain_holds", spy)
+    assert len(tested) == 1 and tested[0] > 0  # the gains did not change with the bound or the start
+    ex = Experiment(dataclasses.replace(base, mpc=MPCConfig(x0=x0, Q=(10.0, 1.0, 1.0, 1.0))), cache=cache)
+    certified_own_models(ex, 4, "ls")
+    assert len(tested) == 2 and tested[1] > 0  # new weights, new gains: tested again
