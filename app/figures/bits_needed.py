@@ -17,7 +17,7 @@ import numpy as np
 import plotly.graph_objects as go
 
 from qsid_core.control import data_rate_bits
-from qsid_core.studies import BitsAnswer, answer_from_rows, certified_own_models, predicted_small_gain
+from qsid_core.studies import BitsAnswer, answer_from_rows, certified_own_models_at, predicted_small_gain
 
 from .palette import COLORS, color
 from .raw import figure, hline, stacked_axes
@@ -227,7 +227,7 @@ def _own_error(ex: Experiment, estimator: str, bits: list[int]) -> dict[int, int
     """Per b, the loops the small-gain test certifies with their own model (None: not the engine's estimator)."""
     if ex is None or ex.config.mpc is None or estimator not in ("ls", "bcls"):
         return None
-    return {b: certified_own_models(ex, b, estimator) for b in bits}
+    return certified_own_models_at(ex, bits, estimator)
 
 
 def _build(frame: FrameView) -> go.Figure:

@@ -20,6 +20,7 @@ from .bits_certificate import (
     CERTIFY_TOLERANCE,
     certificate,
     certified_own_models,
+    certified_own_models_at,
     predicted_small_gain,
     realized_small_gain,
 )
@@ -114,6 +115,7 @@ __all__ = [
     "build_row",
     "certificate",
     "certified_own_models",
+    "certified_own_models_at",
     "check_run_args",
     "check_sweep_parts",
     "clipping_effect",

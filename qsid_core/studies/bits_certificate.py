@@ -12,7 +12,7 @@ and :func:`certificate` decides from both, with Theorem 1's hypotheses checked o
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -24,7 +24,14 @@ if TYPE_CHECKING:
     from ..control.loop_results import ClosedLoops
     from .stage_results import BitsIdentification
 
-__all__ = ["CERTIFY_TOLERANCE", "certificate", "certified_own_models", "predicted_small_gain", "realized_small_gain"]
+__all__ = [
+    "CERTIFY_TOLERANCE",
+    "certificate",
+    "certified_own_models",
+    "certified_own_models_at",
+    "predicted_small_gain",
+    "realized_small_gain",
+]
 
 #: b_robust through Theorem 1's model needs the measured errors within this relative distance of the
 #: prediction, and the small-gain test to hold with this margin.
@@ -89,27 +96,52 @@ def realized_small_gain(ident: BitsIdentification, loops: ClosedLoops, A: np.nda
 
 def certified_own_models(ex: Experiment, b: int, estimator: str) -> int:
     """How many of ``ex``'s closed loops at ``b`` (models by ``estimator``) :func:`realized_small_gain`
-    certifies with their own model error.
+    certifies with their own model error (:func:`certified_own_models_at` for one b)."""
+    return certified_own_models_at(ex, (b,), estimator)[b]
+
+
+def certified_own_models_at(ex: Experiment, bits: Sequence[int], estimator: str) -> dict[int, int]:
+    """Per b of ``bits``: how many of ``ex``'s closed loops at b (models by ``estimator``)
+    :func:`realized_small_gain` certifies with their own model error.
 
     Each loop's verdict depends only on its model and its gain ``K^`` (the unconstrained law: not the
-    input bound, the start or the loop's noise), so it is cached per realization with the bytes of its
-    ``K^`` under a key without the closed-loop settings: a change of those tests only the loops whose gain
-    is new (a frequency sweep of SVDs per loop).
+    input bound, the start or the loop's noise), so it is cached per b and realization with the bytes of
+    its ``K^`` under a key without the closed-loop settings: a change of those tests only the loops whose
+    gain is new. The loops still to test, of every b, are tested in one batch.
     """
     A, B = ex.system.A, ex.system.B
-    loops = ex.closed_loops(b, estimator)
-    gains = {r: np.ascontiguousarray(K) for r, K in enumerate(loops.gains) if K is not None}
-    want = {r: K.tobytes() for r, K in gains.items()}
-    key = ex.keys.own_small_gain(b, estimator)
-    seen = cast("dict[int, tuple[bytes, bool]]", ex.cache.cached({0: key}).get(0, {}))
-    known = {r: seen[r][1] for r, k in want.items() if r in seen and seen[r][0] == k}
-    todo = [r for r in want if r not in known]
+    known: dict[int, dict[int, bool]] = {}
+    seen: dict[int, dict[int, tuple[bytes, bool]]] = {}
+    todo: list[tuple[int, int, np.ndarray]] = []  # (b, realization, gain) not yet tested
+    for b in bits:
+        loops = ex.closed_loops(b, estimator)
+        got = ex.cache.cached({0: ex.keys.own_small_gain(b, estimator)}).get(0, {})
+        seen[b] = cast("dict[int, tuple[bytes, bool]]", got)
+        known[b] = {}
+        for r, K in enumerate(loops.gains):
+            if K is None:
+                continue
+            K = np.ascontiguousarray(K)
+            hit = seen[b].get(r)
+            if hit is not None and hit[0] == K.tobytes():
+                known[b][r] = hit[1]
+            else:
+                todo.append((b, r, K))
     if todo:
-        ident = ex.identification(b, estimator)
-        holds = small_gain_holds(A, B, ident.A_hat[todo], ident.B_hat[todo], np.stack([gains[r] for r in todo]))
-        known.update(zip(todo, (bool(h) for h in holds)))
-        ex.cache.store([(key, {**seen, **{r: (want[r], known[r]) for r in todo}})])
-    return sum(known.values())
+        models = {b: ex.identification(b, estimator) for b in {t[0] for t in todo}}
+        holds = small_gain_holds(
+            A,
+            B,
+            np.stack([models[b].A_hat[r] for b, r, _ in todo]),
+            np.stack([models[b].B_hat[r] for b, r, _ in todo]),
+            np.stack([K for _, _, K in todo]),
+        )
+        new: dict[int, dict[int, tuple[bytes, bool]]] = {}
+        for (b, r, K), h in zip(todo, holds):
+            known[b][r] = bool(h)
+            new.setdefault(b, {})[r] = (K.tobytes(), bool(h))
+        ex.cache.store([(ex.keys.own_small_gain(b, estimator), {**seen[b], **v}) for b, v in new.items()])
+    return {b: sum(known[b].values()) for b in bits}
 
 
 def _theorem1_misfit(row: Mapping[str, Any]) -> str:

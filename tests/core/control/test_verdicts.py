@@ -172,3 +172,28 @@ def test_controllability_margin():
     m = controllability_margin(A, B)
     assert m[0] > 1e-3 and m[1] < 1e-12  # equal eigenvalues with one input: not controllable
     assert np.isnan(controllability_margin(np.full((1, 2, 2), np.nan), np.ones((1, 2, 1)))[0])
+
+
+def test_small_gain_holds_settles_normal_loops_by_their_eigenvalues_alone(monkeypatch):
+    """For a normal M, r_C = 1 - rho(M) exactly, so Bauer-Fike's bound (cond(V) = 1) and the radial one
+    decide every loop without a frequency sweep; the decisions are the exact margin's."""
+    import qsid_core.control.stability_radius as sr
+
+    def no_sweep(*a, **k):
+        raise AssertionError("a frequency sweep was run")
+
+    rng = np.random.default_rng(3)
+    B = np.array([[0.0], [1.0]])
+    K = np.zeros((1, 1, 2))
+    cases = []
+    for _ in range(20):
+        c, s = np.cos(rng.uniform(0, np.pi)), rng.uniform(0.2, 0.9)
+        Q, _ = np.linalg.qr(rng.normal(size=(2, 2)))
+        M = Q @ np.array([[s * c, -s * np.sqrt(1 - c * c)], [s * np.sqrt(1 - c * c), s * c]]) @ Q.T  # normal
+        E = rng.normal(size=(2, 2))
+        cases.append((M, E / np.linalg.norm(E, 2) * (1 - s) * rng.choice([0.9, 1.1])))
+    monkeypatch.setattr(sr, "_below_radius", no_sweep)
+    got = [bool(small_gain_holds(M + E, B, M[None], B[None], K)[0]) for M, E in cases]
+    monkeypatch.undo()
+    exact = [np.less(*small_gain_margin(M + E, B, M, B, K[0])) for M, E in cases]
+    assert got == exact and 0 < sum(got) < len(got)
