@@ -27,10 +27,14 @@ def _template(name: str) -> dict:
     return pio.templates[name].to_plotly_json()
 
 
-def arr(a: ArrayLike) -> list[float | None]:
-    """A numeric array as a JSON-ready list (NaN -> None: a gap in a line)."""
-    x = np.asarray(a, dtype=float)
-    return [None if not np.isfinite(v) else float(v) for v in x.reshape(-1)]
+def arr(a: ArrayLike) -> np.ndarray:
+    """A numeric array as a flat float array for a trace, every non-finite value NaN (a gap in a line).
+
+    An array, not a list: plotly copies each trace's data when a figure is made, which for a list is a
+    Python object per point; the JSON (:func:`to_json`, or plotly's own) writes NaN as a gap."""
+    x = np.array(a, dtype=float).reshape(-1)
+    x[~np.isfinite(x)] = np.nan
+    return x
 
 
 def figure(data: list, layout: dict, template: str = "plotly_white") -> go.Figure:

@@ -29,7 +29,7 @@ def test_time_series_follow_the_input_bound_and_count_saturation(tab):
     assert f2 is not f and sorted({abs(s.y0) for s in f2.layout.shapes}) == [0.05]
     k = int(f2.layout.title.text.split("LS ")[1].split(" steps")[0])
     assert k > 0 and "saturated inputs" in tab.summary and f"LS {k} steps" in tab.summary
-    u = np.array([y for tr in f2.data if tr.yaxis == "y4" and tr.name == "LS" for y in tr.y if y is not None])
+    u = np.array([y for tr in f2.data if tr.yaxis == "y4" and tr.name == "LS" for y in tr.y if np.isfinite(y)])
     assert u.size and np.abs(u).max() <= 0.05 + 1e-9  # the inputs drawn stay inside the drawn bound
 
 

@@ -18,7 +18,8 @@ from app.figures.raw import Wire, to_json
 
 
 def _plain(obj):
-    """plotly's JSON with its base64 typed arrays decoded to lists, floats rounded (repr differences)."""
+    """plotly's JSON with its base64 typed arrays decoded to lists, floats rounded (repr differences), NaN as
+    None (a typed array holds NaN where the strict JSON writes null: both a gap)."""
     if isinstance(obj, dict):
         if set(obj) >= {"dtype", "bdata"}:
             a = np.frombuffer(base64.b64decode(obj["bdata"]), dtype=np.dtype(obj["dtype"]))
@@ -29,7 +30,7 @@ def _plain(obj):
     if isinstance(obj, list):
         return [_plain(v) for v in obj]
     if isinstance(obj, float):
-        return float(f"{obj:.12g}")
+        return None if np.isnan(obj) else float(f"{obj:.12g}")
     return obj
 
 
