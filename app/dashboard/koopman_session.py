@@ -11,13 +11,11 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from qsid_core import QsidError
-
 from .controls import read_values
+from .frame_loop import draw_frames, reporters
 from .koopman_settings import LINEAR_ONLY, NONLINEAR_ONLY, is_nonlinear, scale_label, switch_defaults
 from .koopman_stages import iter_koopman_frames
 from .lessons import NONE, lesson_values
-from .pool import PoolFailure, Superseded
 
 __all__ = ["KindSwitch", "compute_nonlinear"]
 
@@ -66,18 +64,8 @@ class KindSwitch:
 
 def compute_nonlinear(session: Any, gen: int, values: Any) -> int:
     """Compute and draw generation ``gen`` for a nonlinear plant; returns the generation handled."""
-    c = session.controls
     t0 = time.perf_counter()
-
-    def progress(done: int, total: int, text: str) -> None:
-        if not session._stale(gen):
-            session.ui.show_progress(done / total, text)
-
-    def queued(ahead: int) -> None:
-        if not session._stale(gen):
-            c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
-
-    c.status.content = "computing …"
+    progress, queued = reporters(session, gen)
     stale = lambda: session._stale(gen)  # noqa: E731
     frames = iter_koopman_frames(
         values,
@@ -87,31 +75,4 @@ def compute_nonlinear(session: Any, gen: int, values: Any) -> int:
         should_stop=stale,
         on_progress=progress,
     )
-    try:
-        while True:
-            with session.app.slots.turn(queued, False):
-                if stale():
-                    return gen
-                frame = next(frames, None)
-            if frame is None or stale():
-                return gen
-            if not session._draw(frame, gen):
-                return gen
-            session.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
-            if frame.complete:
-                c.progress.value = 100.0
-                c.status.content = (
-                    f"ready · b = {frame.bits} drawn in {frame.timings['current']:.2f} s, "
-                    f"all curves in {session.timings['all']:.2f} s"
-                )
-                return gen
-    except (PoolFailure, Superseded) as exc:
-        if isinstance(exc, PoolFailure):
-            raise
-    except QsidError as exc:
-        session._show_error(str(exc))
-    except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
-        session._show_error(f"these settings cannot be computed ({type(exc).__name__}: {exc})")
-    finally:
-        frames.close()
-    return gen
+    return draw_frames(session, gen, frames, t0, queued)

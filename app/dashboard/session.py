@@ -45,12 +45,13 @@ from .background import DataLengthRunner
 from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .follower import refused
+from .frame_loop import draw_frames, reporters
 from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
 from .lessons import LessonMark, get_lesson, lesson_names, lesson_values
-from .pool import PoolFailure, Superseded, twice_message
+from .pool import PoolFailure, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
 from .stages import iter_frames
@@ -86,6 +87,7 @@ class Session:
         self._cond = threading.Condition()
         self._gen = 0
         self._done = -1
+        self._waited = False  # the computation under way waited for a compute slot (frame_loop; the worker)
         self._closed = False
         self._last_start, self._gap, self._touches = 0.0, MIN_GAP, 0
         self.frames_drawn = 0
@@ -315,21 +317,8 @@ class Session:
         return gen
 
     def _compute(self, gen: int, values: Values) -> int:
-        c = self.controls
         t0 = time.perf_counter()
-
-        def progress(done: int, total: int, text: str) -> None:
-            if not self._stale(gen):
-                self.ui.show_progress(done / total, text)
-
-        waited: list = []
-
-        def queued(ahead: int) -> None:
-            waited.append(ahead)
-            if not self._stale(gen):
-                c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
-
-        c.status.content = "computing …"
+        progress, queued = reporters(self, gen)
         last = self.last_frame  # only drawing left if just display settings changed since a complete frame
         cheap = last is not None and last.complete and values.same_results(last.values)
         frames = iter_frames(
@@ -341,42 +330,7 @@ class Session:
             on_progress=progress,
             memo=self.rows_memo,
         )
-        try:
-            while True:
-                with self.app.slots.turn(queued, cheap):  # (4) at most a few tabs compute at once, in turn
-                    if self._stale(gen):
-                        return gen
-                    if waited:  # its turn came
-                        c.status.content, waited[:] = "computing …", []
-                    frame = next(frames, None)
-                if frame is None or self._stale(gen):
-                    return gen
-                why = unusable(frame)
-                if why:  # all identifications failed, eps not finite: never 'ready'
-                    self._show_error(why)
-                    return gen
-                if not self._draw(frame, gen):
-                    return gen
-                self.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
-                if frame.complete:
-                    c.progress.value = 100.0
-                    c.status.content = (
-                        f"ready · b = {frame.bits} drawn in {self.timings['current']:.2f} s, "
-                        f"all curves in {self.timings['all']:.2f} s"
-                    )
-                    return gen  # the last frame: no further turn to wait for
-        except (PoolFailure, Superseded) as exc:
-            if isinstance(exc, PoolFailure):
-                raise
-        except QsidError as exc:
-            self._show_error(str(exc))
-        except (RecursionError, OverflowError, MemoryError, ZeroDivisionError, FloatingPointError) as exc:
-            self._show_error(
-                f"these settings cannot be computed ({type(exc).__name__}: {exc}); try smaller or less extreme values"
-            )
-        finally:
-            frames.close()
-        return gen
+        return draw_frames(self, gen, frames, t0, queued, cheap, unusable)
 
     def _show_error(self, text: str) -> None:
         self.ui.show_error(text)
