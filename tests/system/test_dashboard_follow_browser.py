@@ -122,6 +122,8 @@ def test_a_student_follows_the_teacher_read_only_then_explores_from_there():
                 b0 = _bits_shown(page)
                 _press_bits(page, "ArrowRight", 2)
                 page.wait_for_function(f"({BITS_THUMB})() === '{b0 + 2}'", timeout=TIMEOUT_MS)
+                # the page shows the thumb moved at once; the value reaches the server a moment later
+                wait_until(lambda: teacher.last_frame.values.bits == b0 + 2, "the teacher's tab drawn at the new b")
                 assert teacher.wait_idle(TIMEOUT_MS / 1000) and teacher.last_frame.values.bits == b0 + 2
                 _follows(spage, teacher, b0 + 2, "none")
                 teacher.controls["lesson"].value = "dither"
@@ -168,6 +170,7 @@ def test_a_student_follows_the_teacher_read_only_then_explores_from_there():
                 assert student.wait_idle(TIMEOUT_MS / 1000)
                 _press_bits(spage, "ArrowRight", 2)
                 spage.wait_for_function(f"({BITS_THUMB})() === '{b1 + 2}'", timeout=TIMEOUT_MS)
+                wait_until(lambda: student.last_frame.values.bits == b1 + 2, "the student's tab drawn at the new b")
                 assert student.wait_idle(TIMEOUT_MS / 1000) and student.last_frame.values.bits == b1 + 2
                 assert teacher.wait_idle(TIMEOUT_MS / 1000) and teacher.last_frame.values.bits == b1
                 assert _bits_shown(page) == b1 and app.views.get(code).bits == b1
