@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable, Iterable, Mapping, MutableMapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol, TypeVar, cast
 
 import numpy as np
@@ -55,8 +56,17 @@ class StageKeys:
         """The true system: shapes and the bytes of A, B, x0, Q, R."""
         return system_key(self.system)
 
+    @cached_property
+    def _tails(self) -> dict[str, Key]:
+        """Per stage, the part of its key after the name and the per-call parts (built once per config)."""
+        return {}
+
     def _key(self, stage: str, *extra: Hashable) -> Key:
-        return stage_key(self.config, self.system, stage, *extra)
+        try:
+            tail = self._tails[stage]
+        except KeyError:
+            tail = self._tails[stage] = stage_key(self.config, self.system, stage)[1:]
+        return (stage, *extra, *tail)
 
     def data(self) -> Key:
         """The unquantized data set."""
