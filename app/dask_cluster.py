@@ -10,7 +10,7 @@ import os
 import warnings
 from collections.abc import Callable, Iterator
 
-from app.distributed import ClusterError, DaskExecutor, _import_distributed, parse_dask_spec
+from app.distributed import ClusterError, DaskExecutor, import_distributed, parse_dask_spec
 from app.procs import descendants, kill_new_descendants, resource_trackers
 from app.stop import check_stopped
 from qsid_core import ConfigError
@@ -86,7 +86,7 @@ def make_executor(
         context is open; failures still arrive as :class:`ClusterError`.
     """
     parsed = parse_dask_spec(spec)
-    _import_distributed()
+    import_distributed()
 
     say = progress or (lambda _msg: None)
     before = set(descendants(os.getpid())) if parsed.local else None

@@ -45,14 +45,14 @@ import warnings
 from app.daskspec import MAX_LOCAL_WORKERS, DaskSpec, parse_dask_spec
 from qsid_core import ConfigError, QsidError
 
-__all__ = ["ClusterError", "DaskSpec", "DaskExecutor", "parse_dask_spec", "MAX_LOCAL_WORKERS"]
+__all__ = ["ClusterError", "DaskSpec", "DaskExecutor", "parse_dask_spec", "MAX_LOCAL_WORKERS", "import_distributed"]
 
 
 class ClusterError(QsidError):
     """The dask cluster failed during a run (no workers, scheduler gone, workers dying)."""
 
 
-def _import_distributed():
+def import_distributed():
     try:
         import distributed
     except ImportError:

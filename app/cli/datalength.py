@@ -15,13 +15,13 @@ from typing import TYPE_CHECKING
 from .files import input_files, out_file, write_text
 from .output import dumps, g
 from .parser import (
-    _float_type,
-    _nonneg_int,
     add_quantizer_options,
     add_running_options,
+    any_float,
+    nonneg_int,
     pos_int,
 )
-from .runner import _quantizer, executor, resolve_system
+from .runner import executor, quantizer_from_args, resolve_system
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -85,21 +85,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     g_.add_argument(
         "--input-amplitude",
-        type=_float_type,
+        type=any_float,
         default=d.input_amplitude,
         metavar="A",
         help=f"training inputs u ~ U[-A, A] (default: {d.input_amplitude:g})",
     )
     g_.add_argument(
         "--data-seed",
-        type=_nonneg_int,
+        type=nonneg_int,
         default=d.data_seed,
         metavar="N",
         help=f"seed of the simulated data (default: {d.data_seed})",
     )
     g_.add_argument(
         "--dither-seed",
-        type=_nonneg_int,
+        type=nonneg_int,
         default=d.dither_seed,
         metavar="N",
         help=f"seed of the dither streams (default: {d.dither_seed})",
@@ -168,7 +168,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
         bits=args.bits,
         samples=args.samples,
         realizations=args.realizations,
-        quantizer=_quantizer(args, system),
+        quantizer=quantizer_from_args(args, system),
         input_amplitude=args.input_amplitude,
         data_seed=args.data_seed,
         dither_seed=args.dither_seed,

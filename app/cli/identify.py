@@ -14,7 +14,7 @@ from app.settings.cli import add_option
 from .files import out_file, write_text
 from .output import dumps
 from .parser import add_quantizer_options, engine, pos_int
-from .runner import UsageError, _quantizer, resolve_system
+from .runner import UsageError, quantizer_from_args, resolve_system
 
 if TYPE_CHECKING:
     from .runner import Reporter
@@ -106,7 +106,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     system = resolve_system(args.system) if args.system is not None else None
     if args.range_mode == "fixed" and args.limits is None:
         raise UsageError("argument --range fixed needs --limits LO,HI")
-    spec = _quantizer(args, _Shape(data.n, data.m))
+    spec = quantizer_from_args(args, _Shape(data.n, data.m))
     rep.stage(f"{args.data}: {data.trajectories} runs x {data.steps} steps, {data.n} states, {data.m} inputs")
     res = identify_recorded(data, args.bits, spec, args.realizations, args.dither_seed, system)
     d = res.to_dict()
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
 
 
 class _Shape:
-    """What :func:`app.cli.runner._quantizer` reads of a system: its name and channel counts."""
+    """What :func:`app.cli.runner.quantizer_from_args` reads of a system: its name and channel counts."""
 
     def __init__(self, n: int, m: int):
         self.name, self.n, self.m = "recorded data", n, m

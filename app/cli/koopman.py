@@ -99,7 +99,7 @@ def koopman_config(args: argparse.Namespace) -> KoopmanConfig:
     from qsid_core.plant import get_nonlinear
     from qsid_core.studies import KOOPMAN_MPC, KoopmanConfig
 
-    from .runner import _quantizer
+    from .runner import quantizer_from_args
 
     _check_supported(args)
     typed = _typed(args)
@@ -113,7 +113,7 @@ def koopman_config(args: argparse.Namespace) -> KoopmanConfig:
         kw["bits"] = tuple(parse_bits(args.bits))
     return KoopmanConfig(
         system=args.system if isinstance(args.system, str) else system,
-        quantizer=_quantizer(args, system),
+        quantizer=quantizer_from_args(args, system),
         mpc=mpc,
         **kw,
     )

@@ -22,6 +22,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "PROG",
+    "any_float",
+    "nonneg_int",
     "add_quantizer_options",
     "UsageError",
     "engine",
@@ -51,7 +53,7 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-_float_type = float_type()
+any_float = float_type()
 
 
 def _floats_type(text: str) -> tuple[float, ...]:
@@ -155,7 +157,7 @@ def _matrix_text(text: str) -> str:
 
 
 pos_int = int_type("positive integer", 1)
-_nonneg_int = int_type("non-negative integer", 0)
+nonneg_int = int_type("non-negative integer", 0)
 
 
 def add_data_options(p: argparse.ArgumentParser, base: SweepConfig | None = None, seed: bool = True) -> None:
@@ -202,7 +204,7 @@ def add_data_options(p: argparse.ArgumentParser, base: SweepConfig | None = None
     if seed:
         g.add_argument(
             "--seed",
-            type=_nonneg_int,
+            type=nonneg_int,
             default=None,
             metavar="N",
             help="seed of both the data and the dither streams (sets --data-seed and --dither-seed)",
@@ -299,7 +301,7 @@ def _add_mpc_weight_options(m: argparse._ArgumentGroup) -> None:
     )
     m.add_argument(
         "--rho",
-        type=_float_type,
+        type=any_float,
         default=None,
         metavar="X",
         help="rho of the ultimate bound, > 0 (default: the level-set ball through x0)",

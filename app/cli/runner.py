@@ -32,6 +32,7 @@ __all__ = [
     "Reporter",
     "one_line",
     "resolve_system",
+    "quantizer_from_args",
     "system_from_args",
     "config",
     "workers",
@@ -41,7 +42,7 @@ __all__ = [
 
 
 class Channels(Protocol):
-    """What :func:`_quantizer` reads of a system: its name and channel counts."""
+    """What :func:`quantizer_from_args` reads of a system: its name and channel counts."""
 
     @property
     def name(self) -> str: ...
@@ -170,7 +171,8 @@ def system_from_args(args: argparse.Namespace) -> LTISystem:
     return LTISystem("custom", A, B, description="typed on the command line")
 
 
-def _quantizer(args: argparse.Namespace, system: Channels) -> QuantizerSpec:
+def quantizer_from_args(args: argparse.Namespace, system: Channels) -> QuantizerSpec:
+    """The quantizer the parsed options ask for (range mode, guard, fixed limits, dither) on ``system``'s channels."""
     from qsid_core import QuantizerSpec
 
     fixed = args.limits
@@ -221,7 +223,7 @@ def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfi
         bits=bits,
         # the options of the settings table whose value is the engine's (data size, amplitudes, theta, ...)
         **{engine_field(s): getattr(args, s.dest) for s in plain("sweep", cli=True)},
-        quantizer=_quantizer(args, system),
+        quantizer=quantizer_from_args(args, system),
         estimator=args.estimator,
         mpc=mpc_config(args, system) if mpc else None,
         rho=args.rho,

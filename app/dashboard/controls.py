@@ -46,6 +46,7 @@ __all__ = [
     "GuiElements",
     "make_gui_elements",
     "read_values",
+    "initial_value",
     "set_scale",
     "set_system",
     "apply_lesson",
@@ -143,7 +144,7 @@ class GuiElements:
         return self.inputs[name]
 
 
-def _initial(c: Control, v: Values, system: LTISystem) -> Any:
+def initial_value(c: Control, v: Values, system: LTISystem) -> Any:
     """The first value of control ``c`` (empty texts show the system's matrices and x0)."""
     if c.name == "a_text":
         return v.a_text or matrix_text(system.A)
@@ -216,7 +217,7 @@ def make_gui_elements(
     custom = values.system == "custom"
 
     def add(c: Control) -> None:
-        h = _add(gui, c, _initial(c, values, system), system, custom)
+        h = _add(gui, c, initial_value(c, values, system), system, custom)
         # only mark dirty (at once); the tab's worker redraws. A change from the browser (client_id set, not one
         # the server made) also counts as the person's own: it stops the auto-play.
         h.on_update(inline(lambda event: on_change(event.client_id is not None)))

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .codepanel import show_view
-from .controls import CONTROLS, _initial
+from .controls import CONTROLS, initial_value
 from .koopman_render import KoopmanRenderer
 from .lessons import get_lesson, lesson_drift, lesson_markdown, lesson_names, lesson_values
 from .render import Renderer
@@ -54,7 +54,7 @@ def mirror_panel(session: Any, old: Values | None, new: Values) -> None:
         changed = [c for c in CONTROLS if getattr(old, c.name) != getattr(new, c.name)]
         system = resolve_system(new).system if any(c.name in ("x0", "axes") for c in changed) else None
         for c in changed:
-            want = _initial(c, new, system) if system is not None else c.convert(getattr(new, c.name))
+            want = initial_value(c, new, system) if system is not None else c.convert(getattr(new, c.name))
             if c.name != "axes" or want in h["axes"].options:
                 h[c.name].value = want
     el.inputs["fixed_range"].visible = new.range_mode == "fixed"

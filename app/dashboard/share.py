@@ -172,16 +172,16 @@ class ShareHandles:
 
 def apply_values(el, v: Values) -> None:
     """Set every input of a tab's panel to ``v`` (from the tab's worker thread)."""
-    from .controls import _initial, set_system
+    from .controls import initial_value, set_system
 
     system = resolve_system(v).system
     h = el.inputs
     for c in CONTROLS:
         if c.name != "axes":
-            h[c.name].value = _initial(c, v, system)
+            h[c.name].value = initial_value(c, v, system)
     el.system_key = None  # rebuild the weight sliders at the file's positions
     set_system(el, system, v.log_q, v.log_r, reset=False)
-    axes = _initial(_CONTROL["axes"], v, system)
+    axes = initial_value(_CONTROL["axes"], v, system)
     if axes in h["axes"].options:
         h["axes"].value = axes
 

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .palette import vertex_rgb
-from .phase_scene import CLIP, SceneView, _interleave, _points, _to_segments
+from .phase_scene import CLIP, SceneView, interleave, scene_points, to_segments
 
 __all__ = ["koopman_scene", "scene_arrays"]
 
@@ -51,11 +51,11 @@ def koopman_scene(frame: Any) -> SceneView:
     a = scene_arrays(frame)
     dims, scale = a["dims"], a["scale"]
     x0 = np.asarray(frame.x0, dtype=float)
-    start = _points(x0[None, None, :], dims, scale)[0, 0]
+    start = scene_points(x0[None, None, :], dims, scale)[0, 0]
     segs, cols = [], []
     failed = clipped = total = stuck = 0
     for i, (lab, st) in enumerate(a["loops"].items()):
-        s, f, c = _to_segments(_nan_tail(st), dims, scale, start)
+        s, f, c = to_segments(_nan_tail(st), dims, scale, start)
         segs.append(s)
         cols.append(np.broadcast_to(np.array(vertex_rgb(lab, i), dtype=np.uint8), s.shape))
         failed, clipped, total = failed + f, clipped + c, total + st.shape[0]
@@ -63,11 +63,11 @@ def koopman_scene(frame: Any) -> SceneView:
         stuck += oc["bounded"] + oc["diverged"]
     empty = np.zeros((1, 2, 3), dtype=np.float32)
     per_loop = next(iter(a["loops"].values())).shape[1] - 1 if a["loops"] else 1
-    seg_all = _interleave(segs, per_loop) if segs else empty
-    col_all = _interleave(cols, per_loop) if cols else np.zeros((1, 2, 3), dtype=np.uint8)
+    seg_all = interleave(segs, per_loop) if segs else empty
+    col_all = interleave(cols, per_loop) if cols else np.zeros((1, 2, 3), dtype=np.uint8)
     ref = a["reference"]
-    tseg = _to_segments(_nan_tail(ref[None]), dims, scale, start)[0] if ref is not None else empty
-    flow = _to_segments(_nan_tail(a["flow"]), dims, scale, start)[0]
+    tseg = to_segments(_nan_tail(ref[None]), dims, scale, start)[0] if ref is not None else empty
+    flow = to_segments(_nan_tail(a["flow"]), dims, scale, start)[0]
     names = frame.system.state_names
     labels = (names[0], names[1] if len(names) > 1 else "time", "time" if len(names) > 1 else "")
     conv = {lab: frame.loops[lab].counts()["converged"] for lab in a["loops"]}

@@ -17,7 +17,19 @@ from numpy.typing import NDArray
 from .palette import vertex_rgb
 from .view import FrameView
 
-__all__ = ["CLIP", "SPHERE_CAP", "TIME", "SceneView", "scene_view", "axes_options", "axes_indices", "circles"]
+__all__ = [
+    "CLIP",
+    "SPHERE_CAP",
+    "TIME",
+    "SceneView",
+    "scene_view",
+    "axes_options",
+    "axes_indices",
+    "circles",
+    "interleave",
+    "scene_points",
+    "to_segments",
+]
 
 #: Display coordinates are clipped to +-CLIP box units (diverging loops would swamp the view).
 CLIP = 6.0
@@ -132,7 +144,7 @@ def _time_axis(dims: Dims) -> int | None:
     return dims.index(None) if None in dims else None
 
 
-def _points(states: NDArray[np.float64], dims: Dims, scale: float) -> NDArray[np.float64]:
+def scene_points(states: NDArray[np.float64], dims: Dims, scale: float) -> NDArray[np.float64]:
     """(R, T+1, n) states -> (R, T+1, 3) display points (time on the free axis of small systems)."""
     R, T1, _ = states.shape
     P = np.zeros((R, T1, 3))
@@ -145,7 +157,7 @@ def _points(states: NDArray[np.float64], dims: Dims, scale: float) -> NDArray[np
     return P
 
 
-def _interleave(parts: list[NDArray[Any]], per_loop: int) -> NDArray[Any]:
+def interleave(parts: list[NDArray[Any]], per_loop: int) -> NDArray[Any]:
     """Concatenate per-estimator segment arrays, alternating loop by loop (``per_loop`` segments each) when
     they are equally long, so that neither estimator's loops are all drawn over the other's."""
     p0 = parts[0]
@@ -164,16 +176,16 @@ def _reference_path(frame: FrameView, dims: Dims, scale: float, start: NDArray[n
     if path is None:
         return np.zeros((0, 2, 3), dtype=np.float32)
     ref = path[: mpc.steps + 1]
-    seg, _, _ = _to_segments(ref[None], dims, scale, start)
+    seg, _, _ = to_segments(ref[None], dims, scale, start)
     return np.clip(seg, -CLIP, CLIP).astype(np.float32)
 
 
-def _to_segments(
+def to_segments(
     states: NDArray[np.float64], dims: Dims, scale: float, start: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], int, int]:
     """(R, T+1, n) trajectories -> (R*T, 2, 3) display segments, #failed, #clipped."""
     R = states.shape[0]
-    P = _points(states, dims, scale)
+    P = scene_points(states, dims, scale)
     bad = ~np.all(np.isfinite(P.reshape(R, -1)), axis=1)
     P[bad] = start
     clipped = int(np.sum(np.any(np.abs(P.reshape(R, -1)) > CLIP, axis=1)))
@@ -272,13 +284,13 @@ def scene_view(frame: FrameView, axes: str | None = None) -> SceneView:
     ts = frame.true_loop.states[0]
     x0 = np.asarray(frame.x0, dtype=float)  # the engine's start state (also if loops failed)
     scale = _display_scale(ts, x0, [d for d in dims if d is not None])
-    start = _points(x0[None, None, :], dims, scale)[0, 0]
+    start = scene_points(x0[None, None, :], dims, scale)[0, 0]
     segs: list[NDArray[np.float64]] = []
     cols: list[NDArray[np.uint8]] = []
     failed, clipped, poly, total, stuck = 0, 0, 0, 0, 0
     for i, lab in enumerate(frame.labels):
         st = frame.loops[lab].states
-        s, f, c = _to_segments(st, dims, scale, start)
+        s, f, c = to_segments(st, dims, scale, start)
         segs.append(s)
         cols.append(np.broadcast_to(np.array(vertex_rgb(lab, i), dtype=np.uint8), s.shape))
         failed += f
@@ -288,9 +300,9 @@ def scene_view(frame: FrameView, axes: str | None = None) -> SceneView:
         total += st.shape[0]
         ident = frame.idents.get(lab)
         poly += min(st.shape[0], ident.effective_realizations if ident is not None else st.shape[0])
-    tseg, _, _ = _to_segments(ts[None], dims, scale, start)
+    tseg, _, _ = to_segments(ts[None], dims, scale, start)
     every = max(1, (ts.shape[0] - 1) // TIME_MARKS)
-    marks = np.clip(_points(ts[None, ::every], dims, scale)[0], -CLIP, CLIP)
+    marks = np.clip(scene_points(ts[None, ::every], dims, scale)[0], -CLIP, CLIP)
     marks = marks[np.all(np.isfinite(marks), axis=1)]
     ta = _time_axis(dims)
     if ta is not None:  # time axis: the markers sit at their own times
@@ -299,7 +311,7 @@ def scene_view(frame: FrameView, axes: str | None = None) -> SceneView:
     labels = [names[d] if d is not None else "" for d in dims]
     if ta is not None:
         labels[ta] = "time"
-    seg_all, col_all = _interleave(list(segs), ts.shape[0] - 1), _interleave(list(cols), ts.shape[0] - 1)
+    seg_all, col_all = interleave(list(segs), ts.shape[0] - 1), interleave(list(cols), ts.shape[0] - 1)
     return SceneView(
         segments=seg_all.astype(np.float32),
         colors=np.ascontiguousarray(col_all),

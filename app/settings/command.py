@@ -22,7 +22,16 @@ if TYPE_CHECKING:
 
     from qsid_core import LTISystem, SweepConfig
 
-__all__ = ["sweep_argv", "sweep_command", "bits_command", "system_text", "bits_spec", "floats_spec", "limits_spec"]
+__all__ = [
+    "sweep_argv",
+    "sweep_command",
+    "bits_command",
+    "system_text",
+    "bits_spec",
+    "floats_spec",
+    "limits_spec",
+    "flag_text",
+]
 
 
 def limits_spec(pairs: Iterable[tuple[float, float]]) -> str:
@@ -53,7 +62,8 @@ def _at(cfg: Any, path: str) -> Any:
     return obj
 
 
-def _text(v: Any) -> str:
+def flag_text(v: Any) -> str:
+    """A setting's value as a command line flag's text (a tuple comma-separated, floats exactly)."""
     if isinstance(v, tuple):
         return ",".join(repr(x) if isinstance(x, float) else str(x) for x in v)
     return repr(v) if isinstance(v, float) else str(v)
@@ -74,7 +84,7 @@ def _schema_args(cfg: SweepConfig) -> list[str]:
         if s.type is bool:
             out.append(s.flag if v else f"--no-{s.flag[2:]}")
         elif v is not None:
-            out.append(f"{s.flag}={_text(v)}")
+            out.append(f"{s.flag}={flag_text(v)}")
     return out
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import shlex
 from typing import TYPE_CHECKING, Any
 
-from .command import _text, bits_spec, floats_spec, limits_spec
+from .command import bits_spec, flag_text, floats_spec, limits_spec
 from .schema import SETTINGS
 
 if TYPE_CHECKING:
@@ -49,7 +49,7 @@ def koopman_argv(cfg: KoopmanConfig) -> list[str]:
         dv = _at(KOOPMAN_MPC, path.removeprefix("mpc.")) if path.startswith("mpc.") else _at(d, path)
         if v == dv or v is None:
             continue
-        out.append((s.flag if v else f"--no-{s.flag[2:]}") if s.type is bool else f"{s.flag}={_text(v)}")
+        out.append((s.flag if v else f"--no-{s.flag[2:]}") if s.type is bool else f"{s.flag}={flag_text(v)}")
     if cfg.quantizer.fixed_range is not None:
         out.append(f"--limits={limits_spec(cfg.quantizer.fixed_range)}")
     if cfg.mpc is None:

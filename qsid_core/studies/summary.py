@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from .assumptions import Assumptions
     from .stage_results import BitsIdentification, TheoryAtBits
 
-__all__ = ["Stats", "SummaryRow", "build_row", "fit_slope", "json_clean", "summary_row"]
+__all__ = ["Stats", "SummaryRow", "build_row", "fit_slope", "json_clean", "summary_row", "UNKNOWN"]
 
 
 def _num(x: float | None) -> float | None:
@@ -204,7 +204,8 @@ class SummaryRow(Mapping[str, Any]):
         return len(self.to_dict())
 
 
-_UNKNOWN = object()
+#: The default of an input bound not given (the saturated-steps field is then left out); None would be a value.
+UNKNOWN = object()
 
 #: relative smallest singular value of the controllability matrix below which a model counts as uncontrollable
 UNCONTROLLABLE = 1e-9
@@ -261,7 +262,7 @@ def _loop_fields(lp: ClosedLoops, u_max: Any) -> dict[str, Any]:
     for key, vals in (("steady_state_error", lp.steady_state_error), ("tracking_error", lp.tracking_error)):
         ok = vals[np.isfinite(vals)]
         kw[key] = {"mean": float(ok.mean()) if ok.size else None, "max": float(ok.max()) if ok.size else None}
-    if u_max is not _UNKNOWN:
+    if u_max is not UNKNOWN:
         k, loops = saturated_steps(lp.inputs, u_max)
         kw["saturated_steps"] = {
             "steps": k,
@@ -278,7 +279,7 @@ def build_row(
     th: TheoryAtBits,
     lp: ClosedLoops | None = None,
     *,
-    u_max: Any = _UNKNOWN,
+    u_max: Any = UNKNOWN,
     realized: RealizedBounds | None = None,
     assumptions: Assumptions | None = None,
 ) -> SummaryRow:
@@ -353,7 +354,7 @@ def summary_row(
     th: TheoryAtBits,
     lp: ClosedLoops | None,
     *,
-    u_max: Any = _UNKNOWN,
+    u_max: Any = UNKNOWN,
     realized: RealizedBounds | None = None,
     assumptions: Assumptions | None = None,
 ) -> SummaryRow:

@@ -18,7 +18,7 @@ from .config import SweepConfig
 from .config_checks import check_run_args
 from .executors import single_threaded_blas
 from .experiment import Experiment, Progress
-from .summary import _UNKNOWN, SummaryRow, fit_slope, summary_row
+from .summary import UNKNOWN, SummaryRow, fit_slope, summary_row
 from .sweep_result import SweepResult
 
 __all__ = ["run_sweep", "summarize"]
@@ -30,7 +30,7 @@ def summarize(ex: Experiment, b: int, estimator: str | None = None) -> SummaryRo
     est = estimator or ex.config.estimator
     cfg = ex.config.mpc
     lp = ex.closed_loops(b, est) if cfg is not None else None
-    u_max = cfg.resolve(ex.system).u_max if cfg is not None else _UNKNOWN
+    u_max = cfg.resolve(ex.system).u_max if cfg is not None else UNKNOWN
     return summary_row(
         ex.system.n,
         ex.identification(b, est),

@@ -19,7 +19,7 @@ from ..quantization.quantize import ERROR_VARIANCE, NOMINAL_VARIANCE, bcls_reaso
 from ..version import __version__
 from .config import SweepConfig
 from .stage_results import BitsIdentification, TheoryAtBits
-from .summary import _UNKNOWN, SummaryRow, json_clean, summary_row
+from .summary import UNKNOWN, SummaryRow, json_clean, summary_row
 
 if TYPE_CHECKING:
     from ..control.realized_bound import RealizedBounds
@@ -103,7 +103,7 @@ class SweepResult:
         if b not in self.identification:
             return self.rows[b]
         lp = self.loops.get(b)
-        u_max = self.config.mpc.resolve(self.system).u_max if (lp is not None and self.config.mpc) else _UNKNOWN
+        u_max = self.config.mpc.resolve(self.system).u_max if (lp is not None and self.config.mpc) else UNKNOWN
         return summary_row(
             self.system.n,
             self.identification[b],

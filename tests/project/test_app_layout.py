@@ -204,3 +204,21 @@ def test_every_view_module_is_registered_and_imports_no_other_view():
     }
     for name in view_modules:
         assert not _imports(name, *mods[name], set(mods)) & view_modules, name
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_module_imports_another_modules_private_names(package):
+    """A name another module needs is public (in its ``__all__``); viser's internals stay in app.dashboard.viserfix."""
+    found = []
+    for name, (_, tree) in _modules(package).items():
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom) or node.module == "__future__":
+                continue
+            if name == "app.dashboard.viserfix" and (node.module or "").startswith("viser"):
+                continue
+            found += [
+                f"{name}: {node.module}.{a.name}"
+                for a in node.names
+                if a.name.startswith("_") and not a.name.endswith("__")
+            ]
+    assert found == []
