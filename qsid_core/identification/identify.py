@@ -67,7 +67,10 @@ class Identified:
 def _solve_spd(PP: np.ndarray, XP: np.ndarray) -> np.ndarray | None:
     """``XP PP^-1`` via Cholesky with diagonal scaling; None if PP is not positive definite."""
     d = np.sqrt(np.clip(np.diag(PP), 1e-300, None))
-    S = PP / np.outer(d, d)
+    with np.errstate(over="ignore", invalid="ignore"):  # a scale this far apart is refused just below
+        S = PP / np.outer(d, d)
+    if not np.all(np.isfinite(S)):
+        return None
     try:
         c = sla.cho_factor(S, lower=True, check_finite=False)
     except np.linalg.LinAlgError:

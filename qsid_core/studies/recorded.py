@@ -153,6 +153,15 @@ def load_recorded(path: str | os.PathLike[str]) -> Dataset:
     return dataset_from_arrays(x, u)
 
 
+def _mean_std(x: np.ndarray) -> dict[str, float]:
+    """Mean and std of the values of ``x`` that are not NaN (failed identifications); NaN, without a
+    warning, when every one failed."""
+    known = x[~np.isnan(x)]
+    if not known.size:
+        return {"mean": float("nan"), "std": float("nan")}
+    return {"mean": float(known.mean()), "std": float(known.std())}
+
+
 @dataclass
 class RecordedResult:
     """Errors of LS and BCLS on quantized recorded data against a reference model.
@@ -191,10 +200,7 @@ class RecordedResult:
             r = {"bits": b, "eps": self.eps[b].tolist(), "overload_fraction": self.overload[b]}
             for est in ("ls", "bcls"):
                 e = self.err[(est, b)]
-                r[est] = {
-                    "err_A": {"mean": float(np.nanmean(e[:, 0])), "std": float(np.nanstd(e[:, 0]))},
-                    "err_B": {"mean": float(np.nanmean(e[:, 1])), "std": float(np.nanstd(e[:, 1]))},
-                }
+                r[est] = {k: _mean_std(e[:, j]) for j, k in enumerate(("err_A", "err_B"))}
             if b in self.theory:
                 r["theorem1"] = self.theory[b]
             rows.append(r)

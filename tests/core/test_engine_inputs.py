@@ -321,20 +321,34 @@ def test_theory_singular_riccati_is_recorded_not_raised(monkeypatch):
 
 
 def test_failed_identifications_are_flagged_never_silent_nan():
-    # constant data at one realization cannot be identified: failed=True with a note, not NaN with failed=False
-    res = run_sweep(
-        SweepConfig(
-            bits=(1,),
-            trajectories=1,
-            steps=10,
-            realizations=2,
-            mpc=MPCConfig(steps=2),
-            quantizer=QuantizerSpec(range_mode="fixed", fixed_range=(1e6, 1e6 + 1), dither="none"),
+    # constant data at one realization cannot be identified: failed=True with a note, not NaN with failed=False,
+    # and no numpy warning on the way (a user's terminal would show it)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        res = run_sweep(
+            SweepConfig(
+                bits=(1,),
+                trajectories=1,
+                steps=10,
+                realizations=2,
+                mpc=MPCConfig(steps=2),
+                quantizer=QuantizerSpec(range_mode="fixed", fixed_range=(1e6, 1e6 + 1), dither="none"),
+            )
         )
-    )
     _check_sweep(res)
     ident = res.identification[1]
     assert ident.failed.all() and ident.notes
+
+
+def test_a_gram_matrix_whose_scaling_overflows_is_singular_without_a_warning():
+    from qsid_core.errors import IdentificationError
+    from qsid_core.identification.identify import least_squares
+
+    PP = np.array([[1e-300, 1e10], [1e10, 1e-300]])  # scaled by its tiny diagonal, its entries overflow
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(IdentificationError, match="singular"):
+            least_squares(PP, np.ones((1, 2)), 1)
 
 
 # ------------------------------------------------------------------------------------------------
