@@ -79,7 +79,7 @@ def _tab_shown(page, session, tab: str, click: bool) -> bool:
 def _settled_boxes(page, reads: int = 15) -> list:
     """The text boxes of the figures shown once plotly has laid them out: two reads 300 ms apart that agree
     (a loaded machine lays out later; a layout that stays wrong is measured as it stays)."""
-    page.wait_for_timeout(600)
+    page.wait_for_timeout(300)
     last = page.evaluate(TEXT_BOXES)
     for _ in range(reads):
         page.wait_for_timeout(300)
