@@ -147,12 +147,12 @@ class TabView:
     # ----- what the tab shows -------------------------------------------------------------------------------------
     def show_error(self, text: str) -> None:
         """One line under the panel's inputs; the views keep the last good result."""
-        self.last_error = text
         c = self.controls
+        c.status.content = "error – see below"  # first: once the error shows, the status says so too
+        c.progress.value = 0.0
         c.error.content = f"⚠️ **Cannot update:** {text}  \n*The view still shows the last good result.*"
         c.error.visible = True
-        c.status.content = "error – see below"
-        c.progress.value = 0.0
+        self.last_error = text
 
     def show_progress(self, fraction: float, text: str) -> None:
         self.controls.progress.value = 100.0 * fraction
