@@ -16,7 +16,7 @@ from .edmd import (
     quantized_lifted_realizations,
 )
 from .edmd_limit import LARGE_DATA_HYPOTHESES, LargeDataLimit, error_moments, large_data_limit
-from .identify import ESTIMATORS, Identified, identify, least_squares, relative_errors
+from .identify import ESTIMATORS, Identified, identify, least_squares, mean_std_of_known, relative_errors
 from .lifting import LIFTINGS, Lifting, MonomialLifting, RBFLifting, bernoulli_shifted, parse_lifting
 from .theorem1 import noise_covariance, theorem1_prediction
 
@@ -45,6 +45,7 @@ __all__ = [
     "prediction_errors",
     "quantized_lifted_moments",
     "quantized_lifted_realizations",
+    "mean_std_of_known",
     "relative_errors",
     "theorem1_prediction",
 ]

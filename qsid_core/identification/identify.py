@@ -29,7 +29,7 @@ import scipy.linalg as sla
 from ..errors import IdentificationError, check_choice
 from ..quantization.moments import Moments
 
-__all__ = ["ESTIMATORS", "Identified", "identify", "least_squares", "relative_errors"]
+__all__ = ["ESTIMATORS", "Identified", "identify", "least_squares", "mean_std_of_known", "relative_errors"]
 
 ESTIMATORS = ("ls", "bcls")
 #: An identified entry beyond this is a numerical failure (true systems have entries <= 1e12).
@@ -153,6 +153,15 @@ def identify(mom: Moments, estimator: str = "ls") -> Identified:
         )
     A, B = least_squares(mom.PP, mom.XP, n)
     return Identified(A, B, "ls")
+
+
+def mean_std_of_known(x: np.ndarray) -> tuple[float, float]:
+    """Mean and std of the values of ``x`` that are not NaN (failed identifications); NaN for both, without
+    numpy's warning, when every one failed. (:class:`qsid_core.studies.summary.Stats` also
+    leaves infinities out and gives None.)"""
+    x = np.asarray(x, dtype=float)
+    known = x[~np.isnan(x)]
+    return (float(known.mean()), float(known.std())) if known.size else (float("nan"), float("nan"))
 
 
 def relative_errors(A_hat: np.ndarray, B_hat: np.ndarray, A: np.ndarray, B: np.ndarray) -> tuple[float, float]:

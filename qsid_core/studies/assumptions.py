@@ -69,6 +69,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..identification.identify import mean_std_of_known
 from .clipping import clipping_effect, clips_nothing
 
 if TYPE_CHECKING:
@@ -215,13 +216,6 @@ def range_words(spec: QuantizerSpec, lo: np.ndarray, hi: np.ndarray) -> str:
     return f"the {spec.range_mode} range ({guard})"
 
 
-def _mean_of_known(x: np.ndarray) -> float:
-    """The mean of the values of ``x`` that are not NaN (failed identifications); NaN, without a warning,
-    when every one failed."""
-    known = np.asarray(x, dtype=float)[~np.isnan(x)]
-    return float(known.mean()) if known.size else float("nan")
-
-
 def _block_norms(sysm: LTISystem) -> tuple[float, float]:
     """The denominators of identify.relative_errors (an all-zero A or B is measured against ||[A, B]||)."""
     nG = float(np.linalg.norm(sysm.G))
@@ -339,8 +333,8 @@ def assess(ex: Staged, b: int) -> Assumptions:
         bias_B=float(th.err_B),
         fluctuation_A=fA / nA,
         fluctuation_B=fB / nB,
-        ls_err_A=_mean_of_known(ls.err_A),
-        ls_err_B=_mean_of_known(ls.err_B),
+        ls_err_A=mean_std_of_known(ls.err_A)[0],
+        ls_err_B=mean_std_of_known(ls.err_B)[0],
     )
     a["stationary"] = a["spectral_radius"] < 1.0 - STATIONARITY_MARGIN
     for k in "AB":

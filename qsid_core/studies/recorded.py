@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConfigError, check_int
-from ..identification.identify import identify, least_squares, relative_errors
+from ..identification.identify import identify, least_squares, mean_std_of_known, relative_errors
 from ..plant.data import Dataset
 from ..plant.lti import LTISystem
 from ..quantization.moments import Moments, PreparedData, prepare, quantized_moments
@@ -153,15 +153,6 @@ def load_recorded(path: str | os.PathLike[str]) -> Dataset:
     return dataset_from_arrays(x, u)
 
 
-def _mean_std(x: np.ndarray) -> dict[str, float]:
-    """Mean and std of the values of ``x`` that are not NaN (failed identifications); NaN, without a
-    warning, when every one failed."""
-    known = x[~np.isnan(x)]
-    if not known.size:
-        return {"mean": float("nan"), "std": float("nan")}
-    return {"mean": float(known.mean()), "std": float(known.std())}
-
-
 @dataclass
 class RecordedResult:
     """Errors of LS and BCLS on quantized recorded data against a reference model.
@@ -200,7 +191,9 @@ class RecordedResult:
             r = {"bits": b, "eps": self.eps[b].tolist(), "overload_fraction": self.overload[b]}
             for est in ("ls", "bcls"):
                 e = self.err[(est, b)]
-                r[est] = {k: _mean_std(e[:, j]) for j, k in enumerate(("err_A", "err_B"))}
+                r[est] = {
+                    k: dict(zip(("mean", "std"), mean_std_of_known(e[:, j]))) for j, k in enumerate(("err_A", "err_B"))
+                }
             if b in self.theory:
                 r["theorem1"] = self.theory[b]
             rows.append(r)
