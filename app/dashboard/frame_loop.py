@@ -15,26 +15,28 @@ from qsid_core import QsidError
 
 from .pool import PoolFailure, Superseded
 
-__all__ = ["reporters", "draw_frames"]
+__all__ = ["Reporters", "draw_frames"]
 
 
-def reporters(session: Any, gen: int) -> tuple[Callable[[int, int, str], None], Callable[[int], None]]:
-    """``(on_progress, on_queued)`` of computation ``gen``: the progress bar, and the status line while it
-    waits for a compute slot (:func:`draw_frames` says "computing …" again once its turn comes)."""
-    c = session.controls
-    c.status.content = "computing …"
+class Reporters:
+    """What computation ``gen`` of ``session`` shows while it runs: :meth:`progress` (the progress bar) and
+    :meth:`queued` (the status line while it waits for a compute slot; ``waited`` until :func:`draw_frames`
+    says "computing …" again once its turn comes)."""
 
-    def progress(done: int, total: int, text: str) -> None:
-        if not session._stale(gen):
-            session.ui.show_progress(done / total, text)
+    def __init__(self, session: Any, gen: int):
+        self.session, self.gen, self.waited = session, gen, False
+        session.controls.status.content = "computing …"
 
-    def queued(ahead: int) -> None:
-        session._waited = True
-        if not session._stale(gen):
-            c.status.content = f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
+    def progress(self, done: int, total: int, text: str) -> None:
+        if not self.session._stale(self.gen):
+            self.session.ui.show_progress(done / total, text)
 
-    session._waited = False
-    return progress, queued
+    def queued(self, ahead: int) -> None:
+        self.waited = True
+        if not self.session._stale(self.gen):
+            self.session.controls.status.content = (
+                f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
+            )
 
 
 def draw_frames(
@@ -42,23 +44,23 @@ def draw_frames(
     gen: int,
     frames: Any,
     t0: float,
-    queued: Callable[[int], None],
+    reports: Reporters,
     cheap: bool = False,
     unusable: Callable[[Any], str | None] | None = None,
 ) -> int:
     """Draw ``frames`` (a generator of a linear or a nonlinear plant's frames) one turn of the compute slots
     at a time until the complete one, a newer generation, or an error shown in the panel; returns ``gen``.
 
-    ``queued``: told how many tabs are ahead while it waits for a slot (:func:`reporters`); ``cheap``: only
+    ``reports``: the computation's :class:`Reporters` (told how many tabs are ahead while it waits for a slot); ``cheap``: only
     drawing is left (a cheap turn); ``unusable(frame)``: why a frame cannot be drawn (shown instead)."""
     c = session.controls
     try:
         while True:
-            with session.app.slots.turn(queued, cheap):  # (4) at most a few tabs compute at once, in turn
+            with session.app.slots.turn(reports.queued, cheap):  # (4) at most a few tabs compute at once, in turn
                 if session._stale(gen):
                     return gen
-                if session._waited:  # its turn came
-                    c.status.content, session._waited = "computing …", False
+                if reports.waited:  # its turn came
+                    c.status.content, reports.waited = "computing …", False
                 frame = next(frames, None)
             if frame is None or session._stale(gen):
                 return gen

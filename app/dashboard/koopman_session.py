@@ -12,7 +12,7 @@ import time
 from typing import Any
 
 from .controls import read_values
-from .frame_loop import draw_frames, reporters
+from .frame_loop import Reporters, draw_frames
 from .koopman_settings import LINEAR_ONLY, NONLINEAR_ONLY, is_nonlinear, scale_label, switch_defaults
 from .koopman_stages import iter_koopman_frames
 from .lessons import NONE, lesson_values
@@ -65,7 +65,7 @@ class KindSwitch:
 def compute_nonlinear(session: Any, gen: int, values: Any) -> int:
     """Compute and draw generation ``gen`` for a nonlinear plant; returns the generation handled."""
     t0 = time.perf_counter()
-    progress, queued = reporters(session, gen)
+    reports = Reporters(session, gen)
     stale = lambda: session._stale(gen)  # noqa: E731
     frames = iter_koopman_frames(
         values,
@@ -73,6 +73,6 @@ def compute_nonlinear(session: Any, gen: int, values: Any) -> int:
         session.app.pool.guarded(stale),
         max(1, int(getattr(session.app, "tasks", 2))),
         should_stop=stale,
-        on_progress=progress,
+        on_progress=reports.progress,
     )
-    return draw_frames(session, gen, frames, t0, queued)
+    return draw_frames(session, gen, frames, t0, reports)

@@ -45,7 +45,7 @@ from .background import DataLengthRunner
 from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .follower import refused
-from .frame_loop import draw_frames, reporters
+from .frame_loop import Reporters, draw_frames
 from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
@@ -87,7 +87,6 @@ class Session:
         self._cond = threading.Condition()
         self._gen = 0
         self._done = -1
-        self._waited = False  # the computation under way waited for a compute slot (frame_loop; the worker)
         self._closed = False
         self._last_start, self._gap, self._touches = 0.0, MIN_GAP, 0
         self.frames_drawn = 0
@@ -318,7 +317,7 @@ class Session:
 
     def _compute(self, gen: int, values: Values) -> int:
         t0 = time.perf_counter()
-        progress, queued = reporters(self, gen)
+        reports = Reporters(self, gen)
         last = self.last_frame  # only drawing left if just display settings changed since a complete frame
         cheap = last is not None and last.complete and values.same_results(last.values)
         frames = iter_frames(
@@ -327,10 +326,10 @@ class Session:
             self.app.pool.guarded(lambda: self._stale(gen)),
             self.app.tasks,
             should_stop=lambda: self._stale(gen),
-            on_progress=progress,
+            on_progress=reports.progress,
             memo=self.rows_memo,
         )
-        return draw_frames(self, gen, frames, t0, queued, cheap, unusable)
+        return draw_frames(self, gen, frames, t0, reports, cheap, unusable)
 
     def _show_error(self, text: str) -> None:
         self.ui.show_error(text)
