@@ -12,8 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Iterable, Mapping, MutableMapping, Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass
-from functools import cached_property
+from dataclasses import dataclass, field
 from typing import Protocol, TypeVar, cast
 
 import numpy as np
@@ -51,15 +50,12 @@ class StageKeys:
 
     config: SweepConfig
     system: LTISystem
+    #: per stage, the part of its key after the name and the per-call parts (built once per config)
+    _tails: dict[str, Key] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def plant(self) -> Key:
         """The true system: shapes and the bytes of A, B, x0, Q, R."""
         return system_key(self.system)
-
-    @cached_property
-    def _tails(self) -> dict[str, Key]:
-        """Per stage, the part of its key after the name and the per-call parts (built once per config)."""
-        return {}
 
     def _key(self, stage: str, *extra: Hashable) -> Key:
         try:
