@@ -11,6 +11,7 @@ from typing import Any
 
 from app.figures import registry
 from app.figures.axes import finite_axes
+from app.figures.koopman_error import limit_note
 from app.figures.koopman_scene import koopman_scene
 from app.figures.raw import Wire
 from app.figures.traces import CURRENT_B, move_current_bits
@@ -69,11 +70,15 @@ def koopman_summary(frame: Any) -> str:
     if frame.reference_loop is not None:
         lines.append(f"The unquantized EDMD's Koopman MPC: {frame.reference_loop.outcome[0]}.")
     lines.append(bcls_exactness(v))
-    ld = (frame.rows.get("LS", {}).get(b) or {}).get("large_data") or {}
-    if "LS" in frame.labels:
+    if "LS" in frame.labels:  # what the error plot draws, in the plot's own words
+        note = limit_note(frame.series(), bool(v.guard))
         lines.append(
             "LS's large-data limit (dashed): "
-            + (ld["note"] if ld.get("note") else "drawn (polynomial dictionary, subtractive dither, no overload).")
+            + (
+                f"not drawn: {note.rstrip('.')}."
+                if note
+                else "drawn (polynomial dictionary, subtractive dither, no overload)."
+            )
         )
     lines.append("Not certified: " + NO_CERTIFICATES + ".")
     if frame.data_report:

@@ -12,6 +12,7 @@ from typing import Any
 
 import plotly.graph_objects as go
 
+from .hypotheses import bits_text
 from .palette import COLORS, color
 from .raw import figure
 from .traces import band, mark_bits, xy
@@ -26,9 +27,11 @@ def limit_note(rows: dict[str, list[dict[str, Any]]], guard: bool) -> str:
     notes.discard("")
     if notes:
         return sorted(notes)[0]
-    over = [r["bits"] for r in rows.get("LS", []) if r.get("overload_fraction", 0.0) > 0]
+    ls = rows.get("LS", [])
+    over = [r["bits"] for r in ls if r.get("overload_fraction", 0.0) > 0]
     if over and not guard:
-        return f"samples past the range at b = {over[0]}..: the limit assumes no overload (tick the guard band)"
+        where = "every b" if len(over) == len(ls) else bits_text(over)
+        return f"samples past the range at {where}; it assumes none (tick the guard band)"
     return ""
 
 
@@ -65,7 +68,7 @@ def error_figure(
                 xanchor="left",
                 yanchor="bottom",
                 showarrow=False,
-                text="no large-data limit drawn: " + note[:70] + ("…" if len(note) > 70 else ""),
+                text="no large-data limit: " + note[:80] + ("…" if len(note) > 80 else ""),
                 font=dict(size=11),
             )
         )

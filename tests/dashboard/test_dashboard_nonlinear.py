@@ -237,3 +237,19 @@ def test_leaving_a_linear_lesson_for_a_nonlinear_plant_takes_the_nonlinear_size(
         lesson_values("koopman").replace(system="dc-motor"), "van-der-pol", False, lesson_values("koopman")
     )
     assert (back["trajectories"], back["realizations"]) == (50, 20)
+
+
+@pytest.mark.parametrize("guard", [False, True])
+def test_the_summary_and_the_error_plot_agree_on_the_large_data_limit(guard):
+    from app.dashboard.koopman_render import koopman_figures, koopman_summary
+
+    v = Values(system="van-der-pol", bits=3, guard=guard, **NL_SMALL)
+    frame = list(iter_koopman_frames(v))[-1]
+    fig = koopman_figures(frame, ("koopman-error",))["koopman-error"]
+    drawn = any(t.name == "LS large-data limit" for t in fig.data)
+    notes = [a.text for a in fig.layout.annotations if a.text.startswith("no large-data limit")]
+    line = next(ln for ln in koopman_summary(frame).split("  \n") if ln.startswith("LS's large-data limit"))
+    assert drawn == guard and bool(notes) == (not guard)
+    assert ("not drawn" in line) == (not guard)
+    if not guard:  # without the guard band dither pushes samples past the data's range at every b
+        assert "samples past the range at every b" in line and "tick the guard band" in notes[0]
