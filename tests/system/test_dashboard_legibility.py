@@ -2,11 +2,12 @@
 
 For each mode of :data:`MODES` (1366×768 and 1920×1080, normal and presenter; 390×844 phone) the test opens a
 tab at that size (the server tells a phone from its canvas's shape when the tab connects, as for a real phone),
-opens every tab of the plots panel and every lesson, and measures the text boxes of every plotly figure shown
-(:data:`legibility.TEXT_BOXES`); :func:`legibility.judge` fails on overlapping text, text under the floor
-(10 px, 16 px in presenter mode), text cut off at a figure's edge, or a figure narrower than 340 px. For each
-lesson it also checks what a teacher needs (:func:`_teacher_checks`): the key plot above the fold and, in presenter
-mode, panel text at least ``PANEL_FONT`` and the key plot across most of the window.
+opens every tab of the plots panel, every lesson and a nonlinear plant's own view (:data:`NONLINEAR`), and
+measures the text boxes of every plotly figure shown (:data:`legibility.TEXT_BOXES`); :func:`legibility.judge`
+fails on overlapping text, text under the floor (10 px, 16 px in presenter mode), text cut off at a figure's
+edge, or a figure narrower than 340 px. For each lesson it also checks what a teacher needs
+(:func:`_teacher_checks`): the key plot above the fold and, in presenter mode, panel text at least
+``PANEL_FONT`` and the key plot across most of the window.
 
 Environment:
 
@@ -27,9 +28,10 @@ from support import wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 from test_dashboard_teach_browser import ACTIVE_TAB, KEY_PLOT_WIDTH, PANEL_TEXT, TOP_PLOT, _dismiss_notices
 
+from app.dashboard.koopman_settings import NL_INTERACTIVE
 from app.dashboard.lessons import LESSONS, NONE
 from app.dashboard.presenter import PANEL_FONT
-from app.figures.registry import ALL_VIEWS, TABS
+from app.figures.registry import ALL_VIEWS, KOOPMAN_TABS, TABS
 
 pytestmark = pytest.mark.browser
 
@@ -53,7 +55,12 @@ SHOTS = {
     ("phone", "tab:Identification"): "phone-identification.png",
     ("phone", "lesson:bits-needed"): "phone-bits-needed.png",
     ("phone", "lesson:fig1"): "phone-fig1.png",
+    ("hd", "system:van-der-pol"): "nonlinear-van-der-pol.png",
+    ("laptop", "lesson:koopman"): "teach-koopman-normal.png",
+    ("hd-presenter", "lesson:bias-variance"): "teach-bias-variance-presenter.png",
 }
+#: A nonlinear plant's own view (its lessons are among :data:`LESSONS`): the system, then the panel's values.
+NONLINEAR = ("van-der-pol", dict(NL_INTERACTIVE, bits=3, guard=True))
 # (the per-tab pictures view-*.png are test_dashboard_browser.py's: it computes the data-length study and pins
 # a result first)
 
@@ -171,6 +178,17 @@ def _walk(page, session, mode, shots, found) -> None:
         reached = _tab_shown(page, session, tab, click=True)
         _measure(page, session, mode, f"tab:{tab}", shots, found, reached)
     _scene_shot(page, session, name, shots)
+    system, values = NONLINEAR  # a nonlinear plant chosen by hand, at the panel's defaults for one
+    session.controls["lesson"].value = NONE
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    session.controls["system"].value = system
+    assert session.wait_idle(TIMEOUT_MS / 1000)
+    for key, value in values.items():
+        session.controls[key].value = value
+    reached = _tab_shown(page, session, KOOPMAN_TABS[0], click=False)
+    _measure(page, session, mode, f"system:{system}", shots, found, reached)
+    if session.last_error is not None or getattr(session.last_frame, "kind", "") != "koopman":
+        found[name][f"system:{system}"].append(Problem("none", system, f"no nonlinear frame: {session.last_error}"))
 
 
 def _open(ctx, app):
