@@ -95,6 +95,26 @@ def test_a_huge_log_span_is_cut_to_12_decades_and_narrow_spans_get_sparse_ticks(
     assert list(fig.layout.yaxis.ticktext) == ["0.1", "0.2", "0.5", "1"]  # 0.5, not plotly's bare "5"
 
 
+def test_finite_axes_reads_every_trace_and_data_shape_and_keeps_set_ranges():
+    import plotly.graph_objects as go
+
+    fig = go.Figure()
+    fig.add_trace(go.Scatter(x=[0, 1], y=[1.0, 2.0]))
+    fig.add_trace(go.Scatter(x=[0, 1], y=[np.nan, 100.0], xaxis="x2", yaxis="y2"))  # a second pair of axes
+    fig.add_trace(go.Scatter(x=[0, 1], y=[0, 1], xaxis="x3", yaxis="y3"))  # axes the layout lacks: left alone
+    fig.add_trace(go.Scatter3d(x=[0, 1e9], y=[0, 1e9], z=[0, 1]))  # no 2-D axis: ignored
+    fig.add_shape(type="line", x0=0, x1=1, y0=5.0, y1=5.0, yref="y")  # a line in data units counts
+    fig.add_shape(type="line", x0=0, x1=1, y0=0, y1=1e6, xref="paper", yref="y domain")  # in paper units: not
+    fig.update_layout(xaxis=dict(range=[-3, 3]), xaxis2=dict(anchor="y2"), yaxis2=dict(anchor="x2"))  # x: kept
+    finite_axes(fig)
+    assert list(fig.layout.xaxis.range) == [-3, 3]
+    lo, hi = fig.layout.yaxis.range
+    assert lo < 1.0 and 5.0 < hi < 6.0 and fig.layout.yaxis.autorange is False
+    lo2, hi2 = fig.layout.yaxis2.range
+    assert lo2 < 100.0 < hi2 < 200.0 and fig.layout.xaxis2.range is not None
+    assert "xaxis3" not in fig.layout and "yaxis3" not in fig.layout
+
+
 def test_dc_motor_integrator_fades_theorem1_and_says_why():
     f = last(Values(**SMALL))
     fig = build_figures(f, ["error"])["error"]
