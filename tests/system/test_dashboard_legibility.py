@@ -56,6 +56,7 @@ SHOTS = {
     ("phone", "lesson:bits-needed"): "phone-bits-needed.png",
     ("phone", "lesson:fig1"): "phone-fig1.png",
     ("hd", "system:van-der-pol"): "nonlinear-van-der-pol.png",
+    ("phone", "system:van-der-pol"): "phone-van-der-pol.png",
     ("laptop", "lesson:koopman"): "teach-koopman-normal.png",
     ("hd-presenter", "lesson:bias-variance"): "teach-bias-variance-presenter.png",
 }
