@@ -139,6 +139,18 @@ def _mpc(v: Values, system: LTISystem) -> MPCConfig:
     return MPCConfig(horizon=m.horizon, steps=m.steps, u_max=m.u_max, Q=m.Q, R=m.R, x0=m.x0, Qf=m.Qf, verify_steps=None)
 
 
+#: (panel setting, KoopmanConfig field) of every setting a nonlinear run takes as it is, from the settings table:
+#: the system, the dictionary and the estimator, and the quantizer's and the MPC's (nested) are built by hand.
+_PLAIN = tuple(
+    (s.name, s.nonlinear)
+    for s in SETTINGS
+    if s.values
+    and s.nonlinear is not None
+    and "." not in s.nonlinear
+    and s.nonlinear not in ("system", "lifting", "estimator")
+)
+
+
 def koopman_config(v: Values) -> tuple[KoopmanConfig, tuple[str, ...]]:
     """The nonlinear sweep of the panel (every word length of the panel's slider) and the estimators shown.
 
@@ -158,17 +170,9 @@ def koopman_config(v: Values) -> tuple[KoopmanConfig, tuple[str, ...]]:
             system=v.system,
             lifting=str(v.lifting).strip(),
             bits=ALL_BITS,
-            trajectories=int(v.trajectories),
-            steps=int(v.steps),
-            realizations=int(v.realizations),
-            data_seed=int(v.data_seed),
-            dither_seed=int(v.dither_seed),
             quantizer=quantizer_spec(v, plant.n, plant.m),
             mpc=_mpc(v, system),
-            radius=float(v.converged_radius),
-            state_amplitude=float(v.state_amplitude),
-            input_amplitude=float(v.input_amplitude),
-            box=float(v.sane_box),
+            **{path: getattr(v, name) for name, path in _PLAIN},
         )
         cfg.dictionary()  # a bad dictionary: one line now
     except QsidError as exc:
