@@ -26,6 +26,7 @@ KOOPMAN_KEY_PARTS: dict[str, tuple[str, ...]] = {
     "quantizer": ("quantizer",),
     "realizations": ("dither_seed", "realizations"),
     "estimator": ("estimator",),
+    "prediction": ("prediction_horizon",),
     # the Koopman MPC and its verdict
     "loop": ("mpc", "radius"),
 }
@@ -37,11 +38,11 @@ KOOPMAN_NOT_IN_KEYS: dict[str, str] = {
 #: The key groups each result of a nonlinear sweep depends on.
 KOOPMAN_STAGE_GROUPS: dict[str, tuple[str, ...]] = {
     "data": ("data",),
-    "reference": ("data", "lifting"),  # the unquantized EDMD and its prediction error
+    "reference": ("data", "lifting", "prediction"),  # the unquantized EDMD and its prediction error
     "reference-loop": ("data", "lifting", "loop"),
     "moments": ("data", "lifting", "quantizer", "realizations"),  # quantized lifted moments (every estimator's)
     "limit": ("data", "lifting", "quantizer"),  # the large-data limit of LS quantized EDMD
-    "models": ("data", "lifting", "quantizer", "realizations", "estimator"),
+    "models": ("data", "lifting", "quantizer", "realizations", "estimator", "prediction"),  # with prediction errors
     "loops": ("data", "lifting", "quantizer", "realizations", "estimator", "loop"),
 }
 

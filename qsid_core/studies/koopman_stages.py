@@ -130,7 +130,7 @@ class KoopmanExperiment:
         def make() -> tuple[KoopmanModel, float]:
             data, held = self.data()
             ref = edmd(exact_lifted_moments(data, self.lifting), self.lifting.C, "ls")
-            return ref, prediction_error(ref, self.lifting, held, HELD_OUT[2])
+            return ref, prediction_error(ref, self.lifting, held, self.config.prediction_horizon)
 
         out: tuple[KoopmanModel, float] = self._cached(self._key("reference"), make)
         return out
@@ -185,7 +185,7 @@ class KoopmanExperiment:
             acc: dict[str, list[Any]] = {k: [] for k in ACC_KEYS}
             for mom in moms:
                 record(acc, mom, estimator, self.lifting, ref)
-                predict([acc], self.lifting, held, HELD_OUT[2])
+                predict([acc], self.lifting, held, self.config.prediction_horizon)
             out = row(int(b), acc, self.lifting, self.system, None, self.config.radius)  # the loops: loops()
             correction = no_exact_correction(self.lifting, self.config.quantizer)
             limit = self.limit(b) if estimator == "ls" else None  # BCLS's limit needs no computation
@@ -222,7 +222,7 @@ class KoopmanExperiment:
     @property
     def horizon(self) -> int:
         """Samples of the prediction error on the held-out runs."""
-        return HELD_OUT[2]
+        return self.config.prediction_horizon
 
     def row(self, b: int, estimator: str, executor: Any = None) -> dict[str, Any]:
         """The whole row at ``b`` (:class:`~qsid_core.studies.KoopmanResult`'s, with the loops' outcomes)."""

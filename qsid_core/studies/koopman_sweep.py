@@ -52,7 +52,7 @@ NO_CERTIFICATES = (
     "the linear certificates (Theorem 1's error model, small gain, ultimate bound, b_letter, b_robust) "
     "assume a linear plant and do not apply to a nonlinear one: only observed outcomes are reported"
 )
-#: Held-out runs for the prediction error: runs, steps, prediction horizon (samples).
+#: Held-out runs for the prediction error: runs, steps, and the default prediction horizon (samples).
 HELD_OUT = (50, 40, 20)
 #: The :class:`MPCConfig` fields the Koopman loops do not use (exact state feedback, no disturbance, regulation
 #: to 0 without state constraints; the verdict is by ``radius`` and the sane box): a value other than
@@ -98,6 +98,8 @@ class KoopmanConfig:
         (:data:`KOOPMAN_MPC_UNUSED`) must keep ``MPCConfig()``'s values.
     radius : float, > 0
         Convergence radius of the loops' verdict (2-norm of the final state).
+    prediction_horizon : int, 1..40
+        Samples ahead of the prediction error on the held-out runs (:data:`HELD_OUT`: 50 runs of 40 samples).
     state_amplitude : float or None, > 0
         ``a`` of the training runs' x0 ~ U[-a, a]^n (None: the plant's ``amplitude``, 2 for the presets).
     input_amplitude : float, > 0
@@ -119,6 +121,7 @@ class KoopmanConfig:
     quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
     mpc: MPCConfig | None = KOOPMAN_MPC
     radius: float = CONVERGED_RADIUS
+    prediction_horizon: int = HELD_OUT[2]
     state_amplitude: float | None = None
     input_amplitude: float = 1.0
     box: float | None = None
@@ -136,6 +139,7 @@ class KoopmanConfig:
         if not isinstance(self.quantizer, QuantizerSpec):
             raise ConfigError("quantizer must be a QuantizerSpec")
         object.__setattr__(self, "radius", check_float("radius", self.radius, 0.0, 1e12, lo_open=True))
+        check_int("prediction horizon", self.prediction_horizon, 1, HELD_OUT[1])
         amp = check_float("input amplitude", self.input_amplitude, 0.0, 1e12, lo_open=True)
         object.__setattr__(self, "input_amplitude", amp)
         for name, label in (("state_amplitude", "state amplitude"), ("box", "box")):
@@ -238,7 +242,7 @@ class KoopmanResult:
                 "guard": q.guard,
                 "mpc": None if c.mpc is None else self._mpc(s),
                 "convergence_radius": c.radius,
-                "held_out": dict(zip(("runs", "steps", "horizon"), HELD_OUT, strict=True)),
+                "held_out": {"runs": HELD_OUT[0], "steps": HELD_OUT[1], "horizon": c.prediction_horizon},
             },
             "data": {"runs_used": self.runs_used, "left_box": self.data_report},
             "certificates": NO_CERTIFICATES,
@@ -265,7 +269,7 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     lifting = cfg.dictionary()
     amp = cfg.input_amplitude
     data: NonlinearDataset = simulate_nonlinear(system, cfg.trajectories, cfg.steps, cfg.data_seed, amp)
-    runs, steps, horizon = HELD_OUT
+    runs, steps, horizon = HELD_OUT[0], HELD_OUT[1], cfg.prediction_horizon
     held = simulate_nonlinear(system, runs, steps, cfg.data_seed + 104729, amp)
     if data.T < lifting.L + system.m:
         raise IdentificationError(

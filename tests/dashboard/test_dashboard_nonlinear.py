@@ -136,15 +136,18 @@ def test_command_line_exports_and_settings_of_a_nonlinear_tab(tab, tmp_path, cap
     from app.dashboard.exports import command_lines, curves_csv, curves_json, frame_html
     from app.dashboard.share import settings_json, values_from_json
 
-    tab.set(system="van-der-pol", lifting="poly:2", dither_seed=3, **NL_SMALL)
+    tab.set(system="van-der-pol", lifting="poly:2", dither_seed=3, prediction_horizon=7, **NL_SMALL)
     f = tab.frame
     lines = command_lines(f.values)
     assert len(lines) == 2 and all("--system=van-der-pol" in ln and "--lifting=poly:2" in ln for ln in lines)
-    assert "--estimator=bcls" in lines[1]
+    assert "--estimator=bcls" in lines[1] and all("--prediction-horizon=7" in ln for ln in lines)
     argv = shlex.split(lines[1])[1:] + ["--bits=3", "--json", "-q"]
     assert main(argv) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["results"][0]["err_G"] == f.rows["BCLS"][3]["err_G"]
+    assert out["results"][0]["prediction_error"] == f.rows["BCLS"][3]["prediction_error"]
+    assert out["config"]["held_out"]["horizon"] == 7
+    assert tab.session.plots["koopman-prediction"].figure.layout.yaxis.title.text == "7-step prediction error"
     assert out["results"][0]["closed_loop_outcomes"] == f.rows["BCLS"][3]["closed_loop_outcomes"]
     csv_text = curves_csv(f)
     assert csv_text.splitlines()[0].startswith("estimator,bits,err_G_mean") and len(csv_text.splitlines()) == 33

@@ -85,6 +85,7 @@ def test_every_field_of_the_koopman_config_is_in_a_key_or_declared_keyless():
         ({"radius": 0.2}, "reference-loop loops"),
         ({"quantizer": QuantizerSpec(guard=False)}, "moments limit models loops"),
         ({"realizations": 3}, "moments models loops"),
+        ({"prediction_horizon": 5}, "reference models"),  # the prediction errors; not the loops
     ],
 )
 def test_a_changed_koopman_field_changes_exactly_the_keys_that_use_it(change, stages):

@@ -69,6 +69,10 @@ def test_the_amplitudes_and_the_box_reach_the_plant_and_the_data():
         ({"state_amplitude": -1.0}, "state amplitude"),
         ({"box": float("nan")}, "box"),
         ({"input_amplitude": 0}, "input amplitude"),
+        ({"prediction_horizon": 0}, "prediction horizon"),
+        ({"prediction_horizon": 41}, "prediction horizon"),  # past the held-out runs' 40 samples
+        ({"prediction_horizon": 2.5}, "prediction horizon"),
+        ({"prediction_horizon": True}, "prediction horizon"),
     ],
 )
 def test_bad_nonlinear_settings_name_the_field(kw, match):
@@ -86,3 +90,23 @@ def test_an_mpc_setting_the_koopman_loops_do_not_use_is_refused_not_ignored():
     with pytest.raises(ConfigError, match="mpc.disturbance: the Koopman MPC does not use it"):
         KoopmanConfig(mpc=MPCConfig(disturbance=0.1))
     KoopmanConfig(mpc=MPCConfig(horizon=5, Qf=(1.0, 1.0)))  # the ones it uses are fine
+
+
+def test_the_prediction_horizon_reaches_both_paths_and_longer_predictions_err_more():
+    from qsid_core.studies import KoopmanExperiment
+
+    small = dict(trajectories=40, steps=50, realizations=2, bits=(3, 8), mpc=None, lifting="poly:3")
+    out = {}
+    for h in (1, 5, 40):
+        cfg = KoopmanConfig(prediction_horizon=h, **small)
+        d = run_koopman_sweep(cfg).to_dict()
+        assert d["config"]["held_out"] == {"runs": 50, "steps": 40, "horizon": h}
+        staged = KoopmanExperiment(cfg)  # the dashboard's staged path gives the command line's numbers
+        assert staged.horizon == h and staged.reference()[1] == d["reference"]["prediction_error"]
+        for r in d["results"]:
+            assert staged.row(r["bits"], "ls")["prediction_error"] == r["prediction_error"]
+        out[h] = d
+    ref = {h: d["reference"]["prediction_error"] for h, d in out.items()}
+    assert ref[1] < ref[5] < ref[40]  # an inexact model drifts from the true plant the further it predicts
+    b3 = {h: d["results"][0]["prediction_error"]["mean"] for h, d in out.items()}
+    assert b3[1] < b3[40]
