@@ -197,7 +197,8 @@ def _extras_after(gui: viser.GuiApi, name: str, values: Values, handles: dict[st
         extra["scale_buttons"] = [paper, inter]
     elif name == "identification":
         gui.add_markdown(
-            "LS is biased by the quantization noise (Theorem 1); BCLS removes that bias. "
+            "LS is biased by the quantization noise (Theorem 1 for a linear plant); BCLS removes that bias "
+            "(for a nonlinear plant exactly with a polynomial dictionary and subtractive dither). "
             "'LS + BCLS' draws both side by side (blue, red)."
         )
     elif name == "horizon":
