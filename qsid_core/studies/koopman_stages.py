@@ -36,7 +36,7 @@ from ..identification import (
 from ..plant import NonlinearDataset, NonlinearSystem, simulate_nonlinear
 from .koopman_keys import koopman_stage_key
 from .koopman_rows import ACC_KEYS, large_data_entry, no_exact_correction, predict, record, row
-from .koopman_sweep import HELD_OUT, KoopmanConfig
+from .koopman_sweep import KoopmanConfig, held_out_runs
 
 __all__ = ["FREE_FLOW_GRID", "KoopmanExperiment", "KoopmanModels"]
 
@@ -112,7 +112,7 @@ class KoopmanExperiment:
 
         def make() -> tuple[NonlinearDataset, NonlinearDataset]:
             data = simulate_nonlinear(s, c.trajectories, c.steps, c.data_seed, c.input_amplitude)
-            held = simulate_nonlinear(s, HELD_OUT[0], HELD_OUT[1], c.data_seed + 104729, c.input_amplitude)
+            held = held_out_runs(s, c)
             return data, held
 
         data, held = self._cached(self._key("data"), make)

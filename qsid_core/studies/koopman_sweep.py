@@ -256,6 +256,11 @@ class KoopmanResult:
         }
 
 
+def held_out_runs(system: NonlinearSystem, cfg: KoopmanConfig) -> NonlinearDataset:
+    """The held-out runs of the prediction error (:data:`HELD_OUT`), seeded apart from the training runs."""
+    return simulate_nonlinear(system, HELD_OUT[0], HELD_OUT[1], cfg.data_seed + 104729, cfg.input_amplitude)
+
+
 def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     """Run the sweep (see the module docstring).
 
@@ -269,8 +274,8 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
     lifting = cfg.dictionary()
     amp = cfg.input_amplitude
     data: NonlinearDataset = simulate_nonlinear(system, cfg.trajectories, cfg.steps, cfg.data_seed, amp)
-    runs, steps, horizon = HELD_OUT[0], HELD_OUT[1], cfg.prediction_horizon
-    held = simulate_nonlinear(system, runs, steps, cfg.data_seed + 104729, amp)
+    held = held_out_runs(system, cfg)
+    horizon = cfg.prediction_horizon
     if data.T < lifting.L + system.m:
         raise IdentificationError(
             f"samples: {data.T} samples cannot fit {lifting.L + system.m} unknowns per row "
