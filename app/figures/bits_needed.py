@@ -17,7 +17,7 @@ import numpy as np
 import plotly.graph_objects as go
 
 from qsid_core.control import data_rate_bits
-from qsid_core.studies import BitsAnswer, answer_from_rows, certified_own_models_at, predicted_small_gain
+from qsid_core.studies import BitsAnswer, answer_from_rows, certified_own_models_at, predicted_small_gains
 
 from .palette import COLORS, color
 from .raw import figure, hline, stacked_axes
@@ -208,7 +208,7 @@ def answers(
         if not rows:
             continue
         if robust is None and ex is not None:
-            robust = {int(r["bits"]): predicted_small_gain(ex, int(r["bits"])) for r in rows}
+            robust = predicted_small_gains(ex, [int(r["bits"]) for r in rows])
         out[lab] = answer_from_rows(
             getattr(ex.system, "name", ""),
             {},

@@ -135,7 +135,7 @@ def _stabilized(
     result still holds its models and loops (a loaded one does not)."""
     from qsid_core import Experiment, SweepConfig
     from qsid_core.control import data_rate_bits
-    from qsid_core.studies import answer_from_rows, predicted_small_gain, realized_small_gain
+    from qsid_core.studies import answer_from_rows, predicted_small_gains, realized_small_gain
 
     from .bits_needed import bits_figure
 
@@ -145,7 +145,7 @@ def _stabilized(
         if not any(r.get("closed_loop_outcomes") for r in rows):
             raise FigureError(f"view 'stabilized': the result {label!r} has no closed loops (it ran without MPC)")
         ex = Experiment(SweepConfig.from_dict(d["config"]))
-        robust = {int(r["bits"]): predicted_small_gain(ex, int(r["bits"])) for r in rows}
+        robust = predicted_small_gains(ex, [int(r["bits"]) for r in rows])
         A = np.asarray(d["config"]["system_definition"]["A"], dtype=float)
         own = None
         if getattr(res, "loops", None) and getattr(res, "identification", None):

@@ -18,10 +18,16 @@ from .mpc import FAILURE_KINDS, SOLVERS, TRACKING, MPCConfig
 from .mpc_weights import MPCWeights
 from .realized_bound import RealizedBounds, realized_bounds
 from .reference import KINDS, parse_reference, reference_samples
-from .riccati import LQParts, dare_batch, dare_stabilizing, lq_parts, state_box
+from .riccati import LQParts, dare_batch, dare_many, dare_stabilizing, lq_parts, state_box
 from .sparse_qp import OsqpMPC
 from .stability import certify, certify_batch, lyapunov_batch, lyapunov_gains, spectral_radius
-from .stability_radius import complex_stability_radius, small_gain_holds, small_gain_margin
+from .stability_radius import (
+    complex_stability_radii,
+    complex_stability_radius,
+    small_gain_holds,
+    small_gain_margin,
+    small_gain_margins,
+)
 from .timeseries import CONVERGED_REL_FLOOR, TimeSeries, saturated_steps, time_series
 from .tracking import Preview
 from .verdicts import OUTCOMES, STALL, WINDOW, judge
@@ -56,10 +62,12 @@ __all__ = [
     "build_controllers",
     "certify",
     "certify_batch",
+    "complex_stability_radii",
     "complex_stability_radius",
     "condense",
     "controllability_margin",
     "dare_batch",
+    "dare_many",
     "dare_stabilizing",
     "data_rate_bits",
     "eligible",
@@ -78,6 +86,7 @@ __all__ = [
     "saturated_steps",
     "small_gain_holds",
     "small_gain_margin",
+    "small_gain_margins",
     "spectral_radius",
     "state_box",
     "time_series",

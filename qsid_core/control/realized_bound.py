@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import ConfigError, MPCFailure, check_float
+from ..errors import ConfigError, check_float
 from ..validate import as_float_array
 from .bound import ultimate_bound
 
@@ -189,7 +189,7 @@ def realized_bounds(
     theta, rho, x0
         As in :func:`ultimate_bound` (``rho=None``: automatic per realization).
     """
-    from .riccati import dare_batch, dare_stabilizing
+    from .riccati import dare_many
 
     Q, R = _weights(Q, R)
     Rn = len(models)
@@ -198,15 +198,9 @@ def realized_bounds(
     ok = [i for i, (a, b) in enumerate(models) if np.all(np.isfinite(a)) and np.all(np.isfinite(b))]
     Qfs: dict[int, np.ndarray | None] = {i: Qf for i in ok}
     if Qf is None and ok:
-        X, good = dare_batch(np.stack([models[i][0] for i in ok]), np.stack([models[i][1] for i in ok]), Q, R)
+        X, good = dare_many(np.stack([models[i][0] for i in ok]), np.stack([models[i][1] for i in ok]), Q, R)
         for k, i in enumerate(ok):
-            if good[k]:
-                Qfs[i] = X[k]
-            else:
-                try:
-                    Qfs[i] = dare_stabilizing(models[i][0], models[i][1], Q, R)
-                except MPCFailure:
-                    Qfs[i] = None
+            Qfs[i] = X[k] if good[k] else None
     settled = {i: qf for i, qf in Qfs.items() if qf is not None}
     todo = list(settled)
     delta[[i for i in ok if i not in settled]] = np.inf

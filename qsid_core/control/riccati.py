@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import FailureKind, MPCFailure
 
-__all__ = ["dare_stabilizing", "dare_batch", "lq_parts", "LQParts", "state_box"]
+__all__ = ["dare_stabilizing", "dare_batch", "dare_many", "lq_parts", "LQParts", "state_box"]
 
 
 def dare_stabilizing(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -112,6 +112,31 @@ def dare_batch(
             except (np.linalg.LinAlgError, ValueError):  # one singular/non-finite model spoils the batch:
                 ok[:] = False  # leave every model to the callers' per-model fallback (dare_stabilizing)
     X[~ok] = np.nan
+    return X, ok
+
+
+def dare_many(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Stabilizing DARE solutions for a batch of models: :func:`dare_batch`, and :func:`dare_stabilizing`
+    for the models doubling does not settle.
+
+    Parameters
+    ----------
+    A : ndarray, shape (L, n, n); B : ndarray, shape (L, n, m); Q : (n, n); R : (m, m)
+
+    Returns
+    -------
+    X : ndarray, shape (L, n, n)
+        The solutions (NaN where ``ok`` is False).
+    ok : ndarray of bool, shape (L,)
+        False where neither method finds a stabilizing solution.
+    """
+    X, ok = dare_batch(A, B, Q, R)
+    for k in np.flatnonzero(~ok).tolist():
+        try:
+            X[k] = dare_stabilizing(A[k], B[k], Q, R)
+            ok[k] = True
+        except MPCFailure:
+            pass
     return X, ok
 
 

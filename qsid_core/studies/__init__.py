@@ -22,6 +22,7 @@ from .bits_certificate import (
     certified_own_models,
     certified_own_models_at,
     predicted_small_gain,
+    predicted_small_gains,
     realized_small_gain,
 )
 from .bits_cost import LOOP_COST_TOLERANCE, LOOP_TIME_CONSTANTS, loop_length
@@ -143,6 +144,7 @@ __all__ = [
     "parse_noise",
     "parse_state_bits",
     "predicted_small_gain",
+    "predicted_small_gains",
     "range_words",
     "realization_records",
     "realized_small_gain",

@@ -50,7 +50,7 @@ from typing import Any
 from ..control.controllability import data_rate_bits
 from ..errors import ConfigError
 from .bits_answer import BitsAnswer, answer_from_rows, check_targets
-from .bits_certificate import predicted_small_gain, realized_small_gain
+from .bits_certificate import predicted_small_gains, realized_small_gain
 from .bits_cost import loop_length
 from .config import SweepConfig
 from .experiment import Experiment, Progress
@@ -111,7 +111,7 @@ def bits_needed(
         config = dataclasses.replace(config, mpc=dataclasses.replace(config.mpc, steps=int(length["steps"])))
         ex = ex.with_config(config)
     res = run_sweep(config, executor=executor, progress=progress, experiment=ex)
-    robust = {b: predicted_small_gain(ex, b) for b in res.bits}
+    robust = predicted_small_gains(ex, res.bits)
     rr = None
     if realized:
         rr = {

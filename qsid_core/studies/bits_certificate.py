@@ -30,6 +30,7 @@ __all__ = [
     "certified_own_models",
     "certified_own_models_at",
     "predicted_small_gain",
+    "predicted_small_gains",
     "realized_small_gain",
 ]
 
@@ -39,40 +40,56 @@ CERTIFY_TOLERANCE = 0.25
 
 
 def predicted_small_gain(ex: Experiment, b: int) -> tuple[float, float]:
-    """``(perturbation, radius)`` of the small-gain test for Theorem 1's predicted model at ``b``.
+    """``(perturbation, radius)`` of the small-gain test for Theorem 1's predicted model at ``b``
+    (one word length of :func:`predicted_small_gains`)."""
+    return predicted_small_gains(ex, (b,))[b]
+
+
+def predicted_small_gains(ex: Experiment, bits: Sequence[int]) -> dict[int, tuple[float, float]]:
+    """Per b of ``bits``: ``(perturbation, radius)`` of the small-gain test for Theorem 1's predicted model.
 
     ``K^`` is the first gain of the MPC's Riccati recursion on the predicted model
     (its terminal weight: the configured ``Qf`` or the model's DARE solution).
-    ``(inf, 0)`` when no MPC can be built on that model. Cached in ``ex``.
+    ``(inf, 0)`` where no MPC can be built on that model. Cached in ``ex`` per b; the word lengths not
+    in the cache are computed in one batch.
     """
     from ..control.mpc import MPCConfig
-    from ..control.riccati import dare_stabilizing, lq_parts
-    from ..control.stability_radius import small_gain_margin
-    from ..errors import MPCFailure
+    from ..control.riccati import dare_many, lq_parts
+    from ..control.stability_radius import small_gain_margins
 
     mcfg = ex.config.mpc or MPCConfig()
-    th = ex.theory(b)
-    k = ex.keys.small_gain(b, th.G_pred)
-    try:
-        return cast("tuple[float, float]", ex.cache.mapping[k])
-    except KeyError:  # (a shared, bounded cache may also have dropped it: computed again)
-        pass
+    out: dict[int, tuple[float, float]] = {}
+    todo: list[tuple[int, Any, np.ndarray]] = []  # (b, key, G_pred) not in the cache
+    for b in dict.fromkeys(bits):
+        G = ex.theory(b).G_pred
+        k = ex.keys.small_gain(b, G)
+        try:
+            out[b] = cast("tuple[float, float]", ex.cache.mapping[k])
+        except KeyError:  # (a shared, bounded cache may also have dropped it: computed again)
+            todo.append((b, k, G))
+    if not todo:
+        return out
     sysm = ex.system
-    n = sysm.n
-    w = mcfg.resolve(sysm)
-    Ah, Bh = th.G_pred[:, :n], th.G_pred[:, n:]
-    try:
-        Qf = w.Qf if w.Qf is not None else dare_stabilizing(Ah, Bh, w.Q, w.R)
+    n, w = sysm.n, mcfg.resolve(sysm)
+    G = np.stack([t[2] for t in todo])
+    Ah, Bh = G[:, :, :n], G[:, :, n:]
+    res = np.tile([math.inf, 0.0], (len(todo), 1))
+    if w.Qf is not None:
+        Qf, ok = np.broadcast_to(np.asarray(w.Qf, float), Ah.shape).copy(), np.ones(len(todo), dtype=bool)
+    else:
+        Qf, ok = dare_many(Ah, Bh, w.Q, w.R)
+    if ok.any():
         with np.errstate(all="ignore"):
-            parts = lq_parts(
-                Ah[None], Bh[None], w.Q, w.R, np.asarray(Qf)[None], np.zeros(n), mcfg.horizon, w.u_max, None, None
-            )
-        K = parts.K[0, 0]
-        res = small_gain_margin(sysm.A, sysm.B, Ah, Bh, K) if np.all(np.isfinite(K)) else (math.inf, 0.0)
-    except (MPCFailure, np.linalg.LinAlgError):
-        res = (math.inf, 0.0)
-    ex.cache.store([(k, res)])
-    return res
+            K = lq_parts(Ah[ok], Bh[ok], w.Q, w.R, Qf[ok], np.zeros(n), mcfg.horizon, w.u_max, None, None).K[:, 0]
+        fin = np.all(np.isfinite(K.reshape(K.shape[0], -1)), axis=1)
+        idx = np.flatnonzero(ok)[fin]
+        if idx.size:
+            pert, rad = small_gain_margins(sysm.A, sysm.B, Ah[idx], Bh[idx], K[fin])
+            res[idx] = np.stack([pert, rad], axis=1)
+    new = [(t[1], (float(r[0]), float(r[1]))) for t, r in zip(todo, res)]
+    ex.cache.store(new)
+    out.update({t[0]: v for t, (_, v) in zip(todo, new)})
+    return {b: out[b] for b in bits}
 
 
 def realized_small_gain(ident: BitsIdentification, loops: ClosedLoops, A: np.ndarray, B: np.ndarray) -> np.ndarray:

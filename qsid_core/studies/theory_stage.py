@@ -8,7 +8,7 @@ import numpy as np
 from ..control.bound import UltimateBound, riccati_finite, ultimate_bound
 from ..control.mpc import MPCConfig
 from ..control.realized_bound import RealizedBounds, realized_bounds
-from ..control.riccati import dare_stabilizing
+from ..control.riccati import dare_batch, dare_stabilizing
 from ..errors import ConfigError, MPCFailure
 from ..identification.identify import relative_errors
 from ..identification.theorem1 import theorem1_prediction
@@ -41,7 +41,7 @@ def theory_at(ex: Staged, b: int) -> TheoryAtBits:
     note, ub = "", None
     delta: float
     try:
-        Qf = w.Qf if w.Qf is not None else dare_stabilizing(Gp[:, :n], Gp[:, n:], w.Q, w.R)
+        Qf = w.Qf if w.Qf is not None else _terminal_weight(Gp[:, :n], Gp[:, n:], w.Q, w.R)
         P = riccati_finite(Gp[:, :n], Gp[:, n:], w.Q, w.R, Qf, mcfg.horizon)
         ub = ultimate_bound(P, w.Q, w.R, sysm.A - Gp[:, :n], sysm.B - Gp[:, n:], theta=c.theta, rho=c.rho, x0=w.x0)
         delta, note = ub.delta, ub.note
@@ -53,6 +53,13 @@ def theory_at(ex: Staged, b: int) -> TheoryAtBits:
         delta, note = float("nan"), str(exc)
     bound: UltimateBound | None = ub
     return TheoryAtBits(b, Gp, eA, eB, delta, note, bound)
+
+
+def _terminal_weight(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """The stabilizing DARE solution of one model, shape (n, n): by doubling (:func:`dare_batch`), else by
+    :func:`dare_stabilizing`, whose :class:`MPCFailure` says why there is none."""
+    X, ok = dare_batch(A[None], B[None], Q, R)
+    return X[0] if ok[0] else dare_stabilizing(A, B, Q, R)
 
 
 def realized_bound_at(ex: Staged, b: int, est: str) -> RealizedBounds:

@@ -21,6 +21,8 @@ from qsid_core.studies import (
 from qsid_core.studies.config import SweepConfig
 from qsid_core.studies.sweep import run_sweep
 
+SMALL_DATA = dict(trajectories=30, steps=100, realizations=4)
+
 TINY = ["--bits", "1:4", "--realizations", "6", "--trajectories", "20", "--steps", "100"]
 
 OTHER_SYSTEMS = {
@@ -197,3 +199,47 @@ def test_own_model_certificates_are_reused_across_input_bounds_and_match_a_fresh
     ex = Experiment(dataclasses.replace(base, mpc=MPCConfig(x0=x0, Q=(10.0, 1.0, 1.0, 1.0))), cache=cache)
     certified_own_models(ex, 4, "ls")
     assert len(tested) == 2 and tested[1] > 0  # new weights, new gains: tested again
+
+
+@pytest.mark.parametrize("system", ["dc-motor", *OTHER_SYSTEMS])
+def test_predicted_small_gains_in_one_batch_match_an_independent_computation(system):
+    """Theorem 1's model per b: scipy's DARE, a plain Riccati recursion for the MPC's first gain, and the
+    stability radius on a fine grid of the unit circle give the batch's (perturbation, radius) per b."""
+    import scipy.linalg as sla
+
+    from qsid_core.studies import predicted_small_gain, predicted_small_gains
+    from qsid_core.studies.experiment import Experiment
+
+    bits = (1, 2, 3, 4, 6, 8)
+    ex = Experiment(SweepConfig(system=OTHER_SYSTEMS.get(system, system), bits=bits, mpc=MPCConfig(), **SMALL_DATA))
+    got = predicted_small_gains(ex, bits)
+    assert list(got) == list(bits)
+    w = MPCConfig().resolve(ex.system)
+    A, B, n = ex.system.A, ex.system.B, ex.system.n
+    th = np.union1d(np.linspace(0.0, np.pi, 20001), np.linspace(0.0, np.pi, 7))
+    finite = 0
+    for b in bits:
+        G = ex.theory(b).G_pred
+        Ah, Bh = G[:, :n], G[:, n:]
+        try:
+            P = sla.solve_discrete_are(Ah, Bh, w.Q, w.R)
+        except (np.linalg.LinAlgError, ValueError):
+            assert got[b] == (np.inf, 0.0)
+            continue
+        for _ in range(MPCConfig().horizon - 1):  # P_1 of the recursion from the terminal weight P_N = P
+            K = np.linalg.solve(w.R + Bh.T @ P @ Bh, Bh.T @ P @ Ah)
+            P = w.Q + Ah.T @ P @ Ah - (Bh.T @ P @ Ah).T @ K
+        K = np.linalg.solve(w.R + Bh.T @ P @ Bh, Bh.T @ P @ Ah)
+        M = Ah - Bh @ K
+        pert = np.linalg.norm((A - Ah) - (B - Bh) @ K, 2)
+        rad = np.linalg.svd(np.exp(1j * th)[:, None, None] * np.eye(n) - M, compute_uv=False)[:, -1].min()
+        if np.abs(np.linalg.eigvals(M)).max() >= 1:
+            rad = 0.0
+        assert got[b][0] == pytest.approx(pert, rel=1e-8), b
+        assert got[b][1] <= rad + 1e-12 and got[b][1] == pytest.approx(rad, rel=1e-6, abs=1e-12), b
+        finite += 1
+    assert finite >= 3
+    # one word length at a time, in a fresh experiment: the same numbers
+    one = Experiment(ex.config)
+    for b in bits:
+        assert predicted_small_gain(one, b) == pytest.approx(got[b], rel=1e-12)
