@@ -9,6 +9,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from app.stop import check_stopped
+
 from .parser import UsageError
 
 if TYPE_CHECKING:
@@ -84,4 +86,5 @@ def write_text(path: Path, text: str) -> None:
     (an interrupted run never leaves a half-written file, and an existing one stays until then)."""
     from qsid_core.studies import replace_atomically
 
+    check_stopped()  # a stop whose interrupt a library swallowed (e.g. in a finalizer) leaves the file as it was
     replace_atomically(Path(path), text)

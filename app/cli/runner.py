@@ -12,6 +12,7 @@ import os
 import shutil
 import signal
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Iterator, Sequence
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TextIO
 
 from app.procs import ProcessPool, end_with_parent, kill_workers
+from app.stop import check_stopped
 
 from .mpc_args import mpc_config
 from .parser import PROG, UsageError
@@ -101,7 +103,10 @@ class Reporter:
             self._close()
 
     def __call__(self, done: int, total: int, stage: str) -> None:
-        """The engine's ``progress(done, total, stage)`` callback."""
+        """The engine's ``progress(done, total, stage)`` callback; in the main thread it also ends the run
+        if a stop signal came whose interrupt a library swallowed (:func:`app.stop.check_stopped`)."""
+        if threading.current_thread() is threading.main_thread():
+            check_stopped()
         if not self.enabled:
             return
         if self.tty:

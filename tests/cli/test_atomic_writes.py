@@ -115,3 +115,34 @@ def test_csv_and_out_written_whole(tmp_path):
     assert csv_path.read_text().splitlines()[0] == ",".join(COLUMNS)
     assert len(csv_path.read_text().splitlines()) > 1 and out.read_text().startswith("{")
     assert sorted(f.name for f in tmp_path.iterdir()) == ["r.json", "rows.csv"]
+
+
+def test_a_stop_whose_interrupt_was_swallowed_still_ends_the_run_before_the_output(tmp_path):
+    """A stop signal's KeyboardInterrupt can be lost (raised inside a finalizer, or caught by a library);
+    the remembered stop ends the run at the next progress report and never lets the output be written."""
+    import threading
+
+    from app.cli.files import write_text
+    from app.cli.runner import Reporter
+    from app.stop import STOPPED
+
+    out = tmp_path / "r.json"
+    out.write_text("previous result\n")
+    rep = Reporter(False)
+    STOPPED.set()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            write_text(out, "new result\n")
+        with pytest.raises(KeyboardInterrupt):
+            rep(1, 2, "simulate data")
+        seen = []  # another thread's report (a pool's callback) is not where the run stops
+        t = threading.Thread(target=lambda: seen.append(rep(1, 2, "simulate data") is None))
+        t.start()
+        t.join()
+        assert seen == [True]
+    finally:
+        STOPPED.clear()
+    assert out.read_text() == "previous result\n" and [p.name for p in tmp_path.iterdir()] == ["r.json"]
+    write_text(out, "new result\n")
+    rep(2, 2, "simulate data")
+    assert out.read_text() == "new result\n"
