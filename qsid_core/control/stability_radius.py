@@ -91,7 +91,7 @@ def complex_stability_radii(M: np.ndarray, grid: int = 180) -> np.ndarray:
     fc, fd = smin(which, c), smin(which, d)
     found = np.minimum(fc, fd)
     for _ in range(200):  # each step shrinks every bracket by 0.618: ~50 steps from the grid's spacing
-        if not which.size or float((hi - lo).max()) <= _THETA_TOL:
+        if float((hi - lo).max()) <= _THETA_TOL:  # (every matrix has a dip: its grid minimum)
             break
         left_side = fc < fd  # the minimum lies in [lo, d]: d becomes the right end
         hi = np.where(left_side, d, hi)
@@ -138,12 +138,9 @@ def small_gain_holds(
     -------
     ndarray of bool, shape (L,)
     """
-    A_hat, B_hat, K = (np.asarray(v, dtype=float) for v in (A_hat, B_hat, K))
-    L, n, _ = A_hat.shape
+    E, M = _loop_error(A, B, A_hat, B_hat, K)
+    L = E.shape[0]
     out = np.zeros(L, dtype=bool)
-    with np.errstate(all="ignore"):
-        E = (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K
-        M = A_hat - B_hat @ K
     fin = np.all(np.isfinite(E.reshape(L, -1)), axis=1) & np.all(np.isfinite(M.reshape(L, -1)), axis=1)
     todo = np.flatnonzero(fin)
     if not todo.size:
@@ -233,13 +230,20 @@ def small_gain_margins(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`small_gain_margin` for a batch: ``A_hat`` (L, n, n), ``B_hat`` (L, n, m), ``K`` (L, m, n) ->
     ``(perturbation, radius)``, each shape (L,) (perturbation ``inf`` where it is not finite)."""
-    A_hat, B_hat, K = (np.asarray(v, dtype=float) for v in (A_hat, B_hat, K))
-    L = A_hat.shape[0]
-    with np.errstate(all="ignore"):
-        E = (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K
-        M = A_hat - B_hat @ K
+    E, M = _loop_error(A, B, A_hat, B_hat, K)
+    L = E.shape[0]
     pert = np.full(L, np.inf)
     fin = np.all(np.isfinite(E.reshape(L, -1)), axis=1)
     if fin.any():
         pert[fin] = np.linalg.norm(E[fin], 2, axis=(1, 2))
     return pert, complex_stability_radii(M)
+
+
+def _loop_error(
+    A: np.ndarray, B: np.ndarray, A_hat: np.ndarray, B_hat: np.ndarray, K: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(E, M)`` of a batch: the perturbation ``(A - A^) - (B - B^) K`` and the nominal loop ``A^ - B^ K``,
+    each shape (L, n, n) (non-finite where the inputs are)."""
+    A_hat, B_hat, K = (np.asarray(v, dtype=float) for v in (A_hat, B_hat, K))
+    with np.errstate(all="ignore"):
+        return (np.asarray(A, float) - A_hat) - (np.asarray(B, float) - B_hat) @ K, A_hat - B_hat @ K
