@@ -68,9 +68,16 @@ ACTIVE_TAB = """() => {
 
 
 def _dismiss_notices(page) -> None:
+    """Close the notifications shown, the last first (closing one renumbers those after it); one that
+    closed itself meanwhile is skipped."""
+    from playwright.sync_api import Error
+
     close = page.locator(".mantine-Notification-closeButton")
-    for i in range(close.count()):
-        close.nth(i).click()
+    for i in reversed(range(close.count())):
+        try:
+            close.nth(i).click(timeout=5_000)
+        except Error:
+            pass
 
 
 def _newest(app):
