@@ -136,24 +136,24 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
     rows = {lab: [ex.row(b, e) for b in bits] for e, lab in _LABELS.items()}
     panels = [(stem, legible_figure(fig)) for stem, fig in _panels(ex, rows)]  # the dashboard's laptop style
     rep.stage(f"writing figures to {outdir}")
-    write_text(outdir / "plotly.min.js", get_plotlyjs())
+    write_text(outdir / "plotly.min.js", get_plotlyjs(), rep)
     written = []
     for stem, fig in panels:
-        write_text(outdir / f"{stem}.html", fig.to_html(include_plotlyjs="directory", full_html=True))
+        write_text(outdir / f"{stem}.html", fig.to_html(include_plotlyjs="directory", full_html=True), rep)
         written.append(outdir / f"{stem}.html")
     if formats:
         written += save_panels([(fig, outdir / f"{stem}.{f}") for stem, fig in panels for f in formats], rep)
     data: dict[str, Any] = {"kind": "koopman-reproduce", "system": ex.system.name, "lifting": cfg.lifting}
     data["bits"] = list(bits)
     data |= {"results": rows, "certificates": NO_CERTIFICATES, "unquantized_prediction_error": ex.reference()[1]}
-    write_text(outdir / "data.json", dumps(data, indent=None) + "\n")
+    write_text(outdir / "data.json", dumps(data, indent=None) + "\n", rep)
     links = "".join(f'<li><a href="{s}.html">{html.escape(f.layout.title.text or s)}</a></li>' for s, f in panels)
     page = (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>qsid: {html.escape(ex.system.name)}'
         f"</title></head><body><h1>{html.escape(ex.system.name)}: Koopman/EDMD from quantized data</h1>"
         f"<p>{html.escape(NO_CERTIFICATES)}.</p><ul>{links}</ul><p><a href='data.json'>data.json</a></p></body></html>"
     )
-    write_text(outdir / "index.html", page + "\n")
+    write_text(outdir / "index.html", page + "\n", rep)
     print(f"wrote {len(written) + 3} files to {outdir}:")
     for p in [*written, outdir / "index.html", outdir / "data.json", outdir / "plotly.min.js"]:
         print(f"  {p.name}  ({p.stat().st_size / 1024:.0f} KiB)")

@@ -74,6 +74,7 @@ class Reporter:
         self._seen: set[tuple[type[Warning], str]] = set()
         self._last = time.monotonic()
         self.after_stage: dict[str, str] = {}  # stage -> line to announce once it is complete
+        self.lost: list[str] = []  # outputs that could not be written where asked (kept in the temporary folder)
 
     def _close(self) -> None:
         if self._bar is not None:
