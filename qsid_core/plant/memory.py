@@ -13,8 +13,14 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
-__all__ = ["physical_memory", "available_memory", "address_space_headroom", "cgroup_headroom", "memory_headroom"]
-__all__ += ["check_memory"]
+__all__ = [
+    "physical_memory",
+    "available_memory",
+    "address_space_headroom",
+    "cgroup_headroom",
+    "memory_headroom",
+    "check_memory",
+]
 
 #: A cgroup "limit" at or above this is no limit (cgroup v1 writes 2**63 rounded down to a page).
 _NO_LIMIT = 2**60
