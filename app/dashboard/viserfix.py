@@ -1,27 +1,14 @@
 """Every use of viser's private internals, in one place (viser 1.1.x; pyproject pins ``>=1.1.1,<1.2``).
 
-The dashboard needs a few things viser's public API does not offer: thread-safe message buffers,
-a bounded callback queue per tab, an explanation for a value viser refuses, a bounded socket read
-per turn, no "share URL" tunnel, a smaller plotly.js bundle, the websocket's request path and page
-requests answered with a redirect (view codes in the address). Each hook below is one function with
-a comment saying which private names it relies on and why; the rest of the dashboard calls only
-these functions. A hook returns True when it is in place; when this viser lacks what the hook relies
-on it changes nothing, returns False and warns once (:class:`ViserHookWarning`), so a viser upgrade
-cannot switch a protection off silently. ``tests/dashboard/test_dashboard_viserfix.py`` installs every hook
-against the installed viser and checks each one reports a missing attribute.
-
-The message-buffer hook (:func:`install`): ``AsyncMessageBuffer.push``
-(viser/infra/_async_message_buffer.py) calls ``self.message_event.set()`` directly from the calling
-thread, besides scheduling the same call on the event loop with ``call_soon_threadsafe``.
-``asyncio.Event.set`` iterates the event's deque of waiting futures, which the event loop thread
-appends to and removes from in ``Event.wait``: with several tabs drawing at once that iteration races
-the loop ("RuntimeError: deque mutated during iteration") and the push raises in the tab's worker. A
-lock on our side cannot help, because the other party is viser's event loop. :func:`install` gives
-every buffer an event whose ``set`` only touches the waiters on the loop's own thread; from any other
-thread it hands the call to the loop. Nothing is lost: push already schedules the loop-side ``set``
-(directly, or at the end of an atomic block), and viser reads the event only on the loop (``await
-message_event.wait()``). Every draw of every tab goes through ``push``, so this is the one place
-that makes them all safe.
+The dashboard needs a few things viser's public API does not offer: thread-safe message buffers, a bounded
+callback queue per tab, an explanation for a value viser refuses, a bounded socket read per turn, no "share
+URL" tunnel, a smaller plotly.js bundle, the websocket's request path, page requests answered with a redirect
+(view codes in the address) and a start that ends when no port can be bound. Each hook below is one function
+saying which private names it relies on and why (and docs/known-issues.rst the upstream change that would
+retire it); the rest of the dashboard calls only these functions. A hook returns True when it is in place;
+when this viser lacks what the hook relies on it changes nothing, returns False and warns once
+(:class:`ViserHookWarning`), so a viser upgrade cannot switch a protection off silently.
+``tests/dashboard/test_dashboard_viserfix.py`` installs every hook and takes away what each relies on.
 """
 
 from __future__ import annotations
@@ -31,8 +18,11 @@ import warnings
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+from .loopevent import LoopEvent
+
 __all__ = [
     "install",
+    "fail_unbound_start",
     "check_request_hook",
     "connection_request",
     "redirect_pages",
@@ -70,45 +60,16 @@ def _missing(hook: str, what: str) -> bool:
     return False
 
 
-class LoopEvent(asyncio.Event):
-    """An ``asyncio.Event`` whose ``set`` from a foreign thread is done by ``loop`` on its own thread.
-
-    Calls from foreign threads while one is still on its way to the loop are merged into it: every message
-    pushed before the loop runs that ``set`` is in the buffer already, so one wake-up serves them all (a
-    draw pushes dozens of messages; each hand-over is a write to the loop's self-pipe).
-    """
-
-    def __init__(self, loop: asyncio.AbstractEventLoop):
-        super().__init__()
-        self._owner = loop
-        self._handed = False  # a set from a foreign thread is scheduled on the loop and has not run yet
-
-    def set(self) -> None:
-        try:
-            running = asyncio.get_running_loop()
-        except RuntimeError:
-            running = None
-        if running is self._owner:
-            super().set()
-            return
-        if self._handed:
-            return
-        self._handed = True
-        try:
-            self._owner.call_soon_threadsafe(self._set_on_loop)
-        except RuntimeError:  # the loop is closed (server stopping): nobody waits any more
-            self._handed = False
-
-    def _set_on_loop(self) -> None:
-        self._handed = False  # (first: a push after this line schedules a set of its own)
-        super().set()
-
-
 def install() -> bool:
-    """Make viser's message buffers safe to push into from many threads (once; see the module docstring).
+    """Make viser's message buffers safe to push into from many threads (once).
 
-    Relies on ``viser.infra._async_message_buffer.AsyncMessageBuffer`` setting ``self.event_loop`` and
-    ``self.message_event`` in ``__init__``; the wrapped ``__init__`` replaces the event by a :class:`LoopEvent`.
+    ``AsyncMessageBuffer.push`` (viser/infra/_async_message_buffer.py) calls ``self.message_event.set()`` from
+    the calling thread; ``asyncio.Event.set`` iterates the waiters the event loop adds and removes, so with
+    several tabs drawing at once the push raised "deque mutated during iteration" in a tab's worker (no lock of
+    ours can order it with viser's loop). Relies on ``AsyncMessageBuffer`` setting ``self.event_loop`` and
+    ``self.message_event`` in ``__init__``; the wrapped ``__init__`` replaces the event by a :class:`LoopEvent`,
+    whose ``set`` from another thread is handed to the loop (push schedules the loop-side ``set`` anyway, and
+    viser awaits the event only on the loop: nothing is lost).
     """
     try:
         from viser.infra import _async_message_buffer as amb
@@ -136,6 +97,48 @@ def install() -> bool:
 # server keeps each client's raw connection in ``WebsockServer._live_connections`` (viser/infra/_infra.py,
 # filled before the connect callbacks run, emptied on disconnect); the ``websockets`` connection keeps the
 # upgrade request (``connection.request``: path and headers). That is the only place the path is visible.
+
+
+def fail_unbound_start() -> bool:
+    """Make a viser server whose every port is refused raise OSError instead of waiting for ever.
+
+    ``WebsockServer.start`` (viser/infra/_infra.py) waits on a semaphore its server thread releases once a port
+    is bound; the thread tries the port asked for and the 999 after it and, all refused, ends without releasing
+    it. Relies on ``WebsockServer._background_worker(ready_sem)`` and ``start``: the wrapped worker releases it
+    on its way out if viser did not, and the wrapped ``start`` raises."""
+    from viser.infra import _infra
+
+    cls: Any = getattr(_infra, "WebsockServer", None)
+    worker, start = getattr(cls, "_background_worker", None), getattr(cls, "start", None)
+    if worker is None or start is None:
+        return _missing("the end of a start that binds no port", "WebsockServer._background_worker and start")
+    if getattr(cls, "_qsid_bounded_start", False):
+        return True
+
+    class Ready:  # viser's semaphore, remembering whether viser released it (a port was bound)
+        def __init__(self, sem: Any):
+            self.sem, self.bound = sem, False
+
+        def release(self) -> None:
+            self.bound = True
+            self.sem.release()
+
+    def bounded_worker(self: Any, ready_sem: Any) -> None:
+        ready = Ready(ready_sem)
+        try:
+            worker(self, ready)
+        finally:
+            self._qsid_unbound = not ready.bound
+            if not ready.bound:  # viser gave up: wake start()
+                ready_sem.release()
+
+    def bounded_start(self: Any) -> None:
+        start(self)
+        if getattr(self, "_qsid_unbound", False):
+            raise OSError(f"no port from {self._port} to {self._port + 999} on {self._host} could be bound")
+
+    cls._background_worker, cls.start, cls._qsid_bounded_start = bounded_worker, bounded_start, True
+    return True
 
 
 def check_request_hook(server) -> None:
@@ -226,19 +229,20 @@ def set_callback_executor(gui: Any, executor: Any) -> bool:
 
 
 def guard_updates(
-    gui: Any, on_reject: Callable[[str], None], check: Callable[[Any, Any], str | None] | None = None
+    gui: Any,
+    on_reject: Callable[[str, Any], None],
+    check: Callable[[Any, Any], str | None] | None = None,
+    on_accept: Callable[[Any], None] | None = None,
 ) -> bool:
-    """Wrap viser's handler of one tab's input messages: a value viser cannot take is explained by ``on_reject``.
+    """Wrap viser's handler of one tab's input messages: a value the input does not take is explained by
+    ``on_reject(text, handle)`` and the tab's input set back to the value in use (``on_accept(handle)``: taken).
 
-    ``check(handle, updates)``, if given, runs first on the values as sent (before viser converts them to
-    the input's type): a reason it returns is passed to ``on_reject`` and the message is dropped.
-
-    viser converts each value to the input's type before any callback runs (text sent for a slider,
-    a list for a checkbox ...); that error used to end unnoticed in the event loop. Relies on
-    ``GuiApi._websock_interface`` (the tab's connection, whose public ``register_handler`` /
-    ``unregister_handler`` swap the handler, and ``_incoming_handlers`` to find it),
+    ``check(handle, updates)``, if given, runs first on the values as sent (before viser converts them to the
+    input's type, which used to fail unseen in the event loop): a reason it returns is a refusal. Relies on
+    ``GuiApi._websock_interface`` (the tab's connection: ``register_handler`` / ``unregister_handler`` swap the
+    handler, ``_incoming_handlers`` finds it, ``queue_message`` sends the value in use to this tab only),
     ``GuiApi._handle_gui_updates`` (viser's handler of ``viser._messages.GuiUpdateMessage``) and
-    ``GuiApi._gui_input_handle_from_uuid`` (to name the input in the explanation).
+    ``GuiApi._gui_input_handle_from_uuid`` (the input, to name it).
     """
     try:
         from viser._messages import GuiUpdateMessage
@@ -253,22 +257,32 @@ def guard_updates(
     if not isinstance(inputs, dict):
         return _missing("the explanation of refused values", "GuiApi._gui_input_handle_from_uuid")
 
+    def refuse(message: Any, handle: Any, text: str) -> None:
+        on_reject(text, handle)
+        if handle is not None and "value" in message.updates:  # the tab's input shows the value in use again
+            conn.queue_message(GuiUpdateMessage(message.uuid, {"value": handle.value}))
+
     async def checked(client_id: int, message: Any) -> None:
+        handle = inputs.get(message.uuid)
         if check is not None:
-            why = check(inputs.get(message.uuid), dict(message.updates))
+            why = check(handle, dict(message.updates))
             if why is not None:
-                on_reject(why)
+                refuse(message, handle, why)
                 return
         try:
             await orig(client_id, message)
         except Exception as exc:
-            handle = inputs.get(message.uuid)
             label = getattr(handle, "label", None) or "an input"
             sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in dict(message.updates).items())
-            on_reject(
+            refuse(
+                message,
+                handle,
                 f"{label}: the value sent ({sent}) was refused ({type(exc).__name__}: {str(exc)[:80]}); "
-                "the input keeps its last value"
+                "the input keeps its last value",
             )
+            return
+        if on_accept is not None and handle is not None:
+            on_accept(handle)
 
     handler: Callable[[int, Any], Awaitable[None]] = checked
     conn.unregister_handler(GuiUpdateMessage, orig)

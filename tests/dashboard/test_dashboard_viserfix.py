@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 import viser
+from support import HANG_S
 from viser import _messages
 from viser.infra import _async_message_buffer as amb
 
@@ -58,13 +59,14 @@ def _hooks(server, client, executor):
     return {
         "install": lambda: viserfix.install(),
         "set_callback_executor": lambda: viserfix.set_callback_executor(gui, executor),
-        "guard_updates": lambda: viserfix.guard_updates(gui, lambda text: None),
+        "guard_updates": lambda: viserfix.guard_updates(gui, lambda text, handle: None),
         "limit_reads": lambda: viserfix.limit_reads(server, client.client_id, 4096),
         "refuse_share_requests": lambda: viserfix.refuse_share_requests(server),
         "plotly_js_unsent": lambda: viserfix.plotly_js_unsent(gui),
         "send_plotly_js": lambda: viserfix.send_plotly_js(gui, "/* plotly.js */"),
         "redirect_pages": lambda: viserfix.redirect_pages(server, _moved),
         "phone_sheet_style": lambda: viserfix.phone_sheet_style(gui),
+        "fail_unbound_start": lambda: viserfix.fail_unbound_start(),
     }
 
 
@@ -127,6 +129,10 @@ def _remove(monkeypatch, server, client, name):
         monkeypatch.delattr(gui, "_setup_plotly_js")
     elif name == "phone_sheet_style":  # a client whose sheet is drawn otherwise
         monkeypatch.setattr(viserfix, "SHEET_SOURCE", ('maxHeight: "61%"',))
+    elif name == "fail_unbound_start":
+        from viser.infra import _infra
+
+        monkeypatch.delattr(_infra.WebsockServer, "_background_worker")
 
 
 @pytest.mark.parametrize(
@@ -141,6 +147,7 @@ def _remove(monkeypatch, server, client, name):
         "send_plotly_js",
         "redirect_pages",
         "phone_sheet_style",
+        "fail_unbound_start",
     ],
 )
 def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatch, name):
@@ -193,3 +200,30 @@ def test_the_phone_sheet_style_matches_the_installed_clients_sheet():
     theme = (src.parents[1] / "AppTheme.ts").read_text(encoding="utf-8")
     assert "breakpoints" not in theme  # Mantine's default xs breakpoint, 36em: where viser's phone layout starts
     assert "<script" not in css and "max-height: 50%" in css
+
+
+def test_a_server_whose_every_port_is_refused_raises_instead_of_waiting_for_ever(monkeypatch):
+    """viser tries the port and the 999 after it; when all are refused its start used to wait for ever (its
+    server thread ended without waking it). With the hook (installed with the dashboard) it raises OSError."""
+    import errno
+    import threading
+
+    import websockets.asyncio.server
+
+    def refused(*args, **kwargs):
+        raise OSError(errno.EACCES, "Permission denied")
+
+    monkeypatch.setattr(websockets.asyncio.server, "serve", refused)
+    out: list = []
+
+    def start():
+        try:
+            out.append(viser.ViserServer(host="127.0.0.1", port=1, verbose=False))
+        except BaseException as exc:  # noqa: BLE001 -- what it raised is the result
+            out.append(exc)
+
+    t = threading.Thread(target=start, daemon=True)
+    t.start()
+    t.join(HANG_S)
+    assert out, "viser's start still waiting (hung)"
+    assert isinstance(out[0], OSError) and "no port from 1 to 1000 on 127.0.0.1 could be bound" in str(out[0])
