@@ -29,16 +29,14 @@ _SETTINGS: dict[str, Any] = dict(system="dc-motor")
 START_LESSON: tuple[str, str, str, dict[str, Any], str] = (
     START,
     "Start here",
-    f"qsid replays the letter by {LETTER} ({LETTER_URL}): a dc motor's A and B are identified by least "
-    "squares from data quantized to b bits, and an MPC built on that model steers the true motor. Three panels: "
-    "this one (settings; the numbers in the Summary at its bottom), the 3-D scene (the closed loops of the "
-    "identified models, LS blue and BCLS red, around the true-model loop in black) and the plots (errors "
-    "against b; the show list picks others). Move the word length b first (just below, or ▶ auto-play): the "
-    "errors fall about 0.3 decades per bit and the coloured loops close in on the black one. Theorem 1's line "
-    "is faded because the motor's angle is an integrator (its data never settle, so Ψ Ψᵀ/T has no limit; the "
-    "theorem1 lesson shows the theorem hold on the Boeing 747), and the letter's δ(ε) is a bound only where it "
-    "is below ρ, here from b = 5 on. Next pick **fig1** in the lesson list (the letter's Figure 1 at its data "
-    f"size); ε, ρ, δ, BCLS and the other words: the glossary, {GLOSSARY_DOC}.",
+    f"qsid replays the letter by {LETTER} ({LETTER_URL}) on a dc motor: A and B identified by least squares "
+    "from data quantized to b bits, an MPC built on them run on the true motor. Panels: the settings here (the "
+    "numbers in the Summary below), the closed loops in 3-D (LS blue, BCLS red, the true model's black) and the "
+    "plots of the errors against b. Move b first: the errors fall about 0.3 decades per bit and the coloured "
+    "loops close in on the black one. Theorem 1's line is faded because the motor's angle is an integrator (its "
+    "data never settle; the theorem1 lesson shows the theorem hold on the Boeing 747), and δ(ε) is a bound only "
+    "below ρ, here from b = 5 on. Next: the **fig1** lesson; the symbols: the glossary, "
+    f"{GLOSSARY_DOC}.",
     _SETTINGS,
     "error",
 )

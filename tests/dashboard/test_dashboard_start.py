@@ -44,7 +44,7 @@ def test_the_start_is_the_first_lesson_cites_the_letter_and_points_on():
     assert ARXIV in les.text and LETTER_URL == f"https://arxiv.org/abs/{ARXIV}" and LETTER_URL in les.text
     assert "Ataei, Maity, Goswami" in les.text and "Quantized Data" in les.text
     assert "**fig1**" in les.text and "docs/glossary.rst" in les.text  # the next lesson, the words
-    for what in ("3-D scene", "plots", "Summary", "word length b"):  # the three panels, the slider to move first
+    for what in ("3-D", "plots", "Summary", "Move b first"):  # the three panels, the slider to move first
         assert what in les.text, what
     assert lesson_markdown(START).startswith("**Start here.**")
 
@@ -94,7 +94,7 @@ def test_every_claim_of_the_start_text_holds_at_the_default_settings():
     assert "the theorem1 lesson shows the theorem hold on the Boeing 747" in text
     th = lesson_values("theorem1")
     assert th.system == "boeing747"
-    assert "δ(ε) is a bound only where it is below ρ, here from b = 5 on" in text
+    assert "δ(ε) is a bound only below ρ, here from b = 5 on" in text
     consistent = [r["bits"] for r in rows if r["bound_self_consistent"]]
     assert consistent == list(range(5, 17)), consistent
 
