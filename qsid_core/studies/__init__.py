@@ -40,6 +40,7 @@ from .datalength import (
 )
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
+from .flights import Flights
 from .koopman_keys import KOOPMAN_KEY_PARTS, KOOPMAN_NOT_IN_KEYS, KOOPMAN_STAGE_GROUPS, koopman_stage_key
 from .koopman_stages import FREE_FLOW_GRID, KoopmanExperiment, KoopmanModels
 from .koopman_sweep import (
@@ -82,6 +83,7 @@ __all__ = [
     "Experiment",
     "FIT_TOLERANCE",
     "FREE_FLOW_GRID",
+    "Flights",
     "InlineExecutor",
     "KEY_PARTS",
     "KOOPMAN_KEY_PARTS",
