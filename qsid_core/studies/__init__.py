@@ -35,6 +35,7 @@ from .datalength import (
     DataLengthConfig,
     DataLengthResult,
     DataLengthRow,
+    datalength_key,
     run_datalength,
     runs_and_steps,
 )
@@ -124,6 +125,7 @@ __all__ = [
     "clipping_effect",
     "compile_kernels",
     "config_paths",
+    "datalength_key",
     "dataset_from_arrays",
     "experiment_records",
     "finite_data_fluctuation",
