@@ -97,9 +97,9 @@ def _kwargs(
     default = cli_default(s, base) if default is ... else default
     shown_default = resolve(s.default) if default is None else default
     help_text = hint_text(s, help_text or s.cli_help) or s.label
-    if "(default:" not in help_text:
+    if "default:" not in help_text:
         note = _nonlinear_note(s, shown_default) if plants else ""
-        help_text += f" (default: {shown(shown_default)}{note})"
+        help_text += f" (default: {shown(shown_default) or 'none'}{note})"
     kw: dict[str, Any] = {"dest": s.dest, "default": default, "help": help_text}
     if s.type is bool:
         # on by the engine's default: --flag / --no-flag (a base like the letter's may turn it off); else a switch
