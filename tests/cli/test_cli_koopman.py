@@ -146,3 +146,18 @@ def test_bits_for_a_nonlinear_plant_gives_b_observed_only(capsys):
     ok = [f >= 0.5 for f in fr]
     want = next((d["rows"][i]["bits"] for i in range(len(ok)) if all(ok[i:])), None)
     assert d["b_observed"] == want
+
+
+def test_a_plant_file_whose_module_sits_beside_it_runs_without_pythonpath(capsys, tmp_path):
+    """Walkthrough repro: the module of a nonlinear plant file had to be on PYTHONPATH."""
+    folder = tmp_path / "my plants"
+    folder.mkdir()
+    (folder / "qsid_cli_beside_field.py").write_text(
+        "import numpy as np\n\n\ndef f(x, u):\n    return np.stack([x[:, 1], u[:, 0] - x[:, 0] - x[:, 1]], axis=1)\n"
+    )
+    plant = folder / "plant.toml"
+    plant.write_text('vector_field = "qsid_cli_beside_field:f"\nn = 2\nm = 1\nx0 = [1.0, 0.0]\n')
+    assert str(folder) not in sys.path and "qsid_cli_beside_field" not in sys.modules
+    code, out, err = _run(capsys, "sweep", "--system", str(plant), *SMALL, "--json")
+    assert code == 0, err
+    assert _strict(out)["system"] == "plant" and str(folder) not in sys.path
