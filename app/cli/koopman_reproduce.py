@@ -90,7 +90,10 @@ def _panels(ex: KoopmanExperiment, rows: dict[str, list[dict[str, Any]]]) -> lis
         title=dict(text=f"(a) {s}: error of [A_z, B_z] vs the unquantized EDMD (mean ± std, {R} realizations)")
     )
     fb = prediction_figure(rows, None, ex.reference()[1], ex.horizon, height=420)
-    fb.update_layout(title=dict(text=f"(b) {ex.horizon}-step prediction error on held-out runs"), margin=dict(t=60))
+    fb.update_layout(
+        title=dict(text=f"(b) prediction error over steps 1..{ex.horizon} from each held-out run's start"),
+        margin=dict(t=60),
+    )
     fc = outcomes_figure(rows, None, height=420)
     fc.update_layout(
         title=dict(text=f"(c) Koopman MPC on the true plant, share of {R} loops per b (LS left · BCLS right)")
@@ -152,7 +155,7 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
         f"{ex.system.name}, Koopman/EDMD from quantized data: lifting {cfg.lifting} ({ex.lifting.L} features), "
         f"{c.trajectories} runs x {c.steps} steps, {c.realizations} dither realizations per word length, "
         f"{c.quantizer.dither} dither{', guard band' if c.quantizer.guard else ''}; LS and BCLS. "
-        f"Unquantized EDMD's {ex.horizon}-step prediction error {ex.reference()[1]:.3g}. {NO_CERTIFICATES}."
+        f"Unquantized EDMD's prediction error over steps 1..{ex.horizon} {ex.reference()[1]:.3g}. {NO_CERTIFICATES}."
     )
     page = index_page(f"qsid: {ex.system.name}, Koopman/EDMD from quantized data", caption, panels)
     write_text(outdir / "index.html", page + "\n")
