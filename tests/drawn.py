@@ -5,7 +5,7 @@ browser (not a test module: pytest collects nothing here).
 ``el.data`` gives it) into the trace dicts plotly.js draws (the dashboard's own JSON: NaN as None).
 :func:`check_drawn` asserts what every trace of every view must satisfy whatever it shows:
 
-* x and y (and a per-point ``text``) have the same length;
+* x and y (z in 3-D, a per-point ``text``) have the same length;
 * error bars are as long as y and not negative;
 * a filled band (``fill="toself"``) is a polygon out along its upper edge and back along its lower one, and it
   encloses each line of its legend group on the same axes at every x the line is drawn.
@@ -107,6 +107,9 @@ def check_drawn(fig: Any, view: str = "figure") -> list[dict[str, Any]]:
         if "x" in tr and "y" in tr:
             nx, ny = len(values(tr["x"])), len(values(tr["y"]))
             assert nx == ny, f"{where}: {nx} x values against {ny} y values"
+            if "z" in tr and tr.get("type") == "scatter3d":
+                nz = len(values(tr["z"]))
+                assert nz == nx, f"{where}: {nz} z values against {nx} x values"
             text = tr.get("text")
             if isinstance(text, list):
                 assert len(text) == ny, f"{where}: {len(text)} hover texts against {ny} points"

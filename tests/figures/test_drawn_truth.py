@@ -265,3 +265,32 @@ def test_every_nonlinear_view_draws_the_koopman_sweep(nonlinear):
         close(y, [ls[int(b)]["large_data"]["err_G"] for b in x], "LS large-data limit")
     floor = sweeps["LS"].reference_prediction_error
     assert any(s.y0 == pytest.approx(floor, rel=1e-12) for s in figs["koopman-prediction"].layout.shapes)
+
+
+# ----- the figures outside the panel: CLI --figure, a pinned result, the reproduce portraits -------
+
+
+def test_cli_figures_pinned_overlays_and_portraits_draw_consistent_data(linear):
+    """``plot_results`` (``qsid sweep --figure``) of both estimators' sweeps, a pinned earlier frame dashed over
+    the curves, and the 3-D phase portrait of ``qsid reproduce``: the same checks; the plotted errors equal
+    the sweeps' rows."""
+    import dataclasses as dc
+
+    from app.figures import phase_portrait_figure, plot_results
+    from app.figures.results import VIEWS
+
+    frame, _, sweeps = linear
+    for view in VIEWS:
+        data = check_drawn(plot_results(*sweeps.values(), view=view, labels=list(sweeps)), f"plot_results {view}")
+        if view == "error":
+            for lab, sw in sweeps.items():
+                rows = results(sw)
+                x, y = line(data, lab, "x")
+                close(y, [rows[b]["err_A"]["mean"] for b in x], f"plot_results {lab} err_A")
+    pinned = build_figures(dc.replace(frame, pinned=dc.replace(frame, bits=2)), ["error", "cost", "bound"])
+    for name, fig in pinned.items():
+        data = check_drawn(fig, f"pinned {name}")
+        assert any("(pinned b=2)" in (t.get("name") or "") for t in data), name
+    st = sweeps["LS"].loops[frame.bits].states
+    fig = phase_portrait_figure(st, sweeps["LS"].true_loop.states[0], dims=(0, 1, None))
+    assert any(t.get("type") == "scatter3d" for t in check_drawn(fig, "phase portrait"))
