@@ -155,7 +155,8 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
         f"{ex.system.name}, Koopman/EDMD from quantized data: lifting {cfg.lifting} ({ex.lifting.L} features), "
         f"{c.trajectories} runs x {c.steps} steps, {c.realizations} dither realizations per word length, "
         f"{c.quantizer.dither} dither{', guard band' if c.quantizer.guard else ''}; LS and BCLS. "
-        f"Unquantized EDMD's prediction error over steps 1..{ex.horizon} {ex.reference()[1]:.3g}. {NO_CERTIFICATES}."
+        f"Unquantized EDMD's prediction error (steps 1..{ex.horizon}): {ex.reference()[1]:.3g}. "
+        f"{NO_CERTIFICATES[:1].upper()}{NO_CERTIFICATES[1:]}."
     )
     page = index_page(f"qsid: {ex.system.name}, Koopman/EDMD from quantized data", caption, panels)
     write_text(outdir / "index.html", page + "\n")
