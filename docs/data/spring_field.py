@@ -1,5 +1,5 @@
-"""Vector field of ``spring.toml``: a mass on a hardening spring with viscous friction (Khalil, *Nonlinear
-Systems*, 3rd ed., Sec. 1.2.3): m y'' + c y' + k (1 + a^2 y^2) y = u, states (y, y'), input the force u."""
+"""Vector field of spring.toml: a mass on a hardening spring with viscous friction (H. K. Khalil, Nonlinear
+Systems, 3rd ed., Sec. 1.2.3): m ÿ + c ẏ + k (1 + a² y²) y = u, states (y, ẏ), input the force u."""
 
 import numpy as np
 
