@@ -44,6 +44,7 @@ def check_every_view(v: Values, what: str) -> set[str]:
     return drawn
 
 
+@pytest.mark.slow  # 13 lessons, each computed (at a small size) for every b
 @pytest.mark.parametrize("lesson", [les.name for les in LESSONS])
 def test_every_view_of_every_lesson_draws_consistent_data(lesson):
     v = lesson_values(lesson)
