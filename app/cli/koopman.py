@@ -12,7 +12,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING, Any
 
-from app.settings.cli import add_setting_options
+from app.settings.cli import add_setting_options, given_seeds
 from app.settings.schema import NONLINEAR_GROUP, SETTINGS, nonlinear_settings
 
 from .files import input_files, out_file, write_text
@@ -75,17 +75,15 @@ _DEST = {"--Q": "q_diag", "--R": "r_diag"}
 def _given(args: argparse.Namespace, typed: set[str]) -> dict[str, Any]:
     """The values of the typed options of the settings a nonlinear run honours, by their ``nonlinear`` path
     (``"trajectories"``, ``"mpc.horizon"``, ``"box"``); ``--seed`` gives both seeds unless they are typed. The
-    system and the quantizer's options are read apart (:func:`koopman_config`)."""
+    system, the word lengths and the quantizer's options are read apart (:func:`koopman_config`)."""
     out: dict[str, Any] = {}
     for s in nonlinear_settings():
         path = s.nonlinear
-        if path is None or path == "system" or path.startswith("quantizer.") or not typed & set(s.flags):
+        if path is None or path in ("system", "bits") or path.startswith("quantizer.") or not typed & set(s.flags):
             continue
         out[path] = getattr(args, s.dest if s.flag else _DEST.get(s.flags[0], s.name))
-    seed = getattr(args, "seed", None)
-    if seed is not None:
-        out.setdefault("data_seed", seed)
-        out.setdefault("dither_seed", seed)
+    for name, value in given_seeds(args).items():  # typed, else --seed's
+        out.setdefault(name, value)
     return out
 
 
