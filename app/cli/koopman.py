@@ -16,7 +16,7 @@ from app.settings.cli import add_setting_options, given_seeds
 from app.settings.schema import NONLINEAR_GROUP, SETTINGS, nonlinear_settings
 
 from .files import input_files, out_file, write_text
-from .output import dumps, g
+from .output import dumps, g, text_table
 from .runner import UsageError
 
 if TYPE_CHECKING:
@@ -121,25 +121,50 @@ def _pm(s: dict[str, float]) -> str:
     return f"{g(s['mean'])} +/- {g(s['std'])}" if math.isfinite(s["mean"]) else "-"
 
 
+def _limit(r: dict[str, Any]) -> str:
+    """The large-data limit's cell: its err_G, "0 (= EDMD)" where the limit is the unquantized EDMD itself (the
+    de-biased estimate), "n/a" where no limit applies (no exact formula: the note under the table says why)."""
+    lim = (r.get("large_data") or {}).get("err_G")
+    if lim is None:
+        return "n/a"
+    return "0 (= EDMD)" if lim == 0 else g(lim)
+
+
+#: The nonlinear sweep table's columns.
+KOOPMAN_HEAD = (
+    "b",
+    "err_G (vs unquantized EDMD)",
+    "large-data limit",
+    "err_A",
+    "err_B",
+    "prediction err",
+    "converged",
+)
+
+
 def format_koopman(d: dict[str, Any]) -> str:
-    """The readable table of a nonlinear sweep dict."""
+    """The readable table of a nonlinear sweep dict (columns aligned as the linear sweep's)."""
     c = d["config"]
+    rows = [
+        [
+            str(r["bits"]),
+            _pm(r["err_G"]),
+            _limit(r),
+            _pm(r["err_A"]),
+            _pm(r["err_B"]),
+            _pm(r["prediction_error"]),
+            "-"
+            if r["stabilized_fraction"] is None
+            else f"{r['closed_loop_outcomes']['converged']}/{r['realizations']}",
+        ]
+        for r in d["results"]
+    ]
     lines = [
         f"{d['system']}: lifting {c['lifting']} ({c['features']} features), estimator {c['estimator']}, "
         f"{d['data']['runs_used']} runs x {c['steps']} steps, {c['realizations']} realizations, {c['dither']} dither"
         + (", guard band" if c["guard"] else ""),
-        "b  err_G (vs unquantized EDMD)  large-data limit  err_A            err_B            prediction err   converged",
+        *text_table(KOOPMAN_HEAD, rows),
     ]
-    for r in d["results"]:
-        conv = (
-            "-" if r["stabilized_fraction"] is None else f"{r['closed_loop_outcomes']['converged']}/{r['realizations']}"
-        )
-        lim = (r.get("large_data") or {}).get("err_G")
-        lines.append(
-            f"{r['bits']:<2} {_pm(r['err_G']):<28} {'-' if lim is None else g(lim):<17} "
-            f"{_pm(r['err_A']):<16} {_pm(r['err_B']):<16} "
-            f"{_pm(r['prediction_error']):<16} {conv}"
-        )
     ref = d["reference"]
     lines.append(
         f"unquantized EDMD: prediction error {g(ref['prediction_error'])}"
