@@ -5,13 +5,13 @@ from __future__ import annotations
 import enum
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Container, Sequence
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from qsid_core import SweepResult
 
-__all__ = ["clean", "dumps", "g", "format_table", "sweep_dict", "assumptions_lines"]
+__all__ = ["clean", "dumps", "g", "format_table", "text_table", "sweep_dict", "assumptions_lines"]
 
 
 def clean(obj: Any) -> Any:
@@ -335,6 +335,20 @@ def _closing_lines(d: dict[str, Any], c: dict[str, Any], noisy: bool) -> list[st
     return lines
 
 
+def text_table(head: Sequence[str], rows: Sequence[Sequence[str]], left: Container[int] = ()) -> list[str]:
+    """The lines of a plain-text table: the header, a dashed rule, the rows; every column as wide as its widest
+    cell, right-aligned (the columns ``left``: left-aligned), two spaces apart.
+
+    Hand-written rather than rich.Table: this exact plain-text layout is the documented, diff-able stdout of
+    the linear and the nonlinear sweep alike."""
+    widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
+
+    def fmt(cells: Sequence[str]) -> str:
+        return "  ".join(c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+
+    return [fmt(head), fmt(["-" * w for w in widths]), *(fmt(row) for row in rows)]
+
+
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = [
@@ -358,21 +372,8 @@ def format_table(d: dict) -> str:
     if m.get("reference"):
         head.insert(10, "tracking err")
     rows = [_table_row(r, noisy, bool(m.get("reference"))) for r in d["results"]]
-    # hand-written rather than rich.Table: this exact plain-text layout is the documented, diff-able stdout
-    widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
-    left = {1}
-
-    def fmt(cells: Sequence[str]) -> str:
-        return "  ".join(c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
-
     c = d["config"]
-    lines = [
-        _settings_line(d["system"], c),
-        *_what_if_lines(c),
-        fmt(head),
-        fmt(["-" * w for w in widths]),
-        *(fmt(row) for row in rows),
-    ]
+    lines = [_settings_line(d["system"], c), *_what_if_lines(c), *text_table(head, rows, left={1})]
     t = d.get("timing_s", {})
     slope = (
         f"slope of log10 mean error per bit: A {g(d.get('slope_A'), '+.3f')}, "

@@ -41,11 +41,8 @@ from .startup import StartupReport
 from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
 from .tabview import drop_late_draws
 from .viewcodes import ViewStore, default_store_path, open_view, page_location
-from .viserfix import check_request_hook, connection_request, limit_reads, redirect_pages, refuse_share_requests
-from .viserfix import install as _install_viser_fix
+from .viserfix import connection_request, limit_reads, redirect_pages, refuse_share_requests, thread_safe_buffers
 from .warm import COLD_START, WARM_START, first_tab, needs_compiling, prefill, warm
-
-_install_viser_fix()  # before any server exists: every message buffer is made thread-safe
 
 __all__ = ["DashboardApp", "main"]
 
@@ -117,6 +114,7 @@ class DashboardApp:
         # nowhere (rich writes to sys.stdout at print time; only this constructor's output is redirected)
         with contextlib.redirect_stdout(io.StringIO()):
             self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
+        thread_safe_buffers(self.server)  # before any tab: every message buffer can be pushed to from any thread
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
         cam = self.server.initial_camera  # every new tab starts looking at the unit box from here
@@ -124,7 +122,7 @@ class DashboardApp:
         cam.look_at = (0.0, 0.0, 0.0)
         cam.up = (0.0, 0.0, 1.0)
         refuse_share_requests(self.server)
-        check_request_hook(self.server)  # view links need the websocket's path: fail now, not silently later
+        connection_request(self.server, -1)  # view links need the websocket's path: fail now, not silently later
         #: page requests redirected to addresses that hold a view code (else: long links, no code in the address)
         self.redirecting = redirect_pages(self.server, self._page_location)
         self.server.on_client_connect(self._connect)

@@ -47,7 +47,7 @@ from .flow import TabCallbacks
 from .follower import refused
 from .frame_loop import Reporters, draw_frames
 from .frames import Frame
-from .inputs import check_panel, check_sent, unusable
+from .inputs import check_panel, check_sent, sent_guard, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
 from .lessons import LessonMark, get_lesson, lesson_names, lesson_values
@@ -99,9 +99,8 @@ class Session:
         set_callback_executor(gui, self.callbacks)
         # a value sent is checked by the panel's rules before viser converts it; one viser refuses is explained
         # (a follower's panel takes nothing: :func:`~app.dashboard.follower.refused`)
-        guard_updates(
-            gui, self._show_error, lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u)
-        )
+        check = lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u)  # noqa: E731
+        guard_updates(gui, sent_guard(check, self._show_error))
         self.lesson_shown = values.lesson  # the lesson whose settings the panel was given
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
         #: the tab's panels (viser): built once, then only drawn into by this tab's worker

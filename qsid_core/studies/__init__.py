@@ -35,11 +35,13 @@ from .datalength import (
     DataLengthConfig,
     DataLengthResult,
     DataLengthRow,
+    datalength_key,
     run_datalength,
     runs_and_steps,
 )
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
+from .flights import Flights
 from .koopman_keys import KOOPMAN_KEY_PARTS, KOOPMAN_NOT_IN_KEYS, KOOPMAN_STAGE_GROUPS, koopman_stage_key
 from .koopman_stages import FREE_FLOW_GRID, KoopmanExperiment, KoopmanModels
 from .koopman_sweep import (
@@ -90,6 +92,7 @@ __all__ = [
     "Experiment",
     "FIT_TOLERANCE",
     "FREE_FLOW_GRID",
+    "Flights",
     "InlineExecutor",
     "KEY_PARTS",
     "KOOPMAN_KEY_PARTS",
@@ -130,6 +133,7 @@ __all__ = [
     "clipping_effect",
     "compile_kernels",
     "config_paths",
+    "datalength_key",
     "dataset_from_arrays",
     "experiment_records",
     "finite_data_fluctuation",
