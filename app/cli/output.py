@@ -79,6 +79,23 @@ _HYPOTHESES = (
 )
 
 
+def stationary_why(radius: float | None) -> str:
+    """Why Theorem 1 does not apply to a plant whose ``A`` has spectral radius ``radius`` >= 1, and which
+    plant shows it, in one plain sentence."""
+    if radius is not None and abs(radius - 1.0) < 1e-6:
+        what = (
+            "an eigenvalue on the unit circle (an integrator, like the dc-motor's angle, or an undamped mode): "
+            "its samples wander"
+        )
+    else:
+        what = f"an eigenvalue outside the unit circle (spectral radius {g(radius, '.4g')}): its samples grow"
+    return (
+        f"why: A has {what} instead of settling, so the data are not stationary, Psi Psi^T/T has no limit and "
+        "Theorem 1 (a statement about T -> inf) does not apply; a stable plant shows it hold at coarse b: "
+        "qsid sweep --system boeing747 (the dashboard's theorem1 lesson)"
+    )
+
+
 def assumptions_lines(results: list) -> list:
     """Plain lines saying which hypotheses of Theorem 1 / BCLS fail at which b (empty if all hold)."""
     rows = [r for r in results if r.get("assumptions")]
@@ -87,6 +104,8 @@ def assumptions_lines(results: list) -> list:
         bad = [r["bits"] for r in rows if not r["assumptions"].get(key, True)]
         if bad:
             lines.append(f"  fails: {name} at b = {_bits_list(bad)}")
+            if key == "stationary":  # the plain reason (the default plant's case), and where to see Theorem 1
+                lines.append("    " + stationary_why(rows[0]["assumptions"].get("spectral_radius")))
             if key == "no_overload":  # the engine names the range, the share it clips and what that does
                 why = [
                     x

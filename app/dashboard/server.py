@@ -37,11 +37,12 @@ from .pool import DEFAULT_TIMEOUT, Pool
 from .scene import VIEW_FROM
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, Values
+from .startup import StartupReport
 from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
 from .tabview import drop_late_draws
 from .viewcodes import ViewStore, default_store_path, open_view, page_location
 from .viserfix import connection_request, limit_reads, redirect_pages, refuse_share_requests, thread_safe_buffers
-from .warm import COMPILE_SECONDS, first_tab, needs_compiling, prefill, warm
+from .warm import COLD_START, WARM_START, first_tab, needs_compiling, prefill, warm
 
 __all__ = ["DashboardApp", "main"]
 
@@ -198,10 +199,11 @@ class DashboardApp:
         if idle:
             self.idle.schedule()
 
-    def prefill(self) -> str | None:
-        """Compute and draw a new tab's view once (see :func:`.warm.prefill`); returns why not, or None."""
+    def prefill(self, progress=None) -> str | None:
+        """Compute and draw a new tab's view once (see :func:`.warm.prefill`; ``progress`` is given each frame);
+        returns why not, or None."""
         try:
-            prefill(self.defaults, self.cache, self.executor, self.tasks)
+            prefill(self.defaults, self.cache, self.executor, self.tasks, progress)
         except Exception as exc:  # the tab itself reports what these settings raise
             return str(exc) if isinstance(exc, QsidError) else f"{type(exc).__name__}: {exc}"
         return None
@@ -267,26 +269,31 @@ def _serve(args: argparse.Namespace, settings: Values | None, stop) -> int:
     app = None
     code = 0
     try:
-        if needs_compiling():
-            print(f"qsid dashboard: compiling the kernels once, ~{COMPILE_SECONDS} s", flush=True)
-        app = DashboardApp(
-            args.host,
-            args.port,
-            args.system,
-            workers=args.workers,
-            scale=args.scale,
-            settings=settings,
-            lesson=args.lesson,
-            task_timeout=args.task_timeout,
-            cache_bytes=args.cache_mb * 2**20,
-            max_tabs=args.max_tabs,
-            presenter=args.presenter,
-            views_file=default_store_path(),
-        )
-        if app.views.load_note:
-            print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
-        warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
-        first_tab(app)
+        with StartupReport() as report:  # a line per step, and every few seconds while one takes long
+            report.say(COLD_START if needs_compiling() else WARM_START)
+            report.step(
+                f"starting the server and {args.workers} worker process{'es' * (args.workers > 1)}"
+                if args.workers
+                else "starting the server"
+            )
+            app = DashboardApp(
+                args.host,
+                args.port,
+                args.system,
+                workers=args.workers,
+                scale=args.scale,
+                settings=settings,
+                lesson=args.lesson,
+                task_timeout=args.task_timeout,
+                cache_bytes=args.cache_mb * 2**20,
+                max_tabs=args.max_tabs,
+                presenter=args.presenter,
+                views_file=default_store_path(),
+            )
+            if app.views.load_note:
+                print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
+            warm(app.pool, report)  # the first tab must not pay the compiler (nor the workers' first loads)
+            first_tab(app, report)
         print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
         note = who_can_connect(args.host, app.port)
         if note:

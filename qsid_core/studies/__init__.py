@@ -67,7 +67,15 @@ from .stage_results import BitsIdentification, TheoryAtBits
 from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
 from .sweep import run_sweep, summarize
 from .sweep_result import RESULT_FORMAT, StoredRow, SweepResult, load_result
-from .warmup import COMPILED_KERNELS, compile_kernels, kernel_cache_dir, kernel_names, kernels_cached, one_per_size
+from .warmup import (
+    COMPILED_KERNELS,
+    compile_kernels,
+    kernel_cache_dir,
+    kernel_names,
+    kernel_steps,
+    kernels_cached,
+    one_per_size,
+)
 
 __all__ = [
     "Assumptions",
@@ -136,6 +144,7 @@ __all__ = [
     "json_clean",
     "kernel_cache_dir",
     "kernel_names",
+    "kernel_steps",
     "kernels_cached",
     "koopman_stage_key",
     "load_recorded",
