@@ -28,6 +28,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import os
+import re
 import shutil
 import stat
 import subprocess
@@ -239,7 +240,8 @@ class LessonsDirective(Directive):
     def run(self):
         from app.dashboard.lessons import LESSONS
 
-        rows = [[f"``{les.name}``", les.title, les.text, les.plot] for les in LESSONS]
+        # (the panel's markdown emphasis, e.g. the start text's **fig1**, as plain text)
+        rows = [[f"``{les.name}``", les.title, re.sub(r"\*+", "", les.text), les.plot] for les in LESSONS]
         return [_table(["--lesson", "title", "what it says", "key plot"], rows, [10, 14, 60, 8])]
 
 

@@ -12,16 +12,13 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
+from app.settings.cli import add_seed_option, add_setting_options, given_seeds, study_values
+from app.settings.schema import DATA_GROUP, WHATIF_GROUP
+
 from .files import input_files, out_file, write_text
 from .output import dumps, g
-from .parser import (
-    add_quantizer_options,
-    add_running_options,
-    any_float,
-    nonneg_int,
-    pos_int,
-)
-from .runner import executor, quantizer_from_args, resolve_system
+from .parser import add_quantizer_options, add_running_options, pos_int
+from .runner import check_channels, executor, quantizer_from_args, resolve_system
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -29,6 +26,9 @@ if TYPE_CHECKING:
     from .runner import Reporter
 
 __all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+
+#: The what-if fields a study's record holds when set (:meth:`qsid_core.DataLengthConfig.what_ifs`).
+WHAT_IFS = ("state_amplitude", "noise", "noise_known", "input_bits", "state_bits")
 
 HELP = "model error against data length at one word length (LS, BCLS, Theorem 1's floor)"
 DESCRIPTION = (
@@ -55,12 +55,13 @@ def _samples(text: str) -> tuple[int, ...]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The study's options: those of the settings with a ``datalength`` path in the settings table (defaults
+    ``DataLengthConfig()``'s), and the system, word length and data lengths written here."""
     from qsid_core import DataLengthConfig
     from qsid_core.studies import DEFAULT_SAMPLES
 
     d = DataLengthConfig()
-    q0 = d.quantizer
-    g_ = p.add_argument_group("system and data")
+    g_ = p.add_argument_group(DATA_GROUP)
     g_.add_argument(
         "--system",
         default=d.system,
@@ -76,36 +77,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="total regression samples per length, e.g. 1000,10000,100000 (default: "
         f"{len(DEFAULT_SAMPLES)} lengths from {DEFAULT_SAMPLES[0]} to {DEFAULT_SAMPLES[-1]})",
     )
-    g_.add_argument(
-        "--realizations",
-        type=pos_int,
-        default=d.realizations,
-        metavar="N",
-        help=f"dither realizations per length (default: {d.realizations})",
-    )
-    g_.add_argument(
-        "--input-amplitude",
-        type=any_float,
-        default=d.input_amplitude,
-        metavar="A",
-        help=f"training inputs u ~ U[-A, A] (default: {d.input_amplitude:g})",
-    )
-    g_.add_argument(
-        "--data-seed",
-        type=nonneg_int,
-        default=d.data_seed,
-        metavar="N",
-        help=f"seed of the simulated data (default: {d.data_seed})",
-    )
-    g_.add_argument(
-        "--dither-seed",
-        type=nonneg_int,
-        default=d.dither_seed,
-        metavar="N",
-        help=f"seed of the dither streams (default: {d.dither_seed})",
-    )
+    add_setting_options(g_, DATA_GROUP, d, {"realizations": "dither realizations per length"}, study="datalength")
+    add_seed_option(g_)
     q = p.add_argument_group("quantizer")
-    add_quantizer_options(q, q0, "range of the largest data set, used at every length")
+    add_quantizer_options(q, d.quantizer, "range of the largest data set, used at every length")
+    add_setting_options(p.add_argument_group(WHATIF_GROUP), WHATIF_GROUP, d, study="datalength")
     r = p.add_argument_group("output and running")
     r.add_argument("--json", action="store_true", help="print one JSON object (one row per length) to stdout")
     r.add_argument("--out", metavar="FILE", default=None, help="also write the JSON to FILE")
@@ -114,6 +90,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _pm(s: dict) -> str:
     return "-" if s.get("mean") is None else f"{s['mean']:.3e} +/- {s['std']:.1e}"
+
+
+def _what_ifs(c: dict) -> str:
+    """``"; state amplitude 2, noise 0.01"``: the what-ifs a study's config holds (none: "")."""
+    words = [f"{k.replace('_', ' ')} {','.join(map(str, v)) if isinstance(v, list) else v}" for k, v in c.items()]
+    shown = [w for k, w in zip(c, words) if k in WHAT_IFS]
+    return f"; {', '.join(shown)}" if shown else ""
 
 
 def format_table(d: dict) -> str:
@@ -144,7 +127,7 @@ def format_table(d: dict) -> str:
         f"system {d['system']}, b = {d['bits']}: {c['realizations']} realizations, range {c['range']}"
         f"{' + guard' if c['guard'] else ', no guard'}, dither {c['dither']}, inputs "
         f"U[-{c['input_amplitude']:g}, {c['input_amplitude']:g}], eps {min(eps):.2e}..{max(eps):.2e} "
-        "(the same at every length)",
+        f"(the same at every length){_what_ifs(c)}",
         fmt(head),
         fmt(["-" * w for w in widths]),
         *(fmt(r) for r in rows),
@@ -167,12 +150,11 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
         system=system,
         bits=args.bits,
         samples=args.samples,
-        realizations=args.realizations,
         quantizer=quantizer_from_args(args, system),
-        input_amplitude=args.input_amplitude,
-        data_seed=args.data_seed,
-        dither_seed=args.dither_seed,
+        # the settings table's (realizations, amplitudes, what-ifs, seeds); each seed typed, else --seed's
+        **{**study_values(args, "datalength"), **given_seeds(args)},
     )
+    check_channels(cfg, system)
     plan = ", ".join(
         f"{T}: {'x'.join(map(str, runs_and_steps(T, cfg.steps_per_run, cfg.min_runs)))}" for T in cfg.samples
     )

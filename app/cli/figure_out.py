@@ -32,7 +32,29 @@ __all__ = [
     "check_formats",
     "save",
     "save_panels",
+    "index_page",
 ]
+
+_INDEX = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>{title}</title>
+<script src="plotly.min.js"></script>
+<style>
+body {{ font-family: system-ui, sans-serif; margin: 1em 2em; color: #222; }}
+.grid {{ display: grid; grid-template-columns: repeat(3, minmax(0, 1fr)); gap: 1em; }}
+.panel {{ border: 1px solid #ddd; border-radius: 4px; padding: 0.3em; min-width: 0; }}
+.panel h2 {{ font-size: 1em; margin: 0.2em 0.4em; }}
+@media (max-width: 1100px) {{ .grid {{ grid-template-columns: 1fr; }} }}
+</style></head>
+<body>
+<h1>{title}</h1>
+<p>{caption}</p>
+<p>Data: <a href="data.json">data.json</a>. Panels as separate pages: {links}.</p>
+<div class="grid">
+{panels}
+</div>
+</body></html>
+"""
 
 
 def add_figure_arguments(p: argparse.ArgumentParser) -> None:
@@ -124,3 +146,28 @@ def check_formats(text: str | None) -> tuple[str, ...]:
             f"argument --figure: give png, svg and/or pdf, comma-separated (the HTML is always written); got {text!r}"
         )
     return fmts
+
+
+def index_page(title: str, caption_html: str, panels: Sequence[tuple[str, go.Figure]]) -> str:
+    """``index.html`` of a ``reproduce`` folder: every panel drawn inline (the folder's ``plotly.min.js``), under a
+    heading that links to the panel's own page ``<stem>.html``; ``caption_html`` is already escaped."""
+    import html
+
+    import plotly.graph_objects as go
+    import plotly.io as pio
+
+    divs = []
+    for stem, fig in panels:
+        heading = fig.layout.title.text or stem
+        fig = go.Figure(fig)  # a copy without the title: the page heading carries it
+        fig.update_layout(title=None, margin=dict(t=30))
+        div = pio.to_html(
+            fig, include_plotlyjs=False, full_html=False, div_id=f"panel-{stem}", config={"responsive": True}
+        )
+        divs.append(f'<div class="panel"><h2><a href="{stem}.html">{html.escape(heading)}</a></h2>\n{div}\n</div>')
+    return _INDEX.format(
+        title=html.escape(title),
+        caption=caption_html,
+        links=", ".join(f'<a href="{s}.html">{s}</a>' for s, _ in panels),
+        panels="\n".join(divs),
+    )

@@ -13,13 +13,16 @@ from app.settings.cli import add_option
 
 from .files import out_file, write_text
 from .output import dumps
-from .parser import add_quantizer_options, engine, pos_int
+from .parser import add_quantizer_options, engine
 from .runner import UsageError, quantizer_from_args, resolve_system
 
 if TYPE_CHECKING:
     from .runner import Reporter
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run"]
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "REALIZATIONS"]
+
+#: Dither realizations per word length of recorded data (fewer than a sweep's: a user's data can be large).
+REALIZATIONS = 5
 
 HELP = "identify your own recorded data (.npz or .csv) at each word length by LS and BCLS"
 DESCRIPTION = (
@@ -41,9 +44,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="a true model to compare with (default: LS on the unquantized data)",
     )
     g.add_argument("--bits", default="2:12", metavar="SPEC", help="word lengths (default: 2:12)")
-    g.add_argument(
-        "--realizations", type=pos_int, default=5, metavar="N", help="dither realizations per word length (default: 5)"
-    )
+    add_option(g, "realizations", default=REALIZATIONS)
     add_option(g, "dither_seed", default=engine().sweep.dither_seed)
     q = p.add_argument_group("quantizer")
     add_quantizer_options(q, q0, "quantizer range")

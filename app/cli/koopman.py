@@ -12,11 +12,11 @@ import argparse
 import math
 from typing import TYPE_CHECKING, Any
 
-from app.settings.cli import add_setting_options
+from app.settings.cli import add_setting_options, given_seeds
 from app.settings.schema import NONLINEAR_GROUP, SETTINGS, nonlinear_settings
 
 from .files import input_files, out_file, write_text
-from .output import dumps, g
+from .output import dumps, g, text_table
 from .runner import UsageError
 
 if TYPE_CHECKING:
@@ -75,17 +75,15 @@ _DEST = {"--Q": "q_diag", "--R": "r_diag"}
 def _given(args: argparse.Namespace, typed: set[str]) -> dict[str, Any]:
     """The values of the typed options of the settings a nonlinear run honours, by their ``nonlinear`` path
     (``"trajectories"``, ``"mpc.horizon"``, ``"box"``); ``--seed`` gives both seeds unless they are typed. The
-    system and the quantizer's options are read apart (:func:`koopman_config`)."""
+    system, the word lengths and the quantizer's options are read apart (:func:`koopman_config`)."""
     out: dict[str, Any] = {}
     for s in nonlinear_settings():
         path = s.nonlinear
-        if path is None or path == "system" or path.startswith("quantizer.") or not typed & set(s.flags):
+        if path is None or path in ("system", "bits") or path.startswith("quantizer.") or not typed & set(s.flags):
             continue
         out[path] = getattr(args, s.dest if s.flag else _DEST.get(s.flags[0], s.name))
-    seed = getattr(args, "seed", None)
-    if seed is not None:
-        out.setdefault("data_seed", seed)
-        out.setdefault("dither_seed", seed)
+    for name, value in given_seeds(args).items():  # typed, else --seed's
+        out.setdefault(name, value)
     return out
 
 
@@ -123,25 +121,50 @@ def _pm(s: dict[str, float]) -> str:
     return f"{g(s['mean'])} +/- {g(s['std'])}" if math.isfinite(s["mean"]) else "-"
 
 
+def _limit(r: dict[str, Any]) -> str:
+    """The large-data limit's cell: its err_G, "0 (= EDMD)" where the limit is the unquantized EDMD itself (the
+    de-biased estimate), "n/a" where no limit applies (no exact formula: the note under the table says why)."""
+    lim = (r.get("large_data") or {}).get("err_G")
+    if lim is None:
+        return "n/a"
+    return "0 (= EDMD)" if lim == 0 else g(lim)
+
+
+#: The nonlinear sweep table's columns.
+KOOPMAN_HEAD = (
+    "b",
+    "err_G (vs unquantized EDMD)",
+    "large-data limit",
+    "err_A",
+    "err_B",
+    "prediction err",
+    "converged",
+)
+
+
 def format_koopman(d: dict[str, Any]) -> str:
-    """The readable table of a nonlinear sweep dict."""
+    """The readable table of a nonlinear sweep dict (columns aligned as the linear sweep's)."""
     c = d["config"]
+    rows = [
+        [
+            str(r["bits"]),
+            _pm(r["err_G"]),
+            _limit(r),
+            _pm(r["err_A"]),
+            _pm(r["err_B"]),
+            _pm(r["prediction_error"]),
+            "-"
+            if r["stabilized_fraction"] is None
+            else f"{r['closed_loop_outcomes']['converged']}/{r['realizations']}",
+        ]
+        for r in d["results"]
+    ]
     lines = [
         f"{d['system']}: lifting {c['lifting']} ({c['features']} features), estimator {c['estimator']}, "
         f"{d['data']['runs_used']} runs x {c['steps']} steps, {c['realizations']} realizations, {c['dither']} dither"
         + (", guard band" if c["guard"] else ""),
-        "b  err_G (vs unquantized EDMD)  large-data limit  err_A            err_B            prediction err   converged",
+        *text_table(KOOPMAN_HEAD, rows),
     ]
-    for r in d["results"]:
-        conv = (
-            "-" if r["stabilized_fraction"] is None else f"{r['closed_loop_outcomes']['converged']}/{r['realizations']}"
-        )
-        lim = (r.get("large_data") or {}).get("err_G")
-        lines.append(
-            f"{r['bits']:<2} {_pm(r['err_G']):<28} {'-' if lim is None else g(lim):<17} "
-            f"{_pm(r['err_A']):<16} {_pm(r['err_B']):<16} "
-            f"{_pm(r['prediction_error']):<16} {conv}"
-        )
     ref = d["reference"]
     lines.append(
         f"unquantized EDMD: prediction error {g(ref['prediction_error'])}"

@@ -90,7 +90,10 @@ def _panels(ex: KoopmanExperiment, rows: dict[str, list[dict[str, Any]]]) -> lis
         title=dict(text=f"(a) {s}: error of [A_z, B_z] vs the unquantized EDMD (mean ± std, {R} realizations)")
     )
     fb = prediction_figure(rows, None, ex.reference()[1], ex.horizon, height=420)
-    fb.update_layout(title=dict(text=f"(b) {ex.horizon}-step prediction error on held-out runs"), margin=dict(t=60))
+    fb.update_layout(
+        title=dict(text=f"(b) prediction error over steps 1..{ex.horizon} from each held-out run's start"),
+        margin=dict(t=60),
+    )
     fc = outcomes_figure(rows, None, height=420)
     fc.update_layout(
         title=dict(text=f"(c) Koopman MPC on the true plant, share of {R} loops per b (LS left · BCLS right)")
@@ -114,7 +117,7 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
     from qsid_core import QuantizerSpec
     from qsid_core.studies import NO_CERTIFICATES, KoopmanExperiment
 
-    from .figure_out import check_formats, save_panels
+    from .figure_out import check_formats, index_page, save_panels
     from .koopman import koopman_config
 
     formats = check_formats(args.figure)
@@ -147,12 +150,15 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
     data["bits"] = list(bits)
     data |= {"results": rows, "certificates": NO_CERTIFICATES, "unquantized_prediction_error": ex.reference()[1]}
     write_text(outdir / "data.json", dumps(data, indent=None) + "\n", rep)
-    links = "".join(f'<li><a href="{s}.html">{html.escape(f.layout.title.text or s)}</a></li>' for s, f in panels)
-    page = (
-        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>qsid: {html.escape(ex.system.name)}'
-        f"</title></head><body><h1>{html.escape(ex.system.name)}: Koopman/EDMD from quantized data</h1>"
-        f"<p>{html.escape(NO_CERTIFICATES)}.</p><ul>{links}</ul><p><a href='data.json'>data.json</a></p></body></html>"
+    c = ex.config
+    caption = html.escape(
+        f"{ex.system.name}, Koopman/EDMD from quantized data: lifting {cfg.lifting} ({ex.lifting.L} features), "
+        f"{c.trajectories} runs x {c.steps} steps, {c.realizations} dither realizations per word length, "
+        f"{c.quantizer.dither} dither{', guard band' if c.quantizer.guard else ''}; LS and BCLS. "
+        f"Unquantized EDMD's prediction error (steps 1..{ex.horizon}): {ex.reference()[1]:.3g}. "
+        f"{NO_CERTIFICATES[:1].upper()}{NO_CERTIFICATES[1:]}."
     )
+    page = index_page(f"qsid: {ex.system.name}, Koopman/EDMD from quantized data", caption, panels)
     write_text(outdir / "index.html", page + "\n", rep)
     print(f"wrote {len(written) + 3} files to {outdir}:")
     for p in [*written, outdir / "index.html", outdir / "data.json", outdir / "plotly.min.js"]:

@@ -5,13 +5,13 @@ from __future__ import annotations
 import enum
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Container, Sequence
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from qsid_core import SweepResult
 
-__all__ = ["clean", "dumps", "g", "format_table", "sweep_dict", "assumptions_lines"]
+__all__ = ["clean", "dumps", "g", "format_table", "text_table", "sweep_dict", "assumptions_lines"]
 
 
 def clean(obj: Any) -> Any:
@@ -79,6 +79,23 @@ _HYPOTHESES = (
 )
 
 
+def stationary_why(radius: float | None) -> str:
+    """Why Theorem 1 does not apply to a plant whose ``A`` has spectral radius ``radius`` >= 1, and which
+    plant shows it, in one plain sentence."""
+    if radius is not None and abs(radius - 1.0) < 1e-6:
+        what = (
+            "an eigenvalue on the unit circle (an integrator, like the dc-motor's angle, or an undamped mode): "
+            "its samples wander"
+        )
+    else:
+        what = f"an eigenvalue outside the unit circle (spectral radius {g(radius, '.4g')}): its samples grow"
+    return (
+        f"why: A has {what} instead of settling, so the data are not stationary, Psi Psi^T/T has no limit and "
+        "Theorem 1 (a statement about T -> inf) does not apply; a stable plant shows it hold at coarse b: "
+        "qsid sweep --system boeing747 (the dashboard's theorem1 lesson)"
+    )
+
+
 def assumptions_lines(results: list) -> list:
     """Plain lines saying which hypotheses of Theorem 1 / BCLS fail at which b (empty if all hold)."""
     rows = [r for r in results if r.get("assumptions")]
@@ -87,6 +104,8 @@ def assumptions_lines(results: list) -> list:
         bad = [r["bits"] for r in rows if not r["assumptions"].get(key, True)]
         if bad:
             lines.append(f"  fails: {name} at b = {_bits_list(bad)}")
+            if key == "stationary":  # the plain reason (the default plant's case), and where to see Theorem 1
+                lines.append("    " + stationary_why(rows[0]["assumptions"].get("spectral_radius")))
             if key == "no_overload":  # the engine names the range, the share it clips and what that does
                 why = [
                     x
@@ -316,6 +335,20 @@ def _closing_lines(d: dict[str, Any], c: dict[str, Any], noisy: bool) -> list[st
     return lines
 
 
+def text_table(head: Sequence[str], rows: Sequence[Sequence[str]], left: Container[int] = ()) -> list[str]:
+    """The lines of a plain-text table: the header, a dashed rule, the rows; every column as wide as its widest
+    cell, right-aligned (the columns ``left``: left-aligned), two spaces apart.
+
+    Hand-written rather than rich.Table: this exact plain-text layout is the documented, diff-able stdout of
+    the linear and the nonlinear sweep alike."""
+    widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
+
+    def fmt(cells: Sequence[str]) -> str:
+        return "  ".join(c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+
+    return [fmt(head), fmt(["-" * w for w in widths]), *(fmt(row) for row in rows)]
+
+
 def format_table(d: dict) -> str:
     """The readable table of a sweep dict (``SweepResult.to_dict()``)."""
     head = [
@@ -339,21 +372,8 @@ def format_table(d: dict) -> str:
     if m.get("reference"):
         head.insert(10, "tracking err")
     rows = [_table_row(r, noisy, bool(m.get("reference"))) for r in d["results"]]
-    # hand-written rather than rich.Table: this exact plain-text layout is the documented, diff-able stdout
-    widths = [max(len(h), *(len(row[i]) for row in rows)) if rows else len(h) for i, h in enumerate(head)]
-    left = {1}
-
-    def fmt(cells: Sequence[str]) -> str:
-        return "  ".join(c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
-
     c = d["config"]
-    lines = [
-        _settings_line(d["system"], c),
-        *_what_if_lines(c),
-        fmt(head),
-        fmt(["-" * w for w in widths]),
-        *(fmt(row) for row in rows),
-    ]
+    lines = [_settings_line(d["system"], c), *_what_if_lines(c), *text_table(head, rows, left={1})]
     t = d.get("timing_s", {})
     slope = (
         f"slope of log10 mean error per bit: A {g(d.get('slope_A'), '+.3f')}, "

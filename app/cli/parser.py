@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from app.settings.cli import add_setting_options, float_type, int_type, shown
+from app.settings.cli import add_seed_option, add_setting_options, float_type, int_type, shown
 from app.settings.command import bits_spec, floats_spec, limits_spec
 from app.settings.schema import DATA_GROUP, LOOP_GROUP, MPC_GROUP, WHATIF_GROUP, engine
 
@@ -202,13 +202,7 @@ def add_data_options(p: argparse.ArgumentParser, base: SweepConfig | None = None
     )
     add_setting_options(g, _DATA, base)
     if seed:
-        g.add_argument(
-            "--seed",
-            type=nonneg_int,
-            default=None,
-            metavar="N",
-            help="seed of both the data and the dither streams (sets --data-seed and --dither-seed)",
-        )
+        add_seed_option(g)
     q = p.add_argument_group("quantizer and identification")
     add_quantizer_options(
         q, base.quantizer, "quantizer range: min/max per channel, one range for all, or fixed (--limits)"

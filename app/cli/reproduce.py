@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from . import koopman, koopman_reproduce
-from .figure_out import check_formats, save_panels
+from .figure_out import check_formats, index_page, save_panels
 from .files import check_writable, input_files, write_text
 from .koopman import add_nonlinear_options
 from .output import dumps, format_table, g
@@ -44,27 +44,6 @@ DESCRIPTION = (
     "and data.json."
 )
 PORTRAIT_BITS = (2, 4, 6)
-
-_INDEX = """<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<title>{title}</title>
-<script src="plotly.min.js"></script>
-<style>
-body {{ font-family: system-ui, sans-serif; margin: 1em 2em; color: #222; }}
-.grid {{ display: grid; grid-template-columns: repeat(3, minmax(0, 1fr)); gap: 1em; }}
-.panel {{ border: 1px solid #ddd; border-radius: 4px; padding: 0.3em; min-width: 0; }}
-.panel h2 {{ font-size: 1em; margin: 0.2em 0.4em; }}
-@media (max-width: 1100px) {{ .grid {{ grid-template-columns: 1fr; }} }}
-</style></head>
-<body>
-<h1>{title}</h1>
-<p>{caption}</p>
-<p>Data: <a href="data.json">data.json</a>. Panels as separate pages: {links}.</p>
-<div class="grid">
-{panels}
-</div>
-</body></html>
-"""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -213,18 +192,6 @@ def _portrait_panels(
 
 
 def _index_html(d: dict[str, Any], system: LTISystem, panels: list[tuple[str, str, go.Figure]]) -> str:
-    import plotly.graph_objects as go
-    import plotly.io as pio
-
-    divs = []
-    for stem, _, fig in panels:
-        heading = fig.layout.title.text or stem
-        fig = go.Figure(fig)  # a copy without the title: the page heading carries it
-        fig.update_layout(title=None, margin=dict(t=30))
-        div = pio.to_html(
-            fig, include_plotlyjs=False, full_html=False, div_id=f"panel-{stem}", config={"responsive": True}
-        )
-        divs.append(f'<div class="panel"><h2><a href="{stem}.html">{html.escape(heading)}</a></h2>\n{div}\n</div>')
     c = d["config"]
     title_sys = f"{system.name}: {system.description}" if system.description else system.name
     caption = (
@@ -235,13 +202,7 @@ def _index_html(d: dict[str, Any], system: LTISystem, panels: list[tuple[str, st
         f"A {g(d['slope_A'], '+.3f')}, B {g(d['slope_B'], '+.3f')}; true-model MPC cost "
         f"{g(d['mpc_cost_true_model'], '.4g')}."
     )
-    links = ", ".join(f'<a href="{s}.html">{s}</a>' for s, _, _ in panels)
-    return _INDEX.format(
-        title=html.escape(f"QSID-MPC letter figure: {system.name}"),
-        caption=caption,
-        links=links,
-        panels="\n".join(divs),
-    )
+    return index_page(f"QSID-MPC letter figure: {system.name}", caption, [(s, f) for s, _, f in panels])
 
 
 def _out_dir(text: str, force: bool, inputs: Sequence[Path] = ()) -> Path:

@@ -26,7 +26,7 @@ from .mpc_args import mpc_config
 from .parser import PROG, UsageError
 
 if TYPE_CHECKING:
-    from qsid_core import Experiment, LTISystem, QuantizerSpec, SweepConfig, SweepResult
+    from qsid_core import DataLengthConfig, Experiment, LTISystem, QuantizerSpec, SweepConfig, SweepResult
 
 __all__ = [
     "UsageError",
@@ -196,6 +196,7 @@ def quantizer_from_args(args: argparse.Namespace, system: Channels) -> Quantizer
 
 def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfig:
     """The engine's :class:`~qsid_core.SweepConfig` for parsed arguments (shapes checked before any work)."""
+    from app.settings.cli import given_seeds
     from app.settings.schema import engine_field, plain
     from qsid_core import SweepConfig, parse_bits
     from qsid_core.validate import MAX_MAGNITUDE
@@ -203,12 +204,7 @@ def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfi
     bits = parse_bits(args.bits)
     if args.rho is not None and not 0 < args.rho <= MAX_MAGNITUDE:
         raise UsageError(f"argument --rho: must be > 0 and at most {MAX_MAGNITUDE:g}; got {args.rho:g}")
-    defaults = SweepConfig(mpc=None)
-    seed = getattr(args, "seed", None)
-    seeds: dict[str, Any] = {
-        "data_seed": next(v for v in (args.data_seed, seed, defaults.data_seed) if v is not None),
-        "dither_seed": next(v for v in (args.dither_seed, seed, defaults.dither_seed) if v is not None),
-    }
+    seeds: dict[str, Any] = given_seeds(args)  # typed, else --seed's; else SweepConfig's defaults
     extra: dict[str, Any] = {}
     if getattr(args, "input_bits", None) is not None:
         extra["input_bits"] = args.input_bits
@@ -234,15 +230,16 @@ def config(args: argparse.Namespace, system: LTISystem, mpc: bool) -> SweepConfi
     return cfg
 
 
-def check_channels(cfg: SweepConfig, system: LTISystem) -> None:
-    """Per-channel settings against the system's shape (one line, before any work)."""
+def check_channels(cfg: SweepConfig | DataLengthConfig, system: LTISystem) -> None:
+    """Per-channel settings of a sweep or a data-length study against the system's shape (one line, before any
+    work)."""
     from qsid_core.quantization import channel_bits
 
     # SweepConfig types these as object; its checks make them None, a bit count or tuples
     input_bits: Any = cfg.input_bits
     state_bits: Any = cfg.state_bits
     noise: Any = cfg.noise
-    channel_bits(cfg.bits[0], system.n, system.m, input_bits, state_bits)
+    channel_bits(cfg.bits if isinstance(cfg.bits, int) else cfg.bits[0], system.n, system.m, input_bits, state_bits)
     if len(noise) not in (1, system.n):
         raise UsageError(f"argument --noise: give 1 or {system.n} values for system {system.name!r}; got {len(noise)}")
 

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from app.settings.cli import given_seeds
 from app.settings.schema import SETTINGS
 
 from .runner import UsageError, check_channels, one_line
@@ -76,10 +77,8 @@ def config_from_file(args: argparse.Namespace, defaults: argparse.Namespace, mpc
         v = getattr(args, flag, None)
         if v != getattr(defaults, flag, None):
             changes[fieldname] = v
-    seed = getattr(args, "seed", None)
-    if seed is not None:
-        changes.setdefault("data_seed", seed)
-        changes.setdefault("dither_seed", seed)
+    for name, value in given_seeds(args).items():  # typed, else --seed's
+        changes.setdefault(name, value)
     q = cfg.quantizer
     qchanges = {k: getattr(args, a) for a, k in _QUANT_FLAGS.items() if getattr(args, a) != getattr(defaults, a)}
     if args.limits is not None:

@@ -7,6 +7,10 @@ pool, so the other views and tabs never wait behind it), one realization per
 task so a new change cancels it within about a second. A finished study is kept
 in the shared cache under its settings, so any tab with the same settings (and a
 b already computed) shows it at once.
+
+Its settings are the tab's sweep's (:meth:`~qsid_core.DataLengthConfig.from_sweep`: system, data seed and
+amplitudes, quantizer, sensor noise, word length per channel, dither seed) at the tab's b, and its cache key is
+the engine's (:func:`~qsid_core.studies.datalength_key`, generated from the config's fields).
 """
 
 from __future__ import annotations
@@ -14,10 +18,10 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, MutableMapping
 
-from qsid_core import DataLengthConfig, DataLengthResult, LTISystem, get_system, run_datalength
-from qsid_core.studies import DEFAULT_SAMPLES
+from qsid_core import DataLengthConfig, DataLengthResult, get_system, run_datalength
+from qsid_core.studies import DEFAULT_SAMPLES, datalength_key
 
-from .settings import Values, quantizer_spec, resolve_system
+from .settings import Values, resolve_system, sweep_config
 
 __all__ = ["DataLengthRunner", "datalength_config", "MAX_REALIZATIONS"]
 
@@ -26,33 +30,19 @@ MAX_REALIZATIONS = 10
 
 
 def datalength_config(values: Values) -> DataLengthConfig:
-    """The study for the panel's system, quantizer, seeds and current b (ten lengths, 10^3..10^6 samples)."""
-    system = resolve_system(values).system
-    return DataLengthConfig(
-        system=system,
+    """The study of the panel's sweep (:func:`~app.dashboard.settings.sweep_config`) at its current b: ten lengths,
+    10^3..10^6 samples, at most :data:`MAX_REALIZATIONS` realizations."""
+    sweep = sweep_config(values, resolve_system(values).system)
+    return DataLengthConfig.from_sweep(
+        sweep,
         bits=int(values.bits),
         samples=DEFAULT_SAMPLES,
-        realizations=min(int(values.realizations), MAX_REALIZATIONS),
-        quantizer=quantizer_spec(values, system.n, system.m),
-        data_seed=int(values.data_seed),
-        dither_seed=int(values.dither_seed),
+        realizations=min(sweep.realizations, MAX_REALIZATIONS),
     )
 
 
 def _key(cfg: DataLengthConfig) -> tuple:
-    s = cfg.system if isinstance(cfg.system, LTISystem) else get_system(cfg.system)
-    return (
-        "datalength",
-        s.name,
-        s.A.tobytes(),
-        s.B.tobytes(),
-        cfg.bits,
-        cfg.samples,
-        cfg.realizations,
-        repr(cfg.quantizer),
-        cfg.data_seed,
-        cfg.dither_seed,
-    )
+    return datalength_key(cfg, get_system(cfg.system))
 
 
 class DataLengthRunner:
@@ -89,7 +79,11 @@ class DataLengthRunner:
         """Start the study for ``values`` unless one runs; ``stale()`` true (a newer change) cancels it."""
         if self.running:
             return False
-        cfg = datalength_config(values)
+        try:
+            cfg = datalength_config(values)
+        except ValueError as exc:  # settings the engine refuses (an InputError): said in the tab, in one line
+            self.on_progress(0.0, f"⚠️ data-length study: {exc}")
+            return False
         if self.cache.get(_key(cfg)) is not None:
             self.on_done()
             return True

@@ -2,7 +2,8 @@
 
 Each tab's :class:`~qsid_core.studies.experiment.Experiment` gets ``cache=`` the app's one
 :class:`SharedCache`, so tabs with equal settings share data, moments, models and
-closed loops, and memory stays bounded.
+closed loops, and memory stays bounded. Its ``flights`` (:class:`~qsid_core.studies.Flights`) let a tab
+join a result another tab is computing now instead of computing it again.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from collections import OrderedDict
 from collections.abc import MutableMapping
 
 import numpy as np
+
+from qsid_core.studies import Flights
 
 __all__ = ["SharedCache", "DEFAULT_MB"]
 
@@ -68,6 +71,8 @@ class SharedCache(MutableMapping):
         self._lock = threading.Lock()  # viser callbacks, tab workers and helper threads read and write at once
         self.hits = 0
         self.misses = 0
+        #: stage results being computed now: a tab asking for one waits for it instead of computing it again
+        self.flights = Flights()
 
     def __getitem__(self, key):
         with self._lock:

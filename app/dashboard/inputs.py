@@ -23,12 +23,12 @@ from .controls import CONTROLS, Control
 from .settings import LOG_MAX, LOG_MIN, InputError
 
 if TYPE_CHECKING:
-    from collections.abc import Mapping, Sequence
+    from collections.abc import Awaitable, Callable, Mapping, Sequence
 
     from .controls import GuiElements
     from .frames import Frame
 
-__all__ = ["check_panel", "check_value", "check_sent", "unusable", "MAX_TEXT", "MAX_NESTING"]
+__all__ = ["check_panel", "check_value", "check_sent", "sent_guard", "unusable", "MAX_TEXT", "MAX_NESTING"]
 
 #: A weight slider's value (log10 of the weight; the sliders are made per system, not from the table).
 _LOG_WEIGHT = Setting("log_weight", float, 0.0, "log10 weight", "slider", slider=(LOG_MIN, LOG_MAX, 0.1))
@@ -69,6 +69,34 @@ def check_sent(el: GuiElements | None, handle: Any, updates: Mapping[str, Any]) 
         why = str(exc).removeprefix(f"{label}: ")
         return f"{label}: the value sent ({repr(value)[:40]}) was refused ({why}); the input keeps its last value"
     return None
+
+
+def sent_guard(
+    check: Callable[[Any, Mapping[str, Any]], str | None],
+    on_reject: Callable[[str, Any], None],
+    on_accept: Callable[[Any], None] | None = None,
+) -> Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[None]]:
+    """The guard of one tab's input messages (:func:`app.dashboard.viserfix.guard_updates`): a value ``check``
+    refuses is dropped, and one viser cannot convert (``apply()`` raises) is explained; both said by
+    ``on_reject(text, handle)``. A value taken is said by ``on_accept(handle)``."""
+
+    async def guard(handle: Any, updates: dict, apply: Callable[[], Awaitable[None]]) -> None:
+        why = check(handle, updates)
+        if why is not None:
+            return on_reject(why, handle)
+        try:
+            await apply()
+        except Exception as exc:
+            sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in updates.items())
+            return on_reject(
+                f"{getattr(handle, 'label', None) or 'an input'}: the value sent ({sent}) was refused "
+                f"({type(exc).__name__}: {str(exc)[:80]}); the input keeps its last value",
+                handle,
+            )
+        if on_accept is not None and handle is not None:
+            on_accept(handle)
+
+    return guard
 
 
 def check_panel(el: GuiElements) -> None:

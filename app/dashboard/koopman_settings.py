@@ -140,14 +140,15 @@ def _mpc(v: Values, system: LTISystem) -> MPCConfig:
 
 
 #: (panel setting, KoopmanConfig field) of every setting a nonlinear run takes as it is, from the settings table:
-#: the system, the dictionary and the estimator, and the quantizer's and the MPC's (nested) are built by hand.
+#: the system, the word lengths, the dictionary and the estimator, and the quantizer's and the MPC's (nested) are
+#: built by hand.
 _PLAIN = tuple(
     (s.name, s.nonlinear)
     for s in SETTINGS
     if s.values
     and s.nonlinear is not None
     and "." not in s.nonlinear
-    and s.nonlinear not in ("system", "lifting", "estimator")
+    and s.nonlinear not in ("system", "bits", "lifting", "estimator")
 )
 
 

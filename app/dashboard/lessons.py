@@ -13,6 +13,7 @@ from qsid_core import LETTER_QUANTIZER
 
 from .koopman_lessons import KOOPMAN_LESSONS
 from .settings import NO_LESSON, PAPER_SCALE, Values
+from .start import START_LESSON
 
 __all__ = [
     "Lesson",
@@ -60,6 +61,7 @@ class Lesson:
 
 
 LESSONS: tuple[Lesson, ...] = (
+    Lesson(*START_LESSON),  # the guided start a new tab opens on (app.dashboard.start)
     Lesson(
         "fig1",
         "The letter's Fig. 1 (dc motor)",

@@ -18,6 +18,7 @@ from .netcheck import NEXT_FREE_TRIES, OneLineParser, check_address, port_number
 from .pool import DEFAULT_TIMEOUT
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file, values_for_plant_file
+from .start import START, opens_on_start
 
 __all__ = ["STARTING_SYSTEMS", "check_lesson", "check_options", "parser", "read_options"]
 
@@ -108,7 +109,11 @@ def parser() -> argparse.ArgumentParser:
         help="open new tabs in presenter mode: plot text 18 px, panel text 16 px, thick lines, a wide 3-D scene",
     )
     p.add_argument(
-        "--lesson", default=None, metavar="NAME", help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])}"
+        "--lesson",
+        default=None,
+        metavar="NAME",
+        help=f"open new tabs on a lesson: {', '.join(lesson_names()[1:])} (default: {START} for the default "
+        "system without --settings, else none)",
     )
     return p
 
@@ -162,7 +167,10 @@ def check_options(args: argparse.Namespace) -> tuple[Values | None, str | None]:
     _check_ranges(args)
     if args.lesson is not None:
         check_lesson(args.lesson)
-    return _starting_settings(args), warning
+    settings = _starting_settings(args)
+    if opens_on_start(args.lesson, settings, args.system):
+        args.lesson = START
+    return settings, warning
 
 
 def read_options(argv: list[str] | None) -> tuple[argparse.Namespace, Values | None, str | None]:

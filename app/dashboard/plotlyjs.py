@@ -21,7 +21,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from .viserfix import plotly_js_unsent, send_plotly_js
+from .viserfix import send_plotly_js
 
 __all__ = ["BUNDLE", "TRACE_TYPES", "bundle_version", "send_basic_bundle"]
 
@@ -54,12 +54,10 @@ def send_basic_bundle(gui: Any) -> str | None:
     """
     import plotly.offline
 
-    if not plotly_js_unsent(gui):
-        return "this viser version sends plotly.js differently (or it was sent already)"
     version, source = _bundle()
     wanted = plotly.offline.get_plotlyjs_version()
     if version != wanted:
         return f"the shipped basic bundle is plotly.js {version or '(missing)'}, plotly needs {wanted}"
     if not send_plotly_js(gui, source):  # viser then skips sending the full bundle
-        return "this viser version sends plotly.js differently"
+        return "this viser version sends plotly.js differently (or it was sent already)"
     return None

@@ -38,22 +38,12 @@ from .pool import DEFAULT_TIMEOUT, Pool
 from .scene import VIEW_FROM
 from .session import Session
 from .settings import INTERACTIVE, PAPER_SCALE, Values
+from .startup import StartupReport
 from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
 from .tabview import drop_late_draws
 from .viewcodes import ViewStore, default_store_path, open_view, page_location
-from .viserfix import (
-    check_request_hook,
-    connection_request,
-    fail_unbound_start,
-    limit_reads,
-    redirect_pages,
-    refuse_share_requests,
-)
-from .viserfix import install as _install_viser_fix
-from .warm import COMPILE_SECONDS, first_tab, needs_compiling, prefill, warm
-
-_install_viser_fix()  # before any server exists: every message buffer is made thread-safe
-fail_unbound_start()  # and a start that binds no port ends with an OSError instead of waiting for ever
+from .viserfix import connection_request, limit_reads, redirect_pages, refuse_share_requests, thread_safe_buffers
+from .warm import COLD_START, WARM_START, first_tab, needs_compiling, prefill, warm
 
 __all__ = ["DashboardApp", "main"]
 
@@ -135,6 +125,7 @@ class DashboardApp:
                 f"--port {port} on {host} was taken by another program while the dashboard started (it would have "
                 f"moved to {moved}); start again, choose another --port, or add --next-free-port"
             )
+        thread_safe_buffers(self.server)  # before any tab: every message buffer can be pushed to from any thread
         self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog (after the port)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
@@ -143,7 +134,7 @@ class DashboardApp:
         cam.look_at = (0.0, 0.0, 0.0)
         cam.up = (0.0, 0.0, 1.0)
         refuse_share_requests(self.server)
-        check_request_hook(self.server)  # view links need the websocket's path: fail now, not silently later
+        connection_request(self.server, -1)  # view links need the websocket's path: fail now, not silently later
         #: page requests redirected to addresses that hold a view code (else: long links, no code in the address)
         self.redirecting = redirect_pages(self.server, self._page_location)
         self.server.on_client_connect(self._connect)
@@ -220,10 +211,11 @@ class DashboardApp:
         if idle:
             self.idle.schedule()
 
-    def prefill(self) -> str | None:
-        """Compute and draw a new tab's view once (see :func:`.warm.prefill`); returns why not, or None."""
+    def prefill(self, progress=None) -> str | None:
+        """Compute and draw a new tab's view once (see :func:`.warm.prefill`; ``progress`` is given each frame);
+        returns why not, or None."""
         try:
-            prefill(self.defaults, self.cache, self.executor, self.tasks)
+            prefill(self.defaults, self.cache, self.executor, self.tasks, progress)
         except Exception as exc:  # the tab itself reports what these settings raise
             return str(exc) if isinstance(exc, QsidError) else f"{type(exc).__name__}: {exc}"
         return None
@@ -288,6 +280,7 @@ class _Start:
 
     def __init__(self) -> None:
         self.app: DashboardApp | None = None
+        self.report: StartupReport | None = None  # the start-up's progress lines (ended by a stop)
         self.failed: str | None = None
         self.ready = False
 
@@ -299,27 +292,33 @@ def _start(args: argparse.Namespace, state: _Start, stop: threading.Event) -> No
         settings, warning = check_options(args)
         if warning:
             print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
-        if needs_compiling():
-            print(f"qsid dashboard: compiling the kernels once, ~{COMPILE_SECONDS} s", flush=True)
-        state.app = app = DashboardApp(
-            args.host,
-            args.port,
-            args.system,
-            workers=args.workers,
-            scale=args.scale,
-            settings=settings,
-            lesson=args.lesson,
-            task_timeout=args.task_timeout,
-            cache_bytes=args.cache_mb * 2**20,
-            max_tabs=args.max_tabs,
-            presenter=args.presenter,
-            views_file=default_store_path(),
-            exact_port=not args.next_free_port,
-        )
-        if app.views.load_note:
-            print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
-        warm(app.pool)  # the first tab must not pay the compiler (nor the workers' first loads)
-        first_tab(app)
+        with StartupReport() as report:  # a line per step, and every few seconds while one takes long
+            state.report = report
+            report.say(COLD_START if needs_compiling() else WARM_START)
+            report.step(
+                f"starting the server and {args.workers} worker process{'es' * (args.workers > 1)}"
+                if args.workers
+                else "starting the server"
+            )
+            state.app = app = DashboardApp(
+                args.host,
+                args.port,
+                args.system,
+                workers=args.workers,
+                scale=args.scale,
+                settings=settings,
+                lesson=args.lesson,
+                task_timeout=args.task_timeout,
+                cache_bytes=args.cache_mb * 2**20,
+                max_tabs=args.max_tabs,
+                presenter=args.presenter,
+                views_file=default_store_path(),
+                exact_port=not args.next_free_port,
+            )
+            if app.views.load_note:
+                print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
+            warm(app.pool, report)  # the first tab must not pay the compiler (nor the workers' first loads)
+            first_tab(app, report)
         print(f"qsid dashboard: {app.url}   ({_port_note(args, app.port)}Ctrl-C to stop)", flush=True)
         note = who_can_connect(args.host, app.port)
         if note:
@@ -351,6 +350,8 @@ def _serve(args: argparse.Namespace, stop: threading.Event) -> int:
     starter = threading.Thread(target=_start, args=(args, state, stop), name="qsid-start", daemon=True)
     starter.start()
     wait_for_stop_signal(stop)
+    if state.report is not None and not state.ready:
+        state.report.__exit__(None, None, None)  # no "still ..." line after this
     if state.failed is not None:
         print(f"qsid-dashboard: error: {state.failed}", file=sys.stderr, flush=True)
     else:

@@ -48,7 +48,7 @@ from .flow import TabCallbacks
 from .follower import refused
 from .frame_loop import Reporters, draw_frames
 from .frames import Frame
-from .inputs import check_panel, check_sent, unusable
+from .inputs import check_panel, check_sent, sent_guard, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
 from .lessons import LessonMark, get_lesson, lesson_names, lesson_values
@@ -58,7 +58,7 @@ from .share import show_frame
 from .stages import iter_frames
 from .tabview import TabView
 from .viewcodes import ViewOpen
-from .viserfix import guard_updates, set_callback_executor
+from .viserfix import guard_updates, set_callback_executor, show_value
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
 
@@ -100,12 +100,8 @@ class Session:
         set_callback_executor(gui, self.callbacks)
         # a value sent is checked by the panel's rules before viser converts it; one viser refuses is explained
         # (a follower's panel takes nothing: :func:`~app.dashboard.follower.refused`)
-        guard_updates(
-            gui,
-            self._refuse,
-            lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u),
-            self._accept,  # a refusal stays until its input is changed again
-        )
+        check = lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u)  # noqa: E731
+        guard_updates(gui, sent_guard(check, self._refuse, self._accept))  # a refusal stays until its input changes
         self.lesson_shown = values.lesson  # the lesson whose settings the panel was given
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
         #: the tab's panels (viser): built once, then only drawn into by this tab's worker
@@ -348,6 +344,8 @@ class Session:
         ui = getattr(self, "ui", None)  # (None: a message before the panel was built)
         if ui is not None:
             ui.refuse(handle, text)
+        if handle is not None and hasattr(handle, "value"):  # the browser shows the value in use again
+            show_value(self.client.gui, handle)
 
     def _accept(self, handle) -> None:  # (viser's event loop)
         ui = getattr(self, "ui", None)

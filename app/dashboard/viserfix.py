@@ -1,400 +1,210 @@
-"""Every use of viser's private internals, in one place (viser 1.1.x; pyproject pins ``>=1.1.1,<1.2``).
-
-The dashboard needs a few things viser's public API does not offer: thread-safe message buffers, a bounded
-callback queue per tab, an explanation for a value viser refuses, a bounded socket read per turn, no "share
-URL" tunnel, a smaller plotly.js bundle, the websocket's request path, page requests answered with a redirect
-(view codes in the address) and a start that ends when no port can be bound. Each hook below is one function
-saying which private names it relies on and why (and docs/known-issues.rst the upstream change that would
-retire it); the rest of the dashboard calls only these functions. A hook returns True when it is in place;
-when this viser lacks what the hook relies on it changes nothing, returns False and warns once
-(:class:`ViserHookWarning`), so a viser upgrade cannot switch a protection off silently.
-``tests/dashboard/test_dashboard_viserfix.py`` installs every hook and takes away what each relies on.
-"""
+"""What the dashboard needs and viser 1.1's public API lacks, one function per hook (docs/known-issues.rst: why each
+exists, the upstream change that would retire it). A hook acts on one server, tab or connection, never on a viser
+class. Where this viser lacks what a hook relies on, the hook changes nothing, returns False and warns once
+(ViserHookWarning): an upgrade cannot switch a protection off silently (tests/dashboard/test_dashboard_viserfix.py)."""
 
 from __future__ import annotations
 
 import asyncio
+import functools
+import gc
 import warnings
 from collections.abc import Awaitable, Callable
-from typing import Any
+from pathlib import Path
+from typing import Any, TypeVar
 
-from .loopevent import LoopEvent
+import viser
+from viser import _messages
 
-__all__ = [
-    "install",
-    "fail_unbound_start",
-    "check_request_hook",
-    "connection_request",
-    "redirect_pages",
-    "LoopEvent",
-    "ViserHookWarning",
-    "set_callback_executor",
-    "guard_updates",
-    "limit_reads",
-    "refuse_share_requests",
-    "plotly_js_unsent",
-    "send_plotly_js",
-    "phone_sheet_style",
-    "PHONE_SHEET_CSS",
-]
+__all__ = ["LoopEvent", "ViserHookWarning", "PHONE_SHEET_CSS", "SHEET_SOURCE", "connection_request", "guard_updates"]
+__all__ += ["limit_reads", "phone_sheet_style", "redirect_pages", "refuse_share_requests", "send_plotly_js"]
+__all__ += ["set_callback_executor", "show_value", "thread_safe_buffers"]
+_warned: set[str] = set()
+F = TypeVar("F", bound=Callable[..., bool])
 
 
 class ViserHookWarning(RuntimeWarning):
-    """A hook into viser's internals could not be installed (this viser version lacks what it relies on)."""
+    """A hook could not be installed (this viser version lacks what it relies on)."""
 
 
-_warned: set[str] = set()
+def _require(condition: bool) -> None:
+    if not condition:
+        raise AttributeError("this viser lacks what the hook relies on")
 
 
-def _missing(hook: str, what: str) -> bool:
-    """Warn (once per hook) that ``hook`` is not installed because ``what`` is missing; returns False."""
-    if hook not in _warned:
-        _warned.add(hook)
-        import viser
+def _hook(name: str, relies_on: str) -> Callable[[F], F]:
+    """A hook ``name``: where what it ``relies_on`` is missing (an AttributeError, KeyError or ValueError while it
+    installs), False and one warning per process instead."""
 
-        warnings.warn(
-            f"qsid-dashboard: viser {viser.__version__} has no {what}; switched off: {hook} (qsid is tested with viser 1.1.1)",
-            ViserHookWarning,
-            stacklevel=3,
-        )
-    return False
+    def wrap(fn: F) -> F:
+        @functools.wraps(fn)
+        def hook(*args: Any, **kwargs: Any) -> bool:
+            try:
+                return fn(*args, **kwargs)
+            except (AttributeError, AssertionError, KeyError, ValueError):  # (AssertionError: viser's own checks)
+                if name not in _warned:
+                    _warned.add(name)
+                    text = f"viser {viser.__version__} has no {relies_on}; switched off: {name} (tested: 1.1.1)"
+                    warnings.warn(f"qsid-dashboard: {text}", ViserHookWarning, stacklevel=2)
+                return False
 
+        return hook  # type: ignore[return-value]
 
-def install() -> bool:
-    """Make viser's message buffers safe to push into from many threads (once).
-
-    ``AsyncMessageBuffer.push`` (viser/infra/_async_message_buffer.py) calls ``self.message_event.set()`` from
-    the calling thread; ``asyncio.Event.set`` iterates the waiters the event loop adds and removes, so with
-    several tabs drawing at once the push raised "deque mutated during iteration" in a tab's worker (no lock of
-    ours can order it with viser's loop). Relies on ``AsyncMessageBuffer`` setting ``self.event_loop`` and
-    ``self.message_event`` in ``__init__``; the wrapped ``__init__`` replaces the event by a :class:`LoopEvent`,
-    whose ``set`` from another thread is handed to the loop (push schedules the loop-side ``set`` anyway, and
-    viser awaits the event only on the loop: nothing is lost).
-    """
-    try:
-        from viser.infra import _async_message_buffer as amb
-    except ImportError:
-        return _missing("thread-safe message buffers", "module viser.infra._async_message_buffer")
-    cls: Any = getattr(amb, "AsyncMessageBuffer", None)
-    if cls is None:
-        return _missing("thread-safe message buffers", "AsyncMessageBuffer")
-    if getattr(cls, "_qsid_loop_event", False):
-        return True
-    init = cls.__init__
-
-    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
-        init(self, *args, **kwargs)
-        self.message_event = LoopEvent(self.event_loop)
-
-    cls.__init__ = __init__
-    cls._qsid_loop_event = True
-    return True
+    return wrap
 
 
-# ----- the websocket's request path (view codes) --------------------------------------------------------------
-# viser's client does not tell the server its page URL. It does connect to the websocket address given by the
-# page's ``?websocket=`` query parameter, path included, and viser's websocket server accepts any path. The
-# server keeps each client's raw connection in ``WebsockServer._live_connections`` (viser/infra/_infra.py,
-# filled before the connect callbacks run, emptied on disconnect); the ``websockets`` connection keeps the
-# upgrade request (``connection.request``: path and headers). That is the only place the path is visible.
+class LoopEvent(asyncio.Event):
+    """An ``asyncio.Event`` whose ``set`` from a foreign thread is run by ``loop`` on its own thread; sets made while
+    one is on its way there are merged into it (one wake-up of the loop per burst of pushed messages)."""
 
+    def __init__(self, loop: asyncio.AbstractEventLoop):
+        super().__init__()
+        self._owner, self._handed = loop, False
 
-def fail_unbound_start() -> bool:
-    """Make a viser server whose every port is refused raise OSError instead of waiting for ever.
-
-    ``WebsockServer.start`` (viser/infra/_infra.py) waits on a semaphore its server thread releases once a port
-    is bound; the thread tries the port asked for and the 999 after it and, all refused, ends without releasing
-    it. Relies on ``WebsockServer._background_worker(ready_sem)`` and ``start``: the wrapped worker releases it
-    on its way out if viser did not, and the wrapped ``start`` raises."""
-    from viser.infra import _infra
-
-    cls: Any = getattr(_infra, "WebsockServer", None)
-    worker, start = getattr(cls, "_background_worker", None), getattr(cls, "start", None)
-    if worker is None or start is None:
-        return _missing("the end of a start that binds no port", "WebsockServer._background_worker and start")
-    if getattr(cls, "_qsid_bounded_start", False):
-        return True
-
-    class Ready:  # viser's semaphore, remembering whether viser released it (a port was bound)
-        def __init__(self, sem: Any):
-            self.sem, self.bound = sem, False
-
-        def release(self) -> None:
-            self.bound = True
-            self.sem.release()
-
-    def bounded_worker(self: Any, ready_sem: Any) -> None:
-        ready = Ready(ready_sem)
+    def set(self) -> None:
         try:
-            worker(self, ready)
-        finally:
-            self._qsid_unbound = not ready.bound
-            if not ready.bound:  # viser gave up: wake start()
-                ready_sem.release()
+            on_loop = asyncio.get_running_loop() is self._owner
+        except RuntimeError:
+            on_loop = False
+        if on_loop:
+            super().set()
+        elif not self._handed:
+            self._handed = True
+            try:
+                self._owner.call_soon_threadsafe(self._set_on_loop)
+            except RuntimeError:  # the loop is closed (server stopping): nobody waits any more
+                self._handed = False
 
-    def bounded_start(self: Any) -> None:
-        start(self)
-        if getattr(self, "_qsid_unbound", False):
-            raise OSError(f"no port from {self._port} to {self._port + 999} on {self._host} could be bound")
+    def _set_on_loop(self) -> None:
+        self._handed = False  # first: a push after this line schedules a set of its own
+        super().set()
 
-    cls._background_worker, cls.start, cls._qsid_bounded_start = bounded_worker, bounded_start, True
+
+def _swap(buffer: Any) -> None:
+    old, buffer.message_event = buffer.message_event, LoopEvent(buffer.event_loop)
+    buffer.event_loop.call_soon_threadsafe(old.set)  # whoever waits on the old event wakes, on the loop
+
+
+@_hook("thread-safe message buffers", "ViserServer._websock_server")
+def thread_safe_buffers(server: Any) -> bool:
+    """A LoopEvent in the broadcast buffer, and in each connection's before its messages flow (on the loop)."""
+    server._websock_server.on_client_connect(lambda conn: _swap(conn.get_message_buffer()))
+    _swap(server._websock_server.get_message_buffer())
     return True
 
 
-def check_request_hook(server) -> None:
-    """Fail loudly (RuntimeError) if this viser no longer keeps the raw connections where
-    :func:`connection_request` reads them: view links would silently open default settings."""
-    ws = getattr(server, "_websock_server", None)
-    if not isinstance(getattr(ws, "_live_connections", None), dict):
-        raise RuntimeError(
-            "viser internals changed: ViserServer._websock_server._live_connections is missing, so the "
-            "dashboard cannot read a tab's view code from its websocket path (app/dashboard/viserfix.py)"
-        )
+def connection_request(server: Any, client_id: int) -> tuple[str, str] | None:
+    """(path, Host) of the request that opened ``client_id``'s websocket (None: gone); RuntimeError: no such hook."""
+    conns = getattr(getattr(server, "_websock_server", None), "_live_connections", None)
+    if not isinstance(conns, dict):
+        raise RuntimeError("viser internals changed: no ViserServer._websock_server._live_connections (viserfix.py)")
+    request = getattr(conns.get(client_id), "request", None)
+    return None if request is None else (str(request.path), str(request.headers.get("Host", "") or ""))
 
 
-def connection_request(server, client_id) -> tuple[str, str] | None:
-    """(path, Host header) of the request that opened ``client_id``'s websocket; None if it is gone already."""
+@_hook("the bounded socket reads", "ViserServer._websock_server._live_connections with the transports' max_size")
+def limit_reads(server: Any, client_id: int, nbytes: int) -> bool:
+    """Read at most ``nbytes`` of a client's socket per loop turn (False, and no warning, for a client gone)."""
     conn = server._websock_server._live_connections.get(client_id)
-    request = getattr(conn, "request", None)
-    if request is None:
-        return None
-    return str(request.path), str(request.headers.get("Host", "") or "")
+    if conn is not None:
+        _require(isinstance(conn.transport.max_size, int))
+        conn.transport.max_size = int(nbytes)
+    return conn is not None
 
 
+@_hook("page redirects (short links)", "websockets Server of its own on the port")
 def redirect_pages(server: Any, locate: Callable[[str, str, bool], str | None]) -> bool:
-    """Answer a page request with a redirect where ``locate(target, host, secure)`` gives an address.
-
-    ``target`` is the request's path and query, ``host`` its Host header, ``secure`` whether a proxy says the page
-    was reached over https (``X-Forwarded-Proto``); ``locate`` returns the ``Location`` (a 302, not cached) or
-    None (the request is served as before). Websocket upgrades are never touched.
-
-    viser serves its page through the ``process_request`` hook of its ``websockets`` server, a function local
-    to ``WebsockServer._background_worker`` (viser/infra/_infra.py), and keeps no reference to that server
-    (``websockets.asyncio.server.Server``). The serving coroutine holds it in a local variable while it runs
-    (``async with serve(...) as server``); this hook finds it there, on viser's event loop
-    (``ViserServer._websock_server._background_event_loop``: the coroutine's frame, through the public
-    ``asyncio.all_tasks`` and ``cr_frame``), and wraps the server's ``process_request`` attribute, which
-    ``websockets`` reads for every new connection.
-    """
+    """A 302 to ``locate(target, host, https)`` (if not None) for page requests: wraps the ``process_request`` of
+    the websockets ``Server`` on ``server``'s port (public attributes; found among the live objects)."""
     from websockets.asyncio.server import Server
     from websockets.datastructures import Headers
     from websockets.http11 import Response
 
-    loop = getattr(getattr(server, "_websock_server", None), "_background_event_loop", None)
-    if not isinstance(loop, asyncio.AbstractEventLoop) or loop.is_closed():
-        return _missing("page redirects (short links)", "ViserServer._websock_server._background_event_loop")
-
-    async def find() -> Any:
-        for task in asyncio.all_tasks():
-            frame = getattr(task.get_coro(), "cr_frame", None)
-            for value in dict(getattr(frame, "f_locals", None) or {}).values():
-                if isinstance(value, Server):
-                    return value
-        return None
-
-    try:
-        ws = asyncio.run_coroutine_threadsafe(find(), loop).result(timeout=10)
-    except Exception:  # the loop stopped, or did not answer
-        ws = None
-    if ws is None or getattr(ws, "_qsid_redirects", False):
-        return bool(ws) or _missing("page redirects (short links)", "its websockets Server in a serving coroutine")
+    port = server.get_port()
+    (ws,) = (o for o in gc.get_objects() if type(o) is Server and port in {s.getsockname()[1] for s in o.sockets or ()})
     serve = ws.process_request
 
     def process_request(connection: Any, request: Any) -> Any:
         if "websocket" not in str(request.headers.get("Upgrade", "")).lower():
-            secure = str(request.headers.get("X-Forwarded-Proto", "")).lower() == "https"
-            where = locate(str(request.path), str(request.headers.get("Host", "") or ""), secure)
+            https = str(request.headers.get("X-Forwarded-Proto", "")).lower() == "https"
+            where = locate(str(request.path), str(request.headers.get("Host", "") or ""), https)
             if where is not None:
                 headers = Headers([("Location", where), ("Cache-Control", "no-store"), ("Content-Length", "0")])
                 return Response(302, "Found", headers, b"")
         return serve(connection, request) if serve is not None else None
 
-    ws.process_request = process_request
-    ws._qsid_redirects = True
+    if not getattr(serve, "qsid", False):  # (once: a second call keeps the first wrapper)
+        ws.process_request, process_request.qsid = process_request, True  # type: ignore[attr-defined]
     return True
 
 
+@_hook("the per-tab callback queue", "GuiApi._thread_executor")
 def set_callback_executor(gui: Any, executor: Any) -> bool:
-    """Run the input callbacks of one tab's panel (``client.gui``) in ``executor`` instead of viser's shared pool.
-
-    Relies on ``GuiApi._thread_executor``: viser submits every ``def`` callback of the panel to it, once
-    per message, so a flooding tab grew viser's one shared queue without bound. ``executor`` needs
-    ``submit(fn, *args, **kwargs)``; the dashboard's :class:`~app.dashboard.flow.TabCallbacks` keeps at
-    most one queued call per callback.
-    """
-    if not callable(getattr(getattr(gui, "_thread_executor", None), "submit", None)):
-        return _missing("the per-tab callback queue", "GuiApi._thread_executor")
+    """Run one tab's panel callbacks in ``executor`` (``submit(fn, *args)``), not viser's one shared pool."""
+    _require(callable(gui._thread_executor.submit))
     gui._thread_executor = executor
     return True
 
 
-def guard_updates(
-    gui: Any,
-    on_reject: Callable[[str, Any], None],
-    check: Callable[[Any, Any], str | None] | None = None,
-    on_accept: Callable[[Any], None] | None = None,
-) -> bool:
-    """Wrap viser's handler of one tab's input messages: a value the input does not take is explained by
-    ``on_reject(text, handle)`` and the tab's input set back to the value in use (``on_accept(handle)``: taken).
+Guard = Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[None]]
 
-    ``check(handle, updates)``, if given, runs first on the values as sent (before viser converts them to the
-    input's type, which used to fail unseen in the event loop): a reason it returns is a refusal. Relies on
-    ``GuiApi._websock_interface`` (the tab's connection: ``register_handler`` / ``unregister_handler`` swap the
-    handler, ``_incoming_handlers`` finds it, ``queue_message`` sends the value in use to this tab only),
-    ``GuiApi._handle_gui_updates`` (viser's handler of ``viser._messages.GuiUpdateMessage``) and
-    ``GuiApi._gui_input_handle_from_uuid`` (the input, to name it).
-    """
-    try:
-        from viser._messages import GuiUpdateMessage
-    except ImportError:
-        return _missing("the explanation of refused values", "viser._messages.GuiUpdateMessage")
-    conn = getattr(gui, "_websock_interface", None)
-    orig = getattr(gui, "_handle_gui_updates", None)
-    handlers = getattr(conn, "_incoming_handlers", None)
-    inputs = getattr(gui, "_gui_input_handle_from_uuid", None)
-    if conn is None or orig is None or not isinstance(handlers, dict) or orig not in handlers.get(GuiUpdateMessage, ()):
-        return _missing("the explanation of refused values", "GuiApi._handle_gui_updates registered on its connection")
-    if not isinstance(inputs, dict):
-        return _missing("the explanation of refused values", "GuiApi._gui_input_handle_from_uuid")
 
-    def refuse(message: Any, handle: Any, text: str) -> None:
-        on_reject(text, handle)
-        if handle is not None and "value" in message.updates:  # the tab's input shows the value in use again
-            conn.queue_message(GuiUpdateMessage(message.uuid, {"value": handle.value}))
+@_hook("the explanation of refused values", "GuiApi._handle_gui_updates on GuiApi._websock_interface")
+def guard_updates(gui: Any, guard: Guard) -> bool:
+    """Route a tab's input messages through ``guard(handle, updates, apply)`` before viser converts the values
+    (``apply()``: viser's own handling, awaited; the handle from ``GuiApi._gui_input_handle_from_uuid``)."""
+    conn, orig, inputs = gui._websock_interface, gui._handle_gui_updates, gui._gui_input_handle_from_uuid
+    _require(isinstance(inputs, dict))
+    conn.unregister_handler(_messages.GuiUpdateMessage, orig)
 
-    async def checked(client_id: int, message: Any) -> None:
-        handle = inputs.get(message.uuid)
-        if check is not None:
-            why = check(handle, dict(message.updates))
-            if why is not None:
-                refuse(message, handle, why)
-                return
-        try:
-            await orig(client_id, message)
-        except Exception as exc:
-            label = getattr(handle, "label", None) or "an input"
-            sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in dict(message.updates).items())
-            refuse(
-                message,
-                handle,
-                f"{label}: the value sent ({sent}) was refused ({type(exc).__name__}: {str(exc)[:80]}); "
-                "the input keeps its last value",
-            )
-            return
-        if on_accept is not None and handle is not None:
-            on_accept(handle)
+    async def guarded(client_id: int, message: Any) -> None:
+        await guard(inputs.get(message.uuid), dict(message.updates), lambda: orig(client_id, message))
 
-    handler: Callable[[int, Any], Awaitable[None]] = checked
-    conn.unregister_handler(GuiUpdateMessage, orig)
-    conn.register_handler(GuiUpdateMessage, handler)
+    conn.register_handler(_messages.GuiUpdateMessage, guarded)
     return True
 
 
-def limit_reads(server: Any, client_id: int, nbytes: int) -> bool:
-    """Make the event loop read at most ``nbytes`` of client ``client_id``'s socket per turn.
-
-    ``server`` is the ``viser.ViserServer``. Relies on ``ViserServer._websock_server._live_connections``
-    (client id -> the websockets ``ServerConnection``) and on the asyncio selector transport's
-    ``max_size`` (its read size, 256 KiB by default): viser turns every message read into tasks before
-    the loop does anything else, so one big read of a flooding client made every loop turn long.
-    False without a warning when the client is not connected (any more).
-    """
-    conns = getattr(getattr(server, "_websock_server", None), "_live_connections", None)
-    if not isinstance(conns, dict):
-        return _missing("the bounded socket reads", "ViserServer._websock_server._live_connections")
-    conn = conns.get(client_id)
-    if conn is None:  # the tab has gone already: nothing to limit
-        return False
-    transport = getattr(conn, "transport", None)
-    if transport is None or not isinstance(getattr(transport, "max_size", None), int):
-        return _missing("the bounded socket reads", "asyncio transport max_size on the client's connection")
-    transport.max_size = int(nbytes)
+@_hook("the refused value's input set back", "GuiApi._websock_interface.queue_message and a handle's _impl.uuid")
+def show_value(gui: Any, handle: Any) -> bool:
+    """Send the tab of ``gui`` the value input ``handle`` holds: after a refused value the browser would go on
+    showing what was typed (viser sends a value only when it changes; the handle keeps the one in use)."""
+    gui._websock_interface.queue_message(_messages.GuiUpdateMessage(handle._impl.uuid, {"value": handle.value}))
     return True
 
 
+@_hook("the refusal of share-URL requests", "share-URL handlers on ViserServer._websock_server")
 def refuse_share_requests(server: Any) -> bool:
-    """Ignore viser's "share URL" requests from any client.
-
-    The button is hidden, but any client could still send one and make the server open a public tunnel
-    through viser's relay (the whole class's server on the internet). Relies on
-    ``ViserServer._websock_server._incoming_handlers`` holding the handlers of
-    ``viser._messages.ShareUrlRequest`` and ``ShareUrlDisconnect``; they are removed.
-    """
-    from viser import _messages
-
-    handlers = getattr(getattr(server, "_websock_server", None), "_incoming_handlers", None)
-    kinds = [getattr(_messages, name, None) for name in ("ShareUrlRequest", "ShareUrlDisconnect")]
-    if not isinstance(handlers, dict) or None in kinds:
-        return _missing("the refusal of share-URL requests", "ViserServer._websock_server._incoming_handlers")
-    for msg in kinds:
-        handlers.pop(msg, None)
+    """Drop the handlers of "share URL" requests: a hidden button, but any client could open a public tunnel."""
+    for kind in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
+        server._websock_server.unregister_handler(kind)
     return True
 
 
-def plotly_js_unsent(gui: Any) -> bool | None:
-    """Whether viser has not yet sent plotly.js to the tab of ``gui`` (None: this viser keeps no such flag).
-
-    Relies on ``GuiApi._setup_plotly_js``: False until viser's ``add_plotly`` sends the full bundle.
-    """
-    flag = getattr(gui, "_setup_plotly_js", None)
-    if not isinstance(flag, bool):
-        _missing("the small plotly.js bundle", "GuiApi._setup_plotly_js")
-        return None
-    return not flag
-
-
+@_hook("the small plotly.js bundle", "GuiApi._websock_interface and GuiApi._setup_plotly_js")
 def send_plotly_js(gui: Any, source: str) -> bool:
-    """Queue ``source`` (a plotly.js bundle) to the tab of ``gui`` and tell viser it was sent.
-
-    Relies on ``GuiApi._websock_interface.queue_message``, ``viser._messages.RunJavascriptMessage``
-    (what viser itself sends the bundle in) and ``GuiApi._setup_plotly_js`` (set True: viser then
-    skips sending its own 4.8 MB bundle).
-    """
-    try:
-        from viser._messages import RunJavascriptMessage
-    except ImportError:
-        return _missing("the small plotly.js bundle", "viser._messages.RunJavascriptMessage")
-    conn = getattr(gui, "_websock_interface", None)
-    if (
-        conn is None
-        or not callable(getattr(conn, "queue_message", None))
-        or not isinstance(getattr(gui, "_setup_plotly_js", None), bool)
-    ):
-        return _missing("the small plotly.js bundle", "GuiApi._websock_interface.queue_message")
-    conn.queue_message(RunJavascriptMessage(source=source))
+    """Queue ``source`` (plotly.js) to the tab, marked sent so viser skips its 4.8 MB bundle; False if sent already."""
+    _require(isinstance(gui._setup_plotly_js, bool) and callable(gui._websock_interface.queue_message))
+    if gui._setup_plotly_js:
+        return False
+    gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
     gui._setup_plotly_js = True
     return True
 
 
-# ----- the phone's bottom sheet -------------------------------------------------------------------------------
-#: viser's phone layout (windows up to its 36em breakpoint) puts every panel into one bottom sheet drawn
-#: ``position: fixed; width: 20em; max-height: 60%`` (``viser/client/src/ControlPanel/BottomPanel.tsx``, inline
-#: styles): plots in it were ~250 px wide and it covered most of the scene. The style sheet below, limited to
-#: that breakpoint, stretches the sheet (and the box inside it, also 20em) across the window and caps it at
-#: half the window's height; the selectors match those inline styles.
+#: viser's phone layout (up to its 36em breakpoint) draws every panel in one bottom sheet, 20em wide and up to 60 %
+#: high (inline styles, client/src/ControlPanel/BottomPanel.tsx): stretched across the window, at most half as high.
 PHONE_SHEET_CSS = (
-    "<style>@media (max-width: 36em) {"
-    '.mantine-Paper-root[style*="position: fixed"][style*="20em"]'
+    '<style>@media (max-width: 36em) {.mantine-Paper-root[style*="position: fixed"][style*="20em"]'
     "{width: 100vw !important; max-height: 50% !important;}"
-    '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}'
-    "}</style>"
+    '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}}</style>'
 )
-#: What the selectors rely on, as the client's source writes it.
-SHEET_SOURCE = ('position: "fixed"', 'width: "20em"', 'maxHeight: "60%"')
+SHEET_SOURCE = ('position: "fixed"', 'width: "20em"', 'maxHeight: "60%"')  # what the selectors rely on
 
 
+@_hook("the phone sheet across the window", "bottom sheet styled inline 20em wide in its client")
 def phone_sheet_style(gui: Any) -> bool:
-    """Send the tab of ``gui`` the style sheet that widens viser's phone sheet (:data:`PHONE_SHEET_CSS`).
-
-    Relies on the sheet's inline styles (:data:`SHEET_SOURCE`) in ``viser/client/src/ControlPanel/
-    BottomPanel.tsx``; when the installed client's source says otherwise, nothing is sent (False, one warning).
-    """
-    from pathlib import Path
-
-    import viser
-
+    """Send the tab :data:`PHONE_SHEET_CSS` (nothing when the installed client's sheet is styled otherwise)."""
     src = Path(viser.__file__).parent / "client" / "src" / "ControlPanel" / "BottomPanel.tsx"
-    if src.is_file() and not all(s in src.read_text(encoding="utf-8") for s in SHEET_SOURCE):
-        return _missing("the phone sheet across the window", "the bottom sheet's inline width 20em")
+    _require(not src.is_file() or all(s in src.read_text(encoding="utf-8") for s in SHEET_SOURCE))
     gui.add_html(PHONE_SHEET_CSS, order=1e9)  # a style element: nothing drawn, last in the panel
     return True

@@ -15,10 +15,14 @@ from __future__ import annotations
 
 import os
 import urllib.request
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
-from qsid_core.studies import compile_kernels, kernels_cached
+from qsid_core.studies import compile_kernels, kernel_steps, kernels_cached
 from qsid_core.studies import kernel_names as engine_kernel_names
+
+if TYPE_CHECKING:
+    from .startup import StartupReport
 
 __all__ = [
     "needs_compiling",
@@ -29,11 +33,17 @@ __all__ = [
     "fetch_page",
     "first_tab",
     "COMPILE_SECONDS",
+    "COLD_START",
+    "WARM_START",
 ]
 
 #: What the first compile of all kernels takes (measured: 15.1 s cold vs 1.0 s cached for this warm-up on a quiet
 #: 2-CPU machine; rounded up for slower ones).
 COMPILE_SECONDS = 20
+#: How long a whole start takes, said when it begins (measured on the 2-core development machine: the first
+#: start after an install 116 s and 2 min 24 s while other jobs ran; a later start 22 s to 70 s).
+COLD_START = f"compiling the kernels once: ~{COMPILE_SECONDS} s on a quiet 2-core machine, 2 to 3 minutes on a busy one"
+WARM_START = "starting: loading the compiled kernels and computing the first view, 20 s to about a minute"
 
 
 def _presets() -> list:
@@ -52,28 +62,41 @@ def needs_compiling() -> bool:
     return not kernels_cached(_presets())
 
 
-def warm_here() -> int:
-    """A tiny computation of a tab, saturated (so the compiled closed loop and the box-QP kernel run too);
-    returns this process's pid."""
+def warm_here(progress: Callable[[int, int, str], None] | None = None) -> int:
+    """A tiny computation of a tab, saturated (so the compiled closed loop and the box-QP kernel run too), then
+    every other kernel; returns this process's pid. ``progress(k, n, what)`` is told each of the ``n`` steps
+    before it runs."""
     from app.dashboard.cache import SharedCache
     from app.dashboard.settings import Values
     from app.dashboard.stages import iter_frames
 
+    presets = _presets()
+    n = 1 + len(kernel_steps(presets))
+    if progress is not None:
+        progress(1, n, "a tiny tab's computation (the closed loop, the box QP, the dc motor's quantizer)")
     v = Values(system="dc-motor", trajectories=4, steps=30, realizations=2, bits=4, mpc_steps=5, u_max=1e-3)
     for _ in iter_frames(v, SharedCache(16 * 2**20), None, 1):
         pass
-    compile_kernels(_presets())
+    compile_kernels(presets, None if progress is None else lambda k, _n, what: progress(k + 1, n, what))
     return os.getpid()
 
 
-def warm(pool) -> None:
-    """Warm this process, then every worker of ``pool`` (a :class:`~app.dashboard.pool.Pool`)."""
-    warm_here()
+def warm(pool, report: StartupReport | None = None) -> None:
+    """Warm this process, then every worker of ``pool`` (a :class:`~app.dashboard.pool.Pool`); ``report`` is told
+    each step."""
+    warm_here(None if report is None else lambda k, n, what: report.step(f"kernel {k} of {n}: {what}"))
+    if report is not None and pool.current is not None:
+        report.step(
+            "the worker process loads the kernels"
+            if pool.workers == 1
+            else f"the {pool.workers} worker processes load the kernels"
+        )
     pool.each_worker(warm_here, timeout=300)
 
 
-def prefill(values, cache, executor=None, tasks: int = 1) -> int:
-    """Compute the frames of a tab showing ``values`` into ``cache`` and build their figures once.
+def prefill(values, cache, executor=None, tasks: int = 1, progress: Callable[[Any], None] | None = None) -> int:
+    """Compute the frames of a tab showing ``values`` into ``cache`` and build their figures once (``progress``
+    is given each frame once drawn).
 
     Returns the number of frames. Raises what the computation raises (e.g. a
     :class:`~qsid_core.errors.QsidError` for settings that cannot be computed).
@@ -96,6 +119,8 @@ def prefill(values, cache, executor=None, tasks: int = 1) -> int:
         for wire in renderer.render(frame).figures.values():
             wire.to_json()  # what viser calls when the figure is sent
         n += 1
+        if progress is not None:
+            progress(frame)
     return n
 
 
@@ -114,9 +139,20 @@ def fetch_page(host: str, port: int, timeout: float = 10.0) -> bool:
         return False
 
 
-def first_tab(app) -> None:
-    """Fetch the page once and compute + draw a new tab's view once, so the first tab is served like later ones."""
+def first_tab(app, report: StartupReport | None = None) -> None:
+    """Fetch the page once and compute + draw a new tab's view once, so the first tab is served like later ones
+    (``report`` is told how far the view is)."""
     fetch_page(app.host, app.port)
-    why = app.prefill()
+    seen: list = []
+
+    def drawn(frame) -> None:
+        done, total = getattr(frame, "done", None), getattr(frame, "total", None)
+        if report is not None and done is not None and total and done not in seen:
+            seen.append(done)
+            report.step(f"computing the first view: {done} of {total} word lengths drawn")
+
+    if report is not None:
+        report.step("computing the first view")
+    why = app.prefill(drawn) if report is not None else app.prefill()
     if why:  # the server starts anyway
         print(f"qsid dashboard: the first view was not precomputed ({why})", flush=True)

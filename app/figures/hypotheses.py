@@ -50,9 +50,11 @@ def _stationary_words(a: Mapping) -> str:
     r = a.get("spectral_radius")
     where = "on" if r is not None and abs(r - 1.0) < 1e-6 else "on or outside"
     kind = " (integrator)" if where == "on" else ""
+    drift = "wander, like the dc-motor's angle," if where == "on" else "grow"
     return (
         f"A has an eigenvalue {where} the unit circle{kind}: Ψ Ψᵀ/T does not converge, so Theorem 1's "
-        "T → ∞ statement does not apply"
+        f"T → ∞ statement does not apply (the states {drift} instead of settling: the data are not stationary); "
+        "a stable plant shows it hold: boeing747 (the dashboard's theorem1 lesson)"
     )
 
 

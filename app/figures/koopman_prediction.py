@@ -18,7 +18,7 @@ __all__ = ["VIEW", "prediction_figure"]
 def prediction_figure(
     rows: dict[str, list[dict[str, Any]]], bits: int | None, floor: float | None, horizon: int, height: int = 300
 ) -> go.Figure:
-    """log relative RMS error of the ``horizon``-step prediction vs b (mean ±std per estimator label)."""
+    """log relative RMS error of the prediction over steps 1..``horizon`` vs b (mean ±std per estimator label)."""
     data: list[dict[str, Any]] = []
     for i, (lab, rs) in enumerate(rows.items()):
         data += band(rs, "prediction_error", color(lab, i), lab)
@@ -34,7 +34,7 @@ def prediction_figure(
             margin=dict(l=60, r=10, t=10, b=40),
             legend=dict(orientation="h", y=-0.25),
             xaxis=dict(title=dict(text="word length b (bits)"), dtick=2),
-            yaxis=dict(title=dict(text=f"{horizon}-step prediction error"), type="log", exponentformat="power"),
+            yaxis=dict(title=dict(text=f"prediction error, steps 1..{horizon}"), type="log", exponentformat="power"),
             shapes=shapes,
             annotations=notes,
         ),

@@ -144,10 +144,10 @@ def _band(ts: TimeSeries, label: str, c: str) -> list[dict[str, Any]]:
     if d.size == 0:
         return []
     t = ts.t.tolist()
-    band = dict(
+    band = dict(  # the polygon: along the max forward, back along the min (x and y both 2 (T+1) long)
         type="scatter",
         x=t + t[::-1],
-        y=arr(np.nanmax(d, 0)) + arr(np.nanmin(d, 0)[::-1]),
+        y=arr(np.concatenate([np.nanmax(d, 0), np.nanmin(d, 0)[::-1]])),
         fill="toself",
         fillcolor=c,
         opacity=0.15,

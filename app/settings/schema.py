@@ -4,10 +4,11 @@
 A row says what the setting is (name, type, unit, allowed range or choices, default), how the panel
 shows it (label, tab, folder, kind of input, hint), its ``qsid`` flag, where it goes in the engine's
 configuration (``engine``: a dotted path into :class:`~qsid_core.SweepConfig`; ``nonlinear``: one into
-:class:`~qsid_core.studies.KoopmanConfig`, for a nonlinear plant) and whether it changes results or only the
-drawing. From the table come the ``qsid`` options (:mod:`app.settings.cli`), the
-dashboard's panel (:mod:`app.dashboard.controls`) and its values (:class:`app.dashboard.settings.Values`),
-the strict type check of a panel or file value (:func:`app.settings.check.check_setting`), the
+:class:`~qsid_core.studies.KoopmanConfig`, for a nonlinear plant; ``datalength``: one into
+:class:`~qsid_core.DataLengthConfig`) and whether it changes results or only the drawing. The engine config
+fields no setting sets are listed in :data:`INTERNAL`, each with its reason. From the table come the ``qsid``
+options (:mod:`app.settings.cli`), the dashboard's panel (:mod:`app.dashboard.controls`) and its values
+(:class:`app.dashboard.settings.Values`), the strict type check of a panel or file value (:func:`app.settings.check.check_setting`), the
 ``qsid sweep`` line (:mod:`app.settings.command`) and the stages a change invalidates
 (:meth:`Setting.stages`, from the engine's own :mod:`qsid_core.studies.cache_keys`).
 
@@ -44,6 +45,8 @@ __all__ = [
     "MPC_GROUP",
     "LOOP_GROUP",
     "NONLINEAR_GROUP",
+    "INTERNAL",
+    "path_value",
 ]
 
 
@@ -61,11 +64,12 @@ def engine() -> SimpleNamespace:
     (``QuantizerSpec()``), ``letter`` (``SweepConfig.letter()``), ``koopman`` (``KoopmanConfig()``, the nonlinear
     sweep's), ``koopman_plant`` (its plant, for the presets' amplitude and sane box), ``systems`` (every preset:
     the linear ones, then the nonlinear ones), ``dithers``, ``range_modes``, ``estimators``, ``tracking``,
-    ``u_max`` (the default bound of one input) and ``bits_lo`` / ``bits_hi`` (the default sweep's ends).
+    ``u_max`` (the default bound of one input), ``bits_lo`` / ``bits_hi`` (the default sweep's ends) and
+    ``datalength`` (``DataLengthConfig()``).
     """
     global _ENGINE
     if _ENGINE is None:
-        from qsid_core import PRESETS, MPCConfig, QuantizerSpec, SweepConfig
+        from qsid_core import PRESETS, DataLengthConfig, MPCConfig, QuantizerSpec, SweepConfig
         from qsid_core.control import TRACKING
         from qsid_core.identification import ESTIMATORS
         from qsid_core.plant import NONLINEAR_PRESETS
@@ -79,6 +83,7 @@ def engine() -> SimpleNamespace:
             quant=QuantizerSpec(),
             letter=SweepConfig.letter(mpc=None),
             koopman=koopman,
+            datalength=DataLengthConfig(),
             koopman_plant=koopman.plant(),
             systems=(*PRESETS, *NONLINEAR_PRESETS),
             dithers=DITHERS,
@@ -154,6 +159,9 @@ class Setting:
         Where the value goes for a nonlinear plant: a dotted path into :class:`~qsid_core.studies.KoopmanConfig`
         (``"lifting"``, ``"mpc.horizon"``); None: a nonlinear run cannot honour the setting (its flag is
         refused there). Its default there is ``KoopmanConfig()``'s (:func:`nonlinear_default`).
+    datalength : str or None
+        Where the value goes in a data-length study: a dotted path into :class:`~qsid_core.DataLengthConfig`
+        (``qsid datalength`` has the flag of each such setting, its default ``DataLengthConfig()``'s).
     display : bool
         True if the setting only changes what is drawn from results already computed.
     panel_default : value or None
@@ -185,6 +193,7 @@ class Setting:
     cli_default: Any = ...
     engine: str | None = None
     nonlinear: str | None = None
+    datalength: str | None = None
     display: bool = False
     panel_default: Any = None
     values: bool = True
@@ -263,6 +272,13 @@ def nonlinear_settings() -> tuple[Setting, ...]:
     return tuple(s for s in SETTINGS if s.nonlinear is not None)
 
 
+def path_value(obj: Any, path: str) -> Any:
+    """The value at dotted ``path`` in ``obj`` (``"quantizer.dither"``)."""
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
 def value_default(s: Setting) -> Any:
     """The setting's default in the panel and the settings file."""
     return resolve(s.panel_default if s.panel_default is not None else s.default)
@@ -292,8 +308,9 @@ def _value(v: Any) -> Any:
     return v
 
 
-def _load() -> tuple[dict[str, str], tuple[Setting, ...]]:
-    """The option groups and the settings of ``settings.toml`` (next to this module), in its order."""
+def _load() -> tuple[dict[str, str], tuple[Setting, ...], dict[str, str]]:
+    """The option groups, the settings of ``settings.toml`` (next to this module, in its order) and its
+    internal fields."""
     if sys.version_info >= (3, 11):
         import tomllib
     else:  # pragma: no cover - Python 3.10
@@ -309,14 +326,17 @@ def _load() -> tuple[dict[str, str], tuple[Setting, ...]]:
         if row.get("cli_default") == "none":
             kw["cli_default"] = None
         rows.append(Setting(name=name, **kw))
-    return groups, tuple(rows)
+    return groups, tuple(rows), dict(data["internal"])
 
 
 #: The ``qsid`` option groups by key (``cli_group`` in the table).
 GROUPS: dict[str, str]
 #: Every setting, in the panel's display order (tabs appear in order of first use).
 SETTINGS: tuple[Setting, ...]
-GROUPS, SETTINGS = _load()
+#: Engine config fields no setting sets, by ``"CONFIG.PATH"`` (``sweep``: SweepConfig, ``nonlinear``:
+#: KoopmanConfig, ``datalength``: DataLengthConfig), each with the reason.
+INTERNAL: dict[str, str]
+GROUPS, SETTINGS, INTERNAL = _load()
 DATA_GROUP, WHATIF_GROUP, MPC_GROUP, LOOP_GROUP, NONLINEAR_GROUP = (
     GROUPS[k] for k in ("data", "whatif", "mpc", "loop", "nonlinear")
 )

@@ -298,7 +298,8 @@ def lifted_error(model: KoopmanModel, reference: KoopmanModel) -> tuple[float, f
 
 
 def prediction_error(model: KoopmanModel, lifting: Lifting, held_out: Dataset, horizon: int = 20) -> float:
-    """Relative RMS error of the ``horizon``-step prediction of ``x`` on held-out runs of the true plant.
+    """Relative RMS error of the prediction of ``x`` over steps 1..``horizon`` on held-out runs of the true plant
+    (cumulative over those steps, not the error ``horizon`` steps ahead alone).
 
     From ``z_0 = psi(x_0)`` of every run, ``z_{k+1} = A z_k + B u_k`` and ``x^_k = C z_k`` for
     ``k = 1 .. horizon``; returns ``sqrt(sum |x^_k - x_k|^2 / sum |x_k|^2)`` over runs and steps (inf when

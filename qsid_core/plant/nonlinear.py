@@ -17,7 +17,8 @@ Presets (all with ``dt = 0.05``):
 
 A custom plant is a Python callable ``f(x, u) -> xdot`` vectorised over a batch (``x`` of shape
 (runs, n), ``u`` of shape (runs, m), the result of shape (runs, n)); a plant file names it as
-``vector_field = "module:function"`` (see :func:`nonlinear_from_dict`).
+``vector_field = "module:function"`` (see :func:`nonlinear_from_dict`); the module may sit beside the file
+(:mod:`qsid_core.plant.field_import`).
 
 The training runs of these plants (x0 within the plant's ``amplitude``, runs leaving its sane ``box``
 reported) are drawn by :mod:`qsid_core.plant.nonlinear_data`.
@@ -25,7 +26,6 @@ reported) are drawn by :mod:`qsid_core.plant.nonlinear_data`.
 
 from __future__ import annotations
 
-import importlib
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, SystemDefinitionError, check_float, check_int, short_repr
+from .field_import import resolve_field
 from .plantfile import read_plant_table
 
 __all__ = [
@@ -258,25 +259,10 @@ def get_nonlinear(name: str | NonlinearSystem) -> NonlinearSystem:
     return NONLINEAR_PRESETS[key]()
 
 
-def _resolve(ref: str) -> VectorField:
-    """The callable named by ``"module:function"``."""
-    mod, sep, attr = ref.partition(":")
-    if not sep or not mod or not attr:
-        raise SystemDefinitionError(f"vector_field must be 'module:function'; got {short_repr(ref)}")
-    try:
-        obj: Any = importlib.import_module(mod)
-        for part in attr.split("."):
-            obj = getattr(obj, part)
-    except Exception as exc:  # import errors of user code: one line
-        raise SystemDefinitionError(f"vector_field {ref!r} cannot be loaded: {type(exc).__name__}: {exc}") from None
-    if not callable(obj):
-        raise SystemDefinitionError(f"vector_field {ref!r} is not callable")
-    fn: VectorField = obj
-    return fn
-
-
-def nonlinear_from_dict(d: Mapping[str, Any], name: str = "custom") -> NonlinearSystem:
-    """A nonlinear plant from a plant file's table.
+def nonlinear_from_dict(
+    d: Mapping[str, Any], name: str = "custom", folder: str | Path | None = None
+) -> NonlinearSystem:
+    """A nonlinear plant from a plant file's table (``folder``: the file's, where its module may sit).
 
     Keys: ``vector_field`` ("module:function", required), ``n``, ``m`` (required), and optional
     ``dt``, ``x0``, ``Q``, ``R``, ``amplitude``, ``box``, ``description``, ``state_names``, ``input_names``.
@@ -300,7 +286,7 @@ def nonlinear_from_dict(d: Mapping[str, Any], name: str = "custom") -> Nonlinear
     for k in ("x0", "Q", "R", "state_names", "input_names"):
         if k in d:
             kw[k] = tuple(d[k])
-    return NonlinearSystem(str(d.get("name", name)), _resolve(d["vector_field"]), d["n"], d["m"], **kw)
+    return NonlinearSystem(str(d.get("name", name)), resolve_field(d["vector_field"], folder), d["n"], d["m"], **kw)
 
 
 def is_nonlinear_file(path: str | Path) -> bool:
@@ -336,4 +322,5 @@ def load_nonlinear(path: str | Path) -> NonlinearSystem:
     SystemDefinitionError
         Unreadable or malformed file, or a vector field that cannot be imported.
     """
-    return nonlinear_from_dict(read_plant_table(path), Path(path).stem)
+    p = Path(path)
+    return nonlinear_from_dict(read_plant_table(p), p.stem, p.parent)

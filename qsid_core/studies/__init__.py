@@ -35,11 +35,13 @@ from .datalength import (
     DataLengthConfig,
     DataLengthResult,
     DataLengthRow,
+    datalength_key,
     run_datalength,
     runs_and_steps,
 )
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
+from .flights import Flights
 from .koopman_keys import KOOPMAN_KEY_PARTS, KOOPMAN_NOT_IN_KEYS, KOOPMAN_STAGE_GROUPS, koopman_stage_key
 from .koopman_stages import FREE_FLOW_GRID, KoopmanExperiment, KoopmanModels
 from .koopman_sweep import (
@@ -65,7 +67,15 @@ from .stage_results import BitsIdentification, TheoryAtBits
 from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
 from .sweep import run_sweep, summarize
 from .sweep_result import RESULT_FORMAT, StoredRow, SweepResult, load_result
-from .warmup import COMPILED_KERNELS, compile_kernels, kernel_cache_dir, kernel_names, kernels_cached, one_per_size
+from .warmup import (
+    COMPILED_KERNELS,
+    compile_kernels,
+    kernel_cache_dir,
+    kernel_names,
+    kernel_steps,
+    kernels_cached,
+    one_per_size,
+)
 
 __all__ = [
     "Assumptions",
@@ -82,6 +92,7 @@ __all__ = [
     "Experiment",
     "FIT_TOLERANCE",
     "FREE_FLOW_GRID",
+    "Flights",
     "InlineExecutor",
     "KEY_PARTS",
     "KOOPMAN_KEY_PARTS",
@@ -122,6 +133,7 @@ __all__ = [
     "clipping_effect",
     "compile_kernels",
     "config_paths",
+    "datalength_key",
     "dataset_from_arrays",
     "experiment_records",
     "finite_data_fluctuation",
@@ -132,6 +144,7 @@ __all__ = [
     "json_clean",
     "kernel_cache_dir",
     "kernel_names",
+    "kernel_steps",
     "kernels_cached",
     "koopman_stage_key",
     "load_recorded",

@@ -19,7 +19,7 @@ a change of settings touches. The stages live by responsibility beside it:
 
 from __future__ import annotations
 
-from collections.abc import MutableMapping, Sequence
+from collections.abc import Callable, MutableMapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import replace
 from typing import TYPE_CHECKING, cast
@@ -147,13 +147,12 @@ class Experiment:
         """Quantized Gram matrices per b and realization (computes only what is not cached)."""
         bits = parse_bits(bits)
         keys = {b: self.keys.moments(b) for b in bits}
-        out = cast(dict[int, list[Moments]], self.cache.cached(keys))
-        todo = tuple(b for b in bits if b not in out)
-        if todo:
-            new = compute_moments(self, todo, progress)
-            self.cache.store((keys[b], v) for b, v in new.items())
-            out.update(new)
-        return {b: out[b] for b in bits}
+
+        def compute(todo: list[int], deliver: Callable[[int, object], None]) -> None:
+            for b, v in compute_moments(self, tuple(todo), progress).items():
+                deliver(b, v)
+
+        return cast(dict[int, list[Moments]], self.cache.batch(keys, compute))
 
     def _estimator(self, estimator: str | None) -> str:
         est = estimator or self.config.estimator
@@ -212,14 +211,15 @@ class Experiment:
         est = estimator or self.config.estimator
         bits = parse_bits(bits)
         keys = {b: self.keys.loops(b, est, cfg) for b in bits}
-        out = cast(dict[int, ClosedLoops], self.cache.cached(keys))
-        futs = {b: self.executor.submit(loops_task, loop_args(self, b, est, cfg)) for b in bits if b not in out}
-        for i, (b, f) in enumerate(futs.items()):
-            out[b] = f.result()
-            self.cache.store([(keys[b], out[b])])
-            if progress:
-                progress(i + 1, len(futs), "MPC closed loops")
-        return {b: out[b] for b in bits}
+
+        def compute(todo: list[int], deliver: Callable[[int, object], None]) -> None:
+            futs = {b: self.executor.submit(loops_task, loop_args(self, b, est, cfg)) for b in todo}
+            for i, (b, f) in enumerate(futs.items()):
+                deliver(b, f.result())
+                if progress:
+                    progress(i + 1, len(futs), "MPC closed loops")
+
+        return cast(dict[int, ClosedLoops], self.cache.batch(keys, compute))
 
     def true_model_loop(self) -> ClosedLoops:
         """The MPC built on the true (A, B): the reference every quantized model is compared to."""

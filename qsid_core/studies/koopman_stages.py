@@ -34,6 +34,7 @@ from ..identification import (
     quantized_lifted_realizations,
 )
 from ..plant import NonlinearDataset, NonlinearSystem, simulate_nonlinear
+from .flights import memo_joined
 from .koopman_keys import koopman_stage_key
 from .koopman_rows import ACC_KEYS, large_data_entry, no_exact_correction, predict, record, row
 from .koopman_sweep import KoopmanConfig, held_out_runs
@@ -92,11 +93,7 @@ class KoopmanExperiment:
         return koopman_stage_key(cfg, stage, *extra)
 
     def _cached(self, key: tuple[Any, ...], make: Callable[[], Any]) -> Any:
-        hit = self.cache.get(key)
-        if hit is None:
-            hit = make()
-            self.cache[key] = hit
-        return hit
+        return memo_joined(self.cache, key, make)
 
     def data(self) -> tuple[NonlinearDataset, NonlinearDataset]:
         """The training runs and the held-out runs of the prediction error.

@@ -52,7 +52,8 @@ NO_CERTIFICATES = (
     "the linear certificates (Theorem 1's error model, small gain, ultimate bound, b_letter, b_robust) "
     "assume a linear plant and do not apply to a nonlinear one: only observed outcomes are reported"
 )
-#: Held-out runs for the prediction error: runs, steps, and the default prediction horizon (samples).
+#: Held-out runs for the prediction error: runs, steps, and the default prediction horizon H (the error is over
+#: steps 1..H).
 HELD_OUT = (50, 40, 20)
 #: The :class:`MPCConfig` fields the Koopman loops do not use (exact state feedback, no disturbance, regulation
 #: to 0 without state constraints; the verdict is by ``radius`` and the sane box): a value other than
@@ -99,7 +100,8 @@ class KoopmanConfig:
     radius : float, > 0
         Convergence radius of the loops' verdict (2-norm of the final state).
     prediction_horizon : int, 1..40
-        Samples ahead of the prediction error on the held-out runs (:data:`HELD_OUT`: 50 runs of 40 samples).
+        Steps H of the prediction error: the relative RMS over k = 1..H of the prediction of each held-out run from
+        its first sample (:data:`HELD_OUT`: 50 runs of 40 samples; :func:`~qsid_core.identification.prediction_error`).
     state_amplitude : float or None, > 0
         ``a`` of the training runs' x0 ~ U[-a, a]^n (None: the plant's ``amplitude``, 2 for the presets).
     input_amplitude : float, > 0

@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Hashable, Iterable, Mapping, MutableMapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
-from typing import Protocol, TypeVar, cast
+from typing import Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +24,7 @@ from ..plant.lti import LTISystem
 from ..quantization.moments import Moments, PreparedData
 from .cache_keys import stage_key, system_key
 from .config import SweepConfig
+from .flights import Flights, flights_of, memo_joined
 from .stage_results import BitsIdentification, TheoryAtBits
 
 __all__ = ["Key", "StageCache", "StageKeys", "Staged"]
@@ -33,6 +34,8 @@ Key = tuple[Hashable, ...]
 
 T = TypeVar("T")
 K = TypeVar("K", bound=Hashable)
+#: ``deliver(k, value)``: a batch's computation hands over the result for ``k``.
+Deliver = Callable[[K, object], None]
 
 
 @dataclass(frozen=True)
@@ -132,14 +135,61 @@ class StageCache:
         self.mapping: MutableMapping[Key, object] = {} if mapping is None else mapping
 
     def memo(self, key: Key, make: Callable[[], T]) -> T:
-        """``mapping[key]``, or ``make()`` stored there and returned."""
+        """``mapping[key]``, or ``make()`` stored there and returned (joining another thread computing it now,
+        when the mapping carries :class:`~qsid_core.studies.flights.Flights`)."""
+        return memo_joined(self.mapping, key, make)
+
+    def batch(self, keys: Mapping[K, Key], compute: Callable[[list[K], Deliver[K]], None]) -> dict[K, object]:
+        """The results of every key of ``keys``, each taken from the mapping, from the thread computing it now,
+        or computed here by one call ``compute(todo, deliver)``, which calls ``deliver(k, value)`` for each
+        ``k`` of ``todo`` as soon as it has it (so threads waiting for that key get it at once).
+
+        A key ``compute`` fails to deliver (it raised, or skipped it) is released to its waiters, who then
+        compute it themselves.
+        """
+        out = self.cached(keys)
+        todo = [k for k in keys if k not in out]
+        flights = flights_of(self.mapping)
+        while todo:
+            if flights is None:
+                mine, theirs = todo, {}
+            else:
+                by_key: dict[Hashable, K] = {keys[k]: k for k in todo}
+                owned, running = flights.claim(by_key)
+                mine, theirs = [by_key[key] for key in owned], {by_key[key]: f for key, f in running.items()}
+            if mine:
+                self._compute_owned(keys, mine, compute, out, flights)
+            todo = []
+            for k, fut in theirs.items():
+                ok, value = flights.wait(fut) if flights is not None else (False, None)
+                if ok:
+                    out[k] = value
+                else:
+                    todo.append(k)  # its owner failed: compute it here (or join whoever does)
+        return {k: out[k] for k in keys}
+
+    def _compute_owned(
+        self,
+        keys: Mapping[K, Key],
+        mine: list[K],
+        compute: Callable[[list[K], Deliver[K]], None],
+        out: dict[K, object],
+        flights: Flights | None,
+    ) -> None:
+        def deliver(k: K, value: object) -> None:
+            self.mapping[keys[k]] = value
+            out[k] = value
+            if flights is not None:
+                flights.land(keys[k], value)
+
         try:
-            return cast(T, self.mapping[key])  # stored under this key by the same stage: a T
-        except KeyError:
-            pass
-        value = make()
-        self.mapping[key] = value
-        return value
+            compute(mine, deliver)
+        finally:
+            if flights is not None:
+                flights.abort(keys[k] for k in mine if k not in out)
+        missing = [k for k in mine if k not in out]
+        if missing:
+            raise RuntimeError(f"a stage computed no result for {missing}")
 
     def cached(self, keys: Mapping[K, Key]) -> dict[K, object]:
         """``{k: mapping[keys[k]]}`` for the keys the mapping holds now."""

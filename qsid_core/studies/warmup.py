@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import glob
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -23,7 +23,20 @@ from ..quantization import kernels
 from ..quantization.moments import prepare, quantized_moments
 from ..quantization.quantize import QuantizerSpec
 
-__all__ = ["COMPILED_KERNELS", "compile_kernels", "kernel_cache_dir", "kernel_names", "kernels_cached", "one_per_size"]
+__all__ = [
+    "COMPILED_KERNELS",
+    "Progress",
+    "compile_kernels",
+    "kernel_cache_dir",
+    "kernel_names",
+    "kernel_steps",
+    "kernels_cached",
+    "one_per_size",
+]
+
+#: ``progress(step, steps, what)``: called before each step of :func:`compile_kernels` (1-based ``step`` of
+#: ``steps``; ``what`` names the kernel in plain words). The engine never prints; a front end may.
+Progress = Callable[[int, int, str], None]
 
 #: The compiled kernels as ``module.function`` (numba names their cache index files after them): the box QP,
 #: the compiled saturated closed loop and the quantize-lift-accumulate kernel of EDMD (one for every monomial
@@ -78,18 +91,45 @@ def kernels_cached(systems: Iterable[LTISystem]) -> bool:
     return all(glob.glob(os.path.join(d, "**", f"{k}-*.nbi"), recursive=True) for k in kernel_names(systems))
 
 
-def compile_kernels(systems: Iterable[LTISystem]) -> None:
-    """Compile (or load from the cache) the box QP, the EDMD kernel and the quantize-and-accumulate kernel for
-    every size among ``systems``, through the engine's own paths on tiny data. The compiled closed loop is
-    compiled by the first saturated loop (see :func:`qsid_core.control.run_closed_loops`)."""
-    if not kernels.AVAILABLE:
-        return
+def _box_qp() -> None:
     H = np.eye(2)[None] * 2.0
     g = np.array([[3.0, -3.0]])
     upper, lower = np.array([[True, False]]), np.array([[False, True]])
     box_qp_batch(H, g, np.ones(2), upper, lower)
-    spec = QuantizerSpec()
+
+
+def _edmd() -> None:
     vdp = get_nonlinear("van-der-pol")
-    quantized_lifted_realizations(simulate_nonlinear(vdp, 2, 5, seed=0), parse_lifting("poly:2", 2), [4], spec)
-    for system in one_per_size(systems).values():
+    data = simulate_nonlinear(vdp, 2, 5, seed=0)
+    quantized_lifted_realizations(data, parse_lifting("poly:2", 2), [4], QuantizerSpec())
+
+
+def _accumulate(system: LTISystem) -> Callable[[], None]:
+    def run() -> None:
+        spec = QuantizerSpec()
         quantized_moments(prepare(simulate(system, 2, 5, seed=0), spec), [4], spec, np.random.default_rng(0))
+
+    return run
+
+
+def kernel_steps(systems: Iterable[LTISystem]) -> list[tuple[str, Callable[[], None]]]:
+    """The steps of :func:`compile_kernels` for ``systems``: ``(what, run)``, ``what`` in plain words."""
+    steps: list[tuple[str, Callable[[], None]]] = [("the box QP", _box_qp), ("the EDMD (Koopman) kernel", _edmd)]
+    for (p, n), system in one_per_size(systems).items():
+        m = p - n
+        steps.append((f"the quantizer for {n} states and {m} input{'s' * (m > 1)}", _accumulate(system)))
+    return steps
+
+
+def compile_kernels(systems: Iterable[LTISystem], progress: Progress | None = None) -> None:
+    """Compile (or load from the cache) the box QP, the EDMD kernel and the quantize-and-accumulate kernel for
+    every size among ``systems``, through the engine's own paths on tiny data. The compiled closed loop is
+    compiled by the first saturated loop (see :func:`qsid_core.control.run_closed_loops`). ``progress`` (see
+    :data:`Progress`) is told each step before it runs."""
+    if not kernels.AVAILABLE:
+        return
+    steps = kernel_steps(systems)
+    for i, (what, run) in enumerate(steps, 1):
+        if progress is not None:
+            progress(i, len(steps), what)
+        run()

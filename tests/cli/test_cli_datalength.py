@@ -62,3 +62,45 @@ def test_bad_input_one_line(capsys, extra, needle):
     code, out, err = _run(capsys, *ARGS, *extra)
     assert code == 2 and out == ""
     assert len(err.splitlines()) == 1 and err.startswith("qsid: error: ") and needle in err, err
+
+
+def test_the_settings_tables_options_and_seed(capsys):
+    """The study's options are the settings table's (its ``datalength`` column): the what-ifs reach the study and
+    its record, ``--seed`` gives both seeds unless one is typed."""
+    code, out, err = _run(
+        capsys,
+        *ARGS,
+        "--state-amplitude",
+        "2",
+        "--noise",
+        "0.01",
+        "--noise-known",
+        "--input-bits",
+        "exact",
+        "--seed",
+        "5",
+        "--dither-seed",
+        "8",
+        "--json",
+        "-q",
+    )
+    assert code == 0, err
+    c = json.loads(out)["config"]
+    assert (c["state_amplitude"], c["noise"], c["noise_known"], c["input_bits"]) == (2.0, [0.01], True, "exact")
+    assert (c["data_seed"], c["dither_seed"]) == (5, 8)
+    code, out, _ = _run(capsys, *ARGS, "--state-bits", "b,exact,b,b", "-q")  # boeing747: 4 states, 2 inputs
+    assert code == 0 and "state bits b,exact,b,b" in out.splitlines()[0]
+
+
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--input-bits", "4,4,4"], "input"),
+        (["--noise", "0.1,0.1"], "noise"),
+        (["--state-amplitude", "0"], "amplitude"),
+    ],
+)
+def test_a_what_if_that_does_not_fit_is_one_line(capsys, extra, needle):
+    code, out, err = _run(capsys, *ARGS, *extra)
+    assert code == 2 and out == ""
+    assert len(err.splitlines()) == 1 and err.startswith("qsid: error: ") and needle in err, err

@@ -50,6 +50,47 @@ def test_nonlinear_sweep_json_rows_carry_lifted_errors_prediction_and_loop_outco
     assert rows[1]["err_G"]["mean"] < rows[0]["err_G"]["mean"]  # more bits, closer to the unquantized EDMD
 
 
+def _columns(out: str) -> list[list[str]]:
+    """The table's lines split at its columns (found from the dashed rule under the header)."""
+    lines = out.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("-  --"))
+    spans, pos = [], 0
+    for dash in lines[k].split("  "):
+        spans.append((pos, pos + len(dash)))
+        pos += len(dash) + 2
+    body = [ln for ln in lines[k - 1 :] if ln[:1].isdigit() or ln.startswith("b ")]
+    assert all(len(ln) == len(lines[k]) for ln in body), "the rows are not as wide as the rule: columns drift"
+    assert all(ln[hi : hi + 2] in ("  ", "") for ln in body for _, hi in spans), "a cell runs into the next"
+    return [[ln[lo:hi].strip() for lo, hi in spans] for ln in body]
+
+
+@pytest.mark.parametrize(
+    "estimator, lifting, limit",
+    [("ls", "poly:3", None), ("bcls", "poly:3", "0 (= EDMD)"), ("ls", "rbf:6", "n/a")],
+)
+def test_nonlinear_sweep_table_is_aligned_and_says_n_a_where_no_limit_applies(capsys, estimator, lifting, limit):
+    """Walkthrough repro: drifting columns and a bare "0" for BCLS's large-data limit."""
+    code, out, err = _run(
+        capsys, "sweep", "--system", "van-der-pol", "--estimator", estimator, "--lifting", lifting, *SMALL
+    )
+    assert code == 0, err
+    cols = _columns(out)
+    assert cols[0][:3] == ["b", "err_G (vs unquantized EDMD)", "large-data limit"] and cols[0][-1] == "converged"
+    assert [c[0] for c in cols[1:]] == ["2", "4"] and all(c[-1] == "2/2" or c[-1].endswith("/2") for c in cols[1:])
+    cells = [c[2] for c in cols[1:]]
+    if limit is None:  # LS with a polynomial dictionary: the limit's number
+        assert all(float(c) > 0 for c in cells)
+    else:
+        assert cells == [limit, limit]
+    code, out, _ = _run(
+        capsys, "sweep", "--system", "van-der-pol", "--estimator", estimator, "--lifting", lifting, *SMALL, "--json"
+    )
+    lims = [r["large_data"]["err_G"] for r in _strict(out)["results"]]
+    # JSON: null where no limit applies, 0.0 where the limit is the unquantized EDMD itself
+    expected = {"n/a": [None, None], "0 (= EDMD)": [0.0, 0.0]}.get(limit)
+    assert lims == expected if expected is not None else all(v is not None and v > 0 for v in lims)
+
+
 def test_nonlinear_defaults_apply_where_no_option_is_typed():
     from app.cli.koopman import koopman_config
     from app.cli.main import build_parser
@@ -105,3 +146,18 @@ def test_bits_for_a_nonlinear_plant_gives_b_observed_only(capsys):
     ok = [f >= 0.5 for f in fr]
     want = next((d["rows"][i]["bits"] for i in range(len(ok)) if all(ok[i:])), None)
     assert d["b_observed"] == want
+
+
+def test_a_plant_file_whose_module_sits_beside_it_runs_without_pythonpath(capsys, tmp_path):
+    """Walkthrough repro: the module of a nonlinear plant file had to be on PYTHONPATH."""
+    folder = tmp_path / "my plants"
+    folder.mkdir()
+    (folder / "qsid_cli_beside_field.py").write_text(
+        "import numpy as np\n\n\ndef f(x, u):\n    return np.stack([x[:, 1], u[:, 0] - x[:, 0] - x[:, 1]], axis=1)\n"
+    )
+    plant = folder / "plant.toml"
+    plant.write_text('vector_field = "qsid_cli_beside_field:f"\nn = 2\nm = 1\nx0 = [1.0, 0.0]\n')
+    assert str(folder) not in sys.path and "qsid_cli_beside_field" not in sys.modules
+    code, out, err = _run(capsys, "sweep", "--system", str(plant), *SMALL, "--json")
+    assert code == 0, err
+    assert _strict(out)["system"] == "plant" and str(folder) not in sys.path

@@ -24,6 +24,10 @@ def test_reproduce_writes_the_nonlinear_figures_and_the_sweeps_rows(tmp_path, ca
     assert "free flow (u = 0)" in (out / "e_phase_b2.html").read_text()
     for name in want:  # every panel draws its title (plotly.js takes a title as {"text": ...} only)
         assert '"title":{"text":"(' in (out / f"{name}.html").read_text(), name
+    index = (out / "index.html").read_text()  # every panel drawn inline, as the linear page does
+    assert '<script src="plotly.min.js"></script>' in index and "Plotly.newPlot" in index
+    for name in want:
+        assert f'id="panel-{name}"' in index and f'<a href="{name}.html">' in index, name
     data = json.loads((out / "data.json").read_text())
     assert data["bits"] == [2, 3, 4, 6] and "do not apply" in data["certificates"]
     capsys.readouterr()

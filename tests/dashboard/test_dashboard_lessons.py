@@ -47,7 +47,7 @@ def test_every_lesson_is_short_and_its_settings_are_valid():
         assert 2 <= n <= 5, (les.name, n)
         v = lesson_values(les.name)
         sweep_config(v, resolve_system(v).system)  # the dashboard accepts it
-    with pytest.raises(KeyError, match="unknown lesson 'nope'; choose one of fig1"):
+    with pytest.raises(KeyError, match="unknown lesson 'nope'; choose one of start, fig1"):
         get_lesson("nope")
 
 
@@ -200,7 +200,7 @@ def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
         timeout=HANG_S,
     )
     assert out.returncode == 2 and out.stderr.strip().count("\n") == 0
-    assert "unknown lesson 'nope'; choose one of fig1" in out.stderr
+    assert "unknown lesson 'nope'; choose one of start, fig1" in out.stderr
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson="bound")
     try:
         t = Tab(app).wait()

@@ -147,7 +147,7 @@ def test_command_line_exports_and_settings_of_a_nonlinear_tab(tab, tmp_path, cap
     assert out["results"][0]["err_G"] == f.rows["BCLS"][3]["err_G"]
     assert out["results"][0]["prediction_error"] == f.rows["BCLS"][3]["prediction_error"]
     assert out["config"]["held_out"]["horizon"] == 7
-    assert tab.session.plots["koopman-prediction"].figure.layout.yaxis.title.text == "7-step prediction error"
+    assert tab.session.plots["koopman-prediction"].figure.layout.yaxis.title.text == "prediction error, steps 1..7"
     assert out["results"][0]["closed_loop_outcomes"] == f.rows["BCLS"][3]["closed_loop_outcomes"]
     csv_text = curves_csv(f)
     assert csv_text.splitlines()[0].startswith("estimator,bits,err_G_mean") and len(csv_text.splitlines()) == 33

@@ -14,14 +14,14 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _wsclient import WsTab  # noqa: E402
 
-import app.dashboard  # noqa: E402,F401  (installs the fix, as the server does)
-from app.dashboard.viserfix import LoopEvent  # noqa: E402
+from app.dashboard.viserfix import LoopEvent, thread_safe_buffers  # noqa: E402
 
 
 def test_twelve_tabs_drawing_at_once_never_raise_and_each_shows_its_last_text():
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     clients, tabs, errors = {}, [], []
     try:
+        assert thread_safe_buffers(server)  # as the dashboard's server, before any tab connects
         url = f"http://127.0.0.1:{server.get_port()}"
         tabs = [WsTab(url) for _ in range(12)]
         end = time.monotonic() + 30

@@ -208,3 +208,32 @@ def test_same_results_ignores_only_display_settings():
     assert not base.same_results(base.replace(data_seed=base.data_seed + 1))
     assert not base.same_results(base.replace(system="boeing-747"))
     assert "bits" in DISPLAY_ONLY and "data_seed" not in DISPLAY_ONLY
+
+
+def test_the_data_length_study_is_the_tabs_sweep_at_its_b_with_the_engines_key():
+    """Every panel setting the study shares with the sweep reaches it (amplitudes, noise, word length per channel,
+    seeds, quantizer), and its cache key is the engine's: a change of any of them is another study."""
+    from app.dashboard.background import MAX_REALIZATIONS, _key, datalength_config
+    from app.dashboard.settings import Values
+
+    base = Values(system="dc-motor", bits=6)
+    changed = dict(
+        input_amplitude=0.5,
+        state_amplitude=2.0,
+        noise="0.01",
+        noise_known=True,
+        input_bits="exact",
+        state_bits="b, 5, b",
+        data_seed=4,
+        dither_seed=5,
+        guard=False,
+    )
+    cfg = datalength_config(base)
+    assert cfg.bits == 6 and cfg.realizations == min(base.realizations, MAX_REALIZATIONS)
+    new = datalength_config(base.replace(**changed))
+    assert (new.input_amplitude, new.state_amplitude, new.noise, new.noise_known) == (0.5, 2.0, (0.01,), True)
+    assert (new.input_bits, new.state_bits, new.data_seed, new.dither_seed) == ("exact", ("b", 5, "b"), 4, 5)
+    assert new.quantizer.guard is False
+    for name, value in changed.items():
+        assert _key(datalength_config(base.replace(**{name: value}))) != _key(cfg), name
+    assert _key(datalength_config(Values(system="dc-motor", bits=6))) == _key(cfg)

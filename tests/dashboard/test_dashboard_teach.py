@@ -404,9 +404,9 @@ def test_auto_play_steps_b_from_1_one_drawn_frame_at_a_time_and_stops_at_a_user_
 def test_the_request_path_hook_reads_the_live_path_and_fails_loudly_without_it(dashboard):
     from types import SimpleNamespace
 
-    from app.dashboard.viserfix import check_request_hook, connection_request
+    from app.dashboard.viserfix import connection_request
 
-    check_request_hook(dashboard.server)  # this viser keeps the raw connections where the hook reads them
+    assert connection_request(dashboard.server, -1) is None  # this viser keeps the raw connections: no such tab
     t = Tab(dashboard, "/v/kqbxtr")
     try:
         path, host = connection_request(dashboard.server, t.session.client.client_id)
@@ -414,7 +414,7 @@ def test_the_request_path_hook_reads_the_live_path_and_fails_loudly_without_it(d
     finally:
         t.close()
     with pytest.raises(RuntimeError, match="viser internals changed"):
-        check_request_hook(SimpleNamespace(_websock_server=SimpleNamespace()))
+        connection_request(SimpleNamespace(_websock_server=SimpleNamespace()), 0)
 
 
 def test_the_teaching_page_lists_every_lesson_and_shows_committed_screenshots():

@@ -92,3 +92,43 @@ def test_chain_file_is_six_unit_masses_between_walls():
     s = load_system(DATA / "chain.toml")
     np.testing.assert_allclose(s.A, sysd.A, atol=1e-12)
     np.testing.assert_allclose(s.B, sysd.B, atol=1e-12)
+
+
+NONLINEAR_LINES = [
+    line.strip() for line in PAGE.splitlines() if "--system spring.toml" in line and "qsid sweep" in line
+]
+
+
+def test_the_nonlinear_plant_is_khalils_spring_and_loads_from_beside_its_file():
+    """spring.toml's module sits beside it (no PYTHONPATH); its field is Khalil's m y'' + c y' + k(1 + a²y²)y = u."""
+    import sys
+
+    from qsid_core.plant import load_nonlinear
+
+    assert ":files: spring.toml spring_field.py" in PAGE and len(NONLINEAR_LINES) == 2
+    before = list(sys.path)
+    s = load_nonlinear(DATA / "spring.toml")
+    assert sys.path == before and (s.n, s.m, s.dt, s.x0) == (2, 1, 0.05, (1.5, 0.0))
+    m, c, k, a = 1.0, 0.4, 1.0, 1.0
+    rng = np.random.default_rng(0)
+    x, u = rng.uniform(-2, 2, (50, 2)), rng.uniform(-1, 1, (50, 1))
+    want = np.stack([x[:, 1], (u[:, 0] - c * x[:, 1] - k * (1 + a**2 * x[:, 0] ** 2) * x[:, 0]) / m], axis=1)
+    np.testing.assert_allclose(s.xdot(x, u), want, rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_the_nonlinear_plants_sweeps_say_what_the_page_says(capsys):
+    """LS on its large-data limit up to b = 5 (within 5 %), BCLS's error several times lower at b = 2, 3."""
+    assert "on its large-data limit (the lifted Theorem 1: a bias) up\nto b = 5" in PAGE
+    res = {}
+    for line in NONLINEAR_LINES:
+        argv = [str(DATA / a) if a.endswith(".toml") else a for a in shlex.split(line)[1:]]
+        assert main([*argv, "--json"]) == 0
+        d = json.loads(capsys.readouterr().out)
+        res[d["config"]["estimator"]] = {r["bits"]: r for r in d["results"]}
+    for b, r in res["ls"].items():
+        if b > 5:
+            continue
+        assert r["err_G"]["mean"] == pytest.approx(r["large_data"]["err_G"], rel=0.05), b
+    for b in (2, 3):
+        assert res["bcls"][b]["err_G"]["mean"] < res["ls"][b]["err_G"]["mean"] / 4, b

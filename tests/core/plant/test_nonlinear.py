@@ -89,3 +89,58 @@ def test_a_plant_file_names_its_vector_field_as_module_function(monkeypatch):
         nonlinear_from_dict({"vector_field": "qsid_test_field:nothing", "n": 1, "m": 1})
     with pytest.raises(SystemDefinitionError, match="module:function"):
         nonlinear_from_dict({"vector_field": "nocolon", "n": 1, "m": 1})
+
+
+SPRING = """import numpy as np
+
+
+def field(x, u):
+    return np.stack([x[:, 1], u[:, 0] - 0.5 * x[:, 1] - x[:, 0] - x[:, 0] ** 3], axis=1)
+"""
+
+
+def _plant_beside(folder, module: str, ref: str | None = None):
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{module}.py").write_text(SPRING)
+    p = folder / "spring.toml"
+    p.write_text(f'vector_field = "{ref or module}:field"\nn = 2\nm = 1\nx0 = [1.0, 0.0]\n')
+    return p
+
+
+def test_a_plant_files_module_beside_it_loads_without_pythonpath_and_pickles_by_folder(tmp_path):
+    """The folder is searched for that import only (sys.path as before), and a worker process (a fresh
+    interpreter without the folder on its path) unpickles the field from the same folder."""
+    import pickle
+    import subprocess
+
+    from qsid_core.plant import load_nonlinear
+    from qsid_core.plant.field_import import FileField
+
+    p = _plant_beside(tmp_path / "plants", "qsid_beside_spring")
+    before = list(sys.path)
+    s = load_nonlinear(p)
+    assert sys.path == before and isinstance(s.vector_field, FileField)
+    x, u = np.array([[1.0, 2.0]]), np.array([[0.5]])
+    np.testing.assert_allclose(s.xdot(x, u), [[2.0, 0.5 - 1.0 - 1.0 - 1.0]])
+    blob = pickle.dumps(s)
+    code = (
+        "import pickle, sys, numpy as np; s = pickle.loads(sys.stdin.buffer.read()); "
+        "print(s.xdot(np.array([[1.0, 2.0]]), np.array([[0.5]])).tolist())"
+    )
+    out = subprocess.run([sys.executable, "-c", code], input=blob, capture_output=True, timeout=300, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr.decode()
+    assert out.stdout.decode().strip() == "[[2.0, -2.5]]"
+
+
+def test_a_module_beside_the_plant_never_hides_an_installed_one(tmp_path):
+    """A file beside the plant named as a module found elsewhere first (here the standard library's json) is
+    not imported: one line says which module hides it."""
+    from qsid_core.plant import load_nonlinear
+
+    p = _plant_beside(tmp_path, "json")
+    with pytest.raises(SystemDefinitionError, match="module 'json' beside the plant file is hidden by another"):
+        load_nonlinear(p)
+    q = tmp_path / "elsewhere.toml"  # a module neither beside the file nor installed: as before
+    q.write_text('vector_field = "qsid_no_such_module:field"\nn = 2\nm = 1\n')
+    with pytest.raises(SystemDefinitionError, match="cannot be loaded: ModuleNotFoundError"):
+        load_nonlinear(q)

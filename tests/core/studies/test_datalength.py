@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -110,3 +111,97 @@ def test_process_pool_executor():
         b = run_datalength(cfg, executor=pool, tasks=2)
     a = run_datalength(cfg, tasks=2)
     assert a.rows[0].bcls_A.mean == pytest.approx(b.rows[0].bcls_A.mean, rel=1e-12)
+
+
+SMALL = dict(system="dc-motor", bits=5, samples=(1000, 4000), realizations=2)
+
+
+def test_the_sweeps_what_ifs_reach_the_study():
+    """State amplitude, sensor noise (and BCLS told of it) and per-channel word lengths act as in a sweep."""
+    base = run_datalength(DataLengthConfig(**SMALL))
+    assert DataLengthConfig().what_ifs() == {} and "noise" not in base.to_dict()["config"]  # the record as before
+    amp = run_datalength(DataLengthConfig(**SMALL, state_amplitude=5.0))
+    assert amp.rows[0].ls_A.mean != base.rows[0].ls_A.mean and amp.eps[2] > 4 * base.eps[2]  # a wider range
+    exact = run_datalength(DataLengthConfig(**SMALL, input_bits="exact"))  # dc-motor: 3 states, 2 inputs
+    assert np.all(exact.eps[3:] == 0.0) and np.all(exact.eps[:3] == base.eps[:3])  # the inputs not quantized
+    assert exact.rows[-1].err_B_theory < base.rows[-1].err_B_theory
+    one = run_datalength(DataLengthConfig(**SMALL, state_bits=(3, "b", "exact")))
+    assert one.eps[2] == 0.0 and one.eps[0] > base.eps[0] and one.eps[1] == base.eps[1]
+    noisy = DataLengthConfig(**SMALL, noise=(0.0, 0.0, 0.5))  # on the third state, eps 0.07 without it
+    told = run_datalength(dataclasses.replace(noisy, noise_known=True))
+    untold = run_datalength(noisy)
+    assert untold.rows[-1].err_A_theory > 2 * base.rows[-1].err_A_theory  # Theorem 1's limit adds sigma^2
+    assert told.rows[-1].bcls_A.mean != untold.rows[-1].bcls_A.mean  # BCLS corrects the noise it is told of
+    assert told.rows[-1].ls_A.mean == untold.rows[-1].ls_A.mean  # LS does not hear of it
+    assert told.to_dict()["config"]["noise"] == [0.0, 0.0, 0.5] and told.to_dict()["config"]["noise_known"] is True
+
+
+@pytest.mark.parametrize("kw", [dict(input_bits=(4, 4, 4)), dict(state_bits=(4, 4)), dict(noise=(0.1, 0.1))])
+def test_a_what_if_of_the_wrong_size_is_one_error_before_any_work(kw):
+    with pytest.raises(ConfigError):
+        run_datalength(DataLengthConfig(**SMALL, **kw))
+
+
+def test_from_sweep_takes_every_field_the_configs_share():
+    from qsid_core import SweepConfig
+
+    shared = {f.name for f in dataclasses.fields(SweepConfig)} & {f.name for f in dataclasses.fields(DataLengthConfig)}
+    assert shared == {
+        "system",
+        "bits",
+        "realizations",
+        "quantizer",
+        "input_amplitude",
+        "data_seed",
+        "dither_seed",
+        "state_amplitude",
+        "noise",
+        "noise_known",
+        "input_bits",
+        "state_bits",
+    }
+    sweep = SweepConfig(
+        system="boeing747",
+        realizations=7,
+        quantizer=SHARED,
+        input_amplitude=0.5,
+        data_seed=3,
+        dither_seed=4,
+        state_amplitude=2.0,
+        noise=0.01,
+        noise_known=True,
+        input_bits="exact",
+        state_bits=("b", 6, "b", "b", "b"),
+    )
+    study = DataLengthConfig.from_sweep(sweep, bits=6)
+    assert study.bits == 6 and all(getattr(study, k) == getattr(sweep, k) for k in shared - {"bits"})
+
+
+def test_the_cache_key_is_generated_from_every_field():
+    from qsid_core import get_system
+    from qsid_core.studies import datalength_key
+
+    system = get_system("dc-motor")
+    base = DataLengthConfig(**SMALL)
+    changes = dict(
+        bits=6,
+        samples=(1000,),
+        realizations=3,
+        quantizer=QuantizerSpec(guard=False),
+        steps_per_run=500,
+        min_runs=5,
+        input_amplitude=0.5,
+        data_seed=9,
+        dither_seed=9,
+        state_amplitude=2.0,
+        noise=0.01,
+        noise_known=True,
+        input_bits="exact",
+        state_bits=(4,),
+    )
+    assert set(changes) == {f.name for f in dataclasses.fields(DataLengthConfig)} - {"system"}
+    key = datalength_key(base, system)
+    assert key == datalength_key(DataLengthConfig(**SMALL), system)
+    for name, value in changes.items():
+        assert datalength_key(dataclasses.replace(base, **{name: value}), system) != key, name
+    assert datalength_key(base, get_system("boeing747")) != key
