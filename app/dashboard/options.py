@@ -35,6 +35,16 @@ def check_lesson(name: str) -> str:
     return name
 
 
+#: The help of ``--port`` and ``--next-free-port``.
+PORT_HELP = (
+    "port 0-65535 (default 8080; 0: any free port); one that cannot be bound (in use, below 1024 without the "
+    "right) is one line and exit status 2"
+)
+NEXT_FREE_HELP = (
+    f"if --port is in use, take the next free one (up to {NEXT_FREE_TRIES} further; the URL printed says so)"
+)
+
+
 def parser() -> argparse.ArgumentParser:
     """The parser of ``qsid-dashboard`` (its errors are one line; see :class:`.netcheck.OneLineParser`)."""
     p = OneLineParser(
@@ -47,14 +57,9 @@ def parser() -> argparse.ArgumentParser:
         "--port",
         type=port_number,
         default=8080,
-        help="port 0-65535 (default 8080; 0: any free port); a port that cannot be bound (in use, below 1024 "
-        "without the right) is one line and exit status 2",
+        help=PORT_HELP,
     )
-    p.add_argument(
-        "--next-free-port",
-        action="store_true",
-        help=f"if --port is in use, take the next free one (up to {NEXT_FREE_TRIES} further; the URL printed says so)",
-    )
+    p.add_argument("--next-free-port", action="store_true", help=NEXT_FREE_HELP)
     p.add_argument(
         "--system",
         default="dc-motor",
