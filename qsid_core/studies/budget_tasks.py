@@ -1,0 +1,120 @@
+"""One realization of a budget study (:mod:`~qsid_core.studies.budget`) at every word length, linear or nonlinear.
+
+Each task is module level (picklable for process pools) and runs the sweep's own stages: for a linear plant an
+:class:`~qsid_core.studies.experiment.Experiment` per word length with the runs that word length buys, for a
+nonlinear one a :class:`~qsid_core.studies.koopman_stages.KoopmanExperiment` (and its Koopman MPC loops).
+A linear realization simulates its runs once, at the largest count any word length buys, and each word length
+uses the first runs of them (nested data, as ``qsid datalength`` does): every realization has its own data,
+sensor noise and dither, and within a realization the word lengths are compared on common data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from ..control import run_koopman_loops
+from ..identification.theorem1 import theorem1_prediction
+from ..plant.data import Dataset, simulate
+from ..plant.systems import get_system
+from ..quantization.quantize import ERROR_VARIANCE
+from .budget_model import lag_moment, predicted_error
+from .config import SweepConfig
+from .executors import single_threaded_blas
+from .experiment import Experiment
+from .koopman_stages import KoopmanExperiment
+from .koopman_sweep import KoopmanConfig
+
+__all__ = ["Plan", "linear_realization", "nonlinear_realization", "realization_seeds"]
+
+#: The word lengths a realization computes and the runs each buys: ``((b, runs), ...)``.
+Plan = tuple[tuple[int, int], ...]
+
+
+def realization_seeds(data_seed: int, dither_seed: int, r: int) -> tuple[int, int]:
+    """The data and dither seeds of realization ``r`` (drawn from ``(seed, r)``: independent streams)."""
+    ds = int(np.random.SeedSequence([data_seed, r]).generate_state(1)[0])
+    dt = int(np.random.SeedSequence([dither_seed, r]).generate_state(1)[0])
+    return ds, dt
+
+
+def _rel(M: np.ndarray, G: np.ndarray) -> float:
+    return float(np.linalg.norm(M - G) / np.linalg.norm(G))
+
+
+def _prefix(data: Dataset, runs: int) -> Dataset:
+    return Dataset(data.states[:runs], data.inputs[:runs], data.seed, data.input_amplitude)
+
+
+def linear_realization(study: SweepConfig, plan: Plan, r: int) -> list[dict[str, Any]]:
+    """Realization ``r`` of a linear budget study: per word length of ``plan`` its model, errors, Theorem 1's
+    LS limit and the predicted error (:func:`~qsid_core.studies.budget_model.predicted_error`)."""
+    system = get_system(study.system)
+    G = system.G
+    ds, dt = realization_seeds(study.data_seed, study.dither_seed, r)
+    out = []
+    with single_threaded_blas():
+        full = simulate(system, max(k for _, k in plan), study.steps, ds, study.input_amplitude, study.state_amplitude)
+        lag = lag_moment(full)
+        for b, runs in plan:
+            cfg = replace(study, bits=(b,), trajectories=runs, realizations=1, data_seed=ds, dither_seed=dt, mpc=None)
+            ex = Experiment(cfg)
+            ex.cache.store([(ex.keys.data(), _prefix(full, runs))])
+            ident = ex.identification(b)
+            A, B = ident.A_hat[0], ident.B_hat[0]
+            noise = ex.noise_variance()
+            q = cfg.quantizer
+            limit = theorem1_prediction(G, ex.Sigma, ident.eps, q.dither, noise)
+            row: dict[str, Any] = {
+                "bits": b,
+                "A": A,
+                "B": B,
+                "err_G": _rel(np.hstack([A, B]), G),
+                "err_A": float(ident.err_A[0]),
+                "err_B": float(ident.err_B[0]),
+                "theorem1_err_G": _rel(limit, G),
+                "overload": float(ident.overload[0]),
+                "fallback": bool(ident.fallback[0]),
+                "failed": bool(ident.failed[0]),
+                "notes": list(ident.notes),
+                "eps": ident.eps,
+                "range": (ex.prepared.lo, ex.prepared.hi),
+                "predicted": None,
+            }
+            if q.dither == "subtractive":
+                qv = ident.eps**2 * ERROR_VARIANCE["subtractive"]
+                corrected = (qv + (noise if cfg.noise_known else 0.0)) if cfg.estimator == "bcls" else 0.0 * qv
+                row["predicted"] = predicted_error(G, ex.Sigma, lag, qv, noise, corrected, runs * cfg.steps, cfg.steps)
+            out.append(row)
+    return out
+
+
+def nonlinear_realization(study: KoopmanConfig, plan: Plan, r: int) -> list[dict[str, Any]]:
+    """Realization ``r`` of a nonlinear budget study: per word length of ``plan`` the row of the nonlinear sweep
+    (errors against the EDMD of the same unquantized runs) and, with an MPC, its Koopman loop on the true plant."""
+    ds, dt = realization_seeds(study.data_seed, study.dither_seed, r)
+    out = []
+    with single_threaded_blas():
+        for b, runs in plan:
+            cfg = replace(study, bits=(b,), trajectories=runs, realizations=1, data_seed=ds, dither_seed=dt)
+            kx = KoopmanExperiment(cfg)
+            km = kx.models(b, cfg.estimator)
+            row: dict[str, Any] = {
+                "bits": b,
+                "err_G": km.row["err_G"]["mean"],
+                "err_A": km.row["err_A"]["mean"],
+                "err_B": km.row["err_B"]["mean"],
+                "overload": km.row["overload_fraction"],
+                "fallback": km.row["bcls_fallbacks"] > 0,
+                "failed": km.row["ident_failures"] > 0,
+                "notes": list(km.row["notes"]),
+                "eps": np.asarray(km.row["eps_x"] + km.row["eps_u"]),
+                "loop": None,
+            }
+            if cfg.mpc is not None:
+                loops = run_koopman_loops(list(km.models), kx.lifting, kx.system, cfg.mpc, cfg.radius)
+                row["loop"] = (loops.outcome[0], getattr(loops, "settled_offset", None))
+            out.append(row)
+    return out
