@@ -57,7 +57,7 @@ def _typed(args: argparse.Namespace) -> set[str]:
 #: The options a nonlinear run uses: the flags of the settings it honours (those with a ``nonlinear`` path in
 #: the settings table) and the run's own; any other typed option is refused rather than silently ignored.
 SUPPORTED = frozenset(f for s in nonlinear_settings() for f in s.flags) | frozenset(
-    "--bits --seed --no-mpc --json --out --quiet --target".split()
+    "--bits --seed --no-mpc --json --out --quiet --target --total-bits".split()
 )
 
 
