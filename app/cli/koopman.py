@@ -123,6 +123,14 @@ def _pm(s: dict[str, float]) -> str:
     return f"{g(s['mean'])} +/- {g(s['std'])}" if math.isfinite(s["mean"]) else "-"
 
 
+def _within(r: dict[str, Any]) -> str:
+    return "-" if r.get("within_radius") is None else f"{r['within_radius']}/{r['realizations']}"
+
+
+def _offset(s: dict[str, float] | None) -> str:
+    return "-" if not s else f"{g(s['median'])}/{g(s['max'])}"
+
+
 def format_koopman(d: dict[str, Any]) -> str:
     """The readable table of a nonlinear sweep dict."""
     c = d["config"]
@@ -130,7 +138,8 @@ def format_koopman(d: dict[str, Any]) -> str:
         f"{d['system']}: lifting {c['lifting']} ({c['features']} features), estimator {c['estimator']}, "
         f"{d['data']['runs_used']} runs x {c['steps']} steps, {c['realizations']} realizations, {c['dither']} dither"
         + (", guard band" if c["guard"] else ""),
-        "b  err_G (vs unquantized EDMD)  large-data limit  err_A            err_B            prediction err   converged",
+        "b  err_G (vs unquantized EDMD)  large-data limit  err_A            err_B            prediction err   converged"
+        "  within radius  settled offset med/max",
     ]
     for r in d["results"]:
         conv = (
@@ -140,12 +149,21 @@ def format_koopman(d: dict[str, Any]) -> str:
         lines.append(
             f"{r['bits']:<2} {_pm(r['err_G']):<28} {'-' if lim is None else g(lim):<17} "
             f"{_pm(r['err_A']):<16} {_pm(r['err_B']):<16} "
-            f"{_pm(r['prediction_error']):<16} {conv}"
+            f"{_pm(r['prediction_error']):<16} {conv:<9}  {_within(r):<13}  {_offset(r.get('settled_offset'))}"
         )
     ref = d["reference"]
     lines.append(
         f"unquantized EDMD: prediction error {g(ref['prediction_error'])}"
         + (f", Koopman MPC {ref['closed_loop_outcome']}" if ref["closed_loop_outcome"] else "")
+        + (
+            f", settled offset {g(ref['settled_offset'])} (what the dictionary alone leaves)"
+            if ref.get("settled_offset") is not None
+            else ""
+        )
+    )
+    lines.append(
+        "a loop converged when it settles (mean |x| over its last 10 % of steps) within 1e-6 |x0| of the origin, "
+        f"else it is bounded at that offset; within radius: |x_end| <= {g(c['convergence_radius'])}"
     )
     if d["data"]["left_box"]:
         lines.append(d["data"]["left_box"])

@@ -367,7 +367,8 @@ def _loop_part(config: BudgetConfig, ps: list[dict[str, Any]], lp: Any, true_cos
         extra: dict[str, Any] = {"cost_gap": gap}
     else:  # nonlinear: one Koopman loop per realization
         outcome = [p["loop"][0] for p in ps if p["loop"] is not None]
-        offs = np.asarray([p["loop"][1] for p in ps if p["loop"] is not None and p["loop"][1] is not None], float)
+        offs = np.asarray([p["loop"][1] for p in ps if p["loop"] is not None], float)
+        offs = offs[np.isfinite(offs)]
         gap = None
         extra = {
             "settled_offset": {"median": float(np.median(offs)), "max": float(np.max(offs))} if offs.size else None

@@ -115,6 +115,6 @@ def nonlinear_realization(study: KoopmanConfig, plan: Plan, r: int) -> list[dict
             }
             if cfg.mpc is not None:
                 loops = run_koopman_loops(list(km.models), kx.lifting, kx.system, cfg.mpc, cfg.radius)
-                row["loop"] = (loops.outcome[0], getattr(loops, "settled_offset", None))
+                row["loop"] = (loops.outcome[0], float(loops.settled_offset[0]))
             out.append(row)
     return out

@@ -18,9 +18,19 @@ pytestmark = pytest.mark.slow
 BASE = dict(trajectories=2000, steps=100, realizations=9, data_seed=0, dither_seed=1)
 
 
+_ROWS: dict = {}
+
+
+def _row(system: str, estimator: str, b: int) -> dict:
+    if (system, estimator, b) not in _ROWS:
+        r = run_koopman_sweep(KoopmanConfig(system=system, estimator=estimator, bits=(b,), **BASE))
+        _ROWS[system, estimator, b] = r.rows[0]
+    return _ROWS[system, estimator, b]
+
+
 def _converged(system: str, estimator: str, b: int) -> int:
-    r = run_koopman_sweep(KoopmanConfig(system=system, estimator=estimator, bits=(b,), **BASE))
-    return int(r.rows[0]["closed_loop_outcomes"]["converged"])
+    """Loops ending within the convergence radius (the issue's count; the verdict "converged" is stricter)."""
+    return int(_row(system, estimator, b)["within_radius"])
 
 
 def test_de_biased_edmd_is_tens_of_times_closer_to_the_unquantized_edmd_on_van_der_pol():
@@ -42,3 +52,14 @@ def test_koopman_mpc_from_ls_fails_where_the_de_biased_model_converges():
 
 def test_pendulum_at_two_bits_the_steady_biased_ls_converges_at_least_as_often_as_the_noisy_de_biased():
     assert _converged("pendulum", "ls", 2) >= _converged("pendulum", "bcls", 2)
+
+
+def test_pendulum_bcls_at_two_bits_settles_at_an_offset_bounded_not_converged():
+    # the CLI's defaults (20 realizations): qsid sweep --system pendulum --lifting poly:3 --estimator bcls --bits 2
+    cfg = KoopmanConfig(system="pendulum", estimator="bcls", bits=(2,), **{**BASE, "realizations": 20})
+    res = run_koopman_sweep(cfg)
+    row = res.rows[0]
+    assert row["closed_loop_outcomes"]["converged"] == 0 and row["closed_loop_outcomes"]["bounded"] >= 12
+    assert 0.045 <= row["settled_offset"]["median"] <= 0.065  # the issue: 0.05-0.06 (0.052 measured)
+    assert row["within_radius"] >= 12  # the old count (16 of 20 measured) is kept apart
+    assert res.reference_outcome == "bounded" and 0 < res.reference_offset < row["settled_offset"]["median"]
