@@ -31,7 +31,7 @@ import math
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -259,6 +259,8 @@ def run_budget(
     pool = executor or InlineExecutor()
     plan, skipped = config.plan()
     study = config.study
+    if isinstance(study, SweepConfig):  # the plant resolved once, not once per realization and word length
+        study = replace(study, system=get_system(study.system))
     name = config.shape()[0]
     if isinstance(study, KoopmanConfig):
         futs = [pool.submit(nonlinear_realization, study, plan, r) for r in range(study.realizations)]

@@ -5,7 +5,12 @@ Each task is module level (picklable for process pools) and runs the sweep's own
 nonlinear one a :class:`~qsid_core.studies.koopman_stages.KoopmanExperiment` (and its Koopman MPC loops).
 A linear realization simulates its runs once, at the largest count any word length buys, and each word length
 uses the first runs of them (nested data, as ``qsid datalength`` does): every realization has its own data,
-sensor noise and dither, and within a realization the word lengths are compared on common data.
+sensor noise and dither, and within a realization the word lengths are compared on common data. The quantizer's
+range is that of the realization's whole data set (per channel, or shared, as configured; a fixed range as
+given), as a sensor's range does not depend on how many samples are sent: so the recorded data are normalised
+once per realization, and each word length's :class:`~qsid_core.studies.experiment.Experiment` is handed its
+data and their normalised prefix, exactly what it would compute itself for that fixed range
+(``tests/core/studies/test_budget.py``).
 """
 
 from __future__ import annotations
@@ -17,9 +22,10 @@ import numpy as np
 
 from ..control import run_koopman_loops
 from ..identification.theorem1 import theorem1_prediction
-from ..plant.data import Dataset, simulate
+from ..plant.data import Dataset, simulate, with_sensor_noise
 from ..plant.systems import get_system
-from ..quantization.quantize import ERROR_VARIANCE
+from ..quantization.moments import exact_moments, prepare
+from ..quantization.quantize import ERROR_VARIANCE, QuantizerSpec, data_ranges
 from .budget_model import lag_moment, predicted_error
 from .config import SweepConfig
 from .executors import single_threaded_blas
@@ -27,7 +33,7 @@ from .experiment import Experiment
 from .koopman_stages import KoopmanExperiment
 from .koopman_sweep import KoopmanConfig
 
-__all__ = ["Plan", "linear_realization", "nonlinear_realization", "realization_seeds"]
+__all__ = ["Plan", "fixed_range", "linear_realization", "nonlinear_realization", "realization_seeds"]
 
 #: The word lengths a realization computes and the runs each buys: ``((b, runs), ...)``.
 Plan = tuple[tuple[int, int], ...]
@@ -48,6 +54,16 @@ def _prefix(data: Dataset, runs: int) -> Dataset:
     return Dataset(data.states[:runs], data.inputs[:runs], data.seed, data.input_amplitude)
 
 
+def fixed_range(recorded: Dataset, q: QuantizerSpec) -> QuantizerSpec:
+    """The quantizer ``q`` with its range fixed to that of the ``recorded`` data (a fixed range stays as given)."""
+    if q.range_mode == "fixed":
+        return q
+    lo, hi = data_ranges(recorded.states, recorded.inputs, q)
+    return QuantizerSpec(
+        dither=q.dither, range_mode="fixed", guard=q.guard, fixed_range=tuple(zip(lo.tolist(), hi.tolist()))
+    )
+
+
 def linear_realization(study: SweepConfig, plan: Plan, r: int) -> list[dict[str, Any]]:
     """Realization ``r`` of a linear budget study: per word length of ``plan`` its model, errors, Theorem 1's
     LS limit and the predicted error (:func:`~qsid_core.studies.budget_model.predicted_error`)."""
@@ -58,10 +74,19 @@ def linear_realization(study: SweepConfig, plan: Plan, r: int) -> list[dict[str,
     with single_threaded_blas():
         full = simulate(system, max(k for _, k in plan), study.steps, ds, study.input_amplitude, study.state_amplitude)
         lag = lag_moment(full)
+        rec = with_sensor_noise(full, study.noise, ds)  # the states as recorded
+        spec = fixed_range(rec, study.quantizer)
+        prep = prepare(rec, spec)
+        S1 = study.steps + 1
         for b, runs in plan:
-            cfg = replace(study, bits=(b,), trajectories=runs, realizations=1, data_seed=ds, dither_seed=dt, mpc=None)
+            cfg = replace(
+                study, quantizer=spec, bits=(b,), trajectories=runs, realizations=1, data_seed=ds, dither_seed=dt,
+                mpc=None,
+            )  # fmt: skip
             ex = Experiment(cfg)
-            ex.cache.store([(ex.keys.data(), _prefix(full, runs))])
+            data = _prefix(full, runs)
+            mine = replace(prep, yc=prep.yc[: runs * S1], trajectories=runs, exact=exact_moments(data))
+            ex.cache.store([(ex.keys.data(), data), (ex.keys.prepared(), mine)])
             ident = ex.identification(b)
             A, B = ident.A_hat[0], ident.B_hat[0]
             noise = ex.noise_variance()

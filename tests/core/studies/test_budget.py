@@ -142,3 +142,28 @@ def test_a_nonlinear_plant_goes_through_the_nonlinear_sweeps_stages():
     assert rows[6]["err_G"]["mean"] < rows[3]["err_G"]["mean"]
     assert "predicted_err_G" not in rows[3]  # Theorem 1's model is for linear plants
     assert sum(rows[3]["closed_loop_outcomes"].values()) == 2
+
+
+def test_a_realization_hands_each_experiment_what_it_would_compute_itself():
+    from qsid_core import Experiment, get_system, simulate
+    from qsid_core.plant.data import with_sensor_noise
+    from qsid_core.studies.budget_tasks import fixed_range, linear_realization, realization_seeds
+
+    study = replace(BOEING, system=get_system("boeing747"), noise=0.1, noise_known=True)
+    rows = linear_realization(study, ((2, 30), (8, 7)), 0)
+    ds, dt = realization_seeds(study.data_seed, study.dither_seed, 0)
+    full = simulate(study.system, 30, study.steps, ds)
+    spec = fixed_range(with_sensor_noise(full, study.noise, ds), study.quantizer)
+    for row, (b, runs) in zip(rows, ((2, 30), (8, 7))):
+        cfg = replace(study, quantizer=spec, bits=(b,), trajectories=runs, realizations=1, data_seed=ds, dither_seed=dt)
+        key = Experiment(cfg).keys.data()
+        ex = Experiment(cfg, cache={key: _first(full, runs)})  # the realization's first runs, nothing else
+        ident = ex.identification(b)  # the Experiment normalises its data and draws the noise itself
+        assert np.array_equal(ident.A_hat[0], row["A"]) and np.array_equal(ident.B_hat[0], row["B"])
+        assert np.array_equal(ident.eps, row["eps"])
+
+
+def _first(data, runs):
+    from qsid_core import Dataset
+
+    return Dataset(data.states[:runs], data.inputs[:runs], data.seed, data.input_amplitude)
