@@ -373,7 +373,8 @@ def _loop_part(config: BudgetConfig, ps: list[dict[str, Any]], lp: Any, true_cos
         offs = offs[np.isfinite(offs)]
         gap = None
         extra = {
-            "settled_offset": {"median": float(np.median(offs)), "max": float(np.max(offs))} if offs.size else None
+            "settled_offset": {"median": float(np.median(offs)), "max": float(np.max(offs))} if offs.size else None,
+            "within_radius": int(sum(p["loop"][2] for p in ps if p["loop"] is not None)),
         }
     counts = {k: outcome.count(k) for k in ("converged", "bounded", "diverged", "failed")}
     share = counts["converged"] / len(outcome) if outcome else None

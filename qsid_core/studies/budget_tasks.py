@@ -140,6 +140,6 @@ def nonlinear_realization(study: KoopmanConfig, plan: Plan, r: int) -> list[dict
             }
             if cfg.mpc is not None:
                 loops = run_koopman_loops(list(km.models), kx.lifting, kx.system, cfg.mpc, cfg.radius)
-                row["loop"] = (loops.outcome[0], float(loops.settled_offset[0]))
+                row["loop"] = (loops.outcome[0], float(loops.settled_offset[0]), bool(loops.within_radius[0]))
             out.append(row)
     return out

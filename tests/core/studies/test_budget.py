@@ -141,7 +141,8 @@ def test_a_nonlinear_plant_goes_through_the_nonlinear_sweeps_stages():
     assert rows[3]["trajectories"] == runs_bought(3e5, 50, 3, 3) == 666
     assert rows[6]["err_G"]["mean"] < rows[3]["err_G"]["mean"]
     assert "predicted_err_G" not in rows[3]  # Theorem 1's model is for linear plants
-    assert sum(rows[3]["closed_loop_outcomes"].values()) == 2
+    assert sum(rows[3]["closed_loop_outcomes"].values()) == 2 and 0 <= rows[3]["within_radius"] <= 2
+    assert rows[3]["settled_offset"] is None or rows[3]["settled_offset"]["median"] > 0
 
 
 def test_a_realization_hands_each_experiment_what_it_would_compute_itself():
