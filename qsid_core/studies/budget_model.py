@@ -27,21 +27,33 @@ from numpy.typing import NDArray
 
 from ..plant.data import Dataset
 
-__all__ = ["lag_moment", "predicted_error"]
+__all__ = ["lag_moment", "predicted_error", "prefix_moments"]
 
 #: Fourth moment of the uniform error U[-e/2, e/2] over its squared variance (e^4/80 over (e^2/12)^2).
 UNIFORM_KURTOSIS = 1.8
 
 
-def lag_moment(data: Dataset) -> NDArray[np.float64]:
-    """``E psi_{t+1} psi_t'`` of the unquantized data over consecutive samples within a run, shape (p, p)."""
+def prefix_moments(data: Dataset) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``(PP, XP, lag)``: ``PP[k-1]``, ``XP[k-1]`` the unquantized Gram matrices ``Psi Psi'`` and ``X+ Psi'`` of the
+    first ``k`` runs (shapes (runs, p, p) and (runs, n, p), each run's summed once), ``lag`` :func:`lag_moment`."""
     psi = np.concatenate([data.states[:, :-1, :], data.inputs], axis=2)  # (runs, S, p)
+    pp = np.cumsum(np.matmul(psi.transpose(0, 2, 1), psi), axis=0)
+    xp = np.cumsum(np.matmul(data.states[:, 1:, :].transpose(0, 2, 1), psi), axis=0)
+    return pp, xp, _lag(psi)
+
+
+def _lag(psi: NDArray[np.float64]) -> NDArray[np.float64]:
     a, b = psi[:, 1:, :], psi[:, :-1, :]
     pairs = a.shape[0] * a.shape[1]
     if pairs == 0:
         return np.zeros((psi.shape[2], psi.shape[2]))
     out: NDArray[np.float64] = np.tensordot(a, b, axes=([0, 1], [0, 1])) / pairs
     return out
+
+
+def lag_moment(data: Dataset) -> NDArray[np.float64]:
+    """``E psi_{t+1} psi_t'`` of the unquantized data over consecutive samples within a run, shape (p, p)."""
+    return _lag(np.concatenate([data.states[:, :-1, :], data.inputs], axis=2))
 
 
 def predicted_error(

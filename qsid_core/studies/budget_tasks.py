@@ -9,8 +9,8 @@ sensor noise and dither, and within a realization the word lengths are compared 
 range is that of the realization's whole data set (per channel, or shared, as configured; a fixed range as
 given), as a sensor's range does not depend on how many samples are sent: so the recorded data are normalised
 once per realization, and each word length's :class:`~qsid_core.studies.experiment.Experiment` is handed its
-data and their normalised prefix, exactly what it would compute itself for that fixed range
-(``tests/core/studies/test_budget.py``).
+data, their normalised prefix and their Gram matrices (summed run by run), what it would compute itself for that
+fixed range, the Gram matrices to rounding (``tests/core/studies/test_budget.py``).
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from ..control import run_koopman_loops
 from ..identification.theorem1 import theorem1_prediction
 from ..plant.data import Dataset, simulate, with_sensor_noise
 from ..plant.systems import get_system
-from ..quantization.moments import exact_moments, prepare
+from ..quantization.moments import Moments, prepare
 from ..quantization.quantize import ERROR_VARIANCE, QuantizerSpec, data_ranges
-from .budget_model import lag_moment, predicted_error
+from .budget_model import predicted_error, prefix_moments
 from .config import SweepConfig
 from .executors import single_threaded_blas
 from .experiment import Experiment
@@ -73,7 +73,7 @@ def linear_realization(study: SweepConfig, plan: Plan, r: int) -> list[dict[str,
     out = []
     with single_threaded_blas():
         full = simulate(system, max(k for _, k in plan), study.steps, ds, study.input_amplitude, study.state_amplitude)
-        lag = lag_moment(full)
+        pp, xp, lag = prefix_moments(full)  # the clean moments of every prefix of runs, summed once
         rec = with_sensor_noise(full, study.noise, ds)  # the states as recorded
         spec = fixed_range(rec, study.quantizer)
         prep = prepare(rec, spec)
@@ -85,7 +85,8 @@ def linear_realization(study: SweepConfig, plan: Plan, r: int) -> list[dict[str,
             )  # fmt: skip
             ex = Experiment(cfg)
             data = _prefix(full, runs)
-            mine = replace(prep, yc=prep.yc[: runs * S1], trajectories=runs, exact=exact_moments(data))
+            exact = Moments(PP=pp[runs - 1], XP=xp[runs - 1], T=runs * study.steps, eps=np.zeros(pp.shape[1]))
+            mine = replace(prep, yc=prep.yc[: runs * S1], trajectories=runs, exact=exact)
             ex.cache.store([(ex.keys.data(), data), (ex.keys.prepared(), mine)])
             ident = ex.identification(b)
             A, B = ident.A_hat[0], ident.B_hat[0]

@@ -146,7 +146,7 @@ def test_a_nonlinear_plant_goes_through_the_nonlinear_sweeps_stages():
 
 
 def test_a_realization_hands_each_experiment_what_it_would_compute_itself():
-    from qsid_core import Experiment, get_system, simulate
+    from qsid_core import Experiment, get_system, simulate, theorem1_prediction
     from qsid_core.plant.data import with_sensor_noise
     from qsid_core.studies.budget_tasks import fixed_range, linear_realization, realization_seeds
 
@@ -162,6 +162,9 @@ def test_a_realization_hands_each_experiment_what_it_would_compute_itself():
         ident = ex.identification(b)  # the Experiment normalises its data and draws the noise itself
         assert np.array_equal(ident.A_hat[0], row["A"]) and np.array_equal(ident.B_hat[0], row["B"])
         assert np.array_equal(ident.eps, row["eps"])
+        limit = theorem1_prediction(study.system.G, ex.Sigma, ident.eps, "subtractive", ex.noise_variance())
+        G = study.system.G
+        assert row["theorem1_err_G"] == pytest.approx(np.linalg.norm(limit - G) / np.linalg.norm(G), rel=1e-9)
 
 
 def _first(data, runs):
