@@ -31,7 +31,7 @@ from qsid_core import SweepConfig, get_system, run_sweep  # noqa: E402
 from qsid_core.studies import BudgetConfig, run_budget, runs_bought  # noqa: E402
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--system", default="boeing747")
     p.add_argument("--total-bits", type=float, default=4e6)
@@ -41,7 +41,7 @@ def main() -> None:
     p.add_argument("--no-mpc", action="store_true")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--quick", action="store_true", help="1e5 bits, 4 word lengths, 3 realizations")
-    a = p.parse_args()
+    a = p.parse_args(argv)
     if a.quick:
         a.total_bits, a.bits, a.realizations = 1e5, "2,4,8,16", 3
     study = SweepConfig(
@@ -76,14 +76,15 @@ def main() -> None:
         "realizations": a.realizations,
         "mpc": not a.no_mpc,
         "largest_runs": largest,
-        "budget_s": round(t_budget, 2),
-        "sweep_s": round(t_sweep, 2),
+        "budget_s": round(t_budget, 4),
+        "sweep_s": round(t_sweep, 4),
         "ratio": round(t_budget / t_sweep, 3),
         "b_best": d["b_best"],
         "b_knee": d["b_knee"],
     }
     print("RESULT " + json.dumps(result))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
