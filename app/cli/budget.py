@@ -96,7 +96,8 @@ def format_budget(d: dict[str, Any]) -> str:
     loops = c["mpc"]
     head = ["b", "runs", "samples", "err_G mean +/- std"]
     head += ["predicted", "Thm 1 (LS limit)"] if linear else []
-    head += ["stabilized", "cost gap", "conv/bound/div/fail"] + ([] if linear else ["settled offset med/max"])
+    head += ["stabilized", "cost gap"] if linear else ["stabilized"]
+    head += ["conv/bound/div/fail"] + ([] if linear else ["within radius", "settled offset med/max"])
     head = head if loops else head[: 6 if linear else 4]
     rows = []
     for r in d["rows"]:
@@ -108,8 +109,13 @@ def format_budget(d: dict[str, Any]) -> str:
         if linear:
             cells += [g(r.get("predicted_err_G"), ".2e"), g(r.get("theorem1_err_G"), ".2e")]
         if loops:
-            lp = _loops(r)
-            cells += lp[:3] + ([] if linear else lp[3:])
+            share, gap, oc, off = _loops(r)
+            within = (
+                "-"
+                if r.get("within_radius") is None
+                else f"{r['within_radius']}/{sum(r['closed_loop_outcomes'].values())}"
+            )
+            cells += [share, gap, oc] if linear else [share, oc, within, off]
         rows.append(cells)
     widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
 

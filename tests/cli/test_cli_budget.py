@@ -130,3 +130,16 @@ def test_bad_input_is_one_line(capsys, argv, message):
     code, out, err = _run(capsys, "budget", "--system", "boeing747", *argv)
     assert code == 2 and out == ""
     assert err.startswith("qsid: error: ") and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_nonlinear_plant_shows_its_loops_settled_offsets(capsys):
+    code, out, err = _run(
+        capsys, "budget", "--system", "pendulum", "--lifting", "poly:3", "--estimator", "bcls", "--total-bits", "3e5",
+        "--steps", "50", "--bits", "2,6", "--realizations", "2", "--mpc-steps", "60", "-q",
+    )  # fmt: skip
+    assert code == 0, err
+    head = out.splitlines()[1]
+    assert "within radius" in head and "settled offset med/max" in head and "cost gap" not in head
+    assert "lifting poly:3" in out.splitlines()[0] and "predicted" not in head
+    rows = out.splitlines()[3:5]
+    assert [r.split()[:2] for r in rows] == [["2", "1000"], ["6", "333"]]
