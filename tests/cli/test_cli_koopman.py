@@ -89,8 +89,11 @@ def test_nonlinear_sweep_table_is_aligned_and_says_n_a_where_no_limit_applies(ca
     )
     assert code == 0, err
     cols = _columns(out)
-    assert cols[0][:3] == ["b", "err_G (vs unquantized EDMD)", "large-data limit"] and cols[0][-1] == "converged"
-    assert [c[0] for c in cols[1:]] == ["2", "4"] and all(c[-1] == "2/2" or c[-1].endswith("/2") for c in cols[1:])
+    assert cols[0][:3] == ["b", "err_G (vs unquantized EDMD)", "large-data limit"]
+    assert cols[0][-3:] == ["converged", "within radius", "settled offset med/max"]
+    assert [c[0] for c in cols[1:]] == ["2", "4"] and all(
+        c[-3].endswith("/2") and c[-2].endswith("/2") for c in cols[1:]
+    )
     cells = [c[2] for c in cols[1:]]
     if limit is None:  # LS with a polynomial dictionary: the limit's number
         assert all(float(c) > 0 for c in cells)
