@@ -57,7 +57,7 @@ def _typed(args: argparse.Namespace) -> set[str]:
 #: The options a nonlinear run uses: the flags of the settings it honours (those with a ``nonlinear`` path in
 #: the settings table) and the run's own; any other typed option is refused rather than silently ignored.
 SUPPORTED = frozenset(f for s in nonlinear_settings() for f in s.flags) | frozenset(
-    "--bits --seed --no-mpc --json --out --quiet --target".split()
+    "--bits --seed --no-mpc --json --out --quiet --target --total-bits".split()
 )
 
 
@@ -139,7 +139,17 @@ KOOPMAN_HEAD = (
     "err_B",
     "prediction err",
     "converged",
+    "within radius",
+    "settled offset med/max",
 )
+
+
+def _within(r: dict[str, Any]) -> str:
+    return "-" if r.get("within_radius") is None else f"{r['within_radius']}/{r['realizations']}"
+
+
+def _offset(s: dict[str, float] | None) -> str:
+    return "-" if not s else f"{g(s['median'])}/{g(s['max'])}"
 
 
 def format_koopman(d: dict[str, Any]) -> str:
@@ -156,6 +166,8 @@ def format_koopman(d: dict[str, Any]) -> str:
             "-"
             if r["stabilized_fraction"] is None
             else f"{r['closed_loop_outcomes']['converged']}/{r['realizations']}",
+            _within(r),
+            _offset(r.get("settled_offset")),
         ]
         for r in d["results"]
     ]
@@ -169,6 +181,15 @@ def format_koopman(d: dict[str, Any]) -> str:
     lines.append(
         f"unquantized EDMD: prediction error {g(ref['prediction_error'])}"
         + (f", Koopman MPC {ref['closed_loop_outcome']}" if ref["closed_loop_outcome"] else "")
+        + (
+            f", settled offset {g(ref['settled_offset'])} (what the dictionary alone leaves)"
+            if ref.get("settled_offset") is not None
+            else ""
+        )
+    )
+    lines.append(
+        "a loop converged when it settles (mean |x| over its last 10 % of steps) within 1e-6 |x0| of the origin, "
+        f"else it is bounded at that offset; within radius: |x_end| <= {g(c['convergence_radius'])}"
     )
     if d["data"]["left_box"]:
         lines.append(d["data"]["left_box"])

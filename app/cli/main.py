@@ -19,7 +19,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 from app.stop import STOPPED, stop_signal
 
-from . import bits, datalength, identify, parser, reproduce, sweep, systems
+from . import bits, budget, datalength, identify, parser, reproduce, sweep, systems
 from .runner import Reporter, UsageError, one_line
 
 __all__ = ["COMMANDS", "build_parser", "main"]
@@ -29,6 +29,7 @@ COMMANDS = {
     "systems": systems,
     "sweep": sweep,
     "bits": bits,
+    "budget": budget,
     "reproduce": reproduce,
     "datalength": datalength,
     "identify": identify,

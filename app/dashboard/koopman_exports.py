@@ -36,6 +36,9 @@ _COLUMNS = (
     "bounded",
     "diverged",
     "failed",
+    "within_radius",
+    "settled_offset_median",
+    "settled_offset_max",
 )
 
 
@@ -58,6 +61,12 @@ def koopman_rows(frame: Any) -> list[dict[str, Any]]:
             for k in ("overload_fraction", "bcls_fallbacks", "ident_failures", "stabilized_fraction"):
                 row[k] = r.get(k)
             row.update({k: oc.get(k) for k in ("converged", "bounded", "diverged", "failed")})
+            off = r.get("settled_offset") or {}
+            row.update(
+                within_radius=r.get("within_radius"),
+                settled_offset_median=off.get("median"),
+                settled_offset_max=off.get("max"),
+            )
             out.append(row)
     return out
 
@@ -84,9 +93,17 @@ def koopman_json_data(frame: Any) -> dict[str, Any]:
         "reference": {
             "prediction_error": frame.reference_error,
             "closed_loop_outcome": frame.reference_loop.outcome[0] if frame.reference_loop is not None else None,
+            "settled_offset": _offset(frame.reference_loop),
         },
         "curves": {lab: [frame.rows[lab][b] for b in sorted(frame.rows[lab])] for lab in frame.labels},
     }
+
+
+def _offset(loop: Any) -> float | None:
+    """The settled offset of the unquantized EDMD's loop (None: no loop, or it diverged or failed)."""
+    if loop is None or not len(loop.settled_offset) or not math.isfinite(float(loop.settled_offset[0])):
+        return None
+    return float(loop.settled_offset[0])
 
 
 def koopman_caption(frame: Any) -> str:

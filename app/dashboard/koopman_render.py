@@ -64,11 +64,20 @@ def koopman_summary(frame: Any) -> str:
     for lab in frame.labels:
         r = frame.rows[lab].get(b, {})
         oc = r.get("closed_loop_outcomes")
-        loops = f", MPC converged {oc['converged']}/{r['realizations']}" if oc else ""
+        off = r.get("settled_offset")
+        loops = (
+            f", MPC converged {oc['converged']}/{r['realizations']}, within radius {r.get('within_radius')}"
+            + (f", settled offset median {off['median']:.2g}" if off else "")
+            if oc
+            else ""
+        )
         parts.append(f"{lab} {_pm(r.get('err_G'))}{loops}")
     lines.append(f"At b = {b}, error of [A_z, B_z] vs the unquantized EDMD: " + "; ".join(parts) + ".")
     if frame.reference_loop is not None:
-        lines.append(f"The unquantized EDMD's Koopman MPC: {frame.reference_loop.outcome[0]}.")
+        ref = frame.reference_loop
+        off = float(ref.settled_offset[0]) if len(ref.settled_offset) else float("nan")
+        settled = f", settled offset {off:.2g} (what the dictionary alone leaves)" if off == off else ""
+        lines.append(f"The unquantized EDMD's Koopman MPC: {ref.outcome[0]}{settled}.")
     lines.append(bcls_exactness(v))
     if "LS" in frame.labels:  # what the error plot draws, in the plot's own words
         note = limit_note(frame.series(), bool(v.guard))

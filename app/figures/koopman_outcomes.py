@@ -1,5 +1,6 @@
 """View (nonlinear plants): the Koopman MPC's outcomes on the true plant per word length, per estimator: the
-shares of loops that converged, stayed bounded, diverged or failed (observed, not certified)."""
+shares of loops that converged (settled at the origin), stayed bounded (within the convergence radius at the end, or
+beyond it), diverged or failed (observed, not certified)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,25 @@ from .raw import figure
 from .traces import mark_bits
 from .view import CURVES, View
 
-__all__ = ["VIEW", "OUTCOME_COLORS", "outcomes_figure"]
+__all__ = ["VIEW", "OUTCOME_COLORS", "SEGMENTS", "outcomes_figure"]
 
 #: Colour of each outcome (converged green, bounded amber, diverged red, failed grey).
 OUTCOME_COLORS = {"converged": "#2ca02c", "bounded": "#ffbf00", "diverged": "#d62728", "failed": "#7f7f7f"}
+#: The bars' segments: the outcomes, the bounded loops split by whether they end within the convergence radius.
+SEGMENTS = {
+    "converged": OUTCOME_COLORS["converged"],
+    "bounded, within radius": "#a6d96a",
+    "bounded": OUTCOME_COLORS["bounded"],
+    "diverged": OUTCOME_COLORS["diverged"],
+    "failed": OUTCOME_COLORS["failed"],
+}
+
+
+def _counts(r: dict[str, Any]) -> dict[str, int]:
+    """A row's loops per segment (a row without ``within_radius`` has no "bounded, within radius" part)."""
+    oc = dict(r["closed_loop_outcomes"])
+    near = max(0, min(oc["bounded"], int(r.get("within_radius") or 0) - oc["converged"]))
+    return {**oc, "bounded, within radius": near, "bounded": oc["bounded"] - near}
 
 
 def outcomes_figure(rows: dict[str, list[dict[str, Any]]], bits: int | None, height: int = 300) -> go.Figure:
@@ -25,8 +41,9 @@ def outcomes_figure(rows: dict[str, list[dict[str, Any]]], bits: int | None, hei
     for i, lab in enumerate(labels):
         done = [r for r in rows[lab] if r.get("closed_loop_outcomes")]
         xs = [r["bits"] - 0.4 + width * (i + 0.5) for r in done]
-        for k, col in OUTCOME_COLORS.items():
-            ys = [r["closed_loop_outcomes"][k] / max(r["realizations"], 1) for r in done]
+        counts = [_counts(r) for r in done]
+        for k, col in SEGMENTS.items():
+            ys = [c[k] / max(r["realizations"], 1) for c, r in zip(counts, done)]
             data.append(
                 dict(
                     type="bar",

@@ -162,6 +162,9 @@ class Setting:
     datalength : str or None
         Where the value goes in a data-length study: a dotted path into :class:`~qsid_core.DataLengthConfig`
         (``qsid datalength`` has the flag of each such setting, its default ``DataLengthConfig()``'s).
+    budget : str or None
+        Where the value goes in a budget study: a dotted path into :class:`~qsid_core.studies.BudgetConfig`
+        (its own fields; the study it wraps takes the sweep's or the nonlinear plant's settings).
     display : bool
         True if the setting only changes what is drawn from results already computed.
     panel_default : value or None
@@ -194,6 +197,7 @@ class Setting:
     engine: str | None = None
     nonlinear: str | None = None
     datalength: str | None = None
+    budget: str | None = None
     display: bool = False
     panel_default: Any = None
     values: bool = True

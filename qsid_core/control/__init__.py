@@ -10,7 +10,14 @@ from .condensed_qp import CondensedQP, DaqpMPC, condense
 from .controllability import controllability_margin, data_rate_bits
 from .controller import MPCController
 from .controllers import build_controllers
-from .koopman_mpc import CONVERGED_RADIUS, KoopmanLoops, LiftedModel, run_koopman_loops
+from .koopman_mpc import (
+    CONVERGED_RADIUS,
+    SETTLED_SHARE,
+    SETTLED_TOLERANCE,
+    KoopmanLoops,
+    LiftedModel,
+    run_koopman_loops,
+)
 from .loop_kernel import PDAS_ITERS, eligible, run_compiled
 from .loop_noise import DISTURBANCES, LoopNoise, loop_noise
 from .loop_results import ClosedLoops
@@ -53,6 +60,8 @@ __all__ = [
     "PDAS_ITERS",
     "Preview",
     "RealizedBounds",
+    "SETTLED_SHARE",
+    "SETTLED_TOLERANCE",
     "SOLVERS",
     "STALL",
     "TRACKING",

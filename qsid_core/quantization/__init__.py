@@ -4,7 +4,7 @@ Every public name of this subpackage is listed in ``__all__``; import from here,
 
 from __future__ import annotations
 
-from .moments import CHUNK_ROWS, ENGINES, Moments, PreparedData, prepare, quantized_moments
+from .moments import CHUNK_ROWS, ENGINES, Moments, PreparedData, exact_moments, prepare, quantized_moments
 from .quantize import (
     DITHERS,
     ERROR_VARIANCE,
@@ -50,6 +50,7 @@ __all__ = [
     "draw_dither_units",
     "draw_unit_dither",
     "effective_ranges",
+    "exact_moments",
     "guard_cells",
     "prepare",
     "quantize",

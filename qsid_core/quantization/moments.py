@@ -38,7 +38,7 @@ from .quantize import (
     guard_cells,
 )
 
-__all__ = ["Moments", "PreparedData", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
+__all__ = ["Moments", "PreparedData", "exact_moments", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
 
 #: Rows (samples) per chunk; 16384 x 5 doubles = 640 kB: cache-sized, few numpy calls.
 CHUNK_ROWS = 16384
@@ -110,7 +110,8 @@ class PreparedData:
         return self.trajectories * self.steps
 
 
-def _exact_moments(data: Dataset) -> Moments:
+def exact_moments(data: Dataset) -> Moments:
+    """The Gram matrices of the unquantized data (``PreparedData.exact``), without normalising the data."""
     Psi, Xp = data.matrices()
     return Moments(PP=Psi @ Psi.T, XP=Xp @ Psi.T, T=Psi.shape[1], eps=np.zeros(Psi.shape[0]))
 
@@ -126,7 +127,7 @@ def prepare(data: Dataset, spec: QuantizerSpec) -> PreparedData:
     mid = (lo + hi) / 2
     rows[:, S, n:] = mid[n:]
     yc = ((rows - mid) / (hi - lo)).reshape(J * (S + 1), n + m)
-    return PreparedData(yc=yc, lo=lo, hi=hi, n=n, m=m, trajectories=J, steps=S, exact=_exact_moments(data))
+    return PreparedData(yc=yc, lo=lo, hi=hi, n=n, m=m, trajectories=J, steps=S, exact=exact_moments(data))
 
 
 #: implementations of :func:`quantized_moments`

@@ -376,10 +376,10 @@ def data_ranges(states: np.ndarray, inputs: np.ndarray, spec: QuantizerSpec) -> 
                 f"fixed_range has {fr.shape[0]} pairs; give one pair or one per channel ({n} states + {m} inputs)"
             )
         return fr[:, 0].copy(), fr[:, 1].copy()
-    s2 = states.reshape(-1, n)
-    u2 = inputs.reshape(-1, m)
-    lo = np.concatenate([s2.min(axis=0), u2.min(axis=0)])
-    hi = np.concatenate([s2.max(axis=0), u2.max(axis=0)])
+    # one column at a time: a strided 1-D reduction is several times faster than reducing a tall array along axis 0
+    cols = [c[:, i] for c in (states.reshape(-1, n), inputs.reshape(-1, m)) for i in range(c.shape[1])]
+    lo = np.array([c.min() for c in cols], dtype=float)
+    hi = np.array([c.max() for c in cols], dtype=float)
     if spec.range_mode == "shared":
         lo = np.full(n + m, lo.min())
         hi = np.full(n + m, hi.max())

@@ -26,6 +26,7 @@ from .bits_certificate import (
     realized_small_gain,
 )
 from .bits_cost import LOOP_COST_TOLERANCE, LOOP_TIME_CONSTANTS, loop_length
+from .budget import KNEE_TOLERANCE, BudgetConfig, BudgetResult, run_budget, runs_bought
 from .cache_keys import KEY_PARTS, NOT_IN_KEYS, STAGE_GROUPS, config_paths, group_values, stage_key, system_key
 from .clipping import clipping_effect
 from .config import SweepConfig, parse_bits, parse_input_bits, parse_noise, parse_state_bits
@@ -82,6 +83,8 @@ __all__ = [
     "BitsAnswer",
     "BitsIdentification",
     "BitsRow",
+    "BudgetConfig",
+    "BudgetResult",
     "CERTIFY_TOLERANCE",
     "COLUMNS",
     "COMPILED_KERNELS",
@@ -95,6 +98,7 @@ __all__ = [
     "Flights",
     "InlineExecutor",
     "KEY_PARTS",
+    "KNEE_TOLERANCE",
     "KOOPMAN_KEY_PARTS",
     "KOOPMAN_MPC",
     "KOOPMAN_MPC_UNUSED",
@@ -162,10 +166,12 @@ __all__ = [
     "realization_records",
     "realized_small_gain",
     "replace_atomically",
+    "run_budget",
     "run_datalength",
     "run_koopman_sweep",
     "run_sweep",
     "runs_and_steps",
+    "runs_bought",
     "single_threaded_blas",
     "stage_key",
     "summarize",

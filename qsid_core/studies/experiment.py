@@ -34,7 +34,7 @@ from ..errors import ConfigError, check_choice, check_int
 from ..identification.identify import ESTIMATORS
 from ..plant.data import Dataset, simulate, with_sensor_noise
 from ..plant.systems import get_system
-from ..quantization.moments import Moments, PreparedData, prepare
+from ..quantization.moments import Moments, PreparedData, exact_moments, prepare
 from .config import SweepConfig, parse_bits
 from .config_checks import check_run_args
 from .executors import InlineExecutor
@@ -133,7 +133,7 @@ class Experiment:
         if any(v > 0 for v in c.noise):
             self.noise_variance()  # wrong number of values: one clear error
             rec = with_sensor_noise(self.data, c.noise, c.data_seed)
-            return replace(prepare(rec, c.quantizer), exact=prepare(self.data, c.quantizer).exact)
+            return replace(prepare(rec, c.quantizer), exact=exact_moments(self.data))
         return prepare(self.data, c.quantizer)
 
     @property

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ..control import MPCConfig, run_koopman_loops
+from ..control import KoopmanLoops, MPCConfig, run_koopman_loops
 from ..errors import ConfigError, IdentificationError, MPCFailure
 from ..identification import (
     KoopmanModel,
@@ -23,7 +23,7 @@ from ..identification import (
 from ..plant import NonlinearDataset, NonlinearSystem
 from ..quantization import QuantizerSpec
 
-__all__ = ["ACC_KEYS", "large_data_entry", "no_exact_correction", "predict", "record", "row"]
+__all__ = ["ACC_KEYS", "large_data_entry", "loop_entries", "no_exact_correction", "predict", "record", "row"]
 
 #: What :func:`record` and :func:`predict` collect per word length, one entry per realization.
 ACC_KEYS = ("G", "A", "B", "pred", "fallback", "notes", "models", "over", "eps")
@@ -111,6 +111,8 @@ def row(
         "realizations": len(acc["models"]),
         "stabilized_fraction": None,
         "closed_loop_outcomes": None,
+        "within_radius": None,
+        "settled_offset": None,
         "notes": sorted(set(acc["notes"])),
     }
     if mpc is not None:
@@ -118,9 +120,19 @@ def row(
             loops = run_koopman_loops(acc["models"], lifting, system, mpc, radius)
         except MPCFailure as exc:  # pragma: no cover - run_koopman_loops records failures per loop
             raise ConfigError(str(exc)) from None
-        row["stabilized_fraction"] = loops.converged_fraction
-        row["closed_loop_outcomes"] = loops.counts()
+        row.update(loop_entries(loops))
     return row
+
+
+def loop_entries(loops: KoopmanLoops) -> dict[str, Any]:
+    """A row's loop entries: the stabilized (converged) share, the outcome counts, how many ended within the
+    convergence radius and the settled offsets' median and max (:class:`~qsid_core.control.KoopmanLoops`)."""
+    return {
+        "stabilized_fraction": loops.converged_fraction,
+        "closed_loop_outcomes": loops.counts(),
+        "within_radius": int(np.sum(loops.within_radius)),
+        "settled_offset": loops.offset_stats(),
+    }
 
 
 def no_exact_correction(lifting: Lifting, spec: QuantizerSpec) -> str:

@@ -36,7 +36,7 @@ from ..identification import (
 from ..plant import NonlinearDataset, NonlinearSystem, simulate_nonlinear
 from .flights import memo_joined
 from .koopman_keys import koopman_stage_key
-from .koopman_rows import ACC_KEYS, large_data_entry, no_exact_correction, predict, record, row
+from .koopman_rows import ACC_KEYS, large_data_entry, loop_entries, no_exact_correction, predict, record, row
 from .koopman_sweep import KoopmanConfig, held_out_runs
 
 __all__ = ["FREE_FLOW_GRID", "KoopmanExperiment", "KoopmanModels"]
@@ -226,8 +226,7 @@ class KoopmanExperiment:
         row = dict(self.models(b, estimator).row)
         loops = self.loops(b, estimator, executor)
         if loops is not None:
-            row["stabilized_fraction"] = loops.converged_fraction
-            row["closed_loop_outcomes"] = loops.counts()
+            row.update(loop_entries(loops))
         return row
 
     def free_flow(self, steps: int | None = None, grid: int = FREE_FLOW_GRID) -> np.ndarray:

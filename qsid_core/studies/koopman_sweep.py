@@ -183,13 +183,16 @@ class KoopmanResult:
     rows : list of dict
         Per b (JSON-ready): ``bits``, ``eps_x``, ``eps_u``, ``err_G`` / ``err_A`` / ``err_B`` and
         ``prediction_error`` as ``{mean, std}``, ``overload_fraction``, ``bcls_fallbacks``,
-        ``ident_failures``, ``stabilized_fraction`` and ``closed_loop_outcomes`` (None without loops),
+        ``ident_failures``, ``stabilized_fraction``, ``closed_loop_outcomes``, ``within_radius`` (loops ending within ``radius``) and
+        ``settled_offset`` ({median, max}) (None without loops),
         ``large_data`` (the estimator's large-data limit: ``err_G`` against the unquantized EDMD, None with a
         ``note`` where no exact formula exists), ``notes``.
     reference_prediction_error : float
         The unquantized EDMD's prediction error (the floor the quantized models approach).
     reference_outcome : str or None
         The unquantized EDMD's Koopman MPC verdict.
+    reference_offset : float or None
+        Its loop's settled offset: what the dictionary alone leaves (NaN: the loop diverged or failed).
     data_report : str
         Runs left out of the training data ("" when none).
     timing_s : float
@@ -203,6 +206,7 @@ class KoopmanResult:
     features: int
     runs_used: int
     timing_s: float = 0.0
+    reference_offset: float | None = None
 
     def _mpc(self, s: NonlinearSystem) -> dict[str, Any]:
         """The loops' settings as run (the plant's defaults where the config leaves them unset)."""
@@ -252,6 +256,7 @@ class KoopmanResult:
             "reference": {
                 "prediction_error": self.reference_prediction_error,
                 "closed_loop_outcome": self.reference_outcome,
+                "settled_offset": self.reference_offset,
             },
             "results": self.rows,
             "timing_s": {"total": self.timing_s},
@@ -284,7 +289,7 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
             f"({lifting.L} features + {system.m} inputs); use more runs or steps, or a smaller dictionary"
         )
     ref = edmd(exact_lifted_moments(data, lifting), lifting.C, "ls")
-    ref_loop = None if cfg.mpc is None else run_koopman_loops([ref], lifting, system, cfg.mpc, cfg.radius).outcome[0]
+    ref_loop = None if cfg.mpc is None else run_koopman_loops([ref], lifting, system, cfg.mpc, cfg.radius)
     nb = len(cfg.bits)
     per: list[dict[str, list[Any]]] = [{k: [] for k in ACC_KEYS} for _ in range(nb)]
     unbiased = cfg.estimator == "bcls"
@@ -303,9 +308,10 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
         cfg,
         rows,
         prediction_error(ref, lifting, held, horizon),
-        ref_loop,
+        None if ref_loop is None else ref_loop.outcome[0],
         data.report,
         lifting.L,
         data.trajectories,
         time.perf_counter() - t0,
+        None if ref_loop is None else float(ref_loop.settled_offset[0]),
     )

@@ -47,7 +47,21 @@ def test_nonlinear_sweep_json_rows_carry_lifted_errors_prediction_and_loop_outco
         for k in ("err_G", "err_A", "err_B", "prediction_error"):
             assert set(r[k]) == {"mean", "std"} and r[k]["mean"] >= 0
         assert sum(r["closed_loop_outcomes"].values()) == 2 and 0 <= r["stabilized_fraction"] <= 1
+        assert 0 <= r["within_radius"] <= 2 and set(r["settled_offset"]) == {"median", "max"}
+        assert r["settled_offset"]["median"] <= r["settled_offset"]["max"]
+        if r["settled_offset"]["median"] > 1e-6 * 2.0:  # |x0| = 2: above 1e-6 |x0| is bounded, not converged
+            assert r["closed_loop_outcomes"]["converged"] < 2
     assert rows[1]["err_G"]["mean"] < rows[0]["err_G"]["mean"]  # more bits, closer to the unquantized EDMD
+    assert d["reference"]["settled_offset"] > 0 and d["reference"]["closed_loop_outcome"] == "bounded"
+
+
+def test_the_nonlinear_table_shows_the_settled_offsets_and_the_reference(capsys):
+    code, out, err = _run(capsys, "sweep", "--system", "van-der-pol", "--estimator", "bcls", *SMALL)
+    assert code == 0, err
+    head = out.splitlines()[1]
+    assert "converged" in head and "within radius" in head and "settled offset med/max" in head
+    assert "settled offset" in out.split("unquantized EDMD:")[1].splitlines()[0]
+    assert "a loop converged when it settles (mean |x| over its last 10 % of steps) within 1e-6 |x0|" in out
 
 
 def _columns(out: str) -> list[list[str]]:
@@ -75,8 +89,11 @@ def test_nonlinear_sweep_table_is_aligned_and_says_n_a_where_no_limit_applies(ca
     )
     assert code == 0, err
     cols = _columns(out)
-    assert cols[0][:3] == ["b", "err_G (vs unquantized EDMD)", "large-data limit"] and cols[0][-1] == "converged"
-    assert [c[0] for c in cols[1:]] == ["2", "4"] and all(c[-1] == "2/2" or c[-1].endswith("/2") for c in cols[1:])
+    assert cols[0][:3] == ["b", "err_G (vs unquantized EDMD)", "large-data limit"]
+    assert cols[0][-3:] == ["converged", "within radius", "settled offset med/max"]
+    assert [c[0] for c in cols[1:]] == ["2", "4"] and all(
+        c[-3].endswith("/2") and c[-2].endswith("/2") for c in cols[1:]
+    )
     cells = [c[2] for c in cols[1:]]
     if limit is None:  # LS with a polynomial dictionary: the limit's number
         assert all(float(c) > 0 for c in cells)

@@ -149,8 +149,10 @@ def test_command_line_exports_and_settings_of_a_nonlinear_tab(tab, tmp_path, cap
     assert out["config"]["held_out"]["horizon"] == 7
     assert tab.session.plots["koopman-prediction"].figure.layout.yaxis.title.text == "prediction error, steps 1..7"
     assert out["results"][0]["closed_loop_outcomes"] == f.rows["BCLS"][3]["closed_loop_outcomes"]
+    assert out["results"][0]["settled_offset"] == f.rows["BCLS"][3]["settled_offset"]
     csv_text = curves_csv(f)
     assert csv_text.splitlines()[0].startswith("estimator,bits,err_G_mean") and len(csv_text.splitlines()) == 33
+    assert csv_text.splitlines()[0].endswith(",within_radius,settled_offset_median,settled_offset_max")
     assert json.loads(curves_json(f))["kind"] == "koopman"
     assert "koopman-error" in frame_html(f)
     back = values_from_json(settings_json(f.values))

@@ -181,6 +181,16 @@ def test_bench_bits_quick_prints_its_measured_ratio(capsys):
     assert r["ratio_bits_to_sweep"] == r["median_s"]["bits"] / r["median_s"]["sweep"] > 0
 
 
+def test_bench_budget_quick_prints_its_measured_ratio(capsys):
+    import bench_budget
+
+    assert bench_budget.main(["--quick"]) == 0
+    line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("RESULT ")][-1]
+    r = json.loads(line[len("RESULT ") :])
+    assert r["ratio"] == pytest.approx(r["budget_s"] / r["sweep_s"], rel=0.01) and r["largest_runs"] == 83
+    assert r["bits"] == [2, 4, 8, 16] and r["realizations"] == 3 and r["b_knee"] in r["bits"]
+
+
 @pytest.mark.slow
 def test_fuzz_engine_counts_every_call_and_passes(capsys):
     import fuzz_engine

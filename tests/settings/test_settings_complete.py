@@ -12,14 +12,19 @@ import qsid_core.studies
 from app.settings import SETTINGS
 from app.settings.schema import INTERNAL
 from qsid_core import DataLengthConfig, MPCConfig, QuantizerSpec, SweepConfig
-from qsid_core.studies import KOOPMAN_MPC_UNUSED, KoopmanConfig
+from qsid_core.studies import KOOPMAN_MPC_UNUSED, BudgetConfig, KoopmanConfig
 
 #: The engine's configs by the settings table's name of them (the Setting attribute holding a path into each).
-CONFIGS: dict[str, type] = {"sweep": SweepConfig, "nonlinear": KoopmanConfig, "datalength": DataLengthConfig}
+CONFIGS: dict[str, type] = {
+    "sweep": SweepConfig,
+    "nonlinear": KoopmanConfig,
+    "datalength": DataLengthConfig,
+    "budget": BudgetConfig,
+}
 #: The configs nested in those, by field name (each of their fields is reached through its parent's path).
 NESTED: dict[str, type] = {"quantizer": QuantizerSpec, "mpc": MPCConfig}
 #: The Setting attribute holding each config's paths.
-COLUMN = {"sweep": "engine", "nonlinear": "nonlinear", "datalength": "datalength"}
+COLUMN = {"sweep": "engine", "nonlinear": "nonlinear", "datalength": "datalength", "budget": "budget"}
 
 
 def _paths(cls: type, prefix: str = "") -> list[str]:
