@@ -11,7 +11,6 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import numbers
-import os
 from collections.abc import Mapping
 from typing import Any, SupportsInt, cast
 
@@ -146,41 +145,6 @@ def as_float_array(
             f"{(arr[idx] if idx else arr.item()):g}"
         )
     return arr
-
-
-def physical_memory() -> int | None:
-    """This machine's physical memory in bytes (None where the OS does not say)."""
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
-def available_memory() -> int | None:
-    """Memory the OS can give a process now, in bytes (Linux ``MemAvailable``; None where unknown)."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
-
-
-def check_memory(what: str, nbytes: float, advice: str, error: type = ConfigError) -> None:
-    """Refuse work whose arrays alone would take more than 3/4 of the memory this machine can give now
-    (available memory where the OS says, else physical memory).
-
-    The message says how large they would be, so a front end can show it as one line.
-    """
-    total, free = physical_memory(), available_memory()
-    limit = min(x for x in (total, free, float("inf")) if x is not None)
-    if nbytes > 0.75 * limit:
-        raise error(
-            f"{what} would need {nbytes / 2**30:.1f} GiB of memory for its arrays, more than this machine can "
-            f"give now ({limit / 2**30:.1f} GiB); {advice}"
-        )
 
 
 def check_bool(name: str, value: Any) -> bool:

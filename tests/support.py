@@ -226,6 +226,78 @@ def dask_cluster(tmp: Path, workers: int = 2):
 
 
 # ------------------------------------------------------------------------------------------------
+# hostile plant files
+# ------------------------------------------------------------------------------------------------
+
+#: A list nested 1,000 deep (the parsers' recursion limit).
+DEEP_LIST = "[" * 1000 + "1" + "]" * 1000
+
+
+def hostile_plant_file(tmp: Path, case: str) -> tuple[Path, str]:
+    """The hostile file of ``case`` in ``tmp``, and words its refusal holds."""
+    p = tmp / case
+    if case == "deep.json":
+        p.write_text('{"A": ' + DEEP_LIST + ', "B": [[1]]}')
+        return p, "nested too deeply"
+    if case == "deep-field.json":  # a nonlinear plant's file, nested in a key of its own
+        p.write_text('{"vector_field": "m:f", "n": ' + DEEP_LIST + "}")
+        return p, "nested too deeply"
+    if case == "deep.toml":
+        p.write_text("A = " + DEEP_LIST + "\nB = [[1]]\n")
+        return p, "nested too deeply"
+    if case == "deep-tables.toml":
+        p.write_text("A = " + "{a = " * 1000 + "1" + "}" * 1000 + "\n")
+        return p, "nested too deeply"
+    if case == "huge-int.json":
+        p.write_text('{"A": [[' + "9" * 5000 + ']], "B": [[1]]}')
+        return p, "too many digits"
+    if case == "huge-int.toml":
+        p.write_text("A = [[" + "9" * 5000 + "]]\nB = [[1]]\n")
+        return p, "too many digits"
+    if case == "huge-float.json":
+        p.write_text('{"A": [[1e400]], "B": [[1]]}')
+        return p, "finite"
+    if case == "binary.json":
+        p.write_bytes(bytes(range(256)) * 4)
+        return p, "not UTF-8"
+    if case == "fifo.json":
+        os.mkfifo(p)
+        return p, "named pipe (FIFO)"
+    if case == "dir.toml":
+        p.mkdir()
+        return p, "is a directory"
+    if case == "loop.json":
+        p.symlink_to(tmp / "loop2.json")
+        (tmp / "loop2.json").symlink_to(p)
+        return p, "Too many levels of symbolic links"
+    if case == "list.json":
+        p.write_text("[1, 2]")
+        return p, "table/object with keys A and B"
+    if case == "device.json":
+        p.symlink_to("/dev/zero")
+        return p, "character device"
+    raise AssertionError(case)
+
+
+#: The cases of :func:`hostile_plant_file`.
+HOSTILE_PLANT_FILES = [
+    "deep.json",
+    "deep-field.json",
+    "deep.toml",
+    "deep-tables.toml",
+    "huge-int.json",
+    "huge-int.toml",
+    "huge-float.json",
+    "binary.json",
+    "fifo.json",
+    "dir.toml",
+    "loop.json",
+    "list.json",
+    "device.json",
+]
+
+
+# ------------------------------------------------------------------------------------------------
 # fuzzing the engine's entry points
 # ------------------------------------------------------------------------------------------------
 

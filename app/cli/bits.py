@@ -206,7 +206,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     d["timing_s"] = ans.result.timing_s if ans.result is not None else {}
     text = dumps(d)
     if out is not None:
-        write_text(out, text + "\n")
+        write_text(out, text + "\n", rep)
         rep.stage(f"JSON written to {out}")
     print(text if args.json else format_bits(d))
     return 0

@@ -166,7 +166,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     d = res.to_dict()
     text = dumps(d)
     if out is not None:
-        write_text(out, text + "\n")
+        write_text(out, text + "\n", rep)
     rep.stage("done" + (f"; JSON written to {out}" if out else ""))
     print(text if args.json else format_table(d))
     return 0

@@ -1,11 +1,14 @@
-"""The files a ``qsid`` command reads and writes: an output file checked before any work (a name, not a
-directory, not an input, writable), the inputs it must never overwrite, and an atomic write."""
+"""The files a ``qsid`` command reads and writes: an output file checked before any work (a file name, not a
+folder, not an input, a regular file or a new name where a file can be created now), the inputs it must never
+overwrite, and an atomic write whose late failure keeps the output in the temporary folder."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -16,7 +19,7 @@ from .parser import UsageError
 if TYPE_CHECKING:
     from .runner import Reporter
 
-__all__ = ["check_writable", "input_files", "out_file", "write_text"]
+__all__ = ["check_writable", "input_files", "out_file", "save_output", "write_text"]
 
 
 def check_writable(directory: Path, flag: str = "--out") -> None:
@@ -38,18 +41,51 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _probe(folder: Path, flag: str) -> None:
+    """Create and remove a temporary file in ``folder`` (what the atomic write does): a UsageError if that
+    fails (a read-only or pseudo file system such as /proc or /sys, a full disk, no permission)."""
+    try:
+        fd, name = tempfile.mkstemp(dir=folder, prefix=".qsid-probe-", suffix=".tmp")
+    except OSError as exc:
+        raise UsageError(f"argument {flag}: cannot create a file in {str(folder)!r} ({exc.strerror or exc})") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(name)
+
+
+def _checked_name(text: str, flag: str) -> Path:
+    """``text`` as an output file name: not empty, not a folder (a trailing slash or an existing directory),
+    not a link to nothing."""
+    if not text.strip():
+        raise UsageError(f"argument {flag}: give a file name; got {text!r}")
+    example = "figure.png" if flag == "--figure" else "result.json" if flag == "--out" else "rows.csv"
+    if text.endswith(("/", os.sep)):  # a folder, existing or not: never a file of that name
+        raise UsageError(f"argument {flag}: {text!r} ends in '/': a folder; give a file name, e.g. {text + example!r}")
+    out = Path(text)
+    if out.is_dir():
+        raise UsageError(f"argument {flag}: {text!r} is a directory; give a file name")
+    if out.is_symlink():
+        try:
+            os.stat(out)  # (follows links: /dev/stdout into a pipe exists)
+        except FileNotFoundError:
+            raise UsageError(
+                f"argument {flag}: {text!r} is a symbolic link to {os.readlink(out)!r}, which does not exist; "
+                "give a file name, or remove the link"
+            ) from None
+        except OSError:  # a loop of links: said by output_target
+            pass
+    return out
+
+
 def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs: Sequence[str | Path] = ()) -> Path | None:
-    """Check an output file before any work: a name, not a directory, not an input, writable.
+    """Check an output file before any work: a file name (not a folder), not an input, a regular file or a new
+    name, in a folder where a file can be created now (created if missing).
 
     An existing file is replaced, and that is said on stderr (before the run).
     """
     if text is None:
         return None
-    if not text.strip():
-        raise UsageError(f"argument {flag}: give a file name; got {text!r}")
-    out = Path(text)
-    if out.is_dir():
-        raise UsageError(f"argument {flag}: {text!r} is a directory; give a file name")
+    out = _checked_name(text, flag)
     for inp in inputs:
         if _same_file(out, Path(inp)):
             raise UsageError(
@@ -71,9 +107,10 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs: Seque
     from qsid_core.studies import output_target
 
     try:
-        output_target(out)
+        target = output_target(out)  # the file a link points to, or the name itself
     except OutputPathError as exc:
         raise UsageError(f"argument {flag}: {exc}") from None
+    _probe(target.parent, flag)  # where the atomic write puts its temporary file
     if out.exists():
         if not os.access(out, os.W_OK):
             raise UsageError(f"argument {flag}: {text!r} exists and is not writable")
@@ -81,10 +118,49 @@ def out_file(text: str | None, rep: Reporter, flag: str = "--out", inputs: Seque
     return out
 
 
-def write_text(path: Path, text: str) -> None:
+def _fallback(path: Path, write: Callable[[Path], object]) -> Path | None:
+    """Write the output meant for ``path`` to a new file in the temporary folder instead; None if that fails too."""
+    fd, name = tempfile.mkstemp(prefix=f"qsid-{path.stem or 'output'}-", suffix=path.suffix)
+    os.close(fd)
+    try:
+        write(Path(name))
+    except (OSError, ValueError):
+        with contextlib.suppress(OSError):
+            os.unlink(name)
+        return None
+    return Path(name)
+
+
+def save_output(path: Path, write: Callable[[Path], object], rep: Reporter | None = None, flag: str = "--out") -> Path:
+    """``write(path)``; if writing fails this late (the disk filled, the folder went away), the same output goes to
+    a file in the temporary folder and one line says where. Returns the file written.
+
+    With ``rep`` the run goes on (its other outputs are written) and ends with exit status 2
+    (:attr:`Reporter.lost`); without, a :class:`UsageError` carries that line.
+    """
+    check_stopped()  # a stop whose interrupt a library swallowed (e.g. in a finalizer) leaves the file as it was
+    try:
+        write(path)
+        return path
+    except (OSError, ValueError) as exc:  # qsid_core's OutputPathError is a ValueError
+        why = getattr(exc, "strerror", None) or str(exc)
+    try:
+        safe = _fallback(path, write)
+    except OSError:
+        safe = None
+    where = f"it was written to {str(safe)!r} instead" if safe else "nor could it be kept in the temporary folder"
+    msg = f"cannot write {flag} {str(path)!r} ({why}); {where}"
+    if rep is None:
+        raise UsageError(msg)
+    rep.line(f"error: {msg}")
+    rep.lost.append(msg)
+    return safe or path
+
+
+def write_text(path: Path, text: str, rep: Reporter | None = None, flag: str = "--out") -> Path:
     """Write ``text`` to ``path`` atomically: a temporary file beside it, renamed over it when complete
-    (an interrupted run never leaves a half-written file, and an existing one stays until then)."""
+    (an interrupted run never leaves a half-written file, and an existing one stays until then). A failure
+    this late keeps the text in the temporary folder (:func:`save_output`)."""
     from qsid_core.studies import replace_atomically
 
-    check_stopped()  # a stop whose interrupt a library swallowed (e.g. in a finalizer) leaves the file as it was
-    replace_atomically(Path(path), text)
+    return save_output(Path(path), lambda p: replace_atomically(p, text), rep, flag)

@@ -113,7 +113,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     d = res.to_dict()
     text = dumps(d)
     if out is not None:
-        write_text(out, text + "\n")
+        write_text(out, text + "\n", rep)
     print(text if args.json else format_table(d))
     return 0
 

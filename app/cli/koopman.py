@@ -222,7 +222,7 @@ def run_sweep(args: argparse.Namespace, rep: Reporter) -> int:
     d = _run(args, rep)
     text = dumps(d)
     if out is not None:
-        write_text(out, text + "\n")
+        write_text(out, text + "\n", rep)
     print(text if args.json else format_koopman(d))
     return 0
 
@@ -252,7 +252,7 @@ def run_bits(args: argparse.Namespace, rep: Reporter) -> int:
     }
     text = dumps(answer)
     if out is not None:
-        write_text(out, text + "\n")
+        write_text(out, text + "\n", rep)
     if args.json:
         print(text)
         return 0

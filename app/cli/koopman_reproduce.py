@@ -139,17 +139,17 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
     rows = {lab: [ex.row(b, e) for b in bits] for e, lab in _LABELS.items()}
     panels = [(stem, legible_figure(fig)) for stem, fig in _panels(ex, rows)]  # the dashboard's laptop style
     rep.stage(f"writing figures to {outdir}")
-    write_text(outdir / "plotly.min.js", get_plotlyjs())
+    write_text(outdir / "plotly.min.js", get_plotlyjs(), rep)
     written = []
     for stem, fig in panels:
-        write_text(outdir / f"{stem}.html", fig.to_html(include_plotlyjs="directory", full_html=True))
+        write_text(outdir / f"{stem}.html", fig.to_html(include_plotlyjs="directory", full_html=True), rep)
         written.append(outdir / f"{stem}.html")
     if formats:
         written += save_panels([(fig, outdir / f"{stem}.{f}") for stem, fig in panels for f in formats], rep)
     data: dict[str, Any] = {"kind": "koopman-reproduce", "system": ex.system.name, "lifting": cfg.lifting}
     data["bits"] = list(bits)
     data |= {"results": rows, "certificates": NO_CERTIFICATES, "unquantized_prediction_error": ex.reference()[1]}
-    write_text(outdir / "data.json", dumps(data, indent=None) + "\n")
+    write_text(outdir / "data.json", dumps(data, indent=None) + "\n", rep)
     c = ex.config
     caption = html.escape(
         f"{ex.system.name}, Koopman/EDMD from quantized data: lifting {cfg.lifting} ({ex.lifting.L} features), "
@@ -159,7 +159,7 @@ def run(args: argparse.Namespace, rep: Reporter, outdir: Any) -> int:
         f"{NO_CERTIFICATES[:1].upper()}{NO_CERTIFICATES[1:]}."
     )
     page = index_page(f"qsid: {ex.system.name}, Koopman/EDMD from quantized data", caption, panels)
-    write_text(outdir / "index.html", page + "\n")
+    write_text(outdir / "index.html", page + "\n", rep)
     print(f"wrote {len(written) + 3} files to {outdir}:")
     for p in [*written, outdir / "index.html", outdir / "data.json", outdir / "plotly.min.js"]:
         print(f"  {p.name}  ({p.stat().st_size / 1024:.0f} KiB)")

@@ -96,7 +96,8 @@ def _main(argv: Sequence[str] | None, rep: Reporter, fail: Callable[..., int]) -
         warnings.simplefilter("default")
         warnings.showwarning = rep.warning
         try:
-            return _dispatch(list(sys.argv[1:] if argv is None else argv), rep)
+            code = _dispatch(list(sys.argv[1:] if argv is None else argv), rep)
+            return 2 if rep.lost and code == 0 else code  # an output written elsewhere (said on stderr)
         except UsageError as exc:
             return fail(exc)
         except ValueError as exc:  # every qsid_core user error is a ValueError subclass

@@ -246,14 +246,14 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     label = "BCLS" if res.config.estimator == "bcls" else "LS"
     R = res.config.realizations
     rep.stage(f"writing figures to {outdir}")
-    write_text(outdir / "plotly.min.js", get_plotlyjs())  # matches the plotly that draws the figures
+    write_text(outdir / "plotly.min.js", get_plotlyjs(), rep)  # matches the plotly that draws the figures
     portrait_panels, portraits, true_states = _portrait_panels(ex, system, label, R)
     # the dashboard's laptop style: no text under 11 px, one labelled tick per decade on log axes
     panels = [(stem, h, legible_figure(fig)) for stem, h, fig in _curve_panels(d, label, R) + portrait_panels]
     written = []
     for stem, _, fig in panels:
         path = outdir / f"{stem}.html"
-        write_text(path, fig.to_html(include_plotlyjs="directory", full_html=True))  # whole or not at all
+        write_text(path, fig.to_html(include_plotlyjs="directory", full_html=True), rep)  # whole or not at all
         written.append(path)
     if formats:
         rep.stage(f"drawing {len(panels)} panels as {', '.join(formats)} in a headless Chromium")
@@ -270,8 +270,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
         },
         "system": system.to_dict(),
     }
-    write_text(outdir / "data.json", dumps(data, indent=None) + "\n")
-    write_text(outdir / "index.html", _index_html(d, system, panels))
+    write_text(outdir / "data.json", dumps(data, indent=None) + "\n", rep)
+    write_text(outdir / "index.html", _index_html(d, system, panels), rep)
     print(format_table(d))
     print(f"wrote {len(written) + 3} files to {outdir}:")
     for p in [*written, outdir / "index.html", outdir / "data.json", outdir / "plotly.min.js"]:

@@ -17,7 +17,6 @@ import time
 import warnings
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TextIO
 
 from app.procs import ProcessPool, end_with_parent, kill_workers
@@ -74,6 +73,7 @@ class Reporter:
         self._seen: set[tuple[type[Warning], str]] = set()
         self._last = time.monotonic()
         self.after_stage: dict[str, str] = {}  # stage -> line to announce once it is complete
+        self.lost: list[str] = []  # outputs that could not be written where asked (kept in the temporary folder)
 
     def _close(self) -> None:
         if self._bar is not None:
@@ -154,11 +154,6 @@ def resolve_system(spec: str) -> LTISystem:
     """A preset name or a system file (``--system``); every bad file is one :class:`UsageError` line."""
     from qsid_core import get_system
 
-    p = Path(spec)
-    if p.is_dir():
-        raise UsageError(f"argument --system: {spec!r} is a directory; give a preset name or a .toml/.json file")
-    if spec.lower().endswith((".toml", ".json")) and p.exists() and not p.is_file():
-        raise UsageError(f"system file {spec!r} is not a regular file")
     return get_system(spec)  # a bad file is a SystemDefinitionError (a ValueError: one line from main)
 
 

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 from . import koopman
 from .figure_out import add_figure_arguments, check_figure, write_figure
-from .files import input_files, out_file, write_text
+from .files import input_files, out_file, save_output, write_text
 from .koopman import add_nonlinear_options
 from .output import dumps, format_table, sweep_dict
 from .parser import add_run_options
@@ -85,11 +85,12 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     if csv_out is not None:
         from qsid_core import write_csv
 
-        rows = write_csv(res, csv_out)
-        rep.stage(f"{rows} rows (b x realizations) written to {csv_out}")
+        rows: list[int] = []
+        csv_out = save_output(csv_out, lambda p: rows.append(write_csv(res, p)), rep, "--csv")
+        rep.stage(f"{rows[-1]} rows (b x realizations) written to {csv_out}")
     text = dumps(d)
     if out is not None:
-        write_text(out, text + "\n")
+        out = write_text(out, text + "\n", rep)
     write_figure(res, fig_out, args.figure_view, rep)
     rep.stage(f"done in {d['timing_s']['total']:.2f} s" + (f"; JSON written to {out}" if out else ""))
     print(text if args.json else format_table(d))

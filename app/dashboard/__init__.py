@@ -13,11 +13,19 @@ Modules, in the order a request flows through them:
 """
 
 import os
+import signal
 import sys
+import threading
 
 if "numpy" not in sys.modules:  # started as the program: many tiny matrices, BLAS threads only cost
     for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(_var, "1")
+_program = sys.argv[:1] == ["-m"] or os.path.basename(sys.argv[0] if sys.argv else "") == "qsid-dashboard"
+if _program and threading.current_thread() is threading.main_thread():
+    # python -m app.dashboard / qsid-dashboard: a Ctrl-C while the imports below take their seconds ends the
+    # program as the terminal expects, without a KeyboardInterrupt traceback; main() then takes the stop signals
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # (an ignored Ctrl-C stays ignored)
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 from .server import DashboardApp, main  # noqa: E402
 from .session import Session  # noqa: E402

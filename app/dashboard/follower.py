@@ -196,7 +196,7 @@ class Follower:
                 h.figure = item
             self.seen[key] = seq
         if new and c.error.visible:  # a refused input's line: the followed view moved on
-            c.error.visible = False
+            s.ui.clear_errors()
         f = snap.frame
         status = f"{'ready' if f.complete else 'computing …'} · b = {f.bits} drawn (view {self.code})"
         if status != c.status.content:

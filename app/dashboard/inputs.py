@@ -72,23 +72,29 @@ def check_sent(el: GuiElements | None, handle: Any, updates: Mapping[str, Any]) 
 
 
 def sent_guard(
-    check: Callable[[Any, Mapping[str, Any]], str | None], on_reject: Callable[[str], None]
+    check: Callable[[Any, Mapping[str, Any]], str | None],
+    on_reject: Callable[[str, Any], None],
+    on_accept: Callable[[Any], None] | None = None,
 ) -> Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[None]]:
     """The guard of one tab's input messages (:func:`app.dashboard.viserfix.guard_updates`): a value ``check``
-    refuses is dropped, and one viser cannot convert (``apply()`` raises) is explained; both said by ``on_reject``."""
+    refuses is dropped, and one viser cannot convert (``apply()`` raises) is explained; both said by
+    ``on_reject(text, handle)``. A value taken is said by ``on_accept(handle)``."""
 
     async def guard(handle: Any, updates: dict, apply: Callable[[], Awaitable[None]]) -> None:
         why = check(handle, updates)
         if why is not None:
-            return on_reject(why)
+            return on_reject(why, handle)
         try:
             await apply()
         except Exception as exc:
             sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in updates.items())
-            on_reject(
+            return on_reject(
                 f"{getattr(handle, 'label', None) or 'an input'}: the value sent ({sent}) was refused "
-                f"({type(exc).__name__}: {str(exc)[:80]}); the input keeps its last value"
+                f"({type(exc).__name__}: {str(exc)[:80]}); the input keeps its last value",
+                handle,
             )
+        if on_accept is not None and handle is not None:
+            on_accept(handle)
 
     return guard
 

@@ -1,6 +1,6 @@
 """``qsid-dashboard``'s command line: the parser, the checks of its values, and the settings a new tab starts
 from (``--settings FILE``, ``--system FILE``). Nothing here starts a thread or a server: a bad option is one
-line and exit status 2 before anything runs.
+line and exit status 2 before anything runs. The port is checked first (:func:`check_options`).
 """
 
 from __future__ import annotations
@@ -14,13 +14,13 @@ from qsid_core import ConfigError, QsidError, __version__
 from .cache import DEFAULT_MB
 from .koopman_settings import is_nonlinear, nonlinear_values
 from .lessons import get_lesson, lesson_names
-from .netcheck import OneLineParser, check_address, port_number
+from .netcheck import NEXT_FREE_TRIES, OneLineParser, check_address, port_number
 from .pool import DEFAULT_TIMEOUT
 from .settings import INTERACTIVE, PAPER_SCALE, SYSTEM_CHOICES, Values
 from .share import load_settings_file, values_for_plant_file
 from .start import START, opens_on_start
 
-__all__ = ["STARTING_SYSTEMS", "check_lesson", "parser", "read_options"]
+__all__ = ["STARTING_SYSTEMS", "check_lesson", "check_options", "parser", "read_options"]
 
 #: Systems a tab can start with (the panel's presets; 'custom' is typed in the panel).
 STARTING_SYSTEMS = tuple(x for x in SYSTEM_CHOICES if x != "custom")
@@ -35,6 +35,16 @@ def check_lesson(name: str) -> str:
     return name
 
 
+#: The help of ``--port`` and ``--next-free-port``.
+PORT_HELP = (
+    "port 0-65535 (default 8080; 0: any free port); one that cannot be bound (in use, below 1024 without the "
+    "right) is one line and exit status 2"
+)
+NEXT_FREE_HELP = (
+    f"if --port is in use, take the next free one (up to {NEXT_FREE_TRIES} further; the URL printed says so)"
+)
+
+
 def parser() -> argparse.ArgumentParser:
     """The parser of ``qsid-dashboard`` (its errors are one line; see :class:`.netcheck.OneLineParser`)."""
     p = OneLineParser(
@@ -47,8 +57,9 @@ def parser() -> argparse.ArgumentParser:
         "--port",
         type=port_number,
         default=8080,
-        help="port 0-65535 (default 8080; the next free one if taken; 0: any free port)",
+        help=PORT_HELP,
     )
+    p.add_argument("--next-free-port", action="store_true", help=NEXT_FREE_HELP)
     p.add_argument(
         "--system",
         default="dc-motor",
@@ -143,13 +154,37 @@ def _starting_settings(args: argparse.Namespace) -> Values | None:
     return settings
 
 
+def check_options(args: argparse.Namespace) -> tuple[Values | None, str | None]:
+    """The parsed options checked, the port first (bound on ``--host`` before anything else is read).
+
+    Sets ``args.asked_port`` to the port asked for and ``args.port`` to the one to listen on (another one only
+    with ``--next-free-port``). Returns the settings every new tab starts from (None: the preset's defaults at
+    ``--scale``) and a warning line if ``--host`` reaches beyond this machine.
+
+    Raises
+    ------
+    QsidError
+        The port cannot be bound, ``--host`` is not an address of this machine, an option is out of range, the
+        lesson is unknown, or the settings or plant file is bad (one line, naming the option or file).
+    """
+    args.asked_port = args.port
+    args.port, warning = check_address(args.host, args.port, args.next_free_port)
+    _check_ranges(args)
+    if args.lesson is not None:
+        check_lesson(args.lesson)
+    settings = _starting_settings(args)
+    if opens_on_start(args.lesson, settings, args.system):
+        args.lesson = START
+    return settings, warning
+
+
 def read_options(argv: list[str] | None) -> tuple[argparse.Namespace, Values | None, str | None]:
-    """``argv`` parsed and checked before anything starts.
+    """``argv`` parsed and checked before anything starts (:func:`check_options`).
 
     Returns
     -------
     args : argparse.Namespace
-        The options (``args.system`` a preset).
+        The options (``args.system`` a preset; ``args.port`` the port to listen on).
     settings : Values or None
         What every new tab starts from (None: the preset's defaults at ``--scale``).
     warning : str or None
@@ -158,16 +193,10 @@ def read_options(argv: list[str] | None) -> tuple[argparse.Namespace, Values | N
     Raises
     ------
     QsidError
-        An option is out of range, the lesson is unknown, the settings or plant file is bad, or ``--host``
-        is not an address of this machine (one line, naming the option or file).
+        As :func:`check_options`.
     SystemExit
         ``--help``, ``--version``, or an option argparse refuses (exit status 2, one line).
     """
     args = parser().parse_args(argv)
-    _check_ranges(args)
-    if args.lesson is not None:
-        check_lesson(args.lesson)
-    settings = _starting_settings(args)
-    if opens_on_start(args.lesson, settings, args.system):
-        args.lesson = START
-    return args, settings, check_address(args.host, args.port)
+    settings, warning = check_options(args)
+    return args, settings, warning

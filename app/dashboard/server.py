@@ -23,7 +23,8 @@ from collections import OrderedDict
 
 import viser
 
-from qsid_core import QsidError
+from app.procs import kill_new_descendants
+from qsid_core import ConfigError, QsidError
 
 from .cache import DEFAULT_MB, SharedCache
 from .flow import READ_BYTES, FairSlots
@@ -32,7 +33,7 @@ from .idle import IdleRelease
 from .lessons import lesson_values
 from .memory import limit_arenas, one_blas_thread, trim
 from .netcheck import who_can_connect
-from .options import STARTING_SYSTEMS, check_lesson, read_options
+from .options import STARTING_SYSTEMS, check_lesson, check_options, parser
 from .pool import DEFAULT_TIMEOUT, Pool
 from .scene import VIEW_FROM
 from .session import Session
@@ -68,6 +69,9 @@ class DashboardApp:
         New tabs open in presenter mode (large text, a wide 3-D scene, auto-play).
     views_file : path, optional
         The JSON file that keeps the view codes' settings across restarts (None: in memory only).
+    exact_port : bool
+        Refuse (:class:`~qsid_core.errors.ConfigError`) to serve on another port than a non-zero ``port`` (viser
+        moves to the next one when ``port`` is taken); False: the next one is fine (``--next-free-port``).
     """
 
     def __init__(
@@ -86,6 +90,7 @@ class DashboardApp:
         max_tabs: int | None = None,
         presenter: bool = False,
         views_file=None,
+        exact_port: bool = True,
     ):
         if system not in STARTING_SYSTEMS:
             raise QsidError(f"unknown system {system!r}; use one of {', '.join(STARTING_SYSTEMS)}")
@@ -103,7 +108,6 @@ class DashboardApp:
         self.workers = max(0, int(workers))
         self.tasks = max(1, self.workers)
         self._lock = threading.Lock()  # (5) guards `sessions` and `_gone`
-        self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog
         self.idle = IdleRelease(self._release_memory)  # (10) memory back once no tab is left for a while
         self.sessions: dict[int, Session] = {}
         self.max_tabs = max_tabs
@@ -114,7 +118,15 @@ class DashboardApp:
         # nowhere (rich writes to sys.stdout at print time; only this constructor's output is redirected)
         with contextlib.redirect_stdout(io.StringIO()):
             self.server = viser.ViserServer(host=host, port=port, verbose=verbose)
+        if exact_port and port != 0 and self.server.get_port() != port:  # viser took the next port: not asked for
+            moved = self.server.get_port()
+            self.server.stop()
+            raise ConfigError(
+                f"--port {port} on {host} was taken by another program while the dashboard started (it would have "
+                f"moved to {moved}); start again, choose another --port, or add --next-free-port"
+            )
         thread_safe_buffers(self.server)  # before any tab: every message buffer can be pushed to from any thread
+        self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog (after the port)
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
         cam = self.server.initial_camera  # every new tab starts looking at the unit box from here
@@ -263,20 +275,32 @@ class DashboardApp:
         self.server.stop()
 
 
-def _serve(args: argparse.Namespace, settings: Values | None, stop) -> int:
-    """Start the server with the checked options, print its URL once a tab is served at once, and serve
-    until the stop signal; the exit status (2: it could not start)."""
-    app = None
-    code = 0
+class _Start:
+    """What the start-up thread has made so far (``app`` once built) and how it ended (``failed``: the error line)."""
+
+    def __init__(self) -> None:
+        self.app: DashboardApp | None = None
+        self.report: StartupReport | None = None  # the start-up's progress lines (ended by a stop)
+        self.failed: str | None = None
+        self.ready = False
+
+
+def _start(args: argparse.Namespace, state: _Start, stop: threading.Event) -> None:
+    """(the start-up thread) Check the options, the port first; start the server; warm it up; print its URL once a
+    tab is served at once. A failure is kept in ``state`` and ends the wait of ``main`` (``stop`` set)."""
     try:
+        settings, warning = check_options(args)
+        if warning:
+            print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
         with StartupReport() as report:  # a line per step, and every few seconds while one takes long
+            state.report = report
             report.say(COLD_START if needs_compiling() else WARM_START)
             report.step(
                 f"starting the server and {args.workers} worker process{'es' * (args.workers > 1)}"
                 if args.workers
                 else "starting the server"
             )
-            app = DashboardApp(
+            state.app = app = DashboardApp(
                 args.host,
                 args.port,
                 args.system,
@@ -289,39 +313,64 @@ def _serve(args: argparse.Namespace, settings: Values | None, stop) -> int:
                 max_tabs=args.max_tabs,
                 presenter=args.presenter,
                 views_file=default_store_path(),
+                exact_port=not args.next_free_port,
             )
             if app.views.load_note:
                 print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
             warm(app.pool, report)  # the first tab must not pay the compiler (nor the workers' first loads)
             first_tab(app, report)
-        print(f"qsid dashboard: {app.url}   (Ctrl-C to stop)", flush=True)
+        print(f"qsid dashboard: {app.url}   ({_port_note(args, app.port)}Ctrl-C to stop)", flush=True)
         note = who_can_connect(args.host, app.port)
         if note:
             print(f"qsid dashboard: {note}", flush=True)
-        wait_for_stop_signal(stop)
-        print("\nqsid dashboard: stopping", flush=True)
-    except (QsidError, OSError) as exc:
-        print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
-        code = 2
-    finally:
-        if app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
-            stop_app(app)
-    return code
+        state.ready = True
+    except BaseException as exc:
+        if stop.is_set():  # stopped meanwhile (a signal): what failed is the stop's doing, not news
+            return
+        if not isinstance(exc, (QsidError, OSError)):  # an internal error: its traceback; the start ends all the same
+            traceback.print_exc()
+        state.failed = str(exc) if isinstance(exc, (QsidError, OSError)) else f"internal error ({type(exc).__name__})"
+        stop.set()
+
+
+def _port_note(args: argparse.Namespace, port: int) -> str:
+    """What the URL line says of a port other than the one asked for (``--port 0``, ``--next-free-port``)."""
+    if args.asked_port == 0:
+        return f"--port 0: port {port}, a free one the system chose; "
+    if port != args.asked_port:
+        return f"port {args.asked_port} was in use: --next-free-port took {port}; "
+    return ""
+
+
+def _serve(args: argparse.Namespace, stop: threading.Event) -> int:
+    """Start the server in a thread of its own and wait for a stop signal from the first moment: Ctrl-C, SIGTERM
+    and SIGHUP end the start-up at any point of it (the port check, the kernels' compilation, the workers' start,
+    the first view) as they end the server. Returns the exit status (2: it could not start)."""
+    state = _Start()
+    starter = threading.Thread(target=_start, args=(args, state, stop), name="qsid-start", daemon=True)
+    starter.start()
+    wait_for_stop_signal(stop)
+    if state.report is not None and not state.ready:
+        state.report.__exit__(None, None, None)  # no "still ..." line after this
+    if state.failed is not None:
+        print(f"qsid-dashboard: error: {state.failed}", file=sys.stderr, flush=True)
+    else:
+        print(f"\nqsid dashboard: stopping{'' if state.ready else ' (before it was ready)'}", flush=True)
+    if state.app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
+        stop_app(state.app)
+    kill_new_descendants(set())  # workers still starting when the stop came (no pool owned them yet)
+    return 2 if state.failed is not None else 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options."""
-    try:
-        args, settings, warning = read_options(argv)
-    except QsidError as exc:
-        print(f"qsid-dashboard: error: {exc}", file=sys.stderr)
-        return 2
-    if warning:
-        print(f"qsid-dashboard: {warning}", file=sys.stderr, flush=True)
+    """Run the dashboard until Ctrl-C / SIGTERM / SIGHUP (exit status 0); exit status 2 for bad options or a port
+    that cannot be bound. Only parsing happens before the stop signals are taken: everything that can wait
+    (the host's name, the port, the files, the server) runs in the start-up thread."""
+    args = parser().parse_args(argv)  # --help, --version and malformed options: argparse's exit
     stop = prepare_stop_signals()  # before any thread exists: all inherit the mask
     limit_arenas(2)  # many threads, mid-sized blocks: per-thread arenas only hoard freed memory
     one_blas_thread()
-    code = _serve(args, settings, stop)
+    code = _serve(args, stop)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # tab workers and numerics threads are not waited for (nothing is left to save)

@@ -22,7 +22,8 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
 7. the process pool (:mod:`.pool`): ``Pool._lock`` guards its replacement (only of the failed executor);
    its watchdog abandons stale pool tasks and times out hung workers (the tab retries once).
-8. signals (server ``main``): SIGINT/SIGTERM blocked in every thread, taken by ``sigwait`` in main.
+8. signals (server ``main``): SIGINT/SIGTERM/SIGHUP blocked in every thread, taken by ``sigtimedwait`` in main
+   from the first moment; the start-up (port check, warm-up, first view) runs in a ``qsid-start`` thread.
 9. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
    demand, in-process; cancelled when the tab's generation changes (any new change).
 10. ``DashboardApp.idle`` (server, :class:`~app.dashboard.idle.IdleRelease`): one timer thread once the
@@ -57,7 +58,7 @@ from .share import show_frame
 from .stages import iter_frames
 from .tabview import TabView
 from .viewcodes import ViewOpen
-from .viserfix import guard_updates, set_callback_executor
+from .viserfix import guard_updates, set_callback_executor, show_value
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
 
@@ -100,7 +101,7 @@ class Session:
         # a value sent is checked by the panel's rules before viser converts it; one viser refuses is explained
         # (a follower's panel takes nothing: :func:`~app.dashboard.follower.refused`)
         check = lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u)  # noqa: E731
-        guard_updates(gui, sent_guard(check, self._show_error))
+        guard_updates(gui, sent_guard(check, self._refuse, self._accept))  # a refusal stays until its input changes
         self.lesson_shown = values.lesson  # the lesson whose settings the panel was given
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
         #: the tab's panels (viser): built once, then only drawn into by this tab's worker
@@ -251,7 +252,9 @@ class Session:
         except QsidError as exc:
             self._show_error(str(exc))
             return None
+        old = [*c.q_sliders, *c.r_sliders]
         if set_system(c, choice.system):
+            self.ui.forget(old)  # (the weight sliders are made anew)
             with self._cond:
                 gen = self._gen
             values = read_values(c)
@@ -263,7 +266,9 @@ class Session:
         if name == self.lesson_shown and not self.mark.take():  # (the mark's button: the lesson set anew)
             return gen
         self.lesson_shown = name
+        old = [*self.controls.q_sliders, *self.controls.r_sliders]
         if apply_lesson(self.controls, name, lambda v: resolve_system(v).system):
+            self.ui.forget(old)
             with self._cond:
                 gen = self._gen
             self._show_lesson_view(name)
@@ -290,7 +295,9 @@ class Session:
         self.ui.phone.apply()  # a phone's layout (the window's shape, from the camera), then presenter mode
         self.presenter.apply(bool(c["presenter"].value), narrow=self.ui.phone.narrow)
         gen = self._open_lesson(gen)
+        old = [*c.q_sliders, *c.r_sliders]
         if self.kind.apply(self):  # linear or nonlinear plant: its inputs shown, its defaults (worker's own change)
+            self.ui.forget(old)
             with self._cond:
                 gen = self._gen
         adapted = self._adapt_to_system(gen, read_values(c))
@@ -332,6 +339,18 @@ class Session:
 
     def _show_error(self, text: str) -> None:
         self.ui.show_error(text)
+
+    def _refuse(self, text: str, handle) -> None:  # (viser's event loop)
+        ui = getattr(self, "ui", None)  # (None: a message before the panel was built)
+        if ui is not None:
+            ui.refuse(handle, text)
+        if handle is not None and hasattr(handle, "value"):  # the browser shows the value in use again
+            show_value(self.client.gui, handle)
+
+    def _accept(self, handle) -> None:  # (viser's event loop)
+        ui = getattr(self, "ui", None)
+        if ui is not None:
+            ui.accept(handle)
 
     def _draw(self, frame: Frame, gen: int) -> bool:
         """Push ``frame`` to the tab unless newer settings arrived meanwhile; True if drawn."""

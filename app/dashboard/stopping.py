@@ -1,8 +1,9 @@
 """The dashboard's stop: Ctrl-C, SIGTERM and SIGHUP taken on one path, and the stop bounded in time.
 
-:func:`prepare_stop_signals` is called before any thread exists; ``main`` then waits in
-:func:`wait_for_stop_signal` and stops the app with :func:`stop_app`: the pool's workers are always killed
-and reaped, the web server is given :data:`STOP_WAIT` seconds.
+:func:`prepare_stop_signals` is called before any thread exists; ``main`` then starts the server in a thread
+of its own, waits in :func:`wait_for_stop_signal` from the first moment of the start-up, and stops the app with
+:func:`stop_app`: the pool's workers are always killed and reaped, the web server is given :data:`STOP_WAIT`
+seconds. A stop during the start-up takes the same path (what exists so far is stopped).
 """
 
 from __future__ import annotations
@@ -39,10 +40,12 @@ def prepare_stop_signals() -> threading.Event:
 
 
 def wait_for_stop_signal(stop: threading.Event) -> None:
-    """Block until a stop signal is pending (taken here) or was handled by a handler (``stop`` set)."""
+    """Block until a stop signal is pending (taken here) or ``stop`` is set (by a handler, or by a thread that
+    ends the wait, such as a failed start-up); ``stop`` is set on return, so every thread can tell."""
     while not stop.is_set():
-        if signal.sigtimedwait(_STOP_SIGNALS, 0.5) is not None:
-            return
+        if signal.sigtimedwait(_STOP_SIGNALS, 0.1) is not None:
+            break
+    stop.set()
 
 
 #: Seconds the stop waits for the pool's workers to be killed and reaped (they take milliseconds).

@@ -2,13 +2,15 @@
 
 :class:`TabView` builds the left panel, the plots panel, the 3-D scene and the "Save, load & export" and view-code
 parts once, and then only draws: :meth:`TabView.draw` pushes a :class:`~app.dashboard.frames.Frame`,
-:meth:`TabView.show_error` and :meth:`TabView.show_progress` the state of a computation. It owns no thread and
+:meth:`TabView.show_error` and :meth:`TabView.show_progress` the state of a computation, :meth:`TabView.refuse`
+a value sent that an input did not take. It owns no thread and
 computes nothing: the frames come from :func:`app.dashboard.stages.iter_frames` (a pure function from the
 settings to the frames), driven by the tab's worker (:class:`app.dashboard.session.Session`).
 """
 
 from __future__ import annotations
 
+import threading
 import warnings
 from collections.abc import Callable
 from typing import Any
@@ -115,7 +117,12 @@ class TabView:
             gui, client.camera, self.controls, self.plots_panel, self.portrait, touch, aspect=connect_aspect
         )
         phone_sheet_style(gui)  # viser's phone sheet across the window, at most half its height
+        #: why the computation of the settings shown could not run (None: it could), and the values sent for an
+        #: input that were refused (by the input: each stays shown until that input is changed again)
+        self.run_error: str | None = None
+        self.refusals: dict[int, str] = {}
         self.last_error: str | None = None
+        self._errors = threading.RLock()  # refusals come from viser's event loop, the rest from the tab's worker
         #: what the last draw pushed (a leader's followers push the same: :mod:`app.dashboard.follow`)
         self.drawn = Drawn()
 
@@ -134,6 +141,7 @@ class TabView:
         v, self.pending = self.pending, None
         if v is None:
             return
+        self.clear_errors()  # every input set anew
         apply_values(self.controls, v)
         self.views.set_system(resolve_system(v).system)
         names = list(self.views.channel.options)
@@ -146,13 +154,56 @@ class TabView:
 
     # ----- what the tab shows -------------------------------------------------------------------------------------
     def show_error(self, text: str) -> None:
-        """One line under the panel's inputs; the views keep the last good result."""
+        """One line under the panel's inputs: the settings cannot be computed; the views keep the last good
+        result (until a computation draws again)."""
+        with self._errors:
+            self.run_error = text
+            self._show_errors(text)
+
+    def refuse(self, handle: Any, text: str) -> None:
+        """A value sent for input ``handle`` was refused (the input keeps, and shows, the value in use): one line
+        that stays until that input is changed again (:meth:`accept`), whatever is drawn meanwhile."""
+        with self._errors:
+            self.refusals.pop(id(handle), None)
+            self.refusals[id(handle)] = text  # (the newest last)
+            self._show_errors(text)
+
+    def accept(self, handle: Any) -> None:
+        """A value sent for input ``handle`` was taken: its refusal line goes."""
+        with self._errors:
+            if self.refusals.pop(id(handle), None) is not None:
+                self._show_errors(None)
+
+    def forget(self, handles: Any) -> None:
+        """Inputs removed from the panel (the weight sliders of a previous system): their refusals go."""
+        with self._errors:
+            if any(self.refusals.pop(id(h), None) is not None for h in list(handles)):
+                self._show_errors(None)
+
+    def clear_errors(self) -> None:
+        """No error line any more (the panel was set anew: settings loaded, another system, a view followed)."""
+        with self._errors:
+            self.run_error = None
+            self.refusals.clear()
+            self._show_errors(None)
+
+    def _show_errors(self, newest: str | None) -> None:
+        """The error box: every refusal, then why the settings cannot be computed; hidden when there is none.
+        ``newest``: the line just added (the status line then says "error")."""
         c = self.controls
-        c.status.content = "error – see below"  # first: once the error shows, the status says so too
-        c.progress.value = 0.0
-        c.error.content = f"⚠️ **Cannot update:** {text}  \n*The view still shows the last good result.*"
-        c.error.visible = True
-        self.last_error = text
+        if newest is not None:
+            c.status.content = "error – see below"  # first: once the error shows, the status says so too
+            c.progress.value = 0.0
+        lines = [f"⚠️ **Refused:** {t}" for t in self.refusals.values()]
+        if self.run_error is not None:
+            lines.append(f"⚠️ **Cannot update:** {self.run_error}  \n*The view still shows the last good result.*")
+        self.last_error = (
+            newest if newest is not None else (self.run_error or next(reversed(self.refusals.values()), None))
+        )
+        if lines:
+            c.error.content = "  \n".join(lines)
+        if c.error.visible != bool(lines):
+            c.error.visible = bool(lines)
 
     def show_progress(self, fraction: float, text: str) -> None:
         self.controls.progress.value = 100.0 * fraction
@@ -175,9 +226,10 @@ class TabView:
             name: Sent(fig, r.aspects[name]) for name, fig in r.figures.items()
         }  # JSON made once, followers reuse it
         with self.client.atomic():
-            if c.error.visible:
-                c.error.visible = False
-                self.last_error = None
+            with self._errors:
+                if self.run_error is not None or (c.error.visible and not self.refusals):
+                    self.run_error = None
+                    self._show_errors(None)  # a refusal stays: the input shows the value these results are for
             if r.scene is not None:
                 self.portrait.draw(r.scene)
             if r.summary is not None:

@@ -18,7 +18,7 @@ from viser import _messages
 
 __all__ = ["LoopEvent", "ViserHookWarning", "PHONE_SHEET_CSS", "SHEET_SOURCE", "connection_request", "guard_updates"]
 __all__ += ["limit_reads", "phone_sheet_style", "redirect_pages", "refuse_share_requests", "send_plotly_js"]
-__all__ += ["set_callback_executor", "thread_safe_buffers"]
+__all__ += ["set_callback_executor", "show_value", "thread_safe_buffers"]
 _warned: set[str] = set()
 F = TypeVar("F", bound=Callable[..., bool])
 
@@ -161,6 +161,14 @@ def guard_updates(gui: Any, guard: Guard) -> bool:
         await guard(inputs.get(message.uuid), dict(message.updates), lambda: orig(client_id, message))
 
     conn.register_handler(_messages.GuiUpdateMessage, guarded)
+    return True
+
+
+@_hook("the refused value's input set back", "GuiApi._websock_interface.queue_message and a handle's _impl.uuid")
+def show_value(gui: Any, handle: Any) -> bool:
+    """Send the tab of ``gui`` the value input ``handle`` holds: after a refused value the browser would go on
+    showing what was typed (viser sends a value only when it changes; the handle keeps the one in use)."""
+    gui._websock_interface.queue_message(_messages.GuiUpdateMessage(handle._impl.uuid, {"value": handle.value}))
     return True
 
 

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, DataOverflowError, check_float, check_int
-from ..validate import check_memory
 from .lti import LTISystem
+from .memory import check_memory
 
 __all__ = ["Dataset", "simulate", "OVERFLOW_LIMIT"]
 

@@ -26,17 +26,17 @@ reported) are drawn by :mod:`qsid_core.plant.nonlinear_data`.
 
 from __future__ import annotations
 
-import json
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import tomllib
 
 from ..errors import ConfigError, SystemDefinitionError, check_float, check_int, short_repr
 from .field_import import resolve_field
+from .plantfile import read_plant_table
 
 __all__ = [
     "NONLINEAR_PRESETS",
@@ -228,7 +228,14 @@ NONLINEAR_PRESETS: dict[str, Callable[[], NonlinearSystem]] = {
 
 
 def is_nonlinear(name: object) -> bool:
-    """Whether ``name`` is a nonlinear preset's name, a nonlinear plant file or a :class:`NonlinearSystem`."""
+    """Whether ``name`` is a nonlinear preset's name, a nonlinear plant file or a :class:`NonlinearSystem`.
+
+    Raises
+    ------
+    SystemDefinitionError
+        ``name`` is a .toml/.json path where something is that cannot be read as a plant file
+        (see :func:`is_nonlinear_file`).
+    """
     if isinstance(name, NonlinearSystem):
         return True
     return isinstance(name, str) and (name.strip().lower() in NONLINEAR_PRESETS or is_nonlinear_file(name))
@@ -283,22 +290,28 @@ def nonlinear_from_dict(
 
 
 def is_nonlinear_file(path: str | Path) -> bool:
-    """Whether ``path`` is an existing .toml/.json plant file that names a ``vector_field``."""
+    """Whether ``path`` is an existing .toml/.json plant file that names a ``vector_field``.
+
+    False for a name without that suffix or with nothing at it.
+
+    Raises
+    ------
+    SystemDefinitionError
+        Something is at ``path`` but it cannot be read as a plant file (a directory, a FIFO, a loop of links,
+        binary, nested too deeply ...): the line :func:`~qsid_core.plant.plantfile.read_plant_table` gives.
+    """
+    if not isinstance(path, (str, Path)):
+        return False
     p = Path(path)
-    if p.suffix.lower() not in (".toml", ".json") or not p.is_file():
+    if p.suffix.lower() not in (".toml", ".json"):
         return False
     try:
-        return "vector_field" in _read_table(p)
-    except (OSError, ValueError):
+        os.stat(p)
+    except (FileNotFoundError, NotADirectoryError):
         return False
-
-
-def _read_table(p: Path) -> dict[str, Any]:
-    text = p.read_text()
-    d = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
-    if not isinstance(d, dict):
-        raise SystemDefinitionError(f"plant file {p.name!r} must hold one table of keys")
-    return d
+    except (OSError, ValueError):  # a loop of links, a name too long, a NUL byte: said by read_plant_table
+        pass
+    return "vector_field" in read_plant_table(p)
 
 
 def load_nonlinear(path: str | Path) -> NonlinearSystem:
@@ -310,8 +323,4 @@ def load_nonlinear(path: str | Path) -> NonlinearSystem:
         Unreadable or malformed file, or a vector field that cannot be imported.
     """
     p = Path(path)
-    try:
-        d = _read_table(p)
-    except (OSError, ValueError) as exc:
-        raise SystemDefinitionError(f"plant file {str(p)!r} cannot be read: {exc}") from None
-    return nonlinear_from_dict(d, p.stem, p.parent)
+    return nonlinear_from_dict(read_plant_table(p), p.stem, p.parent)

@@ -22,7 +22,6 @@ Presets
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -34,12 +33,9 @@ from ..errors import ConfigError, SystemDefinitionError, check_float, short_repr
 from ..validate import MAX_MAGNITUDE
 from .lti import LTISystem
 from .nonlinear import NONLINEAR_PRESETS
+from .plantfile import read_plant_table
 
 __all__ = ["PRESETS", "dc_motor", "dc_motor_physical", "boeing747", "get_system", "load_system", "system_from_dict"]
-
-
-#: Largest system file read (bytes).
-MAX_FILE_BYTES = 10_000_000
 
 
 def dc_motor() -> LTISystem:
@@ -256,43 +252,16 @@ def load_system(path: str | Path) -> LTISystem:
 
     The file holds ``A`` (n x n), ``B`` (n x m) and optionally ``x0`` (n), ``Q``
     (n x n or n diagonal entries), ``R`` (m x m or m entries) and ``dt``.
+
+    Raises
+    ------
+    SystemDefinitionError
+        The file cannot be read as a plant file (:func:`~qsid_core.plant.plantfile.read_plant_table`: missing,
+        a directory, a FIFO, a loop of links, binary, nested too deeply ...) or does not define a system.
     """
     if not isinstance(path, (str, Path)):
         raise SystemDefinitionError(f"system file must be a path; got {short_repr(path)}")
-    p = Path(path)
-    shown = short_repr(str(p))
-    try:
-        st = p.stat()
-    except (OSError, ValueError) as exc:  # missing, name too long, NUL byte, no permission
-        why = "does not exist" if isinstance(exc, FileNotFoundError) else f"cannot be opened ({_reason(exc)})"
-        raise SystemDefinitionError(f"system file {shown} {why}") from None
-    if p.is_dir():
-        raise SystemDefinitionError(f"{shown} is a directory, not a system file (.toml or .json)")
-    if st.st_size > MAX_FILE_BYTES:
-        raise SystemDefinitionError(f"system file {shown} is {st.st_size} bytes; at most {MAX_FILE_BYTES} allowed")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SystemDefinitionError(f"cannot read system file {p.name!r}: {_reason(exc)}") from None
-    suffix = p.suffix.lower()
-    try:
-        if suffix == ".json":
-            d = json.loads(text)
-        elif suffix == ".toml":
-            try:
-                import tomllib
-            except ModuleNotFoundError:  # Python 3.10
-                import tomli as tomllib  # type: ignore[no-redef]
-            d = tomllib.loads(text)
-        else:
-            raise SystemDefinitionError(f"system file must end in .toml or .json; got {p.name!r}")
-    except SystemDefinitionError:
-        raise
-    except RecursionError:
-        raise SystemDefinitionError(f"cannot parse {p.name}: lists are nested too deeply") from None
-    except Exception as exc:  # parse errors of either format
-        raise SystemDefinitionError(f"cannot parse {p.name}: {exc}") from None
-    return system_from_dict(d, name=p.stem)
+    return system_from_dict(read_plant_table(path), name=Path(path).stem)
 
 
 def get_system(name_or_path: str | Path | LTISystem) -> LTISystem:
@@ -326,10 +295,3 @@ def _exists(path: str) -> bool:
         return Path(path).exists()
     except (OSError, ValueError):
         return False
-
-
-def _reason(exc: BaseException) -> str:
-    """An OS error in words, without repeating the (possibly very long) file name."""
-    if isinstance(exc, OSError) and exc.strerror:
-        return exc.strerror
-    return short_repr(str(exc))

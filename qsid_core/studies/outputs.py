@@ -36,8 +36,8 @@ def output_target(path: str | os.PathLike[str]) -> Path:
     """
     p = Path(path)
     target = Path(os.path.realpath(p)) if p.is_symlink() else p
-    try:
-        mode = os.stat(target).st_mode
+    try:  # what a write through ``path`` reaches (``/dev/stdout`` into a pipe: a pipe, though no name is one)
+        mode = os.stat(p).st_mode
     except FileNotFoundError:
         return target
     except OSError as exc:

@@ -332,3 +332,45 @@ def test_fuzz_run_sweep_degenerate_weights(s, q, r, x0, estimator, u_max):
     res = fuzz_call("run_sweep", run_sweep, cfg)
     if res is not None:
         json.dumps(res.to_dict(), allow_nan=False)
+
+
+def _plant_text(suffix: str, depth: int, opener: str, digits: int, key: str) -> str:
+    """A plant file's text: ``key`` holding a value nested ``depth`` deep (``opener``: a list or a table) around a
+    number of ``digits`` digits."""
+    number = "9" * digits
+    if suffix == ".json":
+        inner = "[" * depth + number + "]" * depth if opener == "[" else '{"a": ' * depth + number + "}" * depth
+        return '{"' + key + '": ' + inner + ', "B": [[1]]}'
+    inner = "[" * depth + number + "]" * depth if opener == "[" else "{a = " * depth + number + "}" * depth
+    return f"{key} = {inner}\nB = [[1]]\n"
+
+
+@FUZZ
+@given(
+    suffix=st.sampled_from([".json", ".toml"]),
+    depth=st.sampled_from([1, 2, 3, 50, 500, 999, 1000, 1001, 5000]),
+    opener=st.sampled_from(["[", "{"]),
+    digits=st.sampled_from([1, 300, 4300, 4301, 20000]),
+    key=st.sampled_from(["A", "x0", "vector_field", "n"]),
+    junk=st.binary(max_size=64),
+)
+def test_fuzz_plant_files(suffix, depth, opener, digits, key, junk):
+    """Deep nesting, long numbers and stray bytes: every public plant-file reader answers or raises an engine
+    error (a SystemDefinitionError, not RecursionError, OSError or a hang)."""
+    import tempfile
+    from pathlib import Path
+
+    from qsid_core import get_system, load_system
+    from qsid_core.plant import is_nonlinear, is_nonlinear_file, load_nonlinear
+
+    with tempfile.TemporaryDirectory() as tmp:
+        p = Path(tmp) / f"plant{suffix}"
+        p.write_bytes(_plant_text(suffix, depth, opener, digits, key).encode() + junk)
+        for name, fn in (
+            ("load_system", load_system),
+            ("get_system", get_system),
+            ("is_nonlinear_file", is_nonlinear_file),
+            ("is_nonlinear", is_nonlinear),
+            ("load_nonlinear", load_nonlinear),
+        ):
+            fuzz_call(name, fn, str(p))

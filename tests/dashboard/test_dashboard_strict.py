@@ -96,14 +96,24 @@ def test_values_of_the_wrong_type_sent_over_the_websocket_are_refused_before_any
         assert BY_NAME[name].label in err and "\n" not in err.split("  \n")[0]
         assert handle.value == before and type(handle.value) is type(before), (name, value, handle.value)
         assert tab.session.generation == gen and tab.session.frames_drawn == frames
-    # a good value of the right type sent the same way still goes through, and clears the message
+    # a good value of the right type sent the same way still goes through, and clears that input's message; the
+    # other refused inputs' messages stay until each of them is changed again
+    refused = {BY_NAME[name].label for name, _, _ in SENT}
     for name, value in (("bits", 6), ("bits", 7.0), ("guard", False)):
         gen = tab.session.generation
         _send_raw(tab, tab.controls[name], value)
         wait_until(lambda: tab.session.generation > gen, f"{name} = {value!r} taken")
         tab.wait()
-        assert tab.error is None and getattr(tab.frame.values, name) == value
+        refused.discard(BY_NAME[name].label)
+        assert getattr(tab.frame.values, name) == value
         assert type(tab.controls[name].value) is BY_NAME[name].convert
+        assert tab.error is not None and BY_NAME[name].label + ": the value sent" not in tab.error
+        assert all(f"{label}: the value sent" in tab.error for label in refused), (refused, tab.error)
+    for name in ("trajectories", "u_max", "noise_known", "dither"):  # each sent again, as it is: taken
+        _send_raw(tab, tab.controls[name], tab.controls[name].value)
+        label = BY_NAME[name].label
+        wait_until(lambda: f"{label}: the value sent" not in (tab.error or ""), f"{label}'s refusal goes")
+    assert tab.wait().error is None
 
 
 @pytest.mark.parametrize(

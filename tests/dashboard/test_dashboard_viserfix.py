@@ -58,6 +58,7 @@ def fresh(monkeypatch):
 
 def _hooks(server, client, executor):
     gui = client.gui
+    number = gui.add_number("n", 1.0)
     return {
         "thread_safe_buffers": lambda: viserfix.thread_safe_buffers(server),
         "set_callback_executor": lambda: viserfix.set_callback_executor(gui, executor),
@@ -67,6 +68,7 @@ def _hooks(server, client, executor):
         "send_plotly_js": lambda: viserfix.send_plotly_js(gui, "/* plotly.js */"),
         "redirect_pages": lambda: viserfix.redirect_pages(server, _moved),
         "phone_sheet_style": lambda: viserfix.phone_sheet_style(gui),
+        "show_value": lambda: viserfix.show_value(gui, number),
     }
 
 
@@ -158,6 +160,8 @@ def _remove(monkeypatch, server, client, name):
         monkeypatch.delattr(gui, "_setup_plotly_js")
     elif name == "phone_sheet_style":  # a client whose sheet is drawn otherwise
         monkeypatch.setattr(viserfix, "SHEET_SOURCE", ('maxHeight: "61%"',))
+    elif name == "show_value":
+        monkeypatch.delattr(gui, "_websock_interface")
 
 
 @pytest.mark.parametrize(
@@ -171,6 +175,7 @@ def _remove(monkeypatch, server, client, name):
         "send_plotly_js",
         "redirect_pages",
         "phone_sheet_style",
+        "show_value",
     ],
 )
 def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatch, name):

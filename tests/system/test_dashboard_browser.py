@@ -310,3 +310,53 @@ def test_lesson_opens_on_its_plot_above_the_fold(size, tmp_path):
                 browser.close()
     finally:
         app.stop()
+
+
+def test_a_rho_refused_while_computing_stays_explained_and_the_box_shows_the_rho_in_use(tmp_path):
+    """Issue 40's case in a browser: with a computation running, "ρ auto" off and ρ = −1 typed. The box goes back
+    to the ρ in use at once, and the refusal is still shown once the computation says "ready"; typing another ρ
+    takes it and the line goes."""
+    _require_browser()
+    from playwright.sync_api import sync_playwright
+
+    from app.dashboard import DashboardApp
+
+    app = DashboardApp(host="127.0.0.1", port=0, workers=0)
+    errors: list = []
+    ignored: list = []
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+            try:
+                page, s = _open(browser.new_context(viewport={"width": 1366, "height": 768}), app, errors, ignored, 1)
+                s.controls["trajectories"].value = 400  # (set as the panel would) a computation of some seconds
+                s.controls["steps"].value = 1000
+                page.get_by_role("tab", name="Theory").click()
+                page.get_by_label("ρ auto").uncheck()
+                label = next(lab for lab in page.locator("label").all() if lab.inner_text().strip() == "ρ")
+                rho = label.get_attribute("for")
+                box = page.locator(f"[id='{rho}']")
+                end = time.monotonic() + TIMEOUT_MS / 1000  # (a hang guard)
+                while not s.controls.status.content.startswith(("computing", "queued")) and time.monotonic() < end:
+                    time.sleep(0.01)
+                box.fill("-1")
+                box.press("Tab")
+                page.wait_for_function("(id) => document.getElementById(id).value === '1'", arg=rho, timeout=TIMEOUT_MS)
+                assert s.wait_idle(TIMEOUT_MS / 1000) and s.controls.status.content.startswith("ready")
+                refusal = page.get_by_text("ρ: the value sent (-1) was refused")
+                page.wait_for_function(  # what the "ready" frame sent has arrived ...
+                    "() => document.body.innerText.includes('ready ·')", timeout=TIMEOUT_MS
+                )
+                refusal.wait_for(state="visible", timeout=TIMEOUT_MS)  # ... and the refusal is still there
+                assert box.input_value() == "1"
+                assert s.last_frame.values.rho == 1.0 and s.last_frame.values.rho_auto is False
+                page.screenshot(path=str(tmp_path / "rho_refused.png"))
+                box.fill("2")
+                box.press("Tab")
+                refusal.wait_for(state="hidden", timeout=TIMEOUT_MS)
+                assert s.wait_idle(TIMEOUT_MS / 1000) and s.last_frame.values.rho == 2.0
+            finally:
+                browser.close()
+    finally:
+        app.stop()
+    assert errors == [], f"console errors: {errors}"

@@ -179,3 +179,161 @@ def test_one_url_shown_and_only_once_the_page_answers():
         if p.poll() is None:
             p.kill()
             p.wait(HANG_S)
+
+
+# ------------------------------------------------------------------------------------------------
+# a start-up that always ends (issue 40)
+# ------------------------------------------------------------------------------------------------
+
+
+def _one_line_exit_2(r: subprocess.CompletedProcess, *words: str) -> None:
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert r.stdout == "" and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, (r.stdout, r.stderr)
+    for w in words:
+        assert w in r.stderr, r.stderr
+
+
+def test_a_port_in_use_is_one_line_and_exit_2_not_the_next_port():
+    import socket
+
+    with socket.socket() as s:  # another program on the port
+        s.bind(("127.0.0.1", 0))
+        s.listen(1)
+        port = s.getsockname()[1]
+        t0 = time.monotonic()
+        r = run("--port", str(port), "--workers", "2")
+        took = time.monotonic() - t0
+    print(f"--port {port} in use: exit {r.returncode} after {took:.1f} s")
+    _one_line_exit_2(r, f"--port {port} on 127.0.0.1 is in use by another program")
+
+
+def _without_low_ports() -> list[str]:
+    """A command prefix that runs a program without the right to bind ports below 1024."""
+    import shutil
+
+    if os.geteuid() != 0:
+        return []  # a user has no such right anyway
+    if shutil.which("setpriv") is None:
+        pytest.skip("root without setpriv: cannot drop CAP_NET_BIND_SERVICE")
+    return ["setpriv", "--bounding-set=-net_bind_service", "--inh-caps=-net_bind_service"]
+
+
+def test_port_1_without_the_right_to_bind_it_is_one_line_and_no_process_is_left():
+    if int(Path("/proc/sys/net/ipv4/ip_unprivileged_port_start").read_text()) <= 1:
+        pytest.skip("this machine lets anyone bind port 1")
+    t0 = time.monotonic()
+    p = subprocess.Popen(
+        [*_without_low_ports(), sys.executable, "-m", "app.dashboard", "--port", "1", "--workers", "2"],
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    out, err = p.communicate(timeout=HANG_S)  # was: no line, no end, deaf to Ctrl-C and SIGTERM
+    print(f"--port 1 without the right: exit {p.returncode} after {time.monotonic() - t0:.1f} s")
+    _one_line_exit_2(subprocess.CompletedProcess(p.args, p.returncode, out, err), "--port 1", "permission denied")
+    assert descendants(p.pid) == []
+
+
+def _starting(workers: int = 2) -> tuple[subprocess.Popen, list[str]]:
+    """The dashboard starting on a free port (``--port 0``), its stdout lines collected as they come."""
+    import threading
+
+    p = dashboard_process("--workers", str(workers))
+    lines: list[str] = []
+    threading.Thread(target=lambda: lines.extend(p.stdout), daemon=True).start()
+    return p, lines
+
+
+def _pool_workers(pid: int) -> list[int]:
+    """The children of ``pid`` that are pool workers (not a short-lived helper some import runs)."""
+    out = []
+    for c in children(pid):
+        try:
+            if b"app.procs" in Path(f"/proc/{c}/cmdline").read_bytes():
+                out.append(c)
+        except OSError:
+            pass
+    return out
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
+def test_a_stop_signal_ends_the_start_up_while_the_workers_start(sig):
+    """Signalled once its pool's workers exist (the workers starting, the kernels warming, the first view being
+    computed), before the URL: it stops at once, says so, and leaves no process behind."""
+    p, lines = _starting()
+    try:
+        wait_until(
+            lambda: _pool_workers(p.pid) or p.poll() is not None, "the pool's workers started", HANG_S, every=0.01
+        )
+        assert p.poll() is None and not any("://" in ln for ln in lines), lines
+        workers = descendants(p.pid)
+        t0 = time.monotonic()
+        p.send_signal(sig)
+        p.wait(HANG_S)
+        took = time.monotonic() - t0
+        err = p.stderr.read()
+    finally:
+        if p.poll() is None:
+            p.kill()
+    print(f"{sig.name} while the workers start: exit {p.returncode} after {took:.2f} s")
+    assert p.returncode == 0 and "Traceback" not in err, err
+    wait_until(lambda: "".join(lines).count("stopping (before it was ready)") == 1, "the stop is said", 10)
+    assert gone_within(workers, 60) == [], "workers left behind"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
+def test_a_stop_signal_during_the_imports_ends_it_without_a_traceback(sig):
+    p, lines = _starting()
+    try:
+        time.sleep(0.3)  # (a moment of the imports; not a limit)
+        t0 = time.monotonic()
+        p.send_signal(sig)
+        p.wait(HANG_S)
+        took = time.monotonic() - t0
+        err = p.stderr.read()
+    finally:
+        if p.poll() is None:
+            p.kill()
+    print(f"{sig.name} during the imports: exit {p.returncode} after {took:.2f} s")
+    assert p.returncode in (0, -sig), (p.returncode, err)  # killed by the signal, as a terminal expects
+    assert "Traceback" not in err and not any("://" in ln for ln in lines), err
+
+
+def test_the_url_says_when_the_port_is_not_the_one_asked_for():
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        p = subprocess.Popen(
+            [sys.executable, "-m", "app.dashboard", "--port", str(port), "--next-free-port", "--workers", "0"],
+            cwd=ROOT,
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            ready = ""
+            while "://" not in ready and p.poll() is None:
+                ready = p.stdout.readline()
+        finally:
+            p.send_signal(signal.SIGTERM)
+            p.wait(HANG_S)
+    moved = int(ready.split()[2].rsplit(":", 1)[1])
+    assert moved > port and f"port {port} was in use: --next-free-port took {moved}" in ready, ready
+
+
+def test_port_0_says_the_system_chose_it():
+    p, lines = _starting(workers=0)
+    try:
+        wait_until(lambda: any("://" in ln for ln in lines) or p.poll() is not None, "the URL", HANG_S)
+    finally:
+        p.send_signal(signal.SIGTERM)
+        p.wait(HANG_S)
+    (url,) = [ln for ln in lines if "://" in ln]
+    port = url.split()[2].rsplit(":", 1)[1]
+    assert f"(--port 0: port {port}, a free one the system chose; Ctrl-C to stop)" in url, url
