@@ -7,12 +7,17 @@ dashboard computes for those settings (``tests/dashboard/test_dashboard_lessons.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from typing import Any
 
+import numpy as np
+
+from app.settings.schema import BY_NAME
 from qsid_core import LETTER_QUANTIZER
 
 from .koopman_lessons import KOOPMAN_LESSONS
-from .settings import NO_LESSON, PAPER_SCALE, Values
+from .settings import DISPLAY_ONLY, NO_LESSON, PAPER_SCALE, Values, log_from_weights, resolve_system
 
 __all__ = [
     "Lesson",
@@ -24,14 +29,20 @@ __all__ = [
     "lesson_values",
     "lesson_markdown",
     "lesson_drift",
+    "lesson_panel",
+    "drift_label",
     "LessonMark",
     "key_view",
 ]
 
 #: The button that sets the panel back to the lesson's settings once they drifted.
 BACK_LABEL = "↺ back to the lesson's settings"
-#: Fields a lesson sets that the person is meant to move (its text says "move b to ..."): not a drift.
-_MEANT_TO_MOVE = ("bits",)
+#: Fields never a drift: b (every lesson's text says "move b to ..."), the lesson itself, what is only drawn
+#: differently from the same results (presenter mode, 3-D axes, the bound in 3-D, the quantizer's channel, the
+#: compared word lengths) and a preset's matrices (the system names them).
+_NOT_A_DRIFT = ("lesson", "a_text", "b_text", *DISPLAY_ONLY)
+#: Fields whose empty value means "the system's own" (:class:`~app.dashboard.settings.Values`).
+_SYSTEMS_OWN = ("x0", "log_q", "log_r")
 
 #: The selector's entry for "no lesson" (the panel as it is).
 NONE = NO_LESSON
@@ -50,13 +61,17 @@ _LETTER = dict(
 class Lesson:
     """One lesson: ``name`` (selector and ``--lesson``), a title, 2-5 sentences, panel value overrides, and
     ``plot``, the view (:data:`app.figures.registry.VIEWS`) it is about: opening the lesson brings its tab
-    forward and shows that view first."""
+    forward and shows that view first. ``moves``: the settings the text tells the person to change (following
+    the text is not a drift from the lesson)."""
 
     name: str
     title: str
     text: str
     settings: dict
     plot: str = "error"
+    #: what the text tells the person to change, one instruction per entry (fields set together): the panel
+    #: after following one (or several) is not marked modified
+    moves: tuple[dict, ...] = ()
 
 
 LESSONS: tuple[Lesson, ...] = (
@@ -64,7 +79,7 @@ LESSONS: tuple[Lesson, ...] = (
         "fig1",
         "The letter's Fig. 1 (dc motor)",
         "The letter's own settings and estimator, LS (200 runs × 1000 steps, 50 dither realizations, "
-        "per-channel range, no guard band). Look at the error plot (Identification tab): Â and B̂ fall about "
+        "per-channel range, no guard band). Look at the error plot (show: Identification): Â and B̂ fall about "
         "0.3 decades per bit, like the grey dotted line, and the fitted slopes are read out next to the "
         "letter's −0.301 and −0.322: finite data, O(ε). Theorem 1's line is faded: the motor angle is an "
         "integrator. Move b to 2, 4 and 6: in the 3-D scene the closed loops (blue) close in on the "
@@ -74,19 +89,19 @@ LESSONS: tuple[Lesson, ...] = (
     Lesson(
         "fig2",
         "The letter's Fig. 2 (Boeing 747)",
-        "The letter's settings and estimator, LS, on the Boeing 747. Look at the error plot (Identification "
-        "tab): for b = 2..6 the error of Â falls about 0.55 decades per bit on Theorem 1's dashed line (its "
+        "The letter's settings and estimator, LS, on the Boeing 747. Look at the error plot (show: "
+        "Identification): for b = 2..6 the error of Â falls about 0.55 decades per bit on Theorem 1's dashed line (its "
         "O(ε²) bias), from b = 8 on about 0.3 (finite data, O(ε)). B̂ is not on its line: the range (the "
         "data's min/max, no guard band) clips samples near the extremes, which moves B̂ by more than its "
-        "fluctuation (the plot's note on hover and the summary give the numbers). In the cost plot (Control "
-        "tab) the identified models' MPC cost is within 0.01 % of the true model's (dashed) from b = 8 on.",
+        "fluctuation (the plot's note and the summary give the numbers). In the cost plot (show: Control) "
+        "the identified models' MPC cost is within 0.01 % of the true model's (dashed) from b = 8 on.",
         dict(system="boeing747", bits=8, identification="LS", **_LETTER),
     ),
     Lesson(
         "theorem1",
         "Theorem 1 in action",
         "Boeing 747 (stable, so Ψ Ψᵀ/T converges), one shared range with guard band, the letter's data "
-        "size; look at the error plot (Identification tab). Where the summary says every hypothesis holds "
+        "size; look at the error plot (show: Identification). Where the summary says every hypothesis holds "
         "(coarse b), the LS error of Â sits on the dashed Theorem 1 line (within 10 %): the O(ε²) bias. At "
         "fine b the line is faded: the O(ε) finite-data fluctuation dominates.",
         dict(
@@ -103,11 +118,11 @@ LESSONS: tuple[Lesson, ...] = (
     Lesson(
         "dither",
         "Why dither",
-        "A coarse fixed range [-20, 20] at b = 3 (Boeing 747), error plot in the Identification tab. With "
+        "A coarse fixed range [-20, 20] at b = 3 (Boeing 747), error plot (show: Identification). With "
         "subtractive dither the noise is known (ε²/12, independent of the signal), so BCLS removes its bias: "
         "the BCLS error of Â is below 0.05 while LS is above 0.7; switch dither to 'none' and BCLS's noise "
         "model fails at b = 3 too (a red cross there; the crosses already shown mark clipping), its error above "
-        "0.5. Move b to 12: LS and BCLS level off near 2e-4, and the plot's note (hover) names the cause: "
+        "0.5. Move b to 12: LS and BCLS level off near 2e-4, and the plot's note names the cause: "
         "the range ±20 clips 0.05 % of the samples, and that, not the data length, sets this floor. Type the "
         "range -40, 40 and the error keeps falling.",
         dict(
@@ -123,15 +138,16 @@ LESSONS: tuple[Lesson, ...] = (
             steps=1000,
             realizations=5,
         ),
+        moves=({"dither": "none"}, {"fixed_range": "-40, 40"}),
     ),
     Lesson(
         "one-cell",
         "Plain quantization fails, dither rescues it",
         "Boeing 747, one fixed range [-40, 40] at b = 4: cells 5 wide, so the inputs (|u| ≤ 1) stay in the two "
-        "cells next to 0 and plain quantization keeps only their sign. Look at the quantizer plot (Quantizer "
-        "tab, channel u: elevator): without dither the error is a deterministic function of u (a piece of the "
+        "cells next to 0 and plain quantization keeps only their sign. Look at the quantizer plot (show: "
+        "Quantizer, channel u: elevator): without dither the error is a deterministic function of u (a piece of the "
         "sawtooth), so the data say almost nothing about u, and LS and BCLS both miss Â and B̂ by more than "
-        "60 % (error plot, Identification tab). Switch dither to 'subtractive': the error becomes a uniform "
+        "60 % (error plot, show: Identification). Switch dither to 'subtractive': the error becomes a uniform "
         "band independent of u, and BCLS recovers Â and B̂ to within 5 %.",
         dict(
             system="boeing747",
@@ -148,15 +164,16 @@ LESSONS: tuple[Lesson, ...] = (
             view_channel=4,
         ),
         plot="quantizer",
+        moves=({"dither": "subtractive"},),
     ),
     Lesson(
         "data-length",
         "Finite vs large data",
         "Boeing 747 with a small data set (50 runs × 200 steps). The summary flags 'finite data' from a "
         "coarser b on than at the letter's size, and Theorem 1's line is faded there; at b = 16 the "
-        "measured error is far above the line (error plot, Identification tab). Press 'Paper scale' "
-        "(200 × 1000): the line holds down to finer b. The Data length tab draws the error against the data "
-        "size.",
+        "measured error is far above the line (error plot, show: Identification). Press 'Paper scale' "
+        "(200 × 1000): the line holds down to finer b. In show: Data length, its button draws the error against "
+        "the data size.",
         dict(
             system="boeing747",
             bits=6,
@@ -169,12 +186,13 @@ LESSONS: tuple[Lesson, ...] = (
             steps=200,
             realizations=20,
         ),
+        moves=(dict(PAPER_SCALE),),
     ),
     Lesson(
         "saturation",
         "Actuator saturation",
         "A large start x0 = (5, 5, 0, 0) and a small input bound 0.2 on the Boeing 747; look at the time "
-        "series (Control tab): the inputs sit on ±0.2 for many steps, and the summary counts them. The loops "
+        "series (show: Control): the inputs sit on ±0.2 for many steps, and the summary counts them. The loops "
         "still converge: ‖x_T‖ ends well below ‖x0‖.",
         dict(
             system="boeing747",
@@ -196,14 +214,14 @@ LESSONS: tuple[Lesson, ...] = (
     Lesson(
         "bits-needed",
         "How many bits does the MPC need?",
-        "The Boeing 747 at the letter's data size, LS, b = 2; look at the bits plot (Control tab). At b = 2 "
+        "The Boeing 747 at the letter's data size, LS, b = 2; look at the bits plot (show: Control). At b = 2 "
         "most loops never settle on the true plant (the summary counts them: the spectral radius of A − BK̂ "
-        "is above 1), although none fails outright. The plot's title gives three answers: the b from which "
-        "on 95 % of the loops converge at a cost within 1 % of the true model's (b_observed, 4), the b from "
-        "which the small-gain certificate holds for Theorem 1's model (b_robust, 5) and the b from which the "
-        "letter's bound says anything (b_letter, 9). Why b = 1 settles every loop but b = 2 few: the 1-bit model "
-        "is nearly empty, so its MPC barely acts (‖K̂‖ ≈ 0.24, the true model's 1.08) and the stable Boeing "
-        "settles on its own, while b = 2's half-right model acts harder (‖K̂‖ ≈ 0.66) and wrongly.",
+        "is above 1), although none fails outright. The plot's title gives three answers: b_observed, from "
+        "which on 95 % of the loops converge at a cost within 1 % of the true model's; b_robust, from which the "
+        "small-gain certificate holds (for the model the title names); and b_letter, from which the letter's "
+        "bound says anything. Why b = 1 settles more loops than b = 2: the 1-bit model is nearly empty, so its "
+        "MPC barely acts and the stable Boeing settles on its own, while b = 2's half-right model acts harder, "
+        "and wrongly.",
         dict(
             system="boeing747",
             bits=2,
@@ -220,7 +238,7 @@ LESSONS: tuple[Lesson, ...] = (
         "tracking",
         "Bits and tracking",
         "The Boeing 747 tracks a sine on its speed u (reference sine:u:1:40, seen over the MPC's horizon); "
-        "look at the residual plot (Control tab) and the time series. At b = 2 the tracking error (dotted) "
+        "look at the residual plot (show: Control) and the time series. At b = 2 the tracking error (dotted) "
         "is more than twice the true model's, from b = 4 on it is within 5 % of it: the bits the model needs "
         "for tracking are few. The reference is drawn dashed in the time series and in the 3-D view.",
         dict(
@@ -242,7 +260,7 @@ LESSONS: tuple[Lesson, ...] = (
         "feedback",
         "Quantized feedback: the floor",
         "Now the MPC measures the Boeing's state through a 4-bit quantizer (subtractive dither over the "
-        "training range); look at the residual plot (Control tab). The loops keep a steady-state error of "
+        "training range); look at the residual plot (show: Control). The loops keep a steady-state error of "
         "about 0.8: from b = 8 on it no longer falls with b and equals the true model's within 1 %, so the "
         "floor is the measurement, not the model, and the letter's δ (model error only) does not cover it. "
         "Set feedback bits to 8: the floor falls more than 4× (about half per bit). b = 1 lies below the floor "
@@ -262,11 +280,12 @@ LESSONS: tuple[Lesson, ...] = (
             realizations=10,
         ),
         plot="residual",
+        moves=({"feedback_bits": 8},),
     ),
     Lesson(
         "bound",
         "The ultimate bound",
-        "Two bounds in the bound plot (Control tab): the letter's δ(ε) (green, from Theorem 1's T → ∞ model "
+        "Two bounds in the bound plot (show: Control): the letter's δ(ε) (green, from Theorem 1's T → ∞ model "
         "errors) and the a-posteriori δ (purple, from each realization's own model error): with finite data "
         "the a-posteriori δ is the larger one at every b. Both bound ‖x_t‖ only as t → ∞; the closed loops "
         "end below both. The summary's 'bound lesson' line reads how loose each δ is at the current b "
@@ -322,13 +341,57 @@ def key_view(name: str) -> str:
     return get_lesson(name).plot if name in lesson_names()[1:] else "error"
 
 
+@functools.lru_cache(maxsize=64)
+def lesson_panel(name: str) -> Values:
+    """The panel exactly as opening lesson ``name`` sets it (:func:`app.dashboard.controls.apply_lesson`): its
+    values with the system's own x0 and Q/R weights written out (as the panel shows them)."""
+    v = lesson_values(name)
+    system = resolve_system(v).system
+    assert system.Q is not None and system.R is not None and system.x0 is not None  # filled in __post_init__
+    x0 = v.x0 or ", ".join(f"{x:g}" for x in system.x0)
+    return v.replace(
+        x0=x0,
+        log_q=tuple(log_from_weights(np.diag(system.Q))),
+        log_r=tuple(log_from_weights(np.diag(system.R))),
+    )
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Two panel values alike (typed text up to spaces, weights up to rounding)."""
+    if isinstance(a, str) and isinstance(b, str):
+        return "".join(a.split()) == "".join(b.split())
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and bool(np.allclose(np.asarray(a, float), np.asarray(b, float), atol=1e-6))
+    if isinstance(a, float) or isinstance(b, float):
+        return bool(np.isclose(float(a), float(b), rtol=1e-9, atol=1e-12))
+    return bool(a == b)
+
+
 def lesson_drift(name: str, values: Values) -> tuple[str, ...]:
-    """The fields lesson ``name`` sets that ``values`` no longer has (b excepted: moving it is the lesson)."""
+    """The settings in ``values`` that differ from the panel lesson ``name`` set (every setting its results
+    depend on: the seeds, the per-channel bits, the Q/R weights ... not b and not what only changes the drawing),
+    except the changes its text asks for (:attr:`Lesson.moves`, each followed as a whole)."""
     if name == NONE or name not in lesson_names():
         return ()
-    want = lesson_values(name)
-    keys = [k for k in get_lesson(name).settings if k not in _MEANT_TO_MOVE]
-    return tuple(k for k in keys if getattr(values, k) != getattr(want, k))
+    want, own = lesson_panel(name), lesson_values(name)
+    drift = [
+        k
+        for k in want.__dataclass_fields__
+        if k not in _NOT_A_DRIFT
+        and not _same(getattr(values, k), getattr(want, k))
+        # an empty x0 or weights: the system's own, as the lesson's unless it sets them
+        and not (k in _SYSTEMS_OWN and not getattr(values, k) and not getattr(own, k))
+    ]
+    followed = {
+        k for move in get_lesson(name).moves if all(_same(getattr(values, k), x) for k, x in move.items()) for k in move
+    }
+    return tuple(k for k in drift if k not in followed)
+
+
+def drift_label(field: str) -> str:
+    """The panel's name of setting ``field`` (the mark lists them)."""
+    s = BY_NAME.get(field)
+    return s.label if s is not None else field.replace("_", " ")
 
 
 def lesson_markdown(name: str, drift: tuple[str, ...] = ()) -> str:
@@ -340,7 +403,7 @@ def lesson_markdown(name: str, drift: tuple[str, ...] = ()) -> str:
     stop = "" if les.title[-1] in ".?!" else "."
     mark = ""
     if drift:
-        what = ", ".join(k.replace("_", " ") for k in drift)
+        what = ", ".join(drift_label(k) for k in drift)
         mark = f"✎ **Modified from the lesson** ({what}): the text is about the lesson's own settings.\n\n"
     return f"{mark}**{les.title}{stop}** {les.text}"
 
