@@ -122,6 +122,7 @@ class Session:
         self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
         self.kind = KindSwitch()  # the panel of a linear or a nonlinear plant
         self.mark = LessonMark(gui, self.controls.lesson_text, lambda: self.touch(user=True))
+        self.presenter.move_below([self.controls.lesson_text, self.mark.back])  # presenter mode: below the switch
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)

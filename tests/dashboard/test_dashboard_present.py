@@ -1,0 +1,39 @@
+"""Class-ready presenting and sharing (issue 38, part 5): plotly's options on every plot, the left panel's order in
+presenter mode, and percent axes written without SI prefixes."""
+
+from __future__ import annotations
+
+import json
+
+from app.figures.raw import PLOT_CONFIG, Wire, to_json
+
+
+def test_every_plot_is_sent_without_a_cloud_upload(tab):
+    """Every plot pushed (blank ones included) carries the config: no "Share chart…" / Chart Studio button."""
+    assert PLOT_CONFIG["showSendToCloud"] is False and PLOT_CONFIG["showEditInChartStudio"] is False
+    assert "sendDataToCloud" in PLOT_CONFIG["modeBarButtonsToRemove"]
+    for name, h in tab.session.plots.items():
+        sent = json.loads(h._plotly_json_str)
+        assert sent["config"] == PLOT_CONFIG, name
+    import plotly.graph_objects as go
+
+    assert json.loads(Wire(go.Figure()).to_json())["config"] == PLOT_CONFIG  # plotly's own path too
+    assert json.loads(to_json(go.Figure(layout=dict(title="t"))))["layout"]["title"]["text"] == "t"
+    from app.dashboard.exports import figures_html
+
+    page = figures_html({"error": go.Figure()}, "t", "c")  # the offline HTML export too
+    assert '"showSendToCloud": false' in page and "sendDataToCloud" in page
+
+
+def test_presenter_mode_puts_slider_play_and_switch_above_the_lesson_text(tab):
+    tab.set(lesson="bound")
+    s, c = tab.session, tab.controls
+    before = float(c.lesson_text.order)
+    assert float(c.lesson_text.order) < float(c["bits"].order)  # normal mode: the text first
+    tab.set(presenter=True)
+    p = s.presenter
+    orders = [float(h.order) for h in (c["bits"], c.play, p.switch, c.lesson_text, s.mark.back, s.codes.line)]
+    assert orders == sorted(orders), orders  # slider, auto-play, switch, then the text, then the view code
+    assert p.switch.visible
+    tab.set(presenter=False)
+    assert float(c.lesson_text.order) == before and not p.switch.visible
