@@ -37,3 +37,25 @@ def test_presenter_mode_puts_slider_play_and_switch_above_the_lesson_text(tab):
     assert p.switch.visible
     tab.set(presenter=False)
     assert float(c.lesson_text.order) == before and not p.switch.visible
+
+
+def _axes(layout: dict):
+    for key, ax in layout.items():
+        if (key.startswith("xaxis") or key.startswith("yaxis")) and isinstance(ax, dict):
+            yield key, ax
+
+
+def test_percent_and_log_axes_never_print_si_prefixes(tab):
+    """The cost gap's axis printed "1μ" (percent with an SI prefix): every log axis and every percent axis of
+    every plot drawn writes its numbers as powers of ten (or plain), never with plotly's default SI prefixes."""
+    tab.set(lesson="bound")  # the Control group's plots drawn, the bits plot among them
+    seen = set()
+    for name, h in tab.session.plots.items():
+        layout = json.loads(h._plotly_json_str)["layout"]
+        for key, ax in _axes(layout):
+            title = str((ax.get("title") or {}).get("text", ""))
+            percent = "%" in title or "%" in str(ax.get("tickformat", ""))
+            if ax.get("type") == "log" or percent:
+                seen.add((name, key, percent))
+                assert ax.get("exponentformat") in ("power", "none") or ax.get("tickformat"), (name, key, title)
+    assert ("bits", "yaxis2", True) in seen  # the cost gap's percent axis was among them
