@@ -363,7 +363,17 @@ PHONE_SHEET_CSS = (
     '.mantine-Paper-root[style*="position: fixed"][style*="20em"]'
     "{width: 100vw !important; max-height: 50% !important;}"
     '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}'
-    "}</style>"
+    # a dropdown's list (the "show" and "lesson" choices) opens as a sheet at the window's foot, always on
+    # screen, instead of beside its input in a sheet that may sit half off the window
+    ".mantine-Select-dropdown{position: fixed !important; left: 8px !important; right: 8px !important;"
+    "top: auto !important; bottom: 8px !important; width: auto !important; max-height: 45vh !important;"
+    "overflow-y: auto !important;}"
+    ".mantine-Select-dropdown .mantine-Popover-arrow{display: none !important;}"
+    "}"
+    # viser draws a slider's number box without its slider's "disabled" (a follower's b): inert like the slider
+    ".mantine-Flex-root:has(> .mantine-Slider-root [data-disabled]) > .mantine-NumberInput-root"
+    "{pointer-events: none; opacity: 0.6;}"
+    "</style>"
 )
 #: What the selectors rely on, as the client's source writes it.
 SHEET_SOURCE = ('position: "fixed"', 'width: "20em"', 'maxHeight: "60%"')

@@ -71,10 +71,11 @@ def _json_default(o: object) -> Any:
     raise TypeError(f"not JSON serializable: {type(o).__name__}")
 
 
-#: plotly.js's options for every plot the dashboard draws: no upload to a cloud service ("Share chart…", "Edit in
-#: Chart Studio"), no plotly logo; the tool bar is kept (zoom, pan, reset, download), and the figures leave it
-#: room above their titles (:data:`MODEBAR_ROOM`).
+#: plotly.js's options for every plot the dashboard draws: no tool bar (it covered the first line of a title, and
+#: offered an upload to a cloud service, "Share chart…"); dragging still zooms and a double click resets, and the
+#: panel's "Export figures (HTML, offline)" keeps a copy. The cloud buttons are off even where a bar is shown.
 PLOT_CONFIG: dict[str, Any] = {
+    "displayModeBar": False,
     "showSendToCloud": False,
     "showEditInChartStudio": False,
     "displaylogo": False,

@@ -59,3 +59,21 @@ def test_percent_and_log_axes_never_print_si_prefixes(tab):
                 seen.add((name, key, percent))
                 assert ax.get("exponentformat") in ("power", "none") or ax.get("tickformat"), (name, key, title)
     assert ("bits", "yaxis2", True) in seen  # the cost gap's percent axis was among them
+
+
+def test_notes_behind_the_hover_are_shown_on_a_projector_and_a_phone():
+    """ "hover here: why" means nothing on a phone or a projector: there the note's sentences are its text."""
+    from app.figures.presenter import HOVER_HERE, legible_figure, phone_figure, presenter_figure
+    from app.figures.raw import figure
+
+    sentences = "Theorem 1 faded: the motor angle is an integrator.<br>BCLS ✕: no dither."
+    note = dict(text=f"Notes: Theorem 1 faded · BCLS ✕ {HOVER_HERE}", hovertext=sentences, x=0, y=1.0)
+    note.update(xref="paper", yref="paper", yanchor="bottom", showarrow=False)
+    fig = figure([dict(type="scatter", x=[1, 2], y=[1, 2])], dict(annotations=[note], title=dict(text="error")))
+    for show in (presenter_figure, phone_figure):
+        anns = show(fig).to_plotly_json()["layout"]["annotations"]
+        texts = [a.get("text", "") for a in anns]
+        assert any("integrator" in t and "no dither" in t for t in texts), texts
+        assert not any(HOVER_HERE in t for t in texts) and not any(a.get("hovertext") for a in anns)
+    kept = legible_figure(fig).to_plotly_json()["layout"]["annotations"]  # a laptop keeps the hover (one line)
+    assert any(HOVER_HERE in a["text"] and a["hovertext"] == sentences for a in kept)
