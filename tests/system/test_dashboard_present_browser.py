@@ -52,8 +52,9 @@ def _open(ctx, app, url=None):
     page, before = ctx.new_page(), ids()
     page.goto(url or app.url, timeout=TIMEOUT_MS)
     wait_until(lambda: ids() - before, "the new tab's session", TIMEOUT_MS / 1000)
+    new = max(ids() - before)
     with app._lock:
-        session = app.sessions[max(ids() - before)]
+        session = app.sessions[new]
     page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
     page.wait_for_function("document.querySelectorAll('.js-plotly-plot').length >= 2", timeout=TIMEOUT_MS)
     _dismiss_notices(page)
@@ -61,7 +62,7 @@ def _open(ctx, app, url=None):
 
 
 @pytest.fixture(scope="module")
-def browser():
+def chromium():
     _require_browser()
     from playwright.sync_api import sync_playwright
 
@@ -71,13 +72,13 @@ def browser():
         b.close()
 
 
-def test_presenter_mode_at_1366x768_shows_slider_play_and_switch_for_the_longest_lesson(browser):
+def test_presenter_mode_at_1366x768_shows_slider_play_and_switch_for_the_longest_lesson(chromium):
     """The switch was below the window in every lesson (bits-needed: the slider and auto-play too)."""
     from app.dashboard import DashboardApp
 
     longest = max(LESSONS, key=lambda les: len(les.text)).name
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson=longest)
-    ctx = browser.new_context(viewport={"width": 1366, "height": 768})
+    ctx = chromium.new_context(viewport={"width": 1366, "height": 768})
     try:
         page, session = _open(ctx, app)
         session.controls["presenter"].value = True
@@ -97,11 +98,11 @@ def test_presenter_mode_at_1366x768_shows_slider_play_and_switch_for_the_longest
         app.stop()
 
 
-def test_no_tool_bar_notes_shown_in_presenter_mode_and_a_followers_box_is_inert(browser):
+def test_no_tool_bar_notes_shown_in_presenter_mode_and_a_followers_box_is_inert(chromium):
     from app.dashboard import DashboardApp
 
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson="bound")  # dc-motor: Theorem 1 faded, a note
-    ctx = browser.new_context(viewport={"width": 1920, "height": 1080})
+    ctx = chromium.new_context(viewport={"width": 1920, "height": 1080})
     try:
         page, session = _open(ctx, app)
         assert session.wait_idle(TIMEOUT_MS / 1000)
@@ -139,11 +140,11 @@ def test_no_tool_bar_notes_shown_in_presenter_mode_and_a_followers_box_is_inert(
         app.stop()
 
 
-def test_a_phones_show_dropdown_opens_on_screen(browser):
+def test_a_phones_show_dropdown_opens_on_screen(chromium):
     from app.dashboard import DashboardApp
 
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, lesson="bound")
-    ctx = browser.new_context(viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True)
+    ctx = chromium.new_context(viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True)
     try:
         page, session = _open(ctx, app)
         assert session.ui.phone.narrow
