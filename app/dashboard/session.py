@@ -51,7 +51,8 @@ from .frames import Frame
 from .inputs import check_panel, check_sent, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
-from .lessons import LessonMark, get_lesson, lesson_markdown, lesson_names, lesson_values
+from .lesson_mark import LessonMark
+from .lessons import get_lesson, lesson_markdown, lesson_names, lesson_values
 from .pool import PoolFailure, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame

@@ -208,7 +208,8 @@ def _saturation(frame: Frame) -> str:
 def _lesson_changes(values: Values) -> list[str]:
     """A line when a lesson is open but settings its claims depend on were changed since (its text describes
     its own settings; the same drift as the mark above the text, :func:`app.dashboard.lessons.lesson_drift`)."""
-    from .lessons import NONE, drift_label, lesson_drift
+    from .lesson_mark import lesson_drift
+    from .lessons import NONE, drift_label
 
     name = getattr(values, "lesson", NONE)
     if not name or name == NONE:
