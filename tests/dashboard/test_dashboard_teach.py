@@ -365,7 +365,7 @@ def test_presenter_shows_one_view_the_plot_or_the_scene():
     portrait = _Recorder(set_presenter=lambda on: None, show=shown.append, look=lambda *a, **k: looks.append(a))
     changes = []
     lay = PresenterLayout(gui, panel, portrait, 640, _Recorder(order=3.0), lambda: changes.append(1))
-    assert lay.switch.order == 3.5 and lay.switch.visible is False
+    assert 3.0 < lay.switch.order < 3.001 and lay.switch.visible is False  # under the auto-play, above the code
     assert lay.apply(True)
     # both panels asked for more than any window, in the ratio the dock keeps when it scales them to fit
     assert gui.main.log == [("width", WIDE * LEFT_SHARE)] and panel.log[-1] == ("width", WIDE * (1 - LEFT_SHARE))
