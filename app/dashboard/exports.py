@@ -14,6 +14,7 @@ import io
 import json
 import math
 
+from app.figures.raw import PLOT_CONFIG
 from app.settings.command import bits_command, sweep_command
 from qsid_core.studies import json_clean
 
@@ -154,7 +155,13 @@ def figures_html(figures: dict, title: str, caption: str) -> str:
 
     divs = [
         f'<div class="panel"><h2>{html.escape(fig.layout.title.text or name)}</h2>\n'
-        + pio.to_html(fig, include_plotlyjs=False, full_html=False, div_id=f"fig-{name}", config={"responsive": True})
+        + pio.to_html(
+            fig,
+            include_plotlyjs=False,
+            full_html=False,
+            div_id=f"fig-{name}",
+            config={"responsive": True, **PLOT_CONFIG},
+        )
         + "\n</div>"
         for name, fig in figures.items()
     ]

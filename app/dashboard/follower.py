@@ -19,7 +19,8 @@ from typing import Any
 from .codepanel import show_view
 from .controls import CONTROLS, initial_value
 from .koopman_render import KoopmanRenderer
-from .lessons import get_lesson, lesson_drift, lesson_markdown, lesson_names, lesson_values
+from .lesson_mark import lesson_drift
+from .lessons import get_lesson, lesson_markdown, lesson_names, lesson_values
 from .render import Renderer
 from .settings import Values, resolve_system
 from .share import apply_values

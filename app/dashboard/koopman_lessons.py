@@ -32,11 +32,12 @@ KOOPMAN_LESSONS: tuple[tuple[str, str, str, dict[str, Any], str], ...] = (
         "koopman",
         "Koopman/EDMD from quantized data (Van der Pol)",
         "Van der Pol lifted by every monomial up to degree 3, 400 runs × 100 steps, 10 realizations; look at "
-        "the error plot (Nonlinear group). For b = 2..7 LS's error of [A_z, B_z] sits on its large-data limit "
+        "the error plot (show: Nonlinear). For b = 2..7 LS's error of [A_z, B_z] sits on its large-data limit "
         "(dashed, within 5 %): a quantization bias that more data do not remove, while BCLS, which de-biases "
         "every monomial exactly under subtractive dither, is 15 to 40 times lower for b = 3..6 (at the CLI's "
         "full scale, 2000 × 100, about 50 times at b = 3). From b = 11 on both agree within 10 %: the "
-        "finite-data spread dominates. In 3-D: the limit cycle (green) and the Koopman MPC loops at b = 3.",
+        "finite-data spread dominates. In 3-D: the plant's own flow (green, u = 0) from a grid of starts, each but "
+        "the one at the origin winding onto the limit cycle, and the Koopman MPC loops at b = 3.",
         dict(system="van-der-pol", bits=3, **_NONLINEAR),
         "koopman-error",
     ),
@@ -44,7 +45,7 @@ KOOPMAN_LESSONS: tuple[tuple[str, str, str, dict[str, Any], str], ...] = (
         "bias-variance",
         "Bias against variance: the pendulum at b = 2",
         "The pendulum at b = 2 (poly:3, 400 × 100, 10 realizations); look at the Koopman MPC outcomes "
-        "(Nonlinear group). BCLS's mean error of [A_z, B_z] is lower than LS's (below 1, LS above 1.4) but "
+        "(show: Nonlinear). BCLS's mean error of [A_z, B_z] is lower than LS's (below 1, LS above 1.4) but "
         "its spread is more than twice LS's: removing the bias of two-level data amplifies their noise. That "
         "variance costs control: LS's loops end within the convergence radius 0.1 in all 10 realizations, BCLS's "
         "in at most 8. None converges: each settles near, not at, the origin (bounded), as the unquantized EDMD's "

@@ -4,7 +4,8 @@
   left panel: either the plots (the lesson's key plot first, every plot as high as the visible part of the
   plots panel, the panel as wide as the window allows, the 3-D scene hidden) or the 3-D scene (the plots panel
   minimized, the camera framing the box in the room left). One button under the auto-play switches between
-  the two. Panel text is at least :data:`PANEL_FONT` px (a style sheet sent to the page), the scene's lines are
+  the two. The slider, the auto-play and the switch come first in the left panel, the lesson's text below
+  them (in the window at 1366 × 768 whatever the lesson's length). Panel text is at least :data:`PANEL_FONT` px (a style sheet sent to the page), the scene's lines are
   thicker and its labels bigger; the plots' own style (text ≥ 18 px, thick lines, panels stacked) is
   :func:`app.figures.presenter.presenter_figure` (applied by the renderer). A phone has no presenter mode.
 * :class:`AutoPlay`: b from 1 to 16, about one word length per :data:`STEP_SECONDS`. The tab's worker loop
@@ -58,6 +59,9 @@ PLOT_ASPECT = PRESENTER_SIZE[1] / PRESENTER_SIZE[0]
 SCENE_ASPECT = 1.35
 #: The switch's labels: what pressing it shows.
 SHOW_SCENE, SHOW_PLOT = "⇄ show the 3-D scene", "⇄ show the plot"
+#: The switch's and, in presenter mode, the lesson text's place after the auto-play (in order units; the view-code
+#: lines follow the auto-play at +0.001 .. +0.004: :func:`app.dashboard.codepanel.add_code_panel`).
+SWITCH_AT, TEXT_AT = 0.0002, 0.0005
 #: The left panel's normal width (viser's "large" control width).
 NORMAL_LEFT = 384
 
@@ -100,11 +104,31 @@ class PresenterLayout:
         self._want_scene = False
         self.style = gui.add_html("", visible=False)
         self.switch = gui.add_button(SHOW_SCENE, visible=False, hint="Presenter mode shows one view: this or that")
+        #: where the switch goes: right below the auto-play (before the view-code lines there)
+        self._after = float(after.order) if after is not None else float(self.switch.order)
         if after is not None:
-            self.switch.order = float(after.order) + 0.5
+            self.switch.order = self._after + SWITCH_AT
+        #: the lesson's text (and what goes with it) and their orders outside presenter mode (:meth:`move_below`)
+        self._text: list = []
+        self._text_orders: list[float] = []
         self._lock = threading.Lock()
         self._on_change = on_change or (lambda: None)
         self.switch.on_click(lambda _e: self.toggle())
+
+    def move_below(self, handles: list) -> None:
+        """In presenter mode these (the lesson's text, its "back" button) go below the slider, the auto-play and
+        the switch, so that a lesson of any length leaves them in the window at 1366 × 768; back in place when
+        presenter mode is off."""
+        self._text = list(handles)
+        self._text_orders = [float(h.order) for h in handles]
+        if self.on:
+            self._place_text(True)
+
+    def _place_text(self, on: bool) -> None:
+        for i, (h, order) in enumerate(zip(self._text, self._text_orders)):
+            want = self._after + TEXT_AT + 0.0001 * i if on else order
+            if float(h.order) != want:
+                h.order = want
 
     def toggle(self) -> None:
         """The switch: show the other view (applied by the worker)."""
@@ -125,6 +149,7 @@ class PresenterLayout:
             self.style.visible = on
             self.portrait.set_presenter(on)
             self.switch.visible = on
+            self._place_text(on)
         was_scene = self.scene_shown
         self.on, self.scene_shown = on, scene
         # one view at a time: the scene hidden while the plot fills the window (the dock keeps a strip of it)

@@ -35,6 +35,7 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import threading
 import time
@@ -51,7 +52,8 @@ from .frames import Frame
 from .inputs import check_panel, check_sent, sent_guard, unusable
 from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
-from .lessons import LessonMark, get_lesson, lesson_names, lesson_values
+from .lesson_mark import LessonMark
+from .lessons import get_lesson, lesson_markdown, lesson_names, lesson_values
 from .pool import PoolFailure, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
@@ -121,6 +123,7 @@ class Session:
         self.portrait, self.presenter, self.plots_panel = self.ui.portrait, self.ui.presenter, self.ui.plots_panel
         self.kind = KindSwitch()  # the panel of a linear or a nonlinear plant
         self.mark = LessonMark(gui, self.controls.lesson_text, lambda: self.touch(user=True))
+        self.presenter.move_below([self.controls.lesson_text, self.mark.back])  # presenter mode: below the switch
         if values.lesson in lesson_names()[1:]:  # opened on a lesson (--lesson): its key view too
             self._show_lesson_view(values.lesson)
         self.datalength = DataLengthRunner(app.cache, self._datalength_progress, self.touch)
@@ -274,6 +277,21 @@ class Session:
             self._show_lesson_view(name)
         return gen
 
+    def _took_lesson(self, values: Values) -> None:
+        """Settings received (a view code, a file) name their lesson: shown as it is, not set anew (the received
+        b, seeds ... stay; the mark says how they differ from the lesson's)."""
+        self.lesson_shown = values.lesson
+        c = self.controls
+        c.lesson_text.content = lesson_markdown(values.lesson)
+        c.lesson_text.visible = bool(c.lesson_text.content)
+        self.mark.drift = ()  # the text is unmarked now; the mark follows at this run's values
+        self.mark.back.visible = False
+        if values.lesson in lesson_names()[1:]:  # its key view, on the received channel
+            with contextlib.suppress(QsidError):  # (a bad typed system: the run below explains it)
+                self.views.open_lesson(
+                    get_lesson(values.lesson).plot, resolve_system(values).system, values.view_channel
+                )
+
     def _show_lesson_view(self, name: str) -> None:
         """The plots panel on the lesson's key view (its tab forward, the view first)."""
         les, v = get_lesson(name), lesson_values(name)
@@ -284,7 +302,9 @@ class Session:
         c = self.controls
         if self.follower is not None and self.follower.mirror():  # following another tab: nothing to compute
             return gen
-        self.ui.apply_pending()  # settings loaded (a file, a view code) since the last run
+        received = self.ui.apply_pending()  # settings loaded (a file, a view code) since the last run
+        if received is not None:
+            self._took_lesson(received)
         try:
             check_panel(c)  # every raw value (anything can come over the websocket) before it is converted
         except InputError as exc:

@@ -206,22 +206,20 @@ def _saturation(frame: Frame) -> str:
 
 
 def _lesson_changes(values: Values) -> list[str]:
-    """A line when a lesson is open but its own settings were changed since (its text describes those)."""
-    from .lessons import NONE, get_lesson, lesson_values
+    """A line when a lesson is open but settings its claims depend on were changed since (its text describes
+    its own settings; the same drift as the mark above the text, :func:`app.dashboard.lessons.lesson_drift`)."""
+    from .lesson_mark import lesson_drift
+    from .lessons import NONE, drift_label
 
     name = getattr(values, "lesson", NONE)
     if not name or name == NONE:
         return []
-    try:
-        ref = lesson_values(name)
-    except KeyError:
-        return []
-    keys = [k for k in get_lesson(name).settings if k != "lesson"]
-    changed = [k for k in keys if getattr(values, k, None) != getattr(ref, k, None)]
+    changed = lesson_drift(name, values)
     if not changed:
         return []
     return [
-        f"*Lesson **{name}** with changed settings ({', '.join(changed)}): its text describes its own settings.*",
+        f"*Lesson **{name}** with changed settings ({', '.join(drift_label(k) for k in changed)}): its text "
+        "describes its own settings.*",
         "",
     ]
 

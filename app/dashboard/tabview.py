@@ -136,17 +136,18 @@ class TabView:
         self.pending = values
         self.touch()
 
-    def apply_pending(self) -> None:
-        """(worker) Set the panel to settings received since the last run."""
+    def apply_pending(self) -> Values | None:
+        """(worker) Set the panel to settings received since the last run; returns them (None: none arrived)."""
         v, self.pending = self.pending, None
         if v is None:
-            return
+            return None
         self.clear_errors()  # every input set anew
         apply_values(self.controls, v)
         self.views.set_system(resolve_system(v).system)
         names = list(self.views.channel.options)
         self.views.channel.value = names[min(max(int(v.view_channel), 0), len(names) - 1)]
         self.views.compare_bits.value = v.compare_bits
+        return v
 
     def _send_file(self, name: str, data: bytes) -> None:
         # save_immediately: one click saves the file (otherwise viser shows a link to click a second time)

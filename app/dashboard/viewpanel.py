@@ -16,11 +16,13 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from typing import cast
 
 import plotly.graph_objects as go
 
 from app.figures import registry
 from app.figures.quantizer import channel_names
+from app.figures.raw import Wire
 
 from .koopman_settings import is_nonlinear
 from .plotlyjs import send_basic_bundle
@@ -139,7 +141,9 @@ class ViewPanel:
             self.compare_bits.on_update(lambda _e: on_change())
             out += [self.pin, self.unpin, self.pin_note, self.compare_bits]
         for v in (v for v in registry.ALL_VIEWS if v.tab == tab):
-            self.plots[v.name] = gui.add_plotly(blank_figure(), aspect=v.aspect, visible=False)
+            # (through Wire: its JSON carries the dashboard's plotly options, app.figures.raw.PLOT_CONFIG)
+            blank = cast(go.Figure, Wire(blank_figure()))
+            self.plots[v.name] = gui.add_plotly(blank, aspect=v.aspect, visible=False)
             out.append(self.plots[v.name])
         return out
 

@@ -196,7 +196,18 @@ def send_plotly_js(gui: Any, source: str) -> bool:
 PHONE_SHEET_CSS = (
     '<style>@media (max-width: 36em) {.mantine-Paper-root[style*="position: fixed"][style*="20em"]'
     "{width: 100vw !important; max-height: 50% !important;}"
-    '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}}</style>'
+    '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}'
+    # a dropdown's list (the "show" and "lesson" choices) opens as a sheet at the window's foot, always on
+    # screen, instead of beside its input in a sheet that may sit half off the window
+    ".mantine-Select-dropdown{position: fixed !important; left: 8px !important; right: 8px !important;"
+    "top: auto !important; bottom: 8px !important; width: auto !important; max-height: 45vh !important;"
+    "overflow-y: auto !important;}"
+    ".mantine-Select-dropdown .mantine-Popover-arrow{display: none !important;}"
+    "}"
+    # viser draws a slider's number box without its slider's "disabled" (a follower's b): inert like the slider
+    ".mantine-Flex-root:has(> .mantine-Slider-root [data-disabled]) > .mantine-NumberInput-root"
+    "{pointer-events: none; opacity: 0.6;}"
+    "</style>"
 )
 SHEET_SOURCE = ('position: "fixed"', 'width: "20em"', 'maxHeight: "60%"')  # what the selectors rely on
 

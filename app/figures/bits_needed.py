@@ -68,8 +68,14 @@ def bits_figure(
         **lay[y1.replace("y", "yaxis")],
         "title": dict(text="stabilized [%]"),
         "range": [-3, 103],
+        "exponentformat": "none",
     }
-    lay["yaxis2"] = {**lay["yaxis2"], "title": dict(text="|cost gap| [%]"), "type": "log"}
+    lay["yaxis2"] = {
+        **lay["yaxis2"],
+        "title": dict(text="|cost gap| [%]"),
+        "type": "log",
+        "exponentformat": "power",  # percent in powers of ten (10⁻⁶), never SI prefixes ("1μ" %)
+    }
     return figure(
         data,
         dict(

@@ -73,7 +73,7 @@ def cost_figure(
             shapes=shapes,
             annotations=notes,
             xaxis=dict(BITS_AXIS),
-            yaxis=dict(type="log", title=dict(text="closed-loop cost")),
+            yaxis=dict(type="log", title=dict(text="closed-loop cost"), exponentformat="power"),
         ),
     )
 

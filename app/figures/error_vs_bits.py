@@ -12,6 +12,7 @@ from qsid_core import fit_slope
 
 from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, theorem1_reasons
 from .palette import COLORS, color
+from .presenter import HOVER_HERE
 from .raw import figure
 from .traces import BITS_AXIS, Rows, Series, band, get, mark_bits, xy
 from .view import CURVES, View
@@ -248,7 +249,7 @@ def _notes_head(notes: list[str]) -> str:
 def _notes_line(notes: list[str]) -> dict[str, Any]:
     """One line above the panels naming who the notes are about; the full sentences on hover."""
     return dict(
-        text=f"Notes: {_notes_head(notes)} (hover here: why)",
+        text=f"Notes: {_notes_head(notes)} {HOVER_HERE}",
         hovertext="<br>".join(_wrap(t) for t in notes),
         xref="paper",
         yref="paper",

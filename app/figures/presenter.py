@@ -92,6 +92,16 @@ def _plain(fig: go.Figure) -> tuple[list[Any], dict[str, Any]]:
     return list(d.get("data") or []), dict(d.get("layout") or {})
 
 
+def _without_hover(note: Any) -> Any:
+    """A note that keeps its explanation for the hover ("Notes: ... (hover here: why)", the sentences in its
+    ``hovertext``) with the sentences as its text (presenter mode and phones)."""
+    if not isinstance(note, dict) or not note.get("hovertext") or HOVER_HERE not in str(note.get("text", "")):
+        return note
+    out = {k: v for k, v in note.items() if k != "hovertext"}
+    out["text"] = "Notes: " + str(note["hovertext"])
+    return out
+
+
 def _with_floor(
     fig: go.Figure,
     floor: float,
@@ -128,6 +138,8 @@ def _with_floor(
     if thicker:
         data = [_thicker(t) for t in data]
     if room is not None:  # drawn at a known size: panels stacked, room measured for every text
+        # a projector and a phone have no hover: a note's sentences are shown, not behind "hover here"
+        layout["annotations"] = [_without_hover(a) for a in layout.get("annotations") or []]
         lay_out(layout, data, *room)
     if inplace and data0 is getattr(fig, "_data", None) and layout0 is getattr(fig, "_layout", None):
         # plotly's trace and layout objects read these very dicts: replacing their contents restyles the
@@ -142,6 +154,10 @@ def _with_floor(
     if template is not None:  # the resolved template (hundreds of entries) is shared, not deep-copied again
         out._layout["template"] = template
     return out
+
+
+#: How a note says its sentences are behind the hover (:func:`app.figures.error_vs_bits` writes it).
+HOVER_HERE = "(hover here: why)"
 
 
 def presenter_figure(fig: go.Figure, inplace: bool = False) -> go.Figure:

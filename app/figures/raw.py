@@ -17,7 +17,7 @@ import plotly.graph_objects as go
 import plotly.io as pio
 from numpy.typing import ArrayLike
 
-__all__ = ["figure", "stacked_axes", "arr", "hline", "to_json", "Wire"]
+__all__ = ["figure", "stacked_axes", "arr", "hline", "to_json", "Wire", "PLOT_CONFIG"]
 
 _JSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 
@@ -71,6 +71,18 @@ def _json_default(o: object) -> Any:
     raise TypeError(f"not JSON serializable: {type(o).__name__}")
 
 
+#: plotly.js's options for every plot the dashboard draws: no tool bar (it covered the first line of a title, and
+#: offered an upload to a cloud service, "Share chart…"); dragging still zooms and a double click resets, and the
+#: panel's "Export figures (HTML, offline)" keeps a copy. The cloud buttons are off even where a bar is shown.
+PLOT_CONFIG: dict[str, Any] = {
+    "displayModeBar": False,
+    "showSendToCloud": False,
+    "showEditInChartStudio": False,
+    "displaylogo": False,
+    "modeBarButtonsToRemove": ["sendDataToCloud", "editInChartStudio", "lasso2d", "select2d"],
+}
+
+
 def to_json(fig: go.Figure) -> str:
     """The figure's JSON as plotly.js takes it, without ``Figure.to_json``'s deep copy and base64 pass.
 
@@ -82,8 +94,11 @@ def to_json(fig: go.Figure) -> str:
     """
     data, layout = getattr(fig, "_data", None), getattr(fig, "_layout", None)
     if not isinstance(data, list) or not isinstance(layout, dict):
-        return fig.to_json()
-    return orjson.dumps({"data": data, "layout": layout}, option=_JSON_OPTIONS, default=_json_default).decode()
+        d = orjson.loads(fig.to_json())
+        data, layout = d["data"], d["layout"]
+    return orjson.dumps(
+        {"data": data, "layout": layout, "config": PLOT_CONFIG}, option=_JSON_OPTIONS, default=_json_default
+    ).decode()
 
 
 class Wire:

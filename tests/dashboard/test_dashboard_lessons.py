@@ -373,7 +373,8 @@ def _gain(loops) -> float:
 
 @pytest.mark.slow
 def test_bits_needed_explains_why_b1_settles_and_b2_does_not():
-    """The sentence: at b = 1 every loop converges, at b = 2 few; ‖K̂‖ ≈ 0.24 and 0.66 against the true 1.08."""
+    """The sentence: b = 1 settles more loops than b = 2 (every loop against few), its MPC barely acting (‖K̂‖
+    about a fifth of the true model's) while b = 2's acts harder. (The gains are on no plot: the text names none.)"""
     ex = experiment("bits-needed")
     one, two = ex.closed_loops(1, "ls"), ex.closed_loops(2, "ls")
     assert one.outcome_counts()["converged"] == len(one.gains)
@@ -381,7 +382,9 @@ def test_bits_needed_explains_why_b1_settles_and_b2_does_not():
     true = float(np.linalg.norm(np.asarray(ex.true_model_loop().gains[0])))
     assert abs(_gain(one) - 0.24) < 0.01 and abs(_gain(two) - 0.66) < 0.01 and abs(true - 1.08) < 0.01
     assert np.max(np.abs(np.linalg.eigvals(ex.system.A))) < 1  # the Boeing is stable on its own
-    assert "‖K̂‖ ≈ 0.24, the true model's 1.08" in get_lesson("bits-needed").text
+    assert _gain(one) < 0.3 * true and _gain(one) < _gain(two)  # "barely acts", "acts harder"
+    text = get_lesson("bits-needed").text
+    assert "b = 1 settles more loops than b = 2" in text and "‖K̂‖" not in text
 
 
 @pytest.mark.slow

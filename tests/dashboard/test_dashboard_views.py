@@ -234,7 +234,13 @@ def test_summary_says_when_a_lessons_own_settings_were_changed():
     v = lesson_values("saturation").replace(**SMALL)
     f = frames(v)[-1]
     first = summary_markdown(f).split("\n")[0]
-    assert "u_max" not in first  # only the sizes shrunk for this test differ from the lesson
+    assert (
+        "**saturation** with changed settings (realizations, trajectories, steps, closed-loop steps)" in first
+    )  # SMALL
     second = summary_markdown(frames(v.replace(u_max=1.0))[-1]).split("\n")[0]
-    assert "Lesson **saturation** with changed settings (" in second and "u_max" in second
+    assert "(realizations, trajectories, steps, input bound, closed-loop steps)" in second
+    third = summary_markdown(frames(lesson_values("saturation").replace(loop_seed=5, **SMALL))[-1])
+    assert (
+        "(realizations, trajectories, steps, closed-loop steps, loop seed)" in third
+    )  # a seed its claims depend on, too
     assert "with changed" not in summary_markdown(frames(Values(**SMALL))[-1])  # no lesson open

@@ -20,10 +20,12 @@ def _config(name: str, **over):
 
 def test_bits_needed_lesson():
     les = get_lesson("bits-needed")
-    assert les.plot == "bits" and "b_observed, 4" in les.text and "b_robust, 5" in les.text
+    assert les.plot == "bits" and "b_observed" in les.text and "for the model the title names" in les.text
     cfg = _config("bits-needed")
     ans = bits_needed(cfg)
-    assert (ans.b_observed, ans.b_robust, ans.b_letter) == (4, 5, 9)
+    assert (ans.b_observed, ans.b_robust, ans.b_letter) == (4, 5, 9)  # the title's numbers (not the text's)
+    assert "(at b = 5: every loop's own model)" in ans.sentence  # the title names the certificate's model
+    assert "at least 95 % of the loops, with a cost within 1 %" in ans.sentence  # as the text words them
     lp = ans.result.loops[2]
     oc = lp.outcome_counts()
     assert oc["converged"] <= 0.2 * len(lp.outcome) and not any(lp.failure)  # most never settle, none fails

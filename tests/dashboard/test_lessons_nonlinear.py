@@ -5,11 +5,14 @@ full-scale ratio the ``koopman`` lesson quotes on the CLI's own sweep."""
 from __future__ import annotations
 
 import dataclasses
+import inspect
 
+import numpy as np
 import pytest
 
 from app.dashboard.koopman_settings import koopman_config
 from app.dashboard.lessons import get_lesson, lesson_values
+from app.figures.koopman_scene import koopman_scene
 from qsid_core.studies import KoopmanConfig, KoopmanExperiment, run_koopman_sweep
 
 pytestmark = pytest.mark.slow  # 400 x 100 samples, 10 realizations, Koopman MPC loops
@@ -64,6 +67,15 @@ def test_koopman_scene_draws_the_limit_cycle_and_the_loops_at_b3():
     ex = experiment("koopman")
     flow = ex.free_flow()
     assert flow.shape[0] == 9 and ex.loops(3, "ls") is not None and ex.loops(3, "bcls") is not None
+    # what the text says is drawn green: the plant's own flow from a grid of starts, each but the one at the
+    # origin (an equilibrium) winding onto the limit cycle (|x1| up to about 2 over its last laps)
+    origin = np.all(flow[:, 0] == 0, axis=1)
+    assert origin.sum() == 1 and np.all(flow[origin] == 0)
+    reach = np.abs(flow[~origin, -60:, 0]).max(axis=1)
+    assert np.all(np.abs(reach - 2.0) < 0.1), reach
+    text = get_lesson("koopman").text
+    assert "the plant's own flow (green, u = 0)" in text and "each but the one at the origin winding onto" in text
+    assert "green: the plant's own flow (u = 0)" in inspect.getsource(koopman_scene)  # the scene's caption
 
 
 def test_bias_variance_bcls_lower_mean_larger_spread_fewer_loops_within_the_radius_at_b2():
