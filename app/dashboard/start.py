@@ -32,7 +32,7 @@ START_LESSON: tuple[str, str, str, dict[str, Any], str] = (
     f"qsid replays the letter by {LETTER} ({LETTER_URL}) on a dc motor: A and B identified by least squares "
     "from data quantized to b bits, an MPC built on them run on the true motor. Panels: the settings here (the "
     "numbers in the Summary below), the closed loops in 3-D (LS blue, BCLS red, the true model's black) and the "
-    "plots of the errors against b. Move b first: the errors fall about 0.3 decades per bit and the coloured "
+    "plots of the errors against b (show: Identification). Move b first: the errors fall about 0.3 decades per bit and the coloured "
     "loops close in on the black one. Theorem 1's line is faded because the motor's angle is an integrator (its "
     "data never settle; the theorem1 lesson shows the theorem hold on the Boeing 747), and δ(ε) is a bound only "
     "below ρ, here from b = 5 on. Next: the **fig1** lesson; the symbols: the glossary, "

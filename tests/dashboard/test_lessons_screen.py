@@ -36,7 +36,9 @@ _VIEW_SHOWN = re.compile(r"(" + "|".join(VIEW_WORDS | KOOPMAN_WORDS) + r")(?: \(
 
 #: Numbers in a lesson's text that are neither a setting nor a claim: names (Theorem 1, Boeing 747, Fig. 1, x0)
 #: and the uniform noise's variance ε²/12.
-_NAMES = re.compile(r"Theorem 1|Boeing 747|Fig\. \d|x0|x_T|ε²/12|ε²|A − BK̂|\[A_z, B_z\]")
+_NAMES = re.compile(
+    r"arXiv 2503\.19102|https://arxiv\.org/abs/2503\.19102|3-D|Theorem 1|Boeing 747|Fig\. \d|x0|x_T|ε²/12|ε²|A − BK̂|\[A_z, B_z\]"
+)
 _NUMBER = re.compile(r"(?<![\w.])[−-]?\d+(?:\.\d+)?(?:e-?\d+)?")
 
 #: Every number a lesson's text claims about its results -> the test that computes and asserts it at the lesson's
@@ -76,14 +78,23 @@ CLAIMS: dict[str, dict[str, tuple[str, ...]]] = {
         "test_koopman_full_scale_ratio_is_about_50": ("2000", "100", "50"),
     },
     "bias-variance": {
-        "test_bias_variance_bcls_lower_mean_larger_spread_fewer_converged_loops_at_b2": ("1", "1.4", "10", "8"),
+        "test_bias_variance_bcls_lower_mean_larger_spread_fewer_loops_within_the_radius_at_b2": (
+            "1",
+            "1.4",
+            "10",
+            "8",
+            "0.1",
+        ),
+        "test_bias_variance_at_b3_both_end_within_the_radius_and_bcls_wins": ("3",),
     },
+    "start": {"test_every_claim_of_the_start_text_holds_at_the_default_settings": ("0.3", "5")},
 }
 _TEST_FILES = (
     "test_dashboard_lessons.py",
     "test_lessons_control.py",
     "test_lessons_nonlinear.py",
     "test_dashboard_truth.py",
+    "test_dashboard_start.py",
 )
 
 
