@@ -288,7 +288,10 @@ def lay_out(
     gaps = [0.0] + [under[i - 1] + heads[i] + (PAD if heads[i] else PAD / 2) for i in range(1, len(rows))]
     bottom = under[-1] + _legend_h(layout, data, width, size)
     fixed = top + bottom + sum(gaps)
-    each = (height - fixed) / len(rows) if height is not None else (0.6 if len(rows) == 1 else 0.42) * width
+    # notes standing above the plot (shown in full where there is no hover) add to the height asked for: the
+    # panels keep the room they would have without them
+    notes = sum(_block([a], size) for a in top_notes)
+    each = (height + notes - fixed) / len(rows) if height is not None else (0.6 if len(rows) == 1 else 0.42) * width
     height = fixed + max(each, min_row, 40.0) * len(rows)
     layout["height"] = round(height)
     total = sum(r.hi - r.lo for r in rows) or 1.0

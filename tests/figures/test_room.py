@@ -108,3 +108,24 @@ def test_a_sentence_broken_for_a_laptop_is_joined_before_it_is_wrapped_again():
     ]
     kept = "steady-state error (last half of the loop)<br>causes besides the model: noise"
     assert wrap_text(kept, 200) == kept  # a line of its own, not the rest of a sentence
+
+
+def _rows_px(layout: dict) -> list[float]:
+    paper = layout["height"] - layout["margin"]["t"] - layout["margin"]["b"]
+    return [(layout[k]["domain"][1] - layout[k]["domain"][0]) * paper for k in ("yaxis", "yaxis2")]
+
+
+def test_notes_shown_above_the_plot_add_to_the_height_and_leave_the_panels_their_room():
+    """Presenter mode shows a note's sentences (no hover on a projector): three lines of notes squashed the two
+    error panels to 81 px each at 1366 x 768, so the notes now add to the height asked for."""
+    bare, data = _side_by_side()
+    lay_out(bare, data, 1000.0, 600.0)
+    noted, data2 = _side_by_side()
+    noted["annotations"].append(
+        dict(text="Notes: " + "a sentence of a note " * 30, x=0, xanchor="left", xref="paper", y=1.0)
+        | dict(yanchor="bottom", yref="paper")
+    )
+    h = lay_out(noted, data2, 1000.0, 600.0)
+    assert h > 600.0 + 2 * 12  # grown by the notes' lines
+    for with_notes, without in zip(_rows_px(noted), _rows_px(bare), strict=True):
+        assert with_notes >= 0.98 * without, (with_notes, without)
