@@ -261,7 +261,7 @@ def test_the_summary_and_the_error_plot_agree_on_the_large_data_limit(guard):
 
 
 def test_the_summary_gives_the_loops_within_radius_as_a_share_next_to_the_radius():
-    """ "within radius 5" read as a radius of 5; it is 5 of 5 loops within the converged radius 0.1."""
+    """The summary said "within radius 5", read as a radius of 5: it meant 5 of 5 loops within radius 0.1."""
     from app.dashboard.koopman_render import koopman_summary
 
     v = Values(system="van-der-pol", bits=3, **NL_SMALL)
