@@ -67,7 +67,7 @@ def koopman_summary(frame: Any) -> str:
         off = r.get("settled_offset")
         loops = (
             f", MPC converged {oc['converged']}/{r['realizations']}, "
-            f"within radius {v.converged_radius:g} {r.get('within_radius')}/{r['realizations']}"
+            f"{r.get('within_radius')}/{r['realizations']} within radius {v.converged_radius:g}"
             + (f", settled offset median {off['median']:.2g}" if off else "")
             if oc
             else ""

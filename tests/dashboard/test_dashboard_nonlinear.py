@@ -269,5 +269,5 @@ def test_the_summary_gives_the_loops_within_radius_as_a_share_next_to_the_radius
     text = koopman_summary(frame)
     for lab in frame.labels:
         r = frame.rows[lab][3]
-        want = f"within radius {v.converged_radius:g} {r['within_radius']}/{r['realizations']}"
+        want = f"{r['within_radius']}/{r['realizations']} within radius {v.converged_radius:g}"
         assert want in text, text
