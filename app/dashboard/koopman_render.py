@@ -66,7 +66,8 @@ def koopman_summary(frame: Any) -> str:
         oc = r.get("closed_loop_outcomes")
         off = r.get("settled_offset")
         loops = (
-            f", MPC converged {oc['converged']}/{r['realizations']}, within radius {r.get('within_radius')}"
+            f", MPC converged {oc['converged']}/{r['realizations']}, "
+            f"{r.get('within_radius')}/{r['realizations']} within radius {v.converged_radius:g}"
             + (f", settled offset median {off['median']:.2g}" if off else "")
             if oc
             else ""

@@ -258,3 +258,16 @@ def test_the_summary_and_the_error_plot_agree_on_the_large_data_limit(guard):
     assert ("not drawn" in line) == (not guard)
     if not guard:  # without the guard band dither pushes samples past the data's range at every b
         assert "samples past the range at every b" in line and "tick the guard band" in notes[0]
+
+
+def test_the_summary_gives_the_loops_within_radius_as_a_share_next_to_the_radius():
+    """The summary said "within radius 5", read as a radius of 5: it meant 5 of 5 loops within radius 0.1."""
+    from app.dashboard.koopman_render import koopman_summary
+
+    v = Values(system="van-der-pol", bits=3, **NL_SMALL)
+    frame = list(iter_koopman_frames(v))[-1]
+    text = koopman_summary(frame)
+    for lab in frame.labels:
+        r = frame.rows[lab][3]
+        want = f"{r['within_radius']}/{r['realizations']} within radius {v.converged_radius:g}"
+        assert want in text, text
