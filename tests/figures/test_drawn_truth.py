@@ -247,12 +247,20 @@ def test_every_nonlinear_view_draws_the_koopman_sweep(nonlinear):
         x, y = line(data["koopman-prediction"], lab)
         close(y, [rows[b]["prediction_error"]["mean"] for b in x], f"{lab} prediction error")
         left = [t for t in data["koopman-outcomes"] if t.get("hovertemplate", "").startswith(f"{lab} ")]
+
+        def loops(r: dict, kind: str) -> int:
+            """The row's loops of one bar segment: the bounded ones split by ending within the radius (a
+            converged loop ends within it too)."""
+            oc = r["closed_loop_outcomes"]
+            near = max(0, min(oc["bounded"], (r.get("within_radius") or 0) - oc["converged"]))
+            return {"bounded, within radius": near, "bounded": oc["bounded"] - near}.get(kind, oc.get(kind, -1))
+
         for t in left:
             kind = t["name"]
             xs = values(t["x"])
             close(
                 values(t["y"]),
-                [rows[round(b)]["closed_loop_outcomes"][kind] / rows[round(b)]["realizations"] for b in xs],
+                [loops(rows[round(b)], kind) / rows[round(b)]["realizations"] for b in xs],
                 f"{lab} {kind} share",
             )
         ev = np.concatenate([np.linalg.eigvals(mdl.A) for mdl in frame.models[lab].models])
