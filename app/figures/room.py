@@ -290,8 +290,11 @@ def lay_out(
     fixed = top + bottom + sum(gaps)
     # notes standing above the plot (shown in full where there is no hover) add to the height asked for: the
     # panels keep the room they would have without them
-    notes = sum(_block([a], size) for a in top_notes)
-    each = (height + notes - fixed) / len(rows) if height is not None else (0.6 if len(rows) == 1 else 0.42) * width
+    each = (
+        (height + sum(_block([a], size) for a in top_notes) - fixed) / len(rows)
+        if height is not None
+        else (0.6 if len(rows) == 1 else 0.42) * width
+    )
     height = fixed + max(each, min_row, 40.0) * len(rows)
     layout["height"] = round(height)
     total = sum(r.hi - r.lo for r in rows) or 1.0
