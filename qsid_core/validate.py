@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import numbers
+import stat
 from collections.abc import Mapping
 from typing import Any, SupportsInt, cast
 
@@ -29,12 +30,28 @@ __all__ = [
     "as_matrix",
     "weight_matrix",
     "parse_matrix",
+    "special_file_kind",
 ]
 
 #: Largest magnitude accepted for a model entry, weight, bound or state (squared costs must not overflow).
 MAX_MAGNITUDE = 1e12
 #: Largest number of entries accepted in one array-valued setting.
 MAX_ENTRIES = 1_000_000
+
+
+#: What a path that is not a regular file is, in words (the first test its mode passes).
+_FILE_KINDS = (
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISFIFO, "a named pipe (FIFO)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def special_file_kind(mode: int) -> str | None:
+    """``mode`` (``os.stat(...).st_mode``) in words when it is a directory, pipe, device or socket, else None."""
+    return next((word for test, word in _FILE_KINDS if test(mode)), None)
 
 
 def _kind(value: Any) -> str:

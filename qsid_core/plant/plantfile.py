@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SystemDefinitionError, short_repr
+from ..validate import special_file_kind
 
 try:
     import tomllib
@@ -27,14 +28,6 @@ __all__ = ["MAX_FILE_BYTES", "read_plant_table"]
 
 #: Largest plant file read (bytes).
 MAX_FILE_BYTES = 10_000_000
-
-_KINDS = (
-    (stat.S_ISDIR, "a directory"),
-    (stat.S_ISFIFO, "a named pipe (FIFO)"),
-    (stat.S_ISCHR, "a character device"),
-    (stat.S_ISBLK, "a block device"),
-    (stat.S_ISSOCK, "a socket"),
-)
 
 
 def _reason(exc: BaseException) -> str:
@@ -51,7 +44,7 @@ def _read_bytes(p: Path, shown: str) -> bytes:
     except (OSError, ValueError) as exc:  # missing, name too long, NUL byte, no permission, a loop of links
         why = "does not exist" if isinstance(exc, FileNotFoundError) else f"cannot be opened ({_reason(exc)})"
         raise SystemDefinitionError(f"system file {shown} {why}") from None
-    kind = next((word for test, word in _KINDS if test(st.st_mode)), None if stat.S_ISREG(st.st_mode) else "not a file")
+    kind = special_file_kind(st.st_mode) or (None if stat.S_ISREG(st.st_mode) else "not a file")
     if kind is not None:
         raise SystemDefinitionError(f"{shown} is {kind}, not a system file (.toml or .json)")
     if st.st_size > MAX_FILE_BYTES:

@@ -9,20 +9,13 @@ import tempfile
 from pathlib import Path
 
 from ..errors import OutputPathError
+from ..validate import special_file_kind
 
 __all__ = ["output_target", "replace_atomically"]
 
-_KINDS = (
-    (stat.S_ISDIR, "a directory"),
-    (stat.S_ISFIFO, "a named pipe (FIFO)"),
-    (stat.S_ISCHR, "a character device"),
-    (stat.S_ISBLK, "a block device"),
-    (stat.S_ISSOCK, "a socket"),
-)
-
 
 def _kind(mode: int) -> str:
-    return next((word for test, word in _KINDS if test(mode)), "not a regular file")
+    return special_file_kind(mode) or "not a regular file"
 
 
 def output_target(path: str | os.PathLike[str]) -> Path:
