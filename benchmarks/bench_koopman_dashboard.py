@@ -31,15 +31,15 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from app.dashboard.koopman_settings import nonlinear_values  # noqa: E402
-from app.dashboard.koopman_stages import iter_koopman_frames  # noqa: E402
 from app.dashboard.settings import Values  # noqa: E402
+from app.dashboard.stages import iter_frames  # noqa: E402
 from qsid_core.control import run_koopman_loops  # noqa: E402
 
 
 def _frames(values: Values, cache: dict) -> dict[str, float]:
     """Wall seconds until the current frame, the models frame and the last frame."""
     t0, out = time.perf_counter(), {}
-    for f in iter_koopman_frames(values, cache):
+    for f in iter_frames(values, cache):
         now = time.perf_counter() - t0
         out.setdefault("current", now)
         if f.stage == "curves":
@@ -50,7 +50,7 @@ def _frames(values: Values, cache: dict) -> dict[str, float]:
 
 def _loops(values: Values, cache: dict) -> tuple[float, float, bool]:
     """(each alone, lockstep) wall seconds of the loops at the current b by BCLS, and whether they agree."""
-    frame = next(iter_koopman_frames(values, cache))
+    frame = next(iter_frames(values, cache))
     ex = frame.ex
     assert ex is not None and ex.config.mpc is not None
     models = list(ex.models(frame.bits, "bcls").models)

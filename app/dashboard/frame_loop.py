@@ -1,5 +1,5 @@
-"""One computation of a tab drawn frame by frame, for a linear plant (:meth:`app.dashboard.session.Session._compute`)
-and a nonlinear one (:func:`app.dashboard.koopman_session.compute_nonlinear`) alike: the progress and queue
+"""One computation of a tab drawn frame by frame (:meth:`app.dashboard.session.Session._compute`), for a linear
+and a nonlinear plant alike: the progress and queue
 reports, one turn of the compute slots per frame, staleness checks, the "ready" line and the errors shown.
 
 Everything here runs in the tab's worker thread (see the list in :mod:`app.dashboard.session`).

@@ -1,22 +1,32 @@
-"""What a tab shows at one moment (:class:`Frame`): a frame of the engine's study
-(:class:`qsid_core.studies.StudyFrame`, :func:`app.dashboard.stages.iter_frames`) with the panel's values and
-labels, arranged for the views (:mod:`app.figures`). No computation here.
+"""What a tab shows at one moment: a frame of the engine's study (:class:`qsid_core.studies.StudyFrame`,
+:func:`app.dashboard.stages.iter_frames`) with the panel's values and labels, arranged for the views
+(:mod:`app.figures`): :class:`Frame` for a linear plant, :class:`KoopmanFrame` for a nonlinear one
+(:func:`tab_frame` makes either from the study's). No computation here.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from qsid_core import ClosedLoops, DataLengthResult, Experiment, LTISystem
-from qsid_core.studies import BitsIdentification, TheoryAtBits, full_row
+from qsid_core.studies import (
+    BitsIdentification,
+    KoopmanExperiment,
+    KoopmanModels,
+    LinearAtBits,
+    NonlinearAtBits,
+    StudyFrame,
+    TheoryAtBits,
+    full_row,
+)
 
-from .settings import Values
+from .settings import LABELS, Values
 
-__all__ = ["Frame", "full_row", "row"]
+__all__ = ["Frame", "KoopmanFrame", "full_row", "row", "tab_frame"]
 
 #: Summary rows per estimator label and word length: ``{label: {b: row dict}}``.
 Rows = dict[str, dict[int, dict[str, Any]]]
@@ -99,3 +109,119 @@ class Frame:
             return None
         c = float(self.true_loop.cost[0])
         return c if np.isfinite(c) else None
+
+
+@dataclass
+class KoopmanFrame:
+    """One drawable state of a tab showing a nonlinear plant.
+
+    Attributes
+    ----------
+    stage : {"current", "curves"}
+    values : Values
+    system : NonlinearSystem
+    bits : int
+        The current word length (drawn in 3-D, eigenvalues).
+    labels : tuple of str
+        Estimator labels shown (``"LS"``, ``"BCLS"``).
+    rows : dict label -> {b: row}
+        The rows of :class:`~qsid_core.studies.KoopmanResult` computed so far (``closed_loop_outcomes`` None for a
+        b whose loops are still running).
+    done, total : int
+        Word lengths whose loops are done, of all.
+    models, loops : dict label -> KoopmanModels / KoopmanLoops at the current b
+    reference, reference_error, reference_loop : the unquantized EDMD, its prediction error and its loop
+    flow : ndarray (k, T+1, n)
+        The plant's free flow.
+    x0 : ndarray (n,)
+    horizon : int
+        Samples of the prediction error.
+    features : int
+    data_report : str
+    ex : KoopmanExperiment
+    """
+
+    kind: ClassVar[str] = "koopman"
+    stage: str
+    values: Values
+    system: Any
+    bits: int
+    labels: tuple[str, ...]
+    rows: dict[str, dict[int, dict[str, Any]]]
+    done: int
+    total: int
+    models: dict[str, KoopmanModels]
+    loops: dict[str, Any]
+    reference: Any
+    reference_error: float
+    reference_loop: Any
+    flow: np.ndarray
+    x0: np.ndarray
+    horizon: int
+    features: int
+    data_report: str
+    ex: KoopmanExperiment | None = None
+    elapsed: float = 0.0
+    timings: dict[str, float] = field(default_factory=dict)
+    pinned: Any = None
+    datalength: Any = None
+
+    @property
+    def complete(self) -> bool:
+        return self.done >= self.total
+
+    def series(self) -> dict[str, list[dict[str, Any]]]:
+        """``{label: [rows sorted by b]}`` for the views."""
+        return {lab: [r[b] for b in sorted(r)] for lab, r in self.rows.items()}
+
+
+def tab_frame(f: StudyFrame, values: Values, system: Any = None, notes: tuple[str, ...] = ()) -> Frame | KoopmanFrame:
+    """The tab's frame of study frame ``f`` for ``values`` (``system`` and ``notes``: the linear plant resolved
+    from the panel and what it says about it)."""
+    labels = tuple(LABELS[e] for e in f.estimators)
+    rows = {LABELS[e]: r for e, r in f.rows.items()}
+    at = f.at_bits
+    if isinstance(at, LinearAtBits):
+        return Frame(
+            f.stage,
+            values=values,
+            system=system,
+            bits=f.bits,
+            labels=labels,
+            rows=rows,
+            done=f.done,
+            total=f.total,
+            loops={LABELS[e]: lp for e, lp in at.loops.items()},
+            true_loop=at.true_loop,
+            theory=at.theory,
+            idents={LABELS[e]: i for e, i in at.idents.items()},
+            x0=at.x0,
+            notes=notes,
+            elapsed=f.elapsed,
+            timings=dict(f.timings),
+            ex=f.experiment,  # type: ignore[arg-type]
+        )
+    assert isinstance(at, NonlinearAtBits) and isinstance(f.experiment, KoopmanExperiment)
+    return KoopmanFrame(
+        stage="current" if f.stage == "current" else "curves",  # (the models' frame: curves whose loops still run)
+        values=values,
+        system=f.experiment.system,
+        bits=f.bits,
+        labels=labels,
+        rows=rows,
+        done=f.done,
+        total=f.total,
+        models={LABELS[e]: m for e, m in at.models.items()},
+        loops={LABELS[e]: lp for e, lp in at.loops.items()},
+        reference=at.reference,
+        reference_error=at.reference_error,
+        reference_loop=at.reference_loop,
+        flow=at.flow,
+        x0=at.x0,
+        horizon=at.horizon,
+        features=at.features,
+        data_report=at.data_report,
+        ex=f.experiment,
+        elapsed=f.elapsed,
+        timings=dict(f.timings),
+    )

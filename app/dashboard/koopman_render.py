@@ -1,4 +1,4 @@
-"""What one tab redraws for a nonlinear frame (:class:`~app.dashboard.koopman_stages.KoopmanFrame`): the views of
+"""What one tab redraws for a nonlinear frame (:class:`~app.dashboard.frames.KoopmanFrame`): the views of
 :data:`app.figures.registry.KOOPMAN_VIEWS`, the 3-D scene of the plant's flow and loops, and the summary text.
 
 The summary states what holds for a nonlinear plant: no linear certificate applies; BCLS's correction is exact

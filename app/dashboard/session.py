@@ -50,10 +50,10 @@ from .follower import refused
 from .frame_loop import Reporters, draw_frames
 from .frames import Frame
 from .inputs import check_panel, check_sent, sent_guard, unusable
-from .koopman_session import KindSwitch, compute_nonlinear
 from .koopman_settings import is_nonlinear
 from .lesson_mark import LessonMark
 from .lessons import get_lesson, lesson_markdown, lesson_names, lesson_values
+from .plant_kind import KindSwitch
 from .pool import PoolFailure, twice_message
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
@@ -300,6 +300,7 @@ class Session:
     def _run(self, gen: int) -> int:
         """Check, compute and draw generation ``gen``; returns the generation handled."""
         c = self.controls
+        self.ui.phone.apply()  # a phone's layout (the window's shape, from the camera): a follower's too
         if self.follower is not None and self.follower.mirror():  # following another tab: nothing to compute
             return gen
         received = self.ui.apply_pending()  # settings loaded (a file, a view code) since the last run
@@ -312,7 +313,6 @@ class Session:
             return gen
         show_weights(c)
         self.play.show()
-        self.ui.phone.apply()  # a phone's layout (the window's shape, from the camera), then presenter mode
         self.presenter.apply(bool(c["presenter"].value), narrow=self.ui.phone.narrow)
         gen = self._open_lesson(gen)
         old = [*c.q_sliders, *c.r_sliders]
@@ -329,8 +329,6 @@ class Session:
         self.mark.show(values)  # with the plots panel's own fields: a lesson sets the quantizer's channel too
         for attempt in (1, 2):
             try:
-                if is_nonlinear(values.system):  # Koopman/EDMD (app.dashboard.koopman_session)
-                    return compute_nonlinear(self, gen, values)
                 return self._compute(gen, values)
             except PoolFailure as exc:
                 self.app.pool.replace(exc.executor)  # only if no other tab replaced it already
@@ -345,7 +343,8 @@ class Session:
         t0 = time.perf_counter()
         reports = Reporters(self, gen)
         last = self.last_frame  # only drawing left if just display settings changed since a complete frame
-        cheap = last is not None and last.complete and values.same_results(last.values)
+        nonlinear = is_nonlinear(values.system)
+        cheap = not nonlinear and last is not None and last.complete and values.same_results(last.values)
         frames = iter_frames(
             values,
             self.app.cache,
@@ -355,7 +354,7 @@ class Session:
             on_progress=reports.progress,
             memo=self.rows_memo,
         )
-        return draw_frames(self, gen, frames, t0, reports, cheap, unusable)
+        return draw_frames(self, gen, frames, t0, reports, cheap, None if nonlinear else unusable)
 
     def _show_error(self, text: str) -> None:
         self.ui.show_error(text)

@@ -1,5 +1,6 @@
-"""One tab's computation (:func:`iter_frames`): the engine's :class:`~qsid_core.studies.Study` of the panel's
-values, its frames arranged for the views (:class:`~app.dashboard.frames.Frame`).
+"""One tab's computation (:func:`iter_frames`), for a linear and a nonlinear plant alike: the engine's
+:class:`~qsid_core.studies.Study` of the panel's values, its frames arranged for the views
+(:func:`~app.dashboard.frames.tab_frame`).
 
 Threads: :func:`iter_frames` runs in the tab's worker (see the list in :mod:`app.dashboard.session`); the study's
 helper thread quantizes the other word lengths while the worker runs closed loops. Every stage can be left
@@ -10,37 +11,15 @@ work in the pool through :class:`~app.dashboard.pool.Guarded` is abandoned by th
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, MutableMapping
+from typing import Any
 
-from qsid_core.studies import CancelToken, LinearAtBits, Study, StudyFrame
+from qsid_core.studies import CancelToken, Study
 
-from .frames import Frame
-from .settings import ALL_BITS, LABELS, Values, estimators, resolve_system, sweep_config
+from .frames import Frame, KoopmanFrame, tab_frame
+from .koopman_settings import is_nonlinear, koopman_config
+from .settings import ALL_BITS, Values, estimators, resolve_system, sweep_config
 
 __all__ = ["iter_frames"]
-
-
-def _frame(f: StudyFrame, values: Values, system, notes: tuple[str, ...]) -> Frame:
-    at = f.at_bits
-    assert isinstance(at, LinearAtBits)
-    return Frame(
-        f.stage,
-        values=values,
-        system=system,
-        bits=f.bits,
-        labels=tuple(LABELS[e] for e in f.estimators),
-        rows={LABELS[e]: r for e, r in f.rows.items()},
-        done=f.done,
-        total=f.total,
-        loops={LABELS[e]: lp for e, lp in at.loops.items()},
-        true_loop=at.true_loop,
-        theory=at.theory,
-        idents={LABELS[e]: i for e, i in at.idents.items()},
-        x0=at.x0,
-        notes=notes,
-        elapsed=f.elapsed,
-        timings=dict(f.timings),
-        ex=f.experiment,  # type: ignore[arg-type]
-    )
 
 
 def iter_frames(
@@ -53,8 +32,9 @@ def iter_frames(
     min_interval: float = 0.3,
     on_progress: Callable[[int, int, str], None] | None = None,
     memo: MutableMapping | None = None,
-) -> Generator[Frame, None, None]:
-    """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames.
+) -> Generator[Frame | KoopmanFrame, None, None]:
+    """Compute what a tab shows for ``values``: a "current" frame, then "curves" frames (a nonlinear plant's:
+    one once every b's models are identified, then more as their loops finish).
 
     Parameters
     ----------
@@ -66,7 +46,7 @@ def iter_frames(
     should_stop : callable, optional
         Polled between word lengths; True ends the iteration (newer settings arrived).
     chunk : int
-        Word lengths quantized per pass over the data. Default: all the others in one pass (each pass
+        A linear plant's word lengths quantized per pass over the data. Default: all the others in one pass (each pass
         draws the dither again; one pass instead of three cut a paper-scale data change's CPU time by
         ~30%, benchmarks/bench_dashboard.py); a newer change then waits for that pass.
     min_interval : float
@@ -82,10 +62,14 @@ def iter_frames(
     qsid_core.errors.QsidError
         Bad settings, data overflow, ... in plain words.
     """
-    choice = resolve_system(values)
-    cfg = sweep_config(values, choice.system)
-    study = Study(cfg, executor, cache, tasks if executor is not None else 0, estimators(values.identification))
-    cancel = CancelToken(should_stop)
-    notes = tuple(choice.notes)
-    for f in study.frames(int(values.bits), cancel, on_progress, min_interval, chunk, memo):
-        yield _frame(f, values, choice.system, notes)
+    cfg: Any
+    system, notes = None, ()
+    if is_nonlinear(values.system):
+        cfg, ests = koopman_config(values)
+    else:
+        choice = resolve_system(values)
+        system, notes = choice.system, tuple(choice.notes)
+        cfg, ests = sweep_config(values, system), estimators(values.identification)
+    study = Study(cfg, executor, cache, max(1, tasks) if executor is not None else 0, tuple(ests))
+    for f in study.frames(int(values.bits), CancelToken(should_stop), on_progress, min_interval, chunk, memo):
+        yield tab_frame(f, values, system, notes)

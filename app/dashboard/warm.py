@@ -103,19 +103,13 @@ def prefill(values, cache, executor=None, tasks: int = 1, progress: Callable[[An
     """
     from app.dashboard.koopman_render import KoopmanRenderer
     from app.dashboard.koopman_settings import is_nonlinear
-    from app.dashboard.koopman_stages import iter_koopman_frames
     from app.dashboard.render import Renderer
     from app.dashboard.stages import iter_frames
 
     nonlinear = is_nonlinear(values.system)  # (--lesson koopman, a settings file of a nonlinear plant)
     renderer: Any = KoopmanRenderer() if nonlinear else Renderer()
     n = 0
-    frames = (
-        iter_koopman_frames(values, cache, executor, tasks)
-        if nonlinear
-        else iter_frames(values, cache, executor, tasks)
-    )
-    for frame in frames:
+    for frame in iter_frames(values, cache, executor, tasks):
         for wire in renderer.render(frame).figures.values():
             wire.to_json()  # what viser calls when the figure is sent
         n += 1

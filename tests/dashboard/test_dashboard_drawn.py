@@ -14,7 +14,6 @@ from drawn import check_drawn
 from app.dashboard.cache import SharedCache
 from app.dashboard.koopman_render import koopman_figures
 from app.dashboard.koopman_settings import is_nonlinear
-from app.dashboard.koopman_stages import iter_koopman_frames
 from app.dashboard.lessons import LESSONS, lesson_values
 from app.dashboard.render import build_figures
 from app.dashboard.session import iter_frames
@@ -28,7 +27,7 @@ NONLINEAR_SMALL = dict(trajectories=20, steps=50, realizations=3, mpc_steps=30)
 def check_every_view(v: Values, what: str) -> set[str]:
     """Check the first and the last frame's figures of ``v``; the views drawn."""
     if is_nonlinear(v.system):
-        frames = list(iter_koopman_frames(v.replace(**NONLINEAR_SMALL)))
+        frames = list(iter_frames(v.replace(**NONLINEAR_SMALL)))
         build, views = koopman_figures, registry.KOOPMAN_VIEWS
     else:
         frames = list(iter_frames(v.replace(**LINEAR_SMALL), SharedCache()))

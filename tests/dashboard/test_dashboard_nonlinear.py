@@ -11,8 +11,8 @@ import pytest
 from support import SMALL
 
 from app.dashboard.koopman_settings import LINEAR_ONLY, NL_INTERACTIVE, NONLINEAR_ONLY, koopman_config
-from app.dashboard.koopman_stages import iter_koopman_frames
 from app.dashboard.settings import SYSTEM_CHOICES, Values
+from app.dashboard.stages import iter_frames
 from app.figures import registry
 from qsid_core.studies import KoopmanExperiment, run_koopman_sweep
 
@@ -26,7 +26,7 @@ def test_the_system_dropdown_offers_the_nonlinear_presets():
 
 def test_the_frames_rows_equal_the_command_lines_sweep():
     v = Values(system="pendulum", bits=3, lifting="poly:2", state_amplitude=2.0, **NL_SMALL)
-    frames = list(iter_koopman_frames(v))
+    frames = list(iter_frames(v))
     assert [f.stage for f in frames][0] == "current" and frames[-1].complete
     cfg, ests = koopman_config(v)
     assert ests == ("ls", "bcls")
@@ -42,7 +42,7 @@ def test_the_frames_rows_equal_the_command_lines_sweep():
 def test_a_newer_change_stops_the_frames_after_the_current_b():
     v = Values(system="van-der-pol", bits=4, **NL_SMALL)
     stop = []
-    frames = iter_koopman_frames(v, should_stop=lambda: bool(stop))
+    frames = iter_frames(v, should_stop=lambda: bool(stop))
     first = next(frames)
     assert first.stage == "current" and set(first.rows["LS"]) == {4}
     stop.append(1)
@@ -52,9 +52,9 @@ def test_a_newer_change_stops_the_frames_after_the_current_b():
 def test_the_cache_is_shared_by_a_b_change():
     cache: dict = {}
     v = Values(system="van-der-pol", bits=4, **NL_SMALL)
-    list(iter_koopman_frames(v, cache))
+    list(iter_frames(v, cache))
     n = len(cache)
-    list(iter_koopman_frames(v.replace(bits=6), cache))
+    list(iter_frames(v.replace(bits=6), cache))
     assert len(cache) == n  # a b change computes nothing new
 
 
@@ -249,7 +249,7 @@ def test_the_summary_and_the_error_plot_agree_on_the_large_data_limit(guard):
     from app.dashboard.koopman_render import koopman_figures, koopman_summary
 
     v = Values(system="van-der-pol", bits=3, guard=guard, **NL_SMALL)
-    frame = list(iter_koopman_frames(v))[-1]
+    frame = list(iter_frames(v))[-1]
     fig = koopman_figures(frame, ("koopman-error",))["koopman-error"]
     drawn = any(t.name == "LS large-data limit" for t in fig.data)
     notes = [a.text for a in fig.layout.annotations if a.text.startswith("no large-data limit")]
@@ -265,7 +265,7 @@ def test_the_summary_gives_the_loops_within_radius_as_a_share_next_to_the_radius
     from app.dashboard.koopman_render import koopman_summary
 
     v = Values(system="van-der-pol", bits=3, **NL_SMALL)
-    frame = list(iter_koopman_frames(v))[-1]
+    frame = list(iter_frames(v))[-1]
     text = koopman_summary(frame)
     for lab in frame.labels:
         r = frame.rows[lab][3]

@@ -19,7 +19,6 @@ from app.dashboard.background import datalength_config
 from app.dashboard.cache import SharedCache
 from app.dashboard.koopman_render import koopman_figures
 from app.dashboard.koopman_settings import koopman_config
-from app.dashboard.koopman_stages import iter_koopman_frames
 from app.dashboard.render import build_figures
 from app.dashboard.session import iter_frames
 from app.dashboard.settings import Values
@@ -57,7 +56,7 @@ def linear(request):
 @pytest.fixture(scope="module")
 def nonlinear():
     v = Values(system="van-der-pol", lifting="poly:3", **NONLINEAR)
-    frame = list(iter_koopman_frames(v))[-1]
+    frame = list(iter_frames(v))[-1]
     assert frame.complete
     cfg, ests = koopman_config(v)
     sweeps = {lab: run_koopman_sweep(dataclasses.replace(cfg, estimator=EST[lab])) for lab in frame.labels}

@@ -1,23 +1,17 @@
-"""A tab's worker for a nonlinear plant: the panel fitted to the kind of plant (:class:`KindSwitch`) and one
-computation drawn frame by frame (:func:`compute_nonlinear`), as :meth:`app.dashboard.session.Session._compute`
-does for a linear one (same slots, staleness checks, progress and error lines).
+"""The panel fitted to the kind of plant picked, linear or nonlinear (:class:`KindSwitch`).
 
-Threads: everything here runs in the tab's worker (see the list in :mod:`app.dashboard.session`); the frames come
-from :func:`~app.dashboard.koopman_stages.iter_koopman_frames`.
+Threads: runs in the tab's worker (see the list in :mod:`app.dashboard.session`).
 """
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 from .controls import read_values
-from .frame_loop import Reporters, draw_frames
 from .koopman_settings import LINEAR_ONLY, NONLINEAR_ONLY, is_nonlinear, scale_label, switch_defaults
-from .koopman_stages import iter_koopman_frames
 from .lessons import NONE, lesson_values
 
-__all__ = ["KindSwitch", "compute_nonlinear"]
+__all__ = ["KindSwitch"]
 
 
 class KindSwitch:
@@ -60,19 +54,3 @@ class KindSwitch:
         if nonlinear:  # (the linear code keeps fixed_range's visibility in read_values)
             c["fixed_range"].visible = c["range_mode"].value == "fixed"
         return changed
-
-
-def compute_nonlinear(session: Any, gen: int, values: Any) -> int:
-    """Compute and draw generation ``gen`` for a nonlinear plant; returns the generation handled."""
-    t0 = time.perf_counter()
-    reports = Reporters(session, gen)
-    stale = lambda: session._stale(gen)  # noqa: E731
-    frames = iter_koopman_frames(
-        values,
-        session.app.cache,
-        session.app.pool.guarded(stale),
-        max(1, int(getattr(session.app, "tasks", 2))),
-        should_stop=stale,
-        on_progress=reports.progress,
-    )
-    return draw_frames(session, gen, frames, t0, reports)
