@@ -257,23 +257,7 @@ def measured() -> dict:
     return found
 
 
-#: Modes whose walk stalls after the data-length lesson since the lessons' presenter and phone layout changed
-#: (the tab never reports every change drawn; laptop and hd walk clean): a known defect, kept measured here.
-STALLS = ("laptop-presenter", "hd-presenter", "phone")
-
-
-@pytest.mark.parametrize(
-    "mode",
-    [
-        pytest.param(
-            m[0],
-            marks=pytest.mark.xfail(
-                m[0] in STALLS, reason="the walk stalls after the data-length lesson (known defect)", strict=False
-            ),
-        )
-        for m in MODES
-    ],
-)
+@pytest.mark.parametrize("mode", [m[0] for m in MODES])
 def test_every_plot_is_legible(measured, mode):
     if mode not in measured:
         pytest.skip(f"{mode} not in QSID_LEGIBILITY_MODES")
