@@ -75,26 +75,30 @@ def sent_guard(
     check: Callable[[Any, Mapping[str, Any]], str | None],
     on_reject: Callable[[str, Any], None],
     on_accept: Callable[[Any], None] | None = None,
-) -> Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[None]]:
-    """The guard of one tab's input messages (:func:`app.dashboard.viserfix.guard_updates`): a value ``check``
-    refuses is dropped, and one viser cannot convert (``apply()`` raises) is explained; both said by
-    ``on_reject(text, handle)``. A value taken is said by ``on_accept(handle)``."""
+) -> Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[bool]]:
+    """The guard of one tab's input messages (:func:`app.dashboard.viserfix.guard_updates`, which sends the tab the
+    value in use again after a refusal): a value ``check`` refuses is dropped, and one viser cannot convert
+    (``apply()`` raises) is explained; both said by ``on_reject(text, handle)``. A value taken is said by
+    ``on_accept(handle)``. The guard returns whether the value was taken."""
 
-    async def guard(handle: Any, updates: dict, apply: Callable[[], Awaitable[None]]) -> None:
+    async def guard(handle: Any, updates: dict, apply: Callable[[], Awaitable[None]]) -> bool:
         why = check(handle, updates)
         if why is not None:
-            return on_reject(why, handle)
+            on_reject(why, handle)
+            return False
         try:
             await apply()
         except Exception as exc:
             sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in updates.items())
-            return on_reject(
+            on_reject(
                 f"{getattr(handle, 'label', None) or 'an input'}: the value sent ({sent}) was refused "
                 f"({type(exc).__name__}: {str(exc)[:80]}); the input keeps its last value",
                 handle,
             )
+            return False
         if on_accept is not None and handle is not None:
             on_accept(handle)
+        return True
 
     return guard
 

@@ -18,8 +18,9 @@ time, each plot as wide as the sheet (:func:`app.figures.presenter.phone_figure`
 px), the plots section open; the word-length slider near the top with the lesson's text below it; the settings
 tabs and the summary behind one button, so that the plots follow the slider; presenter mode off (its panel
 widths mean nothing in the sheet); the 3-D box framed in the part of the scene the sheet leaves free. The
-sheet itself is made as wide as the window and at most half its height by a style sheet
-(:func:`app.dashboard.viserfix.phone_sheet_style`): viser draws it 20em wide and up to 60 % high.
+sheet itself is made as wide as the window and at most half its height by a style sheet,
+:data:`PHONE_SHEET_CSS` (sent by :func:`app.dashboard.viserfix.phone_sheet_style`): viser draws it 20em wide and
+up to 60 % high.
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["PhoneLayout", "NARROW", "WIDE_AGAIN", "SHEET", "canvas_aspect", "SETTINGS_LABELS"]
+__all__ = ["PhoneLayout", "NARROW", "WIDE_AGAIN", "SHEET", "canvas_aspect", "SETTINGS_LABELS", "PHONE_SHEET_CSS"]
+__all__ += ["SHEET_SOURCE"]
 
 #: A canvas narrower than this (width / height) when the tab connects is a phone's (upright phones are 0.4-0.6;
 #: with the browser's bars 0.65-0.7; a laptop window 1.3-1.8).
@@ -37,6 +39,27 @@ NARROW = 0.75
 WIDE_AGAIN = 1.0
 #: The share of the window's height the bottom sheet may cover (the style sheet's max-height).
 SHEET = 0.5
+#: viser's phone layout (up to its 36em breakpoint) draws every panel in one bottom sheet, 20em wide and up to 60 %
+#: high (inline styles, client/src/ControlPanel/BottomPanel.tsx): stretched across the window, at most half as high.
+PHONE_SHEET_CSS = (
+    '<style>@media (max-width: 36em) {.mantine-Paper-root[style*="position: fixed"][style*="20em"]'
+    "{width: 100vw !important; max-height: 50% !important;}"
+    '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}'
+    # a dropdown's list (the "show" and "lesson" choices) opens as a sheet at the window's foot, always on
+    # screen, instead of beside its input in a sheet that may sit half off the window
+    ".mantine-Select-dropdown{position: fixed !important; left: 8px !important; right: 8px !important;"
+    "top: auto !important; bottom: 8px !important; width: auto !important; max-height: 45vh !important;"
+    "overflow-y: auto !important;}"
+    ".mantine-Select-dropdown .mantine-Popover-arrow{display: none !important;}"
+    "}"
+    # (every window) viser draws a slider's number box without its slider's "disabled" (a follower's b): inert
+    # like the slider
+    ".mantine-Flex-root:has(> .mantine-Slider-root [data-disabled]) > .mantine-NumberInput-root"
+    "{pointer-events: none; opacity: 0.6;}"
+    "</style>"
+)
+#: The inline styles of viser's bottom sheet (as its client's source writes them) that the selectors rely on.
+SHEET_SOURCE = ('position: "fixed"', 'width: "20em"', 'maxHeight: "60%"')
 #: The button that shows or hides the settings tabs and the summary on a phone.
 SETTINGS_LABELS = ("⚙ all settings", "⚙ hide the settings")
 

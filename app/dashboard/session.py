@@ -60,7 +60,7 @@ from .share import show_frame
 from .stages import iter_frames
 from .tabview import TabView
 from .viewcodes import ViewOpen
-from .viserfix import guard_updates, set_callback_executor, show_value
+from .viserfix import guard_updates, set_callback_executor
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
 
@@ -363,8 +363,6 @@ class Session:
         ui = getattr(self, "ui", None)  # (None: a message before the panel was built)
         if ui is not None:
             ui.refuse(handle, text)
-        if handle is not None and hasattr(handle, "value"):  # the browser shows the value in use again
-            show_value(self.client.gui, handle)
 
     def _accept(self, handle) -> None:  # (viser's event loop)
         ui = getattr(self, "ui", None)

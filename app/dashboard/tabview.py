@@ -22,7 +22,7 @@ from .controls import GuiElements, make_gui_elements, read_values
 from .follow import Drawn, Sent
 from .frames import Frame
 from .koopman_render import KoopmanRenderer
-from .phone import PhoneLayout, canvas_aspect
+from .phone import PHONE_SHEET_CSS, SHEET_SOURCE, PhoneLayout, canvas_aspect
 from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
 from .scene import PhasePortrait
@@ -116,7 +116,7 @@ class TabView:
         self.phone = PhoneLayout(
             gui, client.camera, self.controls, self.plots_panel, self.portrait, touch, aspect=connect_aspect
         )
-        phone_sheet_style(gui)  # viser's phone sheet across the window, at most half its height
+        phone_sheet_style(gui, PHONE_SHEET_CSS, SHEET_SOURCE)  # phone sheet: window-wide, at most half as high
         #: why the computation of the settings shown could not run (None: it could), and the values sent for an
         #: input that were refused (by the input: each stays shown until that input is changed again)
         self.run_error: str | None = None

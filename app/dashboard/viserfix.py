@@ -6,6 +6,7 @@ class. Where this viser lacks what a hook relies on, the hook changes nothing, r
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 import gc
 import warnings
@@ -16,11 +17,11 @@ from typing import Any, TypeVar
 import viser
 from viser import _messages
 
-__all__ = ["LoopEvent", "ViserHookWarning", "PHONE_SHEET_CSS", "SHEET_SOURCE", "connection_request", "guard_updates"]
-__all__ += ["limit_reads", "phone_sheet_style", "redirect_pages", "refuse_share_requests", "send_plotly_js"]
-__all__ += ["set_callback_executor", "show_value", "thread_safe_buffers"]
+__all__ = ["LoopEvent", "ViserHookWarning", "connection_request", "guard_updates", "limit_reads", "phone_sheet_style"]
+__all__ += ["redirect_pages", "refuse_share_requests", "send_plotly_js", "set_callback_executor", "thread_safe_buffers"]
 _warned: set[str] = set()
 F = TypeVar("F", bound=Callable[..., bool])
+Guard = Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[bool]]  # (handle, updates, apply) -> taken
 
 
 class ViserHookWarning(RuntimeWarning):
@@ -33,8 +34,7 @@ def _require(condition: bool) -> None:
 
 
 def _hook(name: str, relies_on: str) -> Callable[[F], F]:
-    """A hook ``name``: where what it ``relies_on`` is missing (an AttributeError, KeyError or ValueError while it
-    installs), False and one warning per process instead."""
+    """Hook ``name``: if what it ``relies_on`` is missing as it installs, False and one warning per process."""
 
     def wrap(fn: F) -> F:
         @functools.wraps(fn)
@@ -54,42 +54,29 @@ def _hook(name: str, relies_on: str) -> Callable[[F], F]:
 
 
 class LoopEvent(asyncio.Event):
-    """An ``asyncio.Event`` whose ``set`` from a foreign thread is run by ``loop`` on its own thread; sets made while
-    one is on its way there are merged into it (one wake-up of the loop per burst of pushed messages)."""
+    """An ``asyncio.Event`` set only on its ``loop``'s thread: a ``set`` from another thread does nothing, since only
+    the loop reads the event and viser's ``push`` hands the loop the same ``set`` (``call_soon_threadsafe``)."""
 
     def __init__(self, loop: asyncio.AbstractEventLoop):
         super().__init__()
-        self._owner, self._handed = loop, False
+        self._owner = loop
 
     def set(self) -> None:
-        try:
-            on_loop = asyncio.get_running_loop() is self._owner
-        except RuntimeError:
-            on_loop = False
-        if on_loop:
-            super().set()
-        elif not self._handed:
-            self._handed = True
-            try:
-                self._owner.call_soon_threadsafe(self._set_on_loop)
-            except RuntimeError:  # the loop is closed (server stopping): nobody waits any more
-                self._handed = False
-
-    def _set_on_loop(self) -> None:
-        self._handed = False  # first: a push after this line schedules a set of its own
-        super().set()
-
-
-def _swap(buffer: Any) -> None:
-    old, buffer.message_event = buffer.message_event, LoopEvent(buffer.event_loop)
-    buffer.event_loop.call_soon_threadsafe(old.set)  # whoever waits on the old event wakes, on the loop
+        with contextlib.suppress(RuntimeError):  # (no loop running in this thread)
+            if asyncio.get_running_loop() is self._owner:
+                super().set()
 
 
 @_hook("thread-safe message buffers", "ViserServer._websock_server")
 def thread_safe_buffers(server: Any) -> bool:
-    """A LoopEvent in the broadcast buffer, and in each connection's before its messages flow (on the loop)."""
-    server._websock_server.on_client_connect(lambda conn: _swap(conn.get_message_buffer()))
-    _swap(server._websock_server.get_message_buffer())
+    """A LoopEvent in the broadcast buffer, and in each connection's as it opens (on the loop, before it sends)."""
+
+    def swap(buffer: Any) -> None:
+        old, buffer.message_event = buffer.message_event, LoopEvent(buffer.event_loop)
+        buffer.event_loop.call_soon_threadsafe(old.set)  # whoever waits on the old event wakes, on the loop
+
+    server._websock_server.on_client_connect(lambda conn: swap(conn.get_message_buffer()))
+    swap(server._websock_server.get_message_buffer())
     return True
 
 
@@ -114,23 +101,23 @@ def limit_reads(server: Any, client_id: int, nbytes: int) -> bool:
 
 @_hook("page redirects (short links)", "websockets Server of its own on the port")
 def redirect_pages(server: Any, locate: Callable[[str, str, bool], str | None]) -> bool:
-    """A 302 to ``locate(target, host, https)`` (if not None) for page requests: wraps the ``process_request`` of
-    the websockets ``Server`` on ``server``'s port (public attributes; found among the live objects)."""
+    """A 302 to ``locate(target, host, https)`` (if not None) for page requests: wraps the public ``process_request``
+    of the websockets ``Server`` listening on ``server``'s port, found among the live objects (viser keeps none)."""
     from websockets.asyncio.server import Server
-    from websockets.datastructures import Headers
-    from websockets.http11 import Response
 
     port = server.get_port()
     (ws,) = (o for o in gc.get_objects() if type(o) is Server and port in {s.getsockname()[1] for s in o.sockets or ()})
     serve = ws.process_request
 
     def process_request(connection: Any, request: Any) -> Any:
-        if "websocket" not in str(request.headers.get("Upgrade", "")).lower():
-            https = str(request.headers.get("X-Forwarded-Proto", "")).lower() == "https"
-            where = locate(str(request.path), str(request.headers.get("Host", "") or ""), https)
+        head = request.headers
+        if "websocket" not in str(head.get("Upgrade", "")).lower():
+            https = str(head.get("X-Forwarded-Proto", "")).lower() == "https"
+            where = locate(str(request.path), str(head.get("Host", "") or ""), https)
             if where is not None:
-                headers = Headers([("Location", where), ("Cache-Control", "no-store"), ("Content-Length", "0")])
-                return Response(302, "Found", headers, b"")
+                response = connection.respond(302, "")  # (websockets' own plain response, its body empty)
+                response.headers.update({"Location": where, "Cache-Control": "no-store"})
+                return response
         return serve(connection, request) if serve is not None else None
 
     if not getattr(serve, "qsid", False):  # (once: a second call keeps the first wrapper)
@@ -146,29 +133,21 @@ def set_callback_executor(gui: Any, executor: Any) -> bool:
     return True
 
 
-Guard = Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[None]]
-
-
-@_hook("the explanation of refused values", "GuiApi._handle_gui_updates on GuiApi._websock_interface")
+@_hook("the refused values explained and set back", "GuiApi._handle_gui_updates on GuiApi._websock_interface")
 def guard_updates(gui: Any, guard: Guard) -> bool:
-    """Route a tab's input messages through ``guard(handle, updates, apply)`` before viser converts the values
-    (``apply()``: viser's own handling, awaited; the handle from ``GuiApi._gui_input_handle_from_uuid``)."""
+    """Route a tab's input messages through ``guard`` before viser converts the values (its handle from
+    ``GuiApi._gui_input_handle_from_uuid``; ``apply()`` is viser's own handling). A value refused: the tab is sent
+    the one its input holds (the browser shows what was typed; viser sends a value only when it changes)."""
     conn, orig, inputs = gui._websock_interface, gui._handle_gui_updates, gui._gui_input_handle_from_uuid
-    _require(isinstance(inputs, dict))
+    _require(isinstance(inputs, dict) and callable(conn.queue_message))
     conn.unregister_handler(_messages.GuiUpdateMessage, orig)
 
     async def guarded(client_id: int, message: Any) -> None:
-        await guard(inputs.get(message.uuid), dict(message.updates), lambda: orig(client_id, message))
+        handle = inputs.get(message.uuid)
+        if not await guard(handle, dict(message.updates), lambda: orig(client_id, message)) and handle is not None:
+            conn.queue_message(_messages.GuiUpdateMessage(message.uuid, {"value": handle.value}))
 
     conn.register_handler(_messages.GuiUpdateMessage, guarded)
-    return True
-
-
-@_hook("the refused value's input set back", "GuiApi._websock_interface.queue_message and a handle's _impl.uuid")
-def show_value(gui: Any, handle: Any) -> bool:
-    """Send the tab of ``gui`` the value input ``handle`` holds: after a refused value the browser would go on
-    showing what was typed (viser sends a value only when it changes; the handle keeps the one in use)."""
-    gui._websock_interface.queue_message(_messages.GuiUpdateMessage(handle._impl.uuid, {"value": handle.value}))
     return True
 
 
@@ -191,31 +170,11 @@ def send_plotly_js(gui: Any, source: str) -> bool:
     return True
 
 
-#: viser's phone layout (up to its 36em breakpoint) draws every panel in one bottom sheet, 20em wide and up to 60 %
-#: high (inline styles, client/src/ControlPanel/BottomPanel.tsx): stretched across the window, at most half as high.
-PHONE_SHEET_CSS = (
-    '<style>@media (max-width: 36em) {.mantine-Paper-root[style*="position: fixed"][style*="20em"]'
-    "{width: 100vw !important; max-height: 50% !important;}"
-    '.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"]{width: 100vw !important;}'
-    # a dropdown's list (the "show" and "lesson" choices) opens as a sheet at the window's foot, always on
-    # screen, instead of beside its input in a sheet that may sit half off the window
-    ".mantine-Select-dropdown{position: fixed !important; left: 8px !important; right: 8px !important;"
-    "top: auto !important; bottom: 8px !important; width: auto !important; max-height: 45vh !important;"
-    "overflow-y: auto !important;}"
-    ".mantine-Select-dropdown .mantine-Popover-arrow{display: none !important;}"
-    "}"
-    # viser draws a slider's number box without its slider's "disabled" (a follower's b): inert like the slider
-    ".mantine-Flex-root:has(> .mantine-Slider-root [data-disabled]) > .mantine-NumberInput-root"
-    "{pointer-events: none; opacity: 0.6;}"
-    "</style>"
-)
-SHEET_SOURCE = ('position: "fixed"', 'width: "20em"', 'maxHeight: "60%"')  # what the selectors rely on
-
-
-@_hook("the phone sheet across the window", "bottom sheet styled inline 20em wide in its client")
-def phone_sheet_style(gui: Any) -> bool:
-    """Send the tab :data:`PHONE_SHEET_CSS` (nothing when the installed client's sheet is styled otherwise)."""
+@_hook("the phone sheet's style", "bottom sheet styled inline as the style sheet expects in its client")
+def phone_sheet_style(gui: Any, css: str, relies_on: tuple[str, ...]) -> bool:
+    """Send the tab ``css`` (a ``<style>`` element), whose selectors match the inline styles ``relies_on`` of viser's
+    bottom sheet; nothing if the installed client's source (``BottomPanel.tsx``) writes them otherwise."""
     src = Path(viser.__file__).parent / "client" / "src" / "ControlPanel" / "BottomPanel.tsx"
-    _require(not src.is_file() or all(s in src.read_text(encoding="utf-8") for s in SHEET_SOURCE))
-    gui.add_html(PHONE_SHEET_CSS, order=1e9)  # a style element: nothing drawn, last in the panel
+    _require(not src.is_file() or all(s in src.read_text(encoding="utf-8") for s in relies_on))
+    gui.add_html(css, order=1e9)  # nothing drawn, last in the panel
     return True

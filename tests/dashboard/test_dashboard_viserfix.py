@@ -18,7 +18,7 @@ import viser
 from viser import _messages
 from viser.infra import _async_message_buffer as amb
 
-from app.dashboard import viserfix
+from app.dashboard import phone, viserfix
 from app.dashboard.viserfix import ViserHookWarning
 
 try:
@@ -33,7 +33,8 @@ from _wsclient import WsTab  # noqa: E402
 
 @pytest.fixture
 def live():
-    """A bare viser server with thread-safe buffers (as the dashboard's) and one connected client: (server, client)."""
+    """A bare viser server with thread-safe buffers (as the dashboard's) and one connected client: (server, client,
+    the client's end of the websocket)."""
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     tab = None
     try:
@@ -43,7 +44,7 @@ def live():
         while not server.get_clients() and time.monotonic() < end:
             time.sleep(0.05)
         (client,) = server.get_clients().values()
-        yield server, client
+        yield server, client, tab
     finally:
         if tab is not None:
             tab.close()
@@ -58,7 +59,6 @@ def fresh(monkeypatch):
 
 def _hooks(server, client, executor):
     gui = client.gui
-    number = gui.add_number("n", 1.0)
     return {
         "thread_safe_buffers": lambda: viserfix.thread_safe_buffers(server),
         "set_callback_executor": lambda: viserfix.set_callback_executor(gui, executor),
@@ -67,14 +67,22 @@ def _hooks(server, client, executor):
         "refuse_share_requests": lambda: viserfix.refuse_share_requests(server),
         "send_plotly_js": lambda: viserfix.send_plotly_js(gui, "/* plotly.js */"),
         "redirect_pages": lambda: viserfix.redirect_pages(server, _moved),
-        "phone_sheet_style": lambda: viserfix.phone_sheet_style(gui),
-        "show_value": lambda: viserfix.show_value(gui, number),
+        "phone_sheet_style": lambda: viserfix.phone_sheet_style(gui, phone.PHONE_SHEET_CSS, phone.SHEET_SOURCE),
     }
 
 
 async def _passes(handle, updates, apply):
     """A guard of input messages that lets every one through to viser."""
     await apply()
+    return True
+
+
+async def _at_most_ten(handle, updates, apply):
+    """A guard that refuses a value above 10 (before viser converts it) and lets the others through."""
+    if float(updates.get("value", 0)) > 10:
+        return False
+    await apply()
+    return True
 
 
 def _moved(target: str, host: str, secure: bool) -> str | None:
@@ -103,7 +111,7 @@ def test_the_installed_viser_is_in_the_pinned_range_the_hooks_were_written_for()
 
 
 def test_every_hook_installs_against_the_installed_viser(live, fresh):
-    server, client = live
+    server, client, _tab = live
     gui = client.gui
     with ThreadPoolExecutor(1) as ex, warnings.catch_warnings():
         warnings.simplefilter("error", ViserHookWarning)  # any hook that cannot be installed fails here
@@ -137,8 +145,7 @@ def _class_attributes() -> dict:
 def test_the_module_scans_no_frame_and_names_its_private_viser_names_in_the_known_issues():
     source = inspect.getsource(viserfix)
     assert "f_locals" not in source and "cr_frame" not in source and "__init__ =" not in source
-    names = set(re.findall(r"\b(_[a-z][a-z_]+)\b", source)) - {"_hook", "_require", "_warned", "_swap"}
-    names -= {"_owner", "_handed", "_set_on_loop"}  # LoopEvent's own
+    names = set(re.findall(r"\b(_[a-z][a-z_]+)\b", source)) - {"_hook", "_require", "_warned", "_owner"}
     notes = (ROOT / "docs" / "known-issues.rst").read_text(encoding="utf-8")
     assert names and all(n in notes for n in names), sorted(n for n in names if n not in notes)
 
@@ -159,9 +166,7 @@ def _remove(monkeypatch, server, client, name):
     elif name == "send_plotly_js":
         monkeypatch.delattr(gui, "_setup_plotly_js")
     elif name == "phone_sheet_style":  # a client whose sheet is drawn otherwise
-        monkeypatch.setattr(viserfix, "SHEET_SOURCE", ('maxHeight: "61%"',))
-    elif name == "show_value":
-        monkeypatch.delattr(gui, "_websock_interface")
+        monkeypatch.setattr(phone, "SHEET_SOURCE", ('maxHeight: "61%"',))
 
 
 @pytest.mark.parametrize(
@@ -175,11 +180,10 @@ def _remove(monkeypatch, server, client, name):
         "send_plotly_js",
         "redirect_pages",
         "phone_sheet_style",
-        "show_value",
     ],
 )
 def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatch, name):
-    server, client = live
+    server, client, _tab = live
     with ThreadPoolExecutor(1) as ex:
         hook = _hooks(server, client, ex)[name]
         _remove(monkeypatch, server, client, name)
@@ -189,14 +193,14 @@ def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatc
 
 
 def test_limit_reads_of_a_tab_already_gone_is_no_warning(live, fresh):
-    server, client = live
+    server, client, _tab = live
     with warnings.catch_warnings():
         warnings.simplefilter("error", ViserHookWarning)
         assert viserfix.limit_reads(server, client.client_id + 1000, 4096) is False
 
 
 def test_redirect_pages_answers_page_requests_and_leaves_the_rest_to_viser(live, fresh):
-    server, _client = live
+    server, _client, _tab = live
     port = server.get_port()
     assert _get(server, "/moved")[0] == 404  # viser itself has no such page
     with warnings.catch_warnings():
@@ -222,9 +226,34 @@ def test_the_phone_sheet_style_matches_the_installed_clients_sheet():
     them (the browser test, tests/system/test_dashboard_legibility.py, measures the plots' width in it)."""
     src = Path(viser.__file__).parent / "client" / "src" / "ControlPanel" / "BottomPanel.tsx"
     text = src.read_text(encoding="utf-8")
-    assert all(s in text for s in viserfix.SHEET_SOURCE)
-    css = viserfix.PHONE_SHEET_CSS
+    assert all(s in text for s in phone.SHEET_SOURCE)
+    css = phone.PHONE_SHEET_CSS
     assert "@media (max-width: 36em)" in css and css.count("20em") == 2
     theme = (src.parents[1] / "AppTheme.ts").read_text(encoding="utf-8")
     assert "breakpoints" not in theme  # Mantine's default xs breakpoint, 36em: where viser's phone layout starts
     assert "<script" not in css and "max-height: 50%" in css
+
+
+def test_guard_updates_sends_a_refused_values_input_back_the_value_in_use(live, fresh):
+    """The browser shows what was typed; after a refusal the tab is sent the value the input holds (viser sends a
+    value only when it changes), and a value taken goes through viser as before."""
+    server, client, tab = live
+    number = client.gui.add_number("n", 1.0)
+    seen = []
+    number.on_update(lambda e: seen.append(e.target.value))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ViserHookWarning)
+        assert viserfix.guard_updates(client.gui, _at_most_ten) is True
+    tab.wait_for("n")
+    tab.send("n", 99.0)  # refused: the tab's copy says 99 until the server sends 1.0 back
+    end = time.monotonic() + 60
+    while tab.value("n") != 1.0 and time.monotonic() < end:
+        time.sleep(0.02)
+    assert tab.value("n") == 1.0 and number.value == 1.0
+    tab.send("n", 5.0)  # taken
+    while number.value != 5.0 and time.monotonic() < end:
+        time.sleep(0.02)
+    assert number.value == 5.0 and tab.value("n") == 5.0
+    while not seen and time.monotonic() < end:
+        time.sleep(0.02)
+    assert seen == [5.0]  # the refused value reached no callback
