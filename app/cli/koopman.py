@@ -205,7 +205,7 @@ def format_koopman(d: dict[str, Any]) -> str:
 
 
 def _run(args: argparse.Namespace, rep: Reporter) -> dict[str, Any]:
-    from qsid_core.studies import run_koopman_sweep
+    from qsid_core.studies import Study
 
     cfg = koopman_config(args)
     cfg.dictionary()  # a bad --lifting is reported before anything runs
@@ -213,7 +213,7 @@ def _run(args: argparse.Namespace, rep: Reporter) -> dict[str, Any]:
         f"nonlinear sweep of {cfg.plant().name}: {cfg.trajectories} x {cfg.steps}, lifting {cfg.lifting}, "
         f"{len(cfg.bits)} word lengths x {cfg.realizations} realizations"
     )
-    return run_koopman_sweep(cfg).to_dict()
+    return Study(cfg).run().to_dict()
 
 
 def run_sweep(args: argparse.Namespace, rep: Reporter) -> int:

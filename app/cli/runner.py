@@ -311,11 +311,13 @@ def run(
 
     ``cfg`` (e.g. from :func:`config_from_file`) replaces the settings built from ``args``.
     """
-    from qsid_core import Experiment, run_sweep
+    from qsid_core import Experiment, Study, SweepResult
 
     cfg = config(args, system, mpc) if cfg is None else cfg
     with executor(args, rep) as (pool, nw):
-        ex = Experiment(cfg, pool, tasks=max(4, 2 * nw))
+        study = Study(cfg, pool, workers=nw, tasks=max(4, 2 * nw))
+        ex = study.experiment
+        assert isinstance(ex, Experiment)
         rep.stage(
             f"system {system.name!r} ({_plural(system.n, 'state')}, {_plural(system.m, 'input')}); "
             f"{cfg.trajectories} x {cfg.steps} samples, b = {bits_text(cfg.bits)}, "
@@ -333,7 +335,8 @@ def run(
             if mpc
             else "[2/2] Theorem 1 and ultimate bound"
         )
-        res = run_sweep(cfg, pool, progress=rep, experiment=ex)
+        res = study.run(progress=rep)
+        assert isinstance(res, SweepResult)
         rep.after_stage.clear()
         todo = [b for b in extra_bits if b not in res.loops]
         if todo:

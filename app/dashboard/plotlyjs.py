@@ -12,6 +12,12 @@ The bundle (``assets/plotly-basic.min.js``, npm ``plotly.js-basic-dist-min``, MI
 licence beside it) is used only when its version equals the plotly.js version the
 installed plotly package was built for; otherwise viser's own bundle is sent as before.
 To update it: ``npm pack plotly.js-basic-dist-min@<plotly.offline.get_plotlyjs_version()>``.
+
+Whichever bundle goes, :data:`ZERO_WIDTH_GUARD` follows it: viser's plot element draws once at width 0 when it
+appears (before its size is measured), and plotly then falls back to 700 × 450 px; a figure whose margins need
+more than 450 px (presenter mode and phones write their notes out above the plot) makes plotly throw "Something
+went wrong with axis scaling", which takes viser's whole page down (docs/known-issues.rst). The guard skips a
+draw at width 0; the element draws again once measured.
 """
 
 from __future__ import annotations
@@ -23,11 +29,17 @@ from typing import Any
 
 from .viserfix import send_plotly_js
 
-__all__ = ["BUNDLE", "TRACE_TYPES", "bundle_version", "send_basic_bundle"]
+__all__ = ["BUNDLE", "TRACE_TYPES", "ZERO_WIDTH_GUARD", "bundle_version", "send_basic_bundle"]
 
 BUNDLE = Path(__file__).resolve().parent / "assets" / "plotly-basic.min.js"
 #: The trace types the basic bundle draws.
 TRACE_TYPES = ("scatter", "bar", "pie")
+#: Run after plotly.js: ``Plotly.react`` with a layout 0 px wide draws nothing (see the module's docstring).
+ZERO_WIDTH_GUARD = (
+    "\n;(function(P){if(!P||P.__qsidGuard)return;var react=P.react;"
+    "P.react=function(gd,data,layout,config){if(layout&&layout.width===0)return Promise.resolve(gd);"
+    "return react.call(this,gd,data,layout,config);};P.__qsidGuard=true;})(window.Plotly);\n"
+)
 
 
 @lru_cache(maxsize=1)
@@ -56,8 +68,10 @@ def send_basic_bundle(gui: Any) -> str | None:
 
     version, source = _bundle()
     wanted = plotly.offline.get_plotlyjs_version()
-    if version != wanted:
-        return f"the shipped basic bundle is plotly.js {version or '(missing)'}, plotly needs {wanted}"
-    if not send_plotly_js(gui, source):  # viser then skips sending the full bundle
+    note = None
+    if version != wanted:  # the full bundle, as viser would send it, with the guard
+        note = f"the shipped basic bundle is plotly.js {version or '(missing)'}, plotly needs {wanted}"
+        source = plotly.offline.get_plotlyjs()
+    if not send_plotly_js(gui, source + ZERO_WIDTH_GUARD):  # viser then skips sending its own bundle
         return "this viser version sends plotly.js differently (or it was sent already)"
-    return None
+    return note

@@ -65,6 +65,8 @@ from .records import (
     write_csv,
 )
 from .stage_results import BitsIdentification, TheoryAtBits
+from .study import CancelToken, LinearAtBits, NonlinearAtBits, Study, StudyFrame
+from .study_linear import full_row, task_count
 from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
 from .sweep import run_sweep, summarize
 from .sweep_result import RESULT_FORMAT, StoredRow, SweepResult, load_result
@@ -79,6 +81,11 @@ from .warmup import (
 )
 
 __all__ = [
+    "StudyFrame",
+    "Study",
+    "NonlinearAtBits",
+    "LinearAtBits",
+    "CancelToken",
     "Assumptions",
     "BitsAnswer",
     "BitsIdentification",
@@ -143,6 +150,7 @@ __all__ = [
     "finite_data_fluctuation",
     "fit_slope",
     "from_on",
+    "full_row",
     "group_values",
     "identify_recorded",
     "json_clean",
@@ -177,6 +185,7 @@ __all__ = [
     "summarize",
     "summary_row",
     "system_key",
+    "task_count",
     "theorem1_on_data",
     "to_columns",
     "to_pandas",

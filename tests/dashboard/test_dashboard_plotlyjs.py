@@ -67,11 +67,14 @@ def test_sent_once_and_viser_told_or_a_reason_when_versions_differ(monkeypatch):
     gui = _Gui()
     assert plotlyjs.send_basic_bundle(gui) is None
     assert gui._setup_plotly_js is True and len(gui.sent) == 1 and "basic - minified" in gui.sent[0].source[:200]
+    assert gui.sent[0].source.endswith(plotlyjs.ZERO_WIDTH_GUARD)
     assert "sent already" in plotlyjs.send_basic_bundle(gui) and len(gui.sent) == 1
     monkeypatch.setattr(plotly.offline, "get_plotlyjs_version", lambda: "9.9.9")
     other = _Gui()
     why = plotlyjs.send_basic_bundle(other)
-    assert "9.9.9" in why and other.sent == [] and other._setup_plotly_js is False  # viser sends its own
+    # the full bundle (what viser would send), with the guard after it
+    assert "9.9.9" in why and len(other.sent) == 1 and other._setup_plotly_js is True
+    assert other.sent[0].source == plotly.offline.get_plotlyjs() + plotlyjs.ZERO_WIDTH_GUARD
 
 
 def test_a_tab_receives_the_basic_bundle_and_never_the_full_one():

@@ -1,0 +1,78 @@
+"""The engine's study: one front for both plant kinds, the current b first, cancellable, the same numbers as the
+whole sweep, and sharing a cache."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from qsid_core import CancelToken, Study, SweepConfig
+from qsid_core.errors import ConfigError
+from qsid_core.studies import KoopmanConfig, LinearAtBits, NonlinearAtBits
+
+LINEAR = SweepConfig(system="dc-motor", bits=(3, 6, 9, 12), realizations=3, trajectories=20, steps=150)
+NONLINEAR = KoopmanConfig(system="van-der-pol", bits=(3, 5, 7), trajectories=20, steps=60, realizations=2)
+
+
+def test_a_linear_study_yields_the_current_b_first_then_the_rest_with_the_whole_sweeps_numbers():
+    study = Study(LINEAR, estimators=("ls", "bcls"))
+    frames = list(study.frames(bits=9, min_interval=0.0))
+    first, last = frames[0], frames[-1]
+    assert study.kind == "linear" and isinstance(first.at_bits, LinearAtBits)
+    assert (
+        first.stage == "current"
+        and first.done == 1
+        and {e: sorted(r) for e, r in first.rows.items()}
+        == {
+            "ls": [9],
+            "bcls": [9],
+        }
+    )
+    assert last.complete and sorted(last.rows["ls"]) == [3, 6, 9, 12]
+    assert [f.done for f in frames] == sorted(f.done for f in frames)  # never backwards
+    assert set(first.at_bits.loops) == {"ls", "bcls"} and first.at_bits.true_loop is not None
+    swept = Study(LINEAR).run()  # the whole sweep, a study of its own (no shared cache)
+    for b in LINEAR.bits:
+        assert last.rows["ls"][b]["err_A"]["mean"] == pytest.approx(float(np.mean(swept.identification[b].err_A)))
+
+
+def test_a_nonlinear_study_is_the_same_front_with_models_before_loops():
+    study = Study(NONLINEAR)
+    frames = list(study.frames(bits=5, min_interval=0.0))
+    assert study.kind == "nonlinear" and isinstance(frames[0].at_bits, NonlinearAtBits)
+    assert [f.stage for f in frames[:2]] == ["current", "models"]
+    assert sorted(frames[0].rows["ls"]) == [5] and frames[0].rows["ls"][5]["closed_loop_outcomes"] is not None
+    assert frames[1].rows["ls"][3]["closed_loop_outcomes"] is None  # models known, loops still to run
+    assert frames[-1].complete and all(r["closed_loop_outcomes"] is not None for r in frames[-1].rows["ls"].values())
+    swept = Study(NONLINEAR).run()
+    by_b = {r["bits"]: r for r in swept.rows}
+    for b in NONLINEAR.bits:
+        assert frames[-1].rows["ls"][b]["err_G"]["mean"] == pytest.approx(by_b[b]["err_G"]["mean"])
+
+
+def test_a_cancelled_study_stops_and_a_check_callable_cancels_too():
+    token = CancelToken()
+    frames = Study(LINEAR).frames(bits=3, cancel=token, min_interval=0.0, chunk=1)
+    first = next(frames)
+    token.cancel()
+    rest = list(frames)
+    assert first.stage == "current" and token.cancelled and not any(f.complete for f in rest)
+    asked = []
+    stop = CancelToken(lambda: bool(asked.append(1)) or len(asked) > 1)
+    frames = list(Study(NONLINEAR).frames(bits=3, cancel=stop, min_interval=0.0))
+    assert [f.stage for f in frames] == ["current"] and stop.cancelled
+
+
+def test_two_studies_on_one_cache_share_every_stage():
+    cache: dict = {}
+    list(Study(LINEAR, cache=cache).frames(bits=6))
+    filled = len(cache)
+    frames = list(Study(LINEAR, cache=cache).frames(bits=12))  # another current b: nothing new to compute
+    assert filled > 0 and len(cache) == filled and frames[-1].complete
+
+
+def test_bad_input_names_the_field():
+    with pytest.raises(ConfigError, match="config"):
+        Study({"system": "dc-motor"})  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="bits"):
+        next(Study(LINEAR).frames(bits=7))
