@@ -23,16 +23,13 @@ from __future__ import annotations
 import json
 import threading
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from drawn import band_edges, check_drawn, line, values
-
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--no-first-run", "--disable-sync"]
-TIMEOUT_MS = 300_000  # a hang guard for every wait, not a speed target
+from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
+from test_dashboard_teach_browser import ACTIVE_TAB
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -48,26 +45,11 @@ VISIBLE_DATA = """() => {
     .filter(e => e.offsetParent !== null && Array.isArray(e.data))
     .map(e => e.data.map(t => Object.fromEntries(KEYS.filter(k => k in t).map(k => [k, plain(t[k])]))));
 }"""
-#: The group the plots panel shows (the value of its "show" dropdown).
-ACTIVE_TAB = """() => {
-  const label = [...document.querySelectorAll('label')].find(e => e.textContent.trim() === 'show');
-  const input = label && document.getElementById(label.htmlFor);
-  return input ? input.value : null;
-}"""
 #: The trace keys compared between page and server: as strings, and as numbers.
 LABELS = ("type", "name", "fill", "mode", "legendgroup", "xaxis", "yaxis")
 ARRAYS = ("x", "y", "z")
 #: The norm plot's median line of estimator ``label``.
 MEDIAN = "{} ‖x_t‖ (median; band: min..max)"
-
-
-def _require_browser():
-    if not Path(CHROMIUM).exists():
-        pytest.skip(f"{CHROMIUM} is missing (apt-get install chromium); CI installs it")
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        pytest.skip("the playwright Python package is missing (pip install playwright)")
 
 
 class FirstFrame:
