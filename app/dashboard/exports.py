@@ -180,10 +180,8 @@ def frame_html(frame) -> str:
     from .render import build_figures
 
     if getattr(frame, "kind", "") == "koopman":
-        from .koopman_render import koopman_figures
-
         name = frame.system.name
-        return figures_html(koopman_figures(frame), f"qsid dashboard: {name}", koopman_caption(frame))
+        return figures_html(build_figures(frame), f"qsid dashboard: {name}", koopman_caption(frame))
     cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
     caption = (
         f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "

@@ -18,7 +18,6 @@ from typing import Any
 
 from .codepanel import show_view
 from .controls import CONTROLS, initial_value
-from .koopman_render import KoopmanRenderer
 from .lesson_mark import lesson_drift
 from .lessons import get_lesson, lesson_markdown, lesson_names, lesson_values
 from .render import Renderer
@@ -234,7 +233,6 @@ class Follower:
         show_view(s.codes, dataclasses.replace(view, code=own, follow=None, kept=kept, note=""))
         self._unlock()
         s.ui.renderer = Renderer()  # this tab draws its own frames from now on: every view anew
-        s.ui.koopman_renderer = KoopmanRenderer()
         s.lesson_shown = str(s.controls["lesson"].value)
         self.state = "explored"
         back = (

@@ -1,7 +1,7 @@
-"""What one tab redraws for a nonlinear frame (:class:`~app.dashboard.frames.KoopmanFrame`): the views of
-:data:`app.figures.registry.KOOPMAN_VIEWS`, the 3-D scene of the plant's flow and loops, and the summary text.
+"""The summary of a nonlinear plant's frame (:class:`~app.dashboard.frames.KoopmanFrame`), as
+:mod:`app.dashboard.summary` is a linear plant's (:class:`~app.dashboard.render.Renderer` draws both).
 
-The summary states what holds for a nonlinear plant: no linear certificate applies; BCLS's correction is exact
+It states what holds for a nonlinear plant: no linear certificate applies; BCLS's correction is exact
 only for a polynomial dictionary with subtractive dither; the large-data limit only where its hypotheses hold.
 """
 
@@ -9,23 +9,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from app.figures import registry
-from app.figures.axes import finite_axes
 from app.figures.koopman_error import limit_note
-from app.figures.koopman_scene import koopman_scene
-from app.figures.raw import Wire
-from app.figures.traces import CURRENT_B, move_current_bits
-from app.figures.view import CURRENT, CURVES
 from qsid_core.studies import NO_CERTIFICATES
 
-from .render import STYLES, Render, plot_aspect
-
-__all__ = ["KoopmanRenderer", "koopman_figures", "koopman_summary", "bcls_exactness"]
-
-
-def koopman_figures(frame: Any, which: Any = None) -> dict[str, Any]:
-    """Plotly figures of the nonlinear views for ``frame`` (all, or the names in ``which``)."""
-    return {v.name: finite_axes(v.build(frame)) for v in registry.KOOPMAN_VIEWS if which is None or v.name in which}
+__all__ = ["koopman_summary", "bcls_exactness"]
 
 
 def bcls_exactness(values: Any) -> str:
@@ -94,49 +81,3 @@ def koopman_summary(frame: Any) -> str:
     if frame.data_report:
         lines.append(frame.data_report + ".")
     return "  \n".join(lines)
-
-
-class KoopmanRenderer:
-    """Remembers what one tab drew last for a nonlinear plant (as :class:`~app.dashboard.render.Renderer`)."""
-
-    def __init__(self) -> None:
-        self.figures: dict[str, Any] = {}
-        self._rows_key: Any = None
-        self._current_key: Any = None
-        self._style = "normal"
-
-    def render(self, frame: Any, axes: str | None = None, narrow: bool = False) -> Render:
-        """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode)."""
-        presenter = bool(getattr(frame.values, "presenter", False))
-        style = "phone" if narrow else "presenter" if presenter else "normal"
-        if style != self._style:  # every figure is rebuilt in the other style
-            self.figures, self._rows_key, self._current_key = {}, None, None
-            self._style = style
-        out: dict[str, Any] = {}
-        scene = summary = None
-        curves = [v.name for v in registry.KOOPMAN_VIEWS if v.depends == CURVES]
-        current = [v.name for v in registry.KOOPMAN_VIEWS if v.depends == CURRENT]
-        key = (frame.bits, tuple(id(frame.models[lab]) for lab in frame.labels), frame.values)
-        rows_key = (
-            frame.values,
-            tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())),
-        )
-        if frame.stage == "current" or key != self._current_key:
-            scene, summary = koopman_scene(frame), koopman_summary(frame)
-            if key != self._current_key:
-                out.update(koopman_figures(frame, current))
-                self._current_key = key
-        if rows_key != self._rows_key:
-            out.update(koopman_figures(frame, curves))
-            self._rows_key = rows_key
-            summary = koopman_summary(frame)
-        else:
-            for name in curves:
-                fig = self.figures.get(name)
-                if fig is not None and any(sh.name == CURRENT_B for sh in fig.layout.shapes):
-                    out[name] = move_current_bits(fig, frame.bits)
-        restyle = STYLES[style]
-        out = {n: restyle(f, inplace=True) if f is not self.figures.get(n) else f for n, f in out.items()}
-        self.figures.update(out)
-        aspects = {name: plot_aspect(style, name, fig) for name, fig in out.items()}
-        return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()}, aspects)

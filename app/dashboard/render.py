@@ -1,4 +1,6 @@
-"""Decides what one tab redraws for each frame (the views: :data:`app.figures.registry.VIEWS`, read at call time)."""
+"""Decides what one tab redraws for each frame, of a linear or a nonlinear plant alike: the views the frame's
+result offers (:data:`app.figures.registry.VIEWS` or :data:`~app.figures.registry.KOOPMAN_VIEWS`, read at call
+time), the 3-D scene and the summary (:mod:`app.dashboard.summary`, :mod:`app.dashboard.koopman_render`)."""
 
 from __future__ import annotations
 
@@ -7,13 +9,15 @@ from dataclasses import dataclass
 from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.compare import PINNED_VIEWS, overlay_pinned
+from app.figures.koopman_scene import koopman_scene
 from app.figures.phase_scene import SceneView, scene_view
 from app.figures.presenter import PHONE_WIDTH, PRESENTER_SIZE, legible_figure, phone_figure, presenter_figure
 from app.figures.raw import Wire
 from app.figures.traces import CURRENT_B, move_current_bits
 from app.figures.view import CURRENT, CURVES
 
-from .frames import Frame
+from .frames import Frame, KoopmanFrame
+from .koopman_render import koopman_summary
 from .presenter import PLOT_ASPECT
 from .summary import summary_markdown
 
@@ -33,15 +37,21 @@ def plot_aspect(style: str, name: str, fig) -> float:
     return next(v.aspect for v in registry.VIEWS + registry.KOOPMAN_VIEWS if v.name == name)  # read at call time
 
 
-def build_figures(frame: Frame, which=None) -> dict:
-    """Plotly figures of the registered views for ``frame`` (all, or the names in ``which``).
+def _nonlinear(frame) -> bool:
+    return getattr(frame, "kind", "") == "koopman"
 
-    Rows may be partial: missing word lengths are simply absent from the curves.
+
+def build_figures(frame: Frame | KoopmanFrame, which=None) -> dict:
+    """Plotly figures of the views ``frame``'s result offers (all, or the names in ``which``).
+
+    Rows may be partial: missing word lengths are simply absent from the curves. A pinned earlier result of a
+    linear plant is drawn dashed on top of its error, cost and bound plots.
     """
-    figs = {v.name: v.build(frame) for v in registry.VIEWS if which is None or v.name in which}
+    views = registry.KOOPMAN_VIEWS if _nonlinear(frame) else registry.VIEWS
+    figs = {v.name: v.build(frame) for v in views if which is None or v.name in which}
     pinned = getattr(frame, "pinned", None)
-    if pinned is not None:  # a pinned earlier result: its curves dashed on top
-        for v in registry.VIEWS:
+    if pinned is not None and not _nonlinear(frame):
+        for v in views:
             if v.name in figs and v.name in PINNED_VIEWS:
                 overlay_pinned(figs[v.name], v.build(pinned), f"pinned b={pinned.bits}")
     return {name: finite_axes(fig) for name, fig in figs.items()}
@@ -61,52 +71,75 @@ class Render:
 class Renderer:
     """Remembers what one tab drew last, so each frame redraws only what changed.
 
-    * a "current" frame redraws the 3-D view and the summary, rebuilds the
-      ``"current"`` views whose key changed (default: b or the models), and moves the current-b
-      marker of the ``"curves"`` views;
-    * a "curves" frame rebuilds the ``"curves"`` views only if their rows
-      changed (a pure b change leaves them alone and just moves the marker).
+    * a linear plant's "current" frame redraws the 3-D view and the summary and rebuilds the ``"current"``
+      views whose key changed (default: b or the models); a nonlinear plant's does so whenever b, its models or
+      the settings changed;
+    * the ``"curves"`` views are rebuilt only if their rows changed (a linear plant's in a "curves" frame); a
+      pure b change leaves them alone and just moves their current-b marker.
     """
 
     def __init__(self):
         self.figures: dict = {}
         self._rows_key = None
         self._current_keys: dict = {}
-        self._style = "normal"
+        self._models_key: tuple | None = None  # (a nonlinear plant's b, models and settings last drawn)
+        self._style = "normal", "linear"
 
-    def render(self, frame: Frame, axes: str | None = None, narrow: bool = False) -> Render:
+    def _current(self, frame, views, default) -> dict:
+        """The ``"current"`` views whose key (their own, else ``default``) changed since drawn."""
+        todo = []
+        for v in views:
+            if v.depends == CURRENT:
+                key = v.key(frame) if v.key is not None else default
+                if self._current_keys.get(v.name) != key:
+                    todo.append(v.name)
+                    self._current_keys[v.name] = key
+        return build_figures(frame, todo) if todo else {}
+
+    def render(self, frame: Frame | KoopmanFrame, axes: str | None = None, narrow: bool = False) -> Render:
         """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode)."""
-        out: dict = {}
         presenter = bool(getattr(frame.values, "presenter", False))
+        nonlinear = _nonlinear(frame)
         style = "phone" if narrow else "presenter" if presenter else "normal"
-        if style != self._style:  # every figure is rebuilt in the other style
-            self.figures, self._rows_key, self._current_keys = {}, None, {}
-            self._style = style
+        if (style, "nonlinear" if nonlinear else "linear") != self._style:  # every figure is rebuilt
+            self.figures, self._rows_key, self._current_keys, self._models_key = {}, None, {}, None
+            self._style = style, "nonlinear" if nonlinear else "linear"
+        views = registry.KOOPMAN_VIEWS if nonlinear else registry.VIEWS
+        curves = [v.name for v in views if v.depends == CURVES]
+        rows = tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items()))
+        out: dict = {}
         scene = summary = None
-        curves = [v.name for v in registry.VIEWS if v.depends == CURVES]
-        if frame.stage == "current":
-            scene = scene_view(frame, axes)
-            summary = summary_markdown(frame)
-            models = (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels))
-            todo = []
-            for v in registry.VIEWS:
-                if v.depends == CURRENT:
-                    key = v.key(frame) if v.key is not None else models
-                    if self._current_keys.get(v.name) != key:
-                        todo.append(v.name)
-                        self._current_keys[v.name] = key
-            out.update(build_figures(frame, todo))
-        rows_key = (
-            frame.labels,
-            frame.true_cost,
-            id(frame.pinned),
-            frame.values.compare_bits,
-            frame.values.axes,
-            frame.values.target,
-            frame.values.cost_gap,
-            tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items())),
-        )
-        if frame.stage == "curves" and rows_key != self._rows_key:
+        if nonlinear:
+            assert isinstance(frame, KoopmanFrame)
+            key = (frame.bits, tuple(id(frame.models[lab]) for lab in frame.labels), frame.values)
+            if frame.stage == "current" or key != self._models_key:
+                scene, summary = koopman_scene(frame), koopman_summary(frame)
+                self._models_key = key
+                out.update(self._current(frame, views, key))
+            rows_key: tuple = (frame.values, rows)
+            rebuild = rows_key != self._rows_key
+            if rebuild:
+                summary = koopman_summary(frame)
+        else:
+            assert isinstance(frame, Frame)
+            if frame.stage == "current":
+                scene, summary = scene_view(frame, axes), summary_markdown(frame)
+                out.update(
+                    self._current(frame, views, (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels)))
+                )
+            v = frame.values
+            rows_key = (
+                frame.labels,
+                frame.true_cost,
+                id(frame.pinned),
+                v.compare_bits,
+                v.axes,
+                v.target,
+                v.cost_gap,
+                rows,
+            )
+            rebuild = frame.stage == "curves" and rows_key != self._rows_key
+        if rebuild:
             out.update(build_figures(frame, curves))
             self._rows_key = rows_key
         else:

@@ -21,7 +21,6 @@ from .codepanel import CodePanel, add_code_panel
 from .controls import GuiElements, make_gui_elements, read_values
 from .follow import Drawn, Sent
 from .frames import Frame
-from .koopman_render import KoopmanRenderer
 from .phone import PHONE_SHEET_CSS, SHEET_SOURCE, PhoneLayout, canvas_aspect
 from .presenter import AutoPlay, PresenterLayout
 from .render import Renderer
@@ -109,8 +108,7 @@ class TabView:
         )  # keep & share: settings file, command line, exports
         self.views = ViewPanel(gui, self.plots_panel, values, system, touch, on_pin, on_unpin, on_datalength)
         self.plots = self.views.plots
-        self.renderer = Renderer()
-        self.koopman_renderer = KoopmanRenderer()  # a nonlinear plant's frames (app.dashboard.koopman_render)
+        self.renderer = Renderer()  # (a linear and a nonlinear plant's frames alike)
         self.portrait = PhasePortrait(client.scene, camera=client.camera)
         self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.controls.play, touch)
         self.phone = PhoneLayout(
@@ -215,13 +213,9 @@ class TabView:
         c = self.controls
         if stale():
             return False
-        koopman = getattr(frame, "kind", "") == "koopman"
-        r = (self.koopman_renderer if koopman else self.renderer).render(frame, c["axes"].value, self.phone.narrow)
+        r = self.renderer.render(frame, c["axes"].value, self.phone.narrow)
         if stale():  # never draw an older result over a newer one
-            if koopman:
-                self.koopman_renderer = KoopmanRenderer()
-            else:
-                self.renderer = Renderer()  # it remembered figures that were not pushed
+            self.renderer = Renderer()  # it remembered figures that were not pushed
             return False
         figures = {
             name: Sent(fig, r.aspects[name]) for name, fig in r.figures.items()

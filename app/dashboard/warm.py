@@ -101,13 +101,10 @@ def prefill(values, cache, executor=None, tasks: int = 1, progress: Callable[[An
     Returns the number of frames. Raises what the computation raises (e.g. a
     :class:`~qsid_core.errors.QsidError` for settings that cannot be computed).
     """
-    from app.dashboard.koopman_render import KoopmanRenderer
-    from app.dashboard.koopman_settings import is_nonlinear
     from app.dashboard.render import Renderer
     from app.dashboard.stages import iter_frames
 
-    nonlinear = is_nonlinear(values.system)  # (--lesson koopman, a settings file of a nonlinear plant)
-    renderer: Any = KoopmanRenderer() if nonlinear else Renderer()
+    renderer = Renderer()  # (a linear plant, or a nonlinear one: --lesson koopman, a settings file of one)
     n = 0
     for frame in iter_frames(values, cache, executor, tasks):
         for wire in renderer.render(frame).figures.values():

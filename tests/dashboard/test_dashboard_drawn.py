@@ -12,7 +12,6 @@ import pytest
 from drawn import check_drawn
 
 from app.dashboard.cache import SharedCache
-from app.dashboard.koopman_render import koopman_figures
 from app.dashboard.koopman_settings import is_nonlinear
 from app.dashboard.lessons import LESSONS, lesson_values
 from app.dashboard.render import build_figures
@@ -28,7 +27,7 @@ def check_every_view(v: Values, what: str) -> set[str]:
     """Check the first and the last frame's figures of ``v``; the views drawn."""
     if is_nonlinear(v.system):
         frames = list(iter_frames(v.replace(**NONLINEAR_SMALL)))
-        build, views = koopman_figures, registry.KOOPMAN_VIEWS
+        build, views = build_figures, registry.KOOPMAN_VIEWS
     else:
         frames = list(iter_frames(v.replace(**LINEAR_SMALL), SharedCache()))
         build, views = build_figures, registry.VIEWS

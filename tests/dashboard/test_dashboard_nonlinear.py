@@ -160,7 +160,7 @@ def test_command_line_exports_and_settings_of_a_nonlinear_tab(tab, tmp_path, cap
 
 
 def test_no_nonlinear_view_is_built_for_a_linear_frame(tab):
-    assert getattr(tab.frame, "kind", "linear") == "linear" and tab.session.ui.koopman_renderer.figures == {}
+    assert getattr(tab.frame, "kind", "linear") == "linear" and tab.session.ui.renderer._style[1] == "linear"
     assert tab.session.views.shown == "Identification" and tab.frame.values.trajectories == SMALL["trajectories"]
 
 
@@ -246,11 +246,12 @@ def test_leaving_a_linear_lesson_for_a_nonlinear_plant_takes_the_nonlinear_size(
 
 @pytest.mark.parametrize("guard", [False, True])
 def test_the_summary_and_the_error_plot_agree_on_the_large_data_limit(guard):
-    from app.dashboard.koopman_render import koopman_figures, koopman_summary
+    from app.dashboard.koopman_render import koopman_summary
+    from app.dashboard.render import build_figures
 
     v = Values(system="van-der-pol", bits=3, guard=guard, **NL_SMALL)
     frame = list(iter_frames(v))[-1]
-    fig = koopman_figures(frame, ("koopman-error",))["koopman-error"]
+    fig = build_figures(frame, ("koopman-error",))["koopman-error"]
     drawn = any(t.name == "LS large-data limit" for t in fig.data)
     notes = [a.text for a in fig.layout.annotations if a.text.startswith("no large-data limit")]
     line = next(ln for ln in koopman_summary(frame).split("  \n") if ln.startswith("LS's large-data limit"))

@@ -17,7 +17,6 @@ from drawn import band_edges, check_drawn, line, named, values
 
 from app.dashboard.background import datalength_config
 from app.dashboard.cache import SharedCache
-from app.dashboard.koopman_render import koopman_figures
 from app.dashboard.koopman_settings import koopman_config
 from app.dashboard.render import build_figures
 from app.dashboard.session import iter_frames
@@ -60,7 +59,7 @@ def nonlinear():
     assert frame.complete
     cfg, ests = koopman_config(v)
     sweeps = {lab: run_koopman_sweep(dataclasses.replace(cfg, estimator=EST[lab])) for lab in frame.labels}
-    return frame, koopman_figures(frame), sweeps
+    return frame, build_figures(frame), sweeps
 
 
 def results(sweep) -> dict[int, dict]:
