@@ -3,8 +3,10 @@ every other b in chunks.
 
 While the current b's models, loops and bounds are computed, a helper thread quantizes the other word lengths
 (:class:`_Ahead`, one expensive chunk ahead of the reader); the closed loops of each chunk then run side by side
-with the next chunk's quantization, or, once every b is quantized, all at once over the executor. A cancelled
-token is honoured between word lengths; work already in an executor is the executor's to abandon.
+with the next chunk's quantization, or, once every b is quantized, all at once over the executor. What is
+cached already needs neither: a study whose data are all quantized starts no helper, and one whose loops are all
+cached submits nothing (a change of the current b alone only reads the cache). A cancelled token is honoured
+between word lengths; work already in an executor is the executor's to abandon.
 """
 
 from __future__ import annotations
@@ -80,12 +82,18 @@ def full_row(
     return out
 
 
+def _cached(ex: Experiment, keys: dict[Any, Any]) -> bool:
+    return len(ex.cache.cached(keys)) == len(keys)
+
+
 class _Ahead:
-    """Quantizes ``parts`` (``ex.moments``) in the helper thread, one expensive part ahead of the reader."""
+    """Quantizes ``parts`` (``ex.moments``) in the helper thread, one expensive part ahead of the reader (nothing,
+    and no thread, when every part is cached)."""
 
     def __init__(self, helper: ThreadPoolExecutor, ex: Experiment, parts: list[list[int]], stop: Callable[[], bool]):
         self.helper, self.ex, self.parts, self.stop = helper, ex, parts, stop
         self.futures: list[Future[float | None]] = []
+        self.cached = _cached(ex, {b: ex.keys.moments(b) for p in parts for b in p})
 
     def _task(self, part: list[int]) -> float | None:
         if self.stop():
@@ -95,6 +103,8 @@ class _Ahead:
         return time.perf_counter() - t  # seconds: decides whether the rest is queued at once
 
     def _submit_through(self, k: int) -> None:
+        if self.cached:
+            return
         while len(self.futures) <= min(k, len(self.parts) - 1):
             self.futures.append(self.helper.submit(self._task, self.parts[len(self.futures)]))
 
@@ -105,6 +115,8 @@ class _Ahead:
     def wait(self, k: int) -> None:
         """Return once part ``k`` is quantized (re-raises the helper's error); part k + 1 starts meanwhile."""
         self._submit_through(k + 1)
+        if self.cached:
+            return
         if self.futures[k].result() is None:  # the helper skipped it (stop() was true): compute here
             self.ex.moments(self.parts[k])
         costs = [f.result() for f in self.futures if f.done() and f.exception() is None]
@@ -114,7 +126,7 @@ class _Ahead:
     @property
     def finished(self) -> bool:
         """Every part is quantized (and cached)."""
-        return len(self.futures) == len(self.parts) and all(f.done() for f in self.futures)
+        return self.cached or len(self.futures) == len(self.parts) and all(f.done() for f in self.futures)
 
 
 def _fill(ex: Experiment, rows: Rows, est: str, bits: list[int], memo: Any, loops: Any = None) -> None:
@@ -126,17 +138,22 @@ def _fill(ex: Experiment, rows: Rows, est: str, bits: list[int], memo: Any, loop
 def _loops_all(ex: Experiment, ests: tuple[str, ...], rows: Rows, bits: list[int], memo: Any) -> None:
     """Closed loops at ``bits`` for every estimator, each estimator's submitted to the executor from a thread of
     its own; meanwhile this thread computes what the rows need besides the loops (Theorem 1's assumptions, the
-    a-posteriori bounds), so this process's share of the work overlaps the executor's."""
+    a-posteriori bounds), so this process's share of the work overlaps the executor's. Loops all cached: read
+    here, no thread."""
+    mpc = ex.config.mpc
+    if mpc is None or _cached(ex, {(b, e): ex.keys.loops(b, e, mpc) for b in bits for e in ests}):
+        for e in ests:
+            _fill(ex, rows, e, bits, memo)
+        return
     with ThreadPoolExecutor(len(ests), thread_name_prefix="qsid-loops") as submitters:
-        mpc = ex.config.mpc is not None
-        futs = {e: submitters.submit(ex.closed_loops_many, bits, e) for e in ests if mpc}
+        futs = {e: submitters.submit(ex.closed_loops_many, bits, e) for e in ests}
         for x in bits:  # first what needs no model: the loop threads identify meanwhile
             ex.assumptions(x)
         for e in ests:
             for x in bits:
                 ex.realized_bound(x, e)
         for e in ests:
-            _fill(ex, rows, e, bits, memo, futs[e].result() if mpc else {x: None for x in bits})
+            _fill(ex, rows, e, bits, memo, futs[e].result())
 
 
 def _rest_in_chunks(ex: Experiment, b: int, chunk: int, workers: int) -> list[list[int]]:

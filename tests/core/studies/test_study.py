@@ -76,3 +76,27 @@ def test_bad_input_names_the_field():
         Study({"system": "dc-motor"})  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="bits"):
         next(Study(LINEAR).frames(bits=7))
+
+
+def test_a_change_of_the_current_b_alone_starts_no_thread_and_submits_nothing(monkeypatch):
+    import threading
+
+    from qsid_core import InlineExecutor
+
+    class Counting(InlineExecutor):
+        submitted = 0
+
+        def submit(self, fn, /, *args, **kwargs):
+            Counting.submitted += 1
+            return super().submit(fn, *args, **kwargs)
+
+    cache: dict = {}
+    list(Study(LINEAR, Counting(), cache, workers=2).frames(bits=6))
+    cold = Counting.submitted
+    started = []
+    start = threading.Thread.start
+    monkeypatch.setattr(threading.Thread, "start", lambda self: (started.append(self.name), start(self))[1])
+    Counting.submitted = 0
+    frames = list(Study(LINEAR, Counting(), cache, workers=2).frames(bits=12))
+    assert cold > 0 and frames[-1].complete  # the first study did submit work
+    assert started == [] and Counting.submitted == 0
