@@ -7,11 +7,11 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import warnings
 from collections.abc import Callable, Iterator
 
 from app.distributed import ClusterError, DaskExecutor, import_distributed, parse_dask_spec
-from app.procs import descendants, kill_new_descendants, resource_trackers
 from app.stop import check_stopped
 from qsid_core import ConfigError
 
@@ -171,3 +171,70 @@ def _cluster_executor(parsed, say, connect_timeout, worker_timeout, stall_timeou
         executor = DaskExecutor(client, retries=retries, stall_timeout=stall_timeout, share_data=share_data)
         stack.callback(executor.shutdown, wait=False, cancel_futures=True)
         yield executor
+
+
+def descendants(pid: int) -> list[int]:
+    """Every process below ``pid`` (children, their children, ...), from Linux ``/proc`` (empty elsewhere)."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{p}/task")
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                with open(f"/proc/{p}/task/{task}/children") as f:
+                    kids = [int(c) for c in f.read().split()]
+            except OSError:
+                continue
+            out += kids
+            todo += kids
+    return out
+
+
+def kill_new_descendants(before: set[int], keep: frozenset[int] | set[int] = frozenset()) -> list[int]:
+    """SIGKILL every descendant of this process not in ``before`` or ``keep`` (e.g. a cluster interrupted
+    while it started, whose processes no handle owns yet); returns their process ids.
+
+    They are stopped first (SIGSTOP), and the tree is read again until no new process appears: a process
+    killed while it forks would leave a child that no longer counts as ours (it prints a traceback when
+    its parent's pipe closes under it). Stopped processes cannot fork, so the final SIGKILL gets them all.
+    """
+    found: list[int] = []
+    for _ in range(50):  # each pass stops the processes the previous one found; a tree is rarely deeper than 3
+        new = [p for p in descendants(os.getpid()) if p not in before and p not in keep and p not in found]
+        if not new:
+            break
+        for p in new:
+            try:
+                os.kill(p, signal.SIGSTOP)
+            except OSError:
+                pass
+        found += new
+    for p in found:
+        try:
+            os.kill(p, signal.SIGKILL)
+        except OSError:
+            pass
+    for p in found:  # reap our own children (grandchildren are reaped by whoever adopts them)
+        try:
+            os.waitpid(p, os.WNOHANG)
+        except (ChildProcessError, OSError):
+            pass
+    return found
+
+
+def resource_trackers(pid: int) -> set[int]:
+    """The multiprocessing resource trackers below process ``pid`` (started for processes that use
+    multiprocessing, e.g. a local dask cluster's; each unlinks their semaphores once its program ends, so it
+    is never killed with them). Found by the command line CPython starts them with (Linux ``/proc``)."""
+    out = set()
+    for p in descendants(pid):
+        try:
+            with open(f"/proc/{p}/cmdline", "rb") as f:
+                if b"multiprocessing.resource_tracker" in f.read():
+                    out.add(p)
+        except OSError:
+            continue
+    return out

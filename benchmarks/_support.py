@@ -106,6 +106,19 @@ def descendants(pid: int) -> list[int]:
     return out
 
 
+def pool_workers(pid: int) -> list[int]:
+    """The worker processes of the process pools (:func:`app.procs.process_pool`, loky's) started by ``pid``."""
+    out = []
+    for c in children(pid):
+        try:
+            with open(f"/proc/{c}/cmdline", "rb") as f:
+                if b"loky.backend.popen_loky" in f.read():
+                    out.append(c)
+        except OSError:
+            pass
+    return sorted(out)
+
+
 def family(pid: int) -> list[int]:
     """``pid`` and all its descendants."""
     return [pid, *descendants(pid)]

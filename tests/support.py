@@ -36,7 +36,15 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT / "benchmarks") not in sys.path:  # the helpers the benchmarks share with the tests
     sys.path.insert(0, str(ROOT / "benchmarks"))
 import _support  # noqa: E402
-from _support import CAMERA, DashboardProcess, alive, children, descendants, gone_within  # noqa: E402,F401
+from _support import (  # noqa: E402,F401
+    CAMERA,
+    DashboardProcess,
+    alive,
+    children,
+    descendants,
+    gone_within,
+    pool_workers,
+)
 
 #: Seconds any single wait may take before the test calls it a hang (not a speed target).
 HANG_S = 300.0

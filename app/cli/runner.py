@@ -10,7 +10,6 @@ import argparse
 import contextlib
 import os
 import shutil
-import signal
 import sys
 import threading
 import time
@@ -19,7 +18,7 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Protocol, TextIO
 
-from app.procs import ProcessPool, end_with_parent, kill_workers
+from app.procs import process_pool, stop
 from app.stop import check_stopped
 
 from .mpc_args import mpc_config
@@ -140,14 +139,10 @@ class Reporter:
         print(f"{PROG}: warning: {text}", file=self.stream, flush=True)
 
 
-def _worker_init(parent: int | None = None) -> None:
-    """Worker processes print warnings as one line too, leave Ctrl-C to the run (which stops them) and
-    end by themselves if the run dies (:func:`app.procs.end_with_parent`)."""
-    rep = Reporter(False)
-    warnings.showwarning = rep.warning
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if parent is not None:
-        end_with_parent(parent)
+def _worker_init() -> None:
+    """Worker processes print warnings as one line too (:func:`app.procs.process_pool` leaves Ctrl-C to the run,
+    which stops them, and ends them if the run dies)."""
+    warnings.showwarning = Reporter(False).warning
 
 
 def resolve_system(spec: str) -> LTISystem:
@@ -257,7 +252,7 @@ def _executor(workers: int, threads: int = 1) -> Executor:
     from qsid_core import InlineExecutor
 
     if workers > 1:
-        return ProcessPool(workers, initializer=_worker_init, initargs=(os.getpid(),))
+        return process_pool(workers, _worker_init)
     if threads > 1:  # one process; the numba kernels release the GIL (results equal the inline run's, tested)
         return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="qsid")
     return InlineExecutor()
@@ -281,11 +276,10 @@ def executor(args: argparse.Namespace, rep: Reporter) -> Iterator[tuple[Executor
     local = _executor(nw, threads)
     try:
         yield local, max(nw, threads)
-    except BaseException:  # interrupted or failed: running tasks are not waited for
-        kill_workers(local)
+    except BaseException:  # interrupted or failed: running tasks are not waited for (workers killed)
+        stop(local, kill=True)
         raise
-    finally:
-        local.shutdown(wait=True, cancel_futures=True)
+    stop(local)
 
 
 def _plural(k: int, word: str) -> str:

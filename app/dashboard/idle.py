@@ -2,8 +2,8 @@
 
 While tabs are open the server keeps their results (:class:`~app.dashboard.cache.SharedCache`) and
 the pool workers keep the data of the last tasks; glibc keeps freed pages. When no tab is left for
-:data:`IDLE_SECONDS`, :class:`IdleRelease` calls the server's release (clear the cache, the workers'
-data, trim) once. A tab that opens meanwhile cancels it; a reload (close, then open within seconds)
+:data:`IDLE_SECONDS`, :class:`IdleRelease` calls the server's release (clear the cache, fresh pool
+workers for the old ones, trim) once. A tab that opens meanwhile cancels it; a reload (close, then open within seconds)
 therefore keeps every result.
 """
 

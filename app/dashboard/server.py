@@ -23,7 +23,6 @@ from collections import OrderedDict
 
 import viser
 
-from app.procs import kill_new_descendants
 from qsid_core import ConfigError, QsidError
 
 from .cache import DEFAULT_MB, SharedCache
@@ -358,7 +357,6 @@ def _serve(args: argparse.Namespace, stop: threading.Event) -> int:
         print(f"\nqsid dashboard: stopping{'' if state.ready else ' (before it was ready)'}", flush=True)
     if state.app is not None:  # stop within ~2 s whatever the tabs are computing, then leave at once
         stop_app(state.app)
-    kill_new_descendants(set())  # workers still starting when the stop came (no pool owned them yet)
     return 2 if state.failed is not None else 0
 
 

@@ -20,7 +20,7 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
    goes first and has one slot of its own.
 5. ``DashboardApp._lock`` (server): the tab registry.
 6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
-7. the process pool (:mod:`.pool`): ``Pool._lock`` guards its replacement (only of the failed executor);
+7. the process pool (:mod:`.pool`, loky's): ``Pool._lock`` guards its replacement (only of the failed executor);
    its watchdog abandons stale pool tasks and times out hung workers (the tab retries once).
 8. signals (server ``main``): SIGINT/SIGTERM/SIGHUP blocked in every thread, taken by ``sigtimedwait`` in main
    from the first moment; the start-up (port check, warm-up, first view) runs in a ``qsid-start`` thread.
@@ -54,7 +54,7 @@ from .koopman_settings import is_nonlinear
 from .lesson_mark import LessonMark
 from .lessons import get_lesson, lesson_markdown, lesson_names, lesson_values
 from .plant_kind import KindSwitch
-from .pool import PoolFailure, twice_message
+from .pool import PoolFailure
 from .settings import InputError, Values, resolve_system
 from .share import show_frame
 from .stages import iter_frames
@@ -336,7 +336,7 @@ class Session:
                     return gen
                 c.status.content = f"a worker process failed ({exc}); retrying …"
                 if attempt == 2:
-                    self._show_error(twice_message(exc))
+                    self._show_error(f"{exc} (twice). {exc.hint}")
         return gen
 
     def _compute(self, gen: int, values: Values) -> int:

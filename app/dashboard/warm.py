@@ -85,13 +85,18 @@ def warm(pool, report: StartupReport | None = None) -> None:
     """Warm this process, then every worker of ``pool`` (a :class:`~app.dashboard.pool.Pool`); ``report`` is told
     each step."""
     warm_here(None if report is None else lambda k, n, what: report.step(f"kernel {k} of {n}: {what}"))
-    if report is not None and pool.current is not None:
+    ex = pool.current
+    if ex is None:
+        return
+    if report is not None:
         report.step(
             "the worker process loads the kernels"
             if pool.workers == 1
             else f"the {pool.workers} worker processes load the kernels"
         )
-    pool.each_worker(warm_here, timeout=300)
+    warmed: set[int] = set()
+    while len(warmed) < pool.workers:  # until every worker ran it (each idle worker takes one of a round)
+        warmed |= {f.result() for f in [ex.submit(warm_here) for _ in range(pool.workers)]}
 
 
 def prefill(values, cache, executor=None, tasks: int = 1, progress: Callable[[Any], None] | None = None) -> int:

@@ -12,10 +12,10 @@ import signal
 import time
 
 import pytest
-from support import CAMERA, HANG_S, SMALL, connect_ws, open_tab, wait_until
+from support import CAMERA, HANG_S, SMALL, connect_ws, open_tab, pool_workers, wait_until
 
 from app.dashboard import DashboardApp
-from app.dashboard.pool import Pool, PoolTimeout, Superseded
+from app.dashboard.pool import Pool, PoolFailure, Superseded
 
 # slow: stops and kills real pool workers
 pytestmark = pytest.mark.slow
@@ -25,7 +25,8 @@ LIGHTER = dict(trajectories=20, steps=100, realizations=6)  # milliseconds of wo
 
 
 def _pids(app) -> list[int]:
-    return app.executor.pids()
+    """The pool's workers (children of this process: the server runs in it)."""
+    return pool_workers(os.getpid())
 
 
 def _fault_while_two_tabs_compute(sig, timeout: float, size: dict, before: bool = False) -> None:
@@ -89,7 +90,9 @@ def test_a_tab_says_so_when_the_pool_fails_twice(dashboard, monkeypatch):
 
         def failing(*a, **k):
             calls.append(1)
-            raise PoolTimeout("a worker process did not finish its task within 3 s (hung?)", dashboard.executor)
+            raise PoolFailure(
+                "a worker process did not finish its task within 3 s (hung?)", None, "... a larger --task-timeout."
+            )
             yield  # pragma: no cover
 
         monkeypatch.setattr(session, "iter_frames", failing)

@@ -1,15 +1,13 @@
-"""Back-pressure pieces (:mod:`app.dashboard.flow`) and the pool's data sharing, without a server."""
+"""Back-pressure pieces (:mod:`app.dashboard.flow`), without a server."""
 
 from __future__ import annotations
 
 import threading
 import time
 
-import numpy as np
 from support import HANG_S, wait_until
 
 from app.dashboard.flow import FairSlots, TabCallbacks, inline, pool_tasks
-from app.dashboard.pool import SHARE_BYTES, Pool, _Shared
 
 
 def test_inline_callbacks_run_at_once_in_the_callers_thread():
@@ -91,25 +89,3 @@ def test_pool_tasks_last_a_fraction_of_a_second_and_use_every_worker():
     # as many tasks per worker: the paper scale's pass over 15 b (estimated 5 tasks) is split into 6
     assert pool_tasks(200 * 1000 * 5 // 4, 50, 15, 2) == 6
     assert all(pool_tasks(s, 50, b, 2) % 2 == 0 for s in (10**4, 10**5, 10**6) for b in (1, 8, 15))
-
-
-def _sum(a):
-    return float(np.asarray(a).sum())
-
-
-def test_large_shared_data_goes_to_each_worker_once_through_a_file():
-    pool = Pool(1, timeout=HANG_S)
-    try:
-        big = np.arange(SHARE_BYTES // 8 + 1000, dtype=float)
-        g = pool.guarded()
-        arg = g.share(big)
-        assert isinstance(arg, _Shared) and g.share(big) is arg  # written once
-        assert g.submit(_sum, arg).result(HANG_S) == big.sum()
-        small = np.arange(10.0)
-        assert g.share(small) is small  # small data: sent with the task as before
-        for k in range(12):  # old files are deleted (the server keeps a few)
-            g.share(np.full(SHARE_BYTES // 8 + 10, float(k)))
-        assert len(pool._shared) <= 8
-    finally:
-        pool.shutdown()
-    assert pool._share_dir is None

@@ -242,11 +242,11 @@ def test_command_line_rejects_unknown_system():
 
 @pytest.mark.slow
 def test_default_process_pool_gives_the_same_results():
-    from app.procs import ProcessPool
+    import loky
 
     pooled = DashboardApp(host="127.0.0.1", port=0, workers=2)
     try:
-        assert isinstance(pooled.executor, ProcessPool) and pooled.tasks == 2
+        assert isinstance(pooled.executor, loky.ProcessPoolExecutor) and pooled.tasks == 2
         t = open_tab(pooled)
         try:
             t.set(bits=7)

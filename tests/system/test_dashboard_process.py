@@ -15,7 +15,7 @@ from functools import partial
 from pathlib import Path
 
 import pytest
-from support import HANG_S, DashboardProcess, alive, children, descendants, gone_within, wait_until
+from support import HANG_S, DashboardProcess, alive, children, descendants, gone_within, pool_workers, wait_until
 
 # slow: starts qsid-dashboard as a real process
 pytestmark = pytest.mark.slow
@@ -248,14 +248,7 @@ def _starting(workers: int = 2) -> tuple[subprocess.Popen, list[str]]:
 
 def _pool_workers(pid: int) -> list[int]:
     """The children of ``pid`` that are pool workers (not a short-lived helper some import runs)."""
-    out = []
-    for c in children(pid):
-        try:
-            if b"app.procs" in Path(f"/proc/{c}/cmdline").read_bytes():
-                out.append(c)
-        except OSError:
-            pass
-    return out
+    return pool_workers(pid)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])

@@ -1,66 +1,109 @@
-"""app.procs.ProcessPool: workers started with subprocess and fed over pipes; results, errors, a dead worker,
-shutdown, and no multiprocessing resource tracker."""
+"""app.procs.process_pool (loky): results and errors; a killed worker fails its pool's tasks and nothing hangs; a
+kill stops busy and stopped workers and reaps them; workers end when their program is killed outright."""
 
 from __future__ import annotations
 
 import math
 import os
 import signal
+import subprocess
+import sys
+import textwrap
 import time
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 
 import pytest
-from support import HANG_S, descendants, wait_until
+from support import HANG_S, alive, descendants, gone_within, pool_workers, wait_until
 
-from app.procs import ProcessPool, kill_workers, resource_trackers, worker_pids
+from app.procs import process_pool, stop
 
 # slow: starts real worker processes
 pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _boom() -> None:
     raise KeyError("a task's own error")
 
 
-def test_results_errors_and_each_worker():
-    before = resource_trackers(os.getpid())  # earlier tests in this process (a dask cluster) may have one
-    pool = ProcessPool(2)
+def _sigint_ignored() -> bool:
+    return signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+
+
+def test_results_errors_and_workers_started_at_once():
+    before = set(pool_workers(os.getpid()))
+    pool = process_pool(2)
     try:
+        workers = set(pool_workers(os.getpid())) - before
+        assert len(workers) == 2  # started before the pool is returned
         assert [f.result(HANG_S) for f in [pool.submit(math.sqrt, x) for x in (0, 1, 4, 9)]] == [0, 1, 2, 3]
         assert list(pool.map(abs, [-1, -2])) == [1, 2]
         with pytest.raises(KeyError, match="a task's own error"):
             pool.submit(_boom).result(HANG_S)
-        assert sorted(pool.each(os.getpid, HANG_S)) == sorted(pool.pids()) == sorted(worker_pids(pool))
-        assert set(pool.pids()) <= set(descendants(os.getpid()))
-        assert resource_trackers(os.getpid()) <= before  # no semaphore anywhere: the pool starts no tracker
+        assert pool.submit(_sigint_ignored).result(HANG_S)  # Ctrl-C belongs to the program
     finally:
-        pool.shutdown()
-    assert not set(pool.pids()) & set(descendants(os.getpid()))  # ended and reaped
+        stop(pool)
+    assert gone_within(sorted(workers), 60) == []
 
 
-def test_a_killed_worker_breaks_the_pool_and_nothing_hangs():
-    pool = ProcessPool(2)
+def test_a_killed_worker_fails_the_pool_and_nothing_hangs():
+    before = set(pool_workers(os.getpid()))
+    pool = process_pool(2)
     try:
         busy = pool.submit(time.sleep, 30)
         wait_until(lambda: busy.running(), "the task runs")
-        os.kill(pool.pids()[0], signal.SIGKILL)
-        later = pool.submit(time.sleep, 30)
-        for f in (busy, later):
-            with pytest.raises(BrokenProcessPool):
-                f.result(HANG_S)
-        assert pool.broken
+        workers = sorted(set(pool_workers(os.getpid())) - before)
+        os.kill(workers[0], signal.SIGKILL)
         with pytest.raises(BrokenProcessPool):
-            pool.submit(abs, 1)
+            busy.result(HANG_S)
+        with pytest.raises(BrokenProcessPool):
+            pool.submit(abs, 1).result(HANG_S)
     finally:
-        kill_workers(pool)
-        pool.shutdown()
-    wait_until(lambda: not set(pool.pids()) & set(descendants(os.getpid())), "the workers reaped")
+        stop(pool, kill=True)
+    assert gone_within(workers, 60) == []
 
 
-def test_a_worker_dead_while_idle_breaks_the_pool_at_once():
-    pool = ProcessPool(1)
+def test_kill_stops_busy_and_stopped_workers_and_reaps_them():
+    before = set(pool_workers(os.getpid()))
+    pool = process_pool(2)
+    workers = sorted(set(pool_workers(os.getpid())) - before)
+    busy = [pool.submit(time.sleep, 60) for _ in range(2)]
+    wait_until(lambda: all(f.running() for f in busy), "both tasks run")
+    os.kill(workers[0], signal.SIGSTOP)  # a stopped worker never finishes its task
+    t0 = time.monotonic()
+    stop(pool, kill=True)
+    print(f"killed and reaped in {time.monotonic() - t0:.3f} s")
+    assert not any(alive(w) for w in workers)  # reaped: not even a zombie
+    assert all(f.done() for f in busy)
+
+
+def test_workers_end_when_their_program_is_killed_outright():
+    code = textwrap.dedent(
+        """
+        import os, time
+        from app.procs import process_pool
+        pool = process_pool(2)
+        pool.submit(time.sleep, 600)  # one busy worker, one idle
+        print("ready", flush=True)
+        time.sleep(600)
+        """
+    )
+    p = subprocess.Popen(
+        [sys.executable, "-c", code], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.PIPE
+    )
     try:
-        os.kill(pool.pids()[0], signal.SIGKILL)
-        wait_until(lambda: pool.broken, "the pool notices")
+        assert p.stdout is not None and p.stdout.readline().strip() == b"ready"
+        tree = descendants(p.pid)
+        workers = pool_workers(p.pid)
+        assert len(workers) == 2, tree
+        p.kill()  # SIGKILL: no handler of the program runs
+        p.wait(HANG_S)
+        left = gone_within(tree, 60)  # the workers, and loky's resource trackers once they are gone
     finally:
-        pool.shutdown()
+        if p.poll() is None:
+            p.kill()
+    for pid in left:
+        os.kill(pid, signal.SIGKILL)
+    assert left == []
