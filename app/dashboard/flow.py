@@ -18,15 +18,13 @@ connect callback (queued behind it) did not run for more than 30 s.
   (:func:`app.dashboard.viserfix.limit_reads`). viser turns every message read into tasks before the
   loop does anything else; one 256 KiB read of a flooding client (thousands of messages) made every
   loop turn last ~1 s, and a new tab's handshake needs several turns (it took 5-11 s during a flood).
-- :func:`pool_tasks`: how many pool tasks a quantization pass is split into, so
-  each lasts a fraction of a second (a newer setting never waits long for the
-  pool to finish abandoned work).
+- (how many pool tasks a quantization pass is split into, so that each lasts a fraction of a second, is the
+  engine's: :func:`qsid_core.studies.task_count`)
 """
 
 from __future__ import annotations
 
 import contextlib
-import math
 import threading
 from collections import OrderedDict, deque
 from collections.abc import Callable
@@ -36,16 +34,9 @@ __all__ = [
     "inline",
     "TabCallbacks",
     "FairSlots",
-    "pool_tasks",
-    "TASK_SECONDS",
     "READ_BYTES",
 ]
 
-#: Target length of one pool task (s): abandoned tasks still running delay a newer setting by about this much.
-TASK_SECONDS = 0.3
-#: Seconds of one worker per data sample, realization and first word length (measured: 400 x 2000 samples of the
-#: dc motor, 100 realizations, one b: 1.8 s on 2 workers); each further b of the same pass adds ~11 %.
-_SAMPLE_SECONDS = 4.5e-8
 #: Bytes the event loop reads from one tab's socket per turn (asyncio's default: 256 KiB); ~40 changes.
 READ_BYTES = 4096
 
@@ -225,19 +216,3 @@ class FairSlots:
 
     def __exit__(self, *exc) -> None:
         self.release()
-
-
-def pool_tasks(samples: int, realizations: int, bits: int, workers: int, target: float = TASK_SECONDS) -> int:
-    """How many pool tasks to split ``realizations`` into for one pass over ``bits`` word lengths.
-
-    Each task should last about ``target`` seconds (estimated from ``samples`` = trajectories x
-    steps x channels / 4); at least one task per worker, at most one per realization, and a multiple
-    of ``workers`` where possible, so that every worker gets as many tasks of about the same size (5
-    tasks on 2 workers took three rounds of the largest; 6 take three rounds of smaller ones).
-    """
-    per_real = _SAMPLE_SECONDS * samples * (1.0 + 0.11 * (max(1, bits) - 1))
-    per_task = max(1, int(target // per_real)) if per_real > 0 else realizations
-    n = max(workers, math.ceil(realizations / per_task))
-    if workers > 0:
-        n = math.ceil(n / workers) * workers
-    return int(min(n, max(1, realizations)))

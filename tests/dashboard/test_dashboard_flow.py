@@ -7,7 +7,7 @@ import time
 
 from support import HANG_S, wait_until
 
-from app.dashboard.flow import FairSlots, TabCallbacks, inline, pool_tasks
+from app.dashboard.flow import FairSlots, TabCallbacks, inline
 
 
 def test_inline_callbacks_run_at_once_in_the_callers_thread():
@@ -78,14 +78,3 @@ def test_fair_slots_are_handed_out_in_order_nobody_barges_in():
     for t in threads:
         t.join(HANG_S)
     assert order[:5] == [0, 1, 2, 3, 4] and order[5:] == ["again"] * 3
-
-
-def test_pool_tasks_last_a_fraction_of_a_second_and_use_every_worker():
-    assert pool_tasks(50 * 200, 20, 1, 2) == 2  # small data: one task per worker
-    assert pool_tasks(400 * 2000, 100, 1, 2) >= 8  # the panel's largest data: short tasks
-    assert pool_tasks(400 * 2000, 100, 15, 2) > pool_tasks(400 * 2000, 100, 1, 2)  # a pass over more b
-    assert pool_tasks(10**8, 3, 15, 2) == 3  # never more tasks than realizations
-    assert pool_tasks(10, 1, 1, 4) == 1
-    # as many tasks per worker: the paper scale's pass over 15 b (estimated 5 tasks) is split into 6
-    assert pool_tasks(200 * 1000 * 5 // 4, 50, 15, 2) == 6
-    assert all(pool_tasks(s, 50, b, 2) % 2 == 0 for s in (10**4, 10**5, 10**6) for b in (1, 8, 15))

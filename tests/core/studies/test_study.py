@@ -8,7 +8,7 @@ import pytest
 
 from qsid_core import CancelToken, Study, SweepConfig
 from qsid_core.errors import ConfigError
-from qsid_core.studies import KoopmanConfig, LinearAtBits, NonlinearAtBits
+from qsid_core.studies import KoopmanConfig, LinearAtBits, NonlinearAtBits, task_count
 
 LINEAR = SweepConfig(system="dc-motor", bits=(3, 6, 9, 12), realizations=3, trajectories=20, steps=150)
 NONLINEAR = KoopmanConfig(system="van-der-pol", bits=(3, 5, 7), trajectories=20, steps=60, realizations=2)
@@ -100,3 +100,14 @@ def test_a_change_of_the_current_b_alone_starts_no_thread_and_submits_nothing(mo
     frames = list(Study(LINEAR, Counting(), cache, workers=2).frames(bits=12))
     assert cold > 0 and frames[-1].complete  # the first study did submit work
     assert started == [] and Counting.submitted == 0
+
+
+def test_executor_tasks_last_a_fraction_of_a_second_and_use_every_worker():
+    assert task_count(50 * 200, 20, 1, 2) == 2  # small data: one task per worker
+    assert task_count(400 * 2000, 100, 1, 2) >= 8  # the panel's largest data: short tasks
+    assert task_count(400 * 2000, 100, 15, 2) > task_count(400 * 2000, 100, 1, 2)  # a pass over more b
+    assert task_count(10**8, 3, 15, 2) == 3  # never more tasks than realizations
+    assert task_count(10, 1, 1, 4) == 1
+    # as many tasks per worker: the paper scale's pass over 15 b (estimated 5 tasks) is split into 6
+    assert task_count(200 * 1000 * 5 // 4, 50, 15, 2) == 6
+    assert all(task_count(s, 50, b, 2) % 2 == 0 for s in (10**4, 10**5, 10**6) for b in (1, 8, 15))
