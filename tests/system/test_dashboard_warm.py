@@ -121,3 +121,46 @@ def test_the_engine_reports_each_warm_up_step_through_its_callback_and_prints_no
     assert [(k, m) for k, m, _ in seen] == [(k, n) for k in range(1, n + 1)]
     assert seen[0][2] == "the box QP" and all(w for _, _, w in seen)
     assert capsys.readouterr() == ("", "")
+
+
+@pytest.mark.slow  # starts a real dashboard process
+def test_a_terminal_hears_at_once_that_the_command_started_and_a_pipe_does_not():
+    import pty
+    import select
+    import time
+
+    from app.dashboard import LOADING
+
+    main, sub = pty.openpty()
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    args = [sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "0"]
+    p = subprocess.Popen(args, cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=sub, stderr=subprocess.DEVNULL)
+    os.close(sub)
+    text, t0 = b"", time.monotonic()
+    try:
+        while b"qsid dashboard: http://" not in text and time.monotonic() - t0 < 600:
+            ready, _, _ = select.select([main], [], [], 1.0)
+            if ready:
+                try:
+                    text += os.read(main, 4096)
+                except OSError:  # the process ended
+                    break
+    finally:
+        p.send_signal(signal.SIGTERM)
+        try:
+            p.wait(60)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait(10)
+        os.close(main)
+    lines = [ln.strip() for ln in text.decode("utf-8", "replace").splitlines() if ln.strip()]
+    assert lines and lines[0] == LOADING, lines  # before anything else, on a terminal
+    assert any(ln.startswith("qsid dashboard: http://") for ln in lines), lines
+    piped = subprocess.run(
+        [sys.executable, "-c", "import sys; sys.argv = ['qsid-dashboard']; import app.dashboard"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert piped.returncode == 0 and piped.stdout == "", piped.stdout  # a pipe gets only what it got before
