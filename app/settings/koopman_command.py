@@ -5,7 +5,7 @@ dashboard's *As a command* for a nonlinear plant, written from the settings tabl
 Only values that differ from the nonlinear run's defaults (``KoopmanConfig()``, its MPC
 :data:`~qsid_core.studies.KOOPMAN_MPC`) are written, numbers exactly; the system, ``--bits``, ``--limits`` and
 the MPC's lists (``--u-max``, ``--x0``, ``--Q``, ``--R``, ``--Qf``) by hand. Parsing the line with
-:func:`app.cli.build_parser` and :func:`app.cli.koopman.koopman_config` gives back an equal config (tested).
+:func:`app.cli.build_parser` and :func:`app.cli.study.koopman_config` gives back an equal config (tested).
 """
 
 from __future__ import annotations
