@@ -273,14 +273,13 @@ def lifted_panels(
     """``qsid reproduce``'s panels of a nonlinear plant from its staged study ``ex`` and the rows of LS and BCLS:
     (a) the error of [A_z, B_z] vs b, (b) the prediction error, (c) the Koopman MPC outcomes, (d) the
     eigenvalues of A_z at ``eigen_bits``, (e)... the plant's flow and the loops at each of ``portrait_bits``."""
-    from .eigenvalues import eigen_figure
-    from .koopman_eigen import lifted_eigenvalues
-    from .koopman_error import error_figure
-    from .koopman_outcomes import outcomes_figure
-    from .koopman_prediction import prediction_figure
+    from .eigenvalues import eigen_figure, lifted_eigenvalues
+    from .error_vs_bits import lifted_error_figure
+    from .loop_outcomes import outcomes_figure
+    from .prediction_error import prediction_figure
 
     R, s = ex.config.realizations, ex.system.name
-    fa = error_figure(rows, None, ex.config.quantizer.guard, height=460)
+    fa = lifted_error_figure(rows, None, ex.config.quantizer.guard, height=460)
     fa.update_layout(
         title=dict(text=f"(a) {s}: error of [A_z, B_z] vs the unquantized EDMD (mean ± std, {R} realizations)")
     )
