@@ -6,12 +6,11 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
-from . import koopman
 from .files import input_files, out_file, write_text
-from .koopman import add_nonlinear_options
 from .output import dumps, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, config, executor, system_from_args
+from .study import add_nonlinear_options, nonlinear_result, wanted
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -182,8 +181,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     auto_length = args.mpc_steps is None
     if auto_length:
         args.mpc_steps = MPCConfig().steps
-    if koopman.wanted(args):
-        return koopman.run_bits(args, rep)
+    if wanted(args):
+        return _run_nonlinear(args, rep)
     system = system_from_args(args)
     out = out_file(args.out, rep, inputs=input_files(args))
     cfg = config(args, system, True)
@@ -209,4 +208,41 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
         write_text(out, text + "\n", rep)
         rep.stage(f"JSON written to {out}")
     print(text if args.json else format_bits(d))
+    return 0
+
+
+def _run_nonlinear(args: argparse.Namespace, rep: Reporter) -> int:
+    """``qsid bits`` for a nonlinear plant: b_observed only (the linear certificates do not apply)."""
+    if getattr(args, "no_mpc", False):
+        raise UsageError("qsid bits needs the closed loops; drop --no-mpc")
+    out = out_file(args.out, rep, inputs=input_files(args))
+    d = nonlinear_result(args, rep)
+    rows = d["results"]
+    ok = [r["stabilized_fraction"] is not None and r["stabilized_fraction"] >= args.target for r in rows]
+    b_obs = next((rows[i]["bits"] for i in range(len(rows)) if all(ok[i:])), None)
+    answer = {
+        "kind": "koopman-bits",
+        "system": d["system"],
+        "config": d["config"],
+        "target": args.target,
+        "rows": [
+            {"bits": r["bits"], "stabilized_fraction": r["stabilized_fraction"], "outcomes": r["closed_loop_outcomes"]}
+            for r in rows
+        ],
+        "b_observed": b_obs,
+        "b_robust": None,
+        "b_letter": None,
+        "note": d["certificates"],
+    }
+    text = dumps(answer)
+    if out is not None:
+        write_text(out, text + "\n", rep)
+    if args.json:
+        print(text)
+        return 0
+    print("b  converged")
+    for r in rows:
+        print(f"{r['bits']:<2} {r['closed_loop_outcomes']['converged']}/{r['realizations']}")
+    got = f"b_observed = {b_obs}" if b_obs is not None else "no swept b reaches the target"
+    print(f"{got} (at least {100 * args.target:g}% of the loops converge from there on); {d['certificates']}")
     return 0

@@ -13,12 +13,11 @@ from typing import TYPE_CHECKING, Any
 
 from app.settings.cli import add_option
 
-from . import koopman
 from .files import input_files, out_file, write_text
-from .koopman import add_nonlinear_options
 from .output import dumps, g
 from .parser import add_run_options
-from .runner import UsageError, config, executor, system_from_args
+from .runner import UsageError, executor
+from .study import add_nonlinear_options, engine_config
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -67,9 +66,7 @@ def _study(args: argparse.Namespace) -> Any:
     """The sweep's configuration the budget study runs (its ``trajectories`` unused)."""
     if "--trajectories" in _typed(args):
         raise UsageError("argument --trajectories: the budget sets the runs of every b; drop it")
-    if koopman.wanted(args):
-        return koopman.koopman_config(args)
-    return config(args, system_from_args(args), not args.no_mpc)
+    return engine_config(args, not args.no_mpc)
 
 
 def _pm(s: dict[str, Any]) -> str:

@@ -6,6 +6,14 @@ three states draw time on the missing axis). Every page
 loads ``plotly.min.js`` from its own folder, so the folder works offline. The
 numbers come from the engine (through :func:`app.cli.runner.run`); this module
 only lays out and writes figures (the builders are :mod:`app.figures`).
+
+For a nonlinear ``--system`` (``--system van-der-pol --lifting poly:3``; :func:`app.cli.study.wanted`) its own
+panels: (a) the error of the lifted model [A_z, B_z] against the unquantized EDMD vs b, LS and BCLS side by side
+with their spread and LS's large-data limit where its hypotheses hold; (b) the multi-step prediction error on
+held-out runs; (c) the Koopman MPC outcomes per b; (d) eigenvalues of A_z at b = 4 against the unquantized EDMD's;
+(e)-(g) 3-D phase portraits (x1, x2, step k) of the plant's own flow (u = 0, green) and the Koopman MPC loops at
+b = 2, 4, 6 (LS blue, BCLS red; the unquantized EDMD's loop black). The numbers come from
+:class:`qsid_core.studies.KoopmanExperiment` (rows equal to ``qsid sweep``'s).
 """
 
 from __future__ import annotations
@@ -16,14 +24,13 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from . import koopman, koopman_reproduce
 from .figure_out import check_formats, index_page, save_panels
 from .files import check_writable, input_files, write_text
-from .koopman import add_nonlinear_options
 from .output import dumps, format_table, g
 from .parser import add_run_options
 from .runner import UsageError, bits_text, config, system_from_args
 from .runner import run as run_sweep
+from .study import add_nonlinear_options, koopman_config, wanted
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -35,7 +42,7 @@ if TYPE_CHECKING:
 
     from .runner import Reporter
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "PORTRAIT_BITS"]
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "PORTRAIT_BITS", "EIGEN_BITS"]
 
 HELP = "write the letter's figure panels (a)-(f) as offline HTML"
 DESCRIPTION = (
@@ -43,14 +50,15 @@ DESCRIPTION = (
     "vs b, (c) MPC cost vs b, (d)-(f) closed-loop phase portraits for b = 2, 4, 6; plus index.html "
     "and data.json."
 )
-PORTRAIT_BITS = (2, 4, 6)
+#: Word lengths of the phase portraits (both plant kinds) and of a nonlinear plant's eigenvalue panel.
+PORTRAIT_BITS, EIGEN_BITS = (2, 4, 6), 4
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from qsid_core import SweepConfig
 
     add_run_options(p, base=SweepConfig.letter())  # defaults: the letter's settings (no guard band)
-    add_nonlinear_options(p)  # --lifting ...: a nonlinear --system (app.cli.koopman_reproduce)
+    add_nonlinear_options(p)  # --lifting ...: a nonlinear --system (its own panels: _run_nonlinear)
     p.add_argument(
         "--out",
         metavar="DIR",
@@ -232,8 +240,8 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
 
     from app.figures.presenter import legible_figure
 
-    if koopman.wanted(args):  # a nonlinear --system: its own figures
-        return koopman_reproduce.run(args, rep, _out_dir(args.out, args.force, input_files(args)))
+    if wanted(args):  # a nonlinear --system: its own figures
+        return _run_nonlinear(args, rep, _out_dir(args.out, args.force, input_files(args)))
     system = system_from_args(args)
     formats = check_formats(args.figure)
     outdir = _out_dir(args.out, args.force, input_files(args))
@@ -273,6 +281,66 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     write_text(outdir / "data.json", dumps(data, indent=None) + "\n", rep)
     write_text(outdir / "index.html", _index_html(d, system, panels), rep)
     print(format_table(d))
+    print(f"wrote {len(written) + 3} files to {outdir}:")
+    for p in [*written, outdir / "index.html", outdir / "data.json", outdir / "plotly.min.js"]:
+        print(f"  {p.name}  ({p.stat().st_size / 1024:.0f} KiB)")
+    rep.stage(f"done in {time.perf_counter() - t0:.2f} s; open {outdir / 'index.html'}")
+    return 0
+
+
+def _run_nonlinear(args: argparse.Namespace, rep: Reporter, outdir: Path) -> int:
+    """Compute the nonlinear sweep for LS and BCLS and write the figures, ``index.html`` and ``data.json``."""
+    import dataclasses
+
+    from plotly.offline import get_plotlyjs
+
+    from app.figures.presenter import legible_figure
+    from app.figures.results import LIFTED_LABELS, lifted_panels
+    from qsid_core import QuantizerSpec
+    from qsid_core.studies import NO_CERTIFICATES, KoopmanExperiment
+
+    formats = check_formats(args.figure)
+    plain = argparse.Namespace(**vars(args))
+    plain.argv = [a for a in getattr(args, "argv", ()) if a.split("=", 1)[0] not in ("--force", "--figure")]
+    typed = {a.split("=", 1)[0] for a in plain.argv}
+    q = QuantizerSpec()  # the nonlinear sweep's quantizer where not typed (reproduce's defaults are the letter's)
+    for flags, name, value in ((("--dither",), "dither", q.dither), (("--range",), "range_mode", q.range_mode)):
+        if not typed & set(flags):
+            setattr(plain, name, value)
+    if not typed & {"--guard", "--no-guard"}:
+        plain.guard = q.guard
+    cfg = koopman_config(plain)
+    bits = tuple(sorted(set(cfg.bits) | set(PORTRAIT_BITS) | {EIGEN_BITS}))
+    ex = KoopmanExperiment(dataclasses.replace(cfg, bits=bits))
+    t0 = time.perf_counter()
+    rep.stage(f"nonlinear sweep of {ex.system.name}, lifting {cfg.lifting}, LS and BCLS, b = {bits[0]}..{bits[-1]}")
+    ex.moments(bits)
+    rows = {lab: [ex.row(b, e) for b in bits] for e, lab in LIFTED_LABELS.items()}
+    panels = [
+        (stem, legible_figure(fig)) for stem, fig in lifted_panels(ex, rows, EIGEN_BITS, PORTRAIT_BITS)
+    ]  # the dashboard's laptop style
+    rep.stage(f"writing figures to {outdir}")
+    write_text(outdir / "plotly.min.js", get_plotlyjs(), rep)
+    written = []
+    for stem, fig in panels:
+        write_text(outdir / f"{stem}.html", fig.to_html(include_plotlyjs="directory", full_html=True), rep)
+        written.append(outdir / f"{stem}.html")
+    if formats:
+        written += save_panels([(fig, outdir / f"{stem}.{f}") for stem, fig in panels for f in formats], rep)
+    data: dict[str, Any] = {"kind": "koopman-reproduce", "system": ex.system.name, "lifting": cfg.lifting}
+    data["bits"] = list(bits)
+    data |= {"results": rows, "certificates": NO_CERTIFICATES, "unquantized_prediction_error": ex.reference()[1]}
+    write_text(outdir / "data.json", dumps(data, indent=None) + "\n", rep)
+    c = ex.config
+    caption = html.escape(
+        f"{ex.system.name}, Koopman/EDMD from quantized data: lifting {cfg.lifting} ({ex.lifting.L} features), "
+        f"{c.trajectories} runs x {c.steps} steps, {c.realizations} dither realizations per word length, "
+        f"{c.quantizer.dither} dither{', guard band' if c.quantizer.guard else ''}; LS and BCLS. "
+        f"Unquantized EDMD's prediction error (steps 1..{ex.horizon}): {ex.reference()[1]:.3g}. "
+        f"{NO_CERTIFICATES[:1].upper()}{NO_CERTIFICATES[1:]}."
+    )
+    page = index_page(f"qsid: {ex.system.name}, Koopman/EDMD from quantized data", caption, panels)
+    write_text(outdir / "index.html", page + "\n", rep)
     print(f"wrote {len(written) + 3} files to {outdir}:")
     for p in [*written, outdir / "index.html", outdir / "data.json", outdir / "plotly.min.js"]:
         print(f"  {p.name}  ({p.stat().st_size / 1024:.0f} KiB)")

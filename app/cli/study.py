@@ -1,4 +1,12 @@
-"""``qsid sweep --config FILE``: a saved study (a JSON result or a TOML file) as a SweepConfig."""
+"""The engine config of a run from its arguments, for both plant kinds (:func:`engine_config`).
+
+A linear plant's: the options (:func:`app.cli.runner.config`), or ``qsid sweep --config FILE``, a saved study
+(a JSON result or a TOML file) as a SweepConfig (:func:`config_from_file`). A nonlinear ``--system`` (a preset of
+``qsid systems`` or a plant file naming a ``vector_field``; :func:`wanted`) gives a
+:class:`~qsid_core.studies.KoopmanConfig` (:func:`koopman_config`) and the same commands run the nonlinear study.
+Where an option is not typed, the nonlinear defaults apply: 2000 runs x 100 steps, 20 realizations, b = 2..8, MPC
+horizon 20 and 200 closed-loop steps (``KoopmanConfig()``, ``KOOPMAN_MPC``); the JSON states what ran.
+"""
 
 from __future__ import annotations
 
@@ -6,15 +14,27 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from app.settings.cli import given_seeds
-from app.settings.schema import SETTINGS
+from app.settings.cli import add_setting_options, given_seeds
+from app.settings.schema import NONLINEAR_GROUP, SETTINGS, nonlinear_settings
 
-from .runner import UsageError, check_channels, one_line
+from .runner import UsageError, check_channels, config, one_line, system_from_args
 
 if TYPE_CHECKING:
     from qsid_core import SweepConfig
+    from qsid_core.studies import KoopmanConfig
 
-__all__ = ["config_from_file"]
+    from .runner import Reporter
+
+__all__ = [
+    "NONLINEAR_ONLY",
+    "SUPPORTED",
+    "add_nonlinear_options",
+    "config_from_file",
+    "engine_config",
+    "koopman_config",
+    "nonlinear_result",
+    "wanted",
+]
 
 
 #: flags whose non-default value overrides a --config file, and the SweepConfig field each sets (the settings
@@ -104,3 +124,114 @@ def config_from_file(args: argparse.Namespace, defaults: argparse.Namespace, mpc
 
     check_channels(cfg, get_system(cfg.system))
     return cfg
+
+
+def add_nonlinear_options(p: argparse.ArgumentParser) -> None:
+    """The options of the settings table's nonlinear group (``--lifting``, ``--sane-box``, ``--converged-radius``)."""
+    add_setting_options(p.add_argument_group(NONLINEAR_GROUP), NONLINEAR_GROUP)
+
+
+#: The flags only a nonlinear plant uses (the settings table's nonlinear group).
+NONLINEAR_ONLY = frozenset(f for s in SETTINGS if s.cli_group == NONLINEAR_GROUP for f in s.flags)
+
+
+def wanted(args: argparse.Namespace) -> bool:
+    """Whether the run is a nonlinear one (a nonlinear ``--system``); a nonlinear plant's own option typed for a
+    linear plant is an error."""
+    from qsid_core.plant import is_nonlinear
+
+    nonlinear = getattr(args, "a_text", None) is None and is_nonlinear(args.system)
+    bad = sorted(_typed(args) & NONLINEAR_ONLY)
+    if not nonlinear and bad:
+        system = "the typed system" if getattr(args, "a_text", None) is not None else repr(args.system)
+        raise UsageError(f"argument {bad[0]}: only for a nonlinear --system (see 'qsid systems'); {system} is linear")
+    return nonlinear
+
+
+def _typed(args: argparse.Namespace) -> set[str]:
+    """The long options typed on the command line (``--steps 5`` and ``--steps=5`` alike)."""
+    return {a.split("=", 1)[0] for a in getattr(args, "argv", ()) if a.startswith("--")}
+
+
+#: The options a nonlinear run uses: the flags of the settings it honours (those with a ``nonlinear`` path in
+#: the settings table) and the run's own; any other typed option is refused rather than silently ignored.
+SUPPORTED = frozenset(f for s in nonlinear_settings() for f in s.flags) | frozenset(
+    "--bits --seed --no-mpc --json --out --quiet --target --total-bits".split()
+)
+
+
+def _check_supported(args: argparse.Namespace) -> None:
+    """A typed option the nonlinear sweep does not use is one line, never silently dropped."""
+    bad = sorted(_typed(args) - SUPPORTED)
+    if bad:
+        raise UsageError(f"argument {bad[0]}: not available for a nonlinear plant yet")
+
+
+#: The parsed names of hand-made flags whose dest is not their setting's name.
+_DEST = {"--Q": "q_diag", "--R": "r_diag"}
+
+
+def _given(args: argparse.Namespace, typed: set[str]) -> dict[str, Any]:
+    """The values of the typed options of the settings a nonlinear run honours, by their ``nonlinear`` path
+    (``"trajectories"``, ``"mpc.horizon"``, ``"box"``); ``--seed`` gives both seeds unless they are typed. The
+    system, the word lengths and the quantizer's options are read apart (:func:`koopman_config`)."""
+    out: dict[str, Any] = {}
+    for s in nonlinear_settings():
+        path = s.nonlinear
+        if path is None or path in ("system", "bits") or path.startswith("quantizer.") or not typed & set(s.flags):
+            continue
+        out[path] = getattr(args, s.dest if s.flag else _DEST.get(s.flags[0], s.name))
+    for name, value in given_seeds(args).items():  # typed, else --seed's
+        out.setdefault(name, value)
+    return out
+
+
+def koopman_config(args: argparse.Namespace) -> KoopmanConfig:
+    """The nonlinear sweep's configuration from the command line: ``KoopmanConfig()``'s defaults (the nonlinear
+    ones: 2000 x 100 runs, 20 realizations, b = 2..8, :data:`~qsid_core.studies.KOOPMAN_MPC`) where an option is
+    not typed."""
+    from dataclasses import replace
+
+    from qsid_core import parse_bits
+    from qsid_core.plant import get_nonlinear
+    from qsid_core.studies import KOOPMAN_MPC, KoopmanConfig
+
+    from .runner import quantizer_from_args
+
+    _check_supported(args)
+    typed = _typed(args)
+    given = _given(args, typed)
+    system = get_nonlinear(args.system)  # an unknown name or a bad plant file: one line before anything runs
+    mpc = None
+    if not getattr(args, "no_mpc", False):
+        mpc = replace(KOOPMAN_MPC, **{k.removeprefix("mpc."): v for k, v in given.items() if k.startswith("mpc.")})
+    kw = {k: v for k, v in given.items() if "." not in k}
+    if "--bits" in typed:
+        kw["bits"] = tuple(parse_bits(args.bits))
+    return KoopmanConfig(
+        system=args.system if isinstance(args.system, str) else system,
+        quantizer=quantizer_from_args(args, system),
+        mpc=mpc,
+        **kw,
+    )
+
+
+def engine_config(args: argparse.Namespace, mpc: bool) -> SweepConfig | KoopmanConfig:
+    """The run's engine config, chosen by the plant's kind: a nonlinear ``--system``'s :func:`koopman_config`
+    (``--no-mpc`` read from ``args``), else the linear options' (with the closed loops when ``mpc``)."""
+    if wanted(args):
+        return koopman_config(args)
+    return config(args, system_from_args(args), mpc)
+
+
+def nonlinear_result(args: argparse.Namespace, rep: Reporter) -> dict[str, Any]:
+    """The JSON of a nonlinear plant's whole study (``qsid sweep`` and ``qsid bits`` of a nonlinear ``--system``)."""
+    from qsid_core.studies import Study
+
+    cfg = koopman_config(args)
+    cfg.dictionary()  # a bad --lifting is reported before anything runs
+    rep.stage(
+        f"nonlinear sweep of {cfg.plant().name}: {cfg.trajectories} x {cfg.steps}, lifting {cfg.lifting}, "
+        f"{len(cfg.bits)} word lengths x {cfg.realizations} realizations"
+    )
+    return Study(cfg).run().to_dict()

@@ -10,7 +10,7 @@ import io
 import math
 from typing import Any
 
-from app.settings.koopman_command import koopman_command
+from app.settings.command import sweep_command as koopman_command
 
 from .koopman_settings import koopman_config
 

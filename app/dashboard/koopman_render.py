@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from app.figures.koopman_error import limit_note
+from app.figures.error_vs_bits import limit_note
 from qsid_core.studies import NO_CERTIFICATES
 
 __all__ = ["koopman_summary", "bcls_exactness"]

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.compare import PINNED_VIEWS, overlay_pinned
-from app.figures.koopman_scene import koopman_scene
+from app.figures.lifted_scene import lifted_scene as koopman_scene
 from app.figures.phase_scene import SceneView, scene_view
 from app.figures.presenter import PHONE_WIDTH, PRESENTER_SIZE, legible_figure, phone_figure, presenter_figure
 from app.figures.raw import Wire

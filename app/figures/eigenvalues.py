@@ -1,8 +1,12 @@
-"""View: eigenvalues of the identified A^ at the current b, the true ones and the unit circle."""
+"""View: eigenvalues of the identified A^ at the current b, the true ones and the unit circle.
+
+For a nonlinear plant (:data:`LIFTED_VIEW`, a frame whose result holds a lifting): the eigenvalues of the lifted
+A_z at the current b (every realization, per estimator) against those of the unquantized EDMD of the same data."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 import plotly.graph_objects as go
@@ -11,7 +15,7 @@ from .palette import COLORS, color
 from .raw import arr, figure
 from .view import CURRENT, FrameView, View
 
-__all__ = ["eigen_figure", "VIEW"]
+__all__ = ["eigen_figure", "lifted_eigenvalues", "LIFTED_VIEW", "VIEW"]
 
 
 def eigen_figure(
@@ -78,3 +82,27 @@ def _build(frame: FrameView) -> go.Figure:
 
 
 VIEW = View("eigen", aspect=0.75, depends=CURRENT, build=_build)
+
+
+def lifted_eigenvalues(models: Any) -> np.ndarray:
+    """Eigenvalues of every model's A_z (NaN rows for failed identifications), shape (R, L)."""
+    rows = [np.linalg.eigvals(m.A) if m is not None else None for m in models]
+    L = next((r.size for r in rows if r is not None), 0)
+    return np.array([r if r is not None else np.full(L, np.nan) for r in rows], dtype=complex).reshape(-1, L)
+
+
+def _lifted_build(frame: Any) -> go.Figure:
+    eigs = {lab: lifted_eigenvalues(frame.models[lab].models) for lab in frame.labels}
+    fig = eigen_figure(
+        eigs, np.linalg.eigvals(frame.reference.A), height=300, title=f"eigenvalues of A_z at b = {frame.bits}"
+    )
+    fig.data[1].name = "unquantized EDMD"
+    return fig
+
+
+def _lifted_key(frame: Any) -> Any:
+    return (frame.bits, tuple(id(frame.models[lab]) for lab in frame.labels))
+
+
+#: The view of a nonlinear frame (its result holds a lifting): A_z's eigenvalues against the unquantized EDMD's.
+LIFTED_VIEW = View("koopman-eigen", aspect=0.75, depends=CURRENT, build=_lifted_build, tab="Nonlinear", key=_lifted_key)

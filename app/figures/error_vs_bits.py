@@ -1,4 +1,12 @@
-"""View: relative errors of A^ and B^ against the word length b (the letter's panels (a), (b))."""
+"""View: relative errors of A^ and B^ against the word length b (the letter's panels (a), (b)).
+
+For a nonlinear plant (:data:`LIFTED_VIEW`, :func:`lifted_error_figure`): the relative error of the lifted model [A_z, B_z] against the unquantized EDMD of the
+same data, per word length: LS and BCLS with their spread, and LS's large-data limit where it holds.
+
+The large-data limit (:func:`qsid_core.identification.large_data_limit`, the lifted Theorem 1) is exact for a
+polynomial dictionary with subtractive dither and no overload; where a hypothesis fails (radial functions, other
+dither, samples past the range) the line is not drawn and the plot says why.
+"""
 
 from __future__ import annotations
 
@@ -10,14 +18,14 @@ import plotly.graph_objects as go
 
 from qsid_core import fit_slope
 
-from .hypotheses import bcls_reasons, fits_reasons, flags, line_holds, theorem1_reasons
+from .hypotheses import bcls_reasons, bits_text, fits_reasons, flags, line_holds, theorem1_reasons
 from .palette import COLORS, color
 from .presenter import HOVER_HERE
 from .raw import figure
 from .traces import BITS_AXIS, Rows, Series, band, get, mark_bits, xy
 from .view import CURVES, View
 
-__all__ = ["error_figure", "slope_text", "LETTER_SLOPES", "VIEW"]
+__all__ = ["error_figure", "lifted_error_figure", "limit_note", "slope_text", "LETTER_SLOPES", "LIFTED_VIEW", "VIEW"]
 
 
 def _holds(rows: Rows, key: str = "theorem1_holds") -> dict[int, bool]:
@@ -287,3 +295,76 @@ VIEW = View(
         letter_slopes=LETTER_SLOPES if frame.system.name == LETTER_SYSTEM else None,
     ),
 )
+
+
+def limit_note(rows: dict[str, list[dict[str, Any]]], guard: bool) -> str:
+    """Why LS's large-data limit is not drawn ("" when it is drawn for every b shown)."""
+    notes = {(r.get("large_data") or {}).get("note", "") for r in rows.get("LS", [])}
+    notes.discard("")
+    if notes:
+        return sorted(notes)[0]
+    ls = rows.get("LS", [])
+    over = [r["bits"] for r in ls if r.get("overload_fraction", 0.0) > 0]
+    if over and not guard:
+        where = "every b" if len(over) == len(ls) else bits_text(over)
+        return f"samples past the range at {where}; it assumes none (tick the guard band)"
+    return ""
+
+
+def lifted_error_figure(
+    rows: dict[str, list[dict[str, Any]]], bits: int | None, guard: bool = True, height: int = 330
+) -> go.Figure:
+    """log error of [A_z, B_z] vs b for each estimator label in ``rows`` (mean with a ±std band), LS's
+    large-data limit dashed where its hypotheses hold."""
+    data: list[dict[str, Any]] = []
+    for i, (lab, rs) in enumerate(rows.items()):
+        data += band(rs, "err_G", color(lab, i), f"{lab}: quantized EDMD")
+    note = limit_note(rows, guard)
+    if "LS" in rows and not note:
+        xs, ys = xy(rows["LS"], "large_data", "err_G")
+        if xs:
+            data.append(
+                dict(
+                    type="scatter",
+                    x=xs,
+                    y=ys,
+                    mode="lines",
+                    name="LS large-data limit",
+                    line=dict(color=COLORS["theory"], dash="dash", width=2),
+                )
+            )
+    annotations = []
+    if note:
+        annotations.append(
+            dict(
+                xref="paper",
+                yref="paper",
+                x=0.0,
+                y=1.0,
+                xanchor="left",
+                yanchor="bottom",
+                showarrow=False,
+                text="no large-data limit: " + note[:80] + ("…" if len(note) > 80 else ""),
+                font=dict(size=11),
+            )
+        )
+    return figure(
+        data,
+        dict(
+            height=height,
+            margin=dict(l=60, r=10, t=34, b=40),
+            legend=dict(orientation="h", y=-0.22),
+            xaxis=dict(title=dict(text="word length b (bits)"), dtick=2),
+            yaxis=dict(title=dict(text="error of [A_z, B_z] vs EDMD"), type="log", exponentformat="power"),
+            shapes=mark_bits(bits),
+            annotations=annotations,
+        ),
+    )
+
+
+def _lifted_build(frame: Any) -> go.Figure:
+    return lifted_error_figure(frame.series(), frame.bits, bool(frame.values.guard))
+
+
+#: The view of a nonlinear frame (its result holds a lifting).
+LIFTED_VIEW = View("koopman-error", aspect=0.62, depends=CURVES, build=_lifted_build, tab="Nonlinear")

@@ -16,11 +16,9 @@ from . import (
     datalength,
     eigenvalues,
     error_vs_bits,
-    koopman_eigen,
-    koopman_error,
-    koopman_outcomes,
-    koopman_prediction,
+    loop_outcomes,
     norm_time,
+    prediction_error,
     quantizer,
     residual,
     time_series,
@@ -48,12 +46,14 @@ VIEWS: tuple[View, ...] = (
 
 #: The plots panel's group of a nonlinear plant (shown instead of :data:`TABS` while one is picked).
 KOOPMAN_TABS = ("Nonlinear",)
-#: Its views (they read a :class:`~app.dashboard.frames.KoopmanFrame`), in panel order.
+#: Its views, offered when the result holds a lifting (they read a :class:`~app.dashboard.frames.KoopmanFrame`), in
+#: panel order: the same quantities as the linear views where there is one (the error vs b, the eigenvalues), and
+#: the views only a lifted model has (its prediction error, the Koopman MPC outcomes).
 KOOPMAN_VIEWS: tuple[View, ...] = (
-    koopman_error.VIEW,
-    koopman_eigen.VIEW,
-    koopman_prediction.VIEW,
-    koopman_outcomes.VIEW,
+    error_vs_bits.LIFTED_VIEW,
+    eigenvalues.LIFTED_VIEW,
+    prediction_error.VIEW,
+    loop_outcomes.VIEW,
 )
 #: Every view the plots panel holds.
 ALL_VIEWS: tuple[View, ...] = VIEWS + KOOPMAN_VIEWS

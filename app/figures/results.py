@@ -18,6 +18,9 @@ draw, and calls those builders:
 ``bound``
     the letter's ultimate bound delta(eps), the a-posteriori bound and the final
     state norms.
+
+A nonlinear plant's panels of ``qsid reproduce`` (:func:`lifted_panels`) are drawn from its staged study by the
+same view builders.
 """
 
 from __future__ import annotations
@@ -31,11 +34,15 @@ import plotly.graph_objects as go
 
 if TYPE_CHECKING:
     from qsid_core import SweepResult
+    from qsid_core.studies import KoopmanExperiment
 
 #: What the functions take as one result: a SweepResult, its ``to_dict()``, or the path of a saved one.
 ResultLike: TypeAlias = "SweepResult | dict[str, Any] | str | Path"
 
-__all__ = ["plot_results", "result_series", "FigureError", "VIEWS"]
+__all__ = ["plot_results", "result_series", "lifted_panels", "FigureError", "LIFTED_LABELS", "VIEWS"]
+
+#: Estimator -> the label of its series in a nonlinear plant's figures.
+LIFTED_LABELS = {"ls": "LS", "bcls": "BCLS"}
 
 #: The views :func:`plot_results` draws.
 VIEWS = ("error", "cost", "stabilized", "bound")
@@ -219,3 +226,75 @@ def plot_results(
         steps=mpc.get("steps"),
         x0_norm=float(np.linalg.norm(x0)) if x0 else None,
     )
+
+
+def _lifted_portrait(ex: KoopmanExperiment, b: int, tag: str) -> go.Figure:
+    from .palette import COLORS, color
+    from .phase_portrait import phase_portrait_figure
+
+    s = ex.system
+    ref = ex.reference_loop()
+    loops = {lab: ex.loops(b, e) for e, lab in LIFTED_LABELS.items()}
+    first = loops["LS"]
+    assert first is not None and ref is not None
+    fig = phase_portrait_figure(
+        first.states,
+        ref.states[0],
+        dims=(0, 1, None),
+        names=s.state_names,
+        title=f"({tag}) the plant's flow (green) and the Koopman MPC loops at b = {b} (x1, x2, step k)",
+        label="LS",
+    )
+    for tr in fig.data:  # the linear portrait's names, said for the lifted models
+        if tr.name and tr.name.endswith("realizations"):
+            tr.name = f"LS ({first.states.shape[0]} loops)"
+        elif tr.name == "true model":
+            tr.name = "unquantized EDMD"
+    bc = loops["BCLS"]
+    assert bc is not None
+    for k, st in enumerate(bc.states):
+        ok = np.all(np.isfinite(st), axis=1)
+        fig.add_scatter3d(
+            x=st[ok, 0], y=st[ok, 1], z=np.arange(st.shape[0])[ok], mode="lines", name="BCLS", legendgroup="BCLS",
+            showlegend=k == 0, line=dict(color=color("BCLS"), width=2),
+        )  # fmt: skip
+    for k, st in enumerate(ex.free_flow(first.states.shape[1] - 1)):
+        ok = np.all(np.isfinite(st), axis=1)
+        fig.add_scatter3d(
+            x=st[ok, 0], y=st[ok, 1], z=np.arange(st.shape[0])[ok], mode="lines", name="free flow (u = 0)",
+            legendgroup="flow", showlegend=k == 0, line=dict(color=COLORS["theory"], width=1.5),
+        )  # fmt: skip
+    return fig
+
+
+def lifted_panels(
+    ex: KoopmanExperiment, rows: dict[str, list[dict[str, Any]]], eigen_bits: int, portrait_bits: Sequence[int]
+) -> list[tuple[str, go.Figure]]:
+    """``qsid reproduce``'s panels of a nonlinear plant from its staged study ``ex`` and the rows of LS and BCLS:
+    (a) the error of [A_z, B_z] vs b, (b) the prediction error, (c) the Koopman MPC outcomes, (d) the
+    eigenvalues of A_z at ``eigen_bits``, (e)... the plant's flow and the loops at each of ``portrait_bits``."""
+    from .eigenvalues import eigen_figure, lifted_eigenvalues
+    from .error_vs_bits import lifted_error_figure
+    from .loop_outcomes import outcomes_figure
+    from .prediction_error import prediction_figure
+
+    R, s = ex.config.realizations, ex.system.name
+    fa = lifted_error_figure(rows, None, ex.config.quantizer.guard, height=460)
+    fa.update_layout(
+        title=dict(text=f"(a) {s}: error of [A_z, B_z] vs the unquantized EDMD (mean ± std, {R} realizations)")
+    )
+    fb = prediction_figure(rows, None, ex.reference()[1], ex.horizon, height=420)
+    fb.update_layout(
+        title=dict(text=f"(b) prediction error over steps 1..{ex.horizon} from each held-out run's start"),
+        margin=dict(t=60),
+    )
+    fc = outcomes_figure(rows, None, height=420)
+    fc.update_layout(
+        title=dict(text=f"(c) Koopman MPC on the true plant, share of {R} loops per b (LS left · BCLS right)")
+    )
+    eigs = {lab: lifted_eigenvalues(ex.models(eigen_bits, e).models) for e, lab in LIFTED_LABELS.items()}
+    fd = eigen_figure(eigs, np.linalg.eigvals(ex.reference()[0].A), height=460)
+    fd.data[1].name = "unquantized EDMD"
+    fd.update_layout(title=dict(text=f"(d) eigenvalues of A_z at b = {eigen_bits}"), margin=dict(t=60))
+    out = [("a_error", fa), ("b_prediction", fb), ("c_outcomes", fc), ("d_eigenvalues", fd)]
+    return out + [(f"{t}_phase_b{b}", _lifted_portrait(ex, b, t)) for t, b in zip("efg", portrait_bits)]

@@ -8,6 +8,11 @@ Only settings that differ from the engine's defaults are written, numbers exactl
 the line with :func:`app.cli.build_parser` and :func:`app.cli.runner.config`
 gives back an equal config (tested round trip). Both front ends use this module
 (the CLI's ``--help`` examples, the dashboard's *As a command*), so neither imports the other.
+
+A nonlinear plant's config (:class:`~qsid_core.studies.KoopmanConfig`) is written by the same
+:func:`sweep_argv` from the table's ``nonlinear`` paths: only values that differ from ``KoopmanConfig()`` and its MPC
+:data:`~qsid_core.studies.KOOPMAN_MPC`, the system, ``--bits``, ``--limits`` and the MPC's lists by hand; parsing
+the line with :func:`app.cli.study.koopman_config` gives back an equal config (tested).
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ if TYPE_CHECKING:
     from collections.abc import Iterable
 
     from qsid_core import LTISystem, SweepConfig
+    from qsid_core.studies import KoopmanConfig
 
 __all__ = [
     "sweep_argv",
@@ -60,6 +66,10 @@ def _at(cfg: Any, path: str) -> Any:
     for part in path.split("."):
         obj = getattr(obj, part) if obj is not None else getattr(MPCConfig(), part)
     return obj
+
+
+#: The MPC's settings written by hand (a list, or a flag whose value is not the setting's).
+_MPC_LISTS = (("--u-max", "u_max"), ("--x0", "x0"), ("--Q", "Q"), ("--R", "R"), ("--Qf", "Qf"))
 
 
 def flag_text(v: Any) -> str:
@@ -141,18 +151,23 @@ def _mpc_args(cfg: SweepConfig, system: LTISystem) -> list[str]:
     return out
 
 
-def sweep_argv(cfg: SweepConfig, system_source: str | None = None) -> list[str]:
-    """``qsid sweep`` arguments (after ``sweep``) that rebuild ``cfg``.
+def sweep_argv(cfg: SweepConfig | KoopmanConfig, system_source: str | None = None) -> list[str]:
+    """``qsid sweep`` arguments (after ``sweep``) that rebuild ``cfg``, of either plant kind.
 
     Parameters
     ----------
-    cfg : SweepConfig
-        With ``system`` an :class:`~qsid_core.plant.systems.LTISystem` (or a preset name).
+    cfg : SweepConfig or KoopmanConfig
+        With ``system`` an :class:`~qsid_core.plant.systems.LTISystem` (or a preset name); a nonlinear plant by
+        its preset's name or plant file.
     system_source : str, optional
         Give ``--system`` this way (a file name); default: the preset's name, or an
-        inline ``--A``/``--B`` for any other system.
+        inline ``--A``/``--B`` for any other system (a linear plant's).
     """
     from qsid_core import SweepConfig, get_system
+    from qsid_core.studies import KoopmanConfig
+
+    if isinstance(cfg, KoopmanConfig):
+        return _koopman_argv(cfg)
 
     system = get_system(cfg.system)
     d, q = SweepConfig(mpc=None), cfg.quantizer
@@ -168,9 +183,40 @@ def sweep_argv(cfg: SweepConfig, system_source: str | None = None) -> list[str]:
     return out
 
 
-def sweep_command(cfg: SweepConfig, system_source: str | None = None) -> str:
+def sweep_command(cfg: SweepConfig | KoopmanConfig, system_source: str | None = None) -> str:
     """The whole shell line ``qsid sweep ...`` (quoted for a POSIX shell)."""
     return shlex.join(["qsid", "sweep", *sweep_argv(cfg, system_source)])
+
+
+def _koopman_argv(cfg: KoopmanConfig) -> list[str]:
+    """``qsid sweep`` arguments of a nonlinear plant's ``cfg`` (a nonlinear preset by name): its settings by their
+    ``nonlinear`` paths, only those that differ from ``KoopmanConfig()`` and its MPC :data:`~qsid_core.studies.KOOPMAN_MPC`."""
+    from qsid_core.studies import KOOPMAN_MPC, KoopmanConfig
+
+    if not isinstance(cfg.system, str):
+        raise ValueError("the command line names a nonlinear plant by preset or plant file, not a Python object")
+    d = KoopmanConfig()
+    out = [f"--system={cfg.system}"]
+    if cfg.bits != d.bits:
+        out.append(f"--bits={bits_spec(cfg.bits)}")
+    for s in SETTINGS:
+        path = s.nonlinear
+        if s.flag is None or path is None or path == "system" or (path.startswith("mpc.") and cfg.mpc is None):
+            continue
+        v = _at(cfg, path)
+        dv = _at(KOOPMAN_MPC, path.removeprefix("mpc.")) if path.startswith("mpc.") else _at(d, path)
+        if v == dv or v is None:
+            continue
+        out.append((s.flag if v else f"--no-{s.flag[2:]}") if s.type is bool else f"{s.flag}={flag_text(v)}")
+    if cfg.quantizer.fixed_range is not None:
+        out.append(f"--limits={limits_spec(cfg.quantizer.fixed_range)}")
+    if cfg.mpc is None:
+        return [*out, "--no-mpc"]
+    for flag, name in _MPC_LISTS:
+        v, dv = getattr(cfg.mpc, name), getattr(KOOPMAN_MPC, name)
+        if v is not None and v != dv:
+            out.append(f"{flag}={floats_spec(v if isinstance(v, tuple) else (v,))}")
+    return out
 
 
 def bits_command(

@@ -27,9 +27,31 @@ from .bits_certificate import (
 )
 from .bits_cost import LOOP_COST_TOLERANCE, LOOP_TIME_CONSTANTS, loop_length
 from .budget import KNEE_TOLERANCE, BudgetConfig, BudgetResult, run_budget, runs_bought
-from .cache_keys import KEY_PARTS, NOT_IN_KEYS, STAGE_GROUPS, config_paths, group_values, stage_key, system_key
+from .cache_keys import (
+    KEY_PARTS,
+    KOOPMAN_KEY_PARTS,
+    KOOPMAN_NOT_IN_KEYS,
+    KOOPMAN_STAGE_GROUPS,
+    NOT_IN_KEYS,
+    STAGE_GROUPS,
+    config_paths,
+    group_values,
+    koopman_stage_key,
+    stage_key,
+    system_key,
+)
 from .clipping import clipping_effect
-from .config import SweepConfig, parse_bits, parse_input_bits, parse_noise, parse_state_bits
+from .config import (
+    KOOPMAN_MPC,
+    KOOPMAN_MPC_UNUSED,
+    NO_CERTIFICATES,
+    KoopmanConfig,
+    SweepConfig,
+    parse_bits,
+    parse_input_bits,
+    parse_noise,
+    parse_state_bits,
+)
 from .config_checks import check_run_args, check_sweep_parts
 from .datalength import (
     DEFAULT_SAMPLES,
@@ -43,16 +65,6 @@ from .datalength import (
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment
 from .flights import Flights
-from .koopman_keys import KOOPMAN_KEY_PARTS, KOOPMAN_NOT_IN_KEYS, KOOPMAN_STAGE_GROUPS, koopman_stage_key
-from .koopman_stages import FREE_FLOW_GRID, KoopmanExperiment, KoopmanModels
-from .koopman_sweep import (
-    KOOPMAN_MPC,
-    KOOPMAN_MPC_UNUSED,
-    NO_CERTIFICATES,
-    KoopmanConfig,
-    KoopmanResult,
-    run_koopman_sweep,
-)
 from .outputs import output_target, replace_atomically
 from .recorded import RecordedResult, dataset_from_arrays, identify_recorded, load_recorded, theorem1_on_data
 from .records import (
@@ -64,11 +76,12 @@ from .records import (
     to_pandas,
     write_csv,
 )
-from .stage_results import BitsIdentification, TheoryAtBits
+from .stage_results import BitsIdentification, KoopmanModels, TheoryAtBits
 from .study import CancelToken, LinearAtBits, NonlinearAtBits, Study, StudyFrame
 from .study_linear import full_row, task_count
+from .study_nonlinear import FREE_FLOW_GRID, KoopmanExperiment
 from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
-from .sweep import run_sweep, summarize
+from .sweep import KoopmanResult, run_koopman_sweep, run_sweep, summarize
 from .sweep_result import RESULT_FORMAT, StoredRow, SweepResult, load_result
 from .warmup import (
     COMPILED_KERNELS,

@@ -4,7 +4,7 @@ A sensor link carries ``T`` bits. Every sample of every state and input channel 
 ``S`` steps costs ``S (n + m) b`` bits and the budget buys ``floor(T / (S (n + m) b))`` runs at word length ``b``.
 For each ``b`` of the study the data set it buys is identified by the sweep's own stages (linear plants:
 :class:`~qsid_core.studies.experiment.Experiment`; nonlinear ones: quantized EDMD,
-:class:`~qsid_core.studies.koopman_stages.KoopmanExperiment`), ``realizations`` times, each realization with its
+:class:`~qsid_core.studies.study_nonlinear.KoopmanExperiment`), ``realizations`` times, each realization with its
 own data, sensor noise and dither (:mod:`~qsid_core.studies.budget_tasks`), and, with an MPC, the loops built on
 the models are run on the true plant.
 
@@ -42,9 +42,8 @@ from ..errors import ConfigError, check_float
 from ..plant.systems import get_system
 from .bits_answer import check_targets
 from .budget_tasks import Plan, linear_realization, nonlinear_realization
-from .config import SweepConfig
+from .config import KoopmanConfig, SweepConfig
 from .executors import InlineExecutor
-from .koopman_sweep import KoopmanConfig
 from .loop_stages import loops_task
 from .summary import Stats, json_clean
 

@@ -2,7 +2,7 @@
 
 Each task is module level (picklable for process pools) and runs the sweep's own stages: for a linear plant an
 :class:`~qsid_core.studies.experiment.Experiment` per word length with the runs that word length buys, for a
-nonlinear one a :class:`~qsid_core.studies.koopman_stages.KoopmanExperiment` (and its Koopman MPC loops).
+nonlinear one a :class:`~qsid_core.studies.study_nonlinear.KoopmanExperiment` (and its Koopman MPC loops).
 A linear realization simulates its runs once, at the largest count any word length buys, and each word length
 uses the first runs of them (nested data, as ``qsid datalength`` does): every realization has its own data,
 sensor noise and dither, and within a realization the word lengths are compared on common data. The quantizer's
@@ -27,11 +27,10 @@ from ..plant.systems import get_system
 from ..quantization.moments import Moments, prepare
 from ..quantization.quantize import ERROR_VARIANCE, QuantizerSpec, data_ranges
 from .budget_model import predicted_error, prefix_moments
-from .config import SweepConfig
+from .config import KoopmanConfig, SweepConfig
 from .executors import single_threaded_blas
 from .experiment import Experiment
-from .koopman_stages import KoopmanExperiment
-from .koopman_sweep import KoopmanConfig
+from .study_nonlinear import KoopmanExperiment
 
 __all__ = ["Plan", "fixed_range", "linear_realization", "nonlinear_realization", "realization_seeds"]
 

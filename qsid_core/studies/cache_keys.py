@@ -1,4 +1,4 @@
-"""Cache keys of :class:`~qsid_core.Experiment`'s stages, generated from the engine configs' fields.
+"""Cache keys of a study's stages for both plant kinds, generated from the engine configs' fields.
 
 Every field of :class:`~qsid_core.SweepConfig` (and of its nested :class:`~qsid_core.QuantizerSpec`
 and :class:`~qsid_core.MPCConfig`) is either a part of one of the key groups in :data:`KEY_PARTS` or
@@ -8,6 +8,13 @@ fails for a field that is neither, so a new setting cannot leave cached results 
 A stage's key is the system's matrices followed by the values of the groups it depends on
 (:data:`STAGE_GROUPS`); the stage's own name and per-call parts (b, the estimator) are added by
 :class:`~qsid_core.Experiment`.
+
+A nonlinear plant's study (:class:`~qsid_core.studies.KoopmanConfig`) has its own groups and stages
+(:data:`KOOPMAN_KEY_PARTS`, :data:`KOOPMAN_NOT_IN_KEYS`, :data:`KOOPMAN_STAGE_GROUPS`), held to the same rule:
+its nested :class:`~qsid_core.QuantizerSpec` and :class:`~qsid_core.MPCConfig` are key parts as wholes, and the
+plant (a preset's name, a plant file's path, or a :class:`~qsid_core.plant.NonlinearSystem` by identity) starts
+every key (:func:`koopman_stage_key`). The settings table says from these which results a setting invalidates
+(:meth:`app.settings.schema.Setting.stages`).
 """
 
 from __future__ import annotations
@@ -17,9 +24,21 @@ from typing import Any
 
 from ..control.mpc import MPCConfig
 from ..plant.lti import LTISystem
-from .config import SweepConfig
+from .config import KoopmanConfig, SweepConfig
 
-__all__ = ["KEY_PARTS", "NOT_IN_KEYS", "STAGE_GROUPS", "config_paths", "group_values", "stage_key", "system_key"]
+__all__ = [
+    "KEY_PARTS",
+    "KOOPMAN_KEY_PARTS",
+    "KOOPMAN_NOT_IN_KEYS",
+    "KOOPMAN_STAGE_GROUPS",
+    "NOT_IN_KEYS",
+    "STAGE_GROUPS",
+    "config_paths",
+    "group_values",
+    "koopman_stage_key",
+    "stage_key",
+    "system_key",
+]
 
 #: Groups of key parts: dotted paths into a :class:`SweepConfig` (``"mpc"`` alone = every MPC field).
 KEY_PARTS: dict[str, tuple[str, ...]] = {
@@ -104,3 +123,47 @@ def system_key(system: LTISystem) -> tuple[Any, ...]:
 def stage_key(config: SweepConfig, system: LTISystem, stage: str, *extra: Any) -> tuple[Any, ...]:
     """The cache key of ``stage`` (:data:`STAGE_GROUPS`): its name, ``extra`` (b, estimator), the system, its groups."""
     return (stage, *extra, *system_key(system), *(v for g in STAGE_GROUPS[stage] for v in group_values(config, g)))
+
+
+#: Groups of a nonlinear sweep's key parts: dotted paths into a :class:`KoopmanConfig` (as
+#: :data:`~qsid_core.studies.cache_keys.KEY_PARTS` for the linear sweeps).
+KOOPMAN_KEY_PARTS: dict[str, tuple[str, ...]] = {
+    # the training and held-out runs (and the RBF centres: drawn over the amplitude, seeded by data_seed)
+    "data": ("trajectories", "steps", "data_seed", "input_amplitude", "state_amplitude", "box"),
+    "lifting": ("lifting",),
+    "quantizer": ("quantizer",),
+    "realizations": ("dither_seed", "realizations"),
+    "estimator": ("estimator",),
+    "prediction": ("prediction_horizon",),
+    # the Koopman MPC and its verdict
+    "loop": ("mpc", "radius"),
+}
+#: :class:`KoopmanConfig` fields in no key group, and why none is needed.
+KOOPMAN_NOT_IN_KEYS: dict[str, str] = {
+    "system": "the plant starts every key (a preset by name, any other plant by identity)",
+    "bits": "the sweep's list; each key holds the one word length b it is for",
+}
+#: The key groups each result of a nonlinear sweep depends on.
+KOOPMAN_STAGE_GROUPS: dict[str, tuple[str, ...]] = {
+    "data": ("data",),
+    "reference": ("data", "lifting", "prediction"),  # the unquantized EDMD and its prediction error
+    "reference-loop": ("data", "lifting", "loop"),
+    "moments": ("data", "lifting", "quantizer", "realizations"),  # quantized lifted moments (every estimator's)
+    "limit": ("data", "lifting", "quantizer"),  # the large-data limit of LS quantized EDMD
+    "models": ("data", "lifting", "quantizer", "realizations", "estimator", "prediction"),  # with prediction errors
+    "loops": ("data", "lifting", "quantizer", "realizations", "estimator", "loop"),
+}
+
+
+def koopman_stage_key(cfg: KoopmanConfig, stage: str, *extra: Any) -> tuple[Any, ...]:
+    """The cache key of a nonlinear sweep's result ``stage`` (:data:`KOOPMAN_STAGE_GROUPS`): its name, ``extra``
+    (e.g. b), the plant (a preset's name or a plant file's path; a :class:`~qsid_core.plant.NonlinearSystem` itself, which
+    compares by identity), and the values of the stage's key groups."""
+    values: list[Any] = []
+    for group in KOOPMAN_STAGE_GROUPS[stage]:
+        for path in KOOPMAN_KEY_PARTS[group]:
+            obj: Any = cfg
+            for part in path.split("."):
+                obj = getattr(obj, part)
+            values.append(obj)
+    return (stage, *extra, cfg.system, *values)

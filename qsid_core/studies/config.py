@@ -1,4 +1,5 @@
-"""Sweep configuration: :class:`SweepConfig` (everything a sweep depends on) and :func:`parse_bits`.
+"""Sweep configurations of both plant kinds: :class:`SweepConfig` (everything a linear plant's sweep depends on)
+and :class:`KoopmanConfig` (a nonlinear plant's: its lifting, quantized EDMD and Koopman MPC), and :func:`parse_bits`.
 
 :meth:`SweepConfig.letter` gives the letter's own settings (Section V); the plain
 defaults differ from them only in the quantizer's guard band (on by default, see
@@ -7,169 +8,34 @@ defaults differ from them only in the quantizer's guard band (on by default, see
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
-import numpy as np
-
+from ..control.koopman_mpc import CONVERGED_RADIUS
 from ..control.mpc import MPCConfig
-from ..errors import ConfigError, check_choice, check_float, check_int, short_repr
+from ..errors import ConfigError, check_choice, check_float, check_int
+from ..identification import Lifting, parse_lifting
 from ..identification.identify import ESTIMATORS
+from ..plant import NonlinearSystem, get_nonlinear
 from ..plant.lti import LTISystem
 from ..quantization.quantize import LETTER_QUANTIZER, MAX_BITS, QuantizerSpec
 from ..validate import check_bool
-from .config_checks import check_sweep_parts
+from .config_checks import InputBits, check_sweep_parts, parse_bits, parse_input_bits, parse_noise, parse_state_bits
 
-#: The inputs' word length as :func:`parse_input_bits` gives it: None (the swept b), "exact", one for all inputs,
-#: or one entry per input.
-InputBits = None | str | int | tuple[int | str, ...]
-
-__all__ = ["SweepConfig", "parse_bits", "parse_input_bits", "parse_noise", "parse_state_bits"]
-
-
-def parse_bits(spec: str | int | Sequence[int] | range) -> tuple[int, ...]:
-    """Word lengths from ``"2:12"`` (inclusive), ``"2:12:2"``, ``"2,4,6"``, ``"8"``, an int, or a sequence of ints.
-
-    Raises
-    ------
-    ConfigError
-        If the text is not of one of those forms or a b is outside 1..32.
-    """
-    if isinstance(spec, (list, tuple, range, np.ndarray)):
-        if len(spec) > 1000 if not isinstance(spec, range) else not (0 <= spec.start and spec.stop <= 1000):
-            raise ConfigError(f"bits: give at most a few dozen word lengths between 1 and {MAX_BITS}")
-        vals = [check_int("bits", int(v) if isinstance(v, np.integer) else v, 1, MAX_BITS) for v in spec]
-    elif isinstance(spec, int) and not isinstance(spec, bool):
-        vals = [check_int("bits", spec, 1, MAX_BITS)]
-    else:
-        form = "bits must look like '2:12' (inclusive), '2:12:2' (with a step), '2,4,6' or '8'"
-        if not isinstance(spec, str) or len(spec) > 200:
-            raise ConfigError(f"{form}; got {short_repr(spec)}")
-        s = spec.strip()
-        try:
-            if ":" in s:
-                parts = [int(v) for v in s.split(":")]
-                if len(parts) not in (2, 3):
-                    raise ValueError
-                lo, hi = parts[0], parts[1]
-                step = parts[2] if len(parts) == 3 else 1
-            else:
-                vals = [int(v) for v in s.split(",") if v.strip()]
-        except ValueError:
-            raise ConfigError(f"{form}; got {short_repr(s)}") from None
-        if ":" in s:
-            if step < 1:
-                raise ConfigError(f"bits step must be >= 1; got {short_repr(step)} in {short_repr(s)}")
-            if hi < lo:
-                raise ConfigError(
-                    f"bits range {short_repr(s)} is empty (end {short_repr(hi)} < start {short_repr(lo)})"
-                )
-            check_int("bits range start", lo, 1, MAX_BITS)  # bounds before building the range
-            check_int("bits range end", hi, 1, MAX_BITS)
-            vals = list(range(lo, hi + 1, step))
-        if not vals:
-            raise ConfigError(f"{form}; got {short_repr(s)}")
-        vals = [check_int("bits", v, 1, MAX_BITS) for v in vals]
-    out = tuple(sorted(set(vals)))
-    if not out:
-        raise ConfigError("bits: give at least one word length")
-    return out
-
-
-def parse_input_bits(spec: object) -> InputBits:
-    """Word length of the inputs: None or ``"same"`` (as the states), ``"exact"``, one int, or one per input.
-
-    Accepts ``12``, ``"12"``, ``"exact"``, ``"8,12"``, ``"exact,8"`` or a sequence of ints / ``"exact"``.
-
-    Raises
-    ------
-    ConfigError
-        For anything else, or a word length outside 1..32.
-    """
-    form = "input bits must be 'same', 'exact', a word length 1..32, or one per input like '8,12' or 'exact,8'"
-    if spec is None:
-        return None
-    if isinstance(spec, str):
-        s = spec.strip().lower()
-        if s in ("", "same"):
-            return None
-        if s == "exact":
-            return "exact"
-        items = [v.strip() for v in s.split(",")]
-        if len(s) > 200 or not all(items):
-            raise ConfigError(f"{form}; got {short_repr(spec)}")
-        if len(items) == 1:
-            try:
-                return check_int("input bits", int(items[0]), 1, MAX_BITS)
-            except ValueError:
-                raise ConfigError(f"{form}; got {short_repr(spec)}") from None
-        spec = items
-    if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
-        return check_int("input bits", int(spec), 1, MAX_BITS)
-    if isinstance(spec, (list, tuple)) and 0 < len(spec) <= 1000:
-        out: list[int | str] = []
-        for v in spec:
-            if isinstance(v, str) and v.strip().lower() in ("exact", "b", "same"):
-                out.append("exact" if v.strip().lower() == "exact" else "b")
-                continue
-            try:
-                out.append(check_int("input bits", int(v) if isinstance(v, (str, np.integer)) else v, 1, MAX_BITS))
-            except (TypeError, ValueError):
-                raise ConfigError(f"{form}; got {short_repr(v)} in {short_repr(spec)}") from None
-        return tuple(out)
-    raise ConfigError(f"{form}; got {short_repr(spec)}")
-
-
-def parse_state_bits(spec: object) -> tuple[int | str, ...] | None:
-    """Word length of each state: None or ``""``/``"b"`` (every state has the swept b), else one entry for all
-    states or one per state.
-
-    Entries: ``"b"`` (the swept word length), a word length 1..32, or ``"exact"``; e.g. ``"b,b,12,exact"``.
-
-    Raises
-    ------
-    ConfigError
-        For anything else.
-    """
-    form = "state bits must be one entry per state, each 'b' (the swept b), a word length 1..32 or 'exact'"
-    if spec is None or (isinstance(spec, str) and spec.strip().lower() in ("", "b", "same")):
-        return None
-    if isinstance(spec, str):
-        if len(spec) > 2000:
-            raise ConfigError(f"{form}; got {short_repr(spec)}")
-        spec = [v.strip() for v in spec.split(",")]
-    if not isinstance(spec, (list, tuple)) or not spec or any(isinstance(v, str) and not v for v in spec):
-        raise ConfigError(f"{form}; got {short_repr(spec)}")
-    try:
-        out = parse_input_bits(list(spec) if len(spec) > 1 else [spec[0], "b"])
-    except ConfigError:
-        raise ConfigError(f"{form}; got {short_repr(spec)}") from None
-    assert isinstance(out, tuple)  # a list of two or more entries is always read as one entry per channel
-    return out if len(spec) > 1 else out[:1]
-
-
-def parse_noise(spec: object) -> tuple[float, ...]:
-    """Sensor noise standard deviations: one for every state, or one per state (``0.01`` or ``"0.01,0.02"``).
-
-    Raises
-    ------
-    ConfigError
-        If a value is negative or not a finite number.
-    """
-    if isinstance(spec, str):
-        try:
-            spec = [float(v) for v in spec.split(",") if v.strip()] if len(spec) <= 2000 else None
-        except ValueError:
-            spec = None
-        if not spec:
-            raise ConfigError(
-                "noise must be one standard deviation >= 0 or one per state, like '0.01' or '0.01,0,0.02'"
-            )
-    vals = list(spec) if isinstance(spec, (list, tuple, np.ndarray)) else [spec]
-    if not 0 < len(vals) <= 1000:
-        raise ConfigError("noise must be one standard deviation >= 0 or one per state")
-    return tuple(check_float("noise", v, 0.0, 1e12) for v in vals)
+__all__ = [
+    "HELD_OUT",
+    "KOOPMAN_MPC",
+    "KOOPMAN_MPC_UNUSED",
+    "NO_CERTIFICATES",
+    "InputBits",
+    "KoopmanConfig",
+    "SweepConfig",
+    "parse_bits",
+    "parse_input_bits",
+    "parse_noise",
+    "parse_state_bits",
+]
 
 
 #: Fields written as tables of their own by :meth:`SweepConfig.to_dict` (every other field as it is).
@@ -383,3 +249,131 @@ class SweepConfig:
         object.__setattr__(self, "state_bits", parse_state_bits(self.state_bits))
         object.__setattr__(self, "noise_known", check_bool("noise_known", self.noise_known))
         check_sweep_parts(self.system, self.mpc, self.rho)
+
+
+#: The MPC of the nonlinear sweeps by default: 1 s horizon, 10 s of closed loop (dt = 0.05).
+KOOPMAN_MPC = MPCConfig(horizon=20, steps=200, verify_steps=None)
+#: What the nonlinear results say about the linear certificates.
+NO_CERTIFICATES = (
+    "the linear certificates (Theorem 1's error model, small gain, ultimate bound, b_letter, b_robust) "
+    "assume a linear plant and do not apply to a nonlinear one: only observed outcomes are reported"
+)
+#: Held-out runs for the prediction error: runs, steps, and the default prediction horizon H (the error is over
+#: steps 1..H).
+HELD_OUT = (50, 40, 20)
+#: The :class:`MPCConfig` fields the Koopman loops do not use (exact state feedback, no disturbance, regulation
+#: to 0 without state constraints; the verdict is by ``radius`` and the sane box): a value other than
+#: ``MPCConfig()``'s is refused, never silently ignored. ``verify_steps`` is not used either and not checked
+#: (:data:`KOOPMAN_MPC` leaves it None, a linear study's MPC table may hold any value).
+KOOPMAN_MPC_UNUSED = (
+    "x_max",
+    "xf_max",
+    "x_ref",
+    "disturbance",
+    "disturbance_kind",
+    "feedback_bits",
+    "feedback_noise",
+    "loop_seed",
+    "reference",
+    "tracking",
+)
+
+
+@dataclass(frozen=True)
+class KoopmanConfig:
+    """A word-length sweep of a nonlinear plant.
+
+    Parameters
+    ----------
+    system : str or NonlinearSystem
+        A nonlinear preset (``van-der-pol``, ``duffing``, ``pendulum``) or a plant.
+    lifting : str
+        Dictionary spec (``poly:3``, ``rbf:K``, ``identity``; see :func:`~qsid_core.identification.parse_lifting`).
+    estimator : {"ls", "bcls"}
+    bits : tuple of int
+        Word lengths (every state and input).
+    trajectories, steps : int
+        Training runs and samples per run (default 2000 x 100).
+    realizations : int
+        Dither realizations per b.
+    data_seed, dither_seed : int
+        Seeds of the training data (and held-out runs, and the RBF centres) and of the dither.
+    quantizer : QuantizerSpec
+        Dither, range, guard band (default: subtractive, per-channel, guard band on).
+    mpc : MPCConfig or None
+        The Koopman MPC (default :data:`KOOPMAN_MPC`); None skips the loops. Fields the loops do not use
+        (:data:`KOOPMAN_MPC_UNUSED`) must keep ``MPCConfig()``'s values.
+    radius : float, > 0
+        Convergence radius of the loops' verdict (2-norm of the final state).
+    prediction_horizon : int, 1..40
+        Steps H of the prediction error: the relative RMS over k = 1..H of the prediction of each held-out run from
+        its first sample (:data:`HELD_OUT`: 50 runs of 40 samples; :func:`~qsid_core.identification.prediction_error`).
+    state_amplitude : float or None, > 0
+        ``a`` of the training runs' x0 ~ U[-a, a]^n (None: the plant's ``amplitude``, 2 for the presets).
+    input_amplitude : float, > 0
+        ``A`` of the training inputs u ~ U[-A, A]^m.
+    box : float or None, > 0
+        The sane box ``|x_i| <= box`` (None: the plant's, 50 for the presets): a training run beyond it is
+        reported and left out; a closed loop beyond it has diverged.
+    """
+
+    system: str | NonlinearSystem = "van-der-pol"
+    lifting: str = "poly:3"
+    estimator: str = "ls"
+    bits: tuple[int, ...] = tuple(range(2, 9))
+    trajectories: int = 2000
+    steps: int = 100
+    realizations: int = 20
+    data_seed: int = 0
+    dither_seed: int = 1
+    quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
+    mpc: MPCConfig | None = KOOPMAN_MPC
+    radius: float = CONVERGED_RADIUS
+    prediction_horizon: int = HELD_OUT[2]
+    state_amplitude: float | None = None
+    input_amplitude: float = 1.0
+    box: float | None = None
+
+    def __post_init__(self) -> None:
+        check_choice("estimator", self.estimator, ESTIMATORS)
+        if not self.bits:
+            raise ConfigError("bits must name at least one word length")
+        object.__setattr__(self, "bits", tuple(check_int("bits", b, 1, MAX_BITS) for b in self.bits))
+        check_int("trajectories", self.trajectories, 1, 100_000)
+        check_int("steps", self.steps, 1, 1_000_000)
+        check_int("realizations", self.realizations, 1, 10_000)
+        check_int("data seed", self.data_seed, 0)
+        check_int("dither seed", self.dither_seed, 0)
+        if not isinstance(self.quantizer, QuantizerSpec):
+            raise ConfigError("quantizer must be a QuantizerSpec")
+        object.__setattr__(self, "radius", check_float("radius", self.radius, 0.0, 1e12, lo_open=True))
+        check_int("prediction horizon", self.prediction_horizon, 1, HELD_OUT[1])
+        amp = check_float("input amplitude", self.input_amplitude, 0.0, 1e12, lo_open=True)
+        object.__setattr__(self, "input_amplitude", amp)
+        for name, label in (("state_amplitude", "state amplitude"), ("box", "box")):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, check_float(label, v, 0.0, 1e12, lo_open=True))
+        if self.mpc is not None:
+            if not isinstance(self.mpc, MPCConfig):
+                raise ConfigError("mpc must be an MPCConfig or None")
+            plain = MPCConfig()
+            used = [k for k in KOOPMAN_MPC_UNUSED if getattr(self.mpc, k) != getattr(plain, k)]
+            if used:
+                raise ConfigError(
+                    f"mpc.{used[0]}: the Koopman MPC does not use it (exact state feedback, no disturbance, "
+                    "regulation to 0 without state constraints); leave it at its default"
+                )
+
+    def plant(self) -> NonlinearSystem:
+        """The plant (a preset by name), with this config's ``state_amplitude`` and ``box`` where set."""
+        s = get_nonlinear(self.system)
+        if self.state_amplitude is None and self.box is None:
+            return s
+        a = s.amplitude if self.state_amplitude is None else self.state_amplitude
+        return replace(s, amplitude=a, box=s.box if self.box is None else self.box)
+
+    def dictionary(self) -> Lifting:
+        """The lifting for the plant's state (RBF centres over the training amplitude, seeded by ``data_seed``)."""
+        s = self.plant()
+        return parse_lifting(self.lifting, s.n, s.amplitude, self.data_seed)

@@ -1,12 +1,12 @@
 """One study of a plant over the word length, for every front end: the current b first, then the rest.
 
 :class:`Study` takes a frozen configuration — :class:`~qsid_core.studies.config.SweepConfig` for a linear plant,
-:class:`~qsid_core.studies.koopman_sweep.KoopmanConfig` for a nonlinear one; the plant's kind is the config's, not
+:class:`~qsid_core.studies.config.KoopmanConfig` for a nonlinear one; the plant's kind is the config's, not
 a second code path for the caller — with an executor and a cache. :meth:`Study.frames` yields what a front end
 shows as it becomes known (:class:`StudyFrame`: the current word length in full first, then the others), until
 done or until its :class:`CancelToken` is cancelled; :meth:`Study.run` computes the whole sweep at once (the
 CLI's result). Its stages and cache keys are the experiments' (:class:`~qsid_core.studies.experiment.Experiment`,
-:class:`~qsid_core.studies.koopman_stages.KoopmanExperiment`); two studies given the same cache share every
+:class:`~qsid_core.studies.study_nonlinear.KoopmanExperiment`); two studies given the same cache share every
 stage they have in common, in flight included (:class:`~qsid_core.studies.flights.Flights`).
 
 Examples
@@ -32,14 +32,12 @@ from numpy.typing import NDArray
 
 from ..control import ClosedLoops, KoopmanLoops
 from ..errors import ConfigError
-from .config import SweepConfig
+from .config import KoopmanConfig, SweepConfig
 from .experiment import Experiment
-from .koopman_stages import KoopmanExperiment, KoopmanModels
-from .koopman_sweep import KoopmanConfig, KoopmanResult, run_koopman_sweep
-from .stage_results import BitsIdentification, TheoryAtBits
+from .stage_results import BitsIdentification, KoopmanModels, TheoryAtBits
 from .study_linear import linear_frames, task_count
-from .study_nonlinear import nonlinear_frames
-from .sweep import run_sweep
+from .study_nonlinear import KoopmanExperiment, nonlinear_frames
+from .sweep import KoopmanResult, run_sweep
 from .sweep_result import SweepResult
 
 __all__ = ["CancelToken", "LinearAtBits", "NonlinearAtBits", "Study", "StudyFrame"]
@@ -248,6 +246,6 @@ class Study:
     def run(self, progress: Callable[[int, int, str], None] | None = None) -> SweepResult | KoopmanResult:
         """The whole sweep at once: a :class:`SweepResult` (linear) or a :class:`KoopmanResult` (nonlinear)."""
         if isinstance(self.config, KoopmanConfig):
-            return run_koopman_sweep(self.config)
+            return run_sweep(self.config)
         assert isinstance(self.experiment, Experiment)
         return run_sweep(self.config, self.executor, progress, experiment=self.experiment, tasks=self.experiment.tasks)

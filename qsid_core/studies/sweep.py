@@ -1,27 +1,51 @@
-"""Whole sweeps over the word length.
+"""Whole sweeps over the word length, of either plant kind: :func:`run_sweep` chooses by the config.
 
-:func:`run_sweep` runs every stage of an :class:`~qsid_core.studies.experiment.Experiment`
-for all requested b (identification, Theorem 1 and the ultimate bound, MPC closed
-loops) and returns a :class:`~qsid_core.studies.sweep_result.SweepResult`; :func:`summarize` is the
-complete per-b summary of an experiment.
+For a linear plant (:class:`~qsid_core.studies.SweepConfig`) it runs every stage of an
+:class:`~qsid_core.studies.experiment.Experiment` for all requested b (identification, Theorem 1 and the ultimate
+bound, MPC closed loops) and returns a :class:`~qsid_core.studies.sweep_result.SweepResult`; :func:`summarize` is
+the complete per-b summary of an experiment.
+
+For a nonlinear plant (:class:`~qsid_core.studies.KoopmanConfig`, :func:`run_koopman_sweep`), for each
+realization (an independent dither draw shared by every word length, as for a linear plant) and each word length
+``b``: the lifted moments of the quantized training data (:func:`~qsid_core.identification.quantized_lifted_moments`),
+the lifted model by the chosen estimator (:func:`~qsid_core.identification.edmd`), its relative errors against the
+EDMD of the *same unquantized data*, its multi-step prediction error on held-out runs of the true plant, and the
+Koopman MPC built on it run on the true plant from the plant's ``x0``
+(:func:`~qsid_core.control.run_koopman_loops`); a :class:`KoopmanResult`. The linear certificates (Theorem 1's
+error model, the small-gain and ultimate-bound results) assume a linear plant: they are not computed there and the
+result says so (:data:`~qsid_core.studies.NO_CERTIFICATES`).
 """
 
 from __future__ import annotations
 
 import time
 from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import Any, overload
 
 import numpy as np
 
+from ..control import run_koopman_loops
 from ..control.loop_results import ClosedLoops
-from .config import SweepConfig
+from ..errors import IdentificationError
+from ..identification import (
+    LARGE_DATA_HYPOTHESES,
+    edmd,
+    exact_lifted_moments,
+    large_data_limit,
+    prediction_error,
+    quantized_lifted_realizations,
+)
+from ..plant import NonlinearDataset, NonlinearSystem, simulate_nonlinear
+from .config import HELD_OUT, NO_CERTIFICATES, KoopmanConfig, SweepConfig
 from .config_checks import check_run_args
 from .executors import single_threaded_blas
 from .experiment import Experiment, Progress
+from .stage_results import ACC_KEYS, large_data_entry, no_exact_correction, predict, record, row
 from .summary import UNKNOWN, SummaryRow, fit_slope, summary_row
 from .sweep_result import SweepResult
 
-__all__ = ["run_sweep", "summarize"]
+__all__ = ["KoopmanResult", "held_out_runs", "run_koopman_sweep", "run_sweep", "summarize"]
 
 
 def summarize(ex: Experiment, b: int, estimator: str | None = None) -> SummaryRow:
@@ -42,18 +66,35 @@ def summarize(ex: Experiment, b: int, estimator: str | None = None) -> SummaryRo
     )
 
 
+@overload
 def run_sweep(
     config: SweepConfig,
     executor: Executor | None = None,
     progress: Progress | None = None,
     experiment: Experiment | None = None,
     tasks: int = 4,
-) -> SweepResult:
+) -> SweepResult: ...
+@overload
+def run_sweep(
+    config: KoopmanConfig,
+    executor: Executor | None = None,
+    progress: Progress | None = None,
+    experiment: Experiment | None = None,
+    tasks: int = 4,
+) -> KoopmanResult: ...
+def run_sweep(
+    config: SweepConfig | KoopmanConfig,
+    executor: Executor | None = None,
+    progress: Progress | None = None,
+    experiment: Experiment | None = None,
+    tasks: int = 4,
+) -> SweepResult | KoopmanResult:
     """Run a whole sweep over ``config.bits``.
 
     Parameters
     ----------
-    config : SweepConfig
+    config : SweepConfig or KoopmanConfig
+        A nonlinear plant's config runs :func:`run_koopman_sweep` (the other arguments are a linear plant's).
     executor : Executor, optional
         Where independent tasks run (default in-process).
     progress : callable(done, total, stage), optional
@@ -72,6 +113,8 @@ def run_sweep(
         ultimate bound (``delta = inf`` with ``bound_note``) and the closed loops
         (``ClosedLoops.failure`` / ``messages``); reported numbers are otherwise finite.
     """
+    if isinstance(config, KoopmanConfig):
+        return run_koopman_sweep(config)
     check_run_args(config, SweepConfig, executor, progress)
     with single_threaded_blas():
         t0 = time.perf_counter()
@@ -118,4 +161,148 @@ def run_sweep(
         realized,
         assumptions,
         ranges=ranges,
+    )
+
+
+@dataclass
+class KoopmanResult:
+    """A finished nonlinear sweep: one row per word length, and what they are compared with.
+
+    Attributes
+    ----------
+    config : KoopmanConfig
+    rows : list of dict
+        Per b (JSON-ready): ``bits``, ``eps_x``, ``eps_u``, ``err_G`` / ``err_A`` / ``err_B`` and
+        ``prediction_error`` as ``{mean, std}``, ``overload_fraction``, ``bcls_fallbacks``,
+        ``ident_failures``, ``stabilized_fraction``, ``closed_loop_outcomes``, ``within_radius`` (loops ending within ``radius``) and
+        ``settled_offset`` ({median, max}) (None without loops),
+        ``large_data`` (the estimator's large-data limit: ``err_G`` against the unquantized EDMD, None with a
+        ``note`` where no exact formula exists), ``notes``.
+    reference_prediction_error : float
+        The unquantized EDMD's prediction error (the floor the quantized models approach).
+    reference_outcome : str or None
+        The unquantized EDMD's Koopman MPC verdict.
+    reference_offset : float or None
+        Its loop's settled offset: what the dictionary alone leaves (NaN: the loop diverged or failed).
+    data_report : str
+        Runs left out of the training data ("" when none).
+    timing_s : float
+    """
+
+    config: KoopmanConfig
+    rows: list[dict[str, Any]]
+    reference_prediction_error: float
+    reference_outcome: str | None
+    data_report: str
+    features: int
+    runs_used: int
+    timing_s: float = 0.0
+    reference_offset: float | None = None
+
+    def _mpc(self, s: NonlinearSystem) -> dict[str, Any]:
+        """The loops' settings as run (the plant's defaults where the config leaves them unset)."""
+        m = self.config.mpc
+        assert m is not None
+        return {
+            "horizon": m.horizon,
+            "steps": m.steps,
+            "u_max": list(m.u_max) if isinstance(m.u_max, tuple) else [m.u_max],
+            "x0": list(m.x0 or s.x0),
+            "Q": list(m.Q or s.Q),
+            "R": list(m.R or s.R),
+            "terminal_weight": "C'QC" if self.config.lifting != "identity" else "DARE",
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict-JSON-ready summary."""
+        c = self.config
+        s = c.plant()
+        q = c.quantizer
+        return {
+            "kind": "koopman",
+            "system": s.name,
+            "config": {
+                "lifting": c.lifting,
+                "features": self.features,
+                "estimator": c.estimator,
+                "bits": list(c.bits),
+                "trajectories": c.trajectories,
+                "steps": c.steps,
+                "realizations": c.realizations,
+                "data_seed": c.data_seed,
+                "dither_seed": c.dither_seed,
+                "state_amplitude": s.amplitude,
+                "input_amplitude": c.input_amplitude,
+                "box": s.box,
+                "dither": q.dither,
+                "range": q.range_mode,
+                "guard": q.guard,
+                "mpc": None if c.mpc is None else self._mpc(s),
+                "convergence_radius": c.radius,
+                "held_out": {"runs": HELD_OUT[0], "steps": HELD_OUT[1], "horizon": c.prediction_horizon},
+            },
+            "data": {"runs_used": self.runs_used, "left_box": self.data_report},
+            "certificates": NO_CERTIFICATES,
+            "large_data_hypotheses": list(LARGE_DATA_HYPOTHESES),
+            "reference": {
+                "prediction_error": self.reference_prediction_error,
+                "closed_loop_outcome": self.reference_outcome,
+                "settled_offset": self.reference_offset,
+            },
+            "results": self.rows,
+            "timing_s": {"total": self.timing_s},
+        }
+
+
+def held_out_runs(system: NonlinearSystem, cfg: KoopmanConfig) -> NonlinearDataset:
+    """The held-out runs of the prediction error (:data:`HELD_OUT`), seeded apart from the training runs."""
+    return simulate_nonlinear(system, HELD_OUT[0], HELD_OUT[1], cfg.data_seed + 104729, cfg.input_amplitude)
+
+
+def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
+    """Run the sweep (see the module docstring).
+
+    Raises
+    ------
+    ConfigError, SystemDefinitionError, IdentificationError
+        Bad settings, a vector field that fails, or no model from the unquantized data.
+    """
+    t0 = time.perf_counter()
+    system = cfg.plant()
+    lifting = cfg.dictionary()
+    amp = cfg.input_amplitude
+    data: NonlinearDataset = simulate_nonlinear(system, cfg.trajectories, cfg.steps, cfg.data_seed, amp)
+    held = held_out_runs(system, cfg)
+    horizon = cfg.prediction_horizon
+    if data.T < lifting.L + system.m:
+        raise IdentificationError(
+            f"samples: {data.T} samples cannot fit {lifting.L + system.m} unknowns per row "
+            f"({lifting.L} features + {system.m} inputs); use more runs or steps, or a smaller dictionary"
+        )
+    ref = edmd(exact_lifted_moments(data, lifting), lifting.C, "ls")
+    ref_loop = None if cfg.mpc is None else run_koopman_loops([ref], lifting, system, cfg.mpc, cfg.radius)
+    nb = len(cfg.bits)
+    per: list[dict[str, list[Any]]] = [{k: [] for k in ACC_KEYS} for _ in range(nb)]
+    unbiased = cfg.estimator == "bcls"
+    seeds = np.random.SeedSequence(cfg.dither_seed).spawn(cfg.realizations)
+    for moms in quantized_lifted_realizations(data, lifting, cfg.bits, cfg.quantizer, seeds, unbiased):
+        for acc, mom in zip(per, moms, strict=True):
+            record(acc, mom, cfg.estimator, lifting, ref)
+        predict(per, lifting, held, horizon)
+    rows = [row(b, acc, lifting, system, cfg.mpc, cfg.radius) for b, acc in zip(cfg.bits, per, strict=True)]
+    correction = no_exact_correction(lifting, cfg.quantizer)
+    # BCLS's limit is the unquantized EDMD itself wherever the correction is exact: LS's limits only
+    limits = large_data_limit(data, lifting, cfg.bits, cfg.quantizer) if cfg.estimator == "ls" else [None] * nb
+    for r, limit in zip(rows, limits, strict=True):
+        r["large_data"] = large_data_entry(limit, cfg.estimator, ref, correction)
+    return KoopmanResult(
+        cfg,
+        rows,
+        prediction_error(ref, lifting, held, horizon),
+        None if ref_loop is None else ref_loop.outcome[0],
+        data.report,
+        lifting.L,
+        data.trajectories,
+        time.perf_counter() - t0,
+        None if ref_loop is None else float(ref_loop.settled_offset[0]),
     )

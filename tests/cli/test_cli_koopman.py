@@ -109,8 +109,8 @@ def test_nonlinear_sweep_table_is_aligned_and_says_n_a_where_no_limit_applies(ca
 
 
 def test_nonlinear_defaults_apply_where_no_option_is_typed():
-    from app.cli.koopman import koopman_config
     from app.cli.main import build_parser
+    from app.cli.study import koopman_config
 
     argv = ["sweep", "--system", "duffing"]
     args = build_parser("sweep").parse_args(argv)

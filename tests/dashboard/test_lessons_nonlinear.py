@@ -12,7 +12,7 @@ import pytest
 
 from app.dashboard.koopman_settings import koopman_config
 from app.dashboard.lessons import get_lesson, lesson_values
-from app.figures.koopman_scene import koopman_scene
+from app.figures.lifted_scene import lifted_scene
 from qsid_core.studies import KoopmanConfig, KoopmanExperiment, run_koopman_sweep
 
 pytestmark = pytest.mark.slow  # 400 x 100 samples, 10 realizations, Koopman MPC loops
@@ -63,7 +63,7 @@ def test_koopman_full_scale_ratio_is_about_50():
     assert 40 <= ls / bc <= 65, ls / bc
 
 
-def test_koopman_scene_draws_the_limit_cycle_and_the_loops_at_b3():
+def test_the_lifted_scene_draws_the_limit_cycle_and_the_loops_at_b3():
     ex = experiment("koopman")
     flow = ex.free_flow()
     assert flow.shape[0] == 9 and ex.loops(3, "ls") is not None and ex.loops(3, "bcls") is not None
@@ -75,7 +75,7 @@ def test_koopman_scene_draws_the_limit_cycle_and_the_loops_at_b3():
     assert np.all(np.abs(reach - 2.0) < 0.1), reach
     text = get_lesson("koopman").text
     assert "the plant's own flow (green, u = 0)" in text and "each but the one at the origin winding onto" in text
-    assert "green: the plant's own flow (u = 0)" in inspect.getsource(koopman_scene)  # the scene's caption
+    assert "green: the plant's own flow (u = 0)" in inspect.getsource(lifted_scene)  # the scene's caption
 
 
 def test_bias_variance_bcls_lower_mean_larger_spread_fewer_loops_within_the_radius_at_b2():

@@ -204,6 +204,27 @@ def test_every_view_module_is_registered_and_imports_no_other_view():
     }
     for name in view_modules:
         assert not _imports(name, *mods[name], set(mods)) & view_modules, name
+    # a nonlinear plant's views: the same modules where the quantity is the same, else a view named for what it shows
+    lifted = {f"app.figures.{v.build.__module__.rsplit('.', 1)[-1]}" for v in registry.KOOPMAN_VIEWS}
+    assert lifted == {
+        "app.figures.error_vs_bits",
+        "app.figures.eigenvalues",
+        "app.figures.prediction_error",
+        "app.figures.loop_outcomes",
+    }
+    every = view_modules | lifted
+    for name in lifted:
+        assert not _imports(name, *mods[name], set(mods)) & every, name
+
+
+def test_no_twin_module_per_plant_kind():
+    """One path for both plant kinds: no ``koopman_*`` module outside the dashboard (issue 41)."""
+    twins = [
+        p
+        for d in ("app/cli", "app/figures", "app/settings", "qsid_core/studies")
+        for p in (ROOT / d).glob("koopman_*.py")
+    ]
+    assert twins == []
 
 
 @pytest.mark.parametrize("package", PACKAGES)

@@ -110,3 +110,13 @@ def test_the_prediction_horizon_reaches_both_paths_and_longer_predictions_err_mo
     assert ref[1] < ref[5] < ref[40]  # an inexact model drifts from the true plant the further it predicts
     b3 = {h: d["results"][0]["prediction_error"]["mean"] for h, d in out.items()}
     assert b3[1] < b3[40]
+
+
+def test_run_sweep_chooses_the_nonlinear_path_by_the_config():
+    """One entry for both plant kinds: ``run_sweep`` of a KoopmanConfig is the nonlinear sweep, row for row."""
+    from qsid_core.studies import KoopmanResult, run_sweep
+
+    cfg = KoopmanConfig(system="duffing", bits=(4,), trajectories=100, steps=40, realizations=2, mpc=None)
+    via, direct = run_sweep(cfg), run_koopman_sweep(cfg)
+    assert isinstance(via, KoopmanResult)
+    assert via.rows == direct.rows and via.reference_prediction_error == direct.reference_prediction_error

@@ -1,9 +1,9 @@
-"""View (live 3-D, nonlinear plants): the plant's own flow and the Koopman MPC loops at the current b.
+"""View (live 3-D, offered when the result holds a lifting: a nonlinear plant): the plant's own flow and the Koopman MPC loops at the current b.
 
 Axes: the first two states (x1, x2 of the presets) and time (0 .. the loops' length). Thin green lines: the
 plant's free flow (u = 0) from a grid of initial states (the Van der Pol limit cycle, the pendulum's swings);
 coloured: the Koopman MPC loops of every realization's model at the current b on the true plant (LS blue,
-BCLS red); thick black: the loop of the unquantized EDMD's model. :func:`koopman_scene` is pure.
+BCLS red); thick black: the loop of the unquantized EDMD's model. :func:`lifted_scene` is pure.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from .palette import vertex_rgb
 from .phase_scene import CLIP, SceneView, interleave, scene_points, to_segments
 
-__all__ = ["koopman_scene", "scene_arrays"]
+__all__ = ["lifted_scene", "scene_arrays"]
 
 
 def scene_arrays(frame: Any) -> dict[str, Any]:
@@ -46,7 +46,7 @@ def _nan_tail(states: NDArray[np.float64]) -> NDArray[np.float64]:
     return out
 
 
-def koopman_scene(frame: Any) -> SceneView:
+def lifted_scene(frame: Any) -> SceneView:
     """What the 3-D portrait draws for a nonlinear frame (see the module docstring)."""
     a = scene_arrays(frame)
     dims, scale = a["dims"], a["scale"]

@@ -1,4 +1,4 @@
-"""View (nonlinear plants): the multi-step prediction error of the lifted models on held-out runs of the true
+"""View (offered when the result holds a lifting: a nonlinear plant): the multi-step prediction error of the lifted models on held-out runs of the true
 plant, per word length, with the unquantized EDMD's own prediction error (the floor) as a dashed line."""
 
 from __future__ import annotations

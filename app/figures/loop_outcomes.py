@@ -1,4 +1,4 @@
-"""View (nonlinear plants): the Koopman MPC's outcomes on the true plant per word length, per estimator: the
+"""View (offered when the result holds a lifting: a nonlinear plant): the Koopman MPC's outcomes on the true plant per word length, per estimator: the
 shares of loops that converged (settled at the origin), stayed bounded (within the convergence radius at the end, or
 beyond it), diverged or failed (observed, not certified)."""
 
