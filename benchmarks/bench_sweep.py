@@ -570,6 +570,7 @@ def main(argv=None) -> dict:
             f"{'qsid sweep (CLI, a new process per run)':<46}{cli['best']:>10.3f}{cli['median']:>12.3f}"
             f"{len(cli['runs']):>6}   CPU {cli['cpu_median']:.2f} s, engine {cli['engine_median']:.2f} s (medians)"
         )
+        print(f"{'':<46}   a new process per run after a warm-up run, Python's bytecode cache on")
         for i, r in enumerate(cli["runs"]):
             print(
                 f"{'':<46}   run {i + 1}: wall {r['wall']:.2f} s, CPU {r['cpu']:.2f} s, engine {r['engine']:.2f} s, "
