@@ -384,7 +384,7 @@ def naive_sweep(cfg: SweepConfig, realizations, osqp_setup: str = "model") -> di
             t_mpc += tc - tb
         out[b] = dict(A=Ah, B=Bh, err_A=eA, err_B=eB, cost=cost, failed=np.array([bool(f) for f in fails]))
     t_loop = time.perf_counter() - t1
-    cpu = time.process_time() - c0  # one thread: CPU seconds as the wall clock would be on an idle machine
+    cpu = time.process_time() - c0  # this process's CPU seconds (one Python thread; BLAS may add threads)
     return dict(
         per_b=out,
         realizations=realizations,
@@ -588,7 +588,7 @@ def main(argv=None) -> dict:
             f"{len(bits)} b = {nv['t_loop'] / (K * len(bits)) * 1e3:.1f} ms per (b, realization):"
         )
         print(f"{'':<46}   quantize + LS {nv['t_ident']:.3f} s, MPC closed loops {nv['t_mpc']:.3f} s")
-        print(f"{'':<46}   CPU {cpu_naive[mode]:.3f} s (extrapolated alike; one thread)")
+        print(f"{'':<46}   CPU {cpu_naive[mode]:.3f} s (extrapolated alike; one Python thread, BLAS its own)")
     print()
     best_fast = min(f["best"] for f in fast.values())
     ratios = {mode: {k: t_naive[mode] / fast[k]["best"] for k in kinds} for mode in modes}
