@@ -18,7 +18,6 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Protocol, TextIO
 
-from app.procs import process_pool, stop
 from app.stop import check_stopped
 
 from .mpc_args import mpc_config
@@ -252,6 +251,8 @@ def _executor(workers: int, threads: int = 1) -> Executor:
     from qsid_core import InlineExecutor
 
     if workers > 1:
+        from app.procs import process_pool  # loky: imported only for worker processes
+
         return process_pool(workers, _worker_init)
     if threads > 1:  # one process; the numba kernels release the GIL (results equal the inline run's, tested)
         return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="qsid")
@@ -277,9 +278,19 @@ def executor(args: argparse.Namespace, rep: Reporter) -> Iterator[tuple[Executor
     try:
         yield local, max(nw, threads)
     except BaseException:  # interrupted or failed: running tasks are not waited for (workers killed)
-        stop(local, kill=True)
+        _stop(local, kill=True)
         raise
-    stop(local)
+    _stop(local)
+
+
+def _stop(ex: Executor, kill: bool = False) -> None:
+    """:func:`app.procs.stop` for a process pool (which imported it), else the executor's own shutdown."""
+    if "app.procs" in sys.modules:
+        from app.procs import stop
+
+        stop(ex, kill=kill)
+    else:
+        ex.shutdown(wait=True, cancel_futures=kill)
 
 
 def _plural(k: int, word: str) -> str:

@@ -64,6 +64,7 @@ BCLS (``Psi~ Psi~^T - T D``) needs 1 and 2 (the noise variance must be the known
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -284,9 +285,14 @@ def _notes(a: dict[str, Any], c: SweepConfig) -> list[str]:
     return notes
 
 
-def overload_effect(ex: Staged, b: int) -> np.ndarray:
+def overload_effect(
+    ex: Staged, b: int, matrices: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None
+) -> np.ndarray:
     """:func:`clipping_effect` at word length ``b`` for an :class:`~qsid_core.studies.experiment.Experiment`, shape
-    (n, n+m); zeros when nothing clips. Needs the data and the quantizer only (no quantized data)."""
+    (n, n+m); zeros when nothing clips. Needs the data and the quantizer only (no quantized data).
+
+    ``matrices``: returns the data's ``(Psi, X+)`` (:meth:`~qsid_core.plant.data.Dataset.matrices`), e.g. built
+    once for several word lengths; called only when the quantizer clips."""
     from ..quantization.quantize import ERROR_VARIANCE, channel_bits, channel_eps, guard_cells
 
     c, sysm, prep, q = ex.config, ex.system, ex.prepared, ex.config.quantizer
@@ -296,7 +302,7 @@ def overload_effect(ex: Staged, b: int) -> np.ndarray:
     lo_q = np.asarray(prep.lo, dtype=float) - np.array([guard_cells(q.dither, q.guard, int(bb)) for bb in cb]) * eps
     if clips_nothing(ex.data.extremes(), lo_q, eps, cb):  # the usual case: no copy of the data needed
         return np.zeros_like(sysm.G)
-    Psi, Xp = ex.data.matrices()
+    Psi, Xp = matrices() if matrices is not None else ex.data.matrices()
     variance = ERROR_VARIANCE.get(q.dither, 1.0 / 12.0)
     grams = (prep.exact.PP, prep.exact.XP)
     return clipping_effect(sysm.G, Psi, Xp, lo_q, eps, cb, variance, ex.data.extremes(), grams)

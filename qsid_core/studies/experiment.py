@@ -186,6 +186,23 @@ class Experiment:
 
         return self.cache.memo(self.keys.overload_effect(b), lambda: overload_effect(self, b))
 
+    def overload_effects(self, bits: str | int | Sequence[int]) -> dict[int, NDArray[np.float64]]:
+        """:meth:`overload_effect` at every b of ``bits``; the data's matrices, where a quantizer clips, are
+        built once for all of them (a copy of the data, not kept)."""
+        from .assumptions import overload_effect
+
+        held: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
+
+        def matrices() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+            if not held:
+                held.append(self.data.matrices())
+            return held[0]
+
+        def effect(b: int) -> NDArray[np.float64]:
+            return self.cache.memo(self.keys.overload_effect(b), lambda: overload_effect(self, b, matrices))
+
+        return {b: effect(b) for b in parse_bits(bits)}
+
     def assumptions(self, b: int) -> Assumptions:
         """Which hypotheses of Theorem 1 and of BCLS hold at ``b`` (see :mod:`qsid_core.studies.assumptions`)."""
         from .assumptions import assess

@@ -19,14 +19,16 @@ result says so (:data:`~qsid_core.studies.NO_CERTIFICATES`).
 from __future__ import annotations
 
 import time
-from concurrent.futures import Executor
+from collections.abc import Callable
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 import numpy as np
 
 from ..control import run_koopman_loops
 from ..control.loop_results import ClosedLoops
+from ..control.realized_bound import RealizedBounds
 from ..errors import IdentificationError
 from ..identification import (
     LARGE_DATA_HYPOTHESES,
@@ -39,13 +41,36 @@ from ..identification import (
 from ..plant import NonlinearDataset, NonlinearSystem, simulate_nonlinear
 from .config import HELD_OUT, NO_CERTIFICATES, KoopmanConfig, SweepConfig
 from .config_checks import check_run_args
-from .executors import single_threaded_blas
+from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment, Progress
-from .stage_results import ACC_KEYS, large_data_entry, no_exact_correction, predict, record, row
+from .stage_results import (
+    ACC_KEYS,
+    BitsIdentification,
+    TheoryAtBits,
+    large_data_entry,
+    no_exact_correction,
+    predict,
+    record,
+    row,
+)
 from .summary import UNKNOWN, SummaryRow, fit_slope, summary_row
 from .sweep_result import SweepResult
 
+if TYPE_CHECKING:
+    from .assumptions import Assumptions
+
 __all__ = ["KoopmanResult", "held_out_runs", "run_koopman_sweep", "run_sweep", "summarize"]
+
+T = TypeVar("T")
+
+
+def _start(side: ThreadPoolExecutor | None, fn: Callable[..., T], *args: Any) -> Future[T]:
+    """``fn(*args)`` in the helper thread ``side``, or (None) here, at once, as a finished future."""
+    if side is not None:
+        return side.submit(fn, *args)
+    done: Future[T] = Future()
+    done.set_result(fn(*args))
+    return done
 
 
 def summarize(ex: Experiment, b: int, estimator: str | None = None) -> SummaryRow:
@@ -123,24 +148,14 @@ def run_sweep(
             ex.executor = executor
         _ = ex.prepared
         t1 = time.perf_counter()
-        ex.moments(config.bits, progress)
-        idents = {b: ex.identification(b) for b in config.bits}
-        t2 = time.perf_counter()
-        theory = {b: ex.theory(b) for b in config.bits}
-        realized = {b: ex.realized_bound(b) for b in config.bits}
-        assumptions = {b: ex.assumptions(b) for b in config.bits}
-        t3 = time.perf_counter()
-        loops: dict[int, ClosedLoops] = {}
-        true_loop = None
-        if config.mpc is not None:
-            loops = ex.closed_loops_many(config.bits, progress=progress)
-            true_loop = ex.true_model_loop()
-        t4 = time.perf_counter()
+        marks: list[float] = []
+        idents, theory, realized, assumptions, loops, true_loop = _stages(ex, progress, marks)
+        t2, t3, t4 = marks
     sA = fit_slope(config.bits, [np.mean(idents[b].err_A) for b in config.bits])
     sB = fit_slope(config.bits, [np.mean(idents[b].err_B) for b in config.bits])
     timing = {
         "data": round(t1 - t0, 4),
-        "identify": round(t2 - t1, 4),
+        "identify": round(t2 - t1, 4),  # with an executor: also Theorem 1 and the overload effects meanwhile
         "theory": round(t3 - t2, 4),
         "mpc": round(t4 - t3, 4),
         "total": round(time.perf_counter() - t0, 4),
@@ -162,6 +177,51 @@ def run_sweep(
         assumptions,
         ranges=ranges,
     )
+
+
+#: the stage results of a sweep: identification, theory, a-posteriori bounds, assumptions, closed loops,
+#: the true model's loop (None without MPC), each by b
+Stages = tuple[
+    dict[int, BitsIdentification],
+    dict[int, TheoryAtBits],
+    dict[int, RealizedBounds],
+    dict[int, "Assumptions"],
+    dict[int, ClosedLoops],
+    ClosedLoops | None,
+]
+
+
+def _stages(ex: Experiment, progress: Progress | None, marks: list[float]) -> Stages:
+    """Every stage at every b of ``ex.config``; appends to ``marks`` when identification, the bounds and
+    the closed loops are done.
+
+    With an executor of its own (threads, processes, a cluster) the experiment quantizes and runs the closed
+    loops there, submitted from a helper thread, while this thread computes what needs no quantized data
+    (Theorem 1, the overload effects, the true model's loop) or no closed loops (the bounds and assumptions):
+    the compiled kernels release the GIL. In-process, one after another.
+    """
+    bits, mpc = ex.config.bits, ex.config.mpc is not None
+    side = None if isinstance(ex.executor, InlineExecutor) else ThreadPoolExecutor(1, "qsid-sweep")
+    try:
+        moments = _start(side, ex.moments, bits, progress)
+        theory = {b: ex.theory(b) for b in bits}  # from the unquantized data
+        ex.overload_effects(bits)
+        if mpc and side is not None:
+            ex.true_model_loop()
+        moments.result()
+        idents = {b: ex.identification(b) for b in bits}
+        marks.append(time.perf_counter())
+        closed = _start(side, ex.closed_loops_many, bits, None, progress) if mpc else None
+        realized = {b: ex.realized_bound(b) for b in bits}
+        assumptions = {b: ex.assumptions(b) for b in bits}
+        marks.append(time.perf_counter())
+        loops: dict[int, ClosedLoops] = closed.result() if closed is not None else {}
+        true_loop = ex.true_model_loop() if mpc else None
+        marks.append(time.perf_counter())
+        return idents, theory, realized, assumptions, loops, true_loop
+    finally:
+        if side is not None:
+            side.shutdown(wait=False, cancel_futures=True)
 
 
 @dataclass

@@ -57,6 +57,10 @@ def test_bench_sweep_quick_main_prints_result(capsys):
     assert data["benchmark"] == "bench_sweep" and data["quick"]
     assert data["correctness"]["max_abs_diff_AB"] < 1e-9
     assert set(data["fast"]) == {"inline", "thread"}
+    # qsid sweep as a user runs it (a new process), beside the naive loop, with the engine's very numbers
+    assert data["cli"]["same_result_as_engine"] is True
+    assert len(data["cli"]["runs"]) == 1 and data["cli"]["runs"][0]["cpu"] > 0
+    assert data["cli"]["naive_over_cli"]["model"] > 0
     assert out["naive"]["model"]["measured_realizations"] == bench_sweep.QUICK["realizations"]
 
 
@@ -118,6 +122,7 @@ def test_bench_mpc_quick_main_prints_result(capsys, tmp_path):
         "bench_kernels.txt",
         "bench_koopman.txt",
         "bench_koopman_before.txt",
+        "bench_sweep.txt",
     ],
 )
 def test_the_benchmark_outputs_in_the_docs_were_saved_by_the_benchmarks(name):

@@ -151,3 +151,20 @@ def test_result_json_has_its_format_and_format_1_files_load_with_the_renamed_key
     (tmp_path / "v3.json").write_text(json.dumps(newer))
     with pytest.raises(ConfigError, match="result_format 3"):
         load_result(tmp_path / "v3.json")
+
+
+@pytest.mark.parametrize("estimator", ["ls", "bcls"])
+def test_a_sweep_with_an_executor_overlaps_its_stages_and_equals_the_inline_sweep(estimator):
+    # with an executor, the moments and the closed loops run beside Theorem 1, the overload effects, the bounds
+    # and the assumptions (a helper thread submits them); every number must be the inline sweep's, to the last digit
+    from concurrent.futures import ThreadPoolExecutor
+
+    cfg = SweepConfig(bits="1:6", estimator=estimator, quantizer=QuantizerSpec(guard=False), **SMALL)
+    a = run_sweep(cfg).to_dict()
+    with ThreadPoolExecutor(2) as pool:
+        b = run_sweep(cfg, executor=pool).to_dict()
+    for d in (a, b):
+        d.pop("timing_s")
+    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+    effects = [r["assumptions"]["overload_effect_A"] for r in a["results"]]
+    assert effects[0] > 1e-3  # without the guard band b = 1 clips the data: its effect was computed
