@@ -48,7 +48,7 @@ VIEWS: tuple[View, ...] = (
 
 #: The plots panel's group of a nonlinear plant (shown instead of :data:`TABS` while one is picked).
 KOOPMAN_TABS = ("Nonlinear",)
-#: Its views (they read a :class:`~app.dashboard.frames.KoopmanFrame`), in panel order.
+#: Its views (they read a :class:`~app.frames.frame.KoopmanFrame`), in panel order.
 KOOPMAN_VIEWS: tuple[View, ...] = (
     koopman_error.VIEW,
     koopman_eigen.VIEW,
