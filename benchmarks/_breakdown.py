@@ -29,7 +29,7 @@ CATEGORIES = {
         ("qsid_core.studies.experiment", "Experiment", "realized_bound"),
         ("qsid_core.studies.experiment", "Experiment", "assumptions"),
     ],
-    "figure building": [("app.dashboard.render", "Renderer", "render")],
+    "figure building": [("app.frames.render", "Renderer", "render")],
     "serialisation (figure JSON)": [("app.figures.raw", "Wire", "to_json")],
 }
 

@@ -2,7 +2,7 @@
 
 Times what a browser tab's worker does for one change of settings:
 :func:`app.dashboard.session.iter_frames` (engine work, shared cache) plus
-:class:`app.dashboard.render.Renderer` (3-D arrays, summary, plotly figures)
+:class:`app.frames.render.Renderer` (3-D arrays, summary, plotly figures)
 plus serialising every changed figure to JSON (what viser sends). Network and
 browser rendering are not included.
 
@@ -56,16 +56,10 @@ if str(ROOT) not in sys.path:
 import numpy as np
 from _breakdown import Breakdown, line
 
-from app.dashboard.cache import SharedCache
-from app.dashboard.render import Renderer
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import (
-    INTERACTIVE,
-    PAPER_SCALE,
-    Values,
-    log_from_weights,
-    resolve_system,
-)
+from app.frames.cache import SharedCache
+from app.frames.render import Renderer
+from app.settings.values import INTERACTIVE, PAPER_SCALE, Values, log_from_weights, resolve_system
 
 #: the CPU breakdown while the benchmark runs in-process (None with a pool)
 BREAKDOWN: Breakdown | None = None
@@ -166,15 +160,15 @@ def _main(argv=None) -> int:
     p.add_argument("--datalength", action="store_true", help="also time the data-length study (tens of seconds)")
     p.add_argument("--identification", default="LS + BCLS", choices=("LS", "BCLS", "LS + BCLS"))
     a = p.parse_args(argv)
-    from app.dashboard.memory import one_blas_thread
+    from app.dashboard.lifecycle import one_blas_thread
 
     one_blas_thread()  # as the server does at start
     ex = pool = None
     if a.workers and a.pool == "thread":
         ex = ThreadPoolExecutor(a.workers)
     elif a.workers:  # the dashboard's own pool, as a tab uses it (data shared once per worker, watched tasks)
+        from app.dashboard.lifecycle import warm
         from app.dashboard.pool import Pool
-        from app.dashboard.warm import warm
 
         pool = Pool(a.workers)
         ex = pool.guarded()
@@ -234,7 +228,7 @@ def _main(argv=None) -> int:
         _row("paper scale: b change", runs, "-")
     print(f"cache: {len(cache)} entries, ~{cache.nbytes / 2**20:.0f} MB, {cache.kinds()}")
     if a.datalength:
-        from app.dashboard.background import datalength_config
+        from app.frames.datalength import datalength_config
         from qsid_core import run_datalength
 
         cfg = datalength_config(base)

@@ -39,7 +39,7 @@ def first_answers(ex, n: int) -> None:
 
 def make(kind: str, n: int):
     """``(executor, stop)`` of ``kind`` with ``n`` workers, BLAS at one thread in each (as the dashboard's)."""
-    from app.dashboard.memory import one_blas_thread
+    from app.dashboard.lifecycle import one_blas_thread
 
     if kind == "loky":
         import loky
@@ -79,8 +79,8 @@ def make(kind: str, n: int):
 
 def view(values, ex, tasks: int) -> float:
     """Seconds to compute and draw a tab's frames of ``values`` through ``ex`` into an empty cache."""
-    from app.dashboard.cache import SharedCache
-    from app.dashboard.warm import prefill
+    from app.dashboard.lifecycle import prefill
+    from app.frames.cache import SharedCache
 
     t = time.perf_counter()
     prefill(values, SharedCache(), ex, tasks)
@@ -95,9 +95,8 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-paper", action="store_true", help="skip the paper-scale view")
     a = ap.parse_args(argv)
-    from app.dashboard.memory import one_blas_thread
-    from app.dashboard.settings import INTERACTIVE, PAPER_SCALE, Values
-    from app.dashboard.warm import warm_here
+    from app.dashboard.lifecycle import one_blas_thread, warm_here
+    from app.settings.values import INTERACTIVE, PAPER_SCALE, Values
 
     one_blas_thread()
     warm_here()  # the kernels compiled (or loaded) here, so no kind pays the compiler

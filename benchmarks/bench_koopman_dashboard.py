@@ -30,9 +30,11 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from app.dashboard.koopman_settings import nonlinear_values  # noqa: E402
-from app.dashboard.settings import Values  # noqa: E402
-from app.dashboard.stages import iter_frames  # noqa: E402
+from app.frames.compute import iter_frames  # noqa: E402
+from app.settings.values import (
+    Values,  # noqa: E402
+    nonlinear_values,  # noqa: E402
+)
 from qsid_core.control import run_koopman_loops  # noqa: E402
 
 

@@ -6,7 +6,7 @@ plain websocket clients (:mod:`_wsclient`, what a browser sends):
 1. ``--storm-clients`` clients (default 10) at ``--storm-rate`` changes/s each for ``--storm-seconds``;
 2. the soak: ``--clients`` clients (default 3) at ``--rate`` changes/s each for ``--minutes`` (default 10);
 3. all clients close; RSS is read again over ``--settle`` seconds (default 45: a server with no tab
-   left gives its results and the workers' data back after 20 s, :mod:`app.dashboard.idle`);
+   left gives its results and the workers' data back after 20 s, :mod:`app.dashboard.lifecycle`);
 4. optionally (``--flood SECONDS``) ``--flood-clients`` clients (default 5, in a process of their own)
    send changes as fast as they can while a new tab connects: seconds until it says "ready", the
    flood's rate, and whether the flooding clients stayed connected.

@@ -17,7 +17,7 @@ the dashboard's tables are read from the dashboard's own modules.
     checkout on ``PYTHONPATH``) and shows the code, then what it printed.
 ``.. qsid-controls::``, ``.. qsid-lessons::``, ``.. qsid-views::``
     The dashboard's panel inputs (:data:`app.dashboard.controls.CONTROLS` with the defaults of
-    :class:`app.dashboard.settings.Values`), lessons (:data:`app.dashboard.lessons.LESSONS`) and
+    :class:`app.settings.values.Values`), lessons (:data:`app.lessons.table.LESSONS`) and
     plots (:data:`app.figures.registry.VIEWS`) as tables.
 ``.. qsid-docstring:: MODULE``
     A module's docstring, parsed as reStructuredText (e.g. the dashboard's threading list).
@@ -211,7 +211,7 @@ class ControlsDirective(Directive):
 
     def run(self):
         from app.dashboard.controls import CONTROLS
-        from app.dashboard.settings import Values
+        from app.settings.values import Values
 
         defaults = Values()
         out = []
@@ -238,7 +238,7 @@ class ControlsDirective(Directive):
 
 class LessonsDirective(Directive):
     def run(self):
-        from app.dashboard.lessons import LESSONS
+        from app.lessons.table import LESSONS
 
         # (the panel's markdown emphasis, e.g. the start text's **fig1**, as plain text)
         rows = [[f"``{les.name}``", les.title, re.sub(r"\*+", "", les.text), les.plot] for les in LESSONS]

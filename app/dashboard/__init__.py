@@ -1,15 +1,17 @@
 """qsid-dashboard: the live viser dashboard (``qsid-dashboard`` or ``python -m app.dashboard``).
 
-Modules, in the order a request flows through them:
+The dashboard is viser wiring: what it shows is computed and arranged without any GUI in :mod:`app.frames`
+(frames, summaries, figures, exports, the shared cache) from the values of :mod:`app.settings` (values, engine
+configuration, settings files, view codes), with the lessons of :mod:`app.lessons`. Modules, in the order a
+request flows through them:
 
-- :mod:`~app.dashboard.server`: the viser server, shared cache and process pool, ``main``;
+- :mod:`~app.dashboard.server`: the viser server, shared cache and process pool, ``main``
+  (:mod:`~app.dashboard.lifecycle`: its start-up, warm-up, memory and stop; :mod:`~app.dashboard.options`: its
+  command line);
 - :mod:`~app.dashboard.session`: one tab's worker and ALL of the dashboard's threading;
-- :mod:`~app.dashboard.controls`: the panel, built from one table of control specs;
-- :mod:`~app.dashboard.settings`: panel values -> engine configuration;
-- :mod:`~app.dashboard.frames`: engine results gathered for the views;
-- :mod:`~app.dashboard.render`, :mod:`~app.dashboard.summary`, :mod:`~app.dashboard.scene`:
-  what a tab redraws (plots from :data:`app.figures.registry.VIEWS`), its summary, its 3-D nodes;
-- :mod:`~app.dashboard.cache`: the bounded cache all tabs share.
+- :mod:`~app.dashboard.tabview`, :mod:`~app.dashboard.controls`, :mod:`~app.dashboard.viewpanel`,
+  :mod:`~app.dashboard.share`, :mod:`~app.dashboard.scene`: the tab's panels and its 3-D nodes;
+- :mod:`~app.dashboard.follow`: tabs that follow another tab live.
 """
 
 import os

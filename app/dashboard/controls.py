@@ -5,7 +5,7 @@ Like viser's SMPL example (``examples/04_demos/03_smpl_visualizer.py``),
 dataclass; every input's callback only marks the tab dirty (``on_change``); the
 tab's one worker loop (:mod:`app.dashboard.session`) reads :func:`read_values`
 and redraws. Choices and ranges come from the engine (via
-:mod:`app.dashboard.settings`); the slider ranges here are the panel's own.
+:mod:`app.settings.values`); the slider ranges here are the panel's own.
 """
 
 from __future__ import annotations
@@ -17,28 +17,29 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from app.figures.phase_scene import axes_options
+from app.lessons.drift import lesson_markdown
+from app.lessons.table import NONE, lesson_values
+from app.settings.files import panel_choices
 from app.settings.schema import BY_NAME, SETTINGS, Setting, hint_text, resolve
-from qsid_core import LTISystem
-
-from .flow import inline
-from .koopman_settings import is_nonlinear, scale_for
-
-if TYPE_CHECKING:
-    import viser
-from .lessons import NONE, lesson_markdown, lesson_names, lesson_values
-from .settings import (
-    IDENT_CHOICES,
+from app.settings.values import (
     INTERACTIVE,
     LOG_MAX,
     LOG_MIN,
     PAPER_SCALE,
-    SYSTEM_CHOICES,
     Values,
     format_weights,
+    is_nonlinear,
     log_from_weights,
     matrix_text,
+    scale_for,
     weights_from_log,
 )
+from qsid_core import LTISystem
+
+from .flow import inline
+
+if TYPE_CHECKING:
+    import viser
 
 __all__ = [
     "Control",
@@ -65,7 +66,7 @@ MATRIX_HINT: str = BY_NAME["a_text"].hint or ""
 @dataclass(frozen=True)
 class Control:
     """One input of the panel, made from one row of the settings table (``setting``); ``name`` is the
-    :class:`~app.dashboard.settings.Values` field it sets.
+    :class:`~app.settings.values.Values` field it sets.
 
     ``kind``: slider (lo, hi, step), dropdown (choices), text, checkbox, number (lo, hi, step);
     ``tab``: panel tab ("" = above the tabs); ``folder``: optional folder inside the tab;
@@ -86,14 +87,6 @@ class Control:
     setting: Setting | None = None
 
 
-#: The dashboard's own choices of a dropdown (the engine's come with the setting).
-_DASHBOARD_CHOICES: dict[str, tuple[str, ...]] = {
-    "lesson": tuple(lesson_names()),
-    "system": tuple(SYSTEM_CHOICES),
-    "identification": tuple(IDENT_CHOICES),
-}
-
-
 def _control(s: Setting) -> Control:
     """The panel input of setting ``s``."""
     assert s.control is not None
@@ -101,7 +94,7 @@ def _control(s: Setting) -> Control:
         lo, hi, step = resolve(s.slider)
     else:  # a number box: the browser offers the allowed range
         lo, hi, step = s.min, s.max, s.step
-    choices = _DASHBOARD_CHOICES.get(s.name) or tuple(resolve(s.choices))
+    choices = panel_choices(s)  # a front end's own (lessons, systems, identification) or the engine's
     return Control(s.name, s.control, s.label, s.tab, lo, hi, step, choices, hint_text(s), s.folder, s.type, s)
 
 

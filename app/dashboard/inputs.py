@@ -18,15 +18,16 @@ import numpy as np
 
 from app.settings.check import MAX_NESTING, MAX_TEXT, check_setting
 from app.settings.schema import Setting
+from app.settings.values import LOG_MAX, LOG_MIN, InputError
 
 from .controls import CONTROLS, Control
-from .settings import LOG_MAX, LOG_MIN, InputError
 
 if TYPE_CHECKING:
     from collections.abc import Awaitable, Callable, Mapping, Sequence
 
+    from app.frames.frame import Frame
+
     from .controls import GuiElements
-    from .frames import Frame
 
 __all__ = ["check_panel", "check_value", "check_sent", "sent_guard", "unusable", "MAX_TEXT", "MAX_NESTING"]
 

@@ -15,7 +15,7 @@ from loky.process_executor import ShutdownExecutorError
 from app.procs import process_pool, stop
 from qsid_core import QsidError
 
-from .memory import one_blas_thread, trim
+from .lifecycle import one_blas_thread, trim
 
 __all__ = ["Pool", "Guarded", "PoolFailure", "Superseded", "DEFAULT_TIMEOUT"]
 

@@ -20,10 +20,9 @@ from __future__ import annotations
 import threading
 import time
 
-from app.figures.presenter import PRESENTER_SIZE
+from app.settings.values import ALL_BITS
 
 from .controls import PLAY_LABEL
-from .settings import ALL_BITS
 
 __all__ = [
     "PresenterLayout",
@@ -33,7 +32,6 @@ __all__ = [
     "LEFT_WIDTH",
     "WIDE",
     "LEFT_SHARE",
-    "PLOT_ASPECT",
     "SCENE_ASPECT",
     "SHOW_SCENE",
     "SHOW_PLOT",
@@ -50,17 +48,13 @@ LEFT_WIDTH = 290
 #: the window less its 120 px minimum of 3-D canvas, so without knowing the window's width (the server is not
 #: told it) the left panel gets 20 % of it (249 px at 1366, 360 px at 1920) and the plots the rest.
 WIDE, LEFT_SHARE = 20000.0, 0.2
-#: Height / width of a plot in presenter mode: one view fills the plots panel under its header at 1366 × 768
-#: (~1000 × 600 px) and at 1920 × 1080 (~1430 × 860 px); a view of many rows is taller (the renderer sets each
-#: plot's aspect from its figure, :func:`app.dashboard.render.plot_aspect`).
-PLOT_ASPECT = PRESENTER_SIZE[1] / PRESENTER_SIZE[0]
 #: Width / height of the 3-D canvas beside the left panel in presenter mode (at least; the camera frames the
 #: box in it).
 SCENE_ASPECT = 1.35
 #: The switch's labels: what pressing it shows.
 SHOW_SCENE, SHOW_PLOT = "⇄ show the 3-D scene", "⇄ show the plot"
 #: The switch's and, in presenter mode, the lesson text's place after the auto-play (in order units; the view-code
-#: lines follow the auto-play at +0.001 .. +0.004: :func:`app.dashboard.codepanel.add_code_panel`).
+#: lines follow the auto-play at +0.001 .. +0.004: :func:`app.dashboard.share.add_code_panel`).
 SWITCH_AT, TEXT_AT = 0.0002, 0.0005
 #: The left panel's normal width (viser's "large" control width).
 NORMAL_LEFT = 384

@@ -2,7 +2,7 @@
 
 Each browser tab gets its own controls, 3-D scene, plots and worker thread
 (:class:`~app.dashboard.session.Session`, built in ``on_client_connect``). All
-tabs share one bounded cache (:class:`~app.dashboard.cache.SharedCache`), one
+tabs share one bounded cache (:class:`~app.frames.cache.SharedCache`), one
 small process pool for the heavy work, and a few compute slots, so many tabs
 cannot exhaust the machine. Threading is described in :mod:`app.dashboard.session`.
 """
@@ -23,26 +23,36 @@ from collections import OrderedDict
 
 import viser
 
+from app.frames.cache import DEFAULT_MB, SharedCache
+from app.lessons.table import lesson_values
+from app.settings.values import INTERACTIVE, PAPER_SCALE, Values
+from app.settings.viewcodes import ViewStore, default_store_path, open_view, page_location
 from qsid_core import ConfigError, QsidError
 
-from .cache import DEFAULT_MB, SharedCache
 from .flow import READ_BYTES, FairSlots
 from .follow import FollowHub
-from .idle import IdleRelease
-from .lessons import lesson_values
-from .memory import limit_arenas, one_blas_thread, trim
-from .netcheck import who_can_connect
-from .options import STARTING_SYSTEMS, check_lesson, check_options, parser
+from .lifecycle import (
+    COLD_START,
+    WARM_START,
+    IdleRelease,
+    StartupReport,
+    first_tab,
+    limit_arenas,
+    needs_compiling,
+    one_blas_thread,
+    prefill,
+    prepare_stop_signals,
+    stop_app,
+    trim,
+    wait_for_stop_signal,
+    warm,
+)
+from .options import STARTING_SYSTEMS, check_lesson, check_options, parser, who_can_connect
 from .pool import DEFAULT_TIMEOUT, Pool
 from .scene import VIEW_FROM
 from .session import Session
-from .settings import INTERACTIVE, PAPER_SCALE, Values
-from .startup import StartupReport
-from .stopping import prepare_stop_signals, stop_app, wait_for_stop_signal
 from .tabview import drop_late_draws
-from .viewcodes import ViewStore, default_store_path, open_view, page_location
 from .viserfix import connection_request, limit_reads, redirect_pages, refuse_share_requests, thread_safe_buffers
-from .warm import COLD_START, WARM_START, first_tab, needs_compiling, prefill, warm
 
 __all__ = ["DashboardApp", "main"]
 
@@ -211,7 +221,7 @@ class DashboardApp:
             self.idle.schedule()
 
     def prefill(self, progress=None) -> str | None:
-        """Compute and draw a new tab's view once (see :func:`.warm.prefill`; ``progress`` is given each frame);
+        """Compute and draw a new tab's view once (see :func:`.lifecycle.prefill`; ``progress`` is given each frame);
         returns why not, or None."""
         try:
             prefill(self.defaults, self.cache, self.executor, self.tasks, progress)
@@ -232,7 +242,7 @@ class DashboardApp:
         self.prefill()
 
     def _page_location(self, target: str, host: str, secure: bool) -> str | None:
-        """Where a page request is redirected (:func:`~app.dashboard.viewcodes.page_location`), or None."""
+        """Where a page request is redirected (:func:`~app.settings.viewcodes.page_location`), or None."""
         return page_location(target, host, secure, self.views.new_code)
 
     def _code_in_use(self, code: str, but=None) -> bool:

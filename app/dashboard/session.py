@@ -11,22 +11,22 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
    computes and draws; it drops a computation as soon as a newer generation exists, and starts
    at most one computation per ``MIN_GAP`` seconds (a burst of changes: only the newest is computed;
    a tab flooded with changes faster than any person makes them waits longer, up to ``MAX_GAP``).
-3. the helper thread of :func:`iter_frames` (:mod:`.stages`, one per computation): quantizes the
+3. the helper thread of :func:`iter_frames` (:mod:`app.frames.compute`, one per computation): quantizes the
    next chunk of word lengths while the worker runs closed loops; once every word length is quantized,
    one ``qsid-loops`` thread per estimator submits its closed loops to the pool while the worker computes
    the rows' other parts (assumptions, a-posteriori bounds).
 4. ``DashboardApp.slots`` (server, :class:`~app.dashboard.flow.FairSlots`): at most a few tabs compute at
-   once, served in the order they asked; a change that only redraws cached results (:data:`~app.dashboard.settings.DISPLAY_ONLY`)
+   once, served in the order they asked; a change that only redraws cached results (:data:`~app.settings.values.DISPLAY_ONLY`)
    goes first and has one slot of its own.
 5. ``DashboardApp._lock`` (server): the tab registry.
-6. ``SharedCache._lock`` (cache): the shared cache is read and written by all of the above.
+6. ``SharedCache._lock`` (:mod:`app.frames.cache`): the shared cache is read and written by all of the above.
 7. the process pool (:mod:`.pool`, loky's): ``Pool._lock`` guards its replacement (only of the failed executor);
    its watchdog abandons stale pool tasks and times out hung workers (the tab retries once).
 8. signals (server ``main``): SIGINT/SIGTERM/SIGHUP blocked in every thread, taken by ``sigtimedwait`` in main
    from the first moment; the start-up (port check, warm-up, first view) runs in a ``qsid-start`` thread.
-9. ``DataLengthRunner.thread`` (:mod:`.background`, at most one per tab): the data-length study on
+9. ``DataLengthRunner.thread`` (:mod:`app.frames.datalength`, at most one per tab): the data-length study on
    demand, in-process; cancelled when the tab's generation changes (any new change).
-10. ``DashboardApp.idle`` (server, :class:`~app.dashboard.idle.IdleRelease`): one timer thread once the
+10. ``DashboardApp.idle`` (server, :class:`~app.dashboard.lifecycle.IdleRelease`): one timer thread once the
     last tab closed; it clears the shared cache and the workers' data unless a tab opened meanwhile.
 11. ``DashboardApp.follow`` (server, :class:`~app.dashboard.follow.FollowHub`): its lock guards who leads and
     follows which code and the newest state each leader published (a leader's worker publishes, never waiting
@@ -41,25 +41,24 @@ import threading
 import time
 import traceback
 
+from app.frames.compute import iter_frames
+from app.frames.datalength import DataLengthRunner
+from app.frames.frame import Frame
+from app.lessons.drift import lesson_markdown
+from app.lessons.table import get_lesson, lesson_names, lesson_values
+from app.settings.values import InputError, Values, is_nonlinear, resolve_system
+from app.settings.viewcodes import ViewOpen
 from qsid_core import QsidError
 
-from .background import DataLengthRunner
+from .adapt import KindSwitch, LessonMark
 from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
-from .follower import refused
+from .follow import refused
 from .frame_loop import Reporters, draw_frames
-from .frames import Frame
 from .inputs import check_panel, check_sent, sent_guard, unusable
-from .koopman_settings import is_nonlinear
-from .lesson_mark import LessonMark
-from .lessons import get_lesson, lesson_markdown, lesson_names, lesson_values
-from .plant_kind import KindSwitch
 from .pool import PoolFailure
-from .settings import InputError, Values, resolve_system
 from .share import show_frame
-from .stages import iter_frames
 from .tabview import TabView
-from .viewcodes import ViewOpen
 from .viserfix import guard_updates, set_callback_executor
 
 __all__ = ["Session", "iter_frames", "MIN_GAP", "MAX_GAP"]
@@ -101,7 +100,7 @@ class Session:
         self.callbacks = TabCallbacks(str(client.client_id))
         set_callback_executor(gui, self.callbacks)
         # a value sent is checked by the panel's rules before viser converts it; one viser refuses is explained
-        # (a follower's panel takes nothing: :func:`~app.dashboard.follower.refused`)
+        # (a follower's panel takes nothing: :func:`~app.dashboard.follow.refused`)
         check = lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u)  # noqa: E731
         guard_updates(gui, sent_guard(check, self._refuse, self._accept))  # a refusal stays until its input changes
         self.lesson_shown = values.lesson  # the lesson whose settings the panel was given

@@ -1,165 +1,51 @@
-"""Keep and share a view: settings as JSON (download / upload / ``--settings FILE``), a plant file as the
-panel's custom system (``--system FILE``), and the tab's "Save, load & export" folder, whose command line and
-exports come from :mod:`app.dashboard.exports`.
+"""Keep and share a view, the panel's parts: the tab's view code and links with the "load view code" box, and
+its "Save, load & export" folder (settings as a file, the command line, the exports).
 
-The pure functions (settings <-> JSON, plant file -> values) are tested directly; :func:`add_share_panel` builds
-the tab's folder from what it needs (the last frame, the panel's values, a way to send a file and to hand
-loaded settings back) and :func:`show_frame` shows the command of a frame drawn.
+A tab with a view of its own shows its code, its **link** (these settings in a tab of one's own; a reload of
+the tab comes back to them too) and its **follow link** (this tab live and read-only, for a class; the number
+of tabs following it is shown). A follower (:mod:`app.dashboard.follow`) shows the code it follows and that
+follow link instead, and no load box. Which codes and links mean what: :mod:`app.settings.viewcodes`; settings
+files: :mod:`app.settings.files`; the command line and exports: :mod:`app.frames.exports`.
+:func:`add_share_panel` builds the folder from what it needs (the last frame, the panel's values, a way to send
+a file and to hand loaded settings back) and :func:`show_frame` shows the command of a frame drawn.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import html
-import json
 from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from app.frames.exports import command_lines, curves_csv, curves_json, frame_html
+from app.settings.files import settings_json, values_from_json
+from app.settings.values import InputError, Values, resolve_system
+from app.settings.viewcodes import ViewOpen, ViewStore, normalize_code, view_link
 
-from app.settings.check import check_setting
-from app.settings.schema import BY_NAME
-from qsid_core import QsidError
-
-from .controls import CONTROLS
-from .exports import command_lines, curves_csv, curves_json, frame_html
-from .koopman_settings import NONLINEAR_CHOICES, koopman_config, nonlinear_values
-from .settings import InputError, Values, resolve_system, sweep_config
+from .controls import CONTROLS, initial_value, set_system
 
 if TYPE_CHECKING:
-    from .frames import Frame
+    from app.frames.frame import Frame
 
 __all__ = [
-    "SETTINGS_KIND",
-    "settings_json",
-    "values_from_json",
-    "load_settings_file",
-    "values_for_plant_file",
     "apply_values",
+    "mirror_panel",
     "add_share_panel",
     "show_frame",
     "ShareHandles",
+    "CodePanel",
+    "add_code_panel",
+    "load_code",
+    "remember",
+    "show_view",
+    "count_followers",
+    "say",
 ]
 
-#: The "kind" tag of a settings file (and its format version).
-SETTINGS_KIND, SETTINGS_VERSION = "qsid-dashboard-settings", 1
-_FIELDS = {f.name: f for f in dataclasses.fields(Values)}
 _CONTROL = {c.name: c for c in CONTROLS}
 
 
-def settings_json(v: Values) -> str:
-    """The panel's settings as a small JSON document (what "Download settings" saves)."""
-    return json.dumps(
-        {"kind": SETTINGS_KIND, "version": SETTINGS_VERSION, "values": dataclasses.asdict(v)}, indent=2, allow_nan=False
-    )
-
-
-def _field_value(name: str, value: object) -> object:
-    """``value`` of the settings file's field ``name``, checked by the settings table's rules (its type before
-    any conversion, its range, its choices) as a panel value is; InputError in plain words if it is refused."""
-    c = _CONTROL.get(name)
-    options = c.choices if c is not None and c.choices else None
-    try:
-        return check_setting(BY_NAME[name], value, options, name=name)
-    except InputError as exc:
-        raise InputError(f"settings: {exc}") from None
-
-
-def values_from_json(text: str | bytes) -> Values:
-    """Settings saved by :func:`settings_json` back as :class:`Values` (checked: the engine accepts them).
-
-    Missing fields keep their defaults; unknown fields, wrong types and values the engine refuses raise
-    :class:`~app.dashboard.settings.InputError` (one line).
-    """
-    try:
-        d = json.loads(text)
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise InputError(f"settings: not a JSON file ({getattr(exc, 'msg', type(exc).__name__)})") from None
-    if not isinstance(d, dict) or d.get("kind") != SETTINGS_KIND or not isinstance(d.get("values"), dict):
-        raise InputError(f'settings: not a qsid settings file (needs "kind": "{SETTINGS_KIND}" and "values")')
-    unknown = sorted(set(d["values"]) - set(_FIELDS))
-    if unknown:
-        raise InputError(f"settings: unknown field(s) {', '.join(map(str, unknown))[:200]}")
-    v = Values(**{k: _field_value(k, x) for k, x in d["values"].items()})
-    if v.system in NONLINEAR_CHOICES:  # a nonlinear preset: its sweep's configuration instead
-        koopman_config(v)
-    else:
-        sweep_config(v, resolve_system(v).system)  # every value usable (InputError in plain words otherwise)
-    return v
-
-
-def load_settings_file(path: str | Path) -> Values:
-    """``qsid-dashboard --settings FILE``: the file's settings (InputError naming the file if bad)."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"settings file {str(p)!r} " + ("is a directory" if p.is_dir() else "does not exist"))
-    try:
-        return values_from_json(p.read_bytes())
-    except InputError as exc:
-        raise InputError(f"{p.name}: {exc}") from None
-    except OSError as exc:
-        raise InputError(f"cannot read settings file {str(p)!r}: {exc.strerror or exc}") from None
-
-
-def values_for_plant_file(path: str | Path, defaults: Values) -> tuple[Values, list[str]]:
-    """``qsid-dashboard --system FILE``: the plant file the CLI reads, as the panel's custom system.
-
-    A, B and x0 are kept exactly (their numbers written out in full); Q and R become the weight
-    sliders' log10 positions, so a weight outside the sliders' range is clipped and an off-diagonal
-    entry dropped: each such change is one line of the returned notes.
-
-    Raises
-    ------
-    InputError
-        The file cannot be read or is not a plant the engine and the panel accept (one line, naming it).
-    """
-    from qsid_core import get_system
-    from qsid_core.plant import get_nonlinear, is_nonlinear_file
-
-    from .settings import LOG_MAX, LOG_MIN, MAX_CUSTOM_STATES, log_from_weights
-
-    if is_nonlinear_file(path):  # a vector field: a nonlinear plant of its own in the system dropdown
-        try:
-            get_nonlinear(str(path))
-        except QsidError as exc:
-            raise InputError(f"--system {path}: {exc}") from None
-        return nonlinear_values(str(path), defaults), []
-
-    try:
-        sysm = get_system(str(path))  # a preset name or a file, as qsid --system
-    except QsidError as exc:
-        raise InputError(f"--system {path}: {exc}") from None
-    if sysm.n > MAX_CUSTOM_STATES:
-        raise InputError(
-            f"--system {path}: {sysm.n} states; the dashboard's panel takes at most {MAX_CUSTOM_STATES} "
-            "(the CLI takes any size the engine accepts)"
-        )
-    rows = lambda M: "; ".join(" ".join(repr(float(x)) for x in row) for row in M)  # noqa: E731
-    notes = []
-    Q, R = np.asarray(sysm.Q, dtype=float), np.asarray(sysm.R, dtype=float)
-    for name, W in (("Q", Q), ("R", R)):
-        d = np.diag(W)
-        if np.any(W != np.diag(d)):
-            notes.append(f"{name} of {path} is not diagonal: the panel keeps its diagonal")
-        if np.any((d > 0) & ((d < 10.0**LOG_MIN) | (d > 10.0**LOG_MAX))):
-            notes.append(
-                f"{name} of {path} = diag({', '.join(f'{w:g}' for w in d)}) is outside the sliders' range "
-                f"1e{LOG_MIN:g}..1e{LOG_MAX:g}: clipped"
-            )
-    v = defaults.replace(
-        system="custom",
-        a_text=rows(sysm.A),
-        b_text=rows(sysm.B),
-        x0=", ".join(repr(float(x)) for x in np.asarray(sysm.x0, dtype=float)),
-        log_q=log_from_weights(np.diag(Q)),
-        log_r=log_from_weights(np.diag(R)),
-    )
-    resolve_system(v)  # the panel's own checks, now rather than in the first tab
-    return v, notes
-
-
-# ----- the panel (session hooks) -------------------------------------------------------------------------------
+# ----- the "Save, load & export" folder ------------------------------------------------------------------------
 @dataclasses.dataclass
 class ShareHandles:
     """The "Keep & share" folder of one tab: command text, status line, and a settings upload waiting."""
@@ -172,8 +58,6 @@ class ShareHandles:
 
 def apply_values(el, v: Values) -> None:
     """Set every input of a tab's panel to ``v`` (from the tab's worker thread)."""
-    from .controls import initial_value, set_system
-
     system = resolve_system(v).system
     h = el.inputs
     for c in CONTROLS:
@@ -184,6 +68,30 @@ def apply_values(el, v: Values) -> None:
     axes = initial_value(_CONTROL["axes"], v, system)
     if axes in h["axes"].options:
         h["axes"].value = axes
+
+
+#: The Values fields whose change rebuilds the weight sliders (the panel is set in full then).
+_STRUCTURAL = ("system", "a_text", "b_text", "log_q", "log_r")
+
+
+def mirror_panel(session: Any, old: Values | None, new: Values) -> None:
+    """Set the panel of ``session`` from values ``old`` (what it shows; None: unknown) to ``new``."""
+    el, views = session.controls, session.views
+    if old is None or any(getattr(old, k) != getattr(new, k) for k in _STRUCTURAL):
+        apply_values(el, new)
+        views.set_system(resolve_system(new).system)
+    else:  # the common case (b, a seed, a lesson): only the inputs that changed
+        h = el.inputs
+        changed = [c for c in CONTROLS if getattr(old, c.name) != getattr(new, c.name)]
+        system = resolve_system(new).system if any(c.name in ("x0", "axes") for c in changed) else None
+        for c in changed:
+            want = initial_value(c, new, system) if system is not None else c.convert(getattr(new, c.name))
+            if c.name != "axes" or want in h["axes"].options:
+                h[c.name].value = want
+    el.inputs["fixed_range"].visible = new.range_mode == "fixed"
+    names = list(views.channel.options)
+    views.channel.value = names[min(max(int(new.view_channel), 0), len(names) - 1)]
+    views.compare_bits.value = new.compare_bits
 
 
 def _download(
@@ -280,3 +188,105 @@ def show_frame(sh: ShareHandles, frame: Frame) -> None:
         sh.command.content = f"*(no command line: {exc})*"
         return
     sh.command.content = "\n".join(f"```\n{ln}\n```" for ln in lines)
+
+
+# ----- the view code's lines and load box ---------------------------------------------------------------------
+@dataclasses.dataclass
+class CodePanel:
+    """The tab's code line, the line under it, the "load view code" box and its status line (viser handles)."""
+
+    view: ViewOpen
+    line: Any
+    hint: Any
+    box: Any
+    status: Any
+    followers: int = 0
+
+
+def _code_line(view: ViewOpen) -> str:
+    if view.follow is not None:
+        follow = view_link(view.host, view.follow, "f", view.short)
+        return f"following view **{view.follow}** (read-only) · [follow link]({follow})"
+    link, follow = view_link(view.host, view.code, "v", view.short), view_link(view.host, view.code, "f", view.short)
+    shown = follow.removeprefix("http://") if view.short else "follow link"  # short enough to read off a screen
+    return f"view code **{view.code}** · [link]({link}) · follow: [{shown}]({follow})"
+
+
+def _hint_line(view: ViewOpen, followers: int) -> str:
+    back = (
+        "A reload or the link brings these settings back"
+        if view.kept
+        else "This tab's address does not hold its code: the link (or the code typed below) brings these settings back"
+    )
+    who = f" · **{followers} following**" if followers else ""
+    return f"{back}; the follow link shows this tab live and read-only, e.g. to a class{who}."
+
+
+def say(panel: CodePanel, text: str) -> None:
+    """One line under the box ("" hides it)."""
+    panel.status.content = text
+    panel.status.visible = bool(text)
+
+
+def show_view(panel: CodePanel, view: ViewOpen) -> None:
+    """The panel for ``view`` (a follower that explored from here: its own code and links from now on)."""
+    panel.view = view
+    panel.line.content = _code_line(view)
+    panel.hint.content = _hint_line(view, panel.followers)
+    panel.hint.visible = panel.box.visible = view.follow is None
+
+
+def count_followers(panel: CodePanel, n: int) -> None:
+    """How many tabs follow this one (from any thread; the line under the code says it)."""
+    if n != panel.followers:
+        panel.followers = n
+        panel.hint.content = _hint_line(panel.view, n)
+
+
+def load_code(panel: CodePanel, store: ViewStore, text: str, receive: Callable[[Values], None]) -> None:
+    """The "load view code" box: hand the settings of the code (or link) typed to ``receive``, or say in one
+    line why not."""
+    if not str(text or "").strip():  # the box emptied (by the tab after a load): the status line stays
+        return
+    try:
+        code = normalize_code(text)
+        v = store.get(code)
+    except InputError as exc:
+        say(panel, f"⚠️ {exc}")
+        return
+    if v is None:
+        say(panel, f"⚠️ view code **{code}** is not known on this server (ask for the link or check the letters)")
+        return
+    say(panel, f"Loaded view **{code}** (this tab keeps its own code **{panel.view.code}**).")
+    panel.box.value = ""  # emptied: the same code typed again is a change again, and loads again
+    receive(v)
+
+
+def add_code_panel(
+    gui: Any, view: ViewOpen, after: Any, store: ViewStore, receive: Callable[[Values], None]
+) -> CodePanel:
+    """The code line and the load box, placed right after the panel element ``after`` (built once per tab).
+
+    ``gui`` is the tab's ``viser.GuiApi``; a code typed in the box hands its settings to ``receive``.
+    """
+    order = float(after.order)
+    line = gui.add_markdown("", order=order + 0.001)
+    hint = gui.add_markdown("", order=order + 0.002)
+    box = gui.add_text(
+        "load view code",
+        "",
+        hint="Type a code (6 letters) or paste a view link: this tab takes that view's settings",
+        order=order + 0.003,
+    )
+    status = gui.add_markdown("", visible=False, order=order + 0.004)
+    panel = CodePanel(view, line, hint, box, status)
+    show_view(panel, view)
+    say(panel, view.note)
+    box.on_update(lambda e: load_code(panel, store, e.target.value, receive))
+    return panel
+
+
+def remember(panel: CodePanel, store: ViewStore, values: Values) -> None:
+    """After a frame is drawn: the tab's code keeps its newest settings (a follower keeps none)."""
+    if panel.view.follow is None:
+        store.put(panel.view.code, values)

@@ -15,19 +15,17 @@ import warnings
 from collections.abc import Callable
 from typing import Any
 
+from app.frames.frame import Frame
+from app.frames.render import Drawn, Renderer, Sent
+from app.settings.values import Values, resolve_system
+from app.settings.viewcodes import ViewOpen, ViewStore
 from qsid_core import PRESETS, get_system
 
-from .codepanel import CodePanel, add_code_panel
 from .controls import GuiElements, make_gui_elements, read_values
-from .follow import Drawn, Sent
-from .frames import Frame
 from .phone import PHONE_SHEET_CSS, SHEET_SOURCE, PhoneLayout, canvas_aspect
 from .presenter import AutoPlay, PresenterLayout
-from .render import Renderer
 from .scene import PhasePortrait
-from .settings import Values, resolve_system
-from .share import ShareHandles, add_share_panel, apply_values
-from .viewcodes import ViewOpen, ViewStore
+from .share import CodePanel, ShareHandles, add_code_panel, add_share_panel, apply_values
 from .viewpanel import PANEL_WIDTH, ViewPanel
 from .viserfix import phone_sheet_style
 

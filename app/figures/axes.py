@@ -1,7 +1,7 @@
 """Axis ranges that cannot blow up: every 2-D axis range from the finite data drawn on it.
 
 :func:`finite_axes` is applied to every dashboard figure (by
-:func:`app.dashboard.render.build_figures`), so a new view gets it for free.
+:func:`app.frames.render.build_figures`), so a new view gets it for free.
 Rules (log axes in decades, plotly's own unit for log ranges):
 
 * only finite numbers count (and only positive ones on a log axis);

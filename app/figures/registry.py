@@ -46,7 +46,7 @@ VIEWS: tuple[View, ...] = (
 
 #: The plots panel's group of a nonlinear plant (shown instead of :data:`TABS` while one is picked).
 KOOPMAN_TABS = ("Nonlinear",)
-#: Its views, offered when the result holds a lifting (they read a :class:`~app.dashboard.frames.KoopmanFrame`), in
+#: Its views, offered when the result holds a lifting (they read a :class:`~app.frames.frame.KoopmanFrame`), in
 #: panel order: the same quantities as the linear views where there is one (the error vs b, the eigenvalues), and
 #: the views only a lifted model has (its prediction error, the Koopman MPC outcomes).
 KOOPMAN_VIEWS: tuple[View, ...] = (

@@ -1,6 +1,6 @@
 """What a dashboard view is: a name, a plot shape, when it changes, and a builder.
 
-A *frame* (:class:`app.dashboard.frames.Frame`) is what a browser tab knows at
+A *frame* (:class:`app.frames.frame.Frame`) is what a browser tab knows at
 one moment; a view reads only these attributes of it: ``series()`` (label ->
 rows of every b computed so far), ``bits`` (the current word length),
 ``true_cost``, ``labels``, ``idents`` (label -> identified models at the current
@@ -34,9 +34,9 @@ CURRENT = "current"
 
 
 class FrameView(Protocol):
-    """The attributes of a frame the views read (:class:`app.dashboard.frames.Frame` has them).
+    """The attributes of a frame the views read (:class:`app.frames.frame.Frame` has them).
 
-    ``values`` are the tab's panel values (:class:`app.dashboard.settings.Values`).
+    ``values`` are the tab's panel values (:class:`app.settings.values.Values`).
     """
 
     @property

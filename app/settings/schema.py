@@ -8,7 +8,7 @@ configuration (``engine``: a dotted path into :class:`~qsid_core.SweepConfig`; `
 :class:`~qsid_core.DataLengthConfig`) and whether it changes results or only the drawing. The engine config
 fields no setting sets are listed in :data:`INTERNAL`, each with its reason. From the table come the ``qsid``
 options (:mod:`app.settings.cli`), the dashboard's panel (:mod:`app.dashboard.controls`) and its values
-(:class:`app.dashboard.settings.Values`), the strict type check of a panel or file value (:func:`app.settings.check.check_setting`), the
+(:class:`app.settings.values.Values`), the strict type check of a panel or file value (:func:`app.settings.check.check_setting`), the
 ``qsid sweep`` line (:mod:`app.settings.command`) and the stages a change invalidates
 (:meth:`Setting.stages`, from the engine's own :mod:`qsid_core.studies.cache_keys`).
 
@@ -119,7 +119,7 @@ class Setting:
     Parameters
     ----------
     name : str
-        The dashboard's :class:`~app.dashboard.settings.Values` field and the settings file's key.
+        The dashboard's :class:`~app.settings.values.Values` field and the settings file's key.
     type : type
         ``int``, ``float``, ``bool``, ``str`` or ``tuple`` (of floats): what the panel, the settings
         file and the CLI accept, checked before any conversion (an int is never a float, a bool never a number).
@@ -170,7 +170,7 @@ class Setting:
     panel_default : value or None
         The panel's default where it differs (the interactive data size).
     values : bool
-        False for a CLI-only setting (no :class:`~app.dashboard.settings.Values` field).
+        False for a CLI-only setting (no :class:`~app.settings.values.Values` field).
     cli_note : str
         How the CLI gives a setting whose flag is written by hand (its value is not the panel's).
     """

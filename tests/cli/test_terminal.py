@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from app.dashboard.settings import InputError, Values, mpc_config
+from app.settings.config import mpc_config
+from app.settings.values import InputError, Values
 from qsid_core.control.mpc import MPCConfig
 from qsid_core.plant.systems import get_system
 from qsid_core.studies.config import SweepConfig

@@ -1,4 +1,4 @@
-"""The dashboard's shared cache (app.dashboard.cache): a bounded LRU that many threads use, and what it shares."""
+"""The dashboard's shared cache (app.frames.cache): a bounded LRU that many threads use, and what it shares."""
 
 from __future__ import annotations
 
@@ -8,9 +8,10 @@ import threading
 import numpy as np
 import pytest
 
-from app.dashboard.cache import SharedCache
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import Values, resolve_system, sweep_config
+from app.frames.cache import SharedCache
+from app.settings.config import sweep_config
+from app.settings.values import Values, resolve_system
 from qsid_core import Experiment
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
@@ -73,7 +74,7 @@ def test_tabs_with_equal_settings_share_results():
 
 
 def test_a_word_length_change_reuses_the_tabs_rows_and_they_equal_fresh_ones():
-    from app.dashboard.frames import full_row
+    from app.frames.frame import full_row
 
     cache, memo = SharedCache(), {}
     v = Values(system="dc-motor", bits=4, **SMALL)

@@ -11,13 +11,12 @@ from __future__ import annotations
 import pytest
 from drawn import check_drawn
 
-from app.dashboard.cache import SharedCache
-from app.dashboard.koopman_settings import is_nonlinear
-from app.dashboard.lessons import LESSONS, lesson_values
-from app.dashboard.render import build_figures
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import Values
 from app.figures import registry
+from app.frames.cache import SharedCache
+from app.frames.render import build_figures
+from app.lessons.table import LESSONS, lesson_values
+from app.settings.values import Values, is_nonlinear
 
 LINEAR_SMALL = dict(trajectories=10, steps=60, realizations=10)
 NONLINEAR_SMALL = dict(trajectories=20, steps=50, realizations=3, mpc_steps=30)

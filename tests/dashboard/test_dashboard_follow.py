@@ -13,9 +13,9 @@ import msgspec
 import pytest
 from support import SMALL, Tab, open_tab, wait_until
 
-from app.dashboard.follower import EXPLORE
-from app.dashboard.viewcodes import page_location, parse_path
+from app.dashboard.follow import EXPLORE
 from app.figures import registry
+from app.settings.viewcodes import page_location, parse_path
 
 
 def _send(tab: Tab, handle, value) -> None:

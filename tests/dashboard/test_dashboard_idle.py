@@ -1,4 +1,4 @@
-"""Memory given back once the last tab has been gone a while (app.dashboard.idle), and not before."""
+"""Memory given back once the last tab has been gone a while (app.dashboard.lifecycle), and not before."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import threading
 import numpy as np
 from support import HANG_S, alive, open_tab, wait_until
 
-from app.dashboard.cache import SharedCache
-from app.dashboard.idle import IdleRelease
+from app.dashboard.lifecycle import IdleRelease
 from app.dashboard.pool import Pool
+from app.frames.cache import SharedCache
 
 
 def test_release_runs_once_after_the_delay():

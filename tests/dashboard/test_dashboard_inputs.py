@@ -14,7 +14,7 @@ from support import HANG_S, wait_until
 
 from app.dashboard.controls import CONTROLS
 from app.dashboard.inputs import MAX_TEXT, check_value
-from app.dashboard.settings import InputError
+from app.settings.values import InputError
 
 
 def send(tab, handle, value, timeout: float = HANG_S):

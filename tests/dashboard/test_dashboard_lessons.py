@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 from support import HANG_S, ROOT, Tab
 
-from app.dashboard.frames import full_row
-from app.dashboard.lessons import LESSONS, get_lesson, lesson_names, lesson_values
-from app.dashboard.settings import resolve_system, sweep_config
 from app.figures import registry
+from app.frames.frame import full_row
+from app.lessons.table import LESSONS, get_lesson, lesson_names, lesson_values
+from app.settings.config import sweep_config
+from app.settings.values import resolve_system
 from qsid_core import Experiment
 from qsid_core.studies import fit_slope
 
@@ -215,7 +216,7 @@ def test_dashboard_starts_on_a_lesson_and_rejects_a_bad_name():
 
 
 def _ls_rows(ex: Experiment, bits) -> list:
-    from app.dashboard.frames import row
+    from app.frames.frame import row
     from qsid_core.studies import summary_row
 
     return [

@@ -97,7 +97,7 @@ def test_portraits_at_several_word_lengths(tab):
 
 
 def test_datalength_on_demand_with_progress_cancel_and_cache(dashboard, monkeypatch):
-    import app.dashboard.background as bg
+    import app.frames.datalength as bg
 
     monkeypatch.setattr(bg, "DEFAULT_SAMPLES", (1000, 4000, 16000, 64000))
     monkeypatch.setattr(bg, "MAX_REALIZATIONS", 3)
@@ -131,8 +131,8 @@ def test_bench_dashboard_times_every_view():
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
     import bench_dashboard
 
-    from app.dashboard.cache import SharedCache
-    from app.dashboard.settings import Values
+    from app.frames.cache import SharedCache
+    from app.settings.values import Values
 
     out = bench_dashboard.per_view(
         Values(trajectories=10, steps=60, realizations=4, mpc_steps=15), SharedCache(), [3, 5], None, 1

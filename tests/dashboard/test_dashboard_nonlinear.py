@@ -10,10 +10,10 @@ import shlex
 import pytest
 from support import SMALL
 
-from app.dashboard.koopman_settings import LINEAR_ONLY, NL_INTERACTIVE, NONLINEAR_ONLY, koopman_config
-from app.dashboard.settings import SYSTEM_CHOICES, Values
-from app.dashboard.stages import iter_frames
 from app.figures import registry
+from app.frames.compute import iter_frames
+from app.settings.config import koopman_config
+from app.settings.values import LINEAR_ONLY, NL_INTERACTIVE, NONLINEAR_ONLY, SYSTEM_CHOICES, Values
 from qsid_core.studies import KoopmanExperiment, run_koopman_sweep
 
 #: a small nonlinear tab: every b's models and loops in a few seconds
@@ -133,8 +133,8 @@ def test_interactive_defaults_are_set_when_the_panel_was_at_the_linear_ones(dash
 
 def test_command_line_exports_and_settings_of_a_nonlinear_tab(tab, tmp_path, capsys):
     from app.cli.main import main
-    from app.dashboard.exports import command_lines, curves_csv, curves_json, frame_html
-    from app.dashboard.share import settings_json, values_from_json
+    from app.frames.exports import command_lines, curves_csv, curves_json, frame_html
+    from app.settings.files import settings_json, values_from_json
 
     tab.set(system="van-der-pol", lifting="poly:2", dither_seed=3, prediction_horizon=7, **NL_SMALL)
     f = tab.frame
@@ -165,7 +165,7 @@ def test_no_nonlinear_view_is_built_for_a_linear_frame(tab):
 
 
 def test_the_server_prefills_a_nonlinear_start():
-    from app.dashboard.warm import prefill
+    from app.dashboard.lifecycle import prefill
 
     cache: dict = {}
     assert prefill(Values(system="van-der-pol", **NL_SMALL), cache) > 2 and cache
@@ -192,8 +192,8 @@ def test_a_plant_files_vector_field_in_the_panel_and_its_failures(tmp_path, monk
     from support import Tab
 
     from app.dashboard import DashboardApp
-    from app.dashboard.exports import command_lines
-    from app.dashboard.share import values_for_plant_file
+    from app.frames.exports import command_lines
+    from app.settings.files import values_for_plant_file
 
     (tmp_path / "qsid_test_field.py").write_text(FIELD)
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -220,8 +220,8 @@ def test_a_plant_files_vector_field_in_the_panel_and_its_failures(tmp_path, monk
 
 
 def test_a_plant_file_that_cannot_load_is_one_line(tmp_path):
-    from app.dashboard.settings import InputError
-    from app.dashboard.share import values_for_plant_file
+    from app.settings.files import values_for_plant_file
+    from app.settings.values import InputError
 
     plant = tmp_path / "gone.toml"
     plant.write_text('vector_field = "no_such_module_qsid:field"\nn = 2\nm = 1\n')
@@ -230,8 +230,8 @@ def test_a_plant_file_that_cannot_load_is_one_line(tmp_path):
 
 
 def test_leaving_a_linear_lesson_for_a_nonlinear_plant_takes_the_nonlinear_size():
-    from app.dashboard.koopman_settings import switch_defaults
-    from app.dashboard.lessons import lesson_values
+    from app.lessons.table import lesson_values
+    from app.settings.values import switch_defaults
 
     fig1 = lesson_values("fig1")  # the letter's 200 x 1000, 50 realizations
     moved = switch_defaults(fig1.replace(system="van-der-pol"), "van-der-pol", True, also=fig1)
@@ -246,15 +246,15 @@ def test_leaving_a_linear_lesson_for_a_nonlinear_plant_takes_the_nonlinear_size(
 
 @pytest.mark.parametrize("guard", [False, True])
 def test_the_summary_and_the_error_plot_agree_on_the_large_data_limit(guard):
-    from app.dashboard.koopman_render import koopman_summary
-    from app.dashboard.render import build_figures
+    from app.frames.render import build_figures
+    from app.frames.summary import summary_markdown
 
     v = Values(system="van-der-pol", bits=3, guard=guard, **NL_SMALL)
     frame = list(iter_frames(v))[-1]
     fig = build_figures(frame, ("koopman-error",))["koopman-error"]
     drawn = any(t.name == "LS large-data limit" for t in fig.data)
     notes = [a.text for a in fig.layout.annotations if a.text.startswith("no large-data limit")]
-    line = next(ln for ln in koopman_summary(frame).split("  \n") if ln.startswith("LS's large-data limit"))
+    line = next(ln for ln in summary_markdown(frame).split("  \n") if ln.startswith("LS's large-data limit"))
     assert drawn == guard and bool(notes) == (not guard)
     assert ("not drawn" in line) == (not guard)
     if not guard:  # without the guard band dither pushes samples past the data's range at every b
@@ -263,11 +263,11 @@ def test_the_summary_and_the_error_plot_agree_on_the_large_data_limit(guard):
 
 def test_the_summary_gives_the_loops_within_radius_as_a_share_next_to_the_radius():
     """The summary said "within radius 5", read as a radius of 5: it meant 5 of 5 loops within radius 0.1."""
-    from app.dashboard.koopman_render import koopman_summary
+    from app.frames.summary import summary_markdown
 
     v = Values(system="van-der-pol", bits=3, **NL_SMALL)
     frame = list(iter_frames(v))[-1]
-    text = koopman_summary(frame)
+    text = summary_markdown(frame)
     for lab in frame.labels:
         r = frame.rows[lab][3]
         want = f"{r['within_radius']}/{r['realizations']} within radius {v.converged_radius:g}"

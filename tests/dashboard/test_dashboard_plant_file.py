@@ -14,8 +14,9 @@ from support import HANG_S, SMALL, Tab
 
 from app.cli import build_parser
 from app.cli.runner import config, system_from_args
-from app.dashboard import share
-from app.dashboard.settings import Values, resolve_system, sweep_config
+from app.settings import files
+from app.settings.config import sweep_config
+from app.settings.values import Values, resolve_system
 from qsid_core import load_system
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -25,7 +26,7 @@ DATA = ROOT / "docs" / "data"
 @pytest.mark.parametrize("name", ["servo", "pitch", "pendcart", "chain", "bus"])
 def test_a_plant_file_is_the_same_plant_in_the_dashboard_and_the_cli(name):
     f = DATA / f"{name}.toml"
-    v, notes = share.values_for_plant_file(f, Values())
+    v, notes = files.values_for_plant_file(f, Values())
     dash = sweep_config(v, resolve_system(v).system)
     args = build_parser().parse_args(["sweep", "--system", str(f)])
     cli = config(args, system_from_args(args), True)
@@ -61,7 +62,7 @@ def test_the_dashboard_flag_refuses_a_bad_file_in_one_line(tmp_path):
 def test_new_tabs_open_on_the_plant_file():
     from app.dashboard import DashboardApp
 
-    v, _ = share.values_for_plant_file(DATA / "pitch.toml", Values().replace(**SMALL))
+    v, _ = files.values_for_plant_file(DATA / "pitch.toml", Values().replace(**SMALL))
     app = DashboardApp(host="127.0.0.1", port=0, workers=0, settings=v)
     try:
         t = Tab(app).wait()

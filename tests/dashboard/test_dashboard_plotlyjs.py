@@ -1,4 +1,4 @@
-"""app.dashboard.plotlyjs: each tab gets plotly.js's basic bundle (1.2 MB) instead of the full one (4.8 MB)."""
+"""app.dashboard.viewpanel: each tab gets plotly.js's basic bundle (1.2 MB) instead of the full one (4.8 MB)."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ import viser
 import zstandard
 from websockets.sync.client import connect
 
-from app.dashboard import DashboardApp, plotlyjs
-from app.dashboard.cache import SharedCache
-from app.dashboard.render import build_figures
+from app.dashboard import DashboardApp, viewpanel
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import Values
+from app.frames.cache import SharedCache
+from app.frames.render import build_figures
+from app.settings.values import Values
 
 BASIC_BANNER = "* plotly.js (basic - minified) v"
 
@@ -32,14 +32,14 @@ def _messages(chunks: list) -> list:
 
 
 def test_shipped_bundle_is_the_plotly_js_version_plotly_draws_for():
-    version, source = plotlyjs._bundle()
+    version, source = viewpanel._bundle()
     assert version == plotly.offline.get_plotlyjs_version(), (
         "update app/dashboard/assets/plotly-basic.min.js: npm pack plotly.js-basic-dist-min@"
         f"{plotly.offline.get_plotlyjs_version()}"
     )
     assert 0.5e6 < len(source) < 2e6  # the basic bundle, not the 4.8 MB full one
-    assert plotlyjs.bundle_version("/**\n* plotly.js (basic - minified) v4.1.1\n*/") == "4.1.1"
-    assert plotlyjs.bundle_version("no banner") == ""
+    assert viewpanel.bundle_version("/**\n* plotly.js (basic - minified) v4.1.1\n*/") == "4.1.1"
+    assert viewpanel.bundle_version("no banner") == ""
 
 
 def test_every_view_draws_only_trace_types_of_the_basic_bundle():
@@ -48,7 +48,7 @@ def test_every_view_draws_only_trace_types_of_the_basic_bundle():
     frame.pinned = frame  # the pinned overlay too
     figs = build_figures(frame)
     types = {tr.type for fig in figs.values() for tr in fig.data}
-    assert types and types <= set(plotlyjs.TRACE_TYPES), types
+    assert types and types <= set(viewpanel.TRACE_TYPES), types
 
 
 class _Gui:
@@ -65,16 +65,16 @@ class _Gui:
 
 def test_sent_once_and_viser_told_or_a_reason_when_versions_differ(monkeypatch):
     gui = _Gui()
-    assert plotlyjs.send_basic_bundle(gui) is None
+    assert viewpanel.send_basic_bundle(gui) is None
     assert gui._setup_plotly_js is True and len(gui.sent) == 1 and "basic - minified" in gui.sent[0].source[:200]
-    assert gui.sent[0].source.endswith(plotlyjs.ZERO_WIDTH_GUARD)
-    assert "sent already" in plotlyjs.send_basic_bundle(gui) and len(gui.sent) == 1
+    assert gui.sent[0].source.endswith(viewpanel.ZERO_WIDTH_GUARD)
+    assert "sent already" in viewpanel.send_basic_bundle(gui) and len(gui.sent) == 1
     monkeypatch.setattr(plotly.offline, "get_plotlyjs_version", lambda: "9.9.9")
     other = _Gui()
-    why = plotlyjs.send_basic_bundle(other)
+    why = viewpanel.send_basic_bundle(other)
     # the full bundle (what viser would send), with the guard after it
     assert "9.9.9" in why and len(other.sent) == 1 and other._setup_plotly_js is True
-    assert other.sent[0].source == plotly.offline.get_plotlyjs() + plotlyjs.ZERO_WIDTH_GUARD
+    assert other.sent[0].source == plotly.offline.get_plotlyjs() + viewpanel.ZERO_WIDTH_GUARD
 
 
 def test_a_tab_receives_the_basic_bundle_and_never_the_full_one():

@@ -8,8 +8,7 @@ import socket
 import pytest
 
 from app.dashboard import DashboardApp
-from app.dashboard.netcheck import check_address
-from app.dashboard.options import read_options
+from app.dashboard.options import check_address, read_options
 from qsid_core import ConfigError, QsidError
 
 

@@ -8,11 +8,11 @@ from types import SimpleNamespace
 
 import pytest
 
-from app.dashboard.cache import SharedCache
+from app.dashboard.lifecycle import fetch_page, first_tab, prefill
 from app.dashboard.server import DashboardApp
-from app.dashboard.settings import Values
-from app.dashboard.stages import iter_frames
-from app.dashboard.warm import fetch_page, first_tab, prefill
+from app.frames.cache import SharedCache
+from app.frames.compute import iter_frames
+from app.settings.values import Values
 from qsid_core.errors import QsidError
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)

@@ -19,7 +19,7 @@ def test_every_plot_is_sent_without_a_cloud_upload(tab):
 
     assert json.loads(Wire(go.Figure()).to_json())["config"] == PLOT_CONFIG  # plotly's own path too
     assert json.loads(to_json(go.Figure(layout=dict(title="t"))))["layout"]["title"]["text"] == "t"
-    from app.dashboard.exports import figures_html
+    from app.frames.exports import figures_html
 
     page = figures_html({"error": go.Figure()}, "t", "c")  # the offline HTML export too
     assert '"showSendToCloud": false' in page and "sendDataToCloud" in page

@@ -22,9 +22,9 @@ import pytest
 from support import HANG_S, ROOT, SMALL, marks, open_tab, wait_until
 
 from app.dashboard import DashboardApp
-from app.dashboard.cache import SharedCache
 from app.dashboard.session import iter_frames
 from app.figures.registry import KOOPMAN_VIEWS, view_names
+from app.frames.cache import SharedCache
 
 KOOPMAN_NAMES = {v.name for v in KOOPMAN_VIEWS}
 

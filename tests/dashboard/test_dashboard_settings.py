@@ -1,4 +1,4 @@
-"""Panel values -> engine configuration (app.dashboard.settings): defaults, every control, plain-words errors."""
+"""Panel values -> engine configuration (app.settings.values): defaults, every control, plain-words errors."""
 
 from __future__ import annotations
 
@@ -6,24 +6,22 @@ import numpy as np
 import pytest
 
 from app.dashboard.controls import CONTROLS
-from app.dashboard.settings import (
+from app.dashboard.viewpanel import VIEW_FIELDS
+from app.figures.phase_scene import axes_indices, axes_options
+from app.settings.config import estimators, mpc_config, sweep_config
+from app.settings.values import (
     ALL_BITS,
     IDENT_CHOICES,
     INTERACTIVE,
     PAPER_SCALE,
     InputError,
     Values,
-    estimators,
     format_weights,
     log_from_weights,
     matrix_text,
-    mpc_config,
     resolve_system,
-    sweep_config,
     weights_from_log,
 )
-from app.dashboard.viewpanel import VIEW_FIELDS
-from app.figures.phase_scene import axes_indices, axes_options
 from qsid_core import MPCConfig, SweepConfig
 from qsid_core.errors import QsidError
 from qsid_core.identification.identify import ESTIMATORS
@@ -200,7 +198,7 @@ def test_every_values_field_has_one_control():
 
 
 def test_same_results_ignores_only_display_settings():
-    from app.dashboard.settings import DISPLAY_ONLY
+    from app.settings.values import DISPLAY_ONLY
 
     base = Values()
     shown = base.replace(bits=base.bits + 1, show_bound=not base.show_bound, presenter=not base.presenter)
@@ -213,8 +211,8 @@ def test_same_results_ignores_only_display_settings():
 def test_the_data_length_study_is_the_tabs_sweep_at_its_b_with_the_engines_key():
     """Every panel setting the study shares with the sweep reaches it (amplitudes, noise, word length per channel,
     seeds, quantizer), and its cache key is the engine's: a change of any of them is another study."""
-    from app.dashboard.background import MAX_REALIZATIONS, _key, datalength_config
-    from app.dashboard.settings import Values
+    from app.frames.datalength import MAX_REALIZATIONS, _key, datalength_config
+    from app.settings.values import Values
 
     base = Values(system="dc-motor", bits=6)
     changed = dict(

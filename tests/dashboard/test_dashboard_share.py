@@ -20,9 +20,12 @@ from support import HANG_S, Tab
 
 from app.cli import build_parser
 from app.cli.runner import config, system_from_args
-from app.dashboard import exports, share
+from app.dashboard import share
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import InputError, Values, resolve_system, sweep_config
+from app.frames import exports
+from app.settings import files
+from app.settings.config import sweep_config
+from app.settings.values import InputError, Values, resolve_system
 
 ROOT = Path(__file__).resolve().parents[2]
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
@@ -110,10 +113,10 @@ def test_command_is_short_at_the_defaults_and_names_changes():
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_settings_json_round_trip(name):
     v = CASES[name]
-    text = share.settings_json(v)
-    assert json.loads(text)["kind"] == share.SETTINGS_KIND
-    assert share.values_from_json(text) == v
-    assert share.values_from_json(text.encode()) == v
+    text = files.settings_json(v)
+    assert json.loads(text)["kind"] == files.SETTINGS_KIND
+    assert files.values_from_json(text) == v
+    assert files.values_from_json(text.encode()) == v
 
 
 @pytest.mark.parametrize(
@@ -137,7 +140,7 @@ def test_settings_json_round_trip(name):
 )
 def test_bad_settings_are_one_plain_line(doc, needle):
     with pytest.raises(InputError) as info:
-        share.values_from_json(doc)
+        files.values_from_json(doc)
     msg = str(info.value)
     assert needle in msg and "\n" not in msg and len(msg) < 400, msg
 
@@ -166,7 +169,7 @@ def test_export_curves_csv_and_json(frame):
         raise AssertionError(c)
 
     d = json.loads(exports.curves_json(frame), parse_constant=bad)
-    assert d["settings"] == json.loads(share.settings_json(frame.values))["values"]
+    assert d["settings"] == json.loads(files.settings_json(frame.values))["values"]
     assert [r["bits"] for r in d["curves"]["BCLS"]] == list(range(1, 17)) and d["complete"] is True
     assert d["command"] == exports.command_lines(frame.values)
 
@@ -204,7 +207,7 @@ def test_download_then_upload_gives_the_same_view(monkeypatch):
             None,
             ui._send_file,
             "qsid-settings.json",
-            lambda _f: share.settings_json(ui.panel_values()),
+            lambda _f: files.settings_json(ui.panel_values()),
             False,
         )
         assert set(sent) == {"qsid-settings.json"}
@@ -247,8 +250,8 @@ def test_new_tabs_start_from_the_settings_file(tmp_path):
 
     v = Values(system="boeing747", bits=6, guard=False, **SMALL)
     f = tmp_path / "s.json"
-    f.write_text(share.settings_json(v))
-    app = DashboardApp(host="127.0.0.1", port=0, workers=0, settings=share.load_settings_file(f))
+    f.write_text(files.settings_json(v))
+    app = DashboardApp(host="127.0.0.1", port=0, workers=0, settings=files.load_settings_file(f))
     try:
         t = Tab(app).wait()
         assert t.frame.values.system == "boeing747" and t.frame.values.bits == 6 and t.frame.values.guard is False

@@ -11,13 +11,14 @@ import pytest
 from support import ROOT, SMALL, Tab
 
 from app.cli import main as cli_main
-from app.dashboard.frames import full_row
-from app.dashboard.lesson_mark import lesson_drift
-from app.dashboard.lessons import LESSONS, get_lesson, lesson_markdown, lesson_values
 from app.dashboard.options import read_options
-from app.dashboard.settings import Values, resolve_system, sweep_config
-from app.dashboard.start import LETTER_URL, START
 from app.figures.error_vs_bits import error_figure
+from app.frames.frame import full_row
+from app.lessons.drift import lesson_drift, lesson_markdown
+from app.lessons.start import LETTER_URL, START
+from app.lessons.table import LESSONS, get_lesson, lesson_values
+from app.settings.config import sweep_config
+from app.settings.values import Values, resolve_system
 from qsid_core import Experiment
 from qsid_core.studies import fit_slope
 
@@ -56,7 +57,7 @@ def test_qsid_dashboard_opens_on_the_start_unless_told_otherwise(tmp_path):
     assert read_options(["--lesson", "fig2"])[0].lesson == "fig2"
     assert read_options(["--system", "boeing747"])[0].lesson is None  # the text is about the default plant
     f = tmp_path / "s.json"
-    from app.dashboard.share import settings_json
+    from app.settings.files import settings_json
 
     f.write_text(settings_json(Values(system="dc-motor", bits=6)), encoding="utf-8")
     assert read_options(["--settings", str(f)])[0].lesson is None  # a settings file is opened as it was saved
@@ -159,9 +160,9 @@ def test_the_default_sweep_says_why_theorem1_does_not_apply_and_where_it_does(ca
 
 
 def test_the_default_summary_says_why_theorem1_does_not_apply_and_where_it_does():
-    from app.dashboard.cache import SharedCache
-    from app.dashboard.stages import iter_frames
-    from app.dashboard.summary import summary_markdown
+    from app.frames.cache import SharedCache
+    from app.frames.compute import iter_frames
+    from app.frames.summary import summary_markdown
 
     frame = list(iter_frames(Values(**SMALL, mpc_steps=15), SharedCache()))[-1]
     s = summary_markdown(frame)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import threading
 import time
 
-from app.dashboard import stopping
+from app.dashboard import lifecycle
 
 
 class _SlowApp:
@@ -35,19 +35,19 @@ class _SlowApp:
 
 
 def test_the_pool_is_halted_even_when_that_outlasts_the_stop_bound(monkeypatch):
-    monkeypatch.setattr(stopping, "STOP_WAIT", 0.2)
+    monkeypatch.setattr(lifecycle, "STOP_WAIT", 0.2)
     app = _SlowApp(halt_s=0.7, server_s=0.0)
-    stopping.stop_app(app)
+    lifecycle.stop_app(app)
     assert app.steps[:1] == ["halted"]
 
 
 def test_a_web_server_that_does_not_stop_does_not_hold_the_process(monkeypatch):
-    monkeypatch.setattr(stopping, "STOP_WAIT", 0.2)
+    monkeypatch.setattr(lifecycle, "STOP_WAIT", 0.2)
     block = threading.Event()
     app = _SlowApp(halt_s=0.0, server_s=0.0)
     app.server.stop = block.wait  # never returns until the test ends
     try:
-        stopping.stop_app(app)
+        lifecycle.stop_app(app)
         assert app.steps == ["halted"]
     finally:
         block.set()
@@ -55,7 +55,7 @@ def test_a_web_server_that_does_not_stop_does_not_hold_the_process(monkeypatch):
 
 def test_the_pool_is_halted_before_the_web_server_stops():
     app = _SlowApp(halt_s=0.0, server_s=0.0)
-    stopping.stop_app(app)
+    lifecycle.stop_app(app)
     deadline = time.monotonic() + 60
     while len(app.steps) < 2 and time.monotonic() < deadline:  # the server's stop may finish after the bound
         time.sleep(0.01)

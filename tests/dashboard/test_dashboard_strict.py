@@ -4,7 +4,7 @@ import pytest
 
 from app.dashboard.controls import CONTROLS
 from app.dashboard.inputs import check_value
-from app.dashboard.settings import InputError
+from app.settings.values import InputError
 
 BY_NAME = {c.name: c for c in CONTROLS}
 
@@ -25,7 +25,7 @@ def test_a_whole_word_length_is_accepted():
 
 
 def _custom(a):
-    from app.dashboard.settings import Values, resolve_system
+    from app.settings.values import Values, resolve_system
 
     return resolve_system(Values(system="custom", a_text=a, b_text="0; 1"))
 
@@ -51,7 +51,7 @@ def test_ordinary_and_zero_entries_pass():
 
 @pytest.mark.parametrize("text", ["[1, 0]", "1, 0", "1 0", "[[1, 0]]", "1; 0"])
 def test_x0_is_accepted_as_a_flat_list(text):
-    from app.dashboard.settings import parse_vector
+    from app.settings.values import parse_vector
 
     assert parse_vector(text, "x0", 2) == (1.0, 0.0)
 

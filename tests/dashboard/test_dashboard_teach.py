@@ -17,17 +17,10 @@ import pytest
 from support import HANG_S, ROOT, SMALL, Tab, wait_until
 
 from app.dashboard.presenter import LEFT_SHARE, LEFT_WIDTH, SCENE_ASPECT, SHOW_PLOT, SHOW_SCENE, WIDE, PresenterLayout
-from app.dashboard.settings import InputError, Values
-from app.dashboard.viewcodes import (
-    CODE_LETTERS,
-    ViewStore,
-    code_from_path,
-    normalize_code,
-    open_view,
-    view_link,
-)
 from app.figures.presenter import PLOT_FONT, presenter_figure
 from app.figures.registry import KOOPMAN_VIEWS
+from app.settings.values import InputError, Values
+from app.settings.viewcodes import CODE_LETTERS, ViewStore, code_from_path, normalize_code, open_view, view_link
 
 # slow: each test starts a dashboard and waits for drawn frames (auto-play steps b once a second)
 pytestmark = pytest.mark.slow
@@ -291,7 +284,7 @@ def test_presenter_figure_raises_inline_font_spans():
 
 
 def test_presenter_is_a_settings_key_and_survives_a_lesson(tab):
-    from app.dashboard.share import settings_json, values_from_json
+    from app.settings.files import settings_json, values_from_json
 
     assert values_from_json(settings_json(Values(presenter=True))).presenter is True
     tab.set(presenter=True)
@@ -446,7 +439,7 @@ def test_the_request_path_hook_reads_the_live_path_and_fails_loudly_without_it(d
 def test_the_teaching_page_lists_every_lesson_and_shows_committed_screenshots():
     import re
 
-    from app.dashboard.lessons import LESSONS
+    from app.lessons.table import LESSONS
 
     text = (ROOT / "docs" / "teaching.rst").read_text(encoding="utf-8")
     for les in LESSONS:

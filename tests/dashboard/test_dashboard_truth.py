@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.dashboard.cache import SharedCache
-from app.dashboard.render import build_figures
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import InputError, Values, sweep_config
-from app.dashboard.summary import summary_markdown
 from app.figures.axes import MAX_DECADES, axis_ranges, finite_axes
 from app.figures.bound import CAPTION
+from app.frames.cache import SharedCache
+from app.frames.render import build_figures
+from app.frames.summary import summary_markdown
+from app.settings.config import sweep_config
+from app.settings.values import InputError, Values
 
 SMALL = dict(trajectories=10, steps=60, realizations=4, mpc_steps=15)
 CACHE = SharedCache()

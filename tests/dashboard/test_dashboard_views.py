@@ -8,15 +8,16 @@ import threading
 import numpy as np
 import pytest
 
-from app.dashboard.cache import SharedCache
-from app.dashboard.render import Renderer, build_figures
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import ALL_BITS, InputError, Values, sweep_config
-from app.dashboard.summary import summary_markdown
 from app.figures import move_current_bits
 from app.figures.palette import COLORS, rgb, vertex_rgb
 from app.figures.phase_scene import CLIP, SPHERE_CAP, scene_view
 from app.figures.registry import VIEWS
+from app.frames.cache import SharedCache
+from app.frames.render import Renderer, build_figures
+from app.frames.summary import summary_markdown
+from app.settings.config import sweep_config
+from app.settings.values import ALL_BITS, InputError, Values
 from qsid_core import Experiment
 from qsid_core.errors import QsidError
 
@@ -229,7 +230,7 @@ def test_reproduce_portrait_uses_the_palette():
 
 
 def test_summary_says_when_a_lessons_own_settings_were_changed():
-    from app.dashboard.lessons import lesson_values
+    from app.lessons.table import lesson_values
 
     v = lesson_values("saturation").replace(**SMALL)
     f = frames(v)[-1]

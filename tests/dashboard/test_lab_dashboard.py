@@ -11,9 +11,11 @@ import pytest
 
 from app.cli import build_parser
 from app.cli.runner import config, system_from_args
-from app.dashboard import exports, share
 from app.dashboard.controls import CONTROLS
-from app.dashboard.settings import InputError, Values, resolve_system, sweep_config
+from app.frames import exports
+from app.settings import files
+from app.settings.config import sweep_config
+from app.settings.values import InputError, Values, resolve_system
 from qsid_core.quantization.quantize import DITHERS
 
 WHAT_IF = Values(
@@ -45,7 +47,7 @@ def test_what_ifs_reach_the_engine_config():
 
 
 def test_what_ifs_survive_the_settings_file_and_the_command_line():
-    assert share.values_from_json(share.settings_json(WHAT_IF)) == WHAT_IF
+    assert files.values_from_json(files.settings_json(WHAT_IF)) == WHAT_IF
     system = resolve_system(WHAT_IF).system
     want = sweep_config(WHAT_IF, system)
     line, bits_line = exports.command_lines(WHAT_IF)  # the sweep, then 'qsid bits' with the same settings

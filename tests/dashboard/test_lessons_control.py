@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.dashboard.lessons import get_lesson, lesson_values
-from app.dashboard.settings import resolve_system, sweep_config
+from app.lessons.table import get_lesson, lesson_values
+from app.settings.config import sweep_config
+from app.settings.values import resolve_system
 from qsid_core import Experiment
 from qsid_core.studies.bits import bits_needed
 

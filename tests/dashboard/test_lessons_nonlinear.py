@@ -10,9 +10,9 @@ import inspect
 import numpy as np
 import pytest
 
-from app.dashboard.koopman_settings import koopman_config
-from app.dashboard.lessons import get_lesson, lesson_values
 from app.figures.lifted_scene import lifted_scene
+from app.lessons.table import get_lesson, lesson_values
+from app.settings.config import koopman_config
 from qsid_core.studies import KoopmanConfig, KoopmanExperiment, run_koopman_sweep
 
 pytestmark = pytest.mark.slow  # 400 x 100 samples, 10 realizations, Koopman MPC loops

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from app.dashboard.lesson_mark import lesson_drift, lesson_panel
-from app.dashboard.lessons import LESSONS, get_lesson, lesson_markdown
-from app.dashboard.settings import resolve_system
 from app.figures import registry
 from app.figures.quantizer import channel_names
+from app.lessons.drift import lesson_drift, lesson_markdown, lesson_panel
+from app.lessons.table import LESSONS, get_lesson
+from app.settings.values import resolve_system
 
 HERE = Path(__file__).parent
 

@@ -72,10 +72,10 @@ def test_time_series_title_counts_loops_that_do_not_converge():
 @pytest.mark.slow
 def test_dashboard_summary_counts_the_boeing_loops_that_do_not_converge():
     """Paper scale, Boeing, b = 2 (the guard band default): the summary says how many loops did not converge."""
-    from app.dashboard.cache import SharedCache
     from app.dashboard.session import iter_frames
-    from app.dashboard.settings import Values
-    from app.dashboard.summary import summary_markdown
+    from app.frames.cache import SharedCache
+    from app.frames.summary import summary_markdown
+    from app.settings.values import Values
 
     v = Values(system="boeing747", bits=2, realizations=50, trajectories=200, steps=1000, identification="LS")
     cur = next(f for f in iter_frames(v, SharedCache(), chunk=16, min_interval=0.0) if f.stage == "current")

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from drawn import band_edges, check_drawn, line, named, values
 
-from app.dashboard.background import datalength_config
-from app.dashboard.cache import SharedCache
-from app.dashboard.koopman_settings import koopman_config
-from app.dashboard.render import build_figures
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import Values
 from app.figures import registry
+from app.frames.cache import SharedCache
+from app.frames.datalength import datalength_config
+from app.frames.render import build_figures
+from app.settings.config import koopman_config
+from app.settings.values import Values
 from qsid_core import run_datalength, run_sweep
 from qsid_core.control import CONVERGED_REL_FLOOR
 from qsid_core.studies import run_koopman_sweep

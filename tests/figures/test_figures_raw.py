@@ -9,12 +9,12 @@ import numpy as np
 import plotly.graph_objects as go
 import pytest
 
-from app.dashboard.cache import SharedCache
-from app.dashboard.render import Renderer
 from app.dashboard.session import iter_frames
-from app.dashboard.settings import Values
 from app.figures import registry
 from app.figures.raw import PLOT_CONFIG, Wire, to_json
+from app.frames.cache import SharedCache
+from app.frames.render import Renderer
+from app.settings.values import Values
 
 
 def _plain(obj):

@@ -218,12 +218,8 @@ def test_every_view_module_is_registered_and_imports_no_other_view():
 
 
 def test_no_twin_module_per_plant_kind():
-    """One path for both plant kinds: no ``koopman_*`` module outside the dashboard (issue 41)."""
-    twins = [
-        p
-        for d in ("app/cli", "app/figures", "app/settings", "qsid_core/studies")
-        for p in (ROOT / d).glob("koopman_*.py")
-    ]
+    """One path for both plant kinds: no ``koopman_*`` module in ``app/`` or the engine's studies (issue 41)."""
+    twins = [p for p in [*(ROOT / "app").rglob("koopman_*.py"), *(ROOT / "qsid_core/studies").glob("koopman_*.py")]]
     assert twins == []
 
 
@@ -243,3 +239,74 @@ def test_no_module_imports_another_modules_private_names(package):
                 if a.name.startswith("_") and not a.name.endswith("__")
             ]
     assert found == []
+
+
+#: The dashboard is viser wiring (issue 41): at most this many modules (every .py file, ``__init__`` and
+#: ``__main__`` included) on at most this many import levels; what needs no GUI lives in ``app/settings``,
+#: ``app/frames`` and ``app/lessons``.
+DASHBOARD_MAX_MODULES = 20
+DASHBOARD_MAX_LEVELS = 8
+
+
+def _levels(graph: dict) -> dict:
+    """Each module's import level in ``graph`` (module -> the modules it imports, within the graph): 1 for a module
+    importing none of them, else 1 + the highest level of those it imports (an import cycle raises)."""
+    out: dict = {}
+
+    def level(m: str, path: tuple) -> int:
+        if m in path:
+            raise ValueError(f"import cycle: {' -> '.join(path + (m,))}")
+        if m not in out:
+            out[m] = 1 + max((level(d, path + (m,)) for d in graph[m]), default=0)
+        return out[m]
+
+    for m in graph:
+        level(m, ())
+    return out
+
+
+def _chain(graph: dict, levels: dict, top: str) -> list:
+    """The longest import chain down from ``top`` (for the failure message)."""
+    chain = [top]
+    while graph[chain[-1]]:
+        chain.append(max(graph[chain[-1]], key=levels.get))
+    return chain
+
+
+def _package_imports(name: str, tree: ast.AST, package: str) -> set:
+    """``{package}`` if module ``name`` imports the package itself (``from app.dashboard import main``: its
+    ``__init__`` runs), which :func:`_imports` leaves out for a package's own modules."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and not node.level and node.module == package:
+            if any(f"{package}.{a.name}" not in _modules() for a in node.names):
+                return {package} if name != package else set()
+        if isinstance(node, ast.Import) and any(a.name == package for a in node.names) and name != package:
+            return {package}
+    return set()
+
+
+def test_the_dashboard_is_at_most_20_modules_on_at_most_8_import_levels_without_cycles():
+    mods = {name: v for name, v in _modules().items() if name == "app.dashboard" or name.startswith("app.dashboard.")}
+    files = sorted((APP / "dashboard").glob("*.py"))
+    assert len(mods) == len(files)  # every .py file, __init__ and __main__ included
+    graph = {
+        name: _imports(name, p, t, set(mods)) | _package_imports(name, t, "app.dashboard")
+        for name, (p, t) in mods.items()
+    }
+    assert graph["app.dashboard.__main__"] == {"app.dashboard"}  # a package import counts (its __init__ runs)
+    assert _cycles(graph) == []
+    levels = _levels(graph)
+    top = max(levels, key=levels.get)
+    assert len(files) <= DASHBOARD_MAX_MODULES, [p.name for p in files]
+    assert levels[top] <= DASHBOARD_MAX_LEVELS, " -> ".join(_chain(graph, levels, top))
+    assert not [p.name for p in files if p.name.startswith("koopman_")]  # one path for both kinds of plant
+
+
+def test_the_level_count_catches_a_chain_too_deep_and_a_cycle():
+    chain = {f"m{i}": ({f"m{i + 1}"} if i < 8 else set()) for i in range(9)}  # m0 -> m1 -> ... -> m8
+    levels = _levels(chain)
+    assert levels["m8"] == 1 and levels["m0"] == 9 > DASHBOARD_MAX_LEVELS
+    assert _chain(chain, levels, "m0") == [f"m{i}" for i in range(9)]
+    assert _levels({"a": {"b", "c"}, "b": {"c"}, "c": set()}) == {"a": 3, "b": 2, "c": 1}
+    with pytest.raises(ValueError, match="import cycle"):
+        _levels({"a": {"b"}, "b": {"a"}})

@@ -23,6 +23,9 @@ SECTIONS = {
     "qsid_core/studies": "The engine, ``qsid_core/``",
     "app": "The command line, ``app/cli/``",  # app/distributed.py and app/procs.py sit beside the CLI
     "app/cli": "The command line, ``app/cli/``",
+    "app/settings": "Settings, ``app/settings/``",
+    "app/frames": "What a front end shows, ``app/frames/``",
+    "app/lessons": "Lessons, ``app/lessons/``",
     "app/dashboard": "The dashboard, ``app/dashboard/``",
     "app/figures": "The views, ``app/figures/``",
 }

@@ -26,7 +26,7 @@ def test_every_engine_path_is_a_real_config_field_and_defaults_are_the_engines()
 
 def test_the_dashboards_values_and_panel_are_the_tables():
     from app.dashboard.controls import CONTROLS
-    from app.dashboard.settings import DISPLAY_ONLY, Values
+    from app.settings.values import DISPLAY_ONLY, Values
 
     fields = [f.name for f in dataclasses.fields(Values)]
     assert fields == [s.name for s in SETTINGS if s.values]
@@ -89,13 +89,15 @@ def test_the_state_amplitude_reaches_the_data_and_every_front_end():
 
 
 def test_no_front_end_reaches_into_the_other():
-    """The dashboard's exports module writes the command line with the schema's writer, not the CLI's modules."""
+    """The dashboard and the front-end-neutral packages it draws from (the exports module writes the command line
+    with the schema's writer) import none of the CLI's modules."""
     import ast
     from pathlib import Path
 
     import app.dashboard
 
-    for path in Path(app.dashboard.__file__).parent.glob("*.py"):
+    app_dir = Path(app.dashboard.__file__).parent.parent
+    for path in [p for pkg in ("dashboard", "frames", "lessons", "settings") for p in (app_dir / pkg).glob("*.py")]:
         tree = ast.parse(path.read_text(encoding="utf-8"))
         names = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
         names += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]

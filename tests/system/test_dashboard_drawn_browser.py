@@ -1,7 +1,7 @@
 """The data plotly draws in a real headless Chromium (1366×768) is the data the server pushed, and it is
 consistent: every view of every lesson, checked by :func:`drawn.check_drawn`.
 
-One server, one browser, one tab. For each lesson of :data:`app.dashboard.lessons.LESSONS` the tab opens the
+One server, one browser, one tab. For each lesson of :data:`app.lessons.table.LESSONS` the tab opens the
 lesson (as its selector does) and the tab's worker is held right after it drew the lesson's first frame
 (:class:`FirstFrame`), so the page and the server stand still on one result; then every group the lesson's
 system offers in the plots panel's "show" dropdown is brought forward (as a lesson brings its own) and, for
@@ -205,8 +205,8 @@ def check_norm_band(data: list[dict], frame: Any, where: str) -> int:
 
 def check_frame(page, session, pushed: Pushed, frame: Any, lesson: str, counts: dict) -> None:
     """Every group the tab's system offers brought forward, every plot shown checked (module docstring)."""
-    from app.dashboard.koopman_settings import is_nonlinear
     from app.figures.registry import KOOPMAN_TABS, TABS
+    from app.settings.values import is_nonlinear
 
     groups = tuple(session.views.group.options)
     assert groups == (KOOPMAN_TABS if is_nonlinear(frame.values.system) else TABS), f"{lesson}: groups {groups}"
@@ -229,7 +229,7 @@ def test_every_view_of_every_lesson_draws_the_servers_data_in_the_browser():
     from playwright.sync_api import sync_playwright
 
     from app.dashboard import DashboardApp
-    from app.dashboard.lessons import LESSONS, NONE
+    from app.lessons.table import LESSONS, NONE
 
     counts = dict(lessons=0, frames=0, views=0, traces=0, bands=0, **{"norm bands": 0})
     app = DashboardApp(host="127.0.0.1", port=0, workers=2, cache_bytes=1024 * 2**20)

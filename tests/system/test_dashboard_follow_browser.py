@@ -18,9 +18,9 @@ from support import SMALL, wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 from test_dashboard_teach_browser import ACTIVE_TAB, BITS_THUMB, _dismiss_notices
 
-from app.dashboard.follower import EXPLORE
-from app.dashboard.lessons import get_lesson
+from app.dashboard.follow import EXPLORE
 from app.figures.registry import VIEWS
+from app.lessons.table import get_lesson
 
 pytestmark = pytest.mark.browser
 
@@ -91,7 +91,7 @@ def test_a_student_follows_the_teacher_read_only_then_explores_from_there():
     from playwright.sync_api import sync_playwright
 
     from app.dashboard import DashboardApp
-    from app.dashboard.settings import Values
+    from app.settings.values import Values
 
     shots = os.environ.get("QSID_SCREENSHOT_DIR")
     app = DashboardApp(host="127.0.0.1", port=0, workers=1, settings=Values(mpc_steps=30, **SMALL))

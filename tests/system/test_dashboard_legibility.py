@@ -28,10 +28,10 @@ from support import wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 from test_dashboard_teach_browser import ACTIVE_TAB, KEY_PLOT_WIDTH, PANEL_TEXT, TOP_PLOT, _dismiss_notices
 
-from app.dashboard.koopman_settings import NL_INTERACTIVE
-from app.dashboard.lessons import LESSONS, NONE
 from app.dashboard.presenter import PANEL_FONT
 from app.figures.registry import ALL_VIEWS, KOOPMAN_TABS, TABS
+from app.lessons.table import LESSONS, NONE
+from app.settings.values import NL_INTERACTIVE
 
 pytestmark = pytest.mark.browser
 

@@ -12,9 +12,9 @@ from support import wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 from test_dashboard_teach_browser import _dismiss_notices
 
-from app.dashboard.lessons import LESSONS
 from app.dashboard.presenter import SHOW_SCENE
 from app.figures.presenter import HOVER_HERE
+from app.lessons.table import LESSONS
 
 pytestmark = pytest.mark.browser
 

@@ -13,7 +13,7 @@ import pytest
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 from test_dashboard_teach_browser import _dismiss_notices
 
-from app.dashboard.start import LETTER_URL, START
+from app.lessons.start import LETTER_URL, START
 
 pytestmark = pytest.mark.browser
 

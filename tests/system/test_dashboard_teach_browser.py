@@ -16,10 +16,10 @@ from support import wait_until
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
 
 import app.dashboard.presenter as presenter_module
-from app.dashboard.lessons import LESSONS, get_lesson
-from app.dashboard.viewcodes import view_link
 from app.figures.presenter import PLOT_FONT
 from app.figures.registry import ALL_VIEWS
+from app.lessons.table import LESSONS, get_lesson
+from app.settings.viewcodes import view_link
 
 pytestmark = pytest.mark.browser
 

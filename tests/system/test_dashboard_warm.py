@@ -75,7 +75,7 @@ def _says_progress_then_ready(lines: list[str]) -> None:
 
 @pytest.mark.slow  # starts real dashboard processes with an empty kernel cache
 def test_a_cold_start_says_what_it_compiles_then_a_warm_start_what_it_loads(tmp_path):
-    from app.dashboard.warm import COLD_START, WARM_START, kernel_names
+    from app.dashboard.lifecycle import COLD_START, WARM_START, kernel_names
 
     first = start_and_stop(str(tmp_path))
     assert first[0] == f"qsid dashboard: {COLD_START}", first
@@ -90,7 +90,7 @@ def test_a_cold_start_says_what_it_compiles_then_a_warm_start_what_it_loads(tmp_
 
 
 def test_a_step_that_takes_long_is_repeated_every_tick():
-    from app.dashboard.startup import StartupReport
+    from app.dashboard.lifecycle import StartupReport
 
     out = io.StringIO()
     release = threading.Event()

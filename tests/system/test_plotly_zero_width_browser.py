@@ -1,6 +1,6 @@
 """viser's plot element draws once at width 0 when it appears; plotly then falls back to 700 × 450 px, and a figure
 whose margins need more than that (presenter mode and phones write their notes out) throws, which took the whole
-page down in presenter mode. :data:`app.dashboard.plotlyjs.ZERO_WIDTH_GUARD` skips that draw: checked here in
+page down in presenter mode. :data:`app.dashboard.viewpanel.ZERO_WIDTH_GUARD` skips that draw: checked here in
 Chromium on the very call viser makes, with and without the guard (the test of the guard can fail)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from test_dashboard_browser import ARGS, CHROMIUM, _require_browser
 
-from app.dashboard.plotlyjs import BUNDLE, ZERO_WIDTH_GUARD
+from app.dashboard.viewpanel import BUNDLE, ZERO_WIDTH_GUARD
 
 pytestmark = pytest.mark.browser
 

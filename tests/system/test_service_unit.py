@@ -116,7 +116,7 @@ def test_stopping_the_units_command_like_systemd_leaves_no_process():
 
 
 def test_host_note_says_who_can_connect():
-    from app.dashboard.netcheck import who_can_connect
+    from app.dashboard.options import who_can_connect
 
     note = who_can_connect("0.0.0.0", 8080)
     assert note.startswith("note: others connect at http://") and ":8080" in note and "no login" in note
@@ -127,7 +127,7 @@ def test_host_note_says_who_can_connect():
 def test_the_class_page_shows_the_note_line_the_server_prints():
     import re
 
-    from app.dashboard.netcheck import who_can_connect
+    from app.dashboard.options import who_can_connect
 
     page = (ROOT / "docs" / "class.rst").read_text()
     shown = next(x.strip() for x in page.splitlines() if x.strip().startswith("qsid dashboard: note:"))

@@ -147,11 +147,11 @@ def test_offset_free_form_removes_the_offset_at_an_equilibrium_reference():
 
 
 def test_dashboard_draws_the_reference_in_3d_and_in_the_time_series():
-    from app.dashboard.cache import SharedCache
-    from app.dashboard.render import build_figures
     from app.dashboard.session import iter_frames
-    from app.dashboard.settings import Values
     from app.figures.phase_scene import scene_view
+    from app.frames.cache import SharedCache
+    from app.frames.render import build_figures
+    from app.settings.values import Values
 
     small = dict(realizations=3, trajectories=20, steps=100, identification="LS")
     fr = list(

@@ -21,7 +21,7 @@ for _ in range(3):
     with single_threaded_blas():
         inside.append(blas())
 after = blas()
-from app.dashboard.memory import one_blas_thread
+from app.dashboard.lifecycle import one_blas_thread
 one_blas_thread()
 with single_threaded_blas():
     kept = blas()

@@ -1,7 +1,8 @@
-"""What a tab shows at one moment: a frame of the engine's study (:class:`qsid_core.studies.StudyFrame`,
-:func:`app.dashboard.stages.iter_frames`) with the panel's values and labels, arranged for the views
+"""What a front end shows at one moment: a frame of the engine's study (:class:`qsid_core.studies.StudyFrame`,
+:func:`app.frames.compute.iter_frames`) with the panel's values and labels, arranged for the views
 (:mod:`app.figures`): :class:`Frame` for a linear plant, :class:`KoopmanFrame` for a nonlinear one
-(:func:`tab_frame` makes either from the study's). No computation here.
+(:func:`tab_frame` makes either from the study's, by what its result holds; :func:`lifted` tells them apart).
+No computation here.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from app.settings.values import LABELS, Values
 from qsid_core import ClosedLoops, DataLengthResult, Experiment, LTISystem
 from qsid_core.studies import (
     BitsIdentification,
@@ -24,9 +26,7 @@ from qsid_core.studies import (
     full_row,
 )
 
-from .settings import LABELS, Values
-
-__all__ = ["Frame", "KoopmanFrame", "full_row", "row", "tab_frame"]
+__all__ = ["Frame", "KoopmanFrame", "full_row", "lifted", "row", "tab_frame"]
 
 #: Summary rows per estimator label and word length: ``{label: {b: row dict}}``.
 Rows = dict[str, dict[int, dict[str, Any]]]
@@ -225,3 +225,9 @@ def tab_frame(f: StudyFrame, values: Values, system: Any = None, notes: tuple[st
         elapsed=f.elapsed,
         timings=dict(f.timings),
     )
+
+
+def lifted(frame: Any) -> bool:
+    """Whether ``frame``'s result holds a lifting (a nonlinear plant's EDMD models, :class:`KoopmanFrame`): the
+    views, summary and exports that differ between the kinds of plant are chosen by this."""
+    return isinstance(frame, KoopmanFrame)

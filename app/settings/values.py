@@ -1,14 +1,19 @@
-"""Panel values -> engine configuration (pure functions, no server).
+"""The values a front end holds: one field per setting of the table (:class:`Values`), the choices a panel
+offers, the system they name (:func:`resolve_system`), and the plant's kind, linear or nonlinear, with its own
+defaults (pure functions, no server).
 
-Everything the dashboard shows is computed by :mod:`qsid_core`; this module only
-turns what a person set in the panel (:class:`Values`, one field per setting of the
-settings table :data:`app.settings.SETTINGS`) into the engine's
-:class:`~qsid_core.studies.experiment.SweepConfig` / :class:`~qsid_core.control.mpc.MPCConfig`,
-and explains bad input in plain words (:class:`InputError`); typed text (matrices,
-vectors, ranges, boxes) is read by :mod:`app.dashboard.typed`. Defaults and choices
-are the engine's (``SweepConfig()``, ``MPCConfig()``, ``QuantizerSpec()``,
-``ESTIMATORS``); only the dashboard's own choices (interactive data size, the
-b drawn first, both estimators side by side) are set here.
+Everything a front end shows is computed by :mod:`qsid_core`; :mod:`app.settings.config` turns these values into
+the engine's configuration (one for either kind of plant), and typed text (matrices, vectors, ranges, boxes) is
+read by :mod:`app.settings.typed`, with bad input explained in plain words (:class:`InputError`). Defaults and
+choices are the engine's (``SweepConfig()``, ``MPCConfig()``, ``QuantizerSpec()``, ``ESTIMATORS``); only a front
+end's own choices (interactive data size, the b drawn first, both estimators side by side) are set here.
+
+A nonlinear preset (van-der-pol, duffing, pendulum) or plant file is identified by Koopman/EDMD. Which settings
+such a plant uses is the settings table's ``nonlinear`` path (:func:`app.settings.schema.nonlinear_settings`); a
+panel hides the others (:data:`LINEAR_ONLY`) and shows the nonlinear plants' own (:data:`NONLINEAR_ONLY`) only for
+them. A panel's linear parts (the Q and R sliders, x0, the quantizer's channels) are built from an
+:class:`~qsid_core.LTISystem`; for a nonlinear plant that is :func:`stand_in`, which carries the plant's name,
+sizes, state and input names, weights and start state and nothing else (no linear sweep ever runs on it).
 """
 
 from __future__ import annotations
@@ -21,31 +26,22 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, cast
 
 import numpy as np
 
-from app.settings.check import InputError, check_setting
-from app.settings.schema import BY_NAME, SETTINGS, engine_field, plain, value_default
-from qsid_core import (
-    PRESETS,
-    LTISystem,
-    MPCConfig,
-    QsidError,
-    QuantizerSpec,
-    SweepConfig,
-    UncontrollableWarning,
-    get_system,
-)
+from app.settings.check import InputError
+from app.settings.schema import BY_NAME, NONLINEAR_GROUP, SETTINGS, value_default
+from qsid_core import PRESETS, LTISystem, QsidError, SweepConfig, UncontrollableWarning, get_system
 from qsid_core.identification import ESTIMATORS
-from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear, is_nonlinear
+from qsid_core.plant import NONLINEAR_PRESETS, NonlinearSystem, get_nonlinear
+from qsid_core.plant import is_nonlinear as engine_is_nonlinear
+from qsid_core.studies import KOOPMAN_MPC, KoopmanConfig
 
 from .typed import (
     LOG_MAX,
     LOG_MIN,
-    fixed_range,
     format_weights,
     log_from_weights,
     matrix_text,
     panel_matrix,
     parse_vector,
-    state_box,
     weights_from_log,
 )
 
@@ -58,6 +54,8 @@ __all__ = [
     "LABELS",
     "LOG_MIN",
     "LOG_MAX",
+    "MAX_CUSTOM_STATES",
+    "DISPLAY_ONLY",
     "NO_LESSON",
     "InputError",
     "Values",
@@ -65,14 +63,20 @@ __all__ = [
     "resolve_system",
     "stand_in",
     "matrix_text",
-    "quantizer_spec",
-    "mpc_config",
-    "sweep_config",
-    "estimators",
     "weights_from_log",
     "log_from_weights",
     "format_weights",
     "parse_vector",
+    "NONLINEAR_CHOICES",
+    "NONLINEAR_ONLY",
+    "LINEAR_ONLY",
+    "NL_INTERACTIVE",
+    "NL_PAPER_SCALE",
+    "is_nonlinear",
+    "nonlinear_values",
+    "switch_defaults",
+    "scale_for",
+    "scale_label",
 ]
 
 _SWEEP = SweepConfig(mpc=None)  # the engine's defaults (no system is built: "dc-motor" stays a name)
@@ -90,14 +94,14 @@ SYSTEM_CHOICES = (*PRESETS, *NONLINEAR_PRESETS, "custom")
 LABELS = {e: e.upper() for e in ESTIMATORS}
 #: Identification choices -> engine estimators: each estimator alone, then all side by side.
 IDENT_CHOICES = {**{LABELS[e]: (e,) for e in ESTIMATORS}, " + ".join(LABELS[e] for e in ESTIMATORS): ESTIMATORS}
-#: The lesson selector's "no lesson" entry (lessons: :mod:`app.dashboard.lessons`).
+#: The lesson selector's "no lesson" entry (lessons: :mod:`app.lessons`).
 NO_LESSON = "(none)"
 #: Largest custom system the dashboard accepts (3-D view choices grow as n^3).
 MAX_CUSTOM_STATES = 12
 
 
 #: Settings that only change what is drawn from results already computed for the others: a change of these
-#: alone, after a complete frame, is cheap (the fast lane of :class:`~app.dashboard.flow.FairSlots`).
+#: alone, after a complete frame, is cheap (the dashboard's fast lane, :class:`~app.dashboard.flow.FairSlots`).
 DISPLAY_ONLY = tuple(s.name for s in SETTINGS if s.display and s.values)
 
 
@@ -176,8 +180,8 @@ def resolve_system(v: Values) -> SystemChoice:
     """
     if v.system in PRESETS:
         return SystemChoice(get_system(v.system))
-    if v.system in NONLINEAR_PRESETS or (v.system not in SYSTEM_CHOICES and is_nonlinear(v.system)):
-        try:  # a nonlinear plant (a preset or a plant file): the panel's stand-in (its pipeline: koopman_settings.py)
+    if is_nonlinear(v.system):
+        try:  # a nonlinear plant (a preset or a plant file): the panel's stand-in (its configuration: app.settings.config)
             return SystemChoice(stand_in(get_nonlinear(v.system)))
         except QsidError as exc:
             raise InputError(f"system {v.system}: {exc}") from None
@@ -229,118 +233,79 @@ def stand_in(plant: NonlinearSystem) -> LTISystem:
         )
 
 
-def quantizer_spec(v: Values, n: int, m: int) -> QuantizerSpec:
-    """The quantizer of the panel (dither, range mode, guard band, fixed range)."""
-    fixed = fixed_range(v.fixed_range, n, m) if v.range_mode == "fixed" else None
-    try:
-        return QuantizerSpec(dither=v.dither, range_mode=v.range_mode, guard=bool(v.guard), fixed_range=fixed)
-    except QsidError as exc:
-        raise InputError(str(exc)) from None
+#: The nonlinear presets the system dropdown offers.
+NONLINEAR_CHOICES: tuple[str, ...] = tuple(NONLINEAR_PRESETS)
+#: Settings only a nonlinear plant uses (the settings table's nonlinear group): hidden for a linear plant.
+NONLINEAR_ONLY = tuple(s.name for s in SETTINGS if s.cli_group == NONLINEAR_GROUP and s.control is not None)
+#: Panel settings a nonlinear run does not use (no ``nonlinear`` path in the table): hidden for a nonlinear plant.
+#: The word length, the lesson, presenter mode and the estimator choice (the ``estimator`` setting's) stay.
+LINEAR_ONLY = tuple(
+    s.name
+    for s in SETTINGS
+    if s.control is not None and s.nonlinear is None and s.tab != "" and s.name not in ("identification",)
+)
+#: The interactive data size of a nonlinear plant: the current b in about a second, every b's models within a few
+#: seconds, every b's Koopman MPC loops within about 15 s (see benchmarks and docs/dashboard.rst).
+NL_INTERACTIVE = {"trajectories": 50, "steps": 200, "realizations": 5}
+#: The nonlinear sweep's own scale (``KoopmanConfig()``: what ``qsid sweep --system van-der-pol`` runs).
+NL_PAPER_SCALE = {
+    "trajectories": KoopmanConfig().trajectories,
+    "steps": KoopmanConfig().steps,
+    "realizations": KoopmanConfig().realizations,
+}
+#: Settings whose default differs for a nonlinear plant: (linear panel default, nonlinear default).
+_SWITCHED = ("trajectories", "steps", "realizations", "horizon", "mpc_steps", "state_amplitude")
 
 
-def estimators(choice: str) -> tuple:
-    """Panel choice ("LS", "BCLS", "LS + BCLS") -> engine estimators."""
-    if choice not in IDENT_CHOICES:
-        raise InputError(f"identification must be one of {', '.join(IDENT_CHOICES)}; got {choice!r}")
-    return IDENT_CHOICES[choice]
+def is_nonlinear(system: str) -> bool:
+    """Whether the system dropdown's value names a nonlinear plant: a preset, or the plant file naming a
+    ``vector_field`` the dashboard was started with (``qsid-dashboard --system FILE``)."""
+    if system in NONLINEAR_CHOICES:
+        return True
+    return system not in SYSTEM_CHOICES and engine_is_nonlinear(system)
 
 
-def mpc_config(v: Values, system: LTISystem) -> MPCConfig:
-    """The MPC of the panel; log sliders are turned into weights, empty x0 = the system's."""
-    n, m = system.n, system.m
-    Q = weights_from_log(v.log_q) if len(v.log_q) == n else None
-    R = weights_from_log(v.log_r) if len(v.log_r) == m else None
-    names = ", ".join(system.state_names)
-    x0 = parse_vector(v.x0, "x0", n, f" (one per state: {names})")
-    x_ref = parse_vector(v.x_ref, "x_ref", n, f" (one per state: {names})")
-    x_max = state_box(v.x_max, n, names)
-    xf_max = state_box(v.terminal_box, n, names, "terminal box")
-    qf_text = (v.qf or "").strip()
-    if qf_text.lower() in ("", "dare"):
-        Qf = None
-    elif qf_text == "Q":
-        assert system.Q is not None  # LTISystem fills Q in __post_init__
-        Qf = Q if Q is not None else tuple(float(x) for x in np.diag(system.Q))
-    else:
-        k = len(qf_text.replace(",", " ").replace(";", " ").split())
-        Qf = parse_vector(qf_text, "Qf", 1 if k == 1 else n, f" ('dare', 'Q', one number or one per state: {names})")
-    reference = (v.reference or "").strip() or None
-    try:
-        if reference is not None:
-            from qsid_core.control import parse_reference
-
-            parse_reference(reference, system.state_names)
-        return MPCConfig(
-            **_plain_args(v, "mpc"),  # horizon, closed-loop steps, verdict steps, loop noise and seed
-            u_max=float(v.u_max),
-            Q=Q,
-            R=R,
-            x0=x0,
-            x_ref=x_ref,
-            reference=reference,
-            tracking=v.tracking,
-            x_max=x_max,
-            xf_max=xf_max,
-            Qf=Qf,
-            disturbance=float(v.disturbance),
-            disturbance_kind=v.disturbance_kind,
-            feedback_bits=int(v.feedback_bits) or None,
-        )
-    except QsidError as exc:
-        raise InputError(str(exc)) from None
+def nonlinear_values(plant: str, base: Values, paper: bool = False) -> Values:
+    """``base`` for the nonlinear ``plant``, its settings still at the linear defaults moved to the nonlinear
+    ones, and the data size of ``paper`` (full) or interactive scale (a new tab started on a nonlinear plant)."""
+    v = base.replace(system=plant)
+    return v.replace(**switch_defaults(v, plant, True)).replace(**scale_for(plant, paper))
 
 
-def _what_ifs(v: Values, system: LTISystem) -> tuple:
-    """The panel's input word length and sensor noise as engine values (InputError in plain words)."""
-    from qsid_core.quantization import channel_bits
-    from qsid_core.studies import parse_input_bits, parse_noise, parse_state_bits
-
-    try:
-        ib, sb = parse_input_bits(v.input_bits), parse_state_bits(v.state_bits)
-        channel_bits(ALL_BITS[0], system.n, system.m, ib, sb)
-        noise = parse_noise(v.noise) if (v.noise or "").strip() else (0.0,)
-    except QsidError as exc:
-        raise InputError(str(exc)) from None
-    if len(noise) not in (1, system.n):
-        raise InputError(
-            f"sensor noise: give one σ for every state or one per state "
-            f"({', '.join(system.state_names)}); got {len(noise)}"
-        )
-    return ib, sb, noise
+def scale_for(system: str, paper: bool) -> dict[str, int]:
+    """The data size of the panel's "Paper scale" (``paper``) or "Interactive" button for ``system``."""
+    if is_nonlinear(system):
+        return NL_PAPER_SCALE if paper else NL_INTERACTIVE
+    return PAPER_SCALE if paper else INTERACTIVE
 
 
-def _plain_args(v: Values, config: str) -> dict[str, Any]:
-    """The engine arguments of the settings that go to ``config`` ("sweep" or "mpc") as they are, each checked
-    by the table's rules first (:func:`app.settings.schema.plain`)."""
-    return {engine_field(s): check_setting(s, getattr(v, s.name), slider=False) for s in plain(config)}
+def scale_label(system: str, paper: bool) -> str:
+    """That button's label."""
+    s = scale_for(system, paper)
+    kind = "Paper scale" if paper else "Interactive"
+    if paper and is_nonlinear(system):
+        kind = "Full scale, as qsid sweep"
+    return f"{kind} ({s['trajectories']} × {s['steps']}, {s['realizations']} realizations)"
 
 
-def sweep_config(v: Values, system: LTISystem) -> SweepConfig:
-    """The whole engine configuration for ``v`` (all word lengths :data:`ALL_BITS`; b is the one drawn in 3-D)."""
-    if not ALL_BITS[0] <= int(v.bits) <= ALL_BITS[-1]:
-        raise InputError(f"word length b must be between {ALL_BITS[0]} and {ALL_BITS[-1]}; got {v.bits}")
-    if not v.rho_auto and not (np.isfinite(v.rho) and v.rho > 0):
-        raise InputError(f"rho must be a positive number (or tick 'rho auto'); got {v.rho}")
-    if not (np.isfinite(v.target) and 0 < v.target <= 1):
-        raise InputError(f"target share of stabilized loops must be in (0, 1]; got {v.target}")
-    if not (np.isfinite(v.cost_gap) and v.cost_gap >= 0):
-        raise InputError(f"cost gap must be >= 0 (relative: 0.01 = 1 %); got {v.cost_gap}")
-    input_bits, state_bits, noise = _what_ifs(v, system)
-    try:
-        return SweepConfig(
-            system=system,
-            bits=ALL_BITS,
-            **_plain_args(v, "sweep"),  # realizations, data size, seeds, amplitudes, theta
-            quantizer=quantizer_spec(v, system.n, system.m),
-            estimator=estimators(v.identification)[0],
-            mpc=mpc_config(v, system),
-            rho=None if v.rho_auto else float(v.rho),
-            input_bits=input_bits,
-            state_bits=state_bits,
-            noise=noise,
-            noise_known=bool(v.noise_known),
-        )
-    except InputError:
-        raise
-    except QsidError as exc:
-        raise InputError(str(exc)) from None
+def _nonlinear_defaults(plant: NonlinearSystem) -> dict[str, Any]:
+    d: dict[str, Any] = dict(NL_INTERACTIVE, horizon=KOOPMAN_MPC.horizon, mpc_steps=KOOPMAN_MPC.steps)
+    d["state_amplitude"] = float(plant.amplitude)
+    return d
+
+
+def switch_defaults(
+    values: Values, nonlinear_plant: str, to_nonlinear: bool, also: Values | None = None
+) -> dict[str, Any]:
+    """The panel values to change when the plant switches between linear and the nonlinear ``nonlinear_plant``:
+    each setting of :data:`_SWITCHED` still at the one kind's default (or at ``also``'s: the settings of a lesson
+    the person left) goes to the other kind's; a value the person chose stays."""
+    lin = {k: value_default(BY_NAME[k]) for k in _SWITCHED}
+    nl = _nonlinear_defaults(get_nonlinear(nonlinear_plant))
+    src, dst = (lin, nl) if to_nonlinear else (nl, lin)
+
+    def default(k: str) -> bool:
+        v = getattr(values, k)
+        return v == src[k] or (also is not None and v == getattr(also, k))
+
+    return {k: dst[k] for k in _SWITCHED if default(k) and getattr(values, k) != dst[k]}

@@ -1,7 +1,8 @@
-"""What leaves the dashboard besides its settings file: the ``qsid sweep`` / ``qsid bits`` lines that
-reproduce a tab's numbers, and exports of the current curves (CSV, JSON) and figures (one standalone offline
-HTML page). Pure functions of a frame or of the panel's values; :mod:`app.dashboard.share` puts them on the
-panel's buttons.
+"""What leaves a front end besides its settings file: the ``qsid sweep`` / ``qsid bits`` lines that reproduce its
+numbers, and exports of the current curves (CSV, JSON) and figures (one standalone offline HTML page), for a
+linear and a nonlinear plant alike (the columns and captions chosen by what the frame's result holds). Pure
+functions of a frame or of the panel's values; the dashboard puts them on the panel's buttons
+(:mod:`app.dashboard.share`).
 """
 
 from __future__ import annotations
@@ -13,25 +14,28 @@ import html
 import io
 import json
 import math
+from typing import Any
 
 from app.figures.raw import PLOT_CONFIG
 from app.settings.command import bits_command, sweep_command
-from qsid_core.studies import json_clean
+from app.settings.command import sweep_command as koopman_command
+from app.settings.config import study_config
+from app.settings.values import Values
+from qsid_core.studies import KoopmanConfig, json_clean
 
-from .koopman_exports import koopman_caption, koopman_csv, koopman_json_data, koopman_lines, koopman_rows
-from .koopman_settings import is_nonlinear
-from .settings import Values, estimators, resolve_system, sweep_config
+from .frame import lifted
 
 __all__ = ["command_lines", "curves_rows", "curves_csv", "curves_json", "figures_html", "frame_html"]
 
 
 def command_lines(v: Values) -> list:
-    """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown)."""
-    if is_nonlinear(v.system):
-        return koopman_lines(v)
-    system = resolve_system(v).system
-    cfg = sweep_config(v, system)
-    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
+    """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown), and for a
+    linear plant the ``qsid bits`` line."""
+    sc = study_config(v)
+    cfg = sc.config
+    if isinstance(cfg, KoopmanConfig):
+        return [koopman_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]
+    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]
     return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]
 
 
@@ -64,10 +68,37 @@ _COLUMNS = (
 )
 
 
+#: The CSV columns of a nonlinear plant's curves (the rows of ``qsid sweep --json``'s ``results``).
+_LIFTED_COLUMNS = (
+    "estimator",
+    "bits",
+    "err_G_mean",
+    "err_G_std",
+    "err_A_mean",
+    "err_A_std",
+    "err_B_mean",
+    "err_B_std",
+    "large_data_err_G",
+    "prediction_error_mean",
+    "prediction_error_std",
+    "overload_fraction",
+    "bcls_fallbacks",
+    "ident_failures",
+    "stabilized_fraction",
+    "converged",
+    "bounded",
+    "diverged",
+    "failed",
+    "within_radius",
+    "settled_offset_median",
+    "settled_offset_max",
+)
+
+
 def curves_rows(frame) -> list:
     """One flat row per (estimator, b) of the curves computed so far."""
-    if getattr(frame, "kind", "") == "koopman":
-        return koopman_rows(frame)
+    if lifted(frame):
+        return _lifted_rows(frame)
     out = []
     for lab in frame.labels:
         for b, r in sorted(frame.rows[lab].items()):
@@ -107,8 +138,8 @@ def curves_rows(frame) -> list:
 
 def curves_csv(frame) -> str:
     """The current curves as CSV (header + one row per estimator and b; empty cells for missing values)."""
-    if getattr(frame, "kind", "") == "koopman":
-        return koopman_csv(frame)
+    if lifted(frame):
+        return _lifted_csv(frame)
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=_COLUMNS, lineterminator="\n")
     w.writeheader()
@@ -133,8 +164,8 @@ def _dumps(obj: object) -> str:
 
 def curves_json(frame) -> str:
     """The current curves, settings and command as strict JSON (rows as the CLI's ``results``)."""
-    if getattr(frame, "kind", "") == "koopman":
-        return _dumps(koopman_json_data(frame))
+    if lifted(frame):
+        return _dumps(_lifted_json(frame))
     return _dumps(
         {
             "system": frame.system.name,
@@ -179,9 +210,9 @@ def frame_html(frame) -> str:
     """The current figures of ``frame`` (every registered view) as one offline page, with the command."""
     from .render import build_figures
 
-    if getattr(frame, "kind", "") == "koopman":
+    if lifted(frame):
         name = frame.system.name
-        return figures_html(build_figures(frame), f"qsid dashboard: {name}", koopman_caption(frame))
+        return figures_html(build_figures(frame), f"qsid dashboard: {name}", _lifted_caption(frame))
     cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
     caption = (
         f"System {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "
@@ -191,3 +222,71 @@ def frame_html(frame) -> str:
     if getattr(frame, "datalength", None) is None:  # not computed: no empty "press Compute" plot in the page
         figs.pop("datalength", None)
     return figures_html(figs, f"qsid dashboard: {frame.system.name}", caption)
+
+
+# ----- a nonlinear plant's curves (its rows are the nonlinear sweep's) -------------------------------------------
+def _lifted_rows(frame: Any) -> list[dict[str, Any]]:
+    """One flat row per (estimator, b) computed so far."""
+    out = []
+    for lab in frame.labels:
+        for b, r in sorted(frame.rows[lab].items()):
+            oc = r.get("closed_loop_outcomes") or {}
+            row: dict[str, Any] = {"estimator": lab, "bits": b}
+            for k in ("err_G", "err_A", "err_B", "prediction_error"):
+                row[f"{k}_mean"], row[f"{k}_std"] = r[k]["mean"], r[k]["std"]
+            row["large_data_err_G"] = (r.get("large_data") or {}).get("err_G")
+            for k in ("overload_fraction", "bcls_fallbacks", "ident_failures", "stabilized_fraction"):
+                row[k] = r.get(k)
+            row.update({k: oc.get(k) for k in ("converged", "bounded", "diverged", "failed")})
+            off = r.get("settled_offset") or {}
+            row.update(
+                within_radius=r.get("within_radius"),
+                settled_offset_median=off.get("median"),
+                settled_offset_max=off.get("max"),
+            )
+            out.append(row)
+    return out
+
+
+def _lifted_csv(frame: Any) -> str:
+    """The curves as CSV (empty cells for missing values)."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=_LIFTED_COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for r in _lifted_rows(frame):
+        w.writerow({k: "" if x is None or (isinstance(x, float) and not math.isfinite(x)) else x for k, x in r.items()})
+    return buf.getvalue()
+
+
+def _lifted_json(frame: Any) -> dict[str, Any]:
+    """The curves, settings and command lines (rows as ``qsid sweep --json``'s ``results``)."""
+    return {
+        "kind": "koopman",
+        "system": frame.system.name,
+        "settings": dataclasses.asdict(frame.values),
+        "command": command_lines(frame.values),
+        "bits_drawn": frame.bits,
+        "complete": frame.complete,
+        "reference": {
+            "prediction_error": frame.reference_error,
+            "closed_loop_outcome": frame.reference_loop.outcome[0] if frame.reference_loop is not None else None,
+            "settled_offset": _offset(frame.reference_loop),
+        },
+        "curves": {lab: [frame.rows[lab][b] for b in sorted(frame.rows[lab])] for lab in frame.labels},
+    }
+
+
+def _offset(loop: Any) -> float | None:
+    """The settled offset of the unquantized EDMD's loop (None: no loop, or it diverged or failed)."""
+    if loop is None or not len(loop.settled_offset) or not math.isfinite(float(loop.settled_offset[0])):
+        return None
+    return float(loop.settled_offset[0])
+
+
+def _lifted_caption(frame: Any) -> str:
+    """The offline page's caption of a nonlinear frame, with the command lines (HTML)."""
+    cmds = "<br>".join(f"<code>{html.escape(c)}</code>" for c in command_lines(frame.values))
+    return (
+        f"Nonlinear plant {html.escape(frame.system.name)}, b = {frame.bits} drawn, {frame.done}/{frame.total} word "
+        f"lengths with loops. Reproduce the numbers: {cmds}"
+    )

@@ -1,23 +1,23 @@
-"""One tab's computation (:func:`iter_frames`), for a linear and a nonlinear plant alike: the engine's
-:class:`~qsid_core.studies.Study` of the panel's values, its frames arranged for the views
-(:func:`~app.dashboard.frames.tab_frame`).
+"""A front end's computation (:func:`iter_frames`), for a linear and a nonlinear plant alike: the engine's
+:class:`~qsid_core.studies.Study` of the panel's values (:func:`app.settings.config.study_config`), its frames
+arranged for the views (:func:`~app.frames.frame.tab_frame`).
 
-Threads: :func:`iter_frames` runs in the tab's worker (see the list in :mod:`app.dashboard.session`); the study's
-helper thread quantizes the other word lengths while the worker runs closed loops. Every stage can be left
-within about a second of a newer setting: the study checks its cancel token word length by word length, and
-work in the pool through :class:`~app.dashboard.pool.Guarded` is abandoned by the pool's watchdog.
+Threads: in the dashboard, :func:`iter_frames` runs in the tab's worker (see the list in
+:mod:`app.dashboard.session`); the study's helper thread quantizes the other word lengths while the worker runs
+closed loops. Every stage can be left within about a second of a newer setting: the study checks its cancel
+token word length by word length, and work in the dashboard's pool (:class:`~app.dashboard.pool.Guarded`) is
+abandoned by the pool's watchdog.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, MutableMapping
-from typing import Any
 
+from app.settings.config import study_config
+from app.settings.values import ALL_BITS, Values
 from qsid_core.studies import CancelToken, Study
 
-from .frames import Frame, KoopmanFrame, tab_frame
-from .koopman_settings import is_nonlinear, koopman_config
-from .settings import ALL_BITS, Values, estimators, resolve_system, sweep_config
+from .frame import Frame, KoopmanFrame, tab_frame
 
 __all__ = ["iter_frames"]
 
@@ -40,7 +40,7 @@ def iter_frames(
     ----------
     values : Values
     cache : mapping, optional
-        Shared :class:`~app.dashboard.cache.SharedCache` (anything a change does not touch is reused).
+        Shared :class:`~app.frames.cache.SharedCache` (anything a change does not touch is reused).
     executor, tasks
         The server's process pool (None: in this process) and its workers.
     should_stop : callable, optional
@@ -62,14 +62,7 @@ def iter_frames(
     qsid_core.errors.QsidError
         Bad settings, data overflow, ... in plain words.
     """
-    cfg: Any
-    system, notes = None, ()
-    if is_nonlinear(values.system):
-        cfg, ests = koopman_config(values)
-    else:
-        choice = resolve_system(values)
-        system, notes = choice.system, tuple(choice.notes)
-        cfg, ests = sweep_config(values, system), estimators(values.identification)
-    study = Study(cfg, executor, cache, max(1, tasks) if executor is not None else 0, tuple(ests))
+    sc = study_config(values)  # the plant's kind chooses the configuration, not a second path
+    study = Study(sc.config, executor, cache, max(1, tasks) if executor is not None else 0, sc.estimators)
     for f in study.frames(int(values.bits), CancelToken(should_stop), on_progress, min_interval, chunk, memo):
-        yield tab_frame(f, values, system, notes)
+        yield tab_frame(f, values, sc.system, sc.notes)

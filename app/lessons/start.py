@@ -1,7 +1,7 @@
 """The guided start: the lesson a new tab of ``qsid-dashboard`` opens on when nothing else was asked for.
 
-It is one row of :data:`app.dashboard.lessons.LESSONS` (``(name, title, text, settings, plot)``, as
-:class:`~app.dashboard.lessons.Lesson` takes it): what the three panels show, which slider to move first and
+It is one row of :data:`app.lessons.table.LESSONS` (``(name, title, text, settings, plot)``, as
+:class:`~app.lessons.table.Lesson` takes it): what the three panels show, which slider to move first and
 what to look for, on the default plant at the default settings, with the letter it reproduces cited and the
 ``fig1`` lesson as the next step. Every claim is asserted at these settings by
 ``tests/dashboard/test_dashboard_start.py``.

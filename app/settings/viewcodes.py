@@ -6,11 +6,11 @@ dropped first) and updated each time the tab draws new settings.
 
 viser's client connects its websocket to the address in the page's ``?websocket=`` parameter, path included,
 and keeps that parameter in the address bar, so a reload connects to the same path again; the server reads the
-path of the websocket request (:func:`app.dashboard.viserfix.connection_request`). The paths (:func:`parse_path`):
+path of the websocket request (the dashboard's :func:`app.dashboard.viserfix.connection_request`). The paths (:func:`parse_path`):
 
 ``/v/CODE``      the view CODE (its settings; a tab of its own if another tab shows CODE)
 ``/n/CODE``      the same for a code the server itself handed out: no note if it has no settings yet
-``/f/CODE``      follow the view CODE live and read-only (:mod:`app.dashboard.follow`)
+``/f/CODE``      follow the view CODE live and read-only (the dashboard's :mod:`app.dashboard.follow`)
 
 each optionally followed by ``/SPARE``, a second code: the code this tab takes as its own when CODE is not
 its own (another tab shows CODE, or the follower explores from here), so that the address bar already holds
@@ -34,8 +34,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import parse_qsl, quote
 
-from .settings import InputError, Values
-from .share import settings_json, values_from_json
+from .files import settings_json, values_from_json
+from .values import InputError, Values
 
 __all__ = [
     "ViewStore",

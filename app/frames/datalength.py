@@ -1,4 +1,4 @@
-"""The data-length study of a tab, on demand, in one background thread (mechanism (8) of :mod:`.session`).
+"""The data-length study of a tab, on demand, in one background thread (mechanism (9) of :mod:`app.dashboard.session`).
 
 The study (:func:`qsid_core.studies.datalength.run_datalength`) simulates up to 10^6
 samples per realization, seconds to a minute: it runs only when the person
@@ -18,10 +18,10 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, MutableMapping
 
+from app.settings.config import sweep_config
+from app.settings.values import Values, resolve_system
 from qsid_core import DataLengthConfig, DataLengthResult, get_system, run_datalength
 from qsid_core.studies import DEFAULT_SAMPLES, datalength_key
-
-from .settings import Values, resolve_system, sweep_config
 
 __all__ = ["DataLengthRunner", "datalength_config", "MAX_REALIZATIONS"]
 
@@ -30,7 +30,7 @@ MAX_REALIZATIONS = 10
 
 
 def datalength_config(values: Values) -> DataLengthConfig:
-    """The study of the panel's sweep (:func:`~app.dashboard.settings.sweep_config`) at its current b: ten lengths,
+    """The study of the panel's sweep (:func:`~app.settings.config.sweep_config`) at its current b: ten lengths,
     10^3..10^6 samples, at most :data:`MAX_REALIZATIONS` realizations."""
     sweep = sweep_config(values, resolve_system(values).system)
     return DataLengthConfig.from_sweep(

@@ -1,10 +1,12 @@
-"""Decides what one tab redraws for each frame, of a linear or a nonlinear plant alike: the views the frame's
-result offers (:data:`app.figures.registry.VIEWS` or :data:`~app.figures.registry.KOOPMAN_VIEWS`, read at call
-time), the 3-D scene and the summary (:mod:`app.dashboard.summary`, :mod:`app.dashboard.koopman_render`)."""
+"""Decides what one view of a study redraws for each frame, of a linear or a nonlinear plant alike: the views the
+frame's result offers (:data:`app.figures.registry.VIEWS` or :data:`~app.figures.registry.KOOPMAN_VIEWS`, read at
+call time), the 3-D scene and the summary (:mod:`app.frames.summary`); and what a draw pushed (:class:`Drawn`,
+each figure's JSON made once, :class:`Sent`), which the dashboard shares with the tabs following it."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 from app.figures import registry
 from app.figures.axes import finite_axes
@@ -16,15 +18,17 @@ from app.figures.raw import Wire
 from app.figures.traces import CURRENT_B, move_current_bits
 from app.figures.view import CURRENT, CURVES
 
-from .frames import Frame, KoopmanFrame
-from .koopman_render import koopman_summary
-from .presenter import PLOT_ASPECT
+from .frame import Frame, KoopmanFrame, lifted
 from .summary import summary_markdown
 
-__all__ = ["Render", "Renderer", "build_figures", "STYLES", "plot_aspect"]
+__all__ = ["Render", "Renderer", "build_figures", "STYLES", "PLOT_ASPECT", "plot_aspect", "Sent", "Drawn"]
 
 #: The figures' style per layout: a laptop's, presenter mode's (a projector) and a phone's.
 STYLES = {"normal": legible_figure, "presenter": presenter_figure, "phone": phone_figure}
+#: Height / width of a plot in presenter mode: one view fills the dashboard's plots panel under its header at
+#: 1366 × 768 (~1000 × 600 px) and at 1920 × 1080 (~1430 × 860 px); a view of many rows is taller
+#: (:func:`plot_aspect` sets each plot's aspect from its figure).
+PLOT_ASPECT = PRESENTER_SIZE[1] / PRESENTER_SIZE[0]
 
 
 def plot_aspect(style: str, name: str, fig) -> float:
@@ -37,20 +41,16 @@ def plot_aspect(style: str, name: str, fig) -> float:
     return next(v.aspect for v in registry.VIEWS + registry.KOOPMAN_VIEWS if v.name == name)  # read at call time
 
 
-def _nonlinear(frame) -> bool:
-    return getattr(frame, "kind", "") == "koopman"
-
-
 def build_figures(frame: Frame | KoopmanFrame, which=None) -> dict:
     """Plotly figures of the views ``frame``'s result offers (all, or the names in ``which``).
 
     Rows may be partial: missing word lengths are simply absent from the curves. A pinned earlier result of a
     linear plant is drawn dashed on top of its error, cost and bound plots.
     """
-    views = registry.KOOPMAN_VIEWS if _nonlinear(frame) else registry.VIEWS
+    views = registry.KOOPMAN_VIEWS if lifted(frame) else registry.VIEWS
     figs = {v.name: v.build(frame) for v in views if which is None or v.name in which}
     pinned = getattr(frame, "pinned", None)
-    if pinned is not None and not _nonlinear(frame):
+    if pinned is not None and not lifted(frame):
         for v in views:
             if v.name in figs and v.name in PINNED_VIEWS:
                 overlay_pinned(figs[v.name], v.build(pinned), f"pinned b={pinned.bits}")
@@ -99,7 +99,7 @@ class Renderer:
     def render(self, frame: Frame | KoopmanFrame, axes: str | None = None, narrow: bool = False) -> Render:
         """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode)."""
         presenter = bool(getattr(frame.values, "presenter", False))
-        nonlinear = _nonlinear(frame)
+        nonlinear = lifted(frame)
         style = "phone" if narrow else "presenter" if presenter else "normal"
         if (style, "nonlinear" if nonlinear else "linear") != self._style:  # every figure is rebuilt
             self.figures, self._rows_key, self._current_keys, self._models_key = {}, None, {}, None
@@ -113,13 +113,13 @@ class Renderer:
             assert isinstance(frame, KoopmanFrame)
             key = (frame.bits, tuple(id(frame.models[lab]) for lab in frame.labels), frame.values)
             if frame.stage == "current" or key != self._models_key:
-                scene, summary = koopman_scene(frame), koopman_summary(frame)
+                scene, summary = koopman_scene(frame), summary_markdown(frame)
                 self._models_key = key
                 out.update(self._current(frame, views, key))
             rows_key: tuple = (frame.values, rows)
             rebuild = rows_key != self._rows_key
             if rebuild:
-                summary = koopman_summary(frame)
+                summary = summary_markdown(frame)
         else:
             assert isinstance(frame, Frame)
             if frame.stage == "current":
@@ -157,3 +157,33 @@ class Renderer:
         aspects = {name: plot_aspect(style, name, fig) for name, fig in out.items()}
         # viser's plot handle calls figure.to_json(): Wire's skips plotly's deep copy (raw.to_json)
         return Render(scene, summary, {name: Wire(fig) for name, fig in out.items()}, aspects)
+
+
+class Sent:
+    """A figure as pushed to a plot handle, with the handle's height / width (``aspect``): its JSON made once (by
+    the first handle given it), then reused by every follower's handle. viser's plot handle calls
+    :meth:`to_json`; every other attribute is the figure's."""
+
+    __slots__ = ("wire", "json", "aspect")
+
+    def __init__(self, wire: Any, aspect: float):
+        self.wire = wire  # an app.figures.raw.Wire (or a plotly figure)
+        self.json: str | None = None
+        self.aspect = aspect
+
+    def to_json(self) -> str:
+        if self.json is None:
+            self.json = self.wire.to_json()
+        return self.json
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.wire, name)
+
+
+@dataclass
+class Drawn:
+    """What one draw pushed to a tab: the 3-D scene and the summary (None: unchanged) and the figures redrawn."""
+
+    scene: Any = None
+    summary: str | None = None
+    figures: dict[str, Sent] = field(default_factory=dict)

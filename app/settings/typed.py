@@ -2,7 +2,7 @@
 
 Matrices, vectors, fixed quantizer ranges and state boxes as a person types them, read strictly and
 explained in plain words (:class:`~app.settings.check.InputError`); and the log10 weight sliders <-> weights.
-:mod:`app.dashboard.settings` builds the engine configuration from them.
+:mod:`app.settings.config` builds the engine configuration from them.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
-"""The "modified from the lesson" mark: which settings of a panel differ from what a lesson set (:func:`lesson_drift`)
-and the mark above the lesson's text with its button back (:class:`LessonMark`).
+"""Which settings of a panel differ from what a lesson set (:func:`lesson_drift`), and the lesson's text as a panel
+shows it, marked "modified from the lesson" once they do (:func:`lesson_markdown`).
 
 A lesson's claims are about the panel the lesson sets (:func:`lesson_panel`); any setting its results depend on
 that differs is a drift, except b (every lesson asks to move it), what only changes the drawing, and the changes
-the lesson's text asks for (:attr:`app.dashboard.lessons.Lesson.moves`).
+the lesson's text asks for (:attr:`app.lessons.table.Lesson.moves`).
 """
 
 from __future__ import annotations
@@ -13,22 +13,24 @@ from typing import Any
 
 import numpy as np
 
-from .lessons import BACK_LABEL, NONE, get_lesson, lesson_markdown, lesson_names, lesson_values
-from .settings import DISPLAY_ONLY, Values, log_from_weights, resolve_system
+from app.settings.schema import BY_NAME
+from app.settings.values import DISPLAY_ONLY, Values, log_from_weights, resolve_system
 
-__all__ = ["lesson_panel", "lesson_drift", "LessonMark"]
+from .table import NONE, get_lesson, lesson_names, lesson_values
+
+__all__ = ["lesson_panel", "lesson_drift", "drift_label", "lesson_markdown"]
 
 #: Fields never a drift: b (every lesson's text says "move b to ..."), the lesson itself, what is only drawn
 #: differently from the same results (presenter mode, 3-D axes, the bound in 3-D, the quantizer's channel, the
 #: compared word lengths) and a preset's matrices (the system names them).
 _NOT_A_DRIFT = ("lesson", "a_text", "b_text", *DISPLAY_ONLY)
-#: Fields whose empty value means "the system's own" (:class:`~app.dashboard.settings.Values`).
+#: Fields whose empty value means "the system's own" (:class:`~app.settings.values.Values`).
 _SYSTEMS_OWN = ("x0", "log_q", "log_r")
 
 
 @functools.lru_cache(maxsize=64)
 def lesson_panel(name: str) -> Values:
-    """The panel exactly as opening lesson ``name`` sets it (:func:`app.dashboard.controls.apply_lesson`): its
+    """The panel exactly as opening lesson ``name`` sets it (the dashboard's :func:`app.dashboard.controls.apply_lesson`): its
     values with the system's own x0 and Q/R weights written out (as the panel shows them)."""
     v = lesson_values(name)
     system = resolve_system(v).system
@@ -73,39 +75,21 @@ def lesson_drift(name: str, values: Values) -> tuple[str, ...]:
     return tuple(k for k in drift if k not in followed)
 
 
-class LessonMark:
-    """The "modified from the lesson" mark above a lesson's text and the button back (one per tab).
+def drift_label(field: str) -> str:
+    """The panel's name of setting ``field`` (the mark lists them)."""
+    s = BY_NAME.get(field)
+    return s.label if s is not None else field.replace("_", " ")
 
-    Parameters
-    ----------
-    gui : client.gui
-    text : the lesson text's markdown handle (the button goes right below it)
-    on_back : callable()
-        The button was pressed (the tab then sets the lesson's settings again).
-    """
 
-    def __init__(self, gui, text, on_back):
-        self.text = text
-        self.drift: tuple[str, ...] = ()
-        self.wanted = False  # the button was pressed and the tab has not set the lesson again yet
-        self.back = gui.add_button(BACK_LABEL, visible=False, order=float(text.order) + 0.5)
-        self._on_back = on_back
-        self.back.on_click(lambda _e: self.press())
-
-    def press(self) -> None:
-        """The button: ask the tab to set the lesson's settings again."""
-        self.wanted = True
-        self._on_back()
-
-    def take(self) -> bool:
-        """True once after the button was pressed (the tab's worker then sets the lesson again)."""
-        wanted, self.wanted = self.wanted, False
-        return wanted
-
-    def show(self, values: Values) -> None:
-        """Mark (or unmark) the text for ``values`` (from the tab's worker)."""
-        drift = lesson_drift(values.lesson, values)
-        if drift != self.drift:
-            self.drift = drift
-            self.text.content = lesson_markdown(values.lesson, drift)
-            self.back.visible = bool(drift)
+def lesson_markdown(name: str, drift: tuple[str, ...] = ()) -> str:
+    """What the panel shows under the selector ('' for no lesson); with ``drift`` (the fields changed since the
+    lesson set them) a mark first: the text is about the lesson's settings, no longer the panel's."""
+    if name == NONE:
+        return ""
+    les = get_lesson(name)
+    stop = "" if les.title[-1] in ".?!" else "."
+    mark = ""
+    if drift:
+        what = ", ".join(drift_label(k) for k in drift)
+        mark = f"✎ **Modified from the lesson** ({what}): the text is about the lesson's own settings.\n\n"
+    return f"{mark}**{les.title}{stop}** {les.text}"
