@@ -18,7 +18,6 @@ from typing import Any
 
 from app.figures.raw import PLOT_CONFIG
 from app.settings.command import bits_command, sweep_command
-from app.settings.command import sweep_command as koopman_command
 from app.settings.config import study_config
 from app.settings.values import Values
 from qsid_core.studies import KoopmanConfig, json_clean
@@ -33,9 +32,9 @@ def command_lines(v: Values) -> list:
     linear plant the ``qsid bits`` line."""
     sc = study_config(v)
     cfg = sc.config
+    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]  # either kind of plant
     if isinstance(cfg, KoopmanConfig):
-        return [koopman_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]
-    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]
+        return lines
     return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]
 
 
