@@ -27,6 +27,7 @@ from .bits_certificate import (
 )
 from .bits_cost import LOOP_COST_TOLERANCE, LOOP_TIME_CONSTANTS, loop_length
 from .budget import KNEE_TOLERANCE, BudgetConfig, BudgetResult, run_budget, runs_bought
+from .budget_allocation import AllocationResult, propose_allocation, run_allocation, uniform_allocation
 from .cache_keys import KEY_PARTS, NOT_IN_KEYS, STAGE_GROUPS, config_paths, group_values, stage_key, system_key
 from .clipping import clipping_effect
 from .config import SweepConfig, parse_bits, parse_input_bits, parse_noise, parse_state_bits
@@ -81,6 +82,7 @@ from .warmup import (
 )
 
 __all__ = [
+    "AllocationResult",
     "Assumptions",
     "BitsAnswer",
     "BitsIdentification",
@@ -170,10 +172,12 @@ __all__ = [
     "parse_state_bits",
     "predicted_small_gain",
     "predicted_small_gains",
+    "propose_allocation",
     "range_words",
     "realization_records",
     "realized_small_gain",
     "replace_atomically",
+    "run_allocation",
     "run_budget",
     "run_datalength",
     "run_koopman_sweep",
@@ -189,6 +193,7 @@ __all__ = [
     "theorem1_on_data",
     "to_columns",
     "to_pandas",
+    "uniform_allocation",
     "wilson_interval",
     "write_csv",
 ]
