@@ -15,23 +15,30 @@ import json
 import math
 
 from app.figures.raw import PLOT_CONFIG
-from app.settings.command import bits_command, sweep_command
+from app.settings.command import bits_command, budget_command, sweep_argv, sweep_command
+from app.settings.koopman_command import koopman_argv
 from qsid_core.studies import json_clean
 
 from .koopman_exports import koopman_caption, koopman_csv, koopman_json_data, koopman_lines, koopman_rows
-from .koopman_settings import is_nonlinear
+from .koopman_settings import is_nonlinear, koopman_config
 from .settings import Values, estimators, resolve_system, sweep_config
 
 __all__ = ["command_lines", "curves_rows", "curves_csv", "curves_json", "figures_html", "frame_html"]
 
 
 def command_lines(v: Values) -> list:
-    """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown)."""
+    """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown), then with a bit
+    budget its ``qsid budget`` line (judged on the last estimator, as the bandwidth view)."""
     if is_nonlinear(v.system):
-        return koopman_lines(v)
+        kcfg, kests = koopman_config(v)
+        budget = [budget_command(koopman_argv(dataclasses.replace(kcfg, estimator=kests[-1])), float(v.total_bits))]
+        return koopman_lines(v) + (budget if float(v.total_bits) else [])
     system = resolve_system(v).system
     cfg = sweep_config(v, system)
-    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in estimators(v.identification)]
+    ests = estimators(v.identification)
+    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in ests]
+    if float(v.total_bits):
+        lines.append(budget_command(sweep_argv(dataclasses.replace(cfg, estimator=ests[-1])), float(v.total_bits)))
     return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]
 
 

@@ -54,4 +54,21 @@ KOOPMAN_LESSONS: tuple[tuple[str, str, str, dict[str, Any], str], ...] = (
         dict(system="pendulum", bits=2, **_NONLINEAR),
         "koopman-outcomes",
     ),
+    (
+        "bandwidth-koopman",
+        "A link of limited bandwidth (Van der Pol)",
+        "Van der Pol (poly:3, BCLS) over a link of 5·10⁵ bits: every sample of its 3 channels costs b bits, so b "
+        "buys 5·10⁵ / (100 · 3 · b) runs of 100 steps (1666 at b = 1, 104 at b = 16). Look at the bandwidth "
+        "plot (show: Nonlinear). Without sensor noise finer words always win: from b = 3 on the error of the lifted "
+        "model falls about 2× per bit and the knee (dotted) is b = 16. The Koopman MPC loops (the share panel) "
+        "converge at no b: each settles near the origin (bounded), as the unquantized model's own loop does; from "
+        "b = 3 on every one ends within the convergence radius 0.1 (dotted), at b = 1 none.",
+        dict(
+            system="van-der-pol",
+            bits=6,
+            **{**_NONLINEAR, "identification": "BCLS", "trajectories": 100, "realizations": 5},
+            total_bits=5e5,
+        ),
+        "koopman-bandwidth",
+    ),
 )

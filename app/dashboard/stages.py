@@ -70,6 +70,7 @@ def iter_frames(
         choice = resolve_system(values)
         system, notes = choice.system, tuple(choice.notes)
         cfg, ests = sweep_config(values, system), estimators(values.identification)
-    study = Study(cfg, executor, cache, max(1, tasks) if executor is not None else 0, tuple(ests))
+    budget = float(values.total_bits) or None  # 0: no budget study
+    study = Study(cfg, executor, cache, max(1, tasks) if executor is not None else 0, tuple(ests), budget=budget)
     for f in study.frames(int(values.bits), CancelToken(should_stop), on_progress, min_interval, chunk, memo):
         yield tab_frame(f, values, system, notes)

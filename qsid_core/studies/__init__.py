@@ -67,6 +67,7 @@ from .records import (
 )
 from .stage_results import BitsIdentification, TheoryAtBits
 from .study import CancelToken, LinearAtBits, NonlinearAtBits, Study, StudyFrame
+from .study_budget import Bandwidth, bandwidth
 from .study_linear import full_row, task_count
 from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
 from .sweep import run_sweep, summarize
@@ -84,6 +85,7 @@ from .warmup import (
 __all__ = [
     "AllocationResult",
     "Assumptions",
+    "Bandwidth",
     "BitsAnswer",
     "BitsIdentification",
     "BitsRow",
@@ -136,6 +138,7 @@ __all__ = [
     "TheoryAtBits",
     "answer_from_rows",
     "assess",
+    "bandwidth",
     "bits_needed",
     "build_row",
     "certificate",

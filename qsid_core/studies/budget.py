@@ -275,13 +275,15 @@ def run_budget(
     if isinstance(study, SweepConfig):  # the plant resolved once, not once per realization and word length
         study = replace(study, system=get_system(study.system))
     name = config.shape()[0]
+    # a nonlinear plant: a task per realization and word length (each b its own experiment: short tasks)
+    task: Callable[..., list[dict[str, Any]]] = linear_realization
+    chunks: list[Plan] = [plan]
     if isinstance(study, KoopmanConfig):
-        futs = [pool.submit(nonlinear_realization, study, plan, r) for r in range(study.realizations)]
-    else:
-        futs = [pool.submit(linear_realization, study, plan, r) for r in range(study.realizations)]
+        task, chunks = nonlinear_realization, [(p,) for p in plan]
+    futs = [[pool.submit(task, study, part, r) for part in chunks] for r in range(study.realizations)]
     per: list[list[dict[str, Any]]] = []
-    for i, f in enumerate(futs):
-        per.append(f.result())
+    for i, fs in enumerate(futs):
+        per.append([row for f in fs for row in f.result()])
         if progress:
             progress(i + 1, len(futs), "realizations")
     parts = {b: [p[j] for p in per] for j, (b, _) in enumerate(plan)}

@@ -24,7 +24,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, MutableMapping
 from concurrent.futures import Executor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -37,6 +37,7 @@ from .experiment import Experiment
 from .koopman_stages import KoopmanExperiment, KoopmanModels
 from .koopman_sweep import KoopmanConfig, KoopmanResult, run_koopman_sweep
 from .stage_results import BitsIdentification, TheoryAtBits
+from .study_budget import Bandwidth, bandwidth
 from .study_linear import linear_frames, task_count
 from .study_nonlinear import nonlinear_frames
 from .sweep import run_sweep
@@ -100,9 +101,10 @@ class StudyFrame:
     Attributes
     ----------
     kind : {"linear", "nonlinear"}
-    stage : {"current", "models", "curves"}
+    stage : {"current", "models", "curves", "budget"}
         ``"current"``: the current b in full; ``"models"`` (nonlinear): every b's models, loops still running;
-        ``"curves"``: more word lengths complete.
+        ``"curves"``: more word lengths complete; ``"budget"``: the last, once the study's budget study is done
+        (only for a study given a budget).
     bits : int
         The current word length.
     estimators : tuple of str
@@ -118,6 +120,8 @@ class StudyFrame:
         Seconds from that call to the end of each stage seen so far.
     experiment : Experiment or KoopmanExperiment
         The staged computation behind the frame (its cache holds every b computed so far).
+    budget : Bandwidth or None
+        The budget study (:mod:`~qsid_core.studies.study_budget`) in the ``"budget"`` frame, else None.
     """
 
     kind: str
@@ -131,6 +135,7 @@ class StudyFrame:
     elapsed: float
     timings: dict[str, float] = field(default_factory=dict)
     experiment: Experiment | KoopmanExperiment | None = None
+    budget: Bandwidth | None = None
 
     @property
     def complete(self) -> bool:
@@ -154,6 +159,9 @@ class Study:
     tasks : int, optional
         Chunks a linear plant's realizations are split into (default: sized for ``workers``, tasks of a
         fraction of a second, so that abandoned work never holds the executor long).
+    budget : float, optional
+        A budget of bits: :meth:`frames` ends with a ``"budget"`` frame holding the budget study of this
+        configuration (:func:`~qsid_core.studies.study_budget.bandwidth`, judged on the last estimator).
     """
 
     def __init__(
@@ -164,6 +172,7 @@ class Study:
         workers: int = 0,
         estimators: tuple[str, ...] | None = None,
         tasks: int | None = None,
+        budget: float | None = None,
     ) -> None:
         if not isinstance(config, (SweepConfig, KoopmanConfig)):
             raise ConfigError(f"config: a SweepConfig or a KoopmanConfig, not {type(config).__name__}")
@@ -171,6 +180,7 @@ class Study:
         self.executor = executor
         self.workers = max(0, int(workers)) if executor is not None else 0
         self.estimators = tuple(estimators) if estimators else (config.estimator,)
+        self.budget = budget
         self.experiment: Experiment | KoopmanExperiment
         if isinstance(config, SweepConfig):
             samples = config.trajectories * config.steps
@@ -215,13 +225,24 @@ class Study:
             )
         else:
             steps = nonlinear_frames(ex, self.estimators, b, stop, self.executor, self.workers, min_interval, progress)
+        last = None
         for stage, rows, done in steps:
             timings[stage] = time.perf_counter() - t0
             at = self._at_bits(b)
             copy = {e: dict(r) for e, r in rows.items()}
-            yield StudyFrame(
+            last = StudyFrame(
                 self.kind, stage, b, self.estimators, copy, done, total, at, timings[stage], dict(timings), ex
             )
+            yield last
+        if self.budget is None or last is None or not last.complete or (cancel is not None and cancel.cancelled):
+            return
+        if progress:
+            progress(total, total, f"budget of {self.budget:g} bits")
+        check = None if cancel is None else (lambda: cancel.cancelled)
+        found = bandwidth(self.config, self.budget, self.estimators[-1], self.executor, check)
+        if found is not None:
+            timings["budget"] = time.perf_counter() - t0
+            yield replace(last, stage="budget", elapsed=timings["budget"], timings=dict(timings), budget=found)
 
     def _at_bits(self, b: int) -> LinearAtBits | NonlinearAtBits:
         ex, ests = self.experiment, self.estimators

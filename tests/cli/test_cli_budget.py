@@ -116,7 +116,8 @@ def test_the_table_is_aligned_and_names_the_word_lengths(capsys):
 @pytest.mark.parametrize(
     "argv,message",
     [
-        (["--total-bits", "-1"], "argument --total-bits: must be >= 1"),
+        (["--total-bits", "-1"], "argument --total-bits: must be >= 0"),
+        (["--total-bits", "0"], "total bits must be between 1 and"),
         (["--total-bits", "lots"], "argument --total-bits: must be a number"),
         (["--total-bits", "100"], "total bits: 100 bits identify nothing at any b"),
         (["--total-bits", "1e6", "--steps", "0"], "argument --steps: must be positive"),
