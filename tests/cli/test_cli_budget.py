@@ -117,7 +117,7 @@ def test_the_table_is_aligned_and_names_the_word_lengths(capsys):
     "argv,message",
     [
         (["--total-bits", "-1"], "argument --total-bits: must be >= 0"),
-        (["--total-bits", "0"], "total bits must be between 1 and"),
+        (["--total-bits", "0"], "total bits must be in [1, 1e+15]; got 0"),
         (["--total-bits", "lots"], "argument --total-bits: must be a number"),
         (["--total-bits", "100"], "total bits: 100 bits identify nothing at any b"),
         (["--total-bits", "1e6", "--steps", "0"], "argument --steps: must be positive"),
