@@ -67,7 +67,7 @@ from .records import (
 )
 from .stage_results import BitsIdentification, TheoryAtBits
 from .study import CancelToken, LinearAtBits, NonlinearAtBits, Study, StudyFrame
-from .study_budget import Bandwidth, bandwidth
+from .study_budget import Bandwidth, bandwidth, bandwidth_key
 from .study_linear import full_row, task_count
 from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
 from .sweep import run_sweep, summarize
@@ -139,6 +139,7 @@ __all__ = [
     "answer_from_rows",
     "assess",
     "bandwidth",
+    "bandwidth_key",
     "bits_needed",
     "build_row",
     "certificate",

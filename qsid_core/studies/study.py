@@ -37,7 +37,7 @@ from .experiment import Experiment
 from .koopman_stages import KoopmanExperiment, KoopmanModels
 from .koopman_sweep import KoopmanConfig, KoopmanResult, run_koopman_sweep
 from .stage_results import BitsIdentification, TheoryAtBits
-from .study_budget import Bandwidth, bandwidth
+from .study_budget import Bandwidth, bandwidth, bandwidth_key
 from .study_linear import linear_frames, task_count
 from .study_nonlinear import nonlinear_frames
 from .sweep import run_sweep
@@ -181,6 +181,7 @@ class Study:
         self.workers = max(0, int(workers)) if executor is not None else 0
         self.estimators = tuple(estimators) if estimators else (config.estimator,)
         self.budget = budget
+        self.cache = cache
         self.experiment: Experiment | KoopmanExperiment
         if isinstance(config, SweepConfig):
             samples = config.trajectories * config.steps
@@ -239,10 +240,24 @@ class Study:
         if progress:
             progress(total, total, f"budget of {self.budget:g} bits")
         check = None if cancel is None else (lambda: cancel.cancelled)
-        found = bandwidth(self.config, self.budget, self.estimators[-1], self.executor, check)
+        found = self._bandwidth(self.budget, check)
         if found is not None:
             timings["budget"] = time.perf_counter() - t0
             yield replace(last, stage="budget", elapsed=timings["budget"], timings=dict(timings), budget=found)
+
+    def _bandwidth(self, total_bits: float, check: Callable[[], bool] | None) -> Bandwidth | None:
+        """The budget study of this configuration, from the cache when another study of it computed it."""
+        key = bandwidth_key(self.config, total_bits, self.estimators[-1])
+        if self.cache is not None:
+            try:
+                found: Bandwidth | None = self.cache[key]
+                return found
+            except KeyError:
+                pass
+        found = bandwidth(self.config, total_bits, self.estimators[-1], self.executor, check)
+        if found is not None and self.cache is not None:
+            self.cache[key] = found
+        return found
 
     def _at_bits(self, b: int) -> LinearAtBits | NonlinearAtBits:
         ex, ests = self.experiment, self.estimators

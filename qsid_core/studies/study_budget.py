@@ -13,14 +13,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import Executor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
+from typing import Any
 
 from ..errors import ConfigError
+from ..plant.systems import get_system
 from .budget import BudgetConfig, BudgetResult, run_budget
+from .cache_keys import system_key
 from .config import SweepConfig
 from .koopman_sweep import KoopmanConfig
 
-__all__ = ["Bandwidth", "bandwidth"]
+__all__ = ["Bandwidth", "bandwidth", "bandwidth_key"]
 
 
 class _Cancelled(Exception):
@@ -51,6 +54,20 @@ class Bandwidth:
     noisy: BudgetResult | None = None
     notes: tuple[str, ...] = ()
     error: str = ""
+
+
+def bandwidth_key(config: SweepConfig | KoopmanConfig, total_bits: float, estimator: str) -> tuple[Any, ...]:
+    """The cache key of :func:`bandwidth`'s result: every setting it depends on (a linear plant's matrices as
+    bytes, every other field exactly by ``repr``), not the sweep's own data size ``trajectories``."""
+    head: tuple[Any, ...] = ("bandwidth", float(total_bits), estimator)
+    if isinstance(config, SweepConfig):
+        head += system_key(get_system(config.system))
+    rest = tuple(
+        (f.name, repr(getattr(config, f.name)))
+        for f in fields(config)
+        if f.name not in ("trajectories", "estimator") and not (f.name == "system" and isinstance(config, SweepConfig))
+    )
+    return head + rest
 
 
 def bandwidth(
