@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
     from .runner import Reporter
 
-__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "format_budget"]
+__all__ = ["HELP", "DESCRIPTION", "add_arguments", "run", "format_allocation", "format_budget"]
 
 HELP = "a fixed budget of bits: runs bought, model error and loops per word length, the knee"
 DESCRIPTION = (
@@ -34,7 +34,8 @@ DESCRIPTION = (
     "dither), Theorem 1's LS limit and the predicted error (linear plants), and unless --no-mpc the share "
     "of MPC loops that converge on the true plant and their cost gap. Then b_best (least mean error), "
     "b_knee (the smallest b within 25 % of it) and b_loop (the smallest b whose loops meet the target of "
-    "'qsid bits': at least 95 % stabilized, cost within 1 %)."
+    "'qsid bits': at least 95 % stabilized, cost within 1 %). With --bits-per-sample B: a split of B bits per "
+    "sample between the channels, proposed from the predicted error, against the uniform split (model errors)."
 )
 
 
@@ -43,6 +44,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_nonlinear_options(p)
     a = p.add_argument_group("bit budget")
     add_option(a, "total_bits")
+    add_option(a, "bits_per_sample")
     for act in p._actions:
         if act.dest == "total_bits":
             act.required = True
@@ -157,12 +159,64 @@ def _named(d: dict[str, Any]) -> str:
     return text
 
 
+def format_allocation(d: dict[str, Any]) -> str:
+    """The plain table of a ``qsid budget --bits-per-sample`` JSON dict: the two splits and their errors."""
+    c = d["config"]
+    head = ["split", *d["channels"], "predicted", "err_G mean +/- std"]
+    rows = [
+        [name, *map(str, d[name]["bits"]), g(d[name]["predicted_err_G"], ".2e"), _pm(d[name]["err_G"])]
+        for name in ("uniform", "proposed")
+    ]
+    widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
+
+    def fmt(cells: Sequence[str]) -> str:
+        return "  ".join(x.rjust(w) for x, w in zip(cells, widths))
+
+    noise = c.get("noise") or [0.0]
+    r = d["ratio"]
+    return "\n".join(
+        [
+            f"system {d['system']}: a budget of {c['total_bits']:g} bits at {c['bits_per_sample']} bits per sample "
+            f"buys {d['trajectories']} runs of {c['steps']} steps; {c['realizations']} realizations (each its own "
+            f"data, noise and dither, both splits on the same), estimator {c['estimator']}"
+            + (f", sensor noise {','.join(f'{v:g}' for v in noise)}" if any(noise) else "")
+            + (" (known to BCLS)" if c.get("noise_known") and any(noise) else ""),
+            fmt(head),
+            fmt(["-" * w for w in widths]),
+            *(fmt(row) for row in rows),
+            f"proposed / uniform error per realization: mean {g(r['mean'], '.3g')}, median {g(r['median'], '.3g')}; "
+            f"the proposal lower in {d['proposed_better']} of {c['realizations']}",
+        ]
+    )
+
+
+def _run_allocation(args: argparse.Namespace, rep: Reporter, cfg: Any, out: Any) -> int:
+    from qsid_core.studies import run_allocation
+
+    if {"--bits", "--no-mpc"} & _typed(args):
+        raise UsageError("argument --bits-per-sample: the split is of B bits per sample, with no b swept and no loops; "
+                         "drop --bits and --no-mpc")  # fmt: skip
+    rep.stage(f"allocation of {cfg.bits_per_sample} bits per sample; {cfg.study.realizations} realizations")
+    with executor(args, rep) as (pool, _nw):
+        res = run_allocation(cfg, pool, progress=rep)
+    d = res.to_dict()
+    text = dumps(d)
+    if out is not None:
+        write_text(out, text + "\n")
+        rep.stage(f"JSON written to {out}")
+    rep.stage(f"done in {d['timing_s']['total']:.2f} s")
+    print(text if args.json else format_allocation(d))
+    return 0
+
+
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     from qsid_core.studies import BudgetConfig, run_budget
 
     study = _study(args)
     out = out_file(args.out, rep, inputs=input_files(args))
-    cfg = BudgetConfig(args.total_bits, study)
+    cfg = BudgetConfig(args.total_bits, study, bits_per_sample=args.bits_per_sample)
+    if cfg.bits_per_sample is not None:
+        return _run_allocation(args, rep, cfg, out)
     plan, skipped = cfg.plan()  # a budget that identifies nothing: one line before any work
     rep.stage(
         f"budget of {args.total_bits:g} bits: "

@@ -70,14 +70,20 @@ def draw_frames(
                 return gen
             if not session._draw(frame, gen):
                 return gen
-            session.timings["current" if frame.stage == "current" else "all"] = time.perf_counter() - t0
+            budget = getattr(frame, "budget", None)
+            stage = "current" if frame.stage == "current" else "budget" if budget is not None else "all"
+            session.timings[stage] = time.perf_counter() - t0
             if frame.complete:
                 c.progress.value = 100.0
                 c.status.content = (
                     f"ready · b = {frame.bits} drawn in {session.timings['current']:.2f} s, "
                     f"all curves in {session.timings['all']:.2f} s"
                 )
-                return gen  # the last frame: no further turn to wait for
+                if budget is not None:
+                    c.status.content += f", the bit budget in {session.timings['budget']:.2f} s"
+                if budget is not None or not float(getattr(frame.values, "total_bits", 0.0)):
+                    return gen  # the last frame: no further turn to wait for
+                c.status.content += " · computing the bit budget …"  # the study's budget frame comes next
     except (PoolFailure, Superseded) as exc:
         if isinstance(exc, PoolFailure):
             raise

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from . import (
+    bandwidth,
     bits_needed,
     bound,
     compare,
@@ -28,7 +29,7 @@ from .view import View
 __all__ = ["TABS", "VIEWS", "KOOPMAN_TABS", "KOOPMAN_VIEWS", "ALL_VIEWS", "view_names"]
 
 #: Tabs of the plots panel, in order (a view's ``tab``); the current-b views come first in each tab.
-TABS = ("Identification", "Control", "Quantizer", "Data length", "Compare")
+TABS = ("Identification", "Control", "Quantizer", "Data length", "Bandwidth", "Compare")
 
 VIEWS: tuple[View, ...] = (
     error_vs_bits.VIEW,
@@ -41,6 +42,7 @@ VIEWS: tuple[View, ...] = (
     residual.VIEW,
     quantizer.VIEW,
     datalength.VIEW,
+    bandwidth.VIEW,
     compare.VIEW,
 )
 
@@ -54,6 +56,7 @@ KOOPMAN_VIEWS: tuple[View, ...] = (
     eigenvalues.LIFTED_VIEW,
     prediction_error.VIEW,
     loop_outcomes.VIEW,
+    bandwidth.KOOPMAN_VIEW,
 )
 #: Every view the plots panel holds.
 ALL_VIEWS: tuple[View, ...] = VIEWS + KOOPMAN_VIEWS

@@ -63,6 +63,9 @@ def iter_frames(
         Bad settings, data overflow, ... in plain words.
     """
     sc = study_config(values)  # the plant's kind chooses the configuration, not a second path
-    study = Study(sc.config, executor, cache, max(1, tasks) if executor is not None else 0, sc.estimators)
+    budget = float(values.total_bits) or None  # 0: no budget study
+    study = Study(
+        sc.config, executor, cache, max(1, tasks) if executor is not None else 0, sc.estimators, budget=budget
+    )
     for f in study.frames(int(values.bits), CancelToken(should_stop), on_progress, min_interval, chunk, memo):
         yield tab_frame(f, values, sc.system, sc.notes)

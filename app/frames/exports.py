@@ -17,7 +17,7 @@ import math
 from typing import Any
 
 from app.figures.raw import PLOT_CONFIG
-from app.settings.command import bits_command, sweep_command
+from app.settings.command import bits_command, budget_command, sweep_argv, sweep_command
 from app.settings.config import study_config
 from app.settings.values import Values
 from qsid_core.studies import KoopmanConfig, json_clean
@@ -28,11 +28,15 @@ __all__ = ["command_lines", "curves_rows", "curves_csv", "curves_json", "figures
 
 
 def command_lines(v: Values) -> list:
-    """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown), and for a
-    linear plant the ``qsid bits`` line."""
+    """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown), then with a bit
+    budget its ``qsid budget`` line (judged on the last estimator, as the bandwidth view), and for a linear plant
+    the ``qsid bits`` line."""
     sc = study_config(v)
     cfg = sc.config
     lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]  # either kind of plant
+    if float(v.total_bits):
+        last = dataclasses.replace(cfg, estimator=sc.estimators[-1])
+        lines.append(budget_command(sweep_argv(last), float(v.total_bits)))
     if isinstance(cfg, KoopmanConfig):
         return lines
     return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]

@@ -73,6 +73,8 @@ class Frame:
         A frame the person pinned for comparison (set by the tab, not computed).
     datalength : DataLengthResult or None
         The data-length study for these settings, if one finished (set by the tab).
+    budget : Bandwidth or None
+        The budget study of these settings (:func:`qsid_core.studies.bandwidth`), once it finished.
     """
 
     stage: str
@@ -94,6 +96,7 @@ class Frame:
     ex: Experiment | None = None
     pinned: Frame | None = None
     datalength: DataLengthResult | None = None
+    budget: Any = None
 
     @property
     def complete(self) -> bool:
@@ -165,6 +168,7 @@ class KoopmanFrame:
     timings: dict[str, float] = field(default_factory=dict)
     pinned: Any = None
     datalength: Any = None
+    budget: Any = None
 
     @property
     def complete(self) -> bool:
@@ -183,7 +187,7 @@ def tab_frame(f: StudyFrame, values: Values, system: Any = None, notes: tuple[st
     at = f.at_bits
     if isinstance(at, LinearAtBits):
         return Frame(
-            f.stage,
+            "curves" if f.stage == "budget" else f.stage,
             values=values,
             system=system,
             bits=f.bits,
@@ -200,6 +204,7 @@ def tab_frame(f: StudyFrame, values: Values, system: Any = None, notes: tuple[st
             elapsed=f.elapsed,
             timings=dict(f.timings),
             ex=f.experiment,  # type: ignore[arg-type]
+            budget=f.budget,
         )
     assert isinstance(at, NonlinearAtBits) and isinstance(f.experiment, KoopmanExperiment)
     return KoopmanFrame(
@@ -224,6 +229,7 @@ def tab_frame(f: StudyFrame, values: Values, system: Any = None, notes: tuple[st
         ex=f.experiment,
         elapsed=f.elapsed,
         timings=dict(f.timings),
+        budget=f.budget,
     )
 
 

@@ -116,7 +116,7 @@ class Renderer:
                 scene, summary = lifted_scene(frame), summary_markdown(frame)
                 self._models_key = key
                 out.update(self._current(frame, views, key))
-            rows_key: tuple = (frame.values, rows)
+            rows_key: tuple = (frame.values, rows, id(frame.budget))
             rebuild = rows_key != self._rows_key
             if rebuild:
                 summary = summary_markdown(frame)
@@ -137,6 +137,7 @@ class Renderer:
                 v.target,
                 v.cost_gap,
                 rows,
+                id(frame.budget),
             )
             rebuild = frame.stage == "curves" and rows_key != self._rows_key
         if rebuild:

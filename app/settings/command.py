@@ -32,6 +32,7 @@ __all__ = [
     "sweep_argv",
     "sweep_command",
     "bits_command",
+    "budget_command",
     "system_text",
     "bits_spec",
     "floats_spec",
@@ -233,3 +234,15 @@ def bits_command(
     if cfg.mpc is not None and not any(a.startswith("--mpc-steps") for a in argv):
         argv.append(f"--mpc-steps={cfg.mpc.steps}")
     return shlex.join(["qsid", "bits", *argv, *extra])
+
+
+#: Flags a budget refuses (it sets the runs and sends every channel at b): left out of its line.
+_NOT_IN_BUDGET = ("--trajectories", "--input-bits", "--state-bits")
+
+
+def budget_command(argv: list[str], total_bits: float) -> str:
+    """The shell line ``qsid budget ...`` of a study's ``qsid sweep`` arguments ``argv`` (:func:`sweep_argv`, or a
+    nonlinear plant's) at ``total_bits``: the runs and the word length per channel are the budget's, so their
+    flags are left out."""
+    kept = [a for a in argv if a.split("=", 1)[0] not in _NOT_IN_BUDGET]
+    return shlex.join(["qsid", "budget", *kept, f"--total-bits={total_bits!r}"])

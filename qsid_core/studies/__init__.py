@@ -27,6 +27,7 @@ from .bits_certificate import (
 )
 from .bits_cost import LOOP_COST_TOLERANCE, LOOP_TIME_CONSTANTS, loop_length
 from .budget import KNEE_TOLERANCE, BudgetConfig, BudgetResult, run_budget, runs_bought
+from .budget_allocation import AllocationResult, propose_allocation, run_allocation, uniform_allocation
 from .cache_keys import (
     KEY_PARTS,
     KOOPMAN_KEY_PARTS,
@@ -78,6 +79,7 @@ from .records import (
 )
 from .stage_results import BitsIdentification, KoopmanModels, TheoryAtBits
 from .study import CancelToken, LinearAtBits, NonlinearAtBits, Study, StudyFrame
+from .study_budget import Bandwidth, bandwidth, bandwidth_key
 from .study_linear import full_row, task_count
 from .study_nonlinear import FREE_FLOW_GRID, KoopmanExperiment
 from .summary import Stats, SummaryRow, build_row, fit_slope, json_clean, summary_row
@@ -94,7 +96,9 @@ from .warmup import (
 )
 
 __all__ = [
+    "AllocationResult",
     "Assumptions",
+    "Bandwidth",
     "BitsAnswer",
     "BitsIdentification",
     "BitsRow",
@@ -147,6 +151,8 @@ __all__ = [
     "TheoryAtBits",
     "answer_from_rows",
     "assess",
+    "bandwidth",
+    "bandwidth_key",
     "bits_needed",
     "build_row",
     "certificate",
@@ -183,10 +189,12 @@ __all__ = [
     "parse_state_bits",
     "predicted_small_gain",
     "predicted_small_gains",
+    "propose_allocation",
     "range_words",
     "realization_records",
     "realized_small_gain",
     "replace_atomically",
+    "run_allocation",
     "run_budget",
     "run_datalength",
     "run_koopman_sweep",
@@ -202,6 +210,7 @@ __all__ = [
     "theorem1_on_data",
     "to_columns",
     "to_pandas",
+    "uniform_allocation",
     "wilson_interval",
     "write_csv",
 ]

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..control.closed_loop import run_closed_loops
-from ..errors import ConfigError, check_float
+from ..errors import ConfigError, check_float, check_int
 from ..plant.systems import get_system
 from .bits_answer import check_targets
 from .budget_tasks import Plan, linear_realization, nonlinear_realization
@@ -77,6 +77,10 @@ class BudgetConfig:
         The loops' target, as in :func:`~qsid_core.studies.bits_needed` (0.95 and 0.01).
     knee : float, > 0
         ``b_knee``'s tolerance (:data:`KNEE_TOLERANCE`).
+    bits_per_sample : int, optional
+        Bits per sample over all ``n + m`` channels: the study is then the per-channel allocation
+        (:func:`~qsid_core.studies.run_allocation`: the proposed split against the uniform one, at the
+        ``floor(T / (steps bits_per_sample))`` runs the budget buys). Linear plants, subtractive dither.
     """
 
     total_bits: float
@@ -86,6 +90,7 @@ class BudgetConfig:
     target: float = 0.95
     cost_gap: float = 0.01
     knee: float = KNEE_TOLERANCE
+    bits_per_sample: int | None = None
 
     def __post_init__(self) -> None:
         tb = check_float("total bits", self.total_bits, 1.0, MAX_TOTAL_BITS)
@@ -102,6 +107,13 @@ class BudgetConfig:
         object.__setattr__(self, "target", t)
         object.__setattr__(self, "cost_gap", g)
         object.__setattr__(self, "knee", check_float("knee", self.knee, 0.0, 10.0, lo_open=True))
+        if self.bits_per_sample is not None:  # from one bit per channel to 32 each; linear plants, subtractive dither
+            if self.nonlinear or self.study.quantizer.dither != "subtractive":
+                raise ConfigError(
+                    "bits per sample: the allocation's error model is for linear plants, subtractive dither"
+                )
+            p = sum(self.shape()[1:3])
+            object.__setattr__(self, "bits_per_sample", check_int("bits per sample", self.bits_per_sample, p, 32 * p))
 
     @property
     def nonlinear(self) -> bool:
@@ -253,6 +265,8 @@ def run_budget(
     """
     if not isinstance(config, BudgetConfig):
         raise ConfigError(f"config must be a BudgetConfig; got {type(config).__name__}")
+    if config.bits_per_sample is not None:
+        raise ConfigError("bits per sample: a per-channel allocation study; run it with run_allocation")
     t0 = time.perf_counter()
     pool = executor or InlineExecutor()
     plan, skipped = config.plan()
@@ -260,13 +274,15 @@ def run_budget(
     if isinstance(study, SweepConfig):  # the plant resolved once, not once per realization and word length
         study = replace(study, system=get_system(study.system))
     name = config.shape()[0]
+    # a nonlinear plant: a task per realization and word length (each b its own experiment: short tasks)
+    task: Callable[..., list[dict[str, Any]]] = linear_realization
+    chunks: list[Plan] = [plan]
     if isinstance(study, KoopmanConfig):
-        futs = [pool.submit(nonlinear_realization, study, plan, r) for r in range(study.realizations)]
-    else:
-        futs = [pool.submit(linear_realization, study, plan, r) for r in range(study.realizations)]
+        task, chunks = nonlinear_realization, [(p,) for p in plan]
+    futs = [[pool.submit(task, study, part, r) for part in chunks] for r in range(study.realizations)]
     per: list[list[dict[str, Any]]] = []
-    for i, f in enumerate(futs):
-        per.append(f.result())
+    for i, fs in enumerate(futs):
+        per.append([row for f in fs for row in f.result()])
         if progress:
             progress(i + 1, len(futs), "realizations")
     parts = {b: [p[j] for p in per] for j, (b, _) in enumerate(plan)}

@@ -24,7 +24,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, MutableMapping
 from concurrent.futures import Executor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,6 +35,7 @@ from ..errors import ConfigError
 from .config import KoopmanConfig, SweepConfig
 from .experiment import Experiment
 from .stage_results import BitsIdentification, KoopmanModels, TheoryAtBits
+from .study_budget import Bandwidth, bandwidth, bandwidth_key
 from .study_linear import linear_frames, task_count
 from .study_nonlinear import KoopmanExperiment, nonlinear_frames
 from .sweep import KoopmanResult, run_sweep
@@ -98,9 +99,10 @@ class StudyFrame:
     Attributes
     ----------
     kind : {"linear", "nonlinear"}
-    stage : {"current", "models", "curves"}
+    stage : {"current", "models", "curves", "budget"}
         ``"current"``: the current b in full; ``"models"`` (nonlinear): every b's models, loops still running;
-        ``"curves"``: more word lengths complete.
+        ``"curves"``: more word lengths complete; ``"budget"``: the last, once the study's budget study is done
+        (only for a study given a budget).
     bits : int
         The current word length.
     estimators : tuple of str
@@ -116,6 +118,8 @@ class StudyFrame:
         Seconds from that call to the end of each stage seen so far.
     experiment : Experiment or KoopmanExperiment
         The staged computation behind the frame (its cache holds every b computed so far).
+    budget : Bandwidth or None
+        The budget study (:mod:`~qsid_core.studies.study_budget`) in the ``"budget"`` frame, else None.
     """
 
     kind: str
@@ -129,6 +133,7 @@ class StudyFrame:
     elapsed: float
     timings: dict[str, float] = field(default_factory=dict)
     experiment: Experiment | KoopmanExperiment | None = None
+    budget: Bandwidth | None = None
 
     @property
     def complete(self) -> bool:
@@ -152,6 +157,9 @@ class Study:
     tasks : int, optional
         Chunks a linear plant's realizations are split into (default: sized for ``workers``, tasks of a
         fraction of a second, so that abandoned work never holds the executor long).
+    budget : float, optional
+        A budget of bits: :meth:`frames` ends with a ``"budget"`` frame holding the budget study of this
+        configuration (:func:`~qsid_core.studies.study_budget.bandwidth`, judged on the last estimator).
     """
 
     def __init__(
@@ -162,6 +170,7 @@ class Study:
         workers: int = 0,
         estimators: tuple[str, ...] | None = None,
         tasks: int | None = None,
+        budget: float | None = None,
     ) -> None:
         if not isinstance(config, (SweepConfig, KoopmanConfig)):
             raise ConfigError(f"config: a SweepConfig or a KoopmanConfig, not {type(config).__name__}")
@@ -169,6 +178,8 @@ class Study:
         self.executor = executor
         self.workers = max(0, int(workers)) if executor is not None else 0
         self.estimators = tuple(estimators) if estimators else (config.estimator,)
+        self.budget = budget
+        self.cache = cache
         self.experiment: Experiment | KoopmanExperiment
         if isinstance(config, SweepConfig):
             samples = config.trajectories * config.steps
@@ -213,13 +224,38 @@ class Study:
             )
         else:
             steps = nonlinear_frames(ex, self.estimators, b, stop, self.executor, self.workers, min_interval, progress)
+        last = None
         for stage, rows, done in steps:
             timings[stage] = time.perf_counter() - t0
             at = self._at_bits(b)
             copy = {e: dict(r) for e, r in rows.items()}
-            yield StudyFrame(
+            last = StudyFrame(
                 self.kind, stage, b, self.estimators, copy, done, total, at, timings[stage], dict(timings), ex
             )
+            yield last
+        if self.budget is None or last is None or not last.complete or (cancel is not None and cancel.cancelled):
+            return
+        if progress:
+            progress(total, total, f"budget of {self.budget:g} bits")
+        check = None if cancel is None else (lambda: cancel.cancelled)
+        found = self._bandwidth(self.budget, check)
+        if found is not None:
+            timings["budget"] = time.perf_counter() - t0
+            yield replace(last, stage="budget", elapsed=timings["budget"], timings=dict(timings), budget=found)
+
+    def _bandwidth(self, total_bits: float, check: Callable[[], bool] | None) -> Bandwidth | None:
+        """The budget study of this configuration, from the cache when another study of it computed it."""
+        key = bandwidth_key(self.config, total_bits, self.estimators[-1])
+        if self.cache is not None:
+            try:
+                found: Bandwidth | None = self.cache[key]
+                return found
+            except KeyError:
+                pass
+        found = bandwidth(self.config, total_bits, self.estimators[-1], self.executor, check)
+        if found is not None and self.cache is not None:
+            self.cache[key] = found
+        return found
 
     def _at_bits(self, b: int) -> LinearAtBits | NonlinearAtBits:
         ex, ests = self.experiment, self.estimators

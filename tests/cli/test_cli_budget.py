@@ -116,7 +116,8 @@ def test_the_table_is_aligned_and_names_the_word_lengths(capsys):
 @pytest.mark.parametrize(
     "argv,message",
     [
-        (["--total-bits", "-1"], "argument --total-bits: must be >= 1"),
+        (["--total-bits", "-1"], "argument --total-bits: must be >= 0"),
+        (["--total-bits", "0"], "total bits must be in [1, 1e+15]; got 0"),
         (["--total-bits", "lots"], "argument --total-bits: must be a number"),
         (["--total-bits", "100"], "total bits: 100 bits identify nothing at any b"),
         (["--total-bits", "1e6", "--steps", "0"], "argument --steps: must be positive"),
@@ -143,3 +144,40 @@ def test_a_nonlinear_plant_shows_its_loops_settled_offsets(capsys):
     assert "lifting poly:3" in out.splitlines()[0] and "predicted" not in head
     rows = out.splitlines()[3:5]
     assert [r.split()[:2] for r in rows] == [["2", "1000"], ["6", "333"]]
+
+
+def test_bits_per_sample_proposes_a_split_and_measures_it_against_the_uniform_one(capsys):
+    code, out, err = _run(
+        capsys, "budget", "--system", "dc-motor", "--total-bits", "2e6", "--steps", "100", "--estimator", "bcls",
+        "--realizations", "4", "--bits-per-sample", "24", "--json", "-q",
+    )  # fmt: skip
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["kind"] == "budget-allocation" and d["config"]["bits_per_sample"] == 24
+    assert d["trajectories"] == 2_000_000 // (100 * 24) and len(d["channels"]) == 5
+    assert d["uniform"]["bits"] == [5, 5, 5, 5, 4] and sum(d["proposed"]["bits"]) == 24
+    assert d["proposed"]["err_G"]["mean"] < d["uniform"]["err_G"]["mean"]
+    code, out, err = _run(
+        capsys, "budget", "--system", "dc-motor", "--total-bits", "2e6", "--steps", "100", "--realizations", "2",
+        "--bits-per-sample", "24",
+    )  # fmt: skip
+    lines = out.splitlines()
+    assert lines[1].split()[0] == "split" and [ln.split()[0] for ln in lines[3:5]] == ["uniform", "proposed"]
+    assert len(lines[1]) == len(lines[2]) and "the proposal lower in" in lines[5]
+
+
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["--bits-per-sample", "2"], "bits per sample must be between 6 and 192; got 2"),
+        (["--bits-per-sample", "x"], "argument --bits-per-sample: must be an integer"),
+        (["--bits-per-sample", "24", "--bits", "4"], "argument --bits-per-sample: the split is of B bits per sample"),
+        (
+            ["--bits-per-sample", "24", "--dither", "none"],
+            "bits per sample: the allocation's error model is for linear",
+        ),
+    ],
+)
+def test_bits_per_sample_bad_input_is_one_line(capsys, argv, message):
+    code, out, err = _run(capsys, "budget", "--system", "boeing747", "--total-bits", "1e6", *argv)
+    assert code == 2 and out == "" and message in err and len(err.strip().splitlines()) == 1, err

@@ -52,8 +52,8 @@ def test_first_view_draws_scene_plots_and_summary(tab):
     assert "1 box unit =" in p.scale_label.text and "δ(ε)" in p.scale_label.text
     assert set(tab.session.plots) == set(view_names())
     for name, h in tab.session.plots.items():
-        # data length: on demand; the nonlinear plants' views: drawn for a nonlinear plant only
-        assert len(h.figure.data) > 0 or name == "datalength" or name in KOOPMAN_NAMES, name
+        # data length and bandwidth: on demand; the nonlinear plants' views: drawn for a nonlinear plant only
+        assert len(h.figure.data) > 0 or name in ("datalength", "bandwidth") or name in KOOPMAN_NAMES, name
     assert "ε states: angle" in tab.summary
     assert tab.controls.status.content.startswith("ready")
     assert tab.controls.progress.value == 100.0

@@ -33,6 +33,7 @@ NAMES = (
     "residual",
     "quantizer",
     "datalength",
+    "bandwidth",
     "portraits",
 )
 
@@ -129,7 +130,7 @@ def test_renderer_redraws_only_what_changed():
     v = Values(**SMALL)
     out = [ren.render(f) for f in iter_frames(v, cache)]
     assert out[0].scene is not None and out[0].summary and "eigen" in out[0].figures
-    assert set(out[-1].figures) == {"error", "cost", "bits", "bound", "residual", "portraits"}
+    assert set(out[-1].figures) == {"error", "cost", "bits", "bound", "residual", "portraits", "bandwidth"}
     err = ren.figures["error"]
     # a b change: new scene and eigenvalues, the curves are only re-marked (same figure objects)
     out = [ren.render(f) for f in iter_frames(v.replace(bits=8), cache)]
@@ -187,7 +188,7 @@ def test_every_registered_view_is_built():
     assert names == list(NAMES) and len(set(names)) == len(names)
     figs = build_figures(fr[-1])
     assert list(figs) == names
-    assert all(len(f.data) > 0 for n, f in figs.items() if n != "datalength")  # data length: on demand
+    assert all(len(f.data) > 0 for n, f in figs.items() if n not in ("datalength", "bandwidth"))  # on demand
 
 
 def test_a_new_view_is_one_registry_entry(monkeypatch):

@@ -88,6 +88,12 @@ CLAIMS: dict[str, dict[str, tuple[str, ...]]] = {
         "test_bias_variance_at_b3_both_end_within_the_radius_and_bcls_wins": ("3",),
     },
     "start": {"test_every_claim_of_the_start_text_holds_at_the_default_settings": ("0.3", "5")},
+    "bandwidth": {
+        "test_boeing_noise_free_finer_words_win_noisy_knee_near_6_loops_all_stabilize": ("3333", "208", "16", "12"),
+    },
+    "bandwidth-koopman": {
+        "test_van_der_pol_finer_words_win_loops_bounded_within_radius_from_b3": ("1666", "104", "16")
+    },
 }
 _TEST_FILES = (
     "test_dashboard_lessons.py",
@@ -95,6 +101,7 @@ _TEST_FILES = (
     "test_lessons_nonlinear.py",
     "test_dashboard_truth.py",
     "test_dashboard_start.py",
+    "test_lesson_bandwidth.py",
 )
 
 

@@ -24,7 +24,7 @@ from app.settings.config import koopman_config
 from app.settings.values import Values
 from qsid_core import run_datalength, run_sweep
 from qsid_core.control import CONVERGED_REL_FLOOR
-from qsid_core.studies import run_koopman_sweep
+from qsid_core.studies import bandwidth, run_koopman_sweep
 
 #: More realizations than the time-series view draws one by one: its mean ± std bands are drawn (and checked).
 LINEAR = dict(trajectories=10, steps=60, realizations=10, mpc_steps=20, bits=4)
@@ -47,7 +47,7 @@ def linear(request):
     frame = list(iter_frames(v, SharedCache()))[-1]
     assert frame.complete
     cfg = dataclasses.replace(datalength_config(v), samples=(200, 600, 2000), realizations=3, steps_per_run=100)
-    frame = dataclasses.replace(frame, datalength=run_datalength(cfg))
+    frame = dataclasses.replace(frame, datalength=run_datalength(cfg), budget=bandwidth(frame.ex.config, 2e5, "bcls"))
     sweeps = {lab: run_sweep(dataclasses.replace(frame.ex.config, estimator=e)) for lab, e in EST.items()}
     return frame, build_figures(frame), sweeps
 
@@ -57,6 +57,7 @@ def nonlinear():
     v = Values(system="van-der-pol", lifting="poly:3", **NONLINEAR)
     frame = list(iter_frames(v))[-1]
     assert frame.complete
+    frame = dataclasses.replace(frame, budget=bandwidth(frame.ex.config, 5e4, "bcls"))
     cfg, ests = koopman_config(v)
     sweeps = {lab: run_koopman_sweep(dataclasses.replace(cfg, estimator=EST[lab])) for lab in frame.labels}
     return frame, build_figures(frame), sweeps
@@ -228,6 +229,17 @@ def test_eigen_portrait_quantizer_and_datalength_views_draw_the_engines_numbers(
         rows = frame.datalength.to_dict()["rows"]
         close(x, [r["samples"] for r in rows], f"{lab} samples")
         close(y, [r[lab.lower()]["err_A"]["mean"] for r in rows], f"{lab} data-length err_A")
+
+
+def test_bandwidth_view_draws_the_budget_study(linear):
+    frame, figs, _ = linear
+    data = check_drawn(figs["bandwidth"])
+    rows = [r for r in frame.budget.noise_free.to_dict()["rows"] if r["identifiable"]]
+    x, y = line(data, f"noise-free: err_G (knee b = {frame.budget.noise_free.b_knee})", "x")
+    close(x, [r["bits"] for r in rows], "bandwidth b")
+    close(y, [r["err_G"]["mean"] for r in rows], "bandwidth err_G")
+    x, y = line(data, f"noise-free: predicted (knee b = {frame.budget.noise_free.b_knee_predicted})", "x")
+    close(y, [r["predicted_err_G"] for r in rows], "bandwidth predicted err_G")
 
 
 # ----- every view, a nonlinear plant ----------------------------------------------------------

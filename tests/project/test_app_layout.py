@@ -197,6 +197,7 @@ def test_every_view_module_is_registered_and_imports_no_other_view():
         "app.figures.time_series",
         "app.figures.quantizer",
         "app.figures.datalength",
+        "app.figures.bandwidth",
         "app.figures.compare",
         "app.figures.norm_time",
         "app.figures.bits_needed",
