@@ -18,7 +18,6 @@ from typing import Any
 
 from app.figures.raw import PLOT_CONFIG
 from app.settings.command import bits_command, budget_command, sweep_argv, sweep_command
-from app.settings.command import sweep_command as koopman_command
 from app.settings.config import study_config
 from app.settings.values import Values
 from qsid_core.studies import KoopmanConfig, json_clean
@@ -34,13 +33,12 @@ def command_lines(v: Values) -> list:
     the ``qsid bits`` line."""
     sc = study_config(v)
     cfg = sc.config
-    budget = []
+    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]  # either kind of plant
     if float(v.total_bits):
         last = dataclasses.replace(cfg, estimator=sc.estimators[-1])
-        budget = [budget_command(sweep_argv(last), float(v.total_bits))]
+        lines.append(budget_command(sweep_argv(last), float(v.total_bits)))
     if isinstance(cfg, KoopmanConfig):
-        return [koopman_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators] + budget
-    lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators] + budget
+        return lines
     return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]
 
 

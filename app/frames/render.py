@@ -11,7 +11,7 @@ from typing import Any
 from app.figures import registry
 from app.figures.axes import finite_axes
 from app.figures.compare import PINNED_VIEWS, overlay_pinned
-from app.figures.lifted_scene import lifted_scene as koopman_scene
+from app.figures.lifted_scene import lifted_scene
 from app.figures.phase_scene import SceneView, scene_view
 from app.figures.presenter import PHONE_WIDTH, PRESENTER_SIZE, legible_figure, phone_figure, presenter_figure
 from app.figures.raw import Wire
@@ -113,7 +113,7 @@ class Renderer:
             assert isinstance(frame, KoopmanFrame)
             key = (frame.bits, tuple(id(frame.models[lab]) for lab in frame.labels), frame.values)
             if frame.stage == "current" or key != self._models_key:
-                scene, summary = koopman_scene(frame), summary_markdown(frame)
+                scene, summary = lifted_scene(frame), summary_markdown(frame)
                 self._models_key = key
                 out.update(self._current(frame, views, key))
             rows_key: tuple = (frame.values, rows, id(frame.budget))
