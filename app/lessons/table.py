@@ -16,6 +16,7 @@ from typing import Any
 from app.settings.values import NO_LESSON, PAPER_SCALE, Values
 from qsid_core import LETTER_QUANTIZER
 
+from .bandwidth import bandwidth_lessons
 from .start import START_LESSON
 
 __all__ = [
@@ -308,32 +309,6 @@ LESSONS: tuple[Lesson, ...] = (
         ),
         plot="bound",
     ),
-    Lesson(
-        "bandwidth",
-        "A link of limited bandwidth (Boeing 747)",
-        "A sensor link carries 2·10⁶ bits; every sample of the Boeing's 6 channels costs b bits, so b buys "
-        "2·10⁶ / (100 · 6 · b) runs of 100 steps (3333 at b = 1, 208 at b = 16). Look at the bandwidth plot "
-        "(show: Bandwidth). Noise-free (black), finer words always win: the error falls about 2× per bit and the "
-        "knee (dotted) is b = 16, the top of the range. With sensor noise σ = 0.1 known to BCLS (orange) the "
-        "error stops falling near b = 6, once the widest channels' quantization error ε/√12 is down to the "
-        "noise's size (within 3×): that is its knee, the dashed prediction finds it too, and beyond it finer "
-        "words only cost runs. Every loop stabilizes the true plant at every b (the share panel): here the word "
-        "length decides the model, not the loop.",
-        dict(
-            system="boeing747",
-            bits=6,
-            identification="BCLS",
-            noise="0.1",
-            noise_known=True,
-            total_bits=2e6,
-            steps=100,
-            realizations=10,
-            dither="subtractive",
-            range_mode="per-channel",
-            guard=True,
-        ),
-        plot="bandwidth",
-    ),
     # nonlinear plants: Koopman/EDMD from quantized data
     Lesson(
         "koopman",
@@ -361,23 +336,7 @@ LESSONS: tuple[Lesson, ...] = (
         dict(system="pendulum", bits=2, **_NONLINEAR),
         "koopman-outcomes",
     ),
-    Lesson(
-        "bandwidth-koopman",
-        "A link of limited bandwidth (Van der Pol)",
-        "Van der Pol (poly:3, BCLS) over a link of 5·10⁵ bits: every sample of its 3 channels costs b bits, so b "
-        "buys 5·10⁵ / (100 · 3 · b) runs of 100 steps (1666 at b = 1, 104 at b = 16). Look at the bandwidth "
-        "plot (show: Nonlinear). Without sensor noise finer words always win: from b = 3 on the error of the lifted "
-        "model falls about 2× per bit and the knee (dotted) is b = 16. The Koopman MPC loops (the share panel) "
-        "converge at no b: each settles near the origin (bounded), as the unquantized model's own loop does; from "
-        "b = 3 on every one ends within the convergence radius 0.1 (dotted), at b = 1 none.",
-        dict(
-            system="van-der-pol",
-            bits=6,
-            **{**_NONLINEAR, "identification": "BCLS", "trajectories": 100, "realizations": 5},
-            total_bits=5e5,
-        ),
-        "koopman-bandwidth",
-    ),
+    *(Lesson(*row) for row in bandwidth_lessons(_NONLINEAR)),  # a link of limited bandwidth (app.lessons.bandwidth)
 )
 
 
