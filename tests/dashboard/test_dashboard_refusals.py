@@ -70,3 +70,29 @@ def test_refusals_of_two_inputs_each_stay_until_that_input_changes(ws_tab):
     wait_until(lambda: "word length b: the value sent" not in c.error.content, "b's refusal goes")
     assert s.wait_idle(HANG_S) and c.error.visible and "ρ: the value sent" in c.error.content
     assert s.last_frame.values.bits == 5
+
+
+@pytest.mark.parametrize(("label", "name", "bad"), [("ρ", "rho", -1.0), ("word length b", "bits", 400)])
+def test_the_box_bound_sent_on_leaving_a_refused_value_keeps_the_refusal(ws_tab, label, name, bad):
+    """The order of the intermittent browser failure: a value out of the box's bounds is refused, and the box is
+    left before the value in use arrives, so the browser sends its bound (Mantine clamps on blur). The bound is the
+    refused value again: the refusal stays and the input keeps, and the box shows, the value in use."""
+    from app.dashboard.inputs import blur_clamp
+
+    tab, s = ws_tab
+    c = s.controls
+    tab.send("ρ auto", False)
+    assert s.wait_idle(HANG_S)
+    before = c[name].value
+    bound = blur_clamp(c[name], bad)
+    assert bound is not None and bound != before  # (the browser's box would send this on leaving it)
+    tab.send(label, bad)
+    tab.send(label, bound)  # at once: on the wire before the value in use can reach the browser
+    wait_until(lambda: f"{label}: the value sent" in c.error.content, "the refusal shown")
+    assert s.wait_idle(HANG_S)
+    assert c[name].value == before and c.error.visible and f"{label}: the value sent" in c.error.content
+    wait_until(lambda: tab.value(label) == before, "the box set back to the value in use")
+    assert getattr(s.last_frame.values, name) == before
+    tab.send(label, bound)  # the bound typed afterwards is a choice: taken, the refusal goes
+    wait_until(lambda: not c.error.visible, "the refusal goes once the input is changed")
+    assert s.wait_idle(HANG_S) and getattr(s.last_frame.values, name) == bound
