@@ -97,14 +97,14 @@ def sent_guard(
     on_accept: Callable[[Any], None] | None = None,
 ) -> Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[bool]]:
     """The guard of one tab's input messages (:func:`app.dashboard.viserfix.guard_updates`, which sends the tab the
-    value in use again after a refusal): a value ``check`` refuses is dropped, and one viser cannot convert
-    (``apply()`` raises) is explained; both said by ``on_reject(text, handle)``. A value taken is said by
-    ``on_accept(handle)``. The guard returns whether the value was taken.
+    value in use again when the guard returns False): a value ``check`` refuses is dropped, and one viser cannot
+    convert (``apply()`` raises) is explained; both said by ``on_reject(text, handle)``. A value taken is said by
+    ``on_accept(handle)``. The guard returns whether the tab's box shows the value in use.
 
-    A refused value outside the box's bounds stays in the browser's box until the value in use arrives; if the
-    box is left before that, the browser sends its bound instead (:func:`blur_clamp`). That message, if it is the
-    tab's next one, is the refused value again, not a new choice: it is dropped too and the refusal stays (taken,
-    it would clear the refusal and be used while the box shows the value sent back)."""
+    A slider's box has bounds: a refused value out of them stays in the box until the value in use arrives, and if
+    the box is left before that, the browser sends its bound (:func:`blur_clamp`), then shows the value in use
+    sent back. That bound, as the tab's next message, is taken like any value, and sent back too: the box shows
+    what the results are for. (A number box has no bound in the browser: it never sends a value of its own.)"""
     refused: tuple[Any, float | None] = (None, None)  # the input of the value just refused, and its box's bound
 
     def reject(text: str, handle: Any, updates: Mapping[str, Any]) -> bool:
@@ -116,8 +116,6 @@ def sent_guard(
     async def guard(handle: Any, updates: dict, apply: Callable[[], Awaitable[None]]) -> bool:
         nonlocal refused
         (last, bound), refused = refused, (None, None)
-        if handle is not None and last is handle and bound is not None and updates == {"value": bound}:
-            return False  # the box's bound for the value just refused: the refusal stays, the value in use is resent
         why = check(handle, updates)
         if why is not None:
             return reject(why, handle, updates)
@@ -133,7 +131,7 @@ def sent_guard(
             )
         if on_accept is not None and handle is not None:
             on_accept(handle)
-        return True
+        return not (handle is not None and last is handle and bound is not None and updates == {"value": bound})
 
     return guard
 
