@@ -92,7 +92,7 @@ def _control(s: Setting) -> Control:
     assert s.control is not None
     if s.slider is not None:
         lo, hi, step = resolve(s.slider)
-    else:  # a number box: the browser offers the allowed range
+    else:  # a number box: the range is the server's (the box has no bound: see _add)
         lo, hi, step = s.min, s.max, s.step
     choices = panel_choices(s)  # a front end's own (lessons, systems, identification) or the engine's
     return Control(s.name, s.control, s.label, s.tab, lo, hi, step, choices, hint_text(s), s.folder, s.type, s)
@@ -157,8 +157,11 @@ def _add(gui: viser.GuiApi, c: Control, value: Any, system: LTISystem, custom: b
     if c.kind == "slider":
         assert c.lo is not None and c.hi is not None and c.step is not None  # every slider has a range and step
         return gui.add_slider(c.label, c.lo, c.hi, c.step, value, hint=c.hint)
-    if c.kind == "number":
-        return gui.add_number(c.label, value, min=c.lo, step=c.step, hint=c.hint)
+    if c.kind == "number":  # no bound in the browser's box: it would clamp a refused value on leaving the box, racing
+        # the value in use the server sends back (the range is checked by the server: inputs.check_sent)
+        h = gui.add_number(c.label, value, min=c.lo, step=c.step, hint=c.hint)  # (min: for the decimals offered)
+        h.min = None
+        return h
     if c.kind == "checkbox":
         return gui.add_checkbox(c.label, value, hint=c.hint)
     if c.kind == "dropdown":

@@ -12,6 +12,7 @@ settings table's (:func:`app.settings.check.check_setting`), the same as for a s
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -29,7 +30,16 @@ if TYPE_CHECKING:
 
     from .controls import GuiElements
 
-__all__ = ["check_panel", "check_value", "check_sent", "sent_guard", "unusable", "MAX_TEXT", "MAX_NESTING"]
+__all__ = [
+    "check_panel",
+    "check_value",
+    "check_sent",
+    "sent_guard",
+    "blur_clamp",
+    "unusable",
+    "MAX_TEXT",
+    "MAX_NESTING",
+]
 
 #: A weight slider's value (log10 of the weight; the sliders are made per system, not from the table).
 _LOG_WEIGHT = Setting("log_weight", float, 0.0, "log10 weight", "slider", slider=(LOG_MIN, LOG_MAX, 0.1))
@@ -72,34 +82,57 @@ def check_sent(el: GuiElements | None, handle: Any, updates: Mapping[str, Any]) 
     return None
 
 
+def blur_clamp(handle: Any, value: Any) -> float | None:
+    """What a browser's number box sends for ``value`` on leaving the box if ``value`` is out of the input's bounds
+    (``handle.min``/``max``): the nearest bound (Mantine's NumberInput clamps on blur); None if it sends nothing."""
+    lo, hi = getattr(handle, "min", None), getattr(handle, "max", None)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    clamped = min(max(value, lo if lo is not None else -math.inf), hi if hi is not None else math.inf)
+    return float(clamped) if clamped != value else None
+
+
 def sent_guard(
     check: Callable[[Any, Mapping[str, Any]], str | None],
     on_reject: Callable[[str, Any], None],
     on_accept: Callable[[Any], None] | None = None,
 ) -> Callable[[Any, dict, Callable[[], Awaitable[None]]], Awaitable[bool]]:
     """The guard of one tab's input messages (:func:`app.dashboard.viserfix.guard_updates`, which sends the tab the
-    value in use again after a refusal): a value ``check`` refuses is dropped, and one viser cannot convert
-    (``apply()`` raises) is explained; both said by ``on_reject(text, handle)``. A value taken is said by
-    ``on_accept(handle)``. The guard returns whether the value was taken."""
+    value in use again when the guard returns False): a value ``check`` refuses is dropped, and one viser cannot
+    convert (``apply()`` raises) is explained; both said by ``on_reject(text, handle)``. A value taken is said by
+    ``on_accept(handle)``. The guard returns whether the tab's box shows the value in use.
+
+    A slider's box has bounds: a refused value out of them stays in the box until the value in use arrives, and if
+    the box is left before that, the browser sends its bound (:func:`blur_clamp`), then shows the value in use
+    sent back. That bound, as the tab's next message, is taken like any value, and sent back too: the box shows
+    what the results are for. (A number box has no bound in the browser: it never sends a value of its own.)"""
+    refused: tuple[Any, float | None] = (None, None)  # the input of the value just refused, and its box's bound
+
+    def reject(text: str, handle: Any, updates: Mapping[str, Any]) -> bool:
+        nonlocal refused
+        on_reject(text, handle)
+        refused = (handle, blur_clamp(handle, updates.get("value")))
+        return False
 
     async def guard(handle: Any, updates: dict, apply: Callable[[], Awaitable[None]]) -> bool:
+        nonlocal refused
+        (last, bound), refused = refused, (None, None)
         why = check(handle, updates)
         if why is not None:
-            on_reject(why, handle)
-            return False
+            return reject(why, handle, updates)
         try:
             await apply()
         except Exception as exc:
             sent = ", ".join(f"{k} = {str(v)[:40]!r}" for k, v in updates.items())
-            on_reject(
+            return reject(
                 f"{getattr(handle, 'label', None) or 'an input'}: the value sent ({sent}) was refused "
                 f"({type(exc).__name__}: {str(exc)[:80]}); the input keeps its last value",
                 handle,
+                updates,
             )
-            return False
         if on_accept is not None and handle is not None:
             on_accept(handle)
-        return True
+        return not (handle is not None and last is handle and bound is not None and updates == {"value": bound})
 
     return guard
 

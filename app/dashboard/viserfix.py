@@ -1,7 +1,6 @@
-"""What the dashboard needs and viser 1.1's public API lacks, one function per hook (docs/known-issues.rst: why each
-exists, the upstream change that would retire it). A hook acts on one server, tab or connection, never on a viser
-class. Where this viser lacks what a hook relies on, the hook changes nothing, returns False and warns once
-(ViserHookWarning): an upgrade cannot switch a protection off silently (tests/dashboard/test_dashboard_viserfix.py)."""
+"""What the dashboard needs and viser 1.1's public API lacks, one hook per function, each on one server, tab or
+connection, never a viser class (why, and the upstream patch that would retire each: docs/known-issues.rst). A hook
+whose viser lacks what it relies on changes nothing, returns False and warns once (ViserHookWarning)."""
 
 from __future__ import annotations
 
@@ -136,8 +135,8 @@ def set_callback_executor(gui: Any, executor: Any) -> bool:
 @_hook("the refused values explained and set back", "GuiApi._handle_gui_updates on GuiApi._websock_interface")
 def guard_updates(gui: Any, guard: Guard) -> bool:
     """Route a tab's input messages through ``guard`` before viser converts the values (its handle from
-    ``GuiApi._gui_input_handle_from_uuid``; ``apply()`` is viser's own handling). A value refused: the tab is sent
-    the one its input holds (the browser shows what was typed; viser sends a value only when it changes)."""
+    ``GuiApi._gui_input_handle_from_uuid``; ``apply()`` is viser's own handling). The guard returns False (a value
+    refused): the tab is sent the one its input holds (viser sends a value only when it changes)."""
     conn, orig, inputs = gui._websock_interface, gui._handle_gui_updates, gui._gui_input_handle_from_uuid
     _require(isinstance(inputs, dict) and callable(conn.queue_message))
     conn.unregister_handler(_messages.GuiUpdateMessage, orig)

@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import sys
 
+import msgspec
 import pytest
 from support import HANG_S, ROOT, wait_until
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from _wsclient import WsTab  # noqa: E402
+
+from app.dashboard.controls import CONTROLS  # noqa: E402
+from app.dashboard.inputs import blur_clamp  # noqa: E402
 
 #: Settings that keep the in-process computation busy for a while (so ρ arrives while it runs).
 BUSY = {"trajectories": 400, "steps": 1000, "realizations": 20}
@@ -70,3 +74,37 @@ def test_refusals_of_two_inputs_each_stay_until_that_input_changes(ws_tab):
     wait_until(lambda: "word length b: the value sent" not in c.error.content, "b's refusal goes")
     assert s.wait_idle(HANG_S) and c.error.visible and "ρ: the value sent" in c.error.content
     assert s.last_frame.values.bits == 5
+
+
+def test_a_number_box_has_no_bound_for_the_browser_to_clamp_a_refused_value_to(tab):
+    """The intermittent browser failure (ρ = −1 typed, the box left before the ρ in use came back): the browser's
+    box clamped −1 to its lower bound on leaving it (Mantine's NumberInput) and sent 1e-06, which was taken; the
+    refusal went, and the box then showed the ρ sent back. A number box now has no bound in the browser (the
+    server checks the range), so it never sends a value of its own; it keeps the decimals the range needs."""
+    numbers = [c for c in CONTROLS if c.kind == "number"]
+    assert any(c.name == "rho" for c in numbers)
+    for c in numbers:
+        h = tab.controls[c.name]
+        assert h.min is None and h.max is None and blur_clamp(h, -1e300) is None, c.name
+    assert tab.controls["rho"].precision >= 6  # 1e-06 can still be typed
+
+
+@pytest.mark.parametrize(("label", "name", "bad"), [("word length b", "bits", 400), ("steps", "steps", -5)])
+def test_a_slider_box_bound_sent_on_leaving_a_refused_value_is_shown_with_its_results(ws_tab, label, name, bad):
+    """A slider's box keeps its bounds (the slider needs them): a value out of them is refused, and if the box is
+    left before the value in use arrives, the browser sends the box's bound (Mantine clamps on blur) and then shows
+    the value in use sent back. The bound is taken, and sent back too: the box shows the value the results are
+    for (it used to show the value sent back after the refusal, next to results for the bound)."""
+    tab, s = ws_tab
+    c = s.controls
+    before, bound = c[name].value, blur_clamp(c[name], bad)
+    assert bound is not None and bound != before  # (the browser's box would send this on leaving it)
+    tab.send(label, bad)
+    wait_until(lambda: tab.value(label) == before, "the value in use sent back")
+    # the bound, sent by the box as it was left before the value in use arrived (which the box then showed)
+    message = {"type": "GuiUpdateMessage", "uuid": tab.uuids[label], "updates": {"value": bound}}
+    tab.ws.send(msgspec.msgpack.encode(message))
+    assert s.wait_idle(HANG_S)
+    wait_until(lambda: c[name].value == bound and not c.error.visible, "the bound taken, the refusal gone")
+    wait_until(lambda: tab.value(label) == bound, "the box shows the value in use")
+    assert s.wait_idle(HANG_S) and getattr(s.last_frame.values, name) == bound

@@ -312,13 +312,6 @@ def test_lesson_opens_on_its_plot_above_the_fold(size, tmp_path):
         app.stop()
 
 
-@pytest.mark.xfail(
-    reason="intermittent: in one of three full runs (a clean clone's .ci/run, 2026-11-28) the refusal line was not "
-    "visible once the computation said ready, though the box went back to the rho in use; it passes alone and "
-    "passed in the other full runs. Since the refusal hooks were merged (show_value into guard_updates); a known "
-    "defect under investigation, kept measured here",
-    strict=False,
-)
 def test_a_rho_refused_while_computing_stays_explained_and_the_box_shows_the_rho_in_use(tmp_path):
     """Issue 40's case in a browser: with a computation running, "ρ auto" off and ρ = −1 typed. The box goes back
     to the ρ in use at once, and the refusal is still shown once the computation says "ready"; typing another ρ
