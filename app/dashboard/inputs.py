@@ -5,7 +5,7 @@ websocket: a slider at 400 or 1e308, NaN, 3.7 for an integer, "no" for a checkbo
 10**400, a 5,000-deep bracket in a matrix. :func:`check_sent` checks each value as it arrives,
 before viser converts it to the input's type (the input keeps its last value);
 :func:`check_panel` reads the raw handle values before a computation and raises
-:class:`~app.dashboard.settings.InputError` in plain words (the tab keeps its
+:class:`~app.settings.values.InputError` in plain words (the tab keeps its
 last good view); only then are the values converted (:func:`read_values`). The rules are the
 settings table's (:func:`app.settings.check.check_setting`), the same as for a settings file.
 """

@@ -1,10 +1,10 @@
 """The viser side of one browser tab: its panels, and what it shows of a computation (frames, progress, errors).
 
 :class:`TabView` builds the left panel, the plots panel, the 3-D scene and the "Save, load & export" and view-code
-parts once, and then only draws: :meth:`TabView.draw` pushes a :class:`~app.dashboard.frames.Frame`,
+parts once, and then only draws: :meth:`TabView.draw` pushes a :class:`~app.frames.frame.Frame`,
 :meth:`TabView.show_error` and :meth:`TabView.show_progress` the state of a computation, :meth:`TabView.refuse`
 a value sent that an input did not take. It owns no thread and
-computes nothing: the frames come from :func:`app.dashboard.stages.iter_frames` (a pure function from the
+computes nothing: the frames come from :func:`app.frames.compute.iter_frames` (a pure function from the
 settings to the frames), driven by the tab's worker (:class:`app.dashboard.session.Session`).
 """
 
