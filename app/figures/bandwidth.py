@@ -11,6 +11,7 @@ the true plant against b (a nonlinear plant's: converged, and dotted within the 
 
 from __future__ import annotations
 
+import textwrap
 from typing import Any
 
 import numpy as np
@@ -100,6 +101,7 @@ def bandwidth_figure(result: Any, height: int = 360, note: str = "") -> go.Figur
             if result is not None and result.error
             else "set a bit budget (Data tab, folder Bit budget) to compute the budget study"
         )
+        text = "<br>".join(textwrap.wrap(text, 34))  # a phone's plot is ~350 px wide
         layout["annotations"] = [dict(text=text, showarrow=False, x=0.5, y=0.5, xref="paper", yref="paper")]
         layout["title"] = dict(text="a link of limited bandwidth", font=dict(size=11))
         for key in ("xaxis", "xaxis2", "yaxis", "yaxis2"):

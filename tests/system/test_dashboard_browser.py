@@ -130,6 +130,7 @@ TAB_TEXTS = {
     "Control": "closed loops at b",
     "Quantizer": "error variance",
     "Data length": "error vs data length",
+    "Bandwidth": "a link of limited bandwidth",
     "Compare": "phase portraits at b",
 }
 
