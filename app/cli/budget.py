@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from app.settings.cli import add_option
@@ -190,6 +191,17 @@ def format_allocation(d: dict[str, Any]) -> str:
     )
 
 
+def _emit(args: argparse.Namespace, rep: Reporter, out: Any, d: dict, table: Callable[[dict], str]) -> int:
+    """Write the result ``d`` to ``out`` (if any) as JSON, and print it as JSON or as ``table(d)``."""
+    text = dumps(d)
+    if out is not None:
+        write_text(out, text + "\n")
+        rep.stage(f"JSON written to {out}")
+    rep.stage(f"done in {d['timing_s']['total']:.2f} s")
+    print(text if args.json else table(d))
+    return 0
+
+
 def _run_allocation(args: argparse.Namespace, rep: Reporter, cfg: Any, out: Any) -> int:
     from qsid_core.studies import run_allocation
 
@@ -199,14 +211,7 @@ def _run_allocation(args: argparse.Namespace, rep: Reporter, cfg: Any, out: Any)
     rep.stage(f"allocation of {cfg.bits_per_sample} bits per sample; {cfg.study.realizations} realizations")
     with executor(args, rep) as (pool, _nw):
         res = run_allocation(cfg, pool, progress=rep)
-    d = res.to_dict()
-    text = dumps(d)
-    if out is not None:
-        write_text(out, text + "\n")
-        rep.stage(f"JSON written to {out}")
-    rep.stage(f"done in {d['timing_s']['total']:.2f} s")
-    print(text if args.json else format_allocation(d))
-    return 0
+    return _emit(args, rep, out, res.to_dict(), format_allocation)
 
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
@@ -226,11 +231,4 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     )
     with executor(args, rep) as (pool, _nw):
         res = run_budget(cfg, pool, progress=rep)
-    d = res.to_dict()
-    text = dumps(d)
-    if out is not None:
-        write_text(out, text + "\n")
-        rep.stage(f"JSON written to {out}")
-    rep.stage(f"done in {d['timing_s']['total']:.2f} s")
-    print(text if args.json else format_budget(d))
-    return 0
+    return _emit(args, rep, out, res.to_dict(), format_budget)
