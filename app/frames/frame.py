@@ -37,8 +37,24 @@ def row(r: Any) -> dict[str, Any]:
     return r.to_dict() if hasattr(r, "to_dict") else dict(r)
 
 
+class _Rows:
+    """What both kinds of frame answer from their word lengths done and their rows by estimator label."""
+
+    done: int
+    total: int
+    rows: Rows
+
+    @property
+    def complete(self) -> bool:
+        return self.done >= self.total
+
+    def series(self) -> dict[str, list[dict[str, Any]]]:
+        """``{label: [rows sorted by b]}`` for :mod:`app.figures`."""
+        return {lab: [r[b] for b in sorted(r)] for lab, r in self.rows.items()}
+
+
 @dataclass
-class Frame:
+class Frame(_Rows):
     """One drawable state of a tab: the current b in full, and the rows of every b computed so far.
 
     Attributes
@@ -99,14 +115,6 @@ class Frame:
     budget: Any = None
 
     @property
-    def complete(self) -> bool:
-        return self.done >= self.total
-
-    def series(self) -> dict[str, list[dict[str, Any]]]:
-        """``{label: [rows sorted by b]}`` for :mod:`app.figures`."""
-        return {lab: [r[b] for b in sorted(r)] for lab, r in self.rows.items()}
-
-    @property
     def true_cost(self) -> float | None:
         if self.true_loop is None:
             return None
@@ -115,7 +123,7 @@ class Frame:
 
 
 @dataclass
-class KoopmanFrame:
+class KoopmanFrame(_Rows):
     """One drawable state of a tab showing a nonlinear plant.
 
     Attributes
@@ -169,14 +177,6 @@ class KoopmanFrame:
     pinned: Any = None
     datalength: Any = None
     budget: Any = None
-
-    @property
-    def complete(self) -> bool:
-        return self.done >= self.total
-
-    def series(self) -> dict[str, list[dict[str, Any]]]:
-        """``{label: [rows sorted by b]}`` for the views."""
-        return {lab: [r[b] for b in sorted(r)] for lab, r in self.rows.items()}
 
 
 def tab_frame(f: StudyFrame, values: Values, system: Any = None, notes: tuple[str, ...] = ()) -> Frame | KoopmanFrame:
