@@ -36,7 +36,7 @@ Correctness: the naive loop draws realization r's dither from the same
 ``[A^, B^]`` must agree to rounding; the script prints the max difference, the
 max relative difference of the closed-loop costs and the failure agreement.
 
-The targets (issue 41): the CLI at paper scale within 3 s of wall clock and at least 20x faster than the
+The targets: the CLI at paper scale within 3 s of wall clock and at least 20x faster than the
 naive loop (OSQP set up per model) measured in the same run. On a machine other jobs share, wall clocks
 include waiting for a CPU: the CPU seconds and the load average beside them say how much.
 

@@ -1,5 +1,5 @@
 """The bandwidth lessons: a sensor link of limited bandwidth, where every sample of every channel costs b bits, so a
-fixed budget of bits buys fewer runs at finer words (issue 39). Two rows of :data:`app.lessons.table.LESSONS`
+fixed budget of bits buys fewer runs at finer words. Two rows of :data:`app.lessons.table.LESSONS`
 (``(name, title, text, settings, plot)``, as :class:`~app.lessons.table.Lesson` takes them): the Boeing 747 with and
 without sensor noise, and Van der Pol lifted by Koopman/EDMD. Every number in their texts is asserted at these
 settings by ``tests/dashboard/test_lesson_bandwidth.py``.

@@ -220,8 +220,8 @@ def test_every_view_module_is_registered_and_imports_no_other_view():
 
 
 def test_no_twin_module_per_plant_kind():
-    """One path for both plant kinds: no ``koopman_*`` module in ``app/`` or the engine's studies (issue 41)."""
-    twins = [p for p in [*(ROOT / "app").rglob("koopman_*.py"), *(ROOT / "qsid_core/studies").glob("koopman_*.py")]]
+    """One path for both plant kinds: no ``koopman_*`` module in ``app/`` or the engine's studies: one module serves either kind."""
+    twins = [*(ROOT / "app").rglob("koopman_*.py"), *(ROOT / "qsid_core/studies").glob("koopman_*.py")]
     assert twins == []
 
 
@@ -243,7 +243,7 @@ def test_no_module_imports_another_modules_private_names(package):
     assert found == []
 
 
-#: The dashboard is viser wiring (issue 41): at most this many modules (every .py file, ``__init__`` and
+#: The dashboard is viser wiring: at most this many modules (every .py file, ``__init__`` and
 #: ``__main__`` included) on at most this many import levels; what needs no GUI lives in ``app/settings``,
 #: ``app/frames`` and ``app/lessons``.
 DASHBOARD_MAX_MODULES = 20
