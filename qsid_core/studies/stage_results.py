@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from ..control import KoopmanLoops, MPCConfig, run_koopman_loops
+from ..control import KoopmanLoops
 from ..control.bound import UltimateBound
-from ..errors import ConfigError, IdentificationError, MPCFailure
+from ..errors import IdentificationError
 from ..identification import (
     KoopmanModel,
     LargeDataLimit,
@@ -247,13 +247,11 @@ def large_data_entry(
     return {"err_G": lifted_error(limit.model, ref)[0], "note": ""}
 
 
-def row(
-    b: int, acc: dict[str, list[Any]], lifting: Lifting, system: NonlinearSystem, mpc: MPCConfig | None, radius: float
-) -> dict[str, Any]:
-    """The result row of word length ``b`` from its realizations ``acc``, with the closed loops of ``mpc`` (none
-    when None) judged converged within ``radius``."""
+def row(b: int, acc: dict[str, list[Any]], system: NonlinearSystem) -> dict[str, Any]:
+    """The result row of word length ``b`` from its realizations ``acc``; the closed loops' entries are None until
+    :func:`loop_entries` fills them in."""
     n = system.n
-    row: dict[str, Any] = {
+    return {
         "bits": b,
         "eps_x": np.asarray(acc["eps"][0][:n]).tolist(),
         "eps_u": np.asarray(acc["eps"][0][n:]).tolist(),
@@ -271,13 +269,6 @@ def row(
         "settled_offset": None,
         "notes": sorted(set(acc["notes"])),
     }
-    if mpc is not None:
-        try:
-            loops = run_koopman_loops(acc["models"], lifting, system, mpc, radius)
-        except MPCFailure as exc:  # pragma: no cover - run_koopman_loops records failures per loop
-            raise ConfigError(str(exc)) from None
-        row.update(loop_entries(loops))
-    return row
 
 
 def loop_entries(loops: KoopmanLoops) -> dict[str, Any]:

@@ -2,14 +2,14 @@
 (:class:`KoopmanExperiment`), and its frames: the current b in full, every other b's lifted models, then their
 Koopman MPC loops as they finish.
 
-:func:`~qsid_core.studies.run_sweep` runs a whole sweep for one estimator. A front end that shows one word length
-first and fills the others in afterwards, for both estimators side by side, needs the same numbers piece by piece:
+:func:`~qsid_core.studies.run_sweep` runs a whole sweep for one estimator over these stages. A front end that shows
+one word length first and fills the others in afterwards, for both estimators side by side, takes them piece by
+piece:
 the training and held-out runs, the unquantized EDMD (the reference), the quantized lifted moments of every
 realization (shared by LS and BCLS: the de-biased moments are computed with them), the models and their errors per
 word length and estimator, their Koopman MPC loops, the large-data limit, and the plant's own uncontrolled flow.
 Each piece is cached under :func:`~qsid_core.studies.koopman_stage_key`, so a change of a setting recomputes only
-what depends on it. The dither of realization ``r`` is drawn as in the whole sweep (one draw shared by every word
-length), so a row here equals the sweep's row for the same configuration and estimator.
+what depends on it. The dither of realization ``r`` is one draw shared by every word length.
 
 With an executor, the loops of each (b, estimator) are one executor task, submitted from at most ``workers``
 threads (``qsid-koopman``); without one they run here, b by b. A cancelled token is honoured between pairs.
@@ -41,7 +41,7 @@ from ..identification import (
 )
 from ..plant import NonlinearDataset, NonlinearSystem, simulate_nonlinear
 from .cache_keys import koopman_stage_key
-from .config import KoopmanConfig
+from .config import HELD_OUT, KoopmanConfig
 from .flights import memo_joined
 from .stage_results import (
     ACC_KEYS,
@@ -53,12 +53,16 @@ from .stage_results import (
     record,
     row,
 )
-from .sweep import held_out_runs
 
-__all__ = ["FREE_FLOW_GRID", "KoopmanExperiment", "nonlinear_frames"]
+__all__ = ["FREE_FLOW_GRID", "KoopmanExperiment", "held_out_runs", "nonlinear_frames"]
 
 #: Initial states per axis of the plant's free flow (a grid over the training box, first two states).
 FREE_FLOW_GRID = 3
+
+
+def held_out_runs(system: NonlinearSystem, cfg: KoopmanConfig) -> NonlinearDataset:
+    """The held-out runs of the prediction error (:data:`HELD_OUT`), seeded apart from the training runs."""
+    return simulate_nonlinear(system, HELD_OUT[0], HELD_OUT[1], cfg.data_seed + 104729, cfg.input_amplitude)
 
 
 class KoopmanExperiment:
@@ -178,7 +182,7 @@ class KoopmanExperiment:
             for mom in moms:
                 record(acc, mom, estimator, self.lifting, ref)
                 predict([acc], self.lifting, held, self.config.prediction_horizon)
-            out = row(int(b), acc, self.lifting, self.system, None, self.config.radius)  # the loops: loops()
+            out = row(int(b), acc, self.system)  # the loops' entries: row()
             correction = no_exact_correction(self.lifting, self.config.quantizer)
             limit = self.limit(b) if estimator == "ls" else None  # BCLS's limit needs no computation
             out["large_data"] = large_data_entry(limit, estimator, ref, correction)

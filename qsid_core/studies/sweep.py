@@ -13,7 +13,9 @@ EDMD of the *same unquantized data*, its multi-step prediction error on held-out
 Koopman MPC built on it run on the true plant from the plant's ``x0``
 (:func:`~qsid_core.control.run_koopman_loops`); a :class:`KoopmanResult`. The linear certificates (Theorem 1's
 error model, the small-gain and ultimate-bound results) assume a linear plant: they are not computed there and the
-result says so (:data:`~qsid_core.studies.NO_CERTIFICATES`).
+result says so (:data:`~qsid_core.studies.NO_CERTIFICATES`). The rows are the stages of a
+:class:`~qsid_core.studies.KoopmanExperiment` (the nonlinear half of :class:`~qsid_core.Study`), so the whole sweep
+and a study shown b by b are one computation.
 """
 
 from __future__ import annotations
@@ -26,40 +28,23 @@ from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 import numpy as np
 
-from ..control import run_koopman_loops
 from ..control.loop_results import ClosedLoops
 from ..control.realized_bound import RealizedBounds
-from ..errors import IdentificationError
-from ..identification import (
-    LARGE_DATA_HYPOTHESES,
-    edmd,
-    exact_lifted_moments,
-    large_data_limit,
-    prediction_error,
-    quantized_lifted_realizations,
-)
-from ..plant import NonlinearDataset, NonlinearSystem, simulate_nonlinear
+from ..identification import LARGE_DATA_HYPOTHESES
+from ..plant import NonlinearSystem
 from .config import HELD_OUT, NO_CERTIFICATES, KoopmanConfig, SweepConfig
 from .config_checks import check_run_args
 from .executors import InlineExecutor, single_threaded_blas
 from .experiment import Experiment, Progress
-from .stage_results import (
-    ACC_KEYS,
-    BitsIdentification,
-    TheoryAtBits,
-    large_data_entry,
-    no_exact_correction,
-    predict,
-    record,
-    row,
-)
+from .stage_results import BitsIdentification, TheoryAtBits
+from .study_nonlinear import KoopmanExperiment
 from .summary import UNKNOWN, SummaryRow, fit_slope, summary_row
 from .sweep_result import SweepResult
 
 if TYPE_CHECKING:
     from .assumptions import Assumptions
 
-__all__ = ["KoopmanResult", "held_out_runs", "run_koopman_sweep", "run_sweep", "summarize"]
+__all__ = ["KoopmanResult", "run_koopman_sweep", "run_sweep", "summarize"]
 
 T = TypeVar("T")
 
@@ -314,13 +299,9 @@ class KoopmanResult:
         }
 
 
-def held_out_runs(system: NonlinearSystem, cfg: KoopmanConfig) -> NonlinearDataset:
-    """The held-out runs of the prediction error (:data:`HELD_OUT`), seeded apart from the training runs."""
-    return simulate_nonlinear(system, HELD_OUT[0], HELD_OUT[1], cfg.data_seed + 104729, cfg.input_amplitude)
-
-
 def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
-    """Run the sweep (see the module docstring).
+    """Run the sweep (see the module docstring): every row of ``cfg.bits`` by ``cfg.estimator``, from the stages of
+    a :class:`~qsid_core.studies.KoopmanExperiment`.
 
     Raises
     ------
@@ -328,40 +309,18 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
         Bad settings, a vector field that fails, or no model from the unquantized data.
     """
     t0 = time.perf_counter()
-    system = cfg.plant()
-    lifting = cfg.dictionary()
-    amp = cfg.input_amplitude
-    data: NonlinearDataset = simulate_nonlinear(system, cfg.trajectories, cfg.steps, cfg.data_seed, amp)
-    held = held_out_runs(system, cfg)
-    horizon = cfg.prediction_horizon
-    if data.T < lifting.L + system.m:
-        raise IdentificationError(
-            f"samples: {data.T} samples cannot fit {lifting.L + system.m} unknowns per row "
-            f"({lifting.L} features + {system.m} inputs); use more runs or steps, or a smaller dictionary"
-        )
-    ref = edmd(exact_lifted_moments(data, lifting), lifting.C, "ls")
-    ref_loop = None if cfg.mpc is None else run_koopman_loops([ref], lifting, system, cfg.mpc, cfg.radius)
-    nb = len(cfg.bits)
-    per: list[dict[str, list[Any]]] = [{k: [] for k in ACC_KEYS} for _ in range(nb)]
-    unbiased = cfg.estimator == "bcls"
-    seeds = np.random.SeedSequence(cfg.dither_seed).spawn(cfg.realizations)
-    for moms in quantized_lifted_realizations(data, lifting, cfg.bits, cfg.quantizer, seeds, unbiased):
-        for acc, mom in zip(per, moms, strict=True):
-            record(acc, mom, cfg.estimator, lifting, ref)
-        predict(per, lifting, held, horizon)
-    rows = [row(b, acc, lifting, system, cfg.mpc, cfg.radius) for b, acc in zip(cfg.bits, per, strict=True)]
-    correction = no_exact_correction(lifting, cfg.quantizer)
-    # BCLS's limit is the unquantized EDMD itself wherever the correction is exact: LS's limits only
-    limits = large_data_limit(data, lifting, cfg.bits, cfg.quantizer) if cfg.estimator == "ls" else [None] * nb
-    for r, limit in zip(rows, limits, strict=True):
-        r["large_data"] = large_data_entry(limit, cfg.estimator, ref, correction)
+    ex = KoopmanExperiment(cfg)
+    data, _ = ex.data()
+    ref_loop = ex.reference_loop()
+    ex.moments(cfg.bits)  # one pass over the data per realization for every b
+    rows = [ex.row(b, cfg.estimator) for b in cfg.bits]
     return KoopmanResult(
         cfg,
         rows,
-        prediction_error(ref, lifting, held, horizon),
+        ex.reference()[1],
         None if ref_loop is None else ref_loop.outcome[0],
         data.report,
-        lifting.L,
+        ex.lifting.L,
         data.trajectories,
         time.perf_counter() - t0,
         None if ref_loop is None else float(ref_loop.settled_offset[0]),
