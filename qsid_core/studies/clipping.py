@@ -56,14 +56,25 @@ def clipping_effect(
         extremes = (Psi.min(axis=1), Psi.max(axis=1), Xp.min(axis=1), Xp.max(axis=1))
     if clips_nothing(extremes, lo_q, eps, bits):
         return np.zeros_like(G)  # nothing clipped (checked on the extremes, without clipped copies)
-    # an extreme beyond a limit: that sample, at least, is clipped
-    Pc = np.clip(Psi, lo_l[:, None], hi_l[:, None])
-    Xc = np.clip(Xp, lo_l[:n, None], hi_l[:n, None])
+    # an extreme beyond a limit: that sample, at least, is clipped. Only the clipped samples change the Grams:
+    # PPc = PP + sum over them of (pc pc' - p p'), likewise XPc; they are looked for only in the channels whose
+    # extremes pass a limit (no clipped copy of the data)
+    PP, XP = grams if grams is not None else (Psi @ Psi.T, Xp @ Psi.T)
+    out = np.zeros(Psi.shape[1], dtype=bool)
+    p_lo, p_hi, x_lo, x_hi = extremes
+    for rows, low, high in ((Psi, p_lo, p_hi), (Xp, x_lo, x_hi)):
+        for a in range(rows.shape[0]):
+            if low[a] < lo_l[a]:
+                out |= rows[a] < lo_l[a]
+            if high[a] > hi_l[a]:
+                out |= rows[a] > hi_l[a]
+    P, X = Psi[:, out], Xp[:, out]
+    Pc = np.clip(P, lo_l[:, None], hi_l[:, None])
+    Xc = np.clip(X, lo_l[:n, None], hi_l[:n, None])
+    PPc, XPc = PP + (Pc @ Pc.T - P @ P.T), XP + (Xc @ Pc.T - X @ P.T)
     T = Psi.shape[1]
     D = np.diag(np.asarray(eps, dtype=float) ** 2 * variance) * T
-    PPc, XPc = Pc @ Pc.T, Xc @ Pc.T
     try:
-        PP, XP = grams if grams is not None else (Psi @ Psi.T, Xp @ Psi.T)
         ls_shift = np.linalg.solve(PPc + D, XPc.T).T - np.linalg.solve(PP + D, XP.T).T
         bcls_shift = np.linalg.solve(PPc, XPc.T).T - G
     except np.linalg.LinAlgError:
