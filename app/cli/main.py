@@ -15,7 +15,6 @@ import sys
 import threading
 import warnings
 from collections.abc import Callable, Sequence
-from concurrent.futures.process import BrokenProcessPool
 
 from app.stop import STOPPED, stop_signal
 
@@ -91,6 +90,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(sig, handler)
 
 
+def _broken_pool() -> tuple[type[BaseException], ...]:
+    """``BrokenProcessPool`` once a run has used a process pool (its module loads multiprocessing: a run without
+    worker processes never imports it), else nothing to catch."""
+    pool = sys.modules.get("concurrent.futures.process")
+    return (pool.BrokenProcessPool,) if pool is not None else ()
+
+
 def _main(argv: Sequence[str] | None, rep: Reporter, fail: Callable[..., int]) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("default")
@@ -106,7 +112,7 @@ def _main(argv: Sequence[str] | None, rep: Reporter, fail: Callable[..., int]) -
             return fail(f"a value is too large for the computation ({one_line(exc)}); use smaller numbers")
         except MemoryError:
             return fail("not enough memory for this run; reduce --trajectories, --steps, --realizations or --bits")
-        except BrokenProcessPool:
+        except _broken_pool():
             return fail("a worker process died (out of memory?); try fewer --workers", 1)
         except OSError as exc:
             where = f" {exc.filename!r}" if getattr(exc, "filename", None) else ""

@@ -4,6 +4,8 @@ Every public name of this subpackage is listed in ``__all__``; import from here,
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from .bound import UltimateBound, riccati_finite, ultimate_bound
 from .closed_loop import run_closed_loops
 from .condensed_qp import CondensedQP, DaqpMPC, condense
@@ -26,7 +28,6 @@ from .mpc_weights import MPCWeights
 from .realized_bound import RealizedBounds, realized_bounds
 from .reference import KINDS, parse_reference, reference_samples
 from .riccati import LQParts, dare_batch, dare_many, dare_stabilizing, lq_parts, state_box
-from .sparse_qp import OsqpMPC
 from .stability import certify, certify_batch, lyapunov_batch, lyapunov_gains, spectral_radius
 from .stability_radius import (
     complex_stability_radii,
@@ -38,6 +39,19 @@ from .stability_radius import (
 from .timeseries import CONVERGED_REL_FLOOR, TimeSeries, saturated_steps, time_series
 from .tracking import Preview
 from .verdicts import OUTCOMES, STALL, WINDOW, judge
+
+if TYPE_CHECKING:
+    from .sparse_qp import OsqpMPC
+
+
+def __getattr__(name: str) -> Any:
+    """``OsqpMPC`` on first use: its module loads scipy.sparse, which a run without the OSQP solver never needs."""
+    if name == "OsqpMPC":
+        from .sparse_qp import OsqpMPC
+
+        return OsqpMPC
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "CONVERGED_RADIUS",
