@@ -123,3 +123,21 @@ def test_workers_capped_to_the_cpu_count(capsys):
     assert code == 0, err
     cpus = os.cpu_count()
     assert f"--workers 256 capped to {cpus}" in err and f"{cpus} worker(s)" in err
+
+
+def test_a_dead_worker_process_is_one_line_and_a_run_without_workers_never_loads_the_process_pool(capsys, monkeypatch):
+    import subprocess
+    import sys
+    from concurrent.futures.process import BrokenProcessPool
+
+    cli_main = sys.modules["app.cli.main"]  # the module (app.cli.main is also the name of its function)
+
+    def broken(argv, rep):
+        raise BrokenProcessPool("a child process terminated abruptly")
+
+    monkeypatch.setattr(cli_main, "_dispatch", broken)
+    code, out, err = _run(capsys, "sweep", *TINY)
+    assert code == 1 and out == "" and "a worker process died" in err and "Traceback" not in err
+    check = "import sys, app.cli.main; print('concurrent.futures.process' in sys.modules)"
+    loaded = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True, check=True).stdout
+    assert loaded.strip() == "False"  # the process pool's module (and multiprocessing) only when a run uses them
