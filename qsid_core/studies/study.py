@@ -281,7 +281,9 @@ class Study:
 
     def run(self, progress: Callable[[int, int, str], None] | None = None) -> SweepResult | KoopmanResult:
         """The whole sweep at once: a :class:`SweepResult` (linear) or a :class:`KoopmanResult` (nonlinear)."""
-        if isinstance(self.config, KoopmanConfig):
-            return run_sweep(self.config)
-        assert isinstance(self.experiment, Experiment)
-        return run_sweep(self.config, self.executor, progress, experiment=self.experiment, tasks=self.experiment.tasks)
+        ex, cfg = self.experiment, self.config
+        if isinstance(ex, KoopmanExperiment):
+            assert isinstance(cfg, KoopmanConfig)
+            return run_sweep(cfg, experiment=ex)  # the rows from this study's stages and cache
+        assert isinstance(cfg, SweepConfig)
+        return run_sweep(cfg, self.executor, progress, experiment=ex, tasks=ex.tasks)

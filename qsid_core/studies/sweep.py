@@ -30,6 +30,7 @@ import numpy as np
 
 from ..control.loop_results import ClosedLoops
 from ..control.realized_bound import RealizedBounds
+from ..errors import ConfigError
 from ..identification import LARGE_DATA_HYPOTHESES
 from ..plant import NonlinearSystem
 from .config import HELD_OUT, NO_CERTIFICATES, KoopmanConfig, SweepConfig
@@ -89,14 +90,14 @@ def run_sweep(
     config: KoopmanConfig,
     executor: Executor | None = None,
     progress: Progress | None = None,
-    experiment: Experiment | None = None,
+    experiment: KoopmanExperiment | None = None,
     tasks: int = 4,
 ) -> KoopmanResult: ...
 def run_sweep(
     config: SweepConfig | KoopmanConfig,
     executor: Executor | None = None,
     progress: Progress | None = None,
-    experiment: Experiment | None = None,
+    experiment: Experiment | KoopmanExperiment | None = None,
     tasks: int = 4,
 ) -> SweepResult | KoopmanResult:
     """Run a whole sweep over ``config.bits``.
@@ -104,13 +105,14 @@ def run_sweep(
     Parameters
     ----------
     config : SweepConfig or KoopmanConfig
-        A nonlinear plant's config runs :func:`run_koopman_sweep` (the other arguments are a linear plant's).
+        A nonlinear plant's config runs :func:`run_koopman_sweep` (with ``experiment``, if given; the other
+        arguments are a linear plant's).
     executor : Executor, optional
         Where independent tasks run (default in-process).
     progress : callable(done, total, stage), optional
         Called as work completes (the engine never prints).
-    experiment : Experiment, optional
-        Reuse its caches (e.g. a dashboard session).
+    experiment : Experiment or KoopmanExperiment, optional
+        Reuse its caches (e.g. a dashboard session, or a :class:`~qsid_core.Study`'s).
     tasks : int
         Chunks the realizations are split into (use >= the executor's workers).
 
@@ -124,7 +126,11 @@ def run_sweep(
         (``ClosedLoops.failure`` / ``messages``); reported numbers are otherwise finite.
     """
     if isinstance(config, KoopmanConfig):
-        return run_koopman_sweep(config)
+        if experiment is not None and not isinstance(experiment, KoopmanExperiment):
+            raise ConfigError("experiment: a nonlinear plant's sweep reuses a KoopmanExperiment, not an Experiment")
+        return run_koopman_sweep(config, experiment)
+    if experiment is not None and not isinstance(experiment, Experiment):
+        raise ConfigError("experiment: a linear plant's sweep reuses an Experiment, not a KoopmanExperiment")
     check_run_args(config, SweepConfig, executor, progress)
     with single_threaded_blas():
         t0 = time.perf_counter()
@@ -299,9 +305,10 @@ class KoopmanResult:
         }
 
 
-def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
+def run_koopman_sweep(cfg: KoopmanConfig, experiment: KoopmanExperiment | None = None) -> KoopmanResult:
     """Run the sweep (see the module docstring): every row of ``cfg.bits`` by ``cfg.estimator``, from the stages of
-    a :class:`~qsid_core.studies.KoopmanExperiment`.
+    a :class:`~qsid_core.studies.KoopmanExperiment` (``experiment``'s, whose cache it then shares, if it is of
+    ``cfg``; else a new one).
 
     Raises
     ------
@@ -309,7 +316,7 @@ def run_koopman_sweep(cfg: KoopmanConfig) -> KoopmanResult:
         Bad settings, a vector field that fails, or no model from the unquantized data.
     """
     t0 = time.perf_counter()
-    ex = KoopmanExperiment(cfg)
+    ex = experiment if experiment is not None and experiment.config == cfg else KoopmanExperiment(cfg)
     data, _ = ex.data()
     ref_loop = ex.reference_loop()
     ex.moments(cfg.bits)  # one pass over the data per realization for every b

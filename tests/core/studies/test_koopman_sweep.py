@@ -120,3 +120,21 @@ def test_run_sweep_chooses_the_nonlinear_path_by_the_config():
     via, direct = run_sweep(cfg), run_koopman_sweep(cfg)
     assert isinstance(via, KoopmanResult)
     assert via.rows == direct.rows and via.reference_prediction_error == direct.reference_prediction_error
+
+
+def test_a_nonlinear_study_runs_the_sweep_on_its_own_stages_and_cache():
+    """``Study.run`` of a KoopmanConfig is ``run_koopman_sweep`` over the study's KoopmanExperiment: its rows are the
+    staged rows, and what the sweep computed stays in the study's cache for the frames."""
+    from qsid_core import Study
+    from qsid_core.studies import Experiment, SweepConfig, run_sweep
+
+    cfg = KoopmanConfig(system="duffing", bits=(3, 6), trajectories=80, steps=40, realizations=2, mpc=None)
+    study = Study(cfg, cache={})
+    res = study.run()
+    assert res.rows == run_koopman_sweep(cfg).rows
+    ex = study.experiment
+    assert len(ex.cache) > 0 and ex.cached_loops(3, "ls") is None  # no MPC: no loops
+    keys = set(ex.cache)
+    assert ex.row(6, "ls") == res.rows[1] and set(ex.cache) == keys  # served from the cache, nothing recomputed
+    with pytest.raises(ConfigError, match="experiment"):
+        run_sweep(cfg, experiment=Experiment(SweepConfig(trajectories=5, steps=20, realizations=1, bits=(4,))))
