@@ -58,7 +58,7 @@ def _dispatch(argv: list, rep: Reporter) -> int:
 
 def _stop_signals_interrupt() -> dict:
     """SIGTERM (kill, a CI runner) and SIGHUP (terminal closed) stop a run as Ctrl-C does: workers stopped,
-    no half-written output, exit 130; all three through :func:`app.procs.stop_signal`, which remembers the stop
+    no half-written output, exit 130; all three through :func:`app.stop.stop_signal`, which remembers the stop
     for code that checks after a library call. Returns the handlers to restore (main thread only; else none)."""
     old = {}
     STOPPED.clear()

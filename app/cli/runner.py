@@ -284,11 +284,11 @@ def executor(args: argparse.Namespace, rep: Reporter) -> Iterator[tuple[Executor
 
 
 def _stop(ex: Executor, kill: bool = False) -> None:
-    """:func:`app.procs.stop` for a process pool (which imported it), else the executor's own shutdown."""
-    if "app.procs" in sys.modules:
-        from app.procs import stop
-
-        stop(ex, kill=kill)
+    """Shut ``ex`` down; ``kill``: a process pool's workers killed (busy, hung or stopped ones too: loky's
+    ``kill_workers``), another executor's queued tasks cancelled, instead of waiting for them."""
+    loky = sys.modules.get("loky")  # (imported only for worker processes: :func:`app.procs.process_pool`)
+    if loky is not None and isinstance(ex, loky.ProcessPoolExecutor):
+        ex.shutdown(kill_workers=kill)
     else:
         ex.shutdown(wait=True, cancel_futures=kill)
 

@@ -19,8 +19,9 @@ px), the plots section open; the word-length slider near the top with the lesson
 tabs and the summary behind one button, so that the plots follow the slider; presenter mode off (its panel
 widths mean nothing in the sheet); the 3-D box framed in the part of the scene the sheet leaves free. The
 sheet itself is made as wide as the window and at most half its height by a style sheet,
-:data:`PHONE_SHEET_CSS` (sent by :func:`app.dashboard.viserfix.phone_sheet_style`): viser draws it 20em wide and
-up to 60 % high.
+:data:`PHONE_SHEET_CSS` (sent to each tab through viser's public ``add_html``; its selectors match the inline
+styles :data:`SHEET_SOURCE` of viser's sheet, which a test checks against the installed client): viser draws it
+20em wide and up to 60 % high.
 """
 
 from __future__ import annotations

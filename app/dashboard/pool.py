@@ -1,18 +1,21 @@
-"""The process pool the tabs share (:func:`app.procs.process_pool`) and :class:`Guarded`, what the engine sees of it:
-its tasks abandoned for newer settings, timed out when hung, failed when a worker dies (the pool then replaced).
+"""The tabs' process pool (:func:`app.procs.process_pool`) and :class:`Guarded`, the executor the engine sees: its
+tasks abandoned for newer settings, failed when hung or when a worker dies (the pool then replaced).
 The rules and why: ``docs/architecture.rst``, "Worker processes"."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import BrokenExecutor, Executor, Future, InvalidStateError
+from typing import Any
 
+from loky import ProcessPoolExecutor
 from loky.process_executor import ShutdownExecutorError
 
-from app.procs import process_pool, stop
+from app.procs import process_pool
 from qsid_core import QsidError
 
 from .lifecycle import one_blas_thread, trim
@@ -37,17 +40,17 @@ class Superseded(Exception):
 
 
 class Pool:
-    """The tabs' process pool of ``workers`` processes (0: compute in-process)."""
+    """The tabs' process pool of ``workers`` processes (0: compute in-process), and its watchdog thread."""
 
     def __init__(self, workers: int, timeout: float = DEFAULT_TIMEOUT):
         self.workers, self.timeout, self.replacements, self._closed = max(0, int(workers)), float(timeout), 0, False
         self._lock, self._plock = threading.Lock(), threading.Lock()
-        self._pending: list[list] = []  # [outer, inner, guard, running since]
+        self._pending: list[list] = []  # [outer, inner, guard, running since] of each task not yet settled and ended
         self.current = self._new()
         threading.Thread(target=self._watchdog, name="qsid-pool-watch", daemon=True).start()
 
-    def _new(self) -> Executor | None:
-        try:  # BLAS runs one thread in the workers, as in the server (.memory)
+    def _new(self) -> ProcessPoolExecutor | None:
+        try:  # BLAS runs one thread in the workers, as in the server (.lifecycle)
             return process_pool(self.workers, one_blas_thread) if self.workers else None
         except Exception as exc:  # e.g. no processes allowed here
             print(f"qsid-dashboard: no worker processes ({exc!r}); computing in-process", file=sys.stderr)
@@ -59,12 +62,12 @@ class Pool:
             ex = self.current
         return None if ex is None else Guarded(self, ex, stop or (lambda: False))
 
-    def replace(self, failed: Executor | None, counted: bool = True) -> bool:
-        """Kill the workers of ``failed`` and start new ones if it is still the current pool (``counted``: a failure)."""
+    def replace(self, failed: Any, counted: bool = True) -> bool:  # (Any: loky is untyped)
+        """Kill ``failed``'s workers and start new ones if it is still the current pool (``counted``: a failure)."""
         with self._lock:
-            if failed is None or failed is not self.current or self._closed:
+            if failed is not self.current or failed is None or self._closed:
                 return False
-            stop(failed, kill=True, wait=False)
+            failed.shutdown(wait=False, kill_workers=True)
             self.current, self.replacements = self._new(), self.replacements + counted
             return True
 
@@ -78,17 +81,13 @@ class Pool:
         with self._lock:
             ex, self.current = self.current, None
         if ex is not None:
-            stop(ex, kill=True)
-
-    def _hung(self, executor: Executor) -> PoolFailure:
-        why = f"a worker process did not finish its task within {self.timeout:g} s (hung?); the pool was restarted"
-        return PoolFailure(why, executor, "Try smaller settings, or start the server with a larger --task-timeout.")
+            ex.shutdown(kill_workers=True)
 
     def _watchdog(self) -> None:
         last_trim = time.monotonic()
         while not self._closed:
             time.sleep(0.1)
-            if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .memory)
+            if time.monotonic() - last_trim > TRIM_EVERY:  # hand freed memory back (see .lifecycle)
                 trim()
                 last_trim = time.monotonic()
             with self._plock:  # an abandoned task still running stays watched until its worker is free
@@ -99,16 +98,17 @@ class Pool:
                 busy, stale = now - (e[3] or now), guard.stop()
                 if stale or busy > self.timeout:  # abandoned at once (cancelled if queued), or hung
                     inner.cancel()
-                    _settle(outer, Superseded() if stale else self._hung(guard.executor))
+                    why = f"a worker process did not finish its task within {self.timeout:g} s (hung?)"
+                    hint = "Try smaller settings, or start the server with a larger --task-timeout."
+                    hung = PoolFailure(f"{why}; the pool was restarted", guard.executor, hint)
+                    _settle(outer, Superseded() if stale else hung)
                 if busy > (SUPERSEDED_GRACE if stale else self.timeout):
                     self.replace(guard.executor)
 
 
 def _settle(fut: Future, exc: BaseException | None, result: object = None) -> None:
-    try:
+    with contextlib.suppress(InvalidStateError):  # settled already (by the watchdog or the worker)
         fut.set_exception(exc) if exc is not None else fut.set_result(result)
-    except InvalidStateError:  # settled already (by the watchdog or the worker)
-        pass
 
 
 class Guarded(Executor):

@@ -22,12 +22,11 @@ from app.settings.viewcodes import ViewOpen, ViewStore
 from qsid_core import PRESETS, get_system
 
 from .controls import GuiElements, make_gui_elements, read_values
-from .phone import PHONE_SHEET_CSS, SHEET_SOURCE, PhoneLayout, canvas_aspect
+from .phone import PHONE_SHEET_CSS, PhoneLayout, canvas_aspect
 from .presenter import AutoPlay, PresenterLayout
 from .scene import PhasePortrait
 from .share import CodePanel, ShareHandles, add_code_panel, add_share_panel, apply_values
 from .viewpanel import PANEL_WIDTH, ViewPanel
-from .viserfix import phone_sheet_style
 
 __all__ = ["TabView", "drop_late_draws", "CLOSED_CONNECTION"]
 
@@ -112,7 +111,7 @@ class TabView:
         self.phone = PhoneLayout(
             gui, client.camera, self.controls, self.plots_panel, self.portrait, touch, aspect=connect_aspect
         )
-        phone_sheet_style(gui, PHONE_SHEET_CSS, SHEET_SOURCE)  # phone sheet: window-wide, at most half as high
+        gui.add_html(PHONE_SHEET_CSS, order=1e9)  # phone sheet: window-wide, at most half as high (nothing drawn)
         #: why the computation of the settings shown could not run (None: it could), and the values sent for an
         #: input that were refused (by the input: each stays shown until that input is changed again)
         self.run_error: str | None = None

@@ -10,13 +10,12 @@ import functools
 import gc
 import warnings
 from collections.abc import Awaitable, Callable
-from pathlib import Path
 from typing import Any, TypeVar
 
 import viser
 from viser import _messages
 
-__all__ = ["LoopEvent", "ViserHookWarning", "connection_request", "guard_updates", "limit_reads", "phone_sheet_style"]
+__all__ = ["LoopEvent", "ViserHookWarning", "connection_request", "guard_updates", "limit_reads"]
 __all__ += ["redirect_pages", "refuse_share_requests", "send_plotly_js", "set_callback_executor", "thread_safe_buffers"]
 _warned: set[str] = set()
 F = TypeVar("F", bound=Callable[..., bool])
@@ -166,14 +165,4 @@ def send_plotly_js(gui: Any, source: str) -> bool:
         return False
     gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))
     gui._setup_plotly_js = True
-    return True
-
-
-@_hook("the phone sheet's style", "bottom sheet styled inline as the style sheet expects in its client")
-def phone_sheet_style(gui: Any, css: str, relies_on: tuple[str, ...]) -> bool:
-    """Send the tab ``css`` (a ``<style>`` element), whose selectors match the inline styles ``relies_on`` of viser's
-    bottom sheet; nothing if the installed client's source (``BottomPanel.tsx``) writes them otherwise."""
-    src = Path(viser.__file__).parent / "client" / "src" / "ControlPanel" / "BottomPanel.tsx"
-    _require(not src.is_file() or all(s in src.read_text(encoding="utf-8") for s in relies_on))
-    gui.add_html(css, order=1e9)  # nothing drawn, last in the panel
     return True

@@ -67,7 +67,6 @@ def _hooks(server, client, executor):
         "refuse_share_requests": lambda: viserfix.refuse_share_requests(server),
         "send_plotly_js": lambda: viserfix.send_plotly_js(gui, "/* plotly.js */"),
         "redirect_pages": lambda: viserfix.redirect_pages(server, _moved),
-        "phone_sheet_style": lambda: viserfix.phone_sheet_style(gui, phone.PHONE_SHEET_CSS, phone.SHEET_SOURCE),
     }
 
 
@@ -165,8 +164,6 @@ def _remove(monkeypatch, server, client, name):
         monkeypatch.setattr(server, "get_port", lambda: 1)
     elif name == "send_plotly_js":
         monkeypatch.delattr(gui, "_setup_plotly_js")
-    elif name == "phone_sheet_style":  # a client whose sheet is drawn otherwise
-        monkeypatch.setattr(phone, "SHEET_SOURCE", ('maxHeight: "61%"',))
 
 
 @pytest.mark.parametrize(
@@ -179,7 +176,6 @@ def _remove(monkeypatch, server, client, name):
         "refuse_share_requests",
         "send_plotly_js",
         "redirect_pages",
-        "phone_sheet_style",
     ],
 )
 def test_a_hook_whose_viser_attribute_is_missing_says_so(live, fresh, monkeypatch, name):

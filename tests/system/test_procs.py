@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from support import HANG_S, alive, descendants, gone_within, pool_workers, wait_until
 
-from app.procs import process_pool, stop
+from app.procs import process_pool
 
 # slow: starts real worker processes
 pytestmark = pytest.mark.slow
@@ -44,7 +44,7 @@ def test_results_errors_and_workers_started_at_once():
             pool.submit(_boom).result(HANG_S)
         assert pool.submit(_sigint_ignored).result(HANG_S)  # Ctrl-C belongs to the program
     finally:
-        stop(pool)
+        pool.shutdown()
     assert gone_within(sorted(workers), 60) == []
 
 
@@ -61,7 +61,7 @@ def test_a_killed_worker_fails_the_pool_and_nothing_hangs():
         with pytest.raises(BrokenProcessPool):
             pool.submit(abs, 1).result(HANG_S)
     finally:
-        stop(pool, kill=True)
+        pool.shutdown(kill_workers=True)
     assert gone_within(workers, 60) == []
 
 
@@ -73,7 +73,7 @@ def test_kill_stops_busy_and_stopped_workers_and_reaps_them():
     wait_until(lambda: all(f.running() for f in busy), "both tasks run")
     os.kill(workers[0], signal.SIGSTOP)  # a stopped worker never finishes its task
     t0 = time.monotonic()
-    stop(pool, kill=True)
+    pool.shutdown(kill_workers=True)
     print(f"killed and reaped in {time.monotonic() - t0:.3f} s")
     assert not any(alive(w) for w in workers)  # reaped: not even a zombie
     assert all(f.done() for f in busy)
