@@ -9,7 +9,9 @@ in the legend; under it the share of the loops that converge on the true plant a
 converged, and dotted within the convergence radius). Noise-free only (no sensor noise set, or a nonlinear plant):
 the error left, the share right. With sensor noise: two columns, noise-free (black) left and with the noise
 (orange) right, each titled, the error panels on one scale so the two knees compare at a glance. Panels side by
-side are stacked on a phone and in presenter mode (:func:`app.figures.room.lay_out`).
+side are stacked on a phone and in presenter mode (:func:`app.figures.room.lay_out`). With bits per sample set,
+the title's last lines are the per-channel allocation: the proposed split, the uniform one, their measured errors
+(:func:`allocation_lines`).
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from .axes import finite_axes, log_ticks
 from .raw import arr, figure
 from .view import CURVES, FrameView, View
 
-__all__ = ["bandwidth_figure", "VIEW", "KOOPMAN_VIEW", "SIDES", "AXES"]
+__all__ = ["bandwidth_figure", "allocation_lines", "VIEW", "KOOPMAN_VIEW", "SIDES", "AXES"]
 
 #: The two sides: key of :class:`~qsid_core.studies.Bandwidth`, legend name, colour.
 SIDES = (("noise_free", "noise-free", "#000000"), ("noisy", "with noise", "#ff7f0e"))
@@ -170,22 +172,42 @@ def bandwidth_figure(result: Any, height: int = 360, note: str = "") -> go.Figur
         known = " known to BCLS" if d["config"].get("noise_known") and d["config"]["estimator"] == "bcls" else ""
         heads.append((label if name == "noise-free" else f"sensor noise {label}{known}", col))
     layout["shapes"] = shapes
-    layout["title"] = _title(first["config"])
+    split = allocation_lines(result)
+    layout["title"] = _title(first["config"], split)
+    top = (70 if len(sides) == 2 else 50) + 15 * len(split)
+    layout["margin"] = dict(l=55, r=10, t=top, b=40)
     if len(sides) == 2:
         layout["annotations"] = _heads(heads, layout)
-        layout["margin"] = dict(l=55, r=10, t=70, b=40)
         return _one_scale(figure(data, layout))
     return figure(data, layout)
 
 
-def _title(c: dict[str, Any]) -> dict[str, Any]:
-    return dict(
-        text=(
-            f"budget {c['total_bits']:g} bits · runs of {c['steps']} steps · {c['realizations']} realizations · "
-            f"{c['estimator'].upper()}<br>Model error err_G and share of loops that converge, against b; dotted: each knee"
-        ),
-        font=dict(size=11),
+def allocation_lines(result: Any) -> list[str]:
+    """The per-channel allocation's lines under the title: the two splits and their measured errors (none when
+    no bits per sample were set; the reason when the allocation does not apply)."""
+    if getattr(result, "allocation_note", ""):
+        return [f"per-channel split: {result.allocation_note}"]
+    alloc = getattr(result, "allocation", None)
+    if alloc is None:
+        return []
+    d = alloc.to_dict()
+    c, pro, uni = d["config"], d["proposed"], d["uniform"]
+    per = ", ".join(f"{n} {p}" for n, p in zip(d["channels"], pro["bits"]))
+    even = len(set(uni["bits"])) == 1
+    flat = f"{uni['bits'][0]} each" if even else ", ".join(str(v) for v in uni["bits"])
+    return [
+        f"split of {c['bits_per_sample']} bits per sample ({d['trajectories']} runs): proposed {per}; uniform {flat}",
+        f"err_G proposed {pro['err_G']['mean']:.3g}, uniform {uni['err_G']['mean']:.3g}: ratio "
+        f"{d['ratio']['median']:.2f} (median), proposed better in {d['proposed_better']} of {c['realizations']}",
+    ]
+
+
+def _title(c: dict[str, Any], extra: list[str]) -> dict[str, Any]:
+    head = (
+        f"budget {c['total_bits']:g} bits · runs of {c['steps']} steps · {c['realizations']} realizations · "
+        f"{c['estimator'].upper()}<br>Model error err_G and share of loops that converge, against b; dotted: each knee"
     )
+    return dict(text="<br>".join([head, *extra]), font=dict(size=11))
 
 
 def _one_scale(fig: go.Figure) -> go.Figure:

@@ -86,13 +86,15 @@ def test_with_noise_the_two_sides_stand_side_by_side_each_drawing_its_own_rows()
     assert lay.yaxis.range[0] < np.log10(min(errs)) and np.log10(max(errs)) < lay.yaxis.range[1]  # both sides on it
     heads = [a.text for a in lay.annotations]
     assert heads == ["noise-free", "sensor noise σ = 0.05 known to BCLS"]
-    # a phone stacks the four panels, row by row, each column's title over its error panel
+    # a phone stacks the four panels column by column, each column's title over its error panel, an error
+    # panel higher than a share panel as on a laptop
     phone = phone_figure(fig).layout
-    tops = [phone[f"yaxis{k}"].domain for k in ("", "2", "3", "4")]
+    doms = [phone[f"yaxis{k}"].domain for k in ("", "3", "2", "4")]
     assert all(phone[f"xaxis{k}"].domain == (0.0, 1.0) for k in ("", "2", "3", "4"))
-    assert all(a[0] >= b[1] for a, b in zip(tops, tops[1:]))  # one under the other: y, y2, y3, y4
+    assert all(a[0] >= b[1] for a, b in zip(doms, doms[1:]))  # one under the other: y, y3, y2, y4
+    assert doms[0][1] - doms[0][0] > 2 * (doms[1][1] - doms[1][0])
     placed = {a.text: a.y for a in phone.annotations if a.text in heads}
-    assert placed == {heads[0]: tops[0][1], heads[1]: tops[1][1]}
+    assert placed == {heads[0]: doms[0][1], heads[1]: doms[2][1]}
 
 
 def test_noise_free_only_the_error_and_the_share_stand_side_by_side():
@@ -110,3 +112,27 @@ def test_the_ready_line_says_how_long_the_budget_study_took_after_the_curves():
     assert ready_line(6, t, budget_done=True, budget_wanted=True) == f"{head} · bit budget study: 28.2 s"
     assert ready_line(6, t, budget_done=False, budget_wanted=True) == f"{head} · computing the bit budget study …"
     assert ready_line(6, t, budget_done=False, budget_wanted=False) == head
+
+
+def test_bits_per_sample_adds_the_allocation_to_the_view_the_file_and_the_command(capsys):
+    v = Values(**SMALL, noise="0.05", noise_known=True, total_bits=1e5, bits_per_sample=12)
+    assert Values().bits_per_sample == 0 and values_from_json(settings_json(v)) == v  # off by default; in the file
+    bw = list(iter_frames(v))[-1].budget
+    assert bw is not None and bw.allocation is not None and bw.allocation_note == ""
+    mine = bw.allocation.to_dict()
+    line = next(ln for ln in command_lines(v) if "--bits-per-sample=12" in ln)
+    assert main([*shlex.split(line)[1:], "--json", "-q"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("channels", "trajectories", "uniform", "proposed", "ratio", "proposed_better"):
+        assert out[key] == mine[key], key
+    title = bandwidth_figure(bw).layout.title.text
+    pro, uni = mine["proposed"], mine["uniform"]
+    assert ", ".join(f"{n} {b}" for n, b in zip(mine["channels"], pro["bits"])) in title
+    assert f"err_G proposed {pro['err_G']['mean']:.3g}, uniform {uni['err_G']['mean']:.3g}" in title
+    assert f"proposed better in {mine['proposed_better']} of 2" in title and f"{mine['ratio']['median']:.2f}" in title
+    # where the allocation does not apply, the view says why instead
+    bad = dataclasses.replace(bw, allocation=None, allocation_note="the allocation's error model is for linear plants")
+    assert (
+        "per-channel split: the allocation's error model is for linear plants"
+        in bandwidth_figure(bad).layout.title.text
+    )
