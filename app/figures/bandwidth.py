@@ -38,6 +38,8 @@ def _mean(rows: list[dict[str, Any]], key: str) -> np.ndarray:
     return arr([np.nan if r.get(key) is None else r[key] for r in rows])
 
 
+#: A low share panel's ticks: its ends only (three labels crowd it at presenter size).
+ENDS = dict(tickvals=[0, 1], ticktext=["0", "1"])
 #: The panels of one side: ``(err_G x, err_G y, share x, share y)`` axis ids, for the first and the second side.
 AXES = (("x", "y", "x3", "y3"), ("x2", "y2", "x4", "y4"))
 
@@ -117,8 +119,8 @@ def _axes_layout(two: bool) -> dict[str, Any]:
         xaxis4=dict(domain=right, anchor="y4", dtick=2, title=bits, matches="x"),
         yaxis=dict(domain=top, anchor="x", **err),
         yaxis2=dict(domain=top, anchor="x2", matches="y", **err),
-        yaxis3=dict(domain=low, anchor="x3", **share, dtick=0.5),
-        yaxis4=dict(domain=low, anchor="x4", **share, dtick=0.5),
+        yaxis3=dict(domain=low, anchor="x3", **share, **ENDS),
+        yaxis4=dict(domain=low, anchor="x4", **share, **ENDS),
     )
 
 
@@ -184,9 +186,10 @@ def bandwidth_figure(result: Any, height: int = 360, note: str = "") -> go.Figur
 
 def allocation_lines(result: Any) -> list[str]:
     """The per-channel allocation's lines under the title: the two splits and their measured errors (none when
-    no bits per sample were set; the reason when the allocation does not apply)."""
+    no bits per sample were set; the reason when the allocation does not apply). Each starts with a capital, so
+    a narrow layout does not join it to the line before as one sentence (:func:`app.figures.room.wrap_text`)."""
     if getattr(result, "allocation_note", ""):
-        return [f"per-channel split: {result.allocation_note}"]
+        return [f"Per-channel split: {result.allocation_note}"]
     alloc = getattr(result, "allocation", None)
     if alloc is None:
         return []
@@ -196,8 +199,8 @@ def allocation_lines(result: Any) -> list[str]:
     even = len(set(uni["bits"])) == 1
     flat = f"{uni['bits'][0]} each" if even else ", ".join(str(v) for v in uni["bits"])
     return [
-        f"split of {c['bits_per_sample']} bits per sample ({d['trajectories']} runs): proposed {per}; uniform {flat}",
-        f"err_G proposed {pro['err_G']['mean']:.3g}, uniform {uni['err_G']['mean']:.3g}: ratio "
+        f"Split of {c['bits_per_sample']} bits per sample ({d['trajectories']} runs): proposed {per}; uniform {flat}",
+        f"Measured err_G: proposed {pro['err_G']['mean']:.3g}, uniform {uni['err_G']['mean']:.3g}: ratio "
         f"{d['ratio']['median']:.2f} (median), proposed better in {d['proposed_better']} of {c['realizations']}",
     ]
 
@@ -207,7 +210,10 @@ def _title(c: dict[str, Any], extra: list[str]) -> dict[str, Any]:
         f"budget {c['total_bits']:g} bits · runs of {c['steps']} steps · {c['realizations']} realizations · "
         f"{c['estimator'].upper()}<br>Model error err_G and share of loops that converge, against b; dotted: each knee"
     )
-    return dict(text="<br>".join([head, *extra]), font=dict(size=11))
+    # from the figure's top edge down (plotly centres a title in the top margin: lines added would run into the
+    # column titles standing on the panels' top edge)
+    text = "<br>".join([head, *extra])
+    return dict(text=text, font=dict(size=11), yref="container", y=1, yanchor="top", pad=dict(t=8))
 
 
 def _one_scale(fig: go.Figure) -> go.Figure:

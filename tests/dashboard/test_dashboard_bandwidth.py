@@ -128,11 +128,15 @@ def test_bits_per_sample_adds_the_allocation_to_the_view_the_file_and_the_comman
     title = bandwidth_figure(bw).layout.title.text
     pro, uni = mine["proposed"], mine["uniform"]
     assert ", ".join(f"{n} {b}" for n, b in zip(mine["channels"], pro["bits"])) in title
-    assert f"err_G proposed {pro['err_G']['mean']:.3g}, uniform {uni['err_G']['mean']:.3g}" in title
+    assert f"Measured err_G: proposed {pro['err_G']['mean']:.3g}, uniform {uni['err_G']['mean']:.3g}" in title
     assert f"proposed better in {mine['proposed_better']} of 2" in title and f"{mine['ratio']['median']:.2f}" in title
     # where the allocation does not apply, the view says why instead
+    fig = bandwidth_figure(bw)
+    lines = phone_figure(fig).layout.annotations[-1].text.split("<br>")  # a phone wraps, joining no line to another
+    assert any(ln.startswith("Split of 12 bits per sample") for ln in lines)
+    assert any(ln.startswith("Measured err_G") for ln in lines)
     bad = dataclasses.replace(bw, allocation=None, allocation_note="the allocation's error model is for linear plants")
     assert (
-        "per-channel split: the allocation's error model is for linear plants"
+        "Per-channel split: the allocation's error model is for linear plants"
         in bandwidth_figure(bad).layout.title.text
     )
