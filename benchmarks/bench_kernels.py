@@ -33,14 +33,14 @@ if str(ROOT) not in sys.path:
 import numpy as np
 
 from qsid_core.quantization import CHUNK_ROWS, kernels, unrolled
-from qsid_core.quantization.moments import _Sums
+from qsid_core.quantization.sums import Sums
 
 #: (name, channels p, states n): the preset systems' sizes
 SIZES = (("dc-motor", 5, 3), ("boeing747", 6, 4), ("mass-spring-damper", 3, 2))
 
 
 def _one(fn, y, u, scale, half, n, S1, runs) -> tuple[float, tuple]:
-    out = _Sums.zeros(scale.shape[0], scale.shape[1], n, runs).arrays()
+    out = Sums.zeros(scale.shape[0], scale.shape[1], n, runs).arrays()
     t = time.perf_counter()
     for s in range(0, len(y), CHUNK_ROWS):
         kernels.accumulate_chunk(y[s : s + CHUNK_ROWS], u[s : s + CHUNK_ROWS], scale, half, s, S1, *out, kernel=fn)

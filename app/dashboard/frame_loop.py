@@ -15,7 +15,7 @@ from qsid_core import QsidError
 
 from .pool import PoolFailure, Superseded
 
-__all__ = ["Reporters", "draw_frames"]
+__all__ = ["Reporters", "draw_frames", "ready_line"]
 
 
 class Reporters:
@@ -37,6 +37,18 @@ class Reporters:
             self.session.controls.status.content = (
                 f"queued behind {ahead} tab{'s' if ahead != 1 else ''} (the server is busy) …"
             )
+
+
+def ready_line(bits: int, timings: dict[str, float], budget_done: bool, budget_wanted: bool) -> str:
+    """The status line of a tab whose curves are all drawn: when b and all curves were drawn (seconds since the
+    change) and, with a bit budget set, the budget study: still computing, or how long it took after the curves.
+
+    ``timings``: ``"current"``, ``"all"`` and (once drawn) ``"budget"``, seconds from the change to each frame.
+    """
+    line = f"ready · b = {bits} drawn in {timings['current']:.2f} s, all curves in {timings['all']:.2f} s"
+    if budget_done:
+        return f"{line} · bit budget study: {timings['budget'] - timings['all']:.1f} s"
+    return f"{line} · computing the bit budget study …" if budget_wanted else line
 
 
 def draw_frames(
@@ -75,15 +87,10 @@ def draw_frames(
             session.timings[stage] = time.perf_counter() - t0
             if frame.complete:
                 c.progress.value = 100.0
-                c.status.content = (
-                    f"ready · b = {frame.bits} drawn in {session.timings['current']:.2f} s, "
-                    f"all curves in {session.timings['all']:.2f} s"
-                )
-                if budget is not None:
-                    c.status.content += f", the bit budget in {session.timings['budget']:.2f} s"
-                if budget is not None or not float(getattr(frame.values, "total_bits", 0.0)):
+                wanted = bool(float(getattr(frame.values, "total_bits", 0.0)))
+                c.status.content = ready_line(frame.bits, session.timings, budget is not None, wanted)
+                if budget is not None or not wanted:
                     return gen  # the last frame: no further turn to wait for
-                c.status.content += " · computing the bit budget …"  # the study's budget frame comes next
     except (PoolFailure, Superseded) as exc:
         if isinstance(exc, PoolFailure):
             raise

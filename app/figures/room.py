@@ -4,8 +4,9 @@ Presenter mode (text of at least 18 px, for a projector) and a phone (a plot abo
 views as a laptop does. :func:`lay_out` rearranges a figure's plain layout (the dicts plotly keeps) for a drawing
 ``width`` px wide and ``height`` px high (or as high as it needs):
 
-* panels side by side (one row of subplots, as the error plot's Â and B̂) are stacked, each as wide as the
-  figure; the title standing on a panel's top edge goes with it;
+* panels side by side (one row of subplots, as the error plot's Â and B̂, or a grid of such rows) are stacked,
+  each as wide as the figure, column by column, each keeping its share of the height; the title standing on a
+  panel's top edge goes with it;
 * the figure's title and the notes above the plot become one block of text at the top, wrapped to the width,
   and the top margin is that block's height (plotly does not grow a margin for a title of several lines);
 * between stacked rows there is room for the upper row's tick labels and axis title and the lower row's title;
@@ -103,26 +104,36 @@ def _on_paper(ann: dict) -> bool:
 
 
 def _stack(layout: dict) -> bool:
-    """Panels side by side (one row, x domains apart) -> one above the other, each full width; True if done."""
-    panels = []
+    """Panels side by side (a row of x domains apart, or a grid of such rows) -> one above the other, each full
+    width: column by column from the left, each column top to bottom, each panel keeping its share of the height
+    (a column's title stays over its top panel); True if done."""
+    rows: dict[tuple, list[tuple[float, float, str, str]]] = {}
     for xk, ax in _axes(layout, "x").items():
         yk = _key(str(ax.get("anchor") or "y"), "y")
         dom = list(ax.get("domain") or [0.0, 1.0])
-        panels.append((float(dom[0]), float(dom[1]), xk, yk, tuple((layout.get(yk) or {}).get("domain") or (0, 1))))
-    panels.sort()
-    if len(panels) < 2 or len({p[4] for p in panels}) != 1:
-        return False
-    if any(b[0] < a[1] - 1e-6 for a, b in zip(panels, panels[1:])):
-        return False  # overlapping x domains: not side by side
-    n = len(panels)
-    heads = [a for a in layout.get("annotations") or [] if _on_paper(a) and float(a.get("y", 0)) >= 0.999]
-    for i, (x0, x1, xk, yk, _) in enumerate(panels):
-        top = 1.0 - i / n
+        ydom = tuple(float(v) for v in (layout.get(yk) or {}).get("domain") or (0, 1))
+        rows.setdefault(ydom, []).append((float(dom[0]), float(dom[1]), xk, yk))
+    if sum(map(len, rows.values())) < 2 or all(len(r) < 2 for r in rows.values()):
+        return False  # one panel, or a column of them already
+    for r in rows.values():
+        r.sort()
+        if any(b[0] < a[1] - 1e-6 for a, b in zip(r, r[1:])):
+            return False  # overlapping x domains: not side by side
+    top_row = max(rows, key=lambda d: d[1])
+    panels = sorted(((p, d) for d, r in rows.items() for p in r), key=lambda pd: (pd[0][0], -pd[1][1]))
+    total = sum(d[1] - d[0] for _, d in panels) or 1.0
+    anns = [a for a in layout.get("annotations") or [] if _on_paper(a) and a.get("xanchor") == "center"]
+    heads = [(a, float(a.get("y", 0)), float(a.get("x", 0))) for a in anns]
+    top = 1.0
+    for (x0, x1, xk, yk), d in panels:
+        low = max(0.0, top - (d[1] - d[0]) / total)
         layout[xk] = {**layout[xk], "domain": [0.0, 1.0]}
-        layout[yk] = {**(layout.get(yk) or {}), "domain": [1.0 - (i + 1) / n, top]}
-        for a in heads:  # a panel's title (centred over it) goes with the panel
-            if a.get("xanchor") == "center" and x0 - 1e-6 <= float(a.get("x", 0)) <= x1 + 1e-6:
+        layout[yk] = {**(layout.get(yk) or {}), "domain": [low, top]}
+        for a, y, x in heads:  # a panel's title (centred on its top edge) goes with the panel
+            on_top = y >= 0.999 if d == top_row else abs(y - d[1]) < 0.02
+            if on_top and x0 - 1e-6 <= x <= x1 + 1e-6:
                 a.update(x=0.5, y=top)
+        top = low
     return True
 
 

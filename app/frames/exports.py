@@ -29,14 +29,16 @@ __all__ = ["command_lines", "curves_rows", "curves_csv", "curves_json", "figures
 
 def command_lines(v: Values) -> list:
     """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown), then with a bit
-    budget its ``qsid budget`` line (judged on the last estimator, as the bandwidth view), and for a linear plant
-    the ``qsid bits`` line."""
+    budget its ``qsid budget`` line (judged on the last estimator, as the bandwidth view) and, with bits per sample,
+    the allocation's, and for a linear plant the ``qsid bits`` line."""
     sc = study_config(v)
     cfg = sc.config
     lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]  # either kind of plant
     if float(v.total_bits):
         last = dataclasses.replace(cfg, estimator=sc.estimators[-1])
         lines.append(budget_command(sweep_argv(last), float(v.total_bits)))
+        if int(v.bits_per_sample):
+            lines.append(budget_command(sweep_argv(last), float(v.total_bits), int(v.bits_per_sample)))
     if isinstance(cfg, KoopmanConfig):
         return lines
     return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]

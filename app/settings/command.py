@@ -240,9 +240,10 @@ def bits_command(
 _NOT_IN_BUDGET = ("--trajectories", "--input-bits", "--state-bits")
 
 
-def budget_command(argv: list[str], total_bits: float) -> str:
+def budget_command(argv: list[str], total_bits: float, bits_per_sample: int | None = None) -> str:
     """The shell line ``qsid budget ...`` of a study's ``qsid sweep`` arguments ``argv`` (:func:`sweep_argv`, or a
     nonlinear plant's) at ``total_bits``: the runs and the word length per channel are the budget's, so their
-    flags are left out."""
+    flags are left out; with ``bits_per_sample``, the line of the per-channel allocation."""
     kept = [a for a in argv if a.split("=", 1)[0] not in _NOT_IN_BUDGET]
-    return shlex.join(["qsid", "budget", *kept, f"--total-bits={total_bits!r}"])
+    extra = [] if bits_per_sample is None else [f"--bits-per-sample={int(bits_per_sample)}"]
+    return shlex.join(["qsid", "budget", *kept, f"--total-bits={total_bits!r}", *extra])

@@ -18,8 +18,9 @@ The results are identical (to rounding) to quantizing with
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,9 +35,9 @@ from .quantize import (
     bcls_reason,
     channel_bits,
     data_ranges,
-    draw_dither_units,
     guard_cells,
 )
+from .sums import ChunkStep, Sums
 
 __all__ = ["Moments", "PreparedData", "exact_moments", "prepare", "quantized_moments", "CHUNK_ROWS", "ENGINES"]
 
@@ -116,8 +117,12 @@ def exact_moments(data: Dataset) -> Moments:
     return Moments(PP=Psi @ Psi.T, XP=Xp @ Psi.T, T=Psi.shape[1], eps=np.zeros(Psi.shape[0]))
 
 
-def prepare(data: Dataset, spec: QuantizerSpec) -> PreparedData:
-    """Normalise ``data`` to the quantizer range chosen by ``spec`` (done once, reused for every b)."""
+def prepare(data: Dataset, spec: QuantizerSpec, exact: Moments | None = None) -> PreparedData:
+    """Normalise ``data`` to the quantizer range chosen by ``spec`` (done once, reused for every b).
+
+    ``exact`` is the unquantized moments to keep (default :func:`exact_moments` of ``data``; a caller that has
+    them, or the noise-free data's, passes them).
+    """
     lo, hi = data_ranges(data.states, data.inputs, spec)
     n, m = data.n, data.m
     J, S = data.trajectories, data.steps
@@ -126,100 +131,16 @@ def prepare(data: Dataset, spec: QuantizerSpec) -> PreparedData:
     rows[:, :S, n:] = data.inputs
     mid = (lo + hi) / 2
     rows[:, S, n:] = mid[n:]
-    yc = ((rows - mid) / (hi - lo)).reshape(J * (S + 1), n + m)
-    return PreparedData(yc=yc, lo=lo, hi=hi, n=n, m=m, trajectories=J, steps=S, exact=exact_moments(data))
+    rows -= mid  # in place: the same numbers as (rows - mid) / (hi - lo), without two temporaries of the data's size
+    rows /= hi - lo
+    yc = rows.reshape(J * (S + 1), n + m)
+    return PreparedData(
+        yc=yc, lo=lo, hi=hi, n=n, m=m, trajectories=J, steps=S, exact=exact_moments(data) if exact is None else exact
+    )
 
 
 #: implementations of :func:`quantized_moments`
 ENGINES = ("auto", "numba", "numpy")
-
-
-@dataclass
-class _Sums:
-    """Running sums over the quantized samples ``v`` (in cell units, see :func:`quantized_moments`).
-
-    Index ``j`` is the word length ``bits[j]``; ``g`` the global row (run ``g // S1``, step ``g % S1``).
-
-    Attributes
-    ----------
-    M : (nb, p, p)   ``sum_g v_g v_g'``
-    C : (nb, p, n)   ``sum_g v_{g-1} v_g[:n]'`` over consecutive rows
-    sums : (nb, p)   ``sum_g v_g``
-    over : (nb,)     overloaded entries
-    prev : (nb, p)   ``v`` of the last row seen (carried between chunks)
-    v_last, v_first : (nb, runs, p)   ``v`` at the last / first row of every run
-    """
-
-    M: np.ndarray
-    C: np.ndarray
-    sums: np.ndarray
-    over: np.ndarray
-    prev: np.ndarray
-    v_last: np.ndarray
-    v_first: np.ndarray
-
-    @classmethod
-    def zeros(cls, nb: int, p: int, n: int, runs: int) -> _Sums:
-        return cls(
-            np.zeros((nb, p, p)),
-            np.zeros((nb, p, n)),
-            np.zeros((nb, p)),
-            np.zeros(nb, dtype=np.int64),
-            np.zeros((nb, p)),
-            np.zeros((nb, runs, p)),
-            np.zeros((nb, runs, p)),
-        )
-
-    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(M, C, sums, over, prev, v_last, v_first)``: the kernel's in-place arguments, in its order."""
-        return (self.M, self.C, self.sums, self.over, self.prev, self.v_last, self.v_first)
-
-
-def _chunk_numpy(
-    y: np.ndarray,
-    u: np.ndarray | None,
-    sub: float,
-    scale: np.ndarray,
-    half: np.ndarray,
-    quant: np.ndarray,
-    start: int,
-    S1: int,
-    acc: _Sums,
-) -> None:
-    """numpy version of :func:`qsid_core.quantization.kernels.accumulate_chunk` (the reference; BLAS for the sums).
-
-    ``scale`` and ``half`` have shape (nb, p); ``quant`` (p,) is False for channels recorded exactly.
-    """
-    rows, p = y.shape
-    n = acc.C.shape[2]
-    bb = np.empty_like(y)
-    ones = np.ones(rows)
-    exact = ~quant
-    # rows of this chunk that end / start a run, and the runs they belong to
-    lsel = np.arange((S1 - 1 - start) % S1, rows, S1)
-    fsel = np.arange((-start) % S1, rows, S1)
-    lk, fk = (start + lsel) // S1, (start + fsel) // S1
-    for j in range(scale.shape[0]):
-        np.multiply(y, scale[j], out=bb)
-        keep = bb[:, exact].copy() if exact.any() else None
-        if u is not None:
-            np.add(bb, u, out=bb)
-        h = half[j]
-        acc.over[j] += int(np.count_nonzero((bb < -h)[:, quant])) + int(np.count_nonzero((bb > h)[:, quant]))
-        np.floor(bb, out=bb)
-        np.clip(bb, -h, h - 1, out=bb)
-        if u is not None and sub:
-            np.subtract(bb, u, out=bb)
-        if keep is not None:
-            bb[:, exact] = keep
-        acc.M[j] += bb.T @ bb
-        acc.sums[j] += ones @ bb
-        acc.C[j] += (bb[:-1].T @ bb[1:])[:, :n]
-        if start > 0:
-            acc.C[j] += np.outer(acc.prev[j], bb[0, :n])
-        acc.prev[j] = bb[-1]
-        acc.v_last[j, lk] = bb[lsel]
-        acc.v_first[j, fk] = bb[fsel]
 
 
 def _gram(
@@ -227,7 +148,7 @@ def _gram(
     chan: tuple[int | None, ...],
     scale: np.ndarray,
     spec: QuantizerSpec,
-    acc: _Sums,
+    acc: Sums,
     j: int,
     upper_only: bool,
 ) -> Moments:
@@ -297,6 +218,7 @@ def quantized_moments(
     engine: str = "auto",
     input_bits: BitsSpec = None,
     state_bits: Sequence[int | str] | None = None,
+    runs: Sequence[int] | None = None,
 ) -> list[Moments]:
     """Gram matrices of the data quantized at each word length in ``bits``.
 
@@ -323,6 +245,11 @@ def quantized_moments(
         draw and ignore theirs), so the states' quantization is the same number.
     state_bits : None or tuple of n entries
         Word length of each state (``"b"``: the swept one; an int; ``"exact"``).
+    runs : sequence of int, optional
+        One per entry of ``bits``: word length ``bits[j]`` quantizes only the first ``runs[j]`` runs of ``prep``
+        (nested data sets; default all). Each result is, bit for bit, that of this function on those runs alone
+        with ``rng`` in its present state: the dither draws are made once, and a word length whose runs end
+        inside a chunk draws its last, shorter chunk from a copy of the generator, as it would alone.
 
     Returns
     -------
@@ -343,23 +270,38 @@ def quantized_moments(
     if engine == "numba" and not kernels.AVAILABLE:
         raise ConfigError(f"engine 'numba' unavailable: {kernels.REASON}")
     compiled = engine == "numba" or (engine == "auto" and kernels.AVAILABLE)
-    dithered = spec.dither != "none"
-    if dithered and rng is None:
+    if spec.dither != "none" and rng is None:
         raise ValueError(f"{spec.dither} dither needs a random generator")
-    sub = 1.0 if spec.dither == "subtractive" else 0.0
-    yc = prep.yc
-    N, p = yc.shape
-    S1 = prep.steps + 1
-    chans = [channel_bits(b, prep.n, prep.m, input_bits, state_bits) for b in bits]
+    J = prep.trajectories
+    want = [J] * len(bits) if runs is None else [int(r) for r in runs]
+    if len(want) != len(bits) or not all(1 <= r <= J for r in want):
+        raise ConfigError(f"runs: one count from 1 to {J} per word length; got {list(want)} for {len(bits)}")
+    order = sorted(range(len(bits)), key=lambda j: -want[j])  # the most runs first: a chunk's word lengths are a prefix
+    chans = [channel_bits(bits[j], prep.n, prep.m, input_bits, state_bits) for j in order]
     quant, half, scale = _cell_counts(chans, spec)
-    acc = _Sums.zeros(len(bits), p, prep.n, prep.trajectories)
-    fast = unrolled.kernel(p, prep.n) if compiled else None  # None: the generic kernel
-    for start in range(0, N, CHUNK_ROWS):
-        y = yc[start : start + CHUNK_ROWS]
-        u = draw_dither_units(rng, y.shape, spec.dither) if dithered and rng is not None else None
-        if compiled:
-            u0 = np.zeros_like(y) if u is None else u
-            kernels.accumulate_chunk(y, u0, scale, half, start, S1, *acc.arrays(), sub=sub, quant=quant, kernel=fast)
-        else:
-            _chunk_numpy(y, u, sub, scale, half, quant, start, S1, acc)
-    return [_gram(prep, ch, scale[j], spec, acc, j, compiled) for j, ch in enumerate(chans)]
+    acc = Sums.zeros(len(bits), prep.p, prep.n, J)
+    rows = [want[j] * (prep.steps + 1) for j in order]
+    fast = unrolled.kernel(prep.p, prep.n) if compiled else None  # None: the generic kernel
+    step = ChunkStep(prep.yc, prep.steps + 1, spec.dither, quant, compiled, fast)
+    _accumulate(step, rows, rng, scale, half, acc)
+    got = {}
+    for i, j in enumerate(order):
+        mine = prep if want[j] == J else replace(prep, yc=prep.yc[: rows[i]], trajectories=want[j])
+        got[j] = _gram(mine, chans[i], scale[i], spec, acc.part(i, i + 1, want[j]), 0, compiled)
+    return [got[j] for j in range(len(bits))]
+
+
+def _accumulate(
+    step: ChunkStep, rows: list[int], rng: np.random.Generator | None, scale: np.ndarray, half: np.ndarray, acc: Sums
+) -> None:
+    """Quantize chunk after chunk of the first ``rows[j]`` rows at word length ``j`` (``rows`` falling), the
+    dither of a chunk drawn once for the word lengths that quantize all of it and, for one whose rows end inside
+    it, drawn again from a copy of the generator as the chunk began (what it alone would draw)."""
+    for start in range(0, rows[0], CHUNK_ROWS):
+        end = min(start + CHUNK_ROWS, rows[0])
+        k = sum(r >= end for r in rows)  # word lengths that quantize the whole chunk
+        short = [i for i in range(k, len(rows)) if rows[i] > start]  # ... and those whose rows end inside it
+        saved = copy.deepcopy(rng) if short and rng is not None else None
+        step(start, end, rng, scale[:k], half[:k], acc.part(0, k))
+        for i in short:
+            step(start, rows[i], copy.deepcopy(saved), scale[i : i + 1], half[i : i + 1], acc.part(i, i + 1))

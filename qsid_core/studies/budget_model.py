@@ -47,7 +47,8 @@ def _lag(psi: NDArray[np.float64]) -> NDArray[np.float64]:
     pairs = a.shape[0] * a.shape[1]
     if pairs == 0:
         return np.zeros((psi.shape[2], psi.shape[2]))
-    out: NDArray[np.float64] = np.tensordot(a, b, axes=([0, 1], [0, 1])) / pairs
+    # run by run, then summed: no copy of the data (a sum over both axes at once would gather a transposed copy)
+    out: NDArray[np.float64] = np.matmul(a.transpose(0, 2, 1), b).sum(axis=0) / pairs
     return out
 
 

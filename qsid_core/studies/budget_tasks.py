@@ -9,8 +9,11 @@ sensor noise and dither, and within a realization the word lengths are compared 
 range is that of the realization's whole data set (per channel, or shared, as configured; a fixed range as
 given), as a sensor's range does not depend on how many samples are sent: so the recorded data are normalised
 once per realization, and each word length's :class:`~qsid_core.studies.experiment.Experiment` is handed its
-data, their normalised prefix and their Gram matrices (summed run by run), what it would compute itself for that
-fixed range, the Gram matrices to rounding (``tests/core/studies/test_budget.py``).
+data, their normalised prefix, their Gram matrices (summed run by run) and their quantized moments, what it would
+compute itself for that fixed range, the Gram matrices to rounding (``tests/core/studies/test_budget.py``). The
+quantized moments of every word length come from one pass over the data
+(:func:`~qsid_core.quantization.quantized_moments` with ``runs``: one stream of dither draws, each word length on
+its own prefix, bit for bit what its experiment would draw and sum).
 """
 
 from __future__ import annotations
@@ -24,12 +27,13 @@ from ..control import run_koopman_loops
 from ..identification.theorem1 import theorem1_prediction
 from ..plant.data import Dataset, simulate, with_sensor_noise
 from ..plant.systems import get_system
-from ..quantization.moments import Moments, prepare
+from ..quantization.moments import Moments, prepare, quantized_moments
 from ..quantization.quantize import ERROR_VARIANCE, QuantizerSpec, data_ranges
 from .budget_model import predicted_error, prefix_moments
 from .config import KoopmanConfig, SweepConfig
 from .executors import single_threaded_blas
 from .experiment import Experiment
+from .identification_stage import dither_seeds
 from .study_nonlinear import KoopmanExperiment
 
 __all__ = ["Plan", "fixed_range", "linear_realization", "nonlinear_realization", "realization_seeds"]
@@ -75,18 +79,23 @@ def linear_realization(study: SweepConfig, plan: Plan, r: int) -> list[dict[str,
         pp, xp, lag = prefix_moments(full)  # the clean moments of every prefix of runs, summed once
         rec = with_sensor_noise(full, study.noise, ds)  # the states as recorded
         spec = fixed_range(rec, study.quantizer)
-        prep = prepare(rec, spec)
+        zero = np.zeros(pp.shape[1])
+        prep = prepare(rec, spec, Moments(PP=pp[-1], XP=xp[-1], T=full.T, eps=zero))
         S1 = study.steps + 1
-        for b, runs in plan:
+        # every word length's quantized moments in one pass over the data, each on its own prefix of runs with
+        # the dither stream its experiment would draw (bit for bit, as quantized_moments says)
+        rng = np.random.default_rng(dither_seeds(dt, 1)[0]) if spec.dither != "none" else None
+        moms = quantized_moments(prep, [b for b, _ in plan], spec, rng, runs=[k for _, k in plan])
+        for (b, runs), mom in zip(plan, moms):
             cfg = replace(
                 study, quantizer=spec, bits=(b,), trajectories=runs, realizations=1, data_seed=ds, dither_seed=dt,
                 mpc=None,
             )  # fmt: skip
             ex = Experiment(cfg)
             data = _prefix(full, runs)
-            exact = Moments(PP=pp[runs - 1], XP=xp[runs - 1], T=runs * study.steps, eps=np.zeros(pp.shape[1]))
+            exact = Moments(PP=pp[runs - 1], XP=xp[runs - 1], T=runs * study.steps, eps=zero)
             mine = replace(prep, yc=prep.yc[: runs * S1], trajectories=runs, exact=exact)
-            ex.cache.store([(ex.keys.data(), data), (ex.keys.prepared(), mine)])
+            ex.cache.store([(ex.keys.data(), data), (ex.keys.prepared(), mine), (ex.keys.moments(b), [mom])])
             ident = ex.identification(b)
             A, B = ident.A_hat[0], ident.B_hat[0]
             noise = ex.noise_variance()

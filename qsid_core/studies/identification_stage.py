@@ -17,7 +17,7 @@ from .executors import single_threaded_blas
 from .stage_cache import Staged
 from .stage_results import BitsIdentification
 
-__all__ = ["Progress", "compute_moments", "identify_at", "moments_task"]
+__all__ = ["Progress", "compute_moments", "dither_seeds", "identify_at", "moments_task"]
 
 #: ``progress(done, total, what)``, called as chunks of work finish.
 Progress = Callable[[int, int, str], None]
@@ -41,12 +41,17 @@ def moments_task(
     return out
 
 
+def dither_seeds(dither_seed: int, realizations: int) -> list[np.random.SeedSequence]:
+    """The seed of each realization's dither stream (``SeedSequence(dither_seed).spawn(realizations)``)."""
+    return np.random.SeedSequence(dither_seed).spawn(realizations)
+
+
 def compute_moments(ex: Staged, todo: tuple[int, ...], progress: Progress | None) -> dict[int, list[Moments]]:
     """The moments of every realization at each b of ``todo``, the realizations split into ``ex.tasks`` chunks
     mapped through ``ex.executor``."""
     c = ex.config
     prep = ex.prepared
-    seeds = np.random.SeedSequence(c.dither_seed).spawn(c.realizations)
+    seeds = dither_seeds(c.dither_seed, c.realizations)
     size = math.ceil(c.realizations / min(ex.tasks, c.realizations))
     chunks = [seeds[i : i + size] for i in range(0, c.realizations, size)]
     # an executor with a ``share`` hook (e.g. app.distributed.DaskExecutor) sends the data once per worker

@@ -160,6 +160,8 @@ class Study:
     budget : float, optional
         A budget of bits: :meth:`frames` ends with a ``"budget"`` frame holding the budget study of this
         configuration (:func:`~qsid_core.studies.study_budget.bandwidth`, judged on the last estimator).
+    bits_per_sample : int, optional
+        With a budget: its study also holds the per-channel allocation of that many bits per sample.
     """
 
     def __init__(
@@ -171,6 +173,7 @@ class Study:
         estimators: tuple[str, ...] | None = None,
         tasks: int | None = None,
         budget: float | None = None,
+        bits_per_sample: int | None = None,
     ) -> None:
         if not isinstance(config, (SweepConfig, KoopmanConfig)):
             raise ConfigError(f"config: a SweepConfig or a KoopmanConfig, not {type(config).__name__}")
@@ -179,6 +182,7 @@ class Study:
         self.workers = max(0, int(workers)) if executor is not None else 0
         self.estimators = tuple(estimators) if estimators else (config.estimator,)
         self.budget = budget
+        self.bits_per_sample = bits_per_sample
         self.cache = cache
         self.experiment: Experiment | KoopmanExperiment
         if isinstance(config, SweepConfig):
@@ -245,14 +249,14 @@ class Study:
 
     def _bandwidth(self, total_bits: float, check: Callable[[], bool] | None) -> Bandwidth | None:
         """The budget study of this configuration, from the cache when another study of it computed it."""
-        key = bandwidth_key(self.config, total_bits, self.estimators[-1])
+        key = bandwidth_key(self.config, total_bits, self.estimators[-1], self.bits_per_sample)
         if self.cache is not None:
             try:
                 found: Bandwidth | None = self.cache[key]
                 return found
             except KeyError:
                 pass
-        found = bandwidth(self.config, total_bits, self.estimators[-1], self.executor, check)
+        found = bandwidth(self.config, total_bits, self.estimators[-1], self.executor, check, self.bits_per_sample)
         if found is not None and self.cache is not None:
             self.cache[key] = found
         return found

@@ -6,7 +6,10 @@ budget (its ``"budget"`` frame): :func:`~qsid_core.studies.budget.run_budget` of
 (its word lengths, run length, realizations, quantizer, estimator, seeds and MPC; the runs set by the budget),
 once with the sensor noise set to zero and once as set. A budget sends every channel at the swept b, so a
 what-if word length per channel is not used (said in ``notes``); a budget that identifies nothing at any b is
-``error``, not an exception, so a front end shows it where the curves would be.
+``error``, not an exception, so a front end shows it where the curves would be. Given bits per sample, it also
+runs the per-channel allocation at the configuration's settings (:func:`~qsid_core.studies.run_allocation`: the
+proposed split against the uniform one); where that does not apply (a nonlinear plant, dither other than
+subtractive, bits per sample out of range) the reason is ``allocation_note`` instead.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from typing import Any
 from ..errors import ConfigError
 from ..plant.systems import get_system
 from .budget import BudgetConfig, BudgetResult, run_budget
+from .budget_allocation import AllocationResult, run_allocation
 from .cache_keys import system_key
 from .config import KoopmanConfig, SweepConfig
 
@@ -45,6 +49,10 @@ class Bandwidth:
         Settings the budget does not use.
     error : str
         Why nothing was computed ("" when it was).
+    allocation : AllocationResult or None
+        The per-channel allocation at the bits per sample given (None: none given, or see ``allocation_note``).
+    allocation_note : str
+        Why no allocation was computed although bits per sample were given ("" otherwise).
     """
 
     total_bits: float
@@ -53,12 +61,16 @@ class Bandwidth:
     noisy: BudgetResult | None = None
     notes: tuple[str, ...] = ()
     error: str = ""
+    allocation: AllocationResult | None = None
+    allocation_note: str = ""
 
 
-def bandwidth_key(config: SweepConfig | KoopmanConfig, total_bits: float, estimator: str) -> tuple[Any, ...]:
+def bandwidth_key(
+    config: SweepConfig | KoopmanConfig, total_bits: float, estimator: str, bits_per_sample: int | None = None
+) -> tuple[Any, ...]:
     """The cache key of :func:`bandwidth`'s result: every setting it depends on (a linear plant's matrices as
     bytes, every other field exactly by ``repr``), not the sweep's own data size ``trajectories``."""
-    head: tuple[Any, ...] = ("bandwidth", float(total_bits), estimator)
+    head: tuple[Any, ...] = ("bandwidth", float(total_bits), estimator, bits_per_sample)
     if isinstance(config, SweepConfig):
         head += system_key(get_system(config.system))
     rest = tuple(
@@ -75,10 +87,12 @@ def bandwidth(
     estimator: str | None = None,
     executor: Executor | None = None,
     cancel: Callable[[], bool] | None = None,
+    bits_per_sample: int | None = None,
 ) -> Bandwidth | None:
     """The budget study of ``config`` at ``total_bits`` (None: cancelled, ``cancel()`` said so between realizations).
 
-    ``estimator`` (default the config's) is the one whose models are judged.
+    ``estimator`` (default the config's) is the one whose models are judged; ``bits_per_sample``: also the
+    per-channel allocation of that many bits per sample (module docstring).
     """
     est = estimator or config.estimator
     notes: list[str] = []
@@ -102,4 +116,13 @@ def bandwidth(
         return None
     except ConfigError as exc:
         return Bandwidth(float(total_bits), est, None, None, tuple(notes), str(exc))
-    return Bandwidth(float(total_bits), est, noise_free, noisy, tuple(notes))
+    out = Bandwidth(float(total_bits), est, noise_free, noisy, tuple(notes))
+    if bits_per_sample is None:
+        return out
+    try:
+        alloc = run_allocation(BudgetConfig(total_bits, base, bits_per_sample=bits_per_sample), executor, progress)
+    except _Cancelled:
+        return None
+    except ConfigError as exc:  # a nonlinear plant, another dither, too few or too many bits: said, not raised
+        return replace(out, allocation_note=str(exc))
+    return replace(out, allocation=alloc)

@@ -193,6 +193,7 @@ def test_bench_budget_quick_prints_its_measured_ratio(capsys):
     line = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("RESULT ")][-1]
     r = json.loads(line[len("RESULT ") :])
     assert r["ratio"] == pytest.approx(r["budget_s"] / r["sweep_s"], rel=0.01) and r["largest_runs"] == 83
+    assert r["cpu_ratio"] == pytest.approx(r["budget_cpu_s"] / r["sweep_cpu_s"], rel=0.01)
     assert r["bits"] == [2, 4, 8, 16] and r["realizations"] == 3 and r["b_knee"] in r["bits"]
 
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from qsid_core import QuantizerSpec, prepare, quantize, quantized_moments, simulate
+from qsid_core import ConfigError, QuantizerSpec, prepare, quantize, quantized_moments, simulate
 from qsid_core.plant.systems import boeing747, dc_motor
 
 
@@ -167,3 +167,40 @@ def test_unit_dither_is_numpys_uniform_bit_for_bit_and_leaves_the_stream_where_i
         for shape in ((16384, 5), (7, 3), (1, 1)):
             assert np.array_equal(draw_unit_dither(a, shape), b.uniform(-0.5, 0.5, size=shape))
         assert a.random() == b.random()  # the same number of draws was consumed
+
+
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
+@pytest.mark.parametrize(
+    "spec",
+    [
+        QuantizerSpec(),
+        QuantizerSpec(dither="tpdf", guard=True),  # two draws per entry: a shorter chunk is not a prefix of a longer
+        QuantizerSpec(dither="rpdf", range_mode="shared"),
+        QuantizerSpec(dither="none"),
+    ],
+)
+def test_nested_runs_give_each_word_length_its_own_prefix_bit_for_bit(engine, spec, monkeypatch):
+    import qsid_core.quantization.moments as moments
+
+    if engine == "numba" and not kernels.AVAILABLE:
+        pytest.skip(f"numba kernels unavailable: {kernels.REASON}")
+    monkeypatch.setattr(moments, "CHUNK_ROWS", 700)  # runs of 41 rows: many chunks, prefixes ending inside them
+    data = simulate(boeing747(), 60, 40, seed=5)
+    prep = prepare(data, spec)
+    bits, runs = [1, 3, 6, 9, 14], [60, 31, 17, 60, 1]
+    together = quantized_moments(prep, bits, spec, np.random.default_rng(8), engine=engine, runs=runs)
+    for b, r, got in zip(bits, runs, together):
+        alone_prep = prepare(type(data)(data.states[:r], data.inputs[:r], data.seed, 1.0), _fixed_to(prep, spec))
+        alone = quantized_moments(alone_prep, [b], spec, np.random.default_rng(8), engine=engine)[0]
+        for field in ("PP", "XP", "eps", "D"):
+            np.testing.assert_array_equal(getattr(got, field), getattr(alone, field))
+        assert (got.T, got.overload_fraction) == (alone.T, alone.overload_fraction)
+    with pytest.raises(ConfigError, match="runs"):
+        quantized_moments(prep, bits, spec, np.random.default_rng(8), runs=[61, 1, 1, 1, 1])
+
+
+def _fixed_to(prep, spec):
+    """``spec`` with its range fixed to ``prep``'s, so a prefix of the data is normalised alike."""
+    return QuantizerSpec(
+        dither=spec.dither, guard=spec.guard, range_mode="fixed", fixed_range=tuple(zip(prep.lo, prep.hi))
+    )

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from qsid_core.quantization import kernels, unrolled
-from qsid_core.quantization.moments import _Sums
+from qsid_core.quantization.sums import Sums
 
 needs_numba = pytest.mark.skipif(not kernels.AVAILABLE, reason=f"numba kernels unavailable: {kernels.REASON}")
 
@@ -23,7 +23,7 @@ def _inputs(p: int, n: int, rows: int, S1: int, nb: int, seed: int):
 
 
 def _run(fn, y, u, sub, quant, scale, half, row0, S1, n, runs):
-    out = _Sums.zeros(scale.shape[0], scale.shape[1], n, runs).arrays()
+    out = Sums.zeros(scale.shape[0], scale.shape[1], n, runs).arrays()
     for start in range(0, len(y), 700):  # several calls: the previous row is carried between them
         fn(y[start : start + 700], u[start : start + 700], sub, quant, scale, half, row0 + start, S1, *out)
     return out
@@ -52,7 +52,7 @@ def test_the_generated_kernel_computes_the_generic_sums(p, n, sub, row0):
 def test_accumulate_chunk_runs_the_generated_kernel_it_is_given():
     p, n = 5, 3
     y, u, scale, half, runs = _inputs(p, n, rows=900, S1=300, nb=2, seed=1)
-    out = _Sums.zeros(2, p, n, runs).arrays()
+    out = Sums.zeros(2, p, n, runs).arrays()
     kernels.accumulate_chunk(y, u, scale, half, 0, 300, *out, kernel=unrolled.kernel(p, n))
     assert unrolled.kernel(p, n) is not None and (p, n) not in unrolled.NOT_USED
     ref = _run(kernels._accumulate_chunk_nb, y, u, 1.0, np.ones(p, dtype=np.bool_), scale, half, 0, 300, n, runs)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from qsid_core import SweepConfig
-from qsid_core.studies import Study, bandwidth, bandwidth_key, run_budget
+from qsid_core import QuantizerSpec, SweepConfig
+from qsid_core.studies import Study, bandwidth, bandwidth_key, run_allocation, run_budget
 from qsid_core.studies.budget import BudgetConfig
 
 CFG = SweepConfig(system="dc-motor", bits=(2, 4, 6), realizations=2, trajectories=20, steps=100, mpc=None)
@@ -41,3 +41,20 @@ def test_a_study_of_the_same_settings_takes_the_budget_from_the_cache():
     other = list(Study(replace(CFG, steps=50), cache=cache, budget=1e5).frames(4))[-1].budget
     assert other is not None and other is not first
     assert bandwidth_key(CFG, 1e5, "ls") != bandwidth_key(CFG, 2e5, "ls") != bandwidth_key(CFG, 2e5, "bcls")
+
+
+def test_bits_per_sample_add_the_allocation_or_say_why_not():
+    bw = bandwidth(CFG, 1e5, bits_per_sample=9)
+    assert bw is not None and bw.allocation is not None and bw.allocation_note == ""
+    again = run_allocation(BudgetConfig(1e5, CFG, bits_per_sample=9)).to_dict()
+    got = bw.allocation.to_dict()
+    assert {k: got[k] for k in ("proposed", "uniform", "ratio")} == {
+        k: again[k] for k in ("proposed", "uniform", "ratio")
+    }
+    tpdf = bandwidth(replace(CFG, quantizer=QuantizerSpec(dither="tpdf")), 1e5, bits_per_sample=9)
+    assert tpdf is not None and tpdf.allocation is None and "subtractive dither" in tpdf.allocation_note
+    assert tpdf.noise_free is not None  # the budget study itself still there
+    assert bandwidth(CFG, 1e5).allocation is None  # none asked
+    assert bandwidth_key(CFG, 1e5, "ls", 9) != bandwidth_key(CFG, 1e5, "ls")
+    frames = list(Study(CFG, budget=1e5, bits_per_sample=9).frames(4))
+    assert frames[-1].budget.allocation.to_dict()["proposed"] == got["proposed"]
