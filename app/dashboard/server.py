@@ -24,6 +24,7 @@ from collections import OrderedDict
 import viser
 
 from app.frames.cache import DEFAULT_MB, SharedCache
+from app.frames.render import Figures
 from app.lessons.table import lesson_values
 from app.settings.values import INTERACTIVE, PAPER_SCALE, Values
 from app.settings.viewcodes import ViewStore, default_store_path, open_view, page_location
@@ -113,6 +114,7 @@ class DashboardApp:
         self.views = ViewStore(views_file)  # view codes -> settings (links that survive a reload)
         self.follow = FollowHub(self.views, self._code_in_use)  # tabs followed live by other tabs
         self.cache = SharedCache(cache_bytes)
+        self.figures = Figures()  # every figure drawn, made once for all tabs drawing it (:class:`Figures`)
         self.slots = FairSlots(slots, fast=1)  # (4) at most `slots` tabs compute at once, in turn; cheap turns first
         self.workers = max(0, int(workers))
         self.tasks = max(1, self.workers)
@@ -224,7 +226,7 @@ class DashboardApp:
         """Compute and draw a new tab's view once (see :func:`.lifecycle.prefill`; ``progress`` is given each frame);
         returns why not, or None."""
         try:
-            prefill(self.defaults, self.cache, self.executor, self.tasks, progress)
+            prefill(self.defaults, self.cache, self.executor, self.tasks, progress, self.figures)
         except Exception as exc:  # the tab itself reports what these settings raise
             return str(exc) if isinstance(exc, QsidError) else f"{type(exc).__name__}: {exc}"
         return None
@@ -236,6 +238,7 @@ class DashboardApp:
             if self.sessions or self._admitted:
                 return
         self.cache.clear()
+        self.figures.clear()
         self.pool.release()
         gc.collect()
         trim()

@@ -116,6 +116,7 @@ class Session:
             self.pin,
             self.unpin,
             self.start_datalength,
+            app.figures,  # figures made once for every tab drawing the same
         )
         self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
         self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes
