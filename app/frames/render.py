@@ -176,8 +176,9 @@ class Renderer:
     def reset(self) -> None:
         """Forget what was drawn: the next frame redraws every view."""
         self.figures: dict[str, Sent] = {}
-        #: curves view -> (its key, the figure as built, whether it has a current-b marker, the b it marks now)
-        self._bases: dict[str, tuple[Hashable | None, Sent, bool, int]] = {}
+        #: curves view -> (its key, the figure as built, whether it has a current-b marker, the b it was built at,
+        #: the b its marker shows now)
+        self._bases: dict[str, tuple[Hashable | None, Sent, bool, int, int]] = {}
         self._rows_key: Any = None
         self._current_keys: dict[str, Any] = {}
         self._models_key: tuple | None = None  # (a nonlinear plant's b, models and settings last drawn)
@@ -223,15 +224,15 @@ class Renderer:
             if rebuild:
                 key = self._key(frame, name, *drawn)
                 fig = self._made(key, frame, name)
-                self._bases[name] = (key, fig, has_current_bits(fig.wire.figure), frame.bits)
+                self._bases[name] = (key, fig, has_current_bits(fig.wire.figure), frame.bits, frame.bits)
                 out[name] = fig
                 continue
             base = self._bases.get(name)
-            if base is None or not base[2] or base[3] == frame.bits:
+            if base is None or not base[2] or base[4] == frame.bits:
                 continue  # no marker, or it marks this b already: nothing to push
-            key, built, marked, _at = base
-            self._bases[name] = (key, built, marked, frame.bits)
-            out[name] = self._moved(key, built, frame.bits)
+            key, built, marked, made_at, _shown = base
+            self._bases[name] = (key, built, marked, made_at, frame.bits)
+            out[name] = built if frame.bits == made_at else self._moved(key, built, frame.bits)
         return out
 
     def _moved(self, key: Hashable | None, built: Sent, bits: int) -> Sent:
