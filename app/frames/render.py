@@ -183,6 +183,24 @@ class Renderer:
         self._current_keys: dict[str, Any] = {}
         self._models_key: tuple | None = None  # (a nonlinear plant's b, models and settings last drawn)
         self._style = "normal", "linear"
+        self._texts: dict[int, tuple[Any, str]] = {}  # id(row) -> (the row, its repr), for the rows last drawn
+
+    def _rows(self, frame: Frame | KoopmanFrame) -> tuple:
+        """The frame's rows as compared: (label, b, the row's repr). Rows are read-only and a tab's computation
+        reuses the rows it built (:func:`~qsid_core.studies.full_row`), so each row's text is made once while
+        drawn (a b change redrew 32 rows' reprs per frame)."""
+        out, texts = [], {}  # (kept beyond one frame: a b change draws the current b's row, then every row)
+        for lab in frame.labels:
+            for b, r in sorted(frame.rows[lab].items()):
+                held = self._texts.get(id(r))
+                text = held[1] if held is not None and held[0] is r else repr(r)
+                texts[id(r)] = (r, text)
+                out.append((lab, b, text))
+        if len(self._texts) > 1024:  # (the rows of many settings drawn: those of this frame are kept)
+            self._texts = texts
+        else:
+            self._texts.update(texts)
+        return tuple(out)
 
     def _key(self, frame: Frame | KoopmanFrame, name: str, *what: Hashable) -> Hashable | None:
         """The key of view ``name`` made from ``frame`` and ``what`` (None: made for this tab only)."""
@@ -253,7 +271,7 @@ class Renderer:
             self._style = style, "nonlinear" if nonlinear else "linear"
         views = registry.KOOPMAN_VIEWS if nonlinear else registry.VIEWS
         curves = [v.name for v in views if v.depends == CURVES]
-        rows = tuple((lab, b, repr(r)) for lab in frame.labels for b, r in sorted(frame.rows[lab].items()))
+        rows = self._rows(frame)
         out: dict[str, Sent] = {}
         scene = summary = None
         if nonlinear:
