@@ -207,7 +207,7 @@ def prefill(
     renderer = Renderer(figures)  # (a linear plant, or a nonlinear one: --lesson koopman, a settings file of one)
     n = 0
     for frame in iter_frames(values, cache, executor, tasks):
-        for wire in renderer.render(frame).figures.values():
+        for wire in renderer.render(frame, values.axes).figures.values():  # (the 3-D axes as its panel shows them)
             wire.to_json()  # what viser calls when the figure is sent
         n += 1
         if progress is not None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any, TypeVar, cast
 
 from app.figures import registry
 from app.figures.axes import finite_axes
@@ -83,19 +83,27 @@ class Sent:
         return getattr(self.wire, name)
 
 
+T = TypeVar("T")
+
 #: Budget of :class:`Figures` (MB, estimated): a default view's twelve figures in one layout take ~0.5 MB with
 #: their JSON at the interactive scale (~4 MB at paper scale); a class's b changes and layouts fit.
 FIGURES_MB = 48
 
 
-def _sent_bytes(sent: Sent) -> int:
-    """Estimated memory of a kept figure: its JSON and the figure's own numbers and dicts (about as much again)."""
-    return 2 * len(sent.to_json()) + 4096
+def _kept_bytes(item: Any) -> int:
+    """Estimated memory of a kept figure (its JSON and the figure's own numbers and dicts, about as much again), a
+    summary's text or a 3-D scene's arrays."""
+    if isinstance(item, Sent):
+        return 2 * len(item.to_json()) + 4096
+    if isinstance(item, str):
+        return len(item) + 64
+    return 4096 + sum(int(getattr(v, "nbytes", 64)) for v in vars(item).values())
 
 
 class Figures:
     """The figures drawn in any tab, each built, styled and made JSON once, then pushed by every tab that draws
-    the same thing (a class on one link: one render per state, not one per tab).
+    the same thing (a class on one link: one render per state, not one per tab); a linear plant's 3-D scene and
+    summary at the current b too.
 
     A key says everything a figure is made from (:class:`Renderer` makes them: the view, the layout, the plant's
     kind, the panel's values and what the view reads of the frame beyond them); the figures are never changed
@@ -104,13 +112,14 @@ class Figures:
     benchmarks)."""
 
     def __init__(self, max_bytes: int = FIGURES_MB * 2**20):
-        self.store = SharedCache(max_bytes, keep=16, size=_sent_bytes)
+        self.store = SharedCache(max_bytes, keep=16, size=_kept_bytes)
         self._lock = threading.Lock()  # guards the counts (tabs' workers build and reuse at once)
         self.builds = 0
         self.reused = 0
 
-    def get(self, key: Hashable, make: Callable[[], Sent]) -> Sent:
-        """The figure kept under ``key``; else the one another tab is making now; else ``make()``, kept."""
+    def get(self, key: Hashable, make: Callable[[], T]) -> T:
+        """The figure (or scene, or summary) kept under ``key``; else the one another tab is making now; else
+        ``make()``, kept."""
         flights = self.store.flights
         while True:
             got = self.store.get(key)
@@ -123,14 +132,15 @@ class Figures:
                     continue
             with self._lock:
                 self.reused += 1
-            return cast(Sent, got)
+            return cast(T, got)
 
-    def _make(self, key: Hashable, make: Callable[[], Sent], mine: list) -> Sent:
+    def _make(self, key: Hashable, make: Callable[[], T], mine: list) -> T:
         try:
             got = self.store.get(key)  # kept between the look and the claim
             if got is None:
                 got = make()
-                got.to_json()  # (JSON made here, once, not by the first tab's push)
+                if isinstance(got, Sent):
+                    got.to_json()  # (JSON made here, once, not by the first tab's push)
                 self.store[key] = got
                 with self._lock:
                     self.builds += 1
@@ -138,7 +148,7 @@ class Figures:
             self.store.flights.abort(mine)
             raise
         self.store.flights.land(key, got)
-        return cast(Sent, got)
+        return cast(T, got)
 
     def clear(self) -> None:
         self.store.clear()
@@ -207,6 +217,9 @@ class Renderer:
         if self.shared is None or (frame.pinned is not None and name in PINNED_VIEWS):
             return None
         return (name, self._style, frame.values, *what)
+
+    def _shared(self, key: Hashable, make: Callable[[], T]) -> T:
+        return make() if self.shared is None else self.shared.get(key, make)
 
     def _made(self, key: Hashable | None, frame: Frame | KoopmanFrame, name: str) -> Sent:
         """View ``name`` of ``frame`` built in this tab's layout (or the same, made already, from ``shared``)."""
@@ -287,8 +300,9 @@ class Renderer:
                 summary = summary_markdown(frame)
         else:
             assert isinstance(frame, Frame)
-            if frame.stage == "current":
-                scene, summary = scene_view(frame, axes), summary_markdown(frame)
+            if frame.stage == "current":  # (both read the panel's values and the results at b: made once)
+                scene = self._shared(("scene", frame.values, axes), lambda: scene_view(frame, axes))
+                summary = self._shared(("summary", frame.values), lambda: summary_markdown(frame))
                 out.update(
                     self._current(frame, views, (frame.bits, tuple(id(frame.idents[lab]) for lab in frame.labels)))
                 )
