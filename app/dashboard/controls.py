@@ -47,6 +47,7 @@ __all__ = [
     "GuiElements",
     "make_gui_elements",
     "read_values",
+    "panel_form",
     "initial_value",
     "set_scale",
     "set_system",
@@ -383,3 +384,13 @@ def read_values(el: GuiElements) -> Values:
         log_q=tuple(float(s.value) for s in el.q_sliders),
         log_r=tuple(float(s.value) for s in el.r_sliders),
     )
+
+
+def panel_form(v: Values, system: LTISystem) -> Values:
+    """What :func:`read_values` reads from a new panel made with ``v`` for ``system`` (its texts, x0 and weights
+    filled in from the system): the settings a new tab computes, which the server's first view precomputes."""
+    assert system.Q is not None and system.R is not None  # filled in __post_init__
+    lq = v.log_q if len(v.log_q) == system.n else log_from_weights(np.diag(system.Q))
+    lr = v.log_r if len(v.log_r) == system.m else log_from_weights(np.diag(system.R))
+    fields = {c.name: c.convert(initial_value(c, v, system)) for c in CONTROLS}
+    return Values(**fields, log_q=tuple(map(float, lq)), log_r=tuple(map(float, lr)))

@@ -34,7 +34,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from app.frames.render import Drawn, Renderer
+from app.frames.render import Drawn
 from app.lessons.drift import lesson_drift, lesson_markdown
 from app.lessons.table import get_lesson, lesson_names, lesson_values
 from app.settings.values import Values, resolve_system
@@ -229,7 +229,7 @@ class Follower:
         hub.store.put(own, s.ui.panel_values())
         show_view(s.codes, dataclasses.replace(view, code=own, follow=None, kept=kept, note=""))
         self._unlock()
-        s.ui.renderer = Renderer()  # this tab draws its own frames from now on: every view anew
+        s.ui.renderer.reset()  # this tab draws its own frames from now on: every view anew
         s.lesson_shown = str(s.controls["lesson"].value)
         self.state = "explored"
         back = (

@@ -191,9 +191,12 @@ def warm(pool, report: StartupReport | None = None) -> None:
         warmed |= {f.result() for f in [ex.submit(warm_here) for _ in range(pool.workers)]}
 
 
-def prefill(values, cache, executor=None, tasks: int = 1, progress: Callable[[Any], None] | None = None) -> int:
+def prefill(
+    values, cache, executor=None, tasks: int = 1, progress: Callable[[Any], None] | None = None, figures=None
+) -> int:
     """Compute the frames of a tab showing ``values`` into ``cache`` and build their figures once (``progress``
-    is given each frame once drawn).
+    is given each frame once drawn) into ``figures`` (the server's :class:`~app.frames.render.Figures`: a new
+    tab on these settings then only pushes them).
 
     Returns the number of frames. Raises what the computation raises (e.g. a
     :class:`~qsid_core.errors.QsidError` for settings that cannot be computed).
@@ -201,10 +204,10 @@ def prefill(values, cache, executor=None, tasks: int = 1, progress: Callable[[An
     from app.frames.compute import iter_frames
     from app.frames.render import Renderer
 
-    renderer = Renderer()  # (a linear plant, or a nonlinear one: --lesson koopman, a settings file of one)
+    renderer = Renderer(figures)  # (a linear plant, or a nonlinear one: --lesson koopman, a settings file of one)
     n = 0
     for frame in iter_frames(values, cache, executor, tasks):
-        for wire in renderer.render(frame).figures.values():
+        for wire in renderer.render(frame, values.axes).figures.values():  # (the 3-D axes as its panel shows them)
             wire.to_json()  # what viser calls when the figure is sent
         n += 1
         if progress is not None:

@@ -24,11 +24,13 @@ from collections import OrderedDict
 import viser
 
 from app.frames.cache import DEFAULT_MB, SharedCache
+from app.frames.render import Figures
 from app.lessons.table import lesson_values
-from app.settings.values import INTERACTIVE, PAPER_SCALE, Values
+from app.settings.values import INTERACTIVE, PAPER_SCALE, Values, resolve_system
 from app.settings.viewcodes import ViewStore, default_store_path, open_view, page_location
 from qsid_core import ConfigError, QsidError
 
+from .controls import panel_form
 from .flow import READ_BYTES, FairSlots
 from .follow import FollowHub
 from .lifecycle import (
@@ -113,6 +115,7 @@ class DashboardApp:
         self.views = ViewStore(views_file)  # view codes -> settings (links that survive a reload)
         self.follow = FollowHub(self.views, self._code_in_use)  # tabs followed live by other tabs
         self.cache = SharedCache(cache_bytes)
+        self.figures = Figures()  # every figure drawn, made once for all tabs drawing it (:class:`Figures`)
         self.slots = FairSlots(slots, fast=1)  # (4) at most `slots` tabs compute at once, in turn; cheap turns first
         self.workers = max(0, int(workers))
         self.tasks = max(1, self.workers)
@@ -223,8 +226,9 @@ class DashboardApp:
     def prefill(self, progress=None) -> str | None:
         """Compute and draw a new tab's view once (see :func:`.lifecycle.prefill`; ``progress`` is given each frame);
         returns why not, or None."""
-        try:
-            prefill(self.defaults, self.cache, self.executor, self.tasks, progress)
+        try:  # the settings as a new tab's panel reads them (texts, x0, weights filled in): its very results
+            values = panel_form(self.defaults, resolve_system(self.defaults).system)
+            prefill(values, self.cache, self.executor, self.tasks, progress, self.figures)
         except Exception as exc:  # the tab itself reports what these settings raise
             return str(exc) if isinstance(exc, QsidError) else f"{type(exc).__name__}: {exc}"
         return None
@@ -236,6 +240,7 @@ class DashboardApp:
             if self.sessions or self._admitted:
                 return
         self.cache.clear()
+        self.figures.clear()
         self.pool.release()
         gc.collect()
         trim()

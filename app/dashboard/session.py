@@ -31,6 +31,8 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 11. ``DashboardApp.follow`` (server, :class:`~app.dashboard.follow.FollowHub`): its lock guards who leads and
     follows which code and the newest state each leader published (a leader's worker publishes, never waiting
     for a follower); its ``turn`` lock lets one follower's worker push that state at a time.
+12. ``DashboardApp.figures`` (server, :class:`~app.frames.render.Figures`): a bounded cache of its own (6.) with
+    its flights: a figure one tab's worker is making is waited for by another tab's worker that needs it.
 """
 
 from __future__ import annotations
@@ -116,6 +118,7 @@ class Session:
             self.pin,
             self.unpin,
             self.start_datalength,
+            app.figures,  # figures made once for every tab drawing the same
         )
         self.controls, self.views, self.plots = self.ui.controls, self.ui.views, self.ui.plots
         self.play, self.share, self.codes = self.ui.play, self.ui.share, self.ui.codes

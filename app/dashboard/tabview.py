@@ -16,7 +16,7 @@ from collections.abc import Callable
 from typing import Any
 
 from app.frames.frame import Frame
-from app.frames.render import Drawn, Renderer, Sent
+from app.frames.render import Drawn, Figures, Renderer
 from app.settings.values import Values, resolve_system
 from app.settings.viewcodes import ViewOpen, ViewStore
 from qsid_core import PRESETS, get_system
@@ -61,6 +61,8 @@ class TabView:
         The tab's view code (None: no code line).
     store : ViewStore, optional
         Where view codes are kept (needed with ``view``).
+    figures : Figures, optional
+        The server's figures, made once for every tab that draws the same (None: this tab makes its own).
     last_frame : callable() -> Frame or None
         The frame drawn last (for the exports).
     on_pin, on_unpin, on_datalength : callable()
@@ -78,6 +80,7 @@ class TabView:
         on_pin: Callable[[], None],
         on_unpin: Callable[[], None],
         on_datalength: Callable[[], None],
+        figures: Figures | None = None,
     ):
         self.client = client
         self.touch = touch
@@ -105,7 +108,7 @@ class TabView:
         )  # keep & share: settings file, command line, exports
         self.views = ViewPanel(gui, self.plots_panel, values, system, touch, on_pin, on_unpin, on_datalength)
         self.plots = self.views.plots
-        self.renderer = Renderer()  # (a linear and a nonlinear plant's frames alike)
+        self.renderer = Renderer(figures)  # (a linear and a nonlinear plant's frames alike)
         self.portrait = PhasePortrait(client.scene, camera=client.camera)
         self.presenter = PresenterLayout(gui, self.plots_panel, self.portrait, PANEL_WIDTH, self.controls.play, touch)
         self.phone = PhoneLayout(
@@ -212,11 +215,9 @@ class TabView:
             return False
         r = self.renderer.render(frame, c["axes"].value, self.phone.narrow)
         if stale():  # never draw an older result over a newer one
-            self.renderer = Renderer()  # it remembered figures that were not pushed
+            self.renderer.reset()  # it remembered figures that were not pushed
             return False
-        figures = {
-            name: Sent(fig, r.aspects[name]) for name, fig in r.figures.items()
-        }  # JSON made once, followers reuse it
+        figures = r.figures  # each one's JSON made once, for every tab drawing it and every follower
         with self.client.atomic():
             with self._errors:
                 if self.run_error is not None or (c.error.visible and not self.refusals):

@@ -83,8 +83,9 @@ PLOT_CONFIG: dict[str, Any] = {
 }
 
 
-def to_json(fig: go.Figure) -> str:
-    """The figure's JSON as plotly.js takes it, without ``Figure.to_json``'s deep copy and base64 pass.
+def to_json(fig: go.Figure, layout_items: dict[str, Any] | None = None) -> str:
+    """The figure's JSON as plotly.js takes it, without ``Figure.to_json``'s deep copy and base64 pass
+    (``layout_items``: layout entries written instead of the figure's, which is left as it is).
 
     ``go.Figure.to_json`` deep-copies the whole figure (template included) and
     re-encodes every array; on a b change that was about half of the dashboard's
@@ -96,6 +97,8 @@ def to_json(fig: go.Figure) -> str:
     if not isinstance(data, list) or not isinstance(layout, dict):
         d = orjson.loads(fig.to_json())
         data, layout = d["data"], d["layout"]
+    if layout_items:
+        layout = {**layout, **layout_items}
     return orjson.dumps(
         {"data": data, "layout": layout, "config": PLOT_CONFIG}, option=_JSON_OPTIONS, default=_json_default
     ).decode()

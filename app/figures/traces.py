@@ -16,8 +16,22 @@ import numpy as np
 import plotly.graph_objects as go
 
 from .palette import COLORS
+from .raw import to_json
 
-__all__ = ["Rows", "Series", "get", "xy", "band", "mark_bits", "hline_note", "move_current_bits", "BITS_AXIS"]
+__all__ = [
+    "Rows",
+    "Series",
+    "get",
+    "xy",
+    "band",
+    "mark_bits",
+    "hline_note",
+    "move_current_bits",
+    "with_current_bits",
+    "has_current_bits",
+    "MarkedAt",
+    "BITS_AXIS",
+]
 
 Rows = Sequence[Mapping[str, Any]]
 Series = Mapping[str, Rows]
@@ -152,3 +166,58 @@ def move_current_bits(fig: go.Figure, current_bits: int) -> go.Figure:
         if shape.name == CURRENT_B:
             shape.x0 = shape.x1 = current_bits
     return fig
+
+
+def has_current_bits(fig: go.Figure) -> bool:
+    """Whether ``fig`` has a current-b marker (drawn by :func:`mark_bits`)."""
+    layout = getattr(fig, "_layout", None)  # (plotly's own dict: read without validating every shape)
+    if not isinstance(layout, dict):
+        return any(shape.name == CURRENT_B for shape in fig.layout.shapes)
+    return any(isinstance(s, dict) and s.get("name") == CURRENT_B for s in layout.get("shapes") or ())
+
+
+def with_current_bits(fig: go.Figure, current_bits: int) -> go.Figure:
+    """A copy of ``fig`` with its current-b marker(s) at ``current_bits``; ``fig`` is left as it is (other tabs may
+    draw it). The copy is made from the figure's own dicts, unvalidated (as :func:`app.figures.raw.figure`), and
+    shares its resolved template."""
+    data, layout = getattr(fig, "_data", None), getattr(fig, "_layout", None)
+    if not isinstance(data, list) or not isinstance(layout, dict):
+        return move_current_bits(go.Figure(fig), current_bits)
+    template = layout.get("template")
+    out = go.Figure(dict(data=data, layout={k: v for k, v in layout.items() if k != "template"}), _validate=False)
+    if template is not None:
+        out._layout["template"] = template
+    return move_current_bits(out, current_bits)
+
+
+class MarkedAt:
+    """Figure ``base`` with its current-b marker(s) at ``bits``, as handed to a plot handle (like
+    :class:`app.figures.raw.Wire`, whose ``to_json`` viser calls): its JSON is written from ``base``'s own dicts
+    with the markers' shapes replaced, so ``base`` is left as it is (other tabs may draw it) and nothing is
+    copied; the moved figure itself (:func:`with_current_bits`) is made only if read (``.figure``, ``.layout``,
+    ...)."""
+
+    __slots__ = ("base", "bits", "_figure")
+
+    def __init__(self, base: go.Figure, bits: int):
+        self.base, self.bits = base, bits
+        self._figure: go.Figure | None = None
+
+    @property
+    def figure(self) -> go.Figure:
+        if self._figure is None:
+            self._figure = with_current_bits(self.base, self.bits)
+        return self._figure
+
+    def to_json(self) -> str:
+        layout = getattr(self.base, "_layout", None)
+        if not isinstance(layout, dict):
+            return to_json(self.figure)
+        shapes = [
+            {**s, "x0": self.bits, "x1": self.bits} if isinstance(s, dict) and s.get("name") == CURRENT_B else s
+            for s in layout.get("shapes") or ()
+        ]
+        return to_json(self.base, {"shapes": shapes} if shapes else None)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.figure, name)

@@ -12,7 +12,8 @@ import dataclasses
 import sys
 import threading
 from collections import OrderedDict
-from collections.abc import MutableMapping
+from collections.abc import Callable, MutableMapping
+from typing import Any
 
 import numpy as np
 
@@ -53,7 +54,8 @@ def _nbytes(obj, depth: int = 0) -> int:
 
 
 class SharedCache(MutableMapping):
-    """A thread-safe LRU mapping bounded by an estimate of its memory (default :data:`DEFAULT_MB` MB).
+    """A thread-safe LRU mapping bounded by an estimate of its memory (default :data:`DEFAULT_MB` MB; ``size``
+    estimates one entry's bytes).
 
     Passed as ``Experiment(..., cache=shared)`` by every browser tab, so equal
     settings share the data, moments, models and closed loops. The least
@@ -62,9 +64,10 @@ class SharedCache(MutableMapping):
     go while a tab computes: the engine never reads back what it stored.
     """
 
-    def __init__(self, max_bytes: int = DEFAULT_MB * 2**20, keep: int = 64):
+    def __init__(self, max_bytes: int = DEFAULT_MB * 2**20, keep: int = 64, size: Callable[[Any], int] = _nbytes):
         self.max_bytes = int(max_bytes)
         self.keep = int(keep)
+        self._measure = size  # an entry's estimated bytes (default: arrays and the Python objects around them)
         self._d: OrderedDict = OrderedDict()
         self._size: dict = {}
         self._total = 0
@@ -90,7 +93,7 @@ class SharedCache(MutableMapping):
             return key in self._d
 
     def __setitem__(self, key, value) -> None:
-        size = _nbytes(value)
+        size = self._measure(value)
         with self._lock:
             if key in self._d:
                 self._total -= self._size.pop(key)

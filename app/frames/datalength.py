@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, MutableMapping
+from typing import cast
 
-from app.settings.config import sweep_config
-from app.settings.values import Values, resolve_system
-from qsid_core import DataLengthConfig, DataLengthResult, get_system, run_datalength
+from app.settings.config import study_config, sweep_config
+from app.settings.values import Values, is_nonlinear, resolve_system
+from qsid_core import DataLengthConfig, DataLengthResult, SweepConfig, get_system, run_datalength
 from qsid_core.studies import DEFAULT_SAMPLES, datalength_key
 
 __all__ = ["DataLengthRunner", "datalength_config", "MAX_REALIZATIONS"]
@@ -32,7 +33,10 @@ MAX_REALIZATIONS = 10
 def datalength_config(values: Values) -> DataLengthConfig:
     """The study of the panel's sweep (:func:`~app.settings.config.sweep_config`) at its current b: ten lengths,
     10^3..10^6 samples, at most :data:`MAX_REALIZATIONS` realizations."""
-    sweep = sweep_config(values, resolve_system(values).system)
+    if is_nonlinear(values.system):  # (its panel's linear stand-in)
+        sweep = sweep_config(values, resolve_system(values).system)
+    else:  # the tab's own configuration (made once per values)
+        sweep = cast(SweepConfig, study_config(values).config)
     return DataLengthConfig.from_sweep(
         sweep,
         bits=int(values.bits),

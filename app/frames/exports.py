@@ -14,12 +14,13 @@ import html
 import io
 import json
 import math
+from functools import lru_cache
 from typing import Any
 
 from app.figures.raw import PLOT_CONFIG
 from app.settings.command import bits_command, budget_command, sweep_argv, sweep_command
 from app.settings.config import study_config
-from app.settings.values import Values
+from app.settings.values import Values, is_nonlinear
 from qsid_core.studies import KoopmanConfig, json_clean
 
 from .frame import lifted
@@ -31,6 +32,16 @@ def command_lines(v: Values) -> list:
     """``qsid sweep`` lines reproducing the panel's numbers (one per estimator when both are shown), then with a bit
     budget its ``qsid budget`` line (judged on the last estimator, as the bandwidth view) and, with bits per sample,
     the allocation's, and for a linear plant the ``qsid bits`` line."""
+    return list(_lines(v) if not is_nonlinear(v.system) else _command_lines(v))
+
+
+@lru_cache(maxsize=64)
+def _lines(v: Values) -> tuple[str, ...]:
+    """A linear plant's :func:`command_lines`, made once per values (a tab shows them after every draw)."""
+    return tuple(_command_lines(v))
+
+
+def _command_lines(v: Values) -> list:
     sc = study_config(v)
     cfg = sc.config
     lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]  # either kind of plant

@@ -54,6 +54,7 @@ def _same(a: Any, b: Any) -> bool:
     return bool(a == b)
 
 
+@functools.lru_cache(maxsize=256)  # (asked after every change of every tab: a class on one lesson asks alike)
 def lesson_drift(name: str, values: Values) -> tuple[str, ...]:
     """The settings in ``values`` that differ from the panel lesson ``name`` set (every setting its results
     depend on: the seeds, the per-channel bits, the Q/R weights ... not b and not what only changes the drawing),

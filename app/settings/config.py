@@ -9,6 +9,7 @@ is one line in plain words (:class:`~app.settings.check.InputError`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -47,9 +48,16 @@ class StudyConfig:
 def study_config(v: Values) -> StudyConfig:
     """The engine configuration of ``v``: :func:`koopman_config` for a nonlinear plant, :func:`sweep_config` for a
     linear one (InputError in plain words for values the engine refuses)."""
-    if is_nonlinear(v.system):
+    if is_nonlinear(v.system):  # (a plant file is read anew each time: it may have been edited)
         cfg, ests = koopman_config(v)
         return StudyConfig(cfg, tuple(ests))
+    return _linear_study(v)
+
+
+@lru_cache(maxsize=128)
+def _linear_study(v: Values) -> StudyConfig:
+    """:func:`study_config` of a linear plant, made once per values (a tab's change asks for it several times, and
+    every tab of a class on the same settings; the result is immutable)."""
     choice = resolve_system(v)
     return StudyConfig(sweep_config(v, choice.system), tuple(estimators(v.identification)), choice.system, choice.notes)
 

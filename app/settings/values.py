@@ -22,6 +22,7 @@ import dataclasses
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache, lru_cache
 from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, cast
 
 import numpy as np
@@ -179,7 +180,7 @@ def resolve_system(v: Values) -> SystemChoice:
         With the offending matrix and row in plain words.
     """
     if v.system in PRESETS:
-        return SystemChoice(get_system(v.system))
+        return _preset(v.system)
     if is_nonlinear(v.system):
         try:  # a nonlinear plant (a preset or a plant file): the panel's stand-in (its configuration: app.settings.config)
             return SystemChoice(stand_in(get_nonlinear(v.system)))
@@ -187,9 +188,23 @@ def resolve_system(v: Values) -> SystemChoice:
             raise InputError(f"system {v.system}: {exc}") from None
     if v.system != "custom":
         raise InputError(f"unknown system {v.system!r}; choose one of {', '.join(SYSTEM_CHOICES)}")
+    return _custom(v.a_text, v.b_text)
+
+
+# A tab resolves its system several times per change (the panel, the study, the exports, the summary): a linear
+# plant is built once per preset or pair of matrix texts (its checks took ~4 ms each time); it is immutable (its
+# arrays are read-only), so every caller may hold the same one.
+@cache
+def _preset(name: str) -> SystemChoice:
+    return SystemChoice(get_system(name))
+
+
+@lru_cache(maxsize=64)
+def _custom(a_text: str, b_text: str) -> SystemChoice:
+    """The custom system typed as ``a_text`` and ``b_text`` (a refused pair raises, and is not kept)."""
     try:
-        A = panel_matrix(v.a_text, "A")
-        B = panel_matrix(v.b_text, "B")
+        A = panel_matrix(a_text, "A")
+        B = panel_matrix(b_text, "B")
     except QsidError as exc:
         raise InputError(f"Custom system: {exc}") from None
     n = A.shape[0]

@@ -12,6 +12,7 @@ from app.dashboard.lifecycle import fetch_page, first_tab, prefill
 from app.dashboard.server import DashboardApp
 from app.frames.cache import SharedCache
 from app.frames.compute import iter_frames
+from app.frames.render import Figures
 from app.settings.values import Values
 from qsid_core.errors import QsidError
 
@@ -36,7 +37,9 @@ def test_prefill_raises_what_the_settings_raise():
 
 def test_the_server_starts_anyway_and_says_why_the_view_was_not_precomputed(capsys):
     unstable = Values(system="custom", a_text="1.5 0\n0 1.2", b_text="1; 1", trajectories=5, steps=1000)
-    app = SimpleNamespace(host="127.0.0.1", port=1, defaults=unstable, cache=SharedCache(), executor=None, tasks=1)
+    app = SimpleNamespace(
+        host="127.0.0.1", port=1, defaults=unstable, cache=SharedCache(), figures=Figures(), executor=None, tasks=1
+    )
     app.prefill = lambda: DashboardApp.prefill(app)
     first_tab(app)  # port 1: nothing listens; no exception either way
     out = capsys.readouterr().out.strip().splitlines()

@@ -13,7 +13,7 @@ from app.dashboard.session import iter_frames
 from app.figures import registry
 from app.figures.raw import PLOT_CONFIG, Wire, to_json
 from app.frames.cache import SharedCache
-from app.frames.render import Renderer
+from app.frames.render import Renderer, Sent
 from app.settings.values import Values
 
 
@@ -66,4 +66,4 @@ def test_wire_is_what_viser_needs_and_reads_like_the_figure(frame):
     out = Renderer().render(
         next(iter_frames(Values(trajectories=10, steps=100, realizations=4, mpc_steps=20), SharedCache()))
     )
-    assert out.figures and all(isinstance(f, Wire) for f in out.figures.values())
+    assert out.figures and all(isinstance(f, Sent) and isinstance(f.wire, Wire) for f in out.figures.values())
