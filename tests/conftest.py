@@ -56,12 +56,26 @@ def pytest_collection_modifyitems(config, items):
 
     For ``pytest -n 2 --dist loadgroup`` (pyproject's options) every test gets a group: the browser tests one
     for them all (one Chromium at a time, as on a person's machine), every other test its file's (a module's
-    fixtures, e.g. a server it shares, are built once, in one worker)."""
+    fixtures, e.g. a server it shares, are built once, in one worker).
+
+    The groups are then put in the order the workers should take them (pyproject's ``--no-loadscope-reorder``
+    keeps it): the browser group first, as it is the longest (one worker runs it from the start while the other
+    goes through the rest), then the files with the most slow tests, then the rest, each in collection order.
+    The order of the tests within a group is kept."""
+    groups: dict[str, list] = {}
     for item in items:
         browser = item.get_closest_marker("browser")
         if browser or item.get_closest_marker("cluster"):
             item.add_marker(pytest.mark.slow)
-        item.add_marker(pytest.mark.xdist_group("browser" if browser else item.nodeid.split("::")[0]))
+        group = "browser" if browser else item.nodeid.split("::")[0]
+        item.add_marker(pytest.mark.xdist_group(group))
+        groups.setdefault(group, []).append(item)
+
+    def first(group: str) -> tuple:
+        slow = sum(1 for item in groups[group] if item.get_closest_marker("slow"))
+        return (group != "browser", -slow)
+
+    items[:] = [item for group in sorted(groups, key=first) for item in groups[group]]
 
 
 def pytest_sessionfinish(session, exitstatus):
