@@ -50,6 +50,18 @@ def tab(dashboard):
     t.close()
 
 
+@pytest.fixture(scope="session")
+def lessons_app():
+    """One dashboard server (two worker processes, a 1 GiB result cache) for the browser walks through every
+    lesson, test_dashboard_drawn_browser.py's and then test_dashboard_legibility.py's (one worker runs both: the
+    browser group): the lessons are computed once, by the first walk, and drawn from the cache for the next."""
+    from app.dashboard import DashboardApp
+
+    a = DashboardApp(host="127.0.0.1", port=0, workers=2, cache_bytes=1024 * 2**20)
+    yield a
+    a.stop()
+
+
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config, items):
     """Browser and cluster tests start real processes (Chromium, dask) and take seconds: slow too.
