@@ -58,6 +58,9 @@ def lessons_app():
     from app.dashboard import DashboardApp
 
     a = DashboardApp(host="127.0.0.1", port=0, workers=2, cache_bytes=1024 * 2**20)
+    # no tab is open between the walks (nor between the legibility walk's modes): the server must not give the
+    # results back meanwhile, as it does 20 s after its last tab closed
+    a.idle.delay = 3600.0
     yield a
     a.stop()
 
