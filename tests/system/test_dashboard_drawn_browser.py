@@ -1,7 +1,8 @@
 """The data plotly draws in a real headless Chromium (1366×768) is the data the server pushed, and it is
 consistent: every view of every lesson, checked by :func:`drawn.check_drawn`.
 
-One server, one browser, one tab. For each lesson of :data:`app.lessons.table.LESSONS` the tab opens the
+One server (shared with test_dashboard_legibility.py, which draws the lessons from the results computed
+here), one browser, one tab. For each lesson of :data:`app.lessons.table.LESSONS` the tab opens the
 lesson (as its selector does) and the tab's worker is held right after it drew the lesson's first frame
 (:class:`FirstFrame`), so the page and the server stand still on one result; then every group the lesson's
 system offers in the plots panel's "show" dropdown is brought forward (as a lesson brings its own) and, for
@@ -29,6 +30,7 @@ import numpy as np
 import pytest
 from drawn import band_edges, check_drawn, line, values
 from test_dashboard_browser import ARGS, CHROMIUM, TIMEOUT_MS, _require_browser
+from test_dashboard_legibility import _open
 from test_dashboard_teach_browser import ACTIVE_TAB
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -224,53 +226,47 @@ def check_frame(page, session, pushed: Pushed, frame: Any, lesson: str, counts: 
                 counts["norm bands"] += 1
 
 
-def test_every_view_of_every_lesson_draws_the_servers_data_in_the_browser():
+def test_every_view_of_every_lesson_draws_the_servers_data_in_the_browser(lessons_app):
     _require_browser()
     from playwright.sync_api import sync_playwright
 
-    from app.dashboard import DashboardApp
     from app.lessons.table import LESSONS, NONE
 
     counts = dict(lessons=0, frames=0, views=0, traces=0, bands=0, **{"norm bands": 0})
-    app = DashboardApp(host="127.0.0.1", port=0, workers=2, cache_bytes=1024 * 2**20)
+    app = lessons_app
+    # every lesson computed here, none taken whole from the cache: the frames drawn while computing are checked
+    app.cache.clear()
     held: FirstFrame | None = None
-    try:
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
-            try:
-                page = browser.new_page(viewport={"width": 1366, "height": 768})
-                page.goto(app.url, timeout=TIMEOUT_MS)
-                session = app.wait_for_sessions(1, timeout=TIMEOUT_MS / 1000)[0]
-                assert session.wait_idle(TIMEOUT_MS / 1000)
-                page.wait_for_selector("canvas", timeout=TIMEOUT_MS)
-                session.controls["lesson"].value = NONE  # (a new tab opens on the first lesson: each is a change)
-                assert session.wait_idle(TIMEOUT_MS / 1000)
-                held, pushed = FirstFrame(session), Pushed(session)
-                for les in LESSONS:
-                    t0 = time.monotonic()
-                    held.arm(les.name)
-                    session.controls["lesson"].value = les.name
-                    first = held.wait()
-                    try:
-                        check_frame(page, session, pushed, first, les.name, counts)
-                    finally:
-                        held.release()
-                    assert session.wait_idle(TIMEOUT_MS / 1000)
-                    last = session.last_frame
-                    assert last is not None and last.complete and last.values.lesson == les.name
-                    assert session.last_error is None, f"{les.name}: {session.last_error}"
-                    if last is not first:
-                        check_frame(page, session, pushed, last, les.name, counts)
-                        counts["frames"] += 1
-                    counts["frames"] += 1
-                    counts["lessons"] += 1
-                    print(f"{les.name}: {time.monotonic() - t0:.1f} s", flush=True)
-            finally:
-                if held is not None:
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
+        try:
+            page, session = _open(browser.new_context(viewport={"width": 1366, "height": 768}), app)
+            session.controls["lesson"].value = NONE  # (a new tab opens on the first lesson: each is a change)
+            assert session.wait_idle(TIMEOUT_MS / 1000)
+            held, pushed = FirstFrame(session), Pushed(session)
+            for les in LESSONS:
+                t0 = time.monotonic()
+                held.arm(les.name)
+                session.controls["lesson"].value = les.name
+                first = held.wait()
+                try:
+                    check_frame(page, session, pushed, first, les.name, counts)
+                finally:
                     held.release()
-                browser.close()
-    finally:
-        app.stop()
+                assert session.wait_idle(TIMEOUT_MS / 1000)
+                last = session.last_frame
+                assert last is not None and last.complete and last.values.lesson == les.name
+                assert session.last_error is None, f"{les.name}: {session.last_error}"
+                if last is not first:
+                    check_frame(page, session, pushed, last, les.name, counts)
+                    counts["frames"] += 1
+                counts["frames"] += 1
+                counts["lessons"] += 1
+                print(f"{les.name}: {time.monotonic() - t0:.1f} s", flush=True)
+        finally:
+            if held is not None:
+                held.release()
+            browser.close()
     print(counts)
     assert counts["lessons"] == len(LESSONS)
     assert counts["norm bands"] > 0

@@ -221,20 +221,18 @@ def _write_report(path: str, found: dict) -> None:
 
 
 @pytest.fixture(scope="module")
-def measured() -> dict:
-    """Every mode walked once in one browser and one server (the lessons' results are computed once):
-    mode name -> place -> problems."""
+def measured(lessons_app) -> dict:
+    """Every mode walked once in one browser and one server (the lessons' results are computed once; the server
+    is the one test_dashboard_drawn_browser.py walks first): mode name -> place -> problems."""
     _require_browser()
     from playwright.sync_api import sync_playwright
-
-    from app.dashboard import DashboardApp
 
     shots = os.environ.get("QSID_SCREENSHOT_DIR")
     report = os.environ.get("QSID_LEGIBILITY_REPORT")
     only = os.environ.get("QSID_LEGIBILITY_MODES")  # e.g. "phone,hd-presenter": a subset while working
     modes = [m for m in MODES if not only or m[0] in only.split(",")]
     found: dict = {}
-    app = DashboardApp(host="127.0.0.1", port=0, workers=2, cache_bytes=1024 * 2**20)
+    app = lessons_app
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, headless=True, args=ARGS)
@@ -251,7 +249,6 @@ def measured() -> dict:
             finally:
                 browser.close()
     finally:
-        app.stop()
         if report:  # also what was measured before a failure
             _write_report(report, found)
     return found
