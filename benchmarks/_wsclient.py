@@ -34,6 +34,7 @@ class WsTab:
         self.uuids: dict[str, str] = {}  # input label -> uuid
         self.markdown: dict[str, str] = {}  # markdown uuid -> content
         self.values: dict[str, object] = {}  # input uuid -> its value as the server last said
+        self.sent_back: list[tuple[float, str, object]] = []  # (monotonic time, uuid, value) of every value update
         self.received = 0
         self.closed = False
         self.close_reason = ""  # why the connection ended, as the reader saw it
@@ -72,6 +73,7 @@ class WsTab:
                 up = m.get("updates", {})
                 if "value" in up:
                     self.values[m["uuid"]] = up["value"]
+                    self.sent_back.append((time.monotonic(), m["uuid"], up["value"]))
                 for key in _TEXT_KEYS:  # viser 1.x sends a markdown's text as "_markdown"
                     if key in up:
                         self.markdown[m["uuid"]] = up[key]

@@ -39,7 +39,13 @@ __all__ = [
     "unusable",
     "MAX_TEXT",
     "MAX_NESTING",
+    "TYPING_PAUSE",
 ]
+
+#: seconds a refused value's input waits, with no newer value, before it is sent the value in use: a number typed
+#: key by key is sent as it grows ("0", "0.", "0.00" on the way to "0.005"), and setting the box back at the
+#: first refused prefix would turn the next keys into "1.005"
+TYPING_PAUSE = 1.5
 
 #: A weight slider's value (log10 of the weight; the sliders are made per system, not from the table).
 _LOG_WEIGHT = Setting("log_weight", float, 0.0, "log10 weight", "slider", slider=(LOG_MIN, LOG_MAX, 0.1))

@@ -57,7 +57,7 @@ from .controls import apply_lesson, read_values, set_system, show_weights
 from .flow import TabCallbacks
 from .follow import refused
 from .frame_loop import Reporters, draw_frames
-from .inputs import check_panel, check_sent, sent_guard, unusable
+from .inputs import TYPING_PAUSE, check_panel, check_sent, sent_guard, unusable
 from .pool import PoolFailure
 from .share import show_frame
 from .tabview import TabView
@@ -104,7 +104,8 @@ class Session:
         # a value sent is checked by the panel's rules before viser converts it; one viser refuses is explained
         # (a follower's panel takes nothing: :func:`~app.dashboard.follow.refused`)
         check = lambda h, u: refused(self, h) or check_sent(getattr(self, "controls", None), h, u)  # noqa: E731
-        guard_updates(gui, sent_guard(check, self._refuse, self._accept))  # a refusal stays until its input changes
+        # a refusal stays until its input changes; the box is set back once the typing pauses
+        guard_updates(gui, sent_guard(check, self._refuse, self._accept), TYPING_PAUSE)
         self.lesson_shown = values.lesson  # the lesson whose settings the panel was given
         self.pinned: Frame | None = None  # a frame kept for comparison (Compare group)
         #: the tab's panels (viser): built once, then only drawn into by this tab's worker

@@ -132,18 +132,27 @@ def set_callback_executor(gui: Any, executor: Any) -> bool:
 
 
 @_hook("the refused values explained and set back", "GuiApi._handle_gui_updates on GuiApi._websock_interface")
-def guard_updates(gui: Any, guard: Guard) -> bool:
+def guard_updates(gui: Any, guard: Guard, settle: float = 0.0) -> bool:
     """Route a tab's input messages through ``guard`` before viser converts the values (its handle from
     ``GuiApi._gui_input_handle_from_uuid``; ``apply()`` is viser's own handling). The guard returns False (a value
-    refused): the tab is sent the one its input holds (viser sends a value only when it changes)."""
+    refused): the tab is sent the one its input holds (viser sends a value only when it changes), once ``settle``
+    seconds pass with no newer message for that input (a box typed in sends "0" on the way to "0.005")."""
     conn, orig, inputs = gui._websock_interface, gui._handle_gui_updates, gui._gui_input_handle_from_uuid
     _require(isinstance(inputs, dict) and callable(conn.queue_message))
     conn.unregister_handler(_messages.GuiUpdateMessage, orig)
+    later: dict[str, asyncio.TimerHandle] = {}  # input uuid -> its value in use, to be sent back
 
     async def guarded(client_id: int, message: Any) -> None:
-        handle = inputs.get(message.uuid)
+        handle, uuid = inputs.get(message.uuid), message.uuid
+        if uuid in later:
+            later.pop(uuid).cancel()
         if not await guard(handle, dict(message.updates), lambda: orig(client_id, message)) and handle is not None:
-            conn.queue_message(_messages.GuiUpdateMessage(message.uuid, {"value": handle.value}))
+
+            def back() -> None:
+                later.pop(uuid, None)
+                conn.queue_message(_messages.GuiUpdateMessage(uuid, {"value": handle.value}))
+
+            later[uuid] = asyncio.get_running_loop().call_later(settle, back)
 
     conn.register_handler(_messages.GuiUpdateMessage, guarded)
     return True

@@ -9,6 +9,7 @@ exactly what a browser sends and keeps what the server last said of each input.
 from __future__ import annotations
 
 import sys
+import time
 
 import msgspec
 import pytest
@@ -18,7 +19,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from _wsclient import WsTab  # noqa: E402
 
 from app.dashboard.controls import CONTROLS  # noqa: E402
-from app.dashboard.inputs import blur_clamp  # noqa: E402
+from app.dashboard.inputs import TYPING_PAUSE, blur_clamp  # noqa: E402
 
 #: Settings that keep the in-process computation busy for a while (so ρ arrives while it runs).
 BUSY = {"trajectories": 400, "steps": 1000, "realizations": 20}
@@ -56,6 +57,29 @@ def test_a_rho_refused_while_computing_stays_shown_and_the_input_shows_the_rho_i
     tab.send("ρ", 2.0)  # ρ changed again: its refusal goes
     wait_until(lambda: not c.error.visible, "the refusal goes once ρ is changed")
     assert s.wait_idle(HANG_S) and s.last_frame.values.rho == 2.0 and not c.error.visible
+
+
+def test_a_number_typed_key_by_key_is_not_set_back_on_the_way(ws_tab):
+    """Typing ρ = 0.005 into its box sends 0 first (refused: ρ > 0), then 0 again for "0." and "0.00", then 0.005.
+    The value in use is sent back only once the typing pauses: set back at the first 0, the box would show 1 and
+    the next keys would make it 1.005 (what a browser did). A pause at a refused value still sets the box back."""
+    tab, s = ws_tab
+    c = s.controls
+    tab.send("ρ auto", False)
+    assert s.wait_idle(HANG_S)
+    uuid, seen = tab.wait_for("ρ"), len(tab.sent_back)
+    for value in (0, 0.0, 0.0, 0.005):
+        tab.send("ρ", value)
+        time.sleep(0.2)  # a key every 0.2 s
+    wait_until(lambda: s.controls["rho"].value == 0.005, "0.005 taken")
+    assert s.wait_idle(HANG_S) and s.last_frame.values.rho == 0.005 and not c.error.visible, c.error.content
+    time.sleep(TYPING_PAUSE + 0.5)
+    assert [v for _, u, v in tab.sent_back[seen:] if u == uuid] in ([], [0.005])  # 1 never sent back on the way
+    t0 = time.monotonic()
+    tab.send("ρ", 0)  # ... but left at a refused value, the box is set back after the pause
+    wait_until(lambda: tab.value("ρ") == 0.005, "the ρ in use sent back")
+    back = next(t for t, u, v in tab.sent_back[seen:] if u == uuid and v == 0.005 and t > t0)
+    assert back - t0 >= TYPING_PAUSE and "ρ: the value sent (0)" in c.error.content
 
 
 def test_refusals_of_two_inputs_each_stay_until_that_input_changes(ws_tab):
