@@ -22,8 +22,8 @@ def bandwidth_lessons(nonlinear: dict[str, Any]) -> tuple[Row, ...]:
             "A link of limited bandwidth (Boeing 747)",
             "A sensor link carries 2·10⁶ bits; every sample of the Boeing's 6 channels costs b bits, so b buys "
             "2·10⁶ / (100 · 6 · b) runs of 100 steps (3333 at b = 1, 208 at b = 16). Look at the bandwidth plot "
-            "(show: Bandwidth): noise-free on the left, with sensor noise on the right. Noise-free (black), finer "
-            "words always win: the error falls about 2× per bit and the knee (dotted) is b = 16, the top of the "
+            "(show: Bandwidth): noise-free on the left, with sensor noise on the right (on a phone and in presenter "
+            "mode, noise-free on top, with sensor noise below). Noise-free (black), finer words always win: the error falls about 2× per bit and the knee (dotted) is b = 16, the top of the "
             "range. With sensor noise σ = 0.1 known to BCLS (orange) the error stops falling near b = 6, once the "
             "widest channels' quantization error ε/√12 is down to the noise's size (within 3×): that is its knee, "
             "the dashed prediction finds it too, and beyond it finer words only cost runs. Every loop stabilizes the "
