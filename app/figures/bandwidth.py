@@ -112,6 +112,9 @@ def _axes_layout(two: bool) -> dict[str, Any]:
             yaxis2=dict(anchor="x2", **share),
         )
     left, right, top, low = [0, 0.42], [0.58, 1], [0.38, 1], [0, 0.17]
+    # the low share panels are titled "share" (the figure's title says of what): "stabilized share", even
+    # broken in two, stands taller than such a panel and runs into the error panel's lowest label above
+    low_share = {**share, "title": dict(text="share"), **ENDS}
     return dict(
         xaxis=dict(domain=left, anchor="y", dtick=2),
         xaxis2=dict(domain=right, anchor="y2", dtick=2, matches="x"),
@@ -119,10 +122,8 @@ def _axes_layout(two: bool) -> dict[str, Any]:
         xaxis4=dict(domain=right, anchor="y4", dtick=2, title=bits, matches="x"),
         yaxis=dict(domain=top, anchor="x", **err),
         yaxis2=dict(domain=top, anchor="x2", matches="y", **err),
-        # the low share panels are titled "share" (the figure's title says of what): "stabilized share", even
-        # broken in two, stands taller than such a panel and runs into the error panel's lowest label above
-        yaxis3=dict(domain=low, anchor="x3", **{**share, "title": dict(text="share")}, **ENDS),
-        yaxis4=dict(domain=low, anchor="x4", **{**share, "title": dict(text="share")}, **ENDS),
+        yaxis3=dict(domain=low, anchor="x3", **low_share),
+        yaxis4=dict(domain=low, anchor="x4", **low_share),
     )
 
 

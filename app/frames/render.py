@@ -218,8 +218,9 @@ class Renderer:
             return None
         return (name, self._style, frame.values, *what)
 
-    def _shared(self, key: Hashable, make: Callable[[], T]) -> T:
-        return make() if self.shared is None else self.shared.get(key, make)
+    def _shared(self, key: Hashable | None, make: Callable[[], T]) -> T:
+        """``make()`` kept under ``key`` in :attr:`shared` for every tab (made here alone: no key, or no store)."""
+        return make() if key is None or self.shared is None else self.shared.get(key, make)
 
     def _made(self, key: Hashable | None, frame: Frame | KoopmanFrame, name: str) -> Sent:
         """View ``name`` of ``frame`` built in this tab's layout (or the same, made already, from ``shared``)."""
@@ -230,7 +231,7 @@ class Renderer:
             # viser's plot handle calls figure.to_json(): Wire's skips plotly's deep copy (raw.to_json)
             return Sent(Wire(fig), plot_aspect(style, name, fig))
 
-        return make() if key is None or self.shared is None else self.shared.get(key, make)
+        return self._shared(key, make)
 
     def _current(self, frame: Frame | KoopmanFrame, views: tuple, default: Hashable) -> dict[str, Sent]:
         """The ``"current"`` views whose key (their own, else ``default``) changed since drawn."""
@@ -272,7 +273,7 @@ class Renderer:
         def make() -> Sent:
             return Sent(MarkedAt(built.wire.figure, bits), built.aspect)
 
-        return make() if key is None or self.shared is None else self.shared.get((key, bits), make)
+        return self._shared(None if key is None else (key, bits), make)
 
     def render(self, frame: Frame | KoopmanFrame, axes: str | None = None, narrow: bool = False) -> Render:
         """What to push for ``frame``; ``narrow``: the tab is a phone's (its style wins over presenter mode)."""
