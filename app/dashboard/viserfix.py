@@ -9,7 +9,7 @@ import functools
 import gc
 import warnings
 from collections.abc import Awaitable, Callable
-from typing import Any, TypeVar
+from typing import Any, ParamSpec
 
 import viser
 from viser import _messages
@@ -17,21 +17,22 @@ from viser import _messages
 __all__ = ["LoopEvent", "ViserHookWarning", "connection_request", "guard_updates", "limit_reads"]
 __all__ += ["redirect_pages", "refuse_share_requests", "send_plotly_js", "set_callback_executor", "thread_safe_buffers"]
 _warned: set[str] = set()  # the hooks that warned
-F = TypeVar("F", bound=Callable[..., bool])
+P = ParamSpec("P")
 
 
 class ViserHookWarning(RuntimeWarning):
     """A hook could not be installed (this viser version lacks what it relies on)."""
 
 
-def _hook(name: str, relies_on: str) -> Callable[[F], F]:
-    """Hook ``name``: if what it ``relies_on`` is missing as it installs, False and one warning per process."""
+def _hook(name: str, relies_on: str) -> Callable[[Callable[P, bool | None]], Callable[P, bool]]:
+    """Hook ``name``: True once installed (its body returns None or True), False if its body returns False (nothing to
+    do) or if what it ``relies_on`` is missing as it installs: then it changes nothing and warns once per process."""
 
-    def wrap(fn: F) -> F:
+    def wrap(fn: Callable[P, bool | None]) -> Callable[P, bool]:
         @functools.wraps(fn)
-        def hook(*args: Any, **kwargs: Any) -> bool:
+        def hook(*args: P.args, **kwargs: P.kwargs) -> bool:
             try:
-                return fn(*args, **kwargs)
+                return fn(*args, **kwargs) is not False
             except (AttributeError, AssertionError, KeyError, ValueError):  # (AssertionError: viser's own checks)
                 if name not in _warned:
                     _warned.add(name)
@@ -39,7 +40,7 @@ def _hook(name: str, relies_on: str) -> Callable[[F], F]:
                     warnings.warn(f"qsid-dashboard: {text}", ViserHookWarning, stacklevel=2)
                 return False
 
-        return hook  # type: ignore[return-value]
+        return hook
 
     return wrap
 
@@ -58,7 +59,7 @@ class LoopEvent(asyncio.Event):
 
 
 @_hook("thread-safe message buffers", "ViserServer._websock_server")
-def thread_safe_buffers(server: Any) -> bool:
+def thread_safe_buffers(server: Any) -> None:
     """A LoopEvent in the broadcast buffer, and in each connection's as it opens (on the loop, before it sends)."""
 
     def swap(buffer: Any) -> None:
@@ -67,7 +68,6 @@ def thread_safe_buffers(server: Any) -> bool:
 
     server._websock_server.on_client_connect(lambda conn: swap(conn.get_message_buffer()))
     swap(server._websock_server.get_message_buffer())
-    return True
 
 
 def connection_request(server: Any, client_id: int) -> tuple[str, str] | None:
@@ -89,7 +89,7 @@ def limit_reads(server: Any, client_id: int, nbytes: int) -> bool:
 
 
 @_hook("page redirects (short links)", "websockets Server of its own on the port")
-def redirect_pages(server: Any, locate: Callable[[str, str, bool], str | None]) -> bool:
+def redirect_pages(server: Any, locate: Callable[[str, str, bool], str | None]) -> None:
     """Page requests answered by a 302 to ``locate(target, host, https)`` where that is not None (the websockets
     ``Server`` on ``server``'s port found among the live objects: viser keeps none; its ``process_request`` wrapped)."""
     from websockets.asyncio.server import Server
@@ -111,19 +111,17 @@ def redirect_pages(server: Any, locate: Callable[[str, str, bool], str | None]) 
 
     if not getattr(serve, "qsid", False):  # (once: a second call keeps the first wrapper)
         ws.process_request, process_request.qsid = process_request, True  # type: ignore[attr-defined]
-    return True
 
 
 @_hook("the per-tab callback queue", "GuiApi._thread_executor")
-def set_callback_executor(gui: Any, executor: Any) -> bool:
+def set_callback_executor(gui: Any, executor: Any) -> None:
     """Run one tab's panel callbacks in ``executor`` (``submit(fn, *args)``), not viser's one shared pool."""
     if gui._thread_executor is not executor:  # (AttributeError: this viser has no such pool)
         gui._thread_executor = executor
-    return True
 
 
 @_hook("the refused values explained and set back", "GuiApi._handle_gui_updates on GuiApi._websock_interface")
-def guard_updates(gui: Any, guard: Callable[..., Awaitable[bool]], settle: float = 0.0) -> bool:
+def guard_updates(gui: Any, guard: Callable[..., Awaitable[bool]], settle: float = 0.0) -> None:
     """A tab's input messages through ``await guard(handle, updates, apply)`` before viser converts them; a value it
     refuses is answered with the input's value in use, ``settle`` s after that input's last message."""
     conn, orig, find = gui._websock_interface, gui._handle_gui_updates, gui._gui_input_handle_from_uuid.get
@@ -142,15 +140,13 @@ def guard_updates(gui: Any, guard: Callable[..., Awaitable[bool]], settle: float
             later[uuid] = asyncio.get_running_loop().call_later(settle, send_back, uuid, handle)
 
     conn.register_handler(_messages.GuiUpdateMessage, guarded)
-    return True
 
 
 @_hook("the refusal of share-URL requests", "share-URL handlers on ViserServer._websock_server")
-def refuse_share_requests(server: Any) -> bool:
+def refuse_share_requests(server: Any) -> None:
     """Drop the handlers of "share URL" requests: a hidden button, but any client could open a public tunnel."""
     for kind in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
         server._websock_server.unregister_handler(kind)
-    return True
 
 
 @_hook("the small plotly.js bundle", "GuiApi._websock_interface and GuiApi._setup_plotly_js")
