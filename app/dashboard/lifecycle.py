@@ -12,7 +12,8 @@
 * Memory: the dashboard allocates and frees many mid-sized blocks from many threads (tabs' workers, viser's
   callback pool, the pool's result reader), and glibc's per-thread arenas keep what was freed: :func:`limit_arenas`
   caps their number before the threads start and :func:`trim` (``malloc_trim(0)``) returns free pages (both do
-  nothing where glibc is not the allocator). While tabs are open the server keeps their results and the pool
+  nothing where glibc is not the allocator); :func:`trim_every` trims every :data:`TRIM_EVERY` seconds while the
+  server runs, besides after each tab that closes. While tabs are open the server keeps their results and the pool
   workers the data of the last tasks; when no tab is left for :data:`IDLE_SECONDS`, :class:`IdleRelease` calls the
   server's release (clear the cache, fresh pool workers, trim) once. A tab that opens meanwhile cancels it; a
   reload (close, then open within seconds) therefore keeps every result.
@@ -39,30 +40,10 @@ from typing import Any, TextIO
 from qsid_core.studies import compile_kernels, kernel_steps, kernels_cached
 from qsid_core.studies import kernel_names as engine_kernel_names
 
-__all__ = [
-    "StartupReport",
-    "TICK_SECONDS",
-    "prepare_stop_signals",
-    "wait_for_stop_signal",
-    "stop_app",
-    "STOP_WAIT",
-    "RELEASE_WAIT",
-    "IdleRelease",
-    "IDLE_SECONDS",
-    "limit_arenas",
-    "trim",
-    "one_blas_thread",
-    "needs_compiling",
-    "kernel_names",
-    "warm",
-    "warm_here",
-    "prefill",
-    "fetch_page",
-    "first_tab",
-    "COMPILE_SECONDS",
-    "COLD_START",
-    "WARM_START",
-]
+__all__ = ["StartupReport", "TICK_SECONDS", "prepare_stop_signals", "wait_for_stop_signal", "stop_app", "STOP_WAIT"]
+__all__ += ["RELEASE_WAIT", "IdleRelease", "IDLE_SECONDS", "limit_arenas", "trim", "trim_every", "TRIM_EVERY"]
+__all__ += ["one_blas_thread", "needs_compiling", "kernel_names", "warm", "warm_here", "prefill", "fetch_page"]
+__all__ += ["first_tab", "COMPILE_SECONDS", "COLD_START", "WARM_START"]
 
 
 # ----- the start-up's report -----------------------------------------------------------------------------------
@@ -273,6 +254,20 @@ def limit_arenas(n: int = 2) -> bool:
 def trim() -> bool:
     """Return the allocator's free pages to the system; True if any memory was released."""
     return bool(_LIBC is not None and _LIBC.malloc_trim(0))
+
+
+#: Seconds between two :func:`trim` while the server runs.
+TRIM_EVERY = 10.0
+
+
+def trim_every(stop: threading.Event, seconds: float = TRIM_EVERY) -> None:
+    """:func:`trim` every ``seconds`` in a daemon thread (``qsid-trim``) until ``stop`` is set."""
+
+    def run() -> None:
+        while not stop.wait(seconds):
+            trim()
+
+    threading.Thread(target=run, name="qsid-trim", daemon=True).start()
 
 
 def one_blas_thread() -> None:

@@ -46,6 +46,7 @@ from .lifecycle import (
     prepare_stop_signals,
     stop_app,
     trim,
+    trim_every,
     wait_for_stop_signal,
     warm,
 )
@@ -139,6 +140,8 @@ class DashboardApp:
             )
         thread_safe_buffers(self.server)  # before any tab: every message buffer can be pushed to from any thread
         self.pool = Pool(self.workers, task_timeout)  # (7) the process pool and its watchdog (after the port)
+        self._halted = threading.Event()
+        trim_every(self._halted)  # (10) this process's freed memory back to the system, until halted
         self.server.gui.configure_theme(show_share_button=False, show_logo=False)
         self.server.gui.set_panel_label("qsid dashboard")
         cam = self.server.initial_camera  # every new tab starts looking at the unit box from here
@@ -271,6 +274,7 @@ class DashboardApp:
         Returns the closed sessions (their workers may still be finishing).
         """
         self.idle.cancel()
+        self._halted.set()
         with self._lock:
             sessions = list(self.sessions.values())
             self.sessions.clear()

@@ -21,13 +21,14 @@ Concurrency in the dashboard, every mechanism in one list (each is commented whe
 5. ``DashboardApp._lock`` (server): the tab registry.
 6. ``SharedCache._lock`` (:mod:`app.frames.cache`): the shared cache is read and written by all of the above.
 7. the process pool (:mod:`.pool`, loky's): ``Pool._lock`` guards its replacement (only of the failed executor);
-   its watchdog abandons stale pool tasks and times out hung workers (the tab retries once).
+   its watchdog thread abandons stale pool tasks and times out hung workers (the tab retries once).
 8. signals (server ``main``): SIGINT/SIGTERM/SIGHUP blocked in every thread, taken by ``sigtimedwait`` in main
    from the first moment; the start-up (port check, warm-up, first view) runs in a ``qsid-start`` thread.
 9. ``DataLengthRunner.thread`` (:mod:`app.frames.datalength`, at most one per tab): the data-length study on
    demand, in-process; cancelled when the tab's generation changes (any new change).
 10. ``DashboardApp.idle`` (server, :class:`~app.dashboard.lifecycle.IdleRelease`): one timer thread once the
-    last tab closed; it clears the shared cache and the workers' data unless a tab opened meanwhile.
+    last tab closed; it clears the shared cache and the workers' data unless a tab opened meanwhile. A
+    ``qsid-trim`` thread (:func:`~app.dashboard.lifecycle.trim_every`) trims the server's memory until it halts.
 11. ``DashboardApp.follow`` (server, :class:`~app.dashboard.follow.FollowHub`): its lock guards who leads and
     follows which code and the newest state each leader published (a leader's worker publishes, never waiting
     for a follower); its ``turn`` lock lets one follower's worker push that state at a time.

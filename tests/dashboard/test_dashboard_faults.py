@@ -175,8 +175,7 @@ def test_a_tab_closed_while_it_is_being_built_is_not_kept(monkeypatch):
 
 def _busy(app) -> bool:
     """True once the pool has work of the tab that reached it (queued for or taken by a worker)."""
-    with app.pool._plock:
-        return any(e[1].running() for e in app.pool._pending)
+    return any(task.inner.running() for task in list(app.pool._tasks))
 
 
 @pytest.mark.parametrize("when", ["mid-task", "idle"])

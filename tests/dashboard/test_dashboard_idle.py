@@ -8,6 +8,7 @@ import threading
 import numpy as np
 from support import HANG_S, alive, open_tab, wait_until
 
+from app.dashboard import lifecycle
 from app.dashboard.lifecycle import IdleRelease
 from app.dashboard.pool import Pool
 from app.frames.cache import SharedCache
@@ -62,10 +63,27 @@ def test_pool_release_gives_fresh_workers_and_ends_the_old_ones():
         pool.shutdown()
 
 
+def _threads(name: str) -> set:
+    return {t for t in threading.enumerate() if t.name == name}
+
+
 def test_pool_release_without_workers_is_a_no_op():
+    before = _threads("qsid-pool-watch")
     pool = Pool(0)
     pool.release()
     assert pool.current is None and pool.guarded() is None
+    assert _threads("qsid-pool-watch") == before  # no workers, nothing to watch: no watchdog thread
+
+
+def test_the_servers_memory_is_trimmed_until_it_halts(monkeypatch):
+    """The server's freed pages go back to the system every few seconds (lifecycle.trim_every), until it halts."""
+    calls = []
+    monkeypatch.setattr(lifecycle, "trim", lambda: bool(calls.append(1)))
+    halted, before = threading.Event(), _threads("qsid-trim")
+    lifecycle.trim_every(halted, seconds=0.01)
+    wait_until(lambda: len(calls) >= 3, "trimmed again and again")
+    halted.set()
+    wait_until(lambda: _threads("qsid-trim") == before, "the trimming thread ended")
 
 
 def test_the_last_tab_closing_schedules_the_release_and_a_new_tab_cancels_it(dashboard):

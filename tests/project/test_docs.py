@@ -47,6 +47,16 @@ def test_the_architecture_page_names_every_module(package):
     assert not missing, f"docs/architecture.rst does not say where these live: {missing}"
 
 
+def test_every_line_count_a_page_cites_is_the_files_length_now():
+    """A page saying ``path/to/module.py`` (N lines) is right about it (``wc -l``): the counts went stale before."""
+    pattern = re.compile(r"``([\w/]+\.py)`` \((\d+) lines\)")
+    cited = [m.groups() for page in sorted(DOCS.glob("*.rst")) for m in pattern.finditer(page.read_text("utf-8"))]
+    assert len(cited) >= 3
+    lengths = {path: (int(n), (ROOT / path).read_text("utf-8").count("\n")) for path, n in cited}
+    wrong = {path: f"said {said}, is {now}" for path, (said, now) in lengths.items() if said != now}
+    assert not wrong, wrong
+
+
 def test_readme_is_at_most_250_lines():
     lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
     assert len(lines) <= 250, f"README.md has {len(lines)} lines"
