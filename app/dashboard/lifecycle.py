@@ -15,7 +15,9 @@
   nothing where glibc is not the allocator). While tabs are open the server keeps their results and the pool
   workers the data of the last tasks; when no tab is left for :data:`IDLE_SECONDS`, :class:`IdleRelease` calls the
   server's release (clear the cache, fresh pool workers, trim) once. A tab that opens meanwhile cancels it; a
-  reload (close, then open within seconds) therefore keeps every result.
+  reload (close, then open within seconds) therefore keeps every result. Once started, :func:`freeze_heap` puts
+  everything the start-up made beyond the cyclic collector's reach: a class's burst of changes is not paused by a
+  full collection that walks it all again.
 * Stop: Ctrl-C, SIGTERM and SIGHUP are taken on one path. :func:`prepare_stop_signals` is called before any thread
   exists; ``main`` then starts the server in a thread of its own, waits in :func:`wait_for_stop_signal` from the
   first moment of the start-up, and stops the app with :func:`stop_app`: the pool's workers are always killed and
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import gc
 import os
 import signal
 import sys
@@ -273,6 +276,17 @@ def limit_arenas(n: int = 2) -> bool:
 def trim() -> bool:
     """Return the allocator's free pages to the system; True if any memory was released."""
     return bool(_LIBC is not None and _LIBC.malloc_trim(0))
+
+
+def freeze_heap() -> int:
+    """Collect, then leave every object alive now to reference counting alone (:func:`gc.freeze`); returns how
+    many were frozen. Called once the server has started: its modules, plotly's validators, the lessons and the
+    first view (~180,000 objects) are then never walked again by the cyclic collector, whose full collections
+    otherwise paused a class's burst of b changes for 0.15-0.28 s each (``benchmarks/bench_class_open.py``). What
+    is frozen is still freed when its last reference goes; only a cycle among frozen objects would stay."""
+    gc.collect()
+    gc.freeze()
+    return gc.get_freeze_count()
 
 
 def one_blas_thread() -> None:
