@@ -16,7 +16,8 @@
   server runs, besides after each tab that closes. While tabs are open the server keeps their results and the pool
   workers the data of the last tasks; when no tab is left for :data:`IDLE_SECONDS`, :class:`IdleRelease` calls the
   server's release (clear the cache, fresh pool workers, trim) once. A tab that opens meanwhile cancels it; a
-  reload (close, then open within seconds) therefore keeps every result.
+  reload (close, then open within seconds) therefore keeps every result. Once started, :func:`freeze_heap` puts
+  what the start-up made beyond full collections' reach (they paused a class's burst of changes).
 * Stop: Ctrl-C, SIGTERM and SIGHUP are taken on one path. :func:`prepare_stop_signals` is called before any thread
   exists; ``main`` then starts the server in a thread of its own, waits in :func:`wait_for_stop_signal` from the
   first moment of the start-up, and stops the app with :func:`stop_app`: the pool's workers are always killed and
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import gc
 import os
 import signal
 import sys
@@ -43,6 +45,7 @@ from qsid_core.studies import kernel_names as engine_kernel_names
 __all__ = ["StartupReport", "TICK_SECONDS", "prepare_stop_signals", "wait_for_stop_signal", "stop_app", "STOP_WAIT"]
 __all__ += ["RELEASE_WAIT", "IdleRelease", "IDLE_SECONDS", "limit_arenas", "trim", "trim_every", "TRIM_EVERY"]
 __all__ += ["one_blas_thread", "needs_compiling", "kernel_names", "warm", "warm_here", "prefill", "fetch_page"]
+__all__ += ["freeze_heap"]
 __all__ += ["first_tab", "COMPILE_SECONDS", "COLD_START", "WARM_START"]
 
 
@@ -268,6 +271,16 @@ def trim_every(stop: threading.Event, seconds: float = TRIM_EVERY) -> None:
             trim()
 
     threading.Thread(target=run, name="qsid-trim", daemon=True).start()
+
+
+def freeze_heap() -> int:
+    """Collect, then leave every object alive now to reference counting alone (:func:`gc.freeze`); returns how
+    many. Once the server has started, its modules, plotly's validators, the lessons and the first view (~180,000
+    objects) are never walked again by full collections, which paused a class's b changes 0.15-0.28 s each (what
+    is frozen is still freed when its last reference goes; only a cycle among frozen objects would stay)."""
+    gc.collect()
+    gc.freeze()
+    return gc.get_freeze_count()
 
 
 def one_blas_thread() -> None:

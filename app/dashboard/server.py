@@ -39,6 +39,7 @@ from .lifecycle import (
     IdleRelease,
     StartupReport,
     first_tab,
+    freeze_heap,
     limit_arenas,
     needs_compiling,
     one_blas_thread,
@@ -337,6 +338,7 @@ def _start(args: argparse.Namespace, state: _Start, stop: threading.Event) -> No
                 print(f"qsid-dashboard: {app.views.load_note}", file=sys.stderr, flush=True)
             warm(app.pool, report)  # the first tab must not pay the compiler (nor the workers' first loads)
             first_tab(app, report)
+            freeze_heap()  # what the start-up made stays out of every later full collection
         print(f"qsid dashboard: {app.url}   ({_port_note(args, app.port)}Ctrl-C to stop)", flush=True)
         note = who_can_connect(args.host, app.port)
         if note:

@@ -56,6 +56,16 @@ def test_the_store_keeps_the_newest_settings_bounded_and_in_its_file(tmp_path):
     assert again.get("dddddd") == Values(bits=9, presenter=True) and again.load_note is None
 
 
+def test_the_store_writes_equal_settings_as_json_once_for_every_code():
+    store = ViewStore()
+    for code in ("aaaaaa", "bbbbbb", "aaaaaa"):  # a class's tabs, each after every frame, on the same settings
+        store.put(code, Values(bits=7))
+    store.put("aaaaaa", Values(bits=8))
+    info = store._json.cache_info()
+    assert (info.misses, info.hits) == (2, 2)
+    assert store.get("aaaaaa") == Values(bits=8) and store.get("bbbbbb") == Values(bits=7)
+
+
 def test_a_broken_store_file_is_one_note_and_an_empty_store(tmp_path):
     path = tmp_path / "views.json"
     path.write_text("{not json")

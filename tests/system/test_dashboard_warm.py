@@ -164,3 +164,47 @@ def test_a_terminal_hears_at_once_that_the_command_started_and_a_pipe_does_not()
         text=True,
     )
     assert piped.returncode == 0 and piped.stdout == "", piped.stdout  # a pipe gets only what it got before
+
+
+#: Runs the dashboard with :func:`~app.dashboard.lifecycle.freeze_heap` reporting what it froze, and when.
+_FREEZE_REPORTED = """
+import gc, sys
+import app.dashboard.server as server
+freeze = server.freeze_heap
+def reported():
+    n = freeze()
+    print(f"qsid dashboard: frozen {n} objects, {len(gc.get_objects())} left to the collector", flush=True)
+    return n
+server.freeze_heap = reported
+sys.exit(server.main(["--port", "0", "--workers", "0"]))
+"""
+
+
+def test_the_server_freezes_what_its_start_made_after_the_first_view_before_its_url():
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.Popen(
+        [sys.executable, "-c", _FREEZE_REPORTED],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    lines = []
+    try:
+        assert p.stdout is not None
+        for line in p.stdout:
+            lines.append(line.strip())
+            if line.startswith("qsid dashboard: http://"):
+                break
+        p.send_signal(signal.SIGTERM)
+        p.wait(60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(10)
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("qsid dashboard: computing the first view"))
+    frozen = [i for i, ln in enumerate(lines) if ln.startswith("qsid dashboard: frozen ")]
+    assert len(frozen) == 1 and first < frozen[0] == len(lines) - 2, lines  # once, after the view, before the URL
+    m = re.match(r"qsid dashboard: frozen (\d+) objects, (\d+) left", lines[frozen[0]])
+    assert m and int(m.group(1)) > 100_000 and int(m.group(2)) < int(m.group(1)) // 100, lines[frozen[0]]
