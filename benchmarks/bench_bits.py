@@ -2,7 +2,7 @@
 """``qsid bits`` against a ``qsid sweep`` of the same size, side by side in one run (target: <= 2x).
 
 Each command runs as a whole process (``python -m app.cli ...``, wall clock from
-process start to exit, the numba cache warm after a first untimed run of each),
+process start to exit, the numba cache warm after a first untimed run of each, unless ``--no-warm``),
 interleaved ``--repeats`` times, for each system. ``qsid bits`` runs the same
 sweep plus the verdict of every closed loop on the true plant and the small-gain
 tests; ``qsid sweep`` also judges its loops (the verdicts are part of every
@@ -41,7 +41,7 @@ def _run(argv: list) -> float:
     return time.perf_counter() - t
 
 
-def measure(system: str, size: list, repeats: int) -> dict:
+def measure(system: str, size: list, repeats: int, warm: bool = True) -> dict:
     cmds = {
         "sweep": ["sweep", "--system", system, *size],
         "sweep --verify-steps 0": ["sweep", "--system", system, *size, "--verify-steps", "0"],
@@ -57,7 +57,7 @@ def measure(system: str, size: list, repeats: int) -> dict:
             "0.01",
         ],
     }
-    for argv in cmds.values():  # warm the numba cache and the page cache, untimed
+    for argv in cmds.values() if warm else ():  # warm the numba cache and the page cache, untimed
         _run(argv)
     times: dict = {k: [] for k in cmds}
     for _ in range(repeats):
@@ -80,12 +80,18 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--systems", default="dc-motor,boeing747")
     p.add_argument("--quick", action="store_true", help="small data (a smoke run, not the paper-scale target)")
+    p.add_argument(
+        "--no-warm",
+        dest="warm",
+        action="store_false",
+        help="skip the untimed first run of each command (a smoke run: the first timed run may include compiling)",
+    )
     a = p.parse_args(argv)
     size = ["--bits", "1:4", "--realizations", "4", "--trajectories", "20", "--steps", "100"] if a.quick else []
     out = []
     print(f"{'system':10s} {'command':28s} {'best s':>8s} {'median s':>9s}")
     for s in a.systems.split(","):
-        r = measure(s, size, a.repeats)
+        r = measure(s, size, a.repeats, a.warm)
         out.append(r)
         for k in r["median_s"]:
             print(f"{s:10s} {k:28s} {r['best_s'][k]:8.2f} {r['median_s'][k]:9.2f}")
@@ -94,7 +100,8 @@ def main(argv=None) -> int:
             f"sweep / sweep without extra verdict steps = {r['ratio_sweep_to_unjudged']:.2f}; "
             f"tracking + disturbance sweep / plain sweep = {r['ratio_tracking_disturbance_to_sweep']:.2f}"
         )
-    print("RESULT " + json.dumps({"benchmark": "bench_bits", "quick": a.quick, "repeats": a.repeats, "results": out}))
+    result = {"benchmark": "bench_bits", "quick": a.quick, "warm": a.warm, "repeats": a.repeats, "results": out}
+    print("RESULT " + json.dumps(result))
     return 0
 
 

@@ -71,6 +71,14 @@ def _stop_signals_interrupt() -> dict:
     return old
 
 
+def _ignore_stop_signals() -> None:
+    """The stop signals this entry point took (:func:`_stop_signals_interrupt`) ignored from now on."""
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGINT):
+            if signal.getsignal(sig) is stop_signal:
+                signal.signal(sig, signal.SIG_IGN)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``qsid`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
 
@@ -83,11 +91,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
 
     old = _stop_signals_interrupt()
+    code = None
     try:
-        return _main(argv, rep, fail)
+        code = _main(argv, rep, fail)
+        return code
     finally:
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
+        # The program's own run (no argv given) that was interrupted now ends: its stop signals stay ignored
+        # until the process is gone. Restored, a further Ctrl-C (pressed again, or a signal arriving late)
+        # would raise in the exit, or kill it by SIGINT once Python resets the handlers while it finalizes:
+        # exit -2 (or a traceback) after "interrupted", not 130. A caller in the same process gets its own back.
+        if not (code == 130 and argv is None):
+            for sig, handler in old.items():
+                signal.signal(sig, handler)
 
 
 def _broken_pool() -> tuple[type[BaseException], ...]:
@@ -118,5 +133,6 @@ def _main(argv: Sequence[str] | None, rep: Reporter, fail: Callable[..., int]) -
             where = f" {exc.filename!r}" if getattr(exc, "filename", None) else ""
             return fail(f"cannot read or write{where}: {exc.strerror or exc}")
         except KeyboardInterrupt:
+            _ignore_stop_signals()  # stopped and cleaned up: a further signal must not end the exit differently
             rep.line("interrupted")
             return 130

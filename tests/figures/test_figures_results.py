@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.figures.export import ExportError, save_figure
+from app.figures.export import ExportError, save_figure, save_figures
 from app.figures.results import FigureError, plot_results, result_series
 from qsid_core import MPCConfig, QuantizerSpec, SweepConfig, load_result, run_sweep
 
@@ -157,8 +157,8 @@ def test_png_svg_pdf_offline_in_chromium_and_the_browser_ends(results, tmp_path)
     fig = plot_results(*results)
     before = set(descendants(os.getpid()))
     png = save_figure(fig, tmp_path / "f.png", width=800, height=400, scale=2)
-    svg = save_figure(fig, tmp_path / "f.svg", width=800, height=400)
-    pdf = save_figure(fig, tmp_path / "f.pdf", width=800, height=400)
+    # the other two in one Chromium (save_figures, as the CLI draws several figures)
+    svg, pdf = save_figures([(fig, tmp_path / "f.svg"), (fig, tmp_path / "f.pdf")], width=800, height=400)
     assert [s.note for s in (png, svg, pdf)] == ["", "", ""]
     data = png.path.read_bytes()
     assert _png_size(data) == (1600, 800) and len(data) > 20_000  # drawn, not a blank page
