@@ -18,10 +18,12 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def start_and_stop(cache: str) -> list[str]:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(ROOT))
+def start_and_stop(cache: str | None, *command: str) -> list[str]:
+    """The lines ``qsid dashboard: ...`` a server prints up to its URL (``command``: how Python runs it; default
+    ``-m app.dashboard --port 0 --workers 1``), then stopped by SIGTERM; ``cache``: numba's cache directory."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **({"NUMBA_CACHE_DIR": cache} if cache else {}))
     p = subprocess.Popen(
-        [sys.executable, "-m", "app.dashboard", "--port", "0", "--workers", "1"],
+        [sys.executable, *(command or ("-m", "app.dashboard", "--port", "0", "--workers", "1"))],
         cwd=ROOT,
         env=env,
         stdout=subprocess.PIPE,
@@ -181,28 +183,7 @@ sys.exit(server.main(["--port", "0", "--workers", "0"]))
 
 
 def test_the_server_freezes_what_its_start_made_after_the_first_view_before_its_url():
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    p = subprocess.Popen(
-        [sys.executable, "-c", _FREEZE_REPORTED],
-        cwd=ROOT,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-    )
-    lines = []
-    try:
-        assert p.stdout is not None
-        for line in p.stdout:
-            lines.append(line.strip())
-            if line.startswith("qsid dashboard: http://"):
-                break
-        p.send_signal(signal.SIGTERM)
-        p.wait(60)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait(10)
+    lines = start_and_stop(None, "-c", _FREEZE_REPORTED)
     first = next(i for i, ln in enumerate(lines) if ln.startswith("qsid dashboard: computing the first view"))
     frozen = [i for i, ln in enumerate(lines) if ln.startswith("qsid dashboard: frozen ")]
     assert len(frozen) == 1 and first < frozen[0] == len(lines) - 2, lines  # once, after the view, before the URL
