@@ -45,8 +45,7 @@ from qsid_core.studies import kernel_names as engine_kernel_names
 __all__ = ["StartupReport", "TICK_SECONDS", "prepare_stop_signals", "wait_for_stop_signal", "stop_app", "STOP_WAIT"]
 __all__ += ["RELEASE_WAIT", "IdleRelease", "IDLE_SECONDS", "limit_arenas", "trim", "trim_every", "TRIM_EVERY"]
 __all__ += ["one_blas_thread", "needs_compiling", "kernel_names", "warm", "warm_here", "prefill", "fetch_page"]
-__all__ += ["freeze_heap"]
-__all__ += ["first_tab", "COMPILE_SECONDS", "COLD_START", "WARM_START"]
+__all__ += ["first_tab", "freeze_heap", "COMPILE_SECONDS", "COLD_START", "WARM_START"]
 
 
 # ----- the start-up's report -----------------------------------------------------------------------------------

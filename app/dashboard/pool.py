@@ -117,7 +117,8 @@ class _Task(Future):
     def _copy(self, inner: Future) -> None:
         if inner.cancelled():  # by the watchdog, which settled this one first
             return
-        exc, died = inner.exception(), isinstance(inner.exception(), BrokenExecutor)
+        exc = inner.exception()
+        died = isinstance(exc, BrokenExecutor)
         if died or isinstance(exc, ShutdownExecutorError):  # a worker died, or the pool was replaced under the task
             why = "a worker process died (killed or out of memory)" if died else "the worker pool was restarted"
             exc = PoolFailure(why, self.guard.executor)

@@ -65,9 +65,7 @@ def iter_frames(
     sc = study_config(values)  # the plant's kind chooses the configuration, not a second path
     budget = float(values.total_bits) or None  # 0: no budget study
     per_sample = int(values.bits_per_sample) or None  # 0: no allocation
-    study = Study(
-        sc.config, executor, cache, max(1, tasks) if executor is not None else 0, sc.estimators, budget=budget,
-        bits_per_sample=per_sample,
-    )  # fmt: skip
+    tasks = max(1, tasks) if executor is not None else 0
+    study = Study(sc.config, executor, cache, tasks, sc.estimators, budget=budget, bits_per_sample=per_sample)
     for f in study.frames(int(values.bits), CancelToken(should_stop), on_progress, min_interval, chunk, memo):
         yield tab_frame(f, values, sc.system, sc.notes)

@@ -46,10 +46,10 @@ def _command_lines(v: Values) -> list:
     cfg = sc.config
     lines = [sweep_command(dataclasses.replace(cfg, estimator=e)) for e in sc.estimators]  # either kind of plant
     if float(v.total_bits):
-        last = dataclasses.replace(cfg, estimator=sc.estimators[-1])
-        lines.append(budget_command(sweep_argv(last), float(v.total_bits)))
+        last = sweep_argv(dataclasses.replace(cfg, estimator=sc.estimators[-1]))
+        lines.append(budget_command(last, float(v.total_bits)))
         if int(v.bits_per_sample):
-            lines.append(budget_command(sweep_argv(last), float(v.total_bits), int(v.bits_per_sample)))
+            lines.append(budget_command(last, float(v.total_bits), int(v.bits_per_sample)))
     if isinstance(cfg, KoopmanConfig):
         return lines
     return lines + [bits_command(cfg, float(v.target), float(v.cost_gap))]
